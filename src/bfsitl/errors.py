@@ -1,0 +1,124 @@
+"""The one exception tree of bfsitl.
+
+Every error the package raises on purpose derives from :class:`BfsitlError`, so
+``except BfsitlError`` catches all of them.  Timeouts also derive from the builtin
+:class:`TimeoutError` so generic code that already handles timeouts keeps working.
+Messages are written for the person at the terminal: what went wrong, then what to do.
+
+    BfsitlError
+    ├── ProtocolError                  bytes that do not follow a wire format
+    │   ├── PacketError                a SITL UDP datagram of the wrong size or with non-finite values
+    │   ├── MspFrameError              an MSP frame that cannot be built (payload too large, bad id)
+    │   └── MspDecodeError             an MSP payload too short or inconsistent for its message
+    ├── LinkError                      transport failures (TCP, serial, namespaces)
+    │   ├── LinkClosedError            the peer closed the connection (SITL exited or rebooted)
+    │   ├── LinkTimeoutError           (also TimeoutError) no bytes within the deadline
+    │   └── ExtraMissingError          an optional dependency is not installed
+    ├── MspError                       the FC answered, but not with what was asked
+    │   ├── MspErrorReply              the FC sent an ``!`` error frame (unknown or refused command)
+    │   └── MspTimeoutError            (also TimeoutError) no reply: bad checksum, port in CLI, FC gone
+    ├── CliError                       the CLI session failed
+    │   └── CliCommandError            a command answered ``###ERROR``
+    └── SitlError                      the SITL process
+        ├── FirmwareNotFoundError      no SITL binary anywhere we looked
+        ├── PortInUseError             another process already holds the SITL's ports
+        ├── SitlExitedError            the process ended (crash, reboot) while we needed it
+        └── SitlNotReadyError          (also TimeoutError) it never answered MSP
+"""
+
+from __future__ import annotations
+
+
+class BfsitlError(Exception):
+    """Root of every error bfsitl raises on purpose."""
+
+
+class ProtocolError(BfsitlError):
+    """Bytes that do not follow a wire format."""
+
+
+class PacketError(ProtocolError):
+    """A SITL UDP datagram that cannot be decoded or encoded."""
+
+
+class MspFrameError(ProtocolError):
+    """An MSP frame that cannot be built."""
+
+
+class MspDecodeError(ProtocolError):
+    """An MSP payload that is too short or inconsistent for its message type."""
+
+
+class LinkError(BfsitlError):
+    """A transport (TCP, serial) failed."""
+
+
+class LinkClosedError(LinkError):
+    """The peer closed the connection."""
+
+
+class LinkTimeoutError(LinkError, TimeoutError):
+    """No bytes arrived before the deadline."""
+
+
+class ExtraMissingError(LinkError):
+    """An optional dependency is missing; the message names the pip extra."""
+
+
+class MspError(BfsitlError):
+    """The flight controller did not answer as expected."""
+
+
+class MspErrorReply(MspError):
+    """The FC answered with an MSP error frame (``$M!`` / ``$X!``)."""
+
+    def __init__(self, command: int, message: str | None = None) -> None:
+        self.command = command
+        super().__init__(
+            message
+            or f"flight controller refused MSP command {command}: unknown to this firmware "
+            f"or not allowed in its current state (armed, missing feature)"
+        )
+
+
+class MspTimeoutError(MspError, TimeoutError):
+    """No reply arrived in time."""
+
+
+class CliError(BfsitlError):
+    """The CLI session failed."""
+
+
+class CliCommandError(CliError):
+    """A CLI command answered with ``###ERROR``."""
+
+    def __init__(self, command: str, output: str) -> None:
+        self.command = command
+        self.output = output
+        first = next((ln for ln in output.splitlines() if ln.startswith("###ERROR")), output)
+        super().__init__(f"CLI command {command!r} failed: {first.strip()}")
+
+
+class SitlError(BfsitlError):
+    """The SITL process could not be started, reached or kept running."""
+
+
+class FirmwareNotFoundError(SitlError):
+    """No SITL binary was found."""
+
+
+class PortInUseError(SitlError):
+    """Another process already holds a port the SITL needs."""
+
+
+class SitlExitedError(SitlError):
+    """The SITL process ended while it was needed."""
+
+    def __init__(self, message: str, returncode: int | None = None, log_tail: str = "") -> None:
+        self.returncode = returncode
+        self.log_tail = log_tail
+        super().__init__(message)
+
+
+class SitlNotReadyError(SitlError, TimeoutError):
+    """The SITL process never answered MSP."""

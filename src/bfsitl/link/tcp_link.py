@@ -1,0 +1,89 @@
+"""TCP transport: the SITL exposes UART1 on TCP 5761 (UART2 on 5762, ...)."""
+
+from __future__ import annotations
+
+import errno
+import select
+import socket
+from collections.abc import Callable
+
+from bfsitl.errors import LinkError, LinkTimeoutError
+from bfsitl.link.base import DEFAULT_TIMEOUT_S, Link
+
+#: Makes an unconnected socket; an isolated SITL's namespace hands out sockets this way.
+SocketFactory = Callable[[int, int], socket.socket]
+
+
+def _default_socket_factory(family: int, kind: int) -> socket.socket:
+    return socket.socket(family, kind)
+
+
+class TcpLink(Link):
+    """A TCP connection to a SITL UART (or any MSP-over-TCP bridge)."""
+
+    def __init__(
+        self,
+        host: str = "127.0.0.1",
+        port: int = 5761,
+        timeout_s: float = DEFAULT_TIMEOUT_S,
+        connect_timeout_s: float = 2.0,
+        socket_factory: SocketFactory | None = None,
+    ) -> None:
+        super().__init__(f"tcp://{host}:{port}", timeout_s)
+        self.host = host
+        self.port = port
+        factory = socket_factory or _default_socket_factory
+        sock = factory(socket.AF_INET6 if ":" in host else socket.AF_INET, socket.SOCK_STREAM)
+        try:
+            sock.settimeout(connect_timeout_s)
+            sock.connect((host, port))
+            sock.setblocking(False)
+            # MSP frames are tiny; Nagle would hold a request back for an ACK.
+            sock.setsockopt(socket.IPPROTO_TCP, socket.TCP_NODELAY, 1)
+        except TimeoutError as exc:
+            sock.close()
+            raise LinkTimeoutError(
+                f"{self.uri}: no answer to connect within {connect_timeout_s} s"
+            ) from exc
+        except OSError as exc:
+            sock.close()
+            if exc.errno == errno.ECONNREFUSED:
+                raise LinkError(
+                    f"{self.uri}: connection refused: nothing listens there. Is the SITL "
+                    f"running (in this network namespace)? Start one with `bfsitl status "
+                    f"--start`."
+                ) from exc
+            raise LinkError(f"{self.uri}: cannot connect: {exc}") from exc
+        self._sock = sock
+
+    def _write_bytes(self, data: bytes) -> None:
+        view = memoryview(data)
+        while view:
+            try:
+                sent = self._sock.send(view)
+            except BlockingIOError:
+                _, writable, _ = select.select([], [self._sock], [], self.timeout_s)
+                if not writable:
+                    raise TimeoutError from None
+                continue
+            view = view[sent:]
+
+    def _read_bytes(self, max_bytes: int, timeout_s: float) -> bytes | None:
+        readable, _, _ = select.select([self._sock], [], [], timeout_s)
+        if not readable:
+            return b""
+        try:
+            data = self._sock.recv(max_bytes)
+        except BlockingIOError:
+            return b""
+        return data if data else None
+
+    def _close(self) -> None:
+        try:
+            self._sock.shutdown(socket.SHUT_RDWR)
+        except OSError:
+            pass
+        self._sock.close()
+
+    def fileno(self) -> int:
+        return self._sock.fileno()

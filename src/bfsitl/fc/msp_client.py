@@ -61,8 +61,6 @@ TELEMETRY_COMMANDS: tuple[int, ...] = (
 
 T = TypeVar("T")
 
-_OVERDUE = float("-inf")
-
 
 class _Decodable(Protocol):
     COMMAND: Any
@@ -98,8 +96,11 @@ class MspRequest:
 class _Pending:
     request: MspRequest
     frame_size: int
-    sent_at_s: float
+    #: When the reply could start to be late: sent, or became the oldest outstanding request
+    #: (the FC answers in order, so a request queued behind others is not late yet).
+    clock_start_s: float
     index: int
+    lost: bool = False
 
 
 @dataclass(slots=True)
@@ -260,8 +261,8 @@ class MspClient:
                 if not in_flight:
                     break
                 head = in_flight[0]
-                wait_s = head.sent_at_s + timeout_s - self._clock()
-                if wait_s <= 0:
+                wait_s = head.clock_start_s + timeout_s - self._clock()
+                if wait_s <= 0 or head.lost:
                     # Look behind a garbage header before declaring the head lost.
                     self._dispatch(self._parser.flush_stalled(), in_flight, results, on_reply)
                     if in_flight and in_flight[0] is head:
@@ -331,11 +332,14 @@ class MspClient:
             # way (a corrupted frame gets no reply).  Mark them overdue: the timeout path then
             # retries or fails them without waiting out their deadline.
             for index in range(position):
-                if in_flight[index].sent_at_s != _OVERDUE:
-                    in_flight[index].sent_at_s = _OVERDUE
+                if not in_flight[index].lost:
+                    in_flight[index].lost = True
                     self.stats.lost_requests += 1
             pending = in_flight[position]
             del in_flight[position]
+            if in_flight and position == 0:
+                # The next request only now becomes the one whose reply is due.
+                in_flight[0].clock_start_s = max(in_flight[0].clock_start_s, self._clock())
             if event.is_error:
                 self.stats.error_replies += 1
                 results[pending.index] = MspErrorReply(event.command)

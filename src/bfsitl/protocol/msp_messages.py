@@ -77,13 +77,13 @@ MODE_RANGE_MIN_US = 900
 MODE_RANGE_MAX_US = 2100
 MODE_RANGE_STEP_US = 25
 
-#: MSP2_SENSOR_CONFIG_ACTIVE value for a sensor type not compiled in (msp.c:2116).
+#: MSP2_SENSOR_CONFIG_ACTIVE value for a sensor type not compiled in (msp.c:2115).
 SENSOR_NOT_BUILT = 0xFF
 
 #: Bits of the STATUS ``sensors`` word (msp.c:1099; NOT the firmware's internal sensor bits).
 SENSOR_NAMES: tuple[str, ...] = ("ACC", "BARO", "MAG", "GPS", "RANGEFINDER", "GYRO", "OPTICALFLOW")
 
-#: Feature bits (config/feature.h:45-67) named as the CLI ``feature`` command spells them
+#: Feature bits (config/feature.h:46-69) named as the CLI ``feature`` command spells them
 #: (cli/cli.c:234-257). Bit 14 RX_MSP has no CLI name in 4.6 (the CLI cannot toggle it).
 FEATURE_NAMES: dict[int, str] = {
     0: "RX_PPM", 2: "INFLIGHT_ACC_CAL", 3: "RX_SERIAL", 4: "MOTOR_STOP", 5: "SERVO_TILT",
@@ -109,7 +109,7 @@ BUILD_OPTION_NAMES: dict[int, str] = {
     8232: "MULTISHOT", 8233: "ONESHOT", 8234: "PROSHOT", 8235: "PWM_OUTPUT",
 }  # fmt: skip
 
-#: BOARD_INFO ``configurationProblems`` bits (msp.c:728-729).
+#: BOARD_INFO ``configurationProblems`` bits (msp.c:723-724).
 CONFIGURATION_PROBLEM_NAMES: dict[int, str] = {
     0: "ACC_NEEDS_CALIBRATION",
     1: "MOTOR_PROTOCOL_DISABLED",
@@ -501,7 +501,7 @@ class _StatusView:
 
     @property
     def armed(self) -> bool:
-        """Bit 0 of the flight-mode flags is always the ARM box (msp_box.c:380, 402-418)."""
+        """Bit 0 of the flight-mode flags is the ARM box, which is always active (msp_box.c:206)."""
         return bool(self.flight_mode_flags & 1)
 
     @property
@@ -518,7 +518,10 @@ class _StatusView:
         return bool(self.config_state & 1)
 
 
-def _decode_status(cls: type, payload: bytes, extended: bool) -> Any:
+_S = TypeVar("_S", bound=_StatusView)
+
+
+def _decode_status(cls: type[_S], payload: bytes, extended: bool) -> _S:
     # msp.c:1088-1137; STATUS and STATUS_EX differ only in the 2 bytes after the CPU load.
     r = _reader(cls, payload)
     kw: dict[str, Any] = {"cycle_time_us": r.u16(), "i2c_errors": r.u16(), "sensors_mask": r.u16()}
@@ -529,8 +532,8 @@ def _decode_status(cls: type, payload: bytes, extended: bool) -> Any:
         kw["pid_profile_count"] = r.u8()
         kw["rate_profile_index"] = r.u8()
     else:
-        r.u16()  # "gyro cycle time", always 0 (msp.c:1108)
-    extra = r.u8()
+        r.u16()  # "gyro cycle time", always 0 (msp.c:1107)
+    extra = r.u8() & 0x0F  # "lowest 4 bits contain number of bytes that follow" (msp.c:1110-1114)
     high_flags = int.from_bytes(r.raw(extra), "little")
     kw["flight_mode_flags"] = low_flags | high_flags << 32
     kw["flight_mode_extra_bytes"] = extra
@@ -546,6 +549,8 @@ def _encode_status(msg: Status | StatusEx, middle: Callable[[PayloadWriter], obj
     flags = msg.flight_mode_flags
     needed = max(0, (flags.bit_length() - 32 + 7) // 8)
     extra = max(needed, msg.flight_mode_extra_bytes)
+    if extra > 15:
+        raise MspRequestError("flight-mode flags above bit 159 do not fit MSP_STATUS")
     w = PayloadWriter().u16(msg.cycle_time_us).u16(msg.i2c_errors).u16(msg.sensors_mask)
     w.u32(flags & 0xFFFFFFFF).u8(msg.pid_profile).u16(msg.cpu_load_percent)
     middle(w)
@@ -585,7 +590,7 @@ class Status(_StatusView):
 
     @classmethod
     def decode(cls, payload: bytes) -> Self:
-        return _decode_status(cls, payload, extended=False)  # type: ignore[no-any-return]
+        return _decode_status(cls, payload, extended=False)
 
     @_encoder
     def encode(self) -> bytes:
@@ -595,7 +600,7 @@ class Status(_StatusView):
 @dataclass(frozen=True, slots=True)
 class StatusEx(_StatusView):
     """MSP_STATUS_EX (150): as :class:`Status`, but the U16 0 is U8 PID-profile count and U8
-    current rate-profile index (msp.c:1102-1108), so the arming flags sit at offset 17 + N."""
+    current rate-profile index (msp.c:1103-1108), so the arming flags sit at offset 17 + N."""
 
     COMMAND: ClassVar[int] = MspCommand.STATUS_EX
     cycle_time_us: int
@@ -615,7 +620,7 @@ class StatusEx(_StatusView):
 
     @classmethod
     def decode(cls, payload: bytes) -> Self:
-        return _decode_status(cls, payload, extended=True)  # type: ignore[no-any-return]
+        return _decode_status(cls, payload, extended=True)
 
     @_encoder
     def encode(self) -> bytes:
@@ -1250,7 +1255,7 @@ class SetModeRange:
     (0 OR, 1 AND) and U8 linked permanent id (msp.c:2761-2785). Applied at once, RAM only until
     saved; an unknown box id or slot >= 20 gets an error reply.
 
-    4.6 dereferences the box found for ``linked_to`` without a NULL check (msp.c:2777), so an
+    4.6 dereferences the box found for ``linked_to`` without a NULL check (msp.c:2776), so an
     unknown linked id would crash the FC; this class only accepts known permanent ids there.
     """
 
@@ -1399,7 +1404,7 @@ class Reboot:
 
 @dataclass(frozen=True, slots=True)
 class RebootReply:
-    """MSP_REBOOT (68) reply: U8 mode, plus U8 ready flag for MSC mode (msp.c:2383-2393)."""
+    """MSP_REBOOT (68) reply: U8 mode, plus U8 ready flag for MSC mode (msp.c:2382-2393)."""
 
     COMMAND: ClassVar[int] = MspCommand.REBOOT
     mode: int

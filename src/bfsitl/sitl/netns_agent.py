@@ -26,6 +26,8 @@ import subprocess
 import sys
 import time
 
+from bfsitl.sitl.timer_slack import timer_slack
+
 _SIOCGIFFLAGS = 0x8913
 _SIOCSIFFLAGS = 0x8914
 _IFF_UP = 0x1
@@ -78,13 +80,15 @@ class Agent:
             fds.append(sock.detach())
             return {"ok": True}
         if op == "spawn":
+            slack_ns = request.get("timer_slack_ns")
             log = open(request["log"], "ab")  # noqa: SIM115 - handed to the child
             try:
-                child = subprocess.Popen(
-                    request["argv"], cwd=request["cwd"], stdin=subprocess.DEVNULL,
-                    stdout=log, stderr=subprocess.STDOUT, start_new_session=True,
-                    env=request.get("env") or None,
-                )
+                with timer_slack(None if slack_ns is None else int(slack_ns)):
+                    child = subprocess.Popen(
+                        request["argv"], cwd=request["cwd"], stdin=subprocess.DEVNULL,
+                        stdout=log, stderr=subprocess.STDOUT, start_new_session=True,
+                        env=request.get("env") or None,
+                    )
             finally:
                 log.close()
             self.children[child.pid] = child

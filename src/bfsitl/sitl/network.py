@@ -23,6 +23,7 @@ from pathlib import Path
 from typing import Protocol
 
 from bfsitl.errors import SitlError
+from bfsitl.sitl.timer_slack import timer_slack
 
 
 class ProcessHandle(Protocol):
@@ -45,7 +46,7 @@ class Network(Protocol):
 
     def spawn(
         self, argv: Sequence[str], cwd: Path, log_path: Path,
-        env: Mapping[str, str] | None = None,
+        env: Mapping[str, str] | None = None, timer_slack_ns: int | None = None,
     ) -> ProcessHandle: ...
 
     def close(self) -> None: ...
@@ -86,9 +87,9 @@ class HostNetwork:
 
     def spawn(
         self, argv: Sequence[str], cwd: Path, log_path: Path,
-        env: Mapping[str, str] | None = None,
+        env: Mapping[str, str] | None = None, timer_slack_ns: int | None = None,
     ) -> ProcessHandle:
-        with open(log_path, "ab") as log:
+        with open(log_path, "ab") as log, timer_slack(timer_slack_ns):
             popen = subprocess.Popen(
                 list(argv), cwd=cwd, stdin=subprocess.DEVNULL, stdout=log,
                 stderr=subprocess.STDOUT, start_new_session=True,
@@ -225,11 +226,11 @@ class IsolatedNetwork:
 
     def spawn(
         self, argv: Sequence[str], cwd: Path, log_path: Path,
-        env: Mapping[str, str] | None = None,
+        env: Mapping[str, str] | None = None, timer_slack_ns: int | None = None,
     ) -> ProcessHandle:
         reply = self.call({
             "op": "spawn", "argv": list(argv), "cwd": str(cwd), "log": str(log_path),
-            "env": dict(env) if env is not None else None,
+            "env": dict(env) if env is not None else None, "timer_slack_ns": timer_slack_ns,
         })
         return _AgentProcessHandle(self, int(reply["pid"]))
 

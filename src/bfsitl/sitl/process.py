@@ -34,6 +34,7 @@ from bfsitl.protocol.msp_messages import ApiVersion
 from bfsitl.sitl.firmware import FirmwareBinary, find_firmware
 from bfsitl.sitl.network import HostNetwork, IsolatedNetwork, Network, ProcessHandle
 from bfsitl.sitl.ports import SITL_TCP_PORTS, SITL_UDP_PORTS, check_ports_free
+from bfsitl.sitl.timer_slack import SITL_TIMER_SLACK_NS
 
 SITL_HOST = "127.0.0.1"
 SITL_MSP_PORT = 5761
@@ -59,6 +60,7 @@ class SitlProcess:
         network: Network | None = None,
         ready_timeout_s: float = DEFAULT_READY_TIMEOUT_S,
         progress: Callable[[str], None] | None = None,
+        timer_slack_ns: int | None = SITL_TIMER_SLACK_NS,
     ) -> None:
         self.firmware = (
             firmware if isinstance(firmware, FirmwareBinary) else find_firmware(firmware)
@@ -70,6 +72,8 @@ class SitlProcess:
         self.workdir.mkdir(parents=True, exist_ok=True)
         self.log_path = self.workdir / LOG_NAME
         self.ready_timeout_s = ready_timeout_s
+        #: None leaves the OS default (50 us), which starves the SITL's scheduler.
+        self.timer_slack_ns = timer_slack_ns
         self._progress = progress or (lambda _message: None)
         self._owns_network = network is None
         self._isolate = isolate
@@ -121,7 +125,8 @@ class SitlProcess:
             f"starting {self.firmware.path.name} in {self.workdir}"
             + (" (isolated network namespace)" if self.isolated else "")
         )
-        self._process = self.network.spawn(argv, self.workdir, self.log_path)
+        self._process = self.network.spawn(argv, self.workdir, self.log_path,
+                                           timer_slack_ns=self.timer_slack_ns)
         self.starts += 1
         try:
             self.client = self._wait_ready(self.ready_timeout_s)

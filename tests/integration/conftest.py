@@ -1,0 +1,44 @@
+"""Fixtures that start the real Betaflight SITL, each in its own network namespace.
+
+Without a SITL binary these tests skip, unless BFSITL_REQUIRE_SITL=1 (set by .ci/run), where
+a missing binary is a failure: CI must prove the real firmware, not skip it.
+"""
+
+from __future__ import annotations
+
+import os
+from collections.abc import Iterator
+
+import pytest
+
+from bfsitl.errors import FirmwareNotFoundError
+from bfsitl.sitl.firmware import FirmwareBinary, find_firmware
+from bfsitl.sitl.network import unshare_available
+from bfsitl.sitl.process import SitlProcess
+
+
+@pytest.fixture(scope="session")
+def firmware() -> FirmwareBinary:
+    required = os.environ.get("BFSITL_REQUIRE_SITL") == "1"
+    try:
+        binary = find_firmware()
+    except FirmwareNotFoundError as exc:
+        if required:
+            pytest.fail(f"BFSITL_REQUIRE_SITL=1 but no SITL binary: {exc}")
+        pytest.skip(f"no SITL binary: {exc}")
+    if not unshare_available():
+        if required:
+            pytest.fail("BFSITL_REQUIRE_SITL=1 but `unshare` is missing")
+        pytest.skip("unshare (util-linux) is missing")
+    return binary
+
+
+@pytest.fixture
+def sitl(firmware: FirmwareBinary, tmp_path) -> Iterator[SitlProcess]:
+    """A freshly booted SITL in a private namespace and a persisted run directory."""
+    process = SitlProcess(firmware, workdir=tmp_path / "run", isolate=True)
+    process.start()
+    try:
+        yield process
+    finally:
+        process.stop()

@@ -95,11 +95,10 @@ class CliSession:
         self._require_active()
         command = command.strip()
         _validate(command)
-        if command.split(" ", 1)[0].lower() in _REBOOTING and "noreboot" not in command:
-            raise CliError(
-                f"{command!r} reboots the FC (a SITL process exits): use save(), leave() "
-                f"or add 'noreboot'"
-            )
+        word = command.split(" ", 1)[0].lower()
+        if word == "exit":
+            raise CliError(f"{command!r} leaves the CLI: use leave()")
+        _refuse_reboot(command)
         self.link.write(command.encode("ascii") + b"\r")
         raw = self._sync(timeout_s)
         output = _strip_echo(raw, command)
@@ -173,6 +172,7 @@ class CliSession:
         lines = [ln.strip() for ln in commands if ln.strip() and not ln.strip().startswith("#")]
         for line in lines:
             _validate(line)
+            _refuse_reboot(line)
         self.link.drain_input(quiet_s=0.05)
         self.link.write(_STX + "".join(f"{ln}\n" for ln in lines).encode("ascii") + _ETX)
         raw = self._read_until(_ETX, self.timeout_s)
@@ -219,9 +219,23 @@ class CliSession:
         return bytes(data)
 
 
+def _refuse_reboot(command: str) -> None:
+    words = command.lower().split()
+    if words and words[0] in _REBOOTING and "noreboot" not in words:
+        raise CliError(
+            f"{command!r} reboots the FC (a SITL process exits): use save(restart=...), or "
+            f"'save noreboot' to write without rebooting"
+        )
+
+
 def _validate(command: str) -> None:
-    if any(ch in command for ch in "\r\n\x02\x03"):
-        raise CliError(f"one command per call, without line breaks: {command!r}")
+    # Control characters act as keys in the CLI: CTRL-D on an empty line exits and reboots,
+    # TAB completes, DEL erases; 0x02/0x03 switch the port's mode.
+    if any(ord(ch) < 0x20 or ord(ch) == 0x7F for ch in command):
+        raise CliError(
+            f"one printable command per call, without line breaks or control characters: "
+            f"{command!r}"
+        )
     if len(command) > MAX_COMMAND_LENGTH:
         raise CliError(
             f"command of {len(command)} characters exceeds the {MAX_COMMAND_LENGTH}-character "

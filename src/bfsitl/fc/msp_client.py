@@ -12,6 +12,13 @@ Why it is built this way (facts in ``shared/FIRMWARE_FACTS.md``):
 * Only reads are retried: re-sending a ``SET`` or ``EEPROM_WRITE`` whose reply was lost could
   apply it twice.
 * A port left in CLI mode echoes MSP bytes as text; a timeout looks for that and says so.
+* The SITL's TCP thread (``lib/main/dyad``) sleeps in ``select`` for up to 10 ms and only
+  watches for write-readiness if it had output queued before it slept, so a reply the FC
+  produces meanwhile waits for the next incoming byte or the timeout.  While waiting for a
+  reply, the client therefore sends one ``0x00`` every millisecond (:data:`WAKE_BYTE`): the
+  MSP parser discards it in its idle state (only ``$``, ``#``, ``R`` and ``0x02`` mean
+  anything there), and its arrival makes the thread flush the reply at once.  Measured in
+  ``benchmarks/telemetry.py``.
 """
 
 from __future__ import annotations
@@ -19,17 +26,19 @@ from __future__ import annotations
 import threading
 import time
 from collections import deque
-from collections.abc import Callable, Iterable, Sequence
+from collections.abc import Callable, Iterable, Iterator, Sequence
 from dataclasses import dataclass, field
-from typing import Any, Protocol, TypeVar
+from typing import Any, Literal, Protocol, TypeVar
 
 from bfsitl.errors import LinkClosedError, MspDecodeError, MspErrorReply, MspTimeoutError
 from bfsitl.link.base import Link
 from bfsitl.link.serial_link import SerialLink
+from bfsitl.link.tcp_link import TcpLink
 from bfsitl.protocol import msp_messages as msg
 from bfsitl.protocol.msp_codes import MspCommand
 from bfsitl.protocol.msp_frame import (
     ChecksumFailure,
+    Direction,
     MspFrame,
     MspParser,
     MspVersion,
@@ -37,6 +46,10 @@ from bfsitl.protocol.msp_frame import (
 )
 
 DEFAULT_TIMEOUT_S = 0.5
+#: Sent while waiting on a SITL TCP link to make its I/O thread flush replies (see above).
+WAKE_BYTE = b"\x00"
+#: How often to send it: well under the SITL's 10 ms select timeout.
+DEFAULT_WAKE_INTERVAL_S = 0.001
 DEFAULT_RETRIES = 2
 #: Below the SITL's 1400-byte TCP receive ring, with room for an RC frame from another thread.
 TCP_MAX_IN_FLIGHT_BYTES = 1024
@@ -50,7 +63,7 @@ _MUTATING_COMMANDS = frozenset({
     MspCommand.COPY_PROFILE, MspCommand.SELECT_SETTING, MspCommand.CALCULATE_SIMPLIFIED_PID,
     MspCommand.CALCULATE_SIMPLIFIED_GYRO, MspCommand.CALCULATE_SIMPLIFIED_DTERM,
     MspCommand.OSD_CHAR_WRITE, MspCommand.DISPLAYPORT, MspCommand.MSP2_BETAFLIGHT_BIND,
-    MspCommand.MSP2_SEND_DSHOT_COMMAND,
+    MspCommand.MSP2_SEND_DSHOT_COMMAND, MspCommand.CAMERA_CONTROL,
 })
 
 #: What :meth:`MspClient.telemetry` asks for in one MSP_MULTIPLE_MSP round trip.
@@ -92,15 +105,24 @@ class MspRequest:
     payload: bytes = b""
 
 
-@dataclass(slots=True)
+@dataclass(slots=True, eq=False)  # identity: the FIFO finds and removes entries
 class _Pending:
+    """A request on the wire, in the FIFO of outstanding requests."""
+
     request: MspRequest
     frame_size: int
-    #: When the reply could start to be late: sent, or became the oldest outstanding request
-    #: (the FC answers in order, so a request queued behind others is not late yet).
+    #: When the reply could start to be late: sent, or became the oldest live request (the
+    #: FC answers in order, so a request queued behind others is not late yet).
     clock_start_s: float
     index: int
+    #: A later reply (or a corrupted reply to it) proved that no reply will come.
     lost: bool = False
+    #: Timed out, but its reply may still arrive late: kept in place to absorb that reply so
+    #: it is not taken for a later request's.  Ghosts expire at ``clock_start_s``.
+    ghost: bool = False
+    #: Wake bytes sent just before this frame: they sit in the FC's receive ring in front of
+    #: it and leave it in the same serial tick.
+    wake_bytes_before: int = 0
 
 
 @dataclass(slots=True)
@@ -113,6 +135,7 @@ class ClientStats:
     timeouts: int = 0
     retries: int = 0
     lost_requests: int = 0
+    late_replies: int = 0
     stray_replies: int = 0
     checksum_failures: int = 0
 
@@ -160,9 +183,15 @@ class MspClient:
         timeout_s: float = DEFAULT_TIMEOUT_S,
         retries: int = DEFAULT_RETRIES,
         max_in_flight_bytes: int | None = None,
+        wake_interval_s: float | None | Literal["auto"] = "auto",
         clock: Callable[[], float] = time.monotonic,
     ) -> None:
+        """``wake_interval_s``: see :data:`WAKE_BYTE`; "auto" wakes on TCP links (SITL) and
+        not on serial links; None never sends it."""
         self.link = link
+        if wake_interval_s == "auto":
+            wake_interval_s = DEFAULT_WAKE_INTERVAL_S if isinstance(link, TcpLink) else None
+        self.wake_interval_s: float | None = wake_interval_s
         self.timeout_s = timeout_s
         self.retries = retries
         if max_in_flight_bytes is None:
@@ -176,6 +205,7 @@ class MspClient:
         self._parser = MspParser()
         self._lock = threading.RLock()
         self._box_ids: tuple[int, ...] | None = None
+        self._ghosts: list[_Pending] = []
 
     # -- lifecycle -------------------------------------------------------------------------
     def close(self) -> None:
@@ -226,74 +256,15 @@ class MspClient:
         """
         timeout_s = self.timeout_s if timeout_s is None else timeout_s
         retries = self.retries if retries is None else retries
-        source = iter(requests)
-        results: dict[int, bytes | MspErrorReply | MspTimeoutError] = {}
-        attempts: dict[int, int] = {}
-        in_flight: deque[_Pending] = deque()
-        resend: deque[tuple[int, MspRequest]] = deque()
-        next_index = 0
-        exhausted = False
+        run = _PipelineRun(self, iter(requests), depth, timeout_s, retries, on_reply)
         with self._lock:
-            while True:
-                # Fill the window: retries first (they are older), then fresh requests.
-                while len(in_flight) < depth:
-                    if resend:
-                        index, request = resend.popleft()
-                    elif not exhausted:
-                        try:
-                            request = next(source)
-                        except StopIteration:
-                            exhausted = True
-                            continue
-                        index = next_index
-                        next_index += 1
-                    else:
-                        break
-                    frame = encode_request(request.command, request.payload)
-                    bytes_in_flight = sum(p.frame_size for p in in_flight)
-                    if in_flight and bytes_in_flight + len(frame) > self.max_in_flight_bytes:
-                        resend.appendleft((index, request))
-                        break
-                    self.link.write(frame)
-                    self.stats.requests += 1
-                    attempts[index] = attempts.get(index, 0) + 1
-                    in_flight.append(_Pending(request, len(frame), self._clock(), index))
-                if not in_flight:
-                    break
-                head = in_flight[0]
-                wait_s = head.clock_start_s + timeout_s - self._clock()
-                if wait_s <= 0 or head.lost:
-                    # Look behind a garbage header before declaring the head lost.
-                    self._dispatch(self._parser.flush_stalled(), in_flight, results, on_reply)
-                    if in_flight and in_flight[0] is head:
-                        in_flight.popleft()
-                        self._handle_timeout(head, attempts, retries, resend, results,
-                                             timeout_s)
-                    continue
-                data = self.link.read_some(min(wait_s, 0.1))
-                if data:
-                    self._dispatch(self._parser.feed(data), in_flight, results, on_reply)
-        return [results[i] for i in range(next_index)]
-
-    def _handle_timeout(
-        self,
-        pending: _Pending,
-        attempts: dict[int, int],
-        retries: int,
-        resend: deque[tuple[int, MspRequest]],
-        results: dict[int, bytes | MspErrorReply | MspTimeoutError],
-        timeout_s: float,
-    ) -> None:
-        self.stats.timeouts += 1
-        command = pending.request.command
-        if is_idempotent(command) and attempts[pending.index] <= retries:
-            self.stats.retries += 1
-            # 0x03 ends a non-interactive CLI session that a stray 0x02 may have started;
-            # harmless to an MSP parser in its idle state.
-            self.link.write(b"\x03")
-            resend.append((pending.index, pending.request))
-            return
-        results[pending.index] = MspTimeoutError(self._timeout_message(command, timeout_s))
+            self._parser.clear_recent_garbage()  # CLI text seen long ago proves nothing now
+            run.queue.extend(self._ghosts)
+            try:
+                run.run()
+            finally:
+                self._ghosts = [p for p in run.queue if p.ghost]
+        return [run.results[i] for i in range(run.next_index)]
 
     def _timeout_message(self, command: int, timeout_s: float) -> str:
         name = _command_name(command)
@@ -308,46 +279,6 @@ class MspClient:
             f"no MSP reply to {name} within {timeout_s} s on {self.link.uri}: the FC is busy, "
             f"rebooting, or gone; on a real board check that MSP is enabled on this port"
         )
-
-    def _dispatch(
-        self,
-        events: list[MspFrame | ChecksumFailure],
-        in_flight: deque[_Pending],
-        results: dict[int, bytes | MspErrorReply | MspTimeoutError],
-        on_reply: Callable[[MspRequest, bytes], None] | None,
-    ) -> None:
-        for event in events:
-            if isinstance(event, ChecksumFailure):
-                self.stats.checksum_failures += 1
-                continue
-            position = next(
-                (i for i, p in enumerate(in_flight) if p.request.command == event.command),
-                None,
-            )
-            if position is None:
-                # A late reply to a request that already timed out, or a pushed frame.
-                self.stats.stray_replies += 1
-                continue
-            # The FC answers in order, so every request ahead of the match was lost on the
-            # way (a corrupted frame gets no reply).  Mark them overdue: the timeout path then
-            # retries or fails them without waiting out their deadline.
-            for index in range(position):
-                if not in_flight[index].lost:
-                    in_flight[index].lost = True
-                    self.stats.lost_requests += 1
-            pending = in_flight[position]
-            del in_flight[position]
-            if in_flight and position == 0:
-                # The next request only now becomes the one whose reply is due.
-                in_flight[0].clock_start_s = max(in_flight[0].clock_start_s, self._clock())
-            if event.is_error:
-                self.stats.error_replies += 1
-                results[pending.index] = MspErrorReply(event.command)
-                continue
-            self.stats.replies += 1
-            results[pending.index] = event.payload
-            if on_reply is not None:
-                on_reply(pending.request, event.payload)
 
     # -- typed helpers ---------------------------------------------------------------------
     def get(self, message_type: type[T], payload: bytes = b"") -> T:
@@ -424,6 +355,200 @@ class MspClient:
             self.send(msg.Reboot())
         except LinkClosedError:
             pass  # the SITL may close the socket before the reply is read
+
+
+class _PipelineRun:
+    """One :meth:`MspClient.pipeline` call: the window, the FIFO and the results.
+
+    ``queue`` is the FIFO of requests on the wire in send order: a prefix of ghosts (timed
+    out, late reply still possible) followed by live requests.
+    """
+
+    def __init__(
+        self,
+        client: MspClient,
+        source: Iterator[MspRequest],
+        depth: int,
+        timeout_s: float,
+        retries: int,
+        on_reply: Callable[[MspRequest, bytes], None] | None,
+    ) -> None:
+        self.client = client
+        self.source = source
+        self.depth = depth
+        self.timeout_s = timeout_s
+        self.retries = retries
+        self.on_reply = on_reply
+        self.queue: deque[_Pending] = deque()
+        self.resend: deque[tuple[int, MspRequest]] = deque()
+        self.results: dict[int, bytes | MspErrorReply | MspTimeoutError] = {}
+        self.attempts: dict[int, int] = {}
+        self.next_index = 0
+        self.exhausted = False
+        #: Wake bytes sent after the newest frame; the FC's idle parser eats them next tick.
+        self.trailing_wake_bytes = 0
+
+    def _live(self) -> list[_Pending]:
+        return [p for p in self.queue if not p.ghost]
+
+    def _first_live(self) -> _Pending | None:
+        return next((p for p in self.queue if not p.ghost), None)
+
+    def run(self) -> None:
+        client = self.client
+        while True:
+            self._expire_ghosts()
+            self._fill_window()
+            head = self._first_live()
+            if head is None:
+                return
+            now_s = client._clock()
+            if head.lost or now_s >= head.clock_start_s + self.timeout_s:
+                # Look behind a garbage header before declaring the head lost.
+                self._dispatch(client._parser.flush_stalled())
+                if head in self.queue and (head.lost or
+                                           client._clock() >= head.clock_start_s
+                                           + self.timeout_s):
+                    self._give_up_on(head)
+                continue
+            wait_s = head.clock_start_s + self.timeout_s - now_s
+            data = client.link.read_some(min(wait_s, client.wake_interval_s or 0.1))
+            if data:
+                self._dispatch(client._parser.feed(data))
+            elif client.wake_interval_s is not None and \
+                    self._unconsumed_bytes() < client.max_in_flight_bytes:
+                client.link.write(WAKE_BYTE)
+                self.trailing_wake_bytes += 1
+
+    def _unconsumed_bytes(self) -> int:
+        """Bytes of ours the FC may not have read yet: frames in flight, wake bytes between.
+
+        Per serial tick the FC reads idle bytes up to one frame and that frame, so a frame's
+        reply proves it consumed everything up to that frame.
+        """
+        return sum(p.frame_size + p.wake_bytes_before for p in self.queue) + \
+            self.trailing_wake_bytes
+
+    def _expire_ghosts(self) -> None:
+        now_s = self.client._clock()
+        while self.queue and self.queue[0].ghost and now_s >= self.queue[0].clock_start_s:
+            self.queue.popleft()
+
+    def _fill_window(self) -> None:
+        client = self.client
+        while len(self._live()) < self.depth:
+            if self.resend:
+                index, request = self.resend.popleft()
+            elif not self.exhausted:
+                try:
+                    request = next(self.source)
+                except StopIteration:
+                    self.exhausted = True
+                    continue
+                index = self.next_index
+                self.next_index += 1
+            else:
+                return
+            frame = encode_request(request.command, request.payload)
+            if self.queue and \
+                    self._unconsumed_bytes() + len(frame) > client.max_in_flight_bytes:
+                self.resend.appendleft((index, request))
+                return
+            client.link.write(frame)
+            client.stats.requests += 1
+            self.attempts[index] = self.attempts.get(index, 0) + 1
+            self.queue.append(_Pending(request, len(frame), client._clock(), index,
+                                       wake_bytes_before=self.trailing_wake_bytes))
+            self.trailing_wake_bytes = 0
+
+    def _give_up_on(self, pending: _Pending) -> None:
+        """The oldest live request got no reply: retry a read, fail anything else."""
+        client = self.client
+        now_s = client._clock()
+        if pending.lost:
+            self.queue.remove(pending)  # its reply will never come: no ghost needed
+        else:
+            client.stats.timeouts += 1
+            pending.ghost = True
+            pending.clock_start_s = now_s + self.timeout_s  # expiry of the ghost
+        self._restart_head_clock()
+        command = pending.request.command
+        if is_idempotent(command) and self.attempts[pending.index] <= self.retries:
+            client.stats.retries += 1
+            # 0x03 ends a non-interactive CLI session that a stray 0x02 may have started;
+            # harmless to an MSP parser in its idle state.
+            client.link.write(b"\x03")
+            self.resend.append((pending.index, pending.request))
+            return
+        self.results[pending.index] = MspTimeoutError(
+            client._timeout_message(command, self.timeout_s)
+        )
+
+    def _restart_head_clock(self) -> None:
+        head = self._first_live()
+        if head is not None:
+            head.clock_start_s = max(head.clock_start_s, self.client._clock())
+
+    def _dispatch(self, events: list[MspFrame | ChecksumFailure]) -> None:
+        client = self.client
+        for event in events:
+            if isinstance(event, ChecksumFailure):
+                client.stats.checksum_failures += 1
+                # Replies come in order, so a corrupted reply carrying the oldest request's
+                # command is that request's reply: retry now instead of waiting out the
+                # timeout.  (4.6 SITL corrupts a reply now and then: its main thread appends
+                # to the TCP thread's write buffer without a lock.)
+                head = self.queue[0] if self.queue else None
+                if head is not None and head.request.command == event.command:
+                    if head.ghost:
+                        self.queue.popleft()
+                    elif not head.lost:
+                        head.lost = True
+                        client.stats.lost_requests += 1
+                continue
+            if event.direction is Direction.REQUEST:
+                # Our own request echoed back (loopback adapter, half-duplex wire).
+                client.stats.stray_replies += 1
+                continue
+            position = next(
+                (i for i, p in enumerate(self.queue) if p.request.command == event.command),
+                None,
+            )
+            if position is None:
+                # A reply to a request that has expired, or a pushed frame.
+                client.stats.stray_replies += 1
+                continue
+            # The FC answers in order: every request ahead of the match got no reply and
+            # never will.  Ghosts ahead simply go; live ones are lost (retried or failed by
+            # the loop at once, without waiting out their timeout).
+            pending = self.queue[position]
+            for ahead in [self.queue[i] for i in range(position)]:
+                if ahead.ghost:
+                    self.queue.remove(ahead)
+                elif not ahead.lost:
+                    ahead.lost = True
+                    client.stats.lost_requests += 1
+            self.queue.remove(pending)
+            if pending.ghost:
+                retry = next((p for p in self.queue
+                              if not p.ghost and p.index == pending.index), None)
+                if retry is None:
+                    client.stats.late_replies += 1  # its caller has already moved on
+                    continue
+                # Only reads are retried, so this reply answers the request whichever copy
+                # produced it; the retry becomes the ghost that absorbs the other reply.
+                retry.ghost = True
+                retry.clock_start_s = client._clock() + self.timeout_s
+                pending = retry
+            self._restart_head_clock()
+            if event.is_error:
+                client.stats.error_replies += 1
+                self.results[pending.index] = MspErrorReply(event.command)
+                continue
+            client.stats.replies += 1
+            self.results[pending.index] = event.payload
+            if self.on_reply is not None:
+                self.on_reply(pending.request, event.payload)
 
 
 def _command_name(command: int) -> str:

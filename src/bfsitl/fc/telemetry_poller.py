@@ -14,7 +14,7 @@ import time
 from collections.abc import Iterator
 from dataclasses import dataclass
 
-from bfsitl.errors import BfsitlError, LinkClosedError
+from bfsitl.errors import BfsitlError, LinkClosedError, MspTimeoutError
 from bfsitl.fc.msp_client import MspClient, MspRequest, Telemetry
 
 #: Requests per pipelined batch before the client's lock is released.
@@ -24,6 +24,9 @@ _BATCH_REQUESTS = 20
 @dataclass(frozen=True, slots=True)
 class PollerStats:
     updates: int
+    #: Requests that got no (intact) reply; the next poll simply carries on.
+    missed: int
+    #: Replies that could not be decoded, and other failures.
     errors: int
     elapsed_s: float
     last_error: str | None
@@ -45,6 +48,7 @@ class TelemetryPoller:
         self._latest: Telemetry | None = None
         self._sequence = 0
         self._errors = 0
+        self._missed = 0
         self._last_error: str | None = None
         self._changed = threading.Condition()
         self._stop = threading.Event()
@@ -52,6 +56,7 @@ class TelemetryPoller:
         self._started_at_s = 0.0
         self._stopped_at_s: float | None = None
         self.fatal_error: BaseException | None = None
+        self._finished = False  # the thread has ended: no snapshot can come any more
 
     # -- lifecycle -------------------------------------------------------------------------
     def start(self) -> TelemetryPoller:
@@ -91,14 +96,16 @@ class TelemetryPoller:
         """Block until a snapshot newer than ``after_sequence`` arrives (or timeout)."""
         with self._changed:
             self._changed.wait_for(
-                lambda: self._sequence > after_sequence or self._stop.is_set(), timeout_s
+                lambda: self._sequence > after_sequence or self._stop.is_set()
+                or self._finished,
+                timeout_s,
             )
             return self._latest if self._sequence > after_sequence else None
 
     def stats(self) -> PollerStats:
         end_s = self._stopped_at_s or time.monotonic()
-        return PollerStats(self._sequence, self._errors, end_s - self._started_at_s,
-                           self._last_error)
+        return PollerStats(self._sequence, self._missed, self._errors,
+                           end_s - self._started_at_s, self._last_error)
 
     # -- the thread ------------------------------------------------------------------------
     def _publish(self, _request: MspRequest, payload: bytes) -> None:
@@ -140,7 +147,10 @@ class TelemetryPoller:
                         next_due_s = now_s
                     self._stop.wait(next_due_s - now_s)
                 for result in results:
-                    if isinstance(result, Exception):
+                    if isinstance(result, MspTimeoutError):
+                        self._missed += 1  # stale telemetry is not worth a retry
+                        self._last_error = str(result)
+                    elif isinstance(result, Exception):
                         self._errors += 1
                         self._last_error = str(result)
         except LinkClosedError as exc:
@@ -152,4 +162,5 @@ class TelemetryPoller:
         finally:
             self._stopped_at_s = time.monotonic()
             with self._changed:
+                self._finished = True
                 self._changed.notify_all()

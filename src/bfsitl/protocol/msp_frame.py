@@ -202,6 +202,9 @@ class MspParser:
         """The last skipped non-frame bytes, oldest first (for example CLI text)."""
         return bytes(self._recent_garbage)
 
+    def clear_recent_garbage(self) -> None:
+        self._recent_garbage.clear()
+
     def reset(self) -> None:
         self._buffer.clear()
 

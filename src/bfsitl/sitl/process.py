@@ -28,7 +28,7 @@ from bfsitl.errors import (
     SitlExitedError,
     SitlNotReadyError,
 )
-from bfsitl.fc.msp_client import MspClient
+from bfsitl.fc.msp_client import DEFAULT_RETRIES, DEFAULT_TIMEOUT_S, MspClient
 from bfsitl.link.tcp_link import TcpLink
 from bfsitl.protocol.msp_messages import ApiVersion
 from bfsitl.sitl.firmware import FirmwareBinary, find_firmware
@@ -155,6 +155,8 @@ class SitlProcess:
                 continue
             try:
                 client.get(ApiVersion)
+                # Probing used short timeouts; from here on the usual ones apply.
+                client.timeout_s, client.retries = DEFAULT_TIMEOUT_S, DEFAULT_RETRIES
                 return client
             except BfsitlError as exc:
                 last_problem = str(exc)
@@ -164,7 +166,9 @@ class SitlProcess:
             f"({self.log_path}) ends with:\n{self.log_tail()}"
         )
 
-    def connect(self, *, timeout_s: float = 0.5, retries: int = 2) -> MspClient:
+    def connect(
+        self, *, timeout_s: float = DEFAULT_TIMEOUT_S, retries: int = DEFAULT_RETRIES
+    ) -> MspClient:
         """A new MSP client on a new connection (the SITL serves one client per port)."""
         if self.network is None:
             raise SitlError("SITL not started")

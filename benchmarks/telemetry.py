@@ -159,7 +159,7 @@ def main() -> int:
     if args.json:
         print(json.dumps([asdict(r) for r in rows], indent=2))
         return 0
-    print(f"| condition | method | updates/s | x tutorial | FC SERIAL task Hz |")
+    print("| condition | method | updates/s | x tutorial | FC SERIAL task Hz |")
     print("| --- | --- | ---: | ---: | ---: |")
     for r in rows:
         print(f"| {r.condition} | {r.method} | {r.updates_per_s:.1f} | "

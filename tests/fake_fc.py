@@ -448,7 +448,6 @@ __all__ = [
     "FakeCliLink",
     "FakeFcLink",
     "Handler",
-    "MspCommand",
     "fixed",
     "multiple_msp",
     "telemetry_handlers",

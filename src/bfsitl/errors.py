@@ -7,7 +7,7 @@ Messages are written for the person at the terminal: what went wrong, then what 
 
     BfsitlError
     ├── ProtocolError                  bytes that do not follow a wire format
-    │   ├── PacketError                a SITL UDP datagram of the wrong size or with non-finite values
+    │   ├── PacketError                a SITL UDP datagram: wrong size or non-finite values
     │   ├── MspFrameError              an MSP frame that cannot be built (payload too large, bad id)
     │   └── MspDecodeError             an MSP payload too short or inconsistent for its message
     ├── LinkError                      transport failures (TCP, serial, namespaces)
@@ -16,7 +16,7 @@ Messages are written for the person at the terminal: what went wrong, then what 
     │   └── ExtraMissingError          an optional dependency is not installed
     ├── MspError                       the FC answered, but not with what was asked
     │   ├── MspErrorReply              the FC sent an ``!`` error frame (unknown or refused command)
-    │   └── MspTimeoutError            (also TimeoutError) no reply: bad checksum, port in CLI, FC gone
+    │   └── MspTimeoutError            (also TimeoutError) no reply: lost, port in CLI, FC gone
     ├── CliError                       the CLI session failed
     │   └── CliCommandError            a command answered ``###ERROR``
     └── SitlError                      the SITL process

@@ -235,11 +235,6 @@ def test_run_refuses_exit_noreboot(fast_enter: None, link: FakeCliLink) -> None:
     assert link.state == "cli"
 
 
-@pytest.mark.xfail(
-    reason="BUG: _refuse_reboot refuses every 'defaults', but 'defaults nosave' (in every "
-    "'diff all') does not reboot (cli.c cliDefaults), so restoring a backup is blocked",
-    strict=True,
-)
 def test_defaults_nosave_is_allowed(session: CliSession, link: FakeCliLink) -> None:
     """``defaults nosave`` resets without rebooting: run() and batch() let it through."""
     assert "resetting to defaults" in session.run("defaults nosave")

@@ -349,11 +349,6 @@ def test_slow_head_does_not_fail_the_set_queued_behind_it() -> None:
     assert link.sent_commands.count(MspCommand.SET_MODE_RANGE) == 1
 
 
-@pytest.mark.xfail(
-    reason="BUG: ghosts kept across pipeline() calls are matched to a 'retry' by the per-call "
-    "index, so the late reply to call N's request 0 is handed to call N+1's request 0",
-    strict=True,
-)
 def test_late_reply_is_not_taken_for_the_next_request() -> None:
     """A reply arriving after its request timed out is absorbed, not handed to the next
     request of the same command (which would get stale data)."""
@@ -368,12 +363,6 @@ def test_late_reply_is_not_taken_for_the_next_request() -> None:
     assert client.stats.late_replies == 1
 
 
-@pytest.mark.xfail(
-    reason="BUG: the byte cap counts timed-out ghosts, so the resend of a request larger than "
-    "half the cap is never sent; with no live request left run() returns and pipeline() "
-    "raises KeyError instead of MspTimeoutError",
-    strict=True,
-)
 def test_retry_of_a_large_read_is_sent_despite_the_byte_cap() -> None:
     """A read using most of the byte cap is still retried, then times out normally."""
     link = FakeFcLink(read_handlers())
@@ -384,11 +373,6 @@ def test_retry_of_a_large_read_is_sent_despite_the_byte_cap() -> None:
     assert link.sent_commands.count(MspCommand.MULTIPLE_MSP) == 2
 
 
-@pytest.mark.xfail(
-    reason="BUG: ghosts kept from an earlier call count against the byte cap, so the next "
-    "call's first request is held back and pipeline() raises KeyError",
-    strict=True,
-)
 def test_ghost_of_an_earlier_call_does_not_block_the_next_request() -> None:
     """After a timeout, the next request is sent and answered even under a small byte cap."""
     link = FakeFcLink(read_handlers())

@@ -219,9 +219,14 @@ class CliSession:
         return bytes(data)
 
 
+#: The option that makes a rebooting command stay up (``cli.c``).
+_NO_REBOOT_OPTION = {"save": "noreboot", "exit": "noreboot", "defaults": "nosave"}
+
+
 def _refuse_reboot(command: str) -> None:
     words = command.lower().split()
-    if words and words[0] in _REBOOTING and "noreboot" not in words:
+    if words and words[0] in _REBOOTING and \
+            _NO_REBOOT_OPTION.get(words[0]) not in words[1:]:
         raise CliError(
             f"{command!r} reboots the FC (a SITL process exits): use save(restart=...), or "
             f"'save noreboot' to write without rebooting"

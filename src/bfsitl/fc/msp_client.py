@@ -264,6 +264,8 @@ class MspClient:
                 run.run()
             finally:
                 self._ghosts = [p for p in run.queue if p.ghost]
+                for ghost in self._ghosts:
+                    ghost.index = -1  # belongs to a finished call: never adopted by a retry
         return [run.results[i] for i in range(run.next_index)]
 
     def _timeout_message(self, command: int, timeout_s: float) -> str:
@@ -450,7 +452,8 @@ class _PipelineRun:
             else:
                 return
             frame = encode_request(request.command, request.payload)
-            if self.queue and \
+            # With nothing live outstanding, send anyway: waiting could not free anything.
+            if self._live() and \
                     self._unconsumed_bytes() + len(frame) > client.max_in_flight_bytes:
                 self.resend.appendleft((index, request))
                 return

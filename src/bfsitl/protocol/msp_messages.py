@@ -35,6 +35,7 @@ from bfsitl.errors import MspDecodeError, MspFrameError
 from bfsitl.protocol.arming import ArmingFlagInfo, decode_arming_flags
 from bfsitl.protocol.boxes import BOX_NAMES
 from bfsitl.protocol.msp_codes import MspCommand
+from bfsitl.protocol.msp_frame import MAX_REQUEST_PAYLOAD
 from bfsitl.protocol.payload import PayloadReader, PayloadWriter
 
 # --------------------------------------------------------------------------------------------
@@ -49,10 +50,6 @@ SITL_ACC_1G_LSB = 256
 #: ``GYRO_SCALE_2000DPS`` = 2000/32768 deg/s per LSB (drivers/accgyro/accgyro.h:41,
 #: accgyro_virtual.c:97), i.e. 16.384 LSB per deg/s.
 GYRO_LSB_PER_DPS = 16.384
-
-#: The FC's request buffer (``MSP_PORT_INBUF_SIZE``, msp/msp_serial.h:79). Larger v1 requests are
-#: dropped; larger v2 requests overrun it and hang the port in 4.6.
-MAX_REQUEST_PAYLOAD = 192
 
 #: ``MAX_SUPPORTED_RC_CHANNEL_COUNT`` (rx/rx.h:73): MSP_SET_RAW_RC refuses more channels.
 MAX_RC_CHANNELS = 18

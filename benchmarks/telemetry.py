@@ -6,7 +6,8 @@ Compares, against the same firmware in the same run:
   STATUS, ANALOG, RC), each followed by a short sleep (20 ms) and a read.  One update = all five.
 * ``bfsitl sequential``: ``MspClient.telemetry()`` in a loop: one MSP_MULTIPLE_MSP round trip
   (attitude, altitude, status, analog, RC, motors) per update.
-* ``bfsitl pipelined``: ``TelemetryPoller(rate_hz=None)``: the same request, three in flight.
+* ``bfsitl pipelined``: ``TelemetryPoller(rate_hz=None)``: the same request, three (or eight)
+  in flight; and once without the client's wake byte, to show what that byte does.
 
 under three conditions, each on a fresh SITL in its own network namespace:
 
@@ -49,6 +50,7 @@ class Row:
     method: str
     updates_per_s: float
     serial_task_hz: int | None
+    gyro_task_hz: int | None
     ratio_to_tutorial: float = 0.0
 
 
@@ -101,15 +103,27 @@ def pipelined(client: MspClient, seconds: float, depth: int = 3) -> float:
     return count / elapsed
 
 
-def serial_task_hz(client: MspClient) -> int | None:
-    """The SERIAL task's rate from the firmware's own `tasks` (non-interactive CLI)."""
+def task_rates_hz(client: MspClient) -> tuple[int | None, int | None]:
+    """SERIAL and GYRO task rates from the firmware's own `tasks` (non-interactive CLI)."""
     output = CliSession(client.link, timeout_s=3.0).batch(["tasks"], check=False)
-    match = re.search(r"SERIAL\)\s+(\d+)", output)
-    return int(match.group(1)) if match else None
+    rates = []
+    for task in ("SERIAL", "GYRO"):
+        match = re.search(task + r"\)\s+(\d+)", output)
+        rates.append(int(match.group(1)) if match else None)
+    return rates[0], rates[1]
 
 
 def pipelined_deep(client: MspClient, seconds: float) -> float:
     return pipelined(client, seconds, depth=8)
+
+
+def pipelined_without_wake(client: MspClient, seconds: float) -> float:
+    """As ``pipelined``, without the wake byte (see MspClient's module docstring)."""
+    saved, client.wake_interval_s = client.wake_interval_s, None
+    try:
+        return pipelined(client, seconds)
+    finally:
+        client.wake_interval_s = saved
 
 
 def measure(condition: str, sitl: SitlProcess, seconds: float, with_tutorial: bool) -> list[Row]:
@@ -119,13 +133,14 @@ def measure(condition: str, sitl: SitlProcess, seconds: float, with_tutorial: bo
     time.sleep(1.0)
     rows = []
     methods = [("bfsitl sequential", sequential), ("bfsitl pipelined, 3 in flight", pipelined),
-               ("bfsitl pipelined, 8 in flight", pipelined_deep)]
+               ("bfsitl pipelined, 8 in flight", pipelined_deep),
+               ("bfsitl pipelined, 3 in flight, no wake byte", pipelined_without_wake)]
     if with_tutorial:
         methods.insert(0, ("tutorial (5 requests + sleeps)", tutorial_reader))
     for name, method in methods:
         log(f"{condition}: {name} for {seconds:.0f} s")
         rate = method(client, seconds)
-        rows.append(Row(condition, name, rate, serial_task_hz(client)))
+        rows.append(Row(condition, name, rate, *task_rates_hz(client)))
     return rows
 
 
@@ -159,11 +174,11 @@ def main() -> int:
     if args.json:
         print(json.dumps([asdict(r) for r in rows], indent=2))
         return 0
-    print("| condition | method | updates/s | x tutorial | FC SERIAL task Hz |")
-    print("| --- | --- | ---: | ---: | ---: |")
+    print("| condition | method | updates/s | x tutorial | FC SERIAL task Hz | FC GYRO task Hz |")
+    print("| --- | --- | ---: | ---: | ---: | ---: |")
     for r in rows:
         print(f"| {r.condition} | {r.method} | {r.updates_per_s:.1f} | "
-              f"{r.ratio_to_tutorial:.1f}x | {r.serial_task_hz} |")
+              f"{r.ratio_to_tutorial:.1f}x | {r.serial_task_hz} | {r.gyro_task_hz} |")
     return 0
 
 

@@ -18,6 +18,7 @@ import time
 from collections import deque
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass
+from typing import Any
 
 from bfsitl.link.base import Link
 from bfsitl.protocol import msp_messages as msg
@@ -195,21 +196,12 @@ def telemetry_handlers(
     return {int(m.COMMAND): fixed(m.encode()) for m in messages}
 
 
-def telemetry_link(
-    *,
-    attitude: msg.Attitude,
-    altitude: msg.Altitude,
-    status: msg.StatusEx,
-    analog: msg.Analog,
-    rc: msg.Rc,
-    motor: msg.Motor,
-    box_ids: tuple[int, ...],
-) -> FakeFcLink:
-    """A FakeFcLink that answers the telemetry reads, BOXIDS and MSP_MULTIPLE_MSP."""
-    link = FakeFcLink(telemetry_handlers(
-        attitude=attitude, altitude=altitude, status=status, analog=analog, rc=rc,
-        motor=motor, box_ids=box_ids,
-    ))
+def telemetry_link(**messages: Any) -> FakeFcLink:
+    """A FakeFcLink that answers the telemetry reads, BOXIDS and MSP_MULTIPLE_MSP.
+
+    Takes the keyword arguments of :func:`telemetry_handlers`.
+    """
+    link = FakeFcLink(telemetry_handlers(**messages))
     link.handlers[MspCommand.MULTIPLE_MSP] = multiple_msp(link.handlers)
     return link
 

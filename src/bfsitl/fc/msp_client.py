@@ -362,8 +362,10 @@ class MspClient:
 class _PipelineRun:
     """One :meth:`MspClient.pipeline` call: the window, the FIFO and the results.
 
-    ``queue`` is the FIFO of requests on the wire in send order: a prefix of ghosts (timed
-    out, late reply still possible) followed by live requests.
+    ``queue`` is the FIFO of requests on the wire in send order: live requests, and ghosts
+    (timed out, or answered through a retry, whose other reply may still arrive).  Ghosts
+    are mostly at the front; they leave when they expire, when their late reply arrives, or
+    when a reply to a later request proves theirs never will.
     """
 
     def __init__(

@@ -17,7 +17,8 @@ under three conditions, each on a fresh SITL in its own network namespace:
 
 Beside each figure, the rate of the firmware's SERIAL task as its own ``tasks`` command reports
 it: the FC serves one MSP packet per SERIAL run, so that is the ceiling.
-Run: ``python benchmarks/telemetry.py [--seconds 5] [--raised-rate 1000] [--json]``.
+Each row is measured ``--repeats`` times (median shown; this 2-core VM is noisy).
+Run: ``python benchmarks/telemetry.py [--seconds 3] [--repeats 3] [--raised-rate 1000] [--json]``.
 """
 
 from __future__ import annotations
@@ -25,6 +26,7 @@ from __future__ import annotations
 import argparse
 import json
 import re
+import statistics
 import sys
 import time
 from dataclasses import asdict, dataclass
@@ -48,7 +50,9 @@ TUTORIAL_SLEEP_S = 0.02
 class Row:
     condition: str
     method: str
-    updates_per_s: float
+    updates_per_s: float  # median of the repeats
+    runs_per_s: list[float]
+    timeouts: int  # replies the client gave up waiting for, over all repeats
     serial_task_hz: int | None
     gyro_task_hz: int | None
     ratio_to_tutorial: float = 0.0
@@ -126,7 +130,9 @@ def pipelined_without_wake(client: MspClient, seconds: float) -> float:
         client.wake_interval_s = saved
 
 
-def measure(condition: str, sitl: SitlProcess, seconds: float, with_tutorial: bool) -> list[Row]:
+def measure(
+    condition: str, sitl: SitlProcess, seconds: float, repeats: int, with_tutorial: bool
+) -> list[Row]:
     client = sitl.client
     assert client is not None
     # Let boot-time calibration settle so every method sees the same steady firmware.
@@ -138,16 +144,20 @@ def measure(condition: str, sitl: SitlProcess, seconds: float, with_tutorial: bo
     if with_tutorial:
         methods.insert(0, ("tutorial (5 requests + sleeps)", tutorial_reader))
     for name, method in methods:
-        log(f"{condition}: {name} for {seconds:.0f} s")
-        rate = method(client, seconds)
-        rows.append(Row(condition, name, rate, *task_rates_hz(client)))
+        log(f"{condition}: {name}, {repeats} x {seconds:.0f} s")
+        timeouts_before = client.stats.timeouts
+        runs = [method(client, seconds) for _ in range(repeats)]
+        rows.append(Row(condition, name, statistics.median(runs), [round(r, 1) for r in runs],
+                        client.stats.timeouts - timeouts_before, *task_rates_hz(client)))
     return rows
 
 
 def main() -> int:
     parser = argparse.ArgumentParser(description=__doc__,
                                      formatter_class=argparse.RawDescriptionHelpFormatter)
-    parser.add_argument("--seconds", type=float, default=5.0, help="per measurement")
+    parser.add_argument("--seconds", type=float, default=3.0, help="per measurement")
+    parser.add_argument("--repeats", type=int, default=3,
+                        help="measurements per row; the table shows the median")
     parser.add_argument("--raised-rate", type=int, default=1000,
                         help="serial_update_rate_hz for condition 3 (100..2000)")
     parser.add_argument("--json", action="store_true", help="print rows as JSON")
@@ -156,17 +166,19 @@ def main() -> int:
     rows: list[Row] = []
     log("condition 1: SITL with the OS default timer slack")
     with SitlProcess(isolate=True, timer_slack_ns=None) as sitl:
-        rows += measure("default SITL, 100 Hz serial", sitl, args.seconds, with_tutorial=True)
+        rows += measure("default SITL, 100 Hz serial", sitl, args.seconds, args.repeats,
+                        with_tutorial=True)
     log("condition 2: SITL as bfsitl starts it")
     with SitlProcess(isolate=True) as sitl:
-        rows += measure("bfsitl SITL, 100 Hz serial", sitl, args.seconds, with_tutorial=True)
+        rows += measure("bfsitl SITL, 100 Hz serial", sitl, args.seconds, args.repeats,
+                        with_tutorial=True)
         log(f"condition 3: serial_update_rate_hz = {args.raised_rate}")
         assert sitl.client is not None
         with CliSession(sitl.client.link) as cli:
             cli.set("serial_update_rate_hz", args.raised_rate)
             cli.save(restart=sitl.restart_after_reboot)
         rows += measure(f"bfsitl SITL, {args.raised_rate} Hz serial", sitl, args.seconds,
-                        with_tutorial=False)
+                        args.repeats, with_tutorial=False)
 
     baseline = rows[0].updates_per_s
     for row in rows:
@@ -174,11 +186,14 @@ def main() -> int:
     if args.json:
         print(json.dumps([asdict(r) for r in rows], indent=2))
         return 0
-    print("| condition | method | updates/s | x tutorial | FC SERIAL task Hz | FC GYRO task Hz |")
-    print("| --- | --- | ---: | ---: | ---: | ---: |")
+    print("| condition | method | updates/s (median) | x tutorial | runs | timeouts "
+          "| FC SERIAL Hz | FC GYRO Hz |")
+    print("| --- | --- | ---: | ---: | --- | ---: | ---: | ---: |")
     for r in rows:
+        runs = " / ".join(f"{x:.0f}" for x in r.runs_per_s)
         print(f"| {r.condition} | {r.method} | {r.updates_per_s:.1f} | "
-              f"{r.ratio_to_tutorial:.1f}x | {r.serial_task_hz} | {r.gyro_task_hz} |")
+              f"{r.ratio_to_tutorial:.1f}x | {runs} | {r.timeouts} | {r.serial_task_hz} | "
+              f"{r.gyro_task_hz} |")
     return 0
 
 

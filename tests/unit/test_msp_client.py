@@ -523,3 +523,30 @@ def test_pipelined_telemetry_requests_decode() -> None:
     assert len(snapshots) == 3
     assert all(s.attitude == ATT and s.flight_modes == ("ARM", "FAILSAFE") for s in snapshots)
 
+
+
+# --- identical requests after a loss (the telemetry poller's pattern) ----------------------------
+
+def test_one_dropped_poll_costs_at_most_one_timeout_in_a_pipeline() -> None:
+    """A lost request among identical ones must not make every later poll time out.
+
+    Regression: a timed-out request's ghost used to take the next identical request's reply,
+    which then timed out and left a ghost of its own: one timeout per poll, forever.
+    """
+    link, client = make(timeout_s=0.1)
+    link.handlers[MspCommand.MULTIPLE_MSP] = multiple_msp(link.handlers)
+    request = client.telemetry_request()
+    link.drop_next.add(MspCommand.MULTIPLE_MSP)
+    results = client.pipeline([request] * 50, depth=3, retries=0)
+    assert sum(isinstance(r, MspTimeoutError) for r in results) <= 1
+    assert client.stats.timeouts <= 1
+
+
+def test_one_dropped_read_costs_one_timeout_in_sequential_calls() -> None:
+    link, client = make(timeout_s=0.1)
+    link.drop_next.add(MspCommand.ATTITUDE)
+    with pytest.raises(MspTimeoutError):
+        client.request(MspCommand.ATTITUDE, retries=0)
+    for _ in range(10):
+        assert client.attitude() == ATT
+    assert client.stats.timeouts == 1

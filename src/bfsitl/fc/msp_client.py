@@ -261,6 +261,9 @@ class MspClient:
             self._parser.clear_recent_garbage()  # CLI text seen long ago proves nothing now
             run.queue.extend(self._ghosts)
             try:
+                # A late reply to an earlier call may already be waiting: let the ghosts take
+                # it now, before a new request of the same command could be handed it.
+                run.absorb_pending_input()
                 run.run()
             finally:
                 self._ghosts = [p for p in run.queue if p.ghost]
@@ -424,6 +427,14 @@ class _PipelineRun:
                 client.link.write(WAKE_BYTE)
                 self.trailing_wake_bytes += 1
 
+    def absorb_pending_input(self) -> None:
+        """Dispatch bytes that are already buffered, without waiting for more."""
+        while True:
+            data = self.client.link.read_some(0.0)
+            if not data:
+                return
+            self._dispatch(self.client._parser.feed(data))
+
     def _unconsumed_bytes(self) -> int:
         """Bytes of ours the FC may not have read yet: frames in flight, wake bytes between.
 
@@ -494,6 +505,27 @@ class _PipelineRun:
         if head is not None:
             head.clock_start_s = max(head.clock_start_s, self.client._clock())
 
+    def _best_match(self, command: int) -> int | None:
+        """Which outstanding request a reply to ``command`` answers (its queue position).
+
+        The FC answers in order and each intact request exactly once, so a reply to an entry
+        means every live entry ahead of it was lost.  The best explanation is the candidate
+        that declares the fewest live requests lost; on a tie a live request beats a ghost.
+        That keeps a ghost whose request was simply lost from eating the reply to the next
+        identical request (a stream of polls), while a late reply to a slow request is not
+        taken for its retry queued behind other requests (which would lose those).
+        """
+        best: tuple[int, bool, int] | None = None
+        live_ahead = 0
+        for position, pending in enumerate(self.queue):
+            if pending.request.command == command:
+                key = (live_ahead, pending.ghost, position)
+                if best is None or key < best:
+                    best = key
+            if not pending.ghost and not pending.lost:
+                live_ahead += 1
+        return None if best is None else best[2]
+
     def _dispatch(self, events: list[MspFrame | ChecksumFailure]) -> None:
         client = self.client
         for event in events:
@@ -515,10 +547,7 @@ class _PipelineRun:
                 # Our own request echoed back (loopback adapter, half-duplex wire).
                 client.stats.stray_replies += 1
                 continue
-            position = next(
-                (i for i, p in enumerate(self.queue) if p.request.command == event.command),
-                None,
-            )
+            position = self._best_match(event.command)
             if position is None:
                 # A reply to a request that has expired, or a pushed frame.
                 client.stats.stray_replies += 1

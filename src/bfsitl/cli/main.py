@@ -44,7 +44,8 @@ def cmd_status(args: argparse.Namespace) -> int:
                 "armed": status.armed,
                 "flight_modes": list(telemetry.flight_modes),
                 "arming_blockers": [
-                    {"name": b.cli_name, "bit": b.bit, "meaning": b.meaning, "fix": b.fix}
+                    {"name": b.cli_name, "bit": b.bit, "meaning": b.meaning, "fix": b.fix,
+                     "firmware_source": b.source}
                     for b in status.arming_blockers
                 ],
                 "attitude_deg": [telemetry.attitude.roll_deg, telemetry.attitude.pitch_deg,

@@ -11,6 +11,7 @@ flags, and a status display must never crash on them.
 
 from __future__ import annotations
 
+import re
 from dataclasses import dataclass
 from enum import IntEnum
 
@@ -65,10 +66,26 @@ class ArmingFlagInfo:
     cli_name: str  # as CLI `status` prints it ("Arming disable flags: RXLOSS ANGLE")
     meaning: str
     fix: str  # one line: what to do
+    source: str = ""  # where the firmware sets it, e.g. "fc/core.c:341-345"
 
     @property
     def mask(self) -> int:
         return 1 << self.bit
+
+
+_SOURCE = re.compile(r"\s*\(([\w./]+\.[ch]:[\d\-, ]+(?:,[^)]*)?)\)$")
+
+
+def _split_source(cli_name: str, meaning: str, fix: str) -> tuple[str, str, str, str]:
+    """The table cites the firmware at the end of each meaning; keep that apart from the
+    words shown to the user."""
+    match = _SOURCE.search(meaning)
+    if match is None:
+        return cli_name, meaning, fix, ""
+    source = match.group(1)
+    if "/" not in source.split(":")[0]:
+        source = "fc/" + source
+    return cli_name, meaning[: match.start()], fix, source
 
 
 # (cli_name, meaning, fix) per bit; the "set where" references are fc/core.c unless noted.
@@ -225,7 +242,7 @@ _TABLE: dict[ArmingFlag, tuple[str, str, str]] = {
 
 #: All 29 flags of 4.6 in bit order.
 ARMING_FLAGS: tuple[ArmingFlagInfo, ...] = tuple(
-    ArmingFlagInfo(flag.value, flag.name, *_TABLE[flag]) for flag in ArmingFlag
+    ArmingFlagInfo(flag.value, flag.name, *_split_source(*_TABLE[flag])) for flag in ArmingFlag
 )
 
 _BY_BIT: dict[int, ArmingFlagInfo] = {info.bit: info for info in ARMING_FLAGS}

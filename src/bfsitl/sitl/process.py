@@ -115,12 +115,22 @@ class SitlProcess:
         return "\n".join(kept[-lines:])
 
     # -- lifecycle -------------------------------------------------------------------------
+    def prepare_network(self) -> Network:
+        """The network the SITL will run in, created now if needed.
+
+        A physics bridge binds its motor port (UDP 9002) here *before* :meth:`start`, so it
+        also receives the packet the SITL sends while it boots.
+        """
+        if self.network is None:
+            self.network = IsolatedNetwork() if self._isolate else HostNetwork()
+        return self.network
+
     def start(self) -> SitlProcess:
         """Start the process and wait until it answers MSP; :attr:`client` is then ready."""
         if self.running:
             raise SitlError(f"SITL already running (pid {self.pid})")
-        if self.network is None:
-            self.network = IsolatedNetwork() if self._isolate else HostNetwork()
+        self.prepare_network()
+        assert self.network is not None
         check_ports_free(SITL_TCP_PORTS, SITL_UDP_PORTS, netns_pid=self.network.netns_pid)
         argv = self.firmware.command()
         self._progress(

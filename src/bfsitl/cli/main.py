@@ -15,6 +15,7 @@ from pathlib import Path
 
 from bfsitl import __version__
 from bfsitl.cli import render
+from bfsitl.cli.sim_command import add_sim_parser
 from bfsitl.cli.target import add_target_arguments, open_target, progress
 from bfsitl.errors import BfsitlError
 from bfsitl.fc.cli_session import CliSession
@@ -132,7 +133,8 @@ def build_parser() -> argparse.ArgumentParser:
                "blocks arming\n"
                "  bfsitl telemetry --rate 20 --duration 5\n"
                "  bfsitl cli get small_angle\n"
-               "  bfsitl backup my-quad.txt --uri serial:///dev/ttyACM0",
+               "  bfsitl backup my-quad.txt --uri serial:///dev/ttyACM0\n"
+               "  bfsitl sim --duration 10 --json  physics against a SITL, health once a second",
         formatter_class=argparse.RawDescriptionHelpFormatter,
     )
     parser.add_argument("--version", action="version", version=f"bfsitl {__version__}")
@@ -173,6 +175,8 @@ def build_parser() -> argparse.ArgumentParser:
     backup.add_argument("file", help="where to write the backup")
     add_target_arguments(backup)
     backup.set_defaults(func=cmd_backup)
+
+    add_sim_parser(sub)
     return parser
 
 

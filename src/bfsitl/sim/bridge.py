@@ -307,7 +307,10 @@ class SitlBridge:
                 t0 = None
                 continue
             if self._needs_prime:
+                # Priming is set-up, not simulation: its wall time counts like a pause.
+                priming_from_s = time.perf_counter()
                 self._prime()
+                self._wall_paused_s += time.perf_counter() - priming_from_s
                 t0 = None
             elif self._needs_calibration and self.timestamps == "frozen":
                 self._calibration_pair()  # the schedule catches up afterwards

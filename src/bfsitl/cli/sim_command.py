@@ -1,0 +1,120 @@
+"""``bfsitl sim``: the embedded physics against a SITL, with live health figures."""
+
+from __future__ import annotations
+
+import argparse
+import contextlib
+import json
+import time
+from collections.abc import Iterator
+
+from bfsitl.cli.target import add_target_arguments, progress
+from bfsitl.fc.msp_client import MspClient
+from bfsitl.link import DEFAULT_SITL_URI, open_link
+from bfsitl.sim.bridge import DEFAULT_STEP_S, SitlBridge, wait_for_replies
+from bfsitl.sim.health import HealthMonitor, HealthSample, lock_clock
+from bfsitl.sitl.network import HostNetwork
+from bfsitl.sitl.process import SitlProcess
+
+#: Wall seconds between two printed samples.
+REPORT_INTERVAL_S = 1.0
+
+
+def add_sim_parser(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]
+    sim = sub.add_parser(
+        "sim", help="run the embedded physics against a SITL, with health figures",
+        description="Feed the SITL simulated sensors (fdm packets on UDP 9003) and fly the "
+                    "simulated quad with its motor commands (UDP 9002). The firmware's clock is "
+                    "kept equal to simulated time. Prints state and health once a second; "
+                    "with --json one JSON object per second (fc_clock_ratio, fc_cycle_us, "
+                    "answered_ratio, speed, ...).",
+    )
+    add_target_arguments(sim, start_flag=False)
+    sim.add_argument("--attach", action="store_true",
+                     help="use a SITL already running in the host network (at --uri) instead "
+                          "of starting one")
+    sim.add_argument("--speed", type=float, default=1.0, metavar="S",
+                     help="simulated seconds per wall second (default 1.0, real time; "
+                          "below 1 for slow machines; benchmarks/physics.py finds the fastest "
+                          "faithful speed)")
+    sim.add_argument("--duration", type=float, default=None, metavar="S",
+                     help="stop after S simulated seconds (default: until Ctrl-C)")
+    sim.add_argument("--step-ms", type=float, default=DEFAULT_STEP_S * 1000, metavar="MS",
+                     help="physics step and fdm packet interval (default 1 ms, as Gazebo)")
+    sim.add_argument("--timestamps", choices=("frozen", "sim"), default="frozen",
+                     help="fdm timestamps: 'frozen' keeps the firmware clock at sim time "
+                          "(default); 'sim' sends sim time like Gazebo (the clock drifts)")
+    sim.add_argument("--json", action="store_true", help="one JSON object per second")
+    sim.set_defaults(func=cmd_sim)
+
+
+@contextlib.contextmanager
+def _sitl_and_bridge(args: argparse.Namespace) -> Iterator[tuple[SitlBridge, MspClient]]:
+    from bfsitl.sim import Simulator  # the physics loads only for this command
+
+    simulator = Simulator()
+    step_s = args.step_ms / 1000.0
+    if args.attach:
+        bridge = SitlBridge(simulator, HostNetwork(), speed=args.speed, step_s=step_s,
+                            timestamps=args.timestamps)
+        bridge.bind()
+        link = open_link(args.uri or DEFAULT_SITL_URI, timeout_s=args.timeout)
+        with MspClient(link, timeout_s=args.timeout) as client:
+            try:
+                yield bridge.start(), client
+            finally:
+                bridge.close()
+        return
+    if args.uri:
+        raise SystemExit("bfsitl sim: --uri needs --attach (otherwise a SITL is started)")
+    sitl = SitlProcess(args.firmware, workdir=args.workdir, isolate=not args.no_isolate,
+                       progress=progress)
+    bridge = SitlBridge(simulator, sitl.prepare_network(), speed=args.speed, step_s=step_s,
+                        timestamps=args.timestamps)
+    try:
+        bridge.bind()  # before the SITL starts: its boot-time motor packet is caught
+        with sitl:
+            assert sitl.client is not None
+            yield bridge.start(), sitl.client
+    finally:
+        bridge.close()
+
+
+def _human_line(sample: HealthSample, bridge: SitlBridge) -> str:
+    simulator = bridge.simulator
+    altitude_m = getattr(simulator, "altitude_m", float("nan"))
+    motors = " ".join(f"{m:.3f}" for m in bridge.motors)
+    ratio = "  -  " if sample.fc_clock_ratio is None else f"{sample.fc_clock_ratio:.3f}"
+    return (
+        f"t={sample.sim_time_s:7.2f}s speed={sample.speed:.3f} alt={altitude_m:6.2f}m "
+        f"motors=[{motors}] | fc_clock={ratio} cycle={sample.fc_cycle_us:.0f}us "
+        f"answered={sample.answered_ratio * 100:.1f}% {'ok' if sample.faithful else 'CHECK'}"
+    )
+
+
+def cmd_sim(args: argparse.Namespace) -> int:
+    with _sitl_and_bridge(args) as (bridge, client):
+        wait_for_replies(bridge)
+        monitor = HealthMonitor(bridge, client)
+        if args.speed != 1.0 and args.timestamps == "frozen":
+            progress(f"locking the firmware clock to {args.speed}x (a few seconds)")
+            lock_clock(monitor)
+        monitor.reset()
+        started_sim_s = bridge.sim_time_s
+        next_report_s = time.monotonic() + REPORT_INTERVAL_S
+        while args.duration is None or bridge.sim_time_s - started_sim_s < args.duration:
+            if bridge.error is not None:
+                raise bridge.error
+            time.sleep(max(0.0, min(0.05, next_report_s - time.monotonic())))
+            if time.monotonic() < next_report_s:
+                continue
+            next_report_s += REPORT_INTERVAL_S
+            sample = monitor.sample()
+            if args.json:
+                print(json.dumps(sample.as_dict()), flush=True)
+            else:
+                print(_human_line(sample, bridge), flush=True)
+        stats = bridge.stats()
+    progress(f"simulated {stats.sim_time_s:.1f} s in {stats.wall_time_s:.1f} s, "
+             f"{stats.answered_ratio * 100:.1f} % of {stats.fdm_sent} fdm packets answered")
+    return 0

@@ -23,13 +23,14 @@ it boots is not lost.  The SITL ends on every reboot; :meth:`SitlBridge.pause` a
 from __future__ import annotations
 
 import errno
+import queue
 import select
 import socket
 import threading
 import time
 from collections.abc import Callable
 from dataclasses import dataclass
-from typing import Literal, Protocol
+from typing import Literal, Protocol, TypeVar
 
 from bfsitl.errors import PacketError, PortInUseError, SitlError
 from bfsitl.protocol.sitl_packets import FdmPacket, ServoPacket
@@ -43,6 +44,7 @@ SERVO_PORT = 9002
 DEFAULT_STEP_S = 0.001
 
 Motors = tuple[float, float, float, float]
+T = TypeVar("T")
 TimestampMode = Literal["frozen", "sim"]
 
 
@@ -141,6 +143,7 @@ class SitlBridge:
         self._wall_start_s = 0.0
         self._wall_paused_s = 0.0
         self.error: BaseException | None = None
+        self._actions: queue.SimpleQueue[Callable[[], None]] = queue.SimpleQueue()
 
     # -- sockets ---------------------------------------------------------------------------
     def bind(self) -> None:
@@ -210,6 +213,32 @@ class SitlBridge:
         """Carry on after a restart: primes the new SITL's clock, then steps again."""
         self._needs_prime = True
         self._running.set()
+
+    def between_steps(self, action: Callable[[], T], timeout_s: float = 2.0) -> T:
+        """Run ``action`` on the bridge thread between two steps and return its result.
+
+        The simulator is not thread-safe: moving the vehicle (``reset``, ``hold``) from
+        another thread while a step runs could mix two states in one fdm packet.
+        """
+        if self._thread is None or not self._thread.is_alive() or \
+                threading.current_thread() is self._thread:
+            return action()
+        done = threading.Event()
+        outcome: list[object] = []
+
+        def run() -> None:
+            try:
+                outcome.append(action())
+            except BaseException as exc:  # noqa: BLE001 - re-raised in the caller
+                outcome.append(exc)
+            done.set()
+
+        self._actions.put(run)
+        if not done.wait(timeout_s):
+            raise SitlError(f"the bridge did not run the action within {timeout_s} s")
+        if isinstance(outcome[0], BaseException):
+            raise outcome[0]
+        return outcome[0]  # type: ignore[return-value]
 
     @property
     def sim_time_s(self) -> float:
@@ -317,6 +346,8 @@ class SitlBridge:
             if t0 is None:
                 t0, k = time.perf_counter(), 0
             assert k is not None
+            while not self._actions.empty():
+                self._actions.get_nowait()()
             # 1. late packets: a newer command than the one held
             self._late += self._receive_all()
             # 2. the state at t_k

@@ -1,0 +1,139 @@
+"""Cost of the embedded physics alone (no SITL, no sockets), per step and as a real-time factor.
+
+Scenarios, each run ``--repeats`` times on a fresh :class:`bfsitl.sim.Simulator` (median shown;
+this 2-core VM is noisy):
+
+* ``airborne``: hovering with commands that change every step (motors, rotors, drag, rigid
+  body; no contact);
+* ``airborne + fdm``: the same plus what the bridge adds per step: ``read_sensors()``,
+  ``to_fdm_packet()`` and ``FdmPacket.pack()``;
+* ``parked``: resting on the skids with armed-idle motors (static friction: body frozen);
+* ``contact``: upside down on the ground, where every step runs the sub-stepped spring-damper
+  contact (the worst case: the cost during landings, crashes and take-offs).
+
+The real-time factor is simulated time over wall time at the given step.  Target: >= 25x at
+1 ms in plain CPython (i.e. <= 40 us per step), leaving the bridge its budget.
+
+Run: ``python benchmarks/physics.py [--step-ms 1] [--seconds 2] [--repeats 5] [--json]``.
+:func:`measure_physics` is importable (the bridge benchmark reuses it).
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import statistics
+import sys
+import time
+
+from bfsitl.sim import IRIS, Simulator
+
+SCENARIOS = ("airborne", "airborne + fdm", "parked", "contact")
+TARGET_REAL_TIME_FACTOR = 25.0
+
+
+def _prepare(sim: Simulator, scenario: str) -> list[tuple[float, float, float, float]]:
+    """Put the vehicle in the scenario's situation; return a cycle of 8 motor commands."""
+    hover = IRIS.hover_command
+    if scenario in ("airborne", "airborne + fdm"):
+        sim.reset((0.0, 0.0, -100.0), motor_speeds_rad_s=(IRIS.hover_rotor_speed_rad_s,) * 4)
+        # Small, balanced differential commands: the vehicle wobbles but stays up.
+        return [
+            (hover + 0.004 * s, hover - 0.004 * s, hover - 0.004 * s, hover + 0.004 * s)
+            for s in (1, -1, 0.5, -0.5, 0.25, -0.25, 0, 0)
+        ]
+    if scenario == "parked":
+        sim.reset()
+        return [(0.055, 0.055, 0.055, 0.055)] * 8
+    if scenario == "contact":
+        sim.reset(roll_deg=180.0)
+        for _ in range(300):  # settle onto its back first
+            sim.step((0.0, 0.0, 0.0, 0.0), 0.001)
+        return [(0.0, 0.0, 0.0, 0.0)] * 8
+    raise ValueError(f"unknown scenario {scenario!r}; choose from {SCENARIOS}")
+
+
+def _run_once(step_s: float, steps: int, scenario: str) -> float:
+    """Wall seconds for ``steps`` steps of one scenario on a fresh simulator."""
+    sim = Simulator()
+    commands = _prepare(sim, scenario)
+    step = sim.step
+    if scenario == "airborne + fdm":
+        read = sim.read_sensors
+        start = time.perf_counter()
+        for k in range(steps):
+            step(commands[k & 7], step_s)
+            read().to_fdm_packet(1024.0 + k * 0.0625).pack()
+        return time.perf_counter() - start
+    start = time.perf_counter()
+    for k in range(steps):
+        step(commands[k & 7], step_s)
+    return time.perf_counter() - start
+
+
+def measure_physics(
+    step_s: float = 0.001,
+    sim_seconds: float = 2.0,
+    *,
+    repeats: int = 5,
+    scenario: str = "airborne",
+) -> dict[str, object]:
+    """Median cost of one physics step, and the real-time factor it allows.
+
+    Returns ``{"scenario", "step_s", "sim_seconds", "repeats", "step_us", "step_us_runs",
+    "steps_per_s", "real_time_factor"}`` (``step_us`` is the median over ``repeats`` runs).
+    """
+    if scenario not in SCENARIOS:
+        raise ValueError(f"unknown scenario {scenario!r}; choose from {SCENARIOS}")
+    steps = max(1, round(sim_seconds / step_s))
+    runs_us = [_run_once(step_s, steps, scenario) / steps * 1e6 for _ in range(repeats)]
+    step_us = statistics.median(runs_us)
+    return {
+        "scenario": scenario,
+        "step_s": step_s,
+        "sim_seconds": steps * step_s,
+        "repeats": repeats,
+        "step_us": step_us,
+        "step_us_runs": runs_us,
+        "steps_per_s": 1e6 / step_us,
+        "real_time_factor": step_s * 1e6 / step_us,
+    }
+
+
+def markdown_table(rows: list[dict[str, object]]) -> str:
+    step_ms = float(rows[0]["step_s"]) * 1000  # type: ignore[arg-type]
+    lines = [
+        f"| scenario ({step_ms:g} ms step) | us per step (median) | steps/s | real-time factor |",
+        "| --- | ---: | ---: | ---: |",
+    ]
+    for row in rows:
+        lines.append(
+            f"| {row['scenario']} | {row['step_us']:.1f} | {row['steps_per_s']:,.0f} | "
+            f"{row['real_time_factor']:.0f}x |"
+        )
+    return "\n".join(lines)
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--step-ms", type=float, default=1.0)
+    parser.add_argument("--seconds", type=float, default=2.0, help="simulated seconds per run")
+    parser.add_argument("--repeats", type=int, default=5)
+    parser.add_argument("--json", action="store_true")
+    args = parser.parse_args(argv)
+    rows = [
+        measure_physics(args.step_ms / 1000, args.seconds, repeats=args.repeats, scenario=s)
+        for s in SCENARIOS
+    ]
+    if args.json:
+        print(json.dumps(rows, indent=2))
+    else:
+        print(markdown_table(rows))
+        print(f"\nPython {sys.version.split()[0]}; target >= {TARGET_REAL_TIME_FACTOR:.0f}x "
+              f"real time at 1 ms.")
+    airborne = rows[0]["real_time_factor"]
+    return 0 if airborne >= TARGET_REAL_TIME_FACTOR else 1  # type: ignore[operator]
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,173 @@
+"""The virtual IMU and barometer, and how their readings become an fdm_packet.
+
+Readings follow the 4.6.0 SITL's conventions (research 1.3, ``FIRMWARE_FACTS.md``):
+
+* gyro: body rates in FRD, rad/s (the SITL converts them to Betaflight's FLU as (x, -y, -z));
+* accelerometer: **specific force** in FRD, m/s^2 (the sum of non-gravitational forces over
+  the mass): level at rest (0, 0, -9.80665), ~0 in free fall.  The SITL negates all three
+  axes, which makes Betaflight's x mirrored; harmless in 4.6.0 (no estimator), and
+  ``physical_acc_x=True`` pre-negates x for firmware built with ``USE_IMU_CALC``;
+* quaternion (w, x, y, z) body FRD -> world NED, unit length: taken directly as the attitude;
+* pressure: ISA at the IMU's altitude above mean sea level, Pa;
+* position/velocity: NED metres and m/s (Gazebo parity; the stock 4.6.0 build ignores them),
+  or for ``-DUSE_GPS`` builds (longitude, latitude, altitude) and ENU m/s.
+
+Noise and bias are off by default (Gazebo's IRIS has none) and, when configured, come from a
+seeded generator so that a run is repeatable.
+"""
+
+from __future__ import annotations
+
+import math
+import random
+from dataclasses import dataclass
+from typing import Literal
+
+from bfsitl.protocol.sitl_packets import FdmPacket
+from bfsitl.sim.params import Quat, SimInputError, Vec3
+
+PositionMode = Literal["ned", "gps"]
+
+
+@dataclass(frozen=True, slots=True)
+class SensorConfig:
+    """Additive sensor errors: a constant bias plus white Gaussian noise per reading.
+
+    Standard deviations are per sample (per physics step), not densities; see
+    :meth:`typical_mems` for a conversion from datasheet-style densities.
+    """
+
+    gyro_noise_std_rad_s: float = 0.0
+    gyro_bias_rad_s: Vec3 = (0.0, 0.0, 0.0)
+    accel_noise_std_m_s2: float = 0.0
+    accel_bias_m_s2: Vec3 = (0.0, 0.0, 0.0)
+    baro_noise_std_pa: float = 0.0
+    baro_bias_pa: float = 0.0
+
+    def __post_init__(self) -> None:
+        stds = {
+            "gyro_noise_std_rad_s": self.gyro_noise_std_rad_s,
+            "accel_noise_std_m_s2": self.accel_noise_std_m_s2,
+            "baro_noise_std_pa": self.baro_noise_std_pa,
+        }
+        for name, value in stds.items():
+            if not (math.isfinite(value) and value >= 0):
+                raise SimInputError(f"SensorConfig: {name} must be >= 0, got {value}")
+        for name, vector in (("gyro_bias_rad_s", self.gyro_bias_rad_s),
+                             ("accel_bias_m_s2", self.accel_bias_m_s2)):
+            if len(vector) != 3 or not all(math.isfinite(v) for v in vector):
+                raise SimInputError(f"SensorConfig: {name} must be 3 finite numbers, "
+                                    f"got {vector!r}")
+        if not math.isfinite(self.baro_bias_pa):
+            raise SimInputError(f"SensorConfig: baro_bias_pa must be finite, "
+                                f"got {self.baro_bias_pa}")
+
+    @property
+    def is_ideal(self) -> bool:
+        """True when every error is zero: readings are the exact state."""
+        return (
+            self.gyro_noise_std_rad_s == 0.0 and self.accel_noise_std_m_s2 == 0.0
+            and self.baro_noise_std_pa == 0.0 and self.baro_bias_pa == 0.0
+            and not any(self.gyro_bias_rad_s) and not any(self.accel_bias_m_s2)
+        )
+
+    @classmethod
+    def typical_mems(cls, sample_rate_hz: float = 1000.0) -> SensorConfig:
+        """PX4's gazebo-classic iris IMU noise densities, sampled at ``sample_rate_hz``.
+
+        Gyro 1.8665e-4 rad/s/sqrt(Hz), accelerometer 1.86e-3 m/s^2/sqrt(Hz) (research 3.7);
+        white noise per sample = density * sqrt(rate).  Baro: 3 Pa (~25 cm), a typical MEMS
+        barometer's RMS noise.  No bias: Betaflight calibrates neither in SITL.
+        """
+        root = math.sqrt(sample_rate_hz)
+        return cls(
+            gyro_noise_std_rad_s=1.8665e-4 * root,
+            accel_noise_std_m_s2=1.86e-3 * root,
+            baro_noise_std_pa=3.0,
+        )
+
+
+@dataclass(frozen=True, slots=True)
+class SensorReading:
+    """What the virtual sensors report at ``time_s`` (see the module docstring for frames)."""
+
+    time_s: float
+    gyro_frd_rad_s: Vec3
+    specific_force_frd_m_s2: Vec3
+    quaternion_wxyz: Quat
+    pressure_pa: float
+    position_ned_m: Vec3
+    velocity_ned_m_s: Vec3
+    #: (longitude deg, latitude deg, altitude m MSL): the order the -DUSE_GPS SITL reads.
+    geodetic: Vec3
+    velocity_enu_m_s: Vec3
+
+    def to_fdm_packet(
+        self,
+        timestamp_s: float,
+        position_mode: PositionMode = "ned",
+        *,
+        physical_acc_x: bool = False,
+    ) -> FdmPacket:
+        """The fdm_packet for this reading.
+
+        ``position_mode``: ``"ned"`` sends NED metres and m/s like Gazebo (what the stock 4.6.0
+        build ignores anyway); ``"gps"`` sends (lon, lat, alt) and ENU m/s for ``-DUSE_GPS``
+        builds.  ``physical_acc_x`` sends -x of the specific force (research 1.3).
+        """
+        if position_mode == "ned":
+            position, velocity = self.position_ned_m, self.velocity_ned_m_s
+        elif position_mode == "gps":
+            position, velocity = self.geodetic, self.velocity_enu_m_s
+        else:
+            raise SimInputError(
+                f"position_mode must be 'ned' or 'gps', got {position_mode!r}"
+            )
+        accel = self.specific_force_frd_m_s2
+        if physical_acc_x:
+            accel = (-accel[0], accel[1], accel[2])
+        return FdmPacket(
+            timestamp_s, self.gyro_frd_rad_s, accel, self.quaternion_wxyz, velocity, position,
+            self.pressure_pa,
+        )
+
+
+class SensorModel:
+    """Adds the configured bias and noise to true values; ideal sensors pass them through.
+
+    The generator is seeded from the simulator's seed (a string seed is hashed with SHA-512 by
+    :mod:`random`, so the sequence does not depend on ``PYTHONHASHSEED``).
+    """
+
+    __slots__ = ("config", "_ideal", "_rng")
+
+    def __init__(self, config: SensorConfig, seed: int) -> None:
+        self.config = config
+        self._ideal = config.is_ideal
+        self._rng = random.Random(f"bfsitl.sim.sensors:{seed}")
+
+    def corrupt(self, gyro: Vec3, specific_force: Vec3, pressure_pa: float
+                ) -> tuple[Vec3, Vec3, float]:
+        """Measured (gyro, specific force, pressure) from true ones."""
+        if self._ideal:
+            return gyro, specific_force, pressure_pa
+        c = self.config
+        gauss = self._rng.gauss
+        gs, acs, ps = c.gyro_noise_std_rad_s, c.accel_noise_std_m_s2, c.baro_noise_std_pa
+        gb, ab = c.gyro_bias_rad_s, c.accel_bias_m_s2
+        if gs > 0.0:
+            gyro = (gyro[0] + gb[0] + gauss(0.0, gs), gyro[1] + gb[1] + gauss(0.0, gs),
+                    gyro[2] + gb[2] + gauss(0.0, gs))
+        else:
+            gyro = (gyro[0] + gb[0], gyro[1] + gb[1], gyro[2] + gb[2])
+        if acs > 0.0:
+            specific_force = (
+                specific_force[0] + ab[0] + gauss(0.0, acs),
+                specific_force[1] + ab[1] + gauss(0.0, acs),
+                specific_force[2] + ab[2] + gauss(0.0, acs),
+            )
+        else:
+            specific_force = (specific_force[0] + ab[0], specific_force[1] + ab[1],
+                              specific_force[2] + ab[2])
+        pressure_pa = pressure_pa + c.baro_bias_pa + (gauss(0.0, ps) if ps > 0.0 else 0.0)
+        return gyro, specific_force, pressure_pa

@@ -14,8 +14,12 @@ this 2-core VM is noisy):
 The real-time factor is simulated time over wall time at the given step.  Target: >= 25x at
 1 ms in plain CPython (i.e. <= 40 us per step), leaving the bridge its budget.
 
-Run: ``python benchmarks/physics.py [--step-ms 1] [--seconds 2] [--repeats 5] [--json]``.
-:func:`measure_physics` is importable (the bridge benchmark reuses it).
+Then, unless ``--no-bridge``, the bridge against the real SITL per exchange mode and speed
+(``bridge_modes.py`` beside this file): firmware time / sim time, PID cycle, share of fdm
+answered, achieved speed, and the fastest speed at which every target holds.
+
+Run: ``python benchmarks/physics.py [--step-ms 1] [--seconds 2] [--repeats 5] [--json]
+[--no-bridge] [--speeds 0.5,0.75,1.0,1.25] [--window 6]``.
 """
 
 from __future__ import annotations
@@ -120,17 +124,33 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--seconds", type=float, default=2.0, help="simulated seconds per run")
     parser.add_argument("--repeats", type=int, default=5)
     parser.add_argument("--json", action="store_true")
+    parser.add_argument("--no-bridge", action="store_true",
+                        help="physics only: skip the runs against the real SITL")
+    parser.add_argument("--speeds", default="0.5,0.75,1.0,1.25",
+                        help="speeds to try with frozen timestamps (comma separated)")
+    parser.add_argument("--window", type=float, default=6.0,
+                        help="seconds of measurement per bridge mode")
     args = parser.parse_args(argv)
     rows = [
         measure_physics(args.step_ms / 1000, args.seconds, repeats=args.repeats, scenario=s)
         for s in SCENARIOS
     ]
+    bridge_rows = []
+    if not args.no_bridge:
+        from bridge_modes import bridge_table, run_bridge_modes  # beside this script
+
+        speeds = tuple(float(x) for x in args.speeds.split(","))
+        bridge_rows = run_bridge_modes(speeds, args.window)
     if args.json:
-        print(json.dumps(rows, indent=2))
+        print(json.dumps({"physics": rows, "bridge": [vars(r) for r in bridge_rows]},
+                         indent=2))
     else:
         print(markdown_table(rows))
         print(f"\nPython {sys.version.split()[0]}; target >= {TARGET_REAL_TIME_FACTOR:.0f}x "
               f"real time at 1 ms.")
+        if bridge_rows:
+            print()
+            print(bridge_table(bridge_rows))
     airborne = rows[0]["real_time_factor"]
     return 0 if airborne >= TARGET_REAL_TIME_FACTOR else 1  # type: ignore[operator]
 

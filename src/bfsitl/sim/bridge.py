@@ -78,6 +78,7 @@ class BridgeStats:
     misses: int           # steps that reused the previous command
     sim_time_s: float
     wall_time_s: float
+    skipped: int = 0      # steps integrated without an exchange, to catch up after a delay
 
     @property
     def answered_ratio(self) -> float:
@@ -94,7 +95,7 @@ class BridgeStats:
             self.steps - earlier.steps, self.fdm_sent - earlier.fdm_sent,
             self.replies - earlier.replies, self.late_replies - earlier.late_replies,
             self.misses - earlier.misses, self.sim_time_s - earlier.sim_time_s,
-            self.wall_time_s - earlier.wall_time_s,
+            self.wall_time_s - earlier.wall_time_s, self.skipped - earlier.skipped,
         )
 
 
@@ -139,6 +140,7 @@ class SitlBridge:
         self._rate_correction = 1.0
         self._stamps = FrozenRateStamps(speed)
         self._steps = self._fdm_sent = self._replies = self._late = self._misses = 0
+        self._skipped = 0
         self._sim_start_s = 0.0
         self._wall_start_s = 0.0
         self._wall_paused_s = 0.0
@@ -248,7 +250,7 @@ class SitlBridge:
         now_s = time.perf_counter()
         wall_s = (now_s - self._wall_start_s - self._wall_paused_s) if self._wall_start_s else 0.0
         return BridgeStats(self._steps, self._fdm_sent, self._replies, self._late, self._misses,
-                           self.simulator.time_s - self._sim_start_s, wall_s)
+                           self.simulator.time_s - self._sim_start_s, wall_s, self._skipped)
 
     def __enter__(self) -> SitlBridge:
         return self.start()
@@ -348,6 +350,14 @@ class SitlBridge:
             assert k is not None
             while not self._actions.empty():
                 self._actions.get_nowait()()
+            # Behind schedule (this thread was descheduled): integrate the missed steps with
+            # the held command instead of sending a burst of fdm packets, which the SITL
+            # would answer once (one reply per PID run) while its clock saw nothing new.
+            while time.perf_counter() > t0 + (k + 1) * step_wall_s:
+                self.simulator.step(self.motors, self.step_s)
+                self._steps += 1
+                self._skipped += 1
+                k += 1
             # 1. late packets: a newer command than the one held
             self._late += self._receive_all()
             # 2. the state at t_k

@@ -37,6 +37,7 @@ class HealthSample:
     speed: float
     misses: int
     late_replies: int
+    skipped: int = 0
 
     @property
     def faithful(self) -> bool:
@@ -109,6 +110,7 @@ class HealthMonitor:
             speed=round(window.speed, 4),
             misses=window.misses,
             late_replies=window.late_replies,
+            skipped=window.skipped,
         )
 
 

@@ -219,3 +219,22 @@ def test_bad_settings_are_refused(network):
         SitlBridge(RecordingSim(), network, speed=0)
     with pytest.raises(ValueError):
         SitlBridge(RecordingSim(), network, step_s=0.5)
+
+
+def test_falling_behind_skips_exchanges_instead_of_bursting(network, fake_sitl):
+    """A stalled step is followed by catch-up integration, not by a burst of fdm packets
+    (the SITL would answer a burst once and its clock would see nothing new)."""
+
+    class StallingSim(RecordingSim):
+        def step(self, motors: tuple[float, float, float, float], dt_s: float) -> None:
+            super().step(motors, dt_s)
+            if len(self.commands) == 100:
+                time.sleep(0.02)  # 20 steps' worth of wall time
+
+    bridge = SitlBridge(StallingSim(), network)
+    run_for(bridge, 0.4)
+    bridge.close()
+    stats = bridge.stats()
+    assert stats.skipped >= 15
+    assert 0.9 < stats.speed < 1.1  # simulated time kept up with the schedule
+    assert stats.fdm_sent <= stats.steps - stats.skipped + 5  # primers only beyond one per step

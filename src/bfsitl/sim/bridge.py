@@ -402,5 +402,7 @@ def wait_for_replies(bridge: SitlBridge, count: int = 50, timeout_s: float = 5.0
     stats = bridge.stats()
     raise SitlError(
         f"the SITL answered {stats.replies + stats.late_replies} of {stats.fdm_sent} fdm "
-        f"packets in {timeout_s:.0f} s: is it running, in the same network as the bridge?"
+        f"packets in {timeout_s:.0f} s. Either it runs in another network than the bridge, or "
+        f"its gyro/PID loop is not running: on a busy machine 4.6.0's scheduler can lock "
+        f"those tasks out (see `bfsitl cli tasks`); try a lower --speed or a quieter machine."
     )

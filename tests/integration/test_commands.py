@@ -146,3 +146,15 @@ def _sitl_pids_of(root_pid: int) -> list[int]:
             continue
     assert found, "no SITL process found under the bfsitl command"
     return found
+
+
+def test_sim_json_reports_health_every_second(firmware):
+    result = run("sim", "--duration", "3", "--json", timeout_s=90)
+    assert result.returncode == 0, result.stderr
+    records = [json.loads(line) for line in result.stdout.splitlines()]
+    assert len(records) >= 2
+    for key in ("fc_clock_ratio", "fc_cycle_us", "answered_ratio", "speed"):
+        assert key in records[-1]
+    assert records[-1]["fc_clock_ratio"] == pytest.approx(1.0, abs=0.03)
+    assert records[-1]["speed"] == pytest.approx(1.0, abs=0.05)
+    assert "fdm packets answered" in result.stderr

@@ -160,3 +160,24 @@ def test_closed_loop_lift_off_and_fc_altitude_follows(flight):
     assert climbed_m > 2.0, "the quad lifted off"
     assert fc_while_climbing_m > 0.5, "the firmware saw the climb as it happened"
     assert fc_settled_m == pytest.approx(climbed_m, abs=0.3)
+
+
+def test_bridge_survives_a_sitl_restart(flight):
+    """save reboots the SITL (the process exits); pause, restart, resume: the new firmware
+    answers fdm packets again and its clock follows simulated time."""
+    from bfsitl.fc.cli_session import CliSession
+
+    bridge, sitl = flight.bridge, flight.sitl
+    with CliSession(sitl.client.link) as cli:
+        cli.set("small_angle", 30)
+        bridge.pause()
+        cli.save(restart=sitl.restart_after_reboot)
+    bridge.resume()
+    before = bridge.stats()
+    time.sleep(1.0)
+    window = bridge.stats().minus(before)
+    assert window.replies + window.late_replies > 0.5 * window.fdm_sent
+    monitor = HealthMonitor(bridge, sitl.client)
+    monitor.reset()
+    time.sleep(2.0)
+    assert monitor.sample().fc_clock_ratio == pytest.approx(1.0, abs=0.02)

@@ -154,7 +154,10 @@ def test_silence_holds_the_last_command_and_counts_misses(network, fake_sitl):
     bridge.stop()
     bridge.close()
     window = bridge.stats().minus(before)
-    assert window.misses >= window.steps - 2
+    # Every step that exchanged a packet missed (a couple of replies may have been in
+    # flight); steps skipped to catch up after a stall exchange nothing.
+    assert window.misses >= window.steps - window.skipped - 2
+    assert window.misses > 50
     # Never zeroed: a zero command would drop the craft.
     assert sim.commands[-1] == pytest.approx((0.25,) * 4)
 

@@ -117,8 +117,6 @@ class SitlBridge:
         position_mode: str = "ned",
         on_step: Callable[[SitlBridge], None] | None = None,
     ) -> None:
-        if not 0.01 <= speed <= 10.0:
-            raise ValueError(f"speed {speed} outside 0.01..10")
         if not 0.0001 <= step_s <= 0.01:
             raise ValueError(f"step_s {step_s} outside 0.1..10 ms")
         self.simulator = simulator

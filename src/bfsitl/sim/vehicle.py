@@ -44,7 +44,13 @@ import random
 from dataclasses import dataclass
 
 from bfsitl.sim.atmosphere import isa_pressure_pa
-from bfsitl.sim.frames import GeodeticProjection, GeoPoint, quat_from_euler_deg, quat_normalize
+from bfsitl.sim.frames import (
+    GeodeticProjection,
+    GeoPoint,
+    quat_from_euler_deg,
+    quat_integrate,
+    quat_normalize,
+)
 from bfsitl.sim.params import (
     IRIS,
     STANDARD_GRAVITY_M_S2,
@@ -538,24 +544,10 @@ class Simulator:
         q += h * (my - (rm * lx - pm * lz)) / jy
         r += h * (mz - (pm * ly - qm * lx)) / jz
         self._w = (p, q, r)
-        # Attitude: exponential map of the step's mean rate (series while the angle is small).
-        quarter = 0.5 * half
-        hx, hy, hz = (p0 + p) * quarter, (q0 + q) * quarter, (r0 + r) * quarter
-        a2 = hx * hx + hy * hy + hz * hz
-        if a2 < 0.01:
-            c = 1.0 - a2 * (0.5 - a2 * (1.0 / 24.0))
-            s = 1.0 - a2 * (1.0 / 6.0 - a2 * (1.0 / 120.0))
-        else:
-            angle = math.sqrt(a2)
-            c = math.cos(angle)
-            s = math.sin(angle) / angle
-        dx, dy, dz = hx * s, hy * s, hz * s
-        nw = w * c - x * dx - y * dy - z * dz
-        nx = w * dx + x * c + y * dz - z * dy
-        ny = w * dy - x * dz + y * c + z * dx
-        nz = w * dz + x * dy - y * dx + z * c
-        inv = 1.0 / math.sqrt(nw * nw + nx * nx + ny * ny + nz * nz)
-        self._q = (nw * inv, nx * inv, ny * inv, nz * inv)
+        # Attitude: exponential map of the step's mean rate.
+        self._q = quat_integrate(
+            (w, x, y, z), (0.5 * (p0 + p), 0.5 * (q0 + q), 0.5 * (r0 + r)), h
+        )
         return (ax, ay, az)
 
     def _contact(

@@ -1,74 +1,55 @@
 """Helpers for tests that fly the embedded physics against the real SITL.
 
-The RC link proper belongs to the flight issue; these tests need only a plain UDP stream of
-rc_packets (AETR + AUX) at 100 Hz, started after the FC answers MSP (an RC packet during
-boot leaves 4.6.0 in RXLOSS forever).
+RC goes through :class:`bfsitl.fc.rc_link.UdpRcLink` (rc_packets, AETR + AUX, 100 Hz), started
+only after the FC answers MSP (an RC packet during boot leaves 4.6.0 in RXLOSS forever).
 """
 
 from __future__ import annotations
 
-import socket
-import threading
 import time
 import warnings
 from collections.abc import Iterator
 from contextlib import contextmanager
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 from bfsitl.errors import SitlError
 from bfsitl.fc.msp_client import MspClient
+from bfsitl.fc.rc_link import UdpRcLink
 from bfsitl.protocol import msp_messages as msg
-from bfsitl.protocol.sitl_packets import RcPacket
 from bfsitl.sim import Simulator
 from bfsitl.sim.bridge import SitlBridge, wait_for_replies
 from bfsitl.sitl.process import SitlProcess
 
-RC_PORT = 9004
 LOW_US, MID_US, HIGH_US = 1000, 1500, 1800
 
 
-@dataclass
 class Sticks:
-    roll_us: int = MID_US
-    pitch_us: int = MID_US
-    throttle_us: int = LOW_US
-    yaw_us: int = MID_US
-    aux1_us: int = LOW_US
+    """Attribute-style sticks on top of a :class:`UdpRcLink` (``sticks.throttle_us = 1300``)."""
 
-    def channels(self) -> tuple[int, ...]:
-        # rc_packet takes the receiver map order, AETR by default.
-        return (self.roll_us, self.pitch_us, self.throttle_us, self.yaw_us, self.aux1_us)
+    def __init__(self, link: UdpRcLink) -> None:
+        object.__setattr__(self, "_link", link)
+
+    def __getattr__(self, name: str) -> float:
+        command = self._link.command
+        return command.aux_us[0] if name == "aux1_us" else getattr(command, name)
+
+    def __setattr__(self, name: str, value: float) -> None:
+        command = self._link.command
+        if name == "aux1_us":
+            self._link.set(command.with_aux(0, value))
+        else:
+            self._link.set(replace(command, **{name: value}))
 
 
 class RcStreamer:
-    """Sends the current sticks at 100 Hz from a thread until stopped (then disarm, low)."""
+    """The real RC link (UDP rc_packets at 100 Hz) with attribute-style sticks."""
 
-    def __init__(self, sock: socket.socket) -> None:
-        self.sock = sock
-        self.sticks = Sticks()
-        self._stop = threading.Event()
-        self._thread = threading.Thread(target=self._run, daemon=True)
-
-    def _send(self) -> None:
-        packet = RcPacket(time.monotonic(), self.sticks.channels()).pack()
-        try:
-            self.sock.sendto(packet, ("127.0.0.1", RC_PORT))
-        except OSError:
-            pass
-
-    def _run(self) -> None:
-        while not self._stop.wait(0.01):
-            self._send()
-
-    def start(self) -> RcStreamer:
-        self._thread.start()
-        return self
+    def __init__(self, link: UdpRcLink) -> None:
+        self.link = link
+        self.sticks = Sticks(link)
 
     def stop(self) -> None:
-        self.sticks = Sticks()  # UDP silence makes 4.6.0 hold the last sticks: disarm first
-        self._send()
-        self._stop.set()
-        self._thread.join()
+        self.link.close()  # disarm and low throttle go out last
 
 
 @dataclass
@@ -104,7 +85,12 @@ def simulated_sitl(firmware, workdir, attempts: int = 2) -> Iterator[Flight]:
                     warnings.warn(f"fresh SITL after: {exc}", stacklevel=1)
                     continue
                 assert sitl.client is not None
-                yield Flight(sitl, sim, bridge, sitl.client)
+                flight = Flight(sitl, sim, bridge, sitl.client)
+                try:
+                    yield flight
+                finally:
+                    if flight.rc is not None:
+                        flight.rc.stop()
                 return
         finally:
             bridge.close()
@@ -112,8 +98,7 @@ def simulated_sitl(firmware, workdir, attempts: int = 2) -> Iterator[Flight]:
 
 def start_rc(flight: Flight) -> RcStreamer:
     assert flight.sitl.network is not None
-    sock = flight.sitl.network.socket(socket.AF_INET, socket.SOCK_DGRAM)
-    flight.rc = RcStreamer(sock).start()
+    flight.rc = RcStreamer(UdpRcLink(flight.sitl.network).start())
     return flight.rc
 
 

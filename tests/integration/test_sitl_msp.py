@@ -171,3 +171,22 @@ def test_client_without_sitl_times_out_cleanly_when_nothing_answers(sitl):
     with pytest.raises(MspFrameError):
         sitl.client.request(MspCommand.SET_NAME, bytes(193))
     assert isinstance(sitl.client, MspClient)
+
+
+def test_msp_rc_link_sets_the_channels_the_fc_reads(sitl):
+    """MSP_SET_RAW_RC takes AETR; MSP_RC answers in the internal order R, P, Y, T."""
+    from bfsitl.fc.rc_link import MspRcLink, RcCommand
+
+    with MspRcLink(sitl.client) as link:
+        link.set(RcCommand(roll_us=1100, pitch_us=1200, throttle_us=1300, yaw_us=1400,
+                           aux_us=(1800,)))
+        deadline = time.monotonic() + 3.0
+        while time.monotonic() < deadline:
+            rc = sitl.client.get(msg.Rc)
+            if rc.channels_us[:5] == (1100, 1200, 1400, 1300, 1800):
+                break
+            time.sleep(0.05)
+        assert rc.channels_us[:5] == (1100, 1200, 1400, 1300, 1800)
+        assert link.stats().send_errors == 0
+    # Closing sent disarm and low throttle.
+    assert sitl.client.get(msg.Rc).channels_us[:5] == (1500, 1500, 1500, 1000, 1000)

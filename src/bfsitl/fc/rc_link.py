@@ -1,0 +1,233 @@
+"""RC input for the flight controller: UDP rc_packets for a SITL, MSP_SET_RAW_RC for a board.
+
+Facts that shape it (``shared/FIRMWARE_FACTS.md``):
+
+* The first UDP rc_packet permanently replaces MSP as the SITL's RC source, and from then on
+  the SITL holds the last channels forever when packets stop: no RXLOSS, no failsafe.  So a
+  link must send disarm and low throttle before it goes quiet, on every way out (normal stop,
+  exception, Ctrl-C, garbage collection).
+* An RC packet that reaches the SITL while it boots leaves 4.6.0 in RXLOSS forever: start a
+  link only once the FC answers MSP (``SitlProcess.start`` returns then).
+* Channels are sent in the receiver map order, AETR by default, then AUX1...; values outside
+  1000-2000 us are clamped here (the firmware treats < 885 or > 2115 as invalid).
+* On a real board RC goes over MSP_SET_RAW_RC, which takes one MSP packet per serial tick from
+  the same budget as telemetry: :class:`MspRcLink` sends at 25 Hz by default.
+"""
+
+from __future__ import annotations
+
+import math
+import socket
+import statistics
+import threading
+import time
+from dataclasses import dataclass, field, replace
+from typing import Protocol
+
+from bfsitl.errors import BfsitlError
+from bfsitl.fc.msp_client import MspClient
+from bfsitl.protocol import msp_messages as msg
+from bfsitl.protocol.sitl_packets import RcPacket
+
+RC_MIN_US = 1000
+RC_MAX_US = 2000
+RC_MID_US = 1500
+RC_PORT = 9004
+DEFAULT_UDP_RATE_HZ = 100.0
+DEFAULT_MSP_RATE_HZ = 25.0
+#: Disarm/low-throttle packets sent on close, so one lost datagram cannot leave it armed.
+_FAREWELL_PACKETS = 3
+
+
+def _clamp_us(value: float) -> int:
+    if not math.isfinite(value):
+        raise BfsitlError(f"RC channel value {value!r} is not a number")
+    return int(min(RC_MAX_US, max(RC_MIN_US, round(value))))
+
+
+@dataclass(frozen=True, slots=True)
+class RcCommand:
+    """Sticks and switches in microseconds; clamped to 1000-2000 when sent."""
+
+    roll_us: float = RC_MID_US
+    pitch_us: float = RC_MID_US
+    throttle_us: float = RC_MIN_US
+    yaw_us: float = RC_MID_US
+    aux_us: tuple[float, ...] = field(default=(RC_MIN_US,))
+
+    def channels_aetr(self) -> tuple[int, ...]:
+        """Roll, pitch, throttle, yaw, AUX1... (the default receiver map), clamped."""
+        values = (self.roll_us, self.pitch_us, self.throttle_us, self.yaw_us, *self.aux_us)
+        return tuple(_clamp_us(v) for v in values)
+
+    def disarmed(self) -> RcCommand:
+        """Centred sticks, throttle low, every AUX switch low (ARM off)."""
+        return RcCommand(aux_us=(RC_MIN_US,) * len(self.aux_us))
+
+    def with_aux(self, index: int, value_us: float) -> RcCommand:
+        aux = list(self.aux_us) + [RC_MIN_US] * max(0, index + 1 - len(self.aux_us))
+        aux[index] = value_us
+        return replace(self, aux_us=tuple(aux))
+
+
+#: What every link starts with and falls back to when it stops.
+SAFE_COMMAND = RcCommand()
+
+
+@dataclass(frozen=True, slots=True)
+class RcLinkStats:
+    """Send timing of the link's thread: how steady the stream is."""
+
+    packets: int
+    period_mean_ms: float
+    period_p99_ms: float
+    period_max_ms: float
+    send_errors: int
+
+
+class _SocketFactory(Protocol):
+    def socket(self, family: int, kind: int) -> socket.socket: ...
+
+
+class _RcLinkBase:
+    """The thread, the current command, the timing statistics and the safe shutdown."""
+
+    def __init__(self, rate_hz: float) -> None:
+        if not 1.0 <= rate_hz <= 500.0:
+            raise ValueError(f"rate_hz {rate_hz} outside 1..500")
+        self.rate_hz = rate_hz
+        self._command = SAFE_COMMAND
+        self._stop = threading.Event()
+        self._thread: threading.Thread | None = None
+        self._periods_s: list[float] = []
+        self._packets = 0
+        self._send_errors = 0
+        self.closed = False
+
+    # -- the command -----------------------------------------------------------------------
+    @property
+    def command(self) -> RcCommand:
+        return self._command
+
+    def set(self, command: RcCommand) -> None:
+        """The command the next packet carries (validated now, so errors surface here)."""
+        command.channels_aetr()
+        self._command = command
+
+    # -- lifecycle -------------------------------------------------------------------------
+    def start(self) -> _RcLinkBase:
+        if self._thread is not None:
+            raise BfsitlError("RC link already started")
+        self._thread = threading.Thread(target=self._run, name="bfsitl-rc", daemon=True)
+        self._thread.start()
+        return self
+
+    def close(self) -> None:
+        """Send disarm and low throttle, then stop.  Safe to call more than once."""
+        if self.closed:
+            return
+        self._stop.set()
+        if self._thread is not None:
+            self._thread.join(timeout=2.0)
+        self._command = self._command.disarmed()
+        for _ in range(_FAREWELL_PACKETS):
+            self._send_safely(self._command)
+        self.closed = True
+        self._release()
+
+    def __enter__(self) -> _RcLinkBase:
+        return self.start()
+
+    def __exit__(self, *exc_info: object) -> None:
+        self.close()
+
+    def __del__(self) -> None:  # last resort: never leave a SITL holding armed sticks
+        try:
+            if not self.closed:
+                self.close()
+        except Exception:  # noqa: BLE001 - interpreter shutdown
+            pass
+
+    def stats(self) -> RcLinkStats:
+        periods_ms = sorted(p * 1000 for p in self._periods_s[-5000:])
+        if not periods_ms:
+            return RcLinkStats(self._packets, 0.0, 0.0, 0.0, self._send_errors)
+        p99 = periods_ms[min(len(periods_ms) - 1, int(0.99 * len(periods_ms)))]
+        return RcLinkStats(self._packets, statistics.fmean(periods_ms), p99, periods_ms[-1],
+                           self._send_errors)
+
+    # -- the thread ------------------------------------------------------------------------
+    def _run(self) -> None:
+        period_s = 1.0 / self.rate_hz
+        next_s = time.perf_counter()
+        last_s: float | None = None
+        while not self._stop.is_set():
+            self._send_safely(self._command)
+            now_s = time.perf_counter()
+            if last_s is not None:
+                self._periods_s.append(now_s - last_s)
+            last_s = now_s
+            # Absolute schedule: a late packet does not shift every later one.
+            next_s += period_s
+            if next_s < now_s:
+                next_s = now_s
+            self._stop.wait(next_s - now_s)
+
+    def _send_safely(self, command: RcCommand) -> None:
+        try:
+            self._send(command)
+            self._packets += 1
+        except (OSError, BfsitlError):
+            self._send_errors += 1  # a restarting SITL refuses for a moment; keep going
+
+    def _send(self, command: RcCommand) -> None:
+        raise NotImplementedError
+
+    def _release(self) -> None:
+        pass
+
+
+class UdpRcLink(_RcLinkBase):
+    """rc_packets to a SITL (UDP 9004), 100 Hz by default, from a thread of its own.
+
+    ``network`` makes the socket (an isolated SITL's namespace); None = the host network.
+    """
+
+    def __init__(
+        self,
+        network: _SocketFactory | None = None,
+        *,
+        rate_hz: float = DEFAULT_UDP_RATE_HZ,
+        host: str = "127.0.0.1",
+        port: int = RC_PORT,
+    ) -> None:
+        super().__init__(rate_hz)
+        self._address = (host, port)
+        if network is None:
+            self._sock = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
+        else:
+            self._sock = network.socket(socket.AF_INET, socket.SOCK_DGRAM)
+        self._started_s = time.monotonic()
+
+    def _send(self, command: RcCommand) -> None:
+        packet = RcPacket(time.monotonic() - self._started_s, command.channels_aetr())
+        self._sock.sendto(packet.pack(), self._address)
+
+    def _release(self) -> None:
+        self._sock.close()
+
+
+class MspRcLink(_RcLinkBase):
+    """MSP_SET_RAW_RC for a real board (receiver set to MSP), 25 Hz by default.
+
+    Each packet takes one of the FC's ~100 MSP packets per second at the default serial rate,
+    shared with telemetry; 50 Hz RC plus 40 Hz polling was measured to delay RC past 150 ms and
+    trigger RXLOSS, so keep RC + telemetry well under the serial rate.
+    """
+
+    def __init__(self, client: MspClient, *, rate_hz: float = DEFAULT_MSP_RATE_HZ) -> None:
+        super().__init__(rate_hz)
+        self.client = client
+
+    def _send(self, command: RcCommand) -> None:
+        self.client.send(msg.SetRawRc(command.channels_aetr()))

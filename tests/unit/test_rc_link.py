@@ -1,0 +1,96 @@
+"""The RC link: steady UDP stream, clamping, and disarm on every way out.
+
+A receiver socket in a private namespace stands in for the SITL's UDP 9004; the real SITL arms
+through this link in tests/integration/test_sim_bridge.py.
+"""
+
+from __future__ import annotations
+
+import socket
+import time
+from collections.abc import Iterator
+
+import pytest
+
+from bfsitl.errors import BfsitlError
+from bfsitl.fc.rc_link import RC_PORT, SAFE_COMMAND, RcCommand, UdpRcLink
+from bfsitl.protocol.sitl_packets import RcPacket
+from bfsitl.sitl.network import IsolatedNetwork, unshare_available
+
+pytestmark = pytest.mark.skipif(not unshare_available(), reason="needs unshare")
+
+
+@pytest.fixture
+def network() -> Iterator[IsolatedNetwork]:
+    with IsolatedNetwork() as net:
+        yield net
+
+
+@pytest.fixture
+def receiver(network: IsolatedNetwork) -> Iterator[socket.socket]:
+    sock = network.socket(socket.AF_INET, socket.SOCK_DGRAM)
+    sock.bind(("127.0.0.1", RC_PORT))
+    sock.settimeout(0.2)
+    yield sock
+    sock.close()
+
+
+def drain(sock: socket.socket) -> list[RcPacket]:
+    packets = []
+    while True:
+        try:
+            packets.append(RcPacket.unpack(sock.recv(64)))
+        except TimeoutError:
+            return packets
+
+
+def test_channels_are_aetr_then_aux_and_clamped():
+    command = RcCommand(roll_us=900, pitch_us=2500, throttle_us=1234.6, yaw_us=1500,
+                        aux_us=(1800, 1000))
+    assert command.channels_aetr() == (1000, 2000, 1235, 1500, 1800, 1000)
+    assert command.disarmed().channels_aetr() == (1500, 1500, 1000, 1500, 1000, 1000)
+    assert RcCommand().with_aux(1, 1700).aux_us == (1000, 1700)
+
+
+def test_non_numbers_are_refused_when_set(network):
+    link = UdpRcLink(network)
+    with pytest.raises(BfsitlError, match="not a number"):
+        link.set(RcCommand(throttle_us=float("nan")))
+    link.close()
+
+
+def test_streams_at_100_hz_and_reports_jitter(network, receiver):
+    with UdpRcLink(network) as link:
+        link.set(RcCommand(throttle_us=1300, aux_us=(1800,)))
+        time.sleep(1.0)
+        stats = link.stats()
+    packets = drain(receiver)
+    assert 80 <= len(packets) <= 115
+    assert stats.period_mean_ms == pytest.approx(10.0, abs=1.0)
+    assert stats.period_max_ms >= stats.period_p99_ms >= stats.period_mean_ms * 0.5
+    assert any(p.channels_us[2] == 1300 and p.channels_us[4] == 1800 for p in packets)
+
+
+def test_close_sends_disarm_and_low_throttle_last(network, receiver):
+    link = UdpRcLink(network).start()
+    link.set(RcCommand(throttle_us=1700, aux_us=(1800,)))
+    time.sleep(0.1)
+    link.close()
+    link.close()  # idempotent
+    last = drain(receiver)[-1]
+    assert last.channels_us[:5] == SAFE_COMMAND.channels_aetr()[:4] + (1000,)
+
+
+def test_an_exception_inside_the_with_block_still_disarms(network, receiver):
+    with pytest.raises(RuntimeError):
+        with UdpRcLink(network) as link:
+            link.set(RcCommand(throttle_us=1800, aux_us=(1900,)))
+            time.sleep(0.05)
+            raise RuntimeError("mission code failed")
+    last = drain(receiver)[-1]
+    assert last.channels_us[2] == 1000 and last.channels_us[4] == 1000
+
+
+def test_rate_limits(network):
+    with pytest.raises(ValueError):
+        UdpRcLink(network, rate_hz=0)

@@ -19,6 +19,7 @@ Messages are written for the person at the terminal: what went wrong, then what 
     │   └── MspTimeoutError            (also TimeoutError) no reply: lost, port in CLI, FC gone
     ├── CliError                       the CLI session failed
     │   └── CliCommandError            a command answered ``###ERROR``
+    ├── ProvisioningError              the FC's configuration could not be applied or verified
     └── SitlError                      the SITL process
         ├── FirmwareNotFoundError      no SITL binary anywhere we looked
         ├── PortInUseError             another process already holds the SITL's ports
@@ -97,6 +98,10 @@ class CliCommandError(CliError):
         self.output = output
         first = next((ln for ln in output.splitlines() if ln.startswith("###ERROR")), output)
         super().__init__(f"CLI command {command!r} failed: {first.strip()}")
+
+
+class ProvisioningError(BfsitlError):
+    """The FC's configuration could not be applied or did not read back as written."""
 
 
 class SitlError(BfsitlError):

@@ -1,0 +1,143 @@
+"""Configure a flight controller for autonomous flight: mode ranges, then a user's CLI lines.
+
+Facts (``shared/FIRMWARE_FACTS.md``): arming needs an ARM mode range on an AUX channel (stick
+arming is off in 4.6); the CLI form ``aux 0 0 0 1700 2100`` with 5 arguments crashes 4.6.0 SITL,
+so only the 7-argument form is accepted; MSP_EEPROM_WRITE saves without rebooting (a reboot
+ends a SITL process); an interactive CLI session blocks arming until reboot, so CLI lines go
+through the non-interactive (STX) mode, a few at a time (that mode ends 2 s after it starts).
+
+Mode ranges are read back after writing and compared; a persisted configuration that already
+matches is left alone (nothing written, nothing saved).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Iterable
+from dataclasses import dataclass
+from pathlib import Path
+
+from bfsitl.errors import ProvisioningError
+from bfsitl.fc.cli_session import CliSession
+from bfsitl.fc.msp_client import MspClient
+from bfsitl.protocol import msp_messages as msg
+from bfsitl.protocol.boxes import BoxId
+
+#: ARM while AUX1 is at 1700-2100 us: the default of every bfsitl flight.
+ARM_ON_AUX1 = msg.ModeRange.from_us(BoxId.ARM, 0, 1700, 2100)
+#: Self-levelling on AUX2, an optional extra.
+ANGLE_ON_AUX2 = msg.ModeRange.from_us(BoxId.ANGLE, 1, 1700, 2100)
+#: CLI lines per non-interactive batch: well inside the firmware's 2 s session.
+_BATCH_LINES = 8
+#: ``aux`` takes index, box, channel, start, end, logic, linked box: 7 arguments.
+_AUX_ARGUMENTS = 7
+
+
+@dataclass(frozen=True, slots=True)
+class Profile:
+    """What to configure: mode ranges in slots 0, 1, ... and CLI lines after them."""
+
+    mode_ranges: tuple[msg.ModeRange, ...] = (ARM_ON_AUX1,)
+    cli_lines: tuple[str, ...] = ()
+
+    def __post_init__(self) -> None:
+        for line in self.cli_lines:
+            validate_cli_line(line)
+
+    @classmethod
+    def from_file(cls, path: str | Path,
+                  mode_ranges: tuple[msg.ModeRange, ...] = (ARM_ON_AUX1,)) -> Profile:
+        """CLI lines from a file (``#`` comments and blank lines skipped)."""
+        lines = []
+        for raw in Path(path).read_text().splitlines():
+            line = raw.strip()
+            if line and not line.startswith("#"):
+                lines.append(line)
+        return cls(mode_ranges, tuple(lines))
+
+
+@dataclass(frozen=True, slots=True)
+class ProvisionResult:
+    changed: bool            # something was written and saved
+    mode_ranges_written: int
+    cli_lines_run: int
+    rebooted: bool
+
+
+def validate_cli_line(line: str) -> str:
+    """Refuse what would crash, reboot or hang the FC; return the line."""
+    words = line.split()
+    if not words:
+        raise ProvisioningError("empty CLI line in the profile")
+    command = words[0].lower()
+    if command == "aux" and len(words) - 1 != _AUX_ARGUMENTS:
+        raise ProvisioningError(
+            f"{line!r}: aux needs {_AUX_ARGUMENTS} arguments (index box channel start end "
+            f"logic linked), e.g. 'aux 0 0 0 1700 2100 0 0'; the 5-argument form crashes "
+            f"Betaflight 4.6.0 SITL"
+        )
+    if command in ("save", "exit", "defaults", "bl", "dfu", "msc", "reboot"):
+        raise ProvisioningError(
+            f"{line!r}: provisioning saves by itself (without a reboot); remove this line"
+        )
+    return line
+
+
+def _batches(lines: Iterable[str], size: int) -> Iterable[list[str]]:
+    batch: list[str] = []
+    for line in lines:
+        batch.append(line)
+        if len(batch) == size:
+            yield batch
+            batch = []
+    if batch:
+        yield batch
+
+
+def provision(
+    client: MspClient,
+    profile: Profile = Profile(),
+    *,
+    reboot: Callable[[], object] | None = None,
+) -> ProvisionResult:
+    """Apply ``profile``, verify it, save it; skip what the FC already holds.
+
+    ``reboot`` is called when a CLI line needs a reboot to take effect (the FC reports it in
+    STATUS); it must reboot the FC and reconnect (for a SITL: MSP_REBOOT, then
+    ``SitlProcess.restart_after_reboot``, whose ``client`` is the new connection).
+    """
+    current = client.mode_ranges().ranges
+    if len(profile.mode_ranges) > len(current):
+        raise ProvisioningError(
+            f"{len(profile.mode_ranges)} mode ranges asked, the FC has {len(current)} slots")
+    written = 0
+    for index, wanted in enumerate(profile.mode_ranges):
+        if current[index] != wanted:
+            client.set_mode_range(index, wanted)
+            written += 1
+    if written:
+        read_back = client.mode_ranges().ranges
+        for index, wanted in enumerate(profile.mode_ranges):
+            if read_back[index] != wanted:
+                raise ProvisioningError(
+                    f"mode range slot {index} reads back {read_back[index]} after writing "
+                    f"{wanted}: is the box available on this FC (MSP_BOXIDS)?"
+                )
+    lines_run = 0
+    if profile.cli_lines:
+        cli = CliSession(client.link)
+        for batch in _batches(profile.cli_lines, _BATCH_LINES):
+            cli.batch(batch)
+            lines_run += len(batch)
+    changed = bool(written or lines_run)
+    rebooted = False
+    if changed:
+        client.eeprom_write()
+        if msg.StatusEx.decode(client.request(msg.StatusEx.COMMAND)).config_state & 1:
+            if reboot is None:
+                raise ProvisioningError(
+                    "the configuration was saved but needs a reboot to take effect; pass "
+                    "reboot= (for a SITL: reboot, then restart the process)"
+                )
+            reboot()
+            rebooted = True
+    return ProvisionResult(changed, written, lines_run, rebooted)

@@ -1,0 +1,96 @@
+"""Provisioning against a fake FC that stores mode ranges like the firmware does."""
+
+from __future__ import annotations
+
+import pytest
+from fake_fc import FakeFcLink
+
+from bfsitl.errors import ProvisioningError
+from bfsitl.fc.msp_client import MspClient
+from bfsitl.fc.provisioning import (
+    ANGLE_ON_AUX2,
+    ARM_ON_AUX1,
+    Profile,
+    provision,
+    validate_cli_line,
+)
+from bfsitl.protocol import msp_messages as msg
+from bfsitl.protocol.msp_codes import MspCommand
+from bfsitl.protocol.msp_frame import MspFrame
+
+STATUS = msg.StatusEx(
+    cycle_time_us=125, i2c_errors=0, sensors_mask=0x23, flight_mode_flags=0, pid_profile=0,
+    cpu_load_percent=0, pid_profile_count=4, rate_profile_index=0, arming_disable_flag_count=29,
+    arming_disable_flags=0, config_state=0, cpu_temp_c=0, rate_profile_count=4,
+)
+
+
+class StoringFc:
+    """MODE_RANGES / SET_MODE_RANGE / EEPROM_WRITE with state, as msp.c keeps them."""
+
+    def __init__(self, accept_writes: bool = True) -> None:
+        self.slots = [msg.ModeRange(0, 0, 0, 0)] * 20
+        self.accept_writes = accept_writes
+        self.eeprom_writes = 0
+        self.link = FakeFcLink({
+            MspCommand.MODE_RANGES: lambda _r: msg.ModeRanges(tuple(self.slots)).encode(),
+            MspCommand.SET_MODE_RANGE: self._set,
+            MspCommand.EEPROM_WRITE: self._save,
+            MspCommand.STATUS_EX: lambda _r: STATUS.encode(),
+        })
+
+    def _set(self, request: MspFrame) -> bytes:
+        command = msg.SetModeRange.decode(request.payload)
+        if self.accept_writes:
+            self.slots[command.index] = command.range
+        return b""
+
+    def _save(self, _request: MspFrame) -> bytes:
+        self.eeprom_writes += 1
+        return b""
+
+
+def test_default_profile_arms_on_aux1_and_a_second_run_changes_nothing():
+    fc = StoringFc()
+    client = MspClient(fc.link, timeout_s=0.1)
+    first = provision(client)
+    assert first.changed and first.mode_ranges_written == 1
+    assert fc.slots[0] == ARM_ON_AUX1 and fc.eeprom_writes == 1
+    second = provision(client)
+    assert not second.changed and second.mode_ranges_written == 0
+    assert fc.eeprom_writes == 1  # nothing saved when nothing changed
+
+
+def test_extra_modes_go_in_the_next_slots():
+    fc = StoringFc()
+    provision(MspClient(fc.link, timeout_s=0.1), Profile((ARM_ON_AUX1, ANGLE_ON_AUX2)))
+    assert fc.slots[:2] == [ARM_ON_AUX1, ANGLE_ON_AUX2]
+
+
+def test_a_range_that_does_not_read_back_is_an_error():
+    fc = StoringFc(accept_writes=False)
+    with pytest.raises(ProvisioningError, match="reads back"):
+        provision(MspClient(fc.link, timeout_s=0.1))
+    assert fc.eeprom_writes == 0  # nothing saved after a failed verification
+
+
+@pytest.mark.parametrize("line", ["aux 0 0 0 1700 2100", "aux 0 0 0 1700 2100 0"])
+def test_the_five_argument_aux_form_is_refused(line):
+    with pytest.raises(ProvisioningError, match="crashes"):
+        validate_cli_line(line)
+    with pytest.raises(ProvisioningError):
+        Profile(cli_lines=(line,))
+
+
+@pytest.mark.parametrize("line", ["save", "exit", "defaults"])
+def test_rebooting_lines_are_refused(line):
+    with pytest.raises(ProvisioningError, match="saves by itself"):
+        validate_cli_line(line)
+
+
+def test_profile_file_skips_comments(tmp_path):
+    path = tmp_path / "profile.txt"
+    path.write_text("# my quad\n\naux 1 1 1 1700 2100 0 0\nset small_angle = 30\n")
+    profile = Profile.from_file(path)
+    assert profile.cli_lines == ("aux 1 1 1 1700 2100 0 0", "set small_angle = 30")
+    assert profile.mode_ranges == (ARM_ON_AUX1,)

@@ -158,3 +158,19 @@ def test_sim_json_reports_health_every_second(firmware):
     assert records[-1]["fc_clock_ratio"] == pytest.approx(1.0, abs=0.03)
     assert records[-1]["speed"] == pytest.approx(1.0, abs=0.05)
     assert "fdm packets answered" in result.stderr
+
+
+def test_doctor_probes_explains_blockers_and_arms(firmware):
+    result = run("doctor", timeout_s=120)
+    assert result.returncode == 0, result.stdout + result.stderr
+    assert "[  ok] firmware" in result.stdout
+    assert "arming blocker BOOTGRACE" in result.stdout and "fix:" in result.stdout
+    assert "armed and disarmed" in result.stdout
+    assert result.stdout.rstrip().endswith("ready to fly")
+
+
+def test_doctor_without_firmware_fails_with_the_fix(tmp_path):
+    result = run("doctor", "--firmware", str(tmp_path / "missing_SITL"))
+    assert result.returncode == 1
+    assert "[FAIL] firmware" in result.stdout and "missing_SITL" in result.stdout
+    assert "problem(s) found" in result.stdout

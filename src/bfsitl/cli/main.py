@@ -15,6 +15,7 @@ from pathlib import Path
 
 from bfsitl import __version__
 from bfsitl.cli import render
+from bfsitl.cli.doctor import add_doctor_parser
 from bfsitl.cli.sim_command import add_sim_parser
 from bfsitl.cli.target import add_target_arguments, open_target, progress
 from bfsitl.errors import BfsitlError
@@ -134,7 +135,8 @@ def build_parser() -> argparse.ArgumentParser:
                "  bfsitl telemetry --rate 20 --duration 5\n"
                "  bfsitl cli get small_angle\n"
                "  bfsitl backup my-quad.txt --uri serial:///dev/ttyACM0\n"
-               "  bfsitl sim --duration 10 --json  physics against a SITL, health once a second",
+               "  bfsitl sim --duration 10 --json  physics against a SITL, health once a second\n"
+               "  bfsitl doctor                    firmware, ports, a live probe, blockers",
         formatter_class=argparse.RawDescriptionHelpFormatter,
     )
     parser.add_argument("--version", action="version", version=f"bfsitl {__version__}")
@@ -177,6 +179,7 @@ def build_parser() -> argparse.ArgumentParser:
     backup.set_defaults(func=cmd_backup)
 
     add_sim_parser(sub)
+    add_doctor_parser(sub)
     return parser
 
 

@@ -41,7 +41,6 @@ from bfsitl.protocol.msp_frame import (
     Direction,
     MspFrame,
     MspParser,
-    MspVersion,
     encode_request,
 )
 
@@ -73,13 +72,6 @@ TELEMETRY_COMMANDS: tuple[int, ...] = (
 )
 
 T = TypeVar("T")
-
-
-class _Decodable(Protocol):
-    COMMAND: Any
-
-    @classmethod
-    def decode(cls, payload: bytes) -> Any: ...
 
 
 class _Encodable(Protocol):
@@ -612,12 +604,10 @@ def _telemetry_from_payloads(
     )
 
 
-# Keep MspVersion importable from here for callers choosing a framing explicitly.
 __all__ = [
     "ClientStats",
     "MspClient",
     "MspRequest",
-    "MspVersion",
     "TELEMETRY_COMMANDS",
     "Telemetry",
     "is_idempotent",

@@ -10,7 +10,6 @@ from __future__ import annotations
 import abc
 import errno
 import threading
-import time
 from types import TracebackType
 
 from bfsitl.errors import LinkClosedError, LinkError, LinkTimeoutError
@@ -79,19 +78,6 @@ class Link(abc.ABC):
             )
         self.bytes_read += len(data)
         return data
-
-    def read_exactly(self, size: int, timeout_s: float | None = None) -> bytes:
-        """Exactly ``size`` bytes, or :class:`LinkTimeoutError`."""
-        deadline = time.monotonic() + (self.timeout_s if timeout_s is None else timeout_s)
-        chunks = bytearray()
-        while len(chunks) < size:
-            remaining_s = deadline - time.monotonic()
-            if remaining_s <= 0:
-                raise LinkTimeoutError(
-                    f"{self.uri}: got {len(chunks)} of {size} bytes before the deadline"
-                )
-            chunks += self.read_some(remaining_s, size - len(chunks))
-        return bytes(chunks)
 
     def drain_input(self, quiet_s: float = 0.05) -> bytes:
         """Read and return everything until the line has been quiet for ``quiet_s``."""

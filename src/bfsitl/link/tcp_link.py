@@ -84,6 +84,3 @@ class TcpLink(Link):
         except OSError:
             pass
         self._sock.close()
-
-    def fileno(self) -> int:
-        return self._sock.fileno()

@@ -19,8 +19,8 @@ The rate-frozen scheme (``shared/research/physics-and-timing.md`` §2.9):
 The firmware clock then runs at ``speed`` × wall time, and the bridge paces simulated time at
 the same ``speed``: firmware time / sim time stays at 1.00 whatever the jitter.
 
-:class:`SimTimeStamps` is the Gazebo-parity alternative (timestamp = sim time), kept for
-comparison; expect the firmware clock to drift.
+The Gazebo-parity alternative (timestamp = sim time, ``SitlBridge(timestamps="sim")``) is kept
+for comparison; expect the firmware clock to drift with it.
 """
 
 from __future__ import annotations
@@ -80,25 +80,4 @@ class FrozenRateStamps:
     def next(self) -> float:
         """The timestamp of the next regular packet."""
         self.timestamp_s += FROZEN_STEP_S
-        return self.timestamp_s
-
-
-@dataclass
-class SimTimeStamps:
-    """Gazebo parity: the timestamp is the simulated time (firmware clock will drift)."""
-
-    speed: float = 1.0
-    timestamp_s: float = 0.0
-
-    @property
-    def needs_calibration(self) -> bool:
-        return False
-
-    def primer(self) -> float:
-        return self.timestamp_s
-
-    def set_sim_time(self, sim_time_s: float) -> None:
-        self.timestamp_s = sim_time_s
-
-    def next(self) -> float:
         return self.timestamp_s

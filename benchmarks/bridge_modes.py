@@ -20,8 +20,8 @@ import time
 from dataclasses import dataclass
 
 from bfsitl.sim import Simulator
-from bfsitl.sim.bridge import SitlBridge, wait_for_replies
-from bfsitl.sim.health import HealthMonitor, lock_clock
+from bfsitl.sim.bridge import bridged_sitl
+from bfsitl.sim.health import HealthMonitor, lock_clock, meets_targets
 from bfsitl.sitl.process import SitlProcess
 
 WARMUP_S = 2.0
@@ -38,10 +38,7 @@ class BridgeRow:
 
     @property
     def faithful(self) -> bool:
-        return (
-            self.fc_clock_ratio is not None and abs(self.fc_clock_ratio - 1.0) <= 0.02
-            and self.fc_cycle_us <= 150 and self.answered_ratio >= 0.99
-        )
+        return meets_targets(self.fc_clock_ratio, self.fc_cycle_us, self.answered_ratio)
 
 
 def log(message: str) -> None:
@@ -50,29 +47,21 @@ def log(message: str) -> None:
 
 def measure_bridge(timestamps: str, speed: float, window_s: float) -> BridgeRow:
     sitl = SitlProcess(isolate=True)
-    bridge = SitlBridge(Simulator(), sitl.prepare_network(), speed=speed,
-                        timestamps=timestamps)  # type: ignore[arg-type]
-    bridge.bind()
-    try:
-        with sitl:
-            assert sitl.client is not None
-            bridge.start()
-            wait_for_replies(bridge)
-            monitor = HealthMonitor(bridge, sitl.client)
-            if timestamps == "frozen":
-                lock_clock(monitor)
-            time.sleep(WARMUP_S)
-            monitor.reset()
-            cycles = []
-            end = time.monotonic() + window_s
-            while time.monotonic() < end:
-                cycles.append(monitor.fc_cycle_us(polls=3))
-                time.sleep(0.3)
-            sample = monitor.sample()  # answered/speed over the whole window
-            return BridgeRow(timestamps, speed, sample.fc_clock_ratio,
-                             statistics.median(cycles), sample.answered_ratio, sample.speed)
-    finally:
-        bridge.close()
+    with bridged_sitl(sitl, Simulator(), speed=speed, timestamps=timestamps) as bridge:
+        assert sitl.client is not None
+        monitor = HealthMonitor(bridge, sitl.client)
+        if timestamps == "frozen":
+            lock_clock(monitor)
+        time.sleep(WARMUP_S)
+        monitor.reset()
+        cycles = []
+        end = time.monotonic() + window_s
+        while time.monotonic() < end:
+            cycles.append(monitor.fc_cycle_us(polls=3))
+            time.sleep(0.3)
+        sample = monitor.sample()  # answered/speed over the whole window
+        return BridgeRow(timestamps, speed, sample.fc_clock_ratio,
+                         statistics.median(cycles), sample.answered_ratio, sample.speed)
 
 
 def run_bridge_modes(speeds: tuple[float, ...], window_s: float) -> list[BridgeRow]:

@@ -9,7 +9,7 @@ from __future__ import annotations
 import time
 import warnings
 from collections.abc import Iterator
-from contextlib import contextmanager
+from contextlib import ExitStack, contextmanager
 from dataclasses import dataclass, replace
 
 from bfsitl.errors import SitlError
@@ -17,7 +17,7 @@ from bfsitl.fc.msp_client import MspClient
 from bfsitl.fc.rc_link import UdpRcLink
 from bfsitl.protocol import msp_messages as msg
 from bfsitl.sim import Simulator
-from bfsitl.sim.bridge import SitlBridge, wait_for_replies
+from bfsitl.sim.bridge import SitlBridge, bridged_sitl
 from bfsitl.sitl.process import SitlProcess
 
 LOW_US, MID_US, HIGH_US = 1000, 1500, 1800
@@ -72,28 +72,23 @@ def simulated_sitl(firmware, workdir, attempts: int = 2) -> Iterator[Flight]:
     for attempt in range(1, attempts + 1):
         sim = Simulator()
         sitl = SitlProcess(firmware, workdir=workdir / f"attempt{attempt}", isolate=True)
-        bridge = SitlBridge(sim, sitl.prepare_network())
-        bridge.bind()
+        stack = ExitStack()
         try:
-            with sitl:
-                bridge.start()
-                try:
-                    wait_for_replies(bridge)
-                except SitlError as exc:
-                    if attempt == attempts:
-                        raise
-                    warnings.warn(f"fresh SITL after: {exc}", stacklevel=1)
-                    continue
-                assert sitl.client is not None
-                flight = Flight(sitl, sim, bridge, sitl.client)
-                try:
-                    yield flight
-                finally:
-                    if flight.rc is not None:
-                        flight.rc.stop()
-                return
-        finally:
-            bridge.close()
+            bridge = stack.enter_context(bridged_sitl(sitl, sim))
+        except SitlError as exc:  # bridged_sitl has stopped what it started
+            if attempt == attempts:
+                raise
+            warnings.warn(f"fresh SITL after: {exc}", stacklevel=1)
+            continue
+        assert sitl.client is not None
+        flight = Flight(sitl, sim, bridge, sitl.client)
+        with stack:  # the bridge, then the SITL, stop on the way out
+            try:
+                yield flight
+            finally:
+                if flight.rc is not None:
+                    flight.rc.stop()
+        return
 
 
 def start_rc(flight: Flight) -> RcStreamer:

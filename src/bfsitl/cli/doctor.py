@@ -104,22 +104,19 @@ def live_probe(firmware: str | None, report: Callable[[str], None]) -> list[Find
     from bfsitl.fc.provisioning import provision
     from bfsitl.fc.rc_link import RcCommand, UdpRcLink
     from bfsitl.sim import Simulator
-    from bfsitl.sim.bridge import SitlBridge, wait_for_replies
+    from bfsitl.sim.bridge import bridged_sitl
     from bfsitl.sim.health import HealthMonitor
     from bfsitl.sitl.process import SitlProcess
 
     findings = []
     sitl = SitlProcess(firmware, isolate=True, progress=report)
-    bridge = SitlBridge(Simulator(), sitl.prepare_network())
-    bridge.bind()
     rc: UdpRcLink | None = None
     try:
-        with sitl:
+        with bridged_sitl(sitl, Simulator()) as bridge:
             assert sitl.client is not None
             client = sitl.client
+            # Seen right after boot and physics start: the blockers a user meets first.
             seen = {b.cli_name: b for b in client.status().arming_blockers}
-            bridge.start()
-            wait_for_replies(bridge)
             provision(client)
             rc = UdpRcLink(sitl.network)
             rc.start()
@@ -162,7 +159,6 @@ def live_probe(firmware: str | None, report: Callable[[str], None]) -> list[Find
     finally:
         if rc is not None:
             rc.close()
-        bridge.close()
     return findings
 
 

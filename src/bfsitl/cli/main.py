@@ -34,7 +34,6 @@ def cmd_status(args: argparse.Namespace) -> int:
     with open_target(args) as target:
         client = target.client
         identity = read_identity(client)
-        box_ids = client.box_ids()
         telemetry = client.telemetry()
         status = telemetry.status
         if args.json:
@@ -55,7 +54,7 @@ def cmd_status(args: argparse.Namespace) -> int:
                 "altitude_m": telemetry.altitude.altitude_m,
             }))
         else:
-            print(render.status_report(identity, status, box_ids, telemetry))
+            print(render.status_report(identity, telemetry))
     return EXIT_OK
 
 

@@ -4,30 +4,22 @@ from __future__ import annotations
 
 from bfsitl.fc.identity import FcIdentity
 from bfsitl.fc.msp_client import Telemetry
-from bfsitl.protocol.arming import decode_arming_flags
-from bfsitl.protocol.boxes import decode_flight_modes
-from bfsitl.protocol.msp_messages import StatusEx
 
 
-def status_report(identity: FcIdentity, status: StatusEx, box_ids: tuple[int, ...],
-                  telemetry: Telemetry | None) -> str:
+def status_report(identity: FcIdentity, telemetry: Telemetry) -> str:
+    status, a = telemetry.status, telemetry.attitude
     lines = [
         f"firmware   {identity.describe()}",
         f"sensors    {', '.join(status.sensors) or 'none'}",
         f"pid loop   {status.cycle_time_us} us cycle, CPU load {status.cpu_load_percent} %",
         f"armed      {'YES' if status.armed else 'no'}",
-        "modes      " + (", ".join(decode_flight_modes(status.flight_mode_flags, box_ids))
-                         or "none active"),
+        f"modes      {', '.join(telemetry.flight_modes) or 'none active'}",
+        f"attitude   roll {a.roll_deg:+.1f} deg, pitch {a.pitch_deg:+.1f} deg "
+        f"(+ = nose down), heading {a.yaw_deg} deg",
+        f"altitude   {telemetry.altitude.altitude_m:+.2f} m (baro, up positive)",
+        f"battery    {telemetry.analog.battery_v:.2f} V",
     ]
-    if telemetry is not None:
-        a = telemetry.attitude
-        lines.append(
-            f"attitude   roll {a.roll_deg:+.1f} deg, pitch {a.pitch_deg:+.1f} deg "
-            f"(+ = nose down), heading {a.yaw_deg} deg"
-        )
-        lines.append(f"altitude   {telemetry.altitude.altitude_m:+.2f} m (baro, up positive)")
-        lines.append(f"battery    {telemetry.analog.battery_v:.2f} V")
-    blockers = decode_arming_flags(status.arming_disable_flags)
+    blockers = status.arming_blockers
     if not blockers:
         lines.append("arming     nothing blocks arming")
     else:

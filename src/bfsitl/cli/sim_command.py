@@ -11,7 +11,7 @@ from collections.abc import Iterator
 from bfsitl.cli.target import add_target_arguments, progress
 from bfsitl.fc.msp_client import MspClient
 from bfsitl.link import DEFAULT_SITL_URI, open_link
-from bfsitl.sim.bridge import DEFAULT_STEP_S, SitlBridge, wait_for_replies
+from bfsitl.sim.bridge import DEFAULT_STEP_S, SitlBridge, bridged_sitl, wait_for_replies
 from bfsitl.sim.health import HealthMonitor, HealthSample, lock_clock
 from bfsitl.sitl.network import HostNetwork
 from bfsitl.sitl.process import SitlProcess
@@ -61,7 +61,9 @@ def _sitl_and_bridge(args: argparse.Namespace) -> Iterator[tuple[SitlBridge, Msp
         link = open_link(args.uri or DEFAULT_SITL_URI, timeout_s=args.timeout)
         with MspClient(link, timeout_s=args.timeout) as client:
             try:
-                yield bridge.start(), client
+                bridge.start()
+                wait_for_replies(bridge)
+                yield bridge, client
             finally:
                 bridge.close()
         return
@@ -69,15 +71,10 @@ def _sitl_and_bridge(args: argparse.Namespace) -> Iterator[tuple[SitlBridge, Msp
         raise SystemExit("bfsitl sim: --uri needs --attach (otherwise a SITL is started)")
     sitl = SitlProcess(args.firmware, workdir=args.workdir, isolate=not args.no_isolate,
                        progress=progress)
-    bridge = SitlBridge(simulator, sitl.prepare_network(), speed=args.speed, step_s=step_s,
-                        timestamps=args.timestamps)
-    try:
-        bridge.bind()  # before the SITL starts: its boot-time motor packet is caught
-        with sitl:
-            assert sitl.client is not None
-            yield bridge.start(), sitl.client
-    finally:
-        bridge.close()
+    with bridged_sitl(sitl, simulator, speed=args.speed, step_s=step_s,
+                      timestamps=args.timestamps) as bridge:
+        assert sitl.client is not None
+        yield bridge, sitl.client
 
 
 def _human_line(sample: HealthSample, bridge: SitlBridge) -> str:
@@ -94,7 +91,6 @@ def _human_line(sample: HealthSample, bridge: SitlBridge) -> str:
 
 def cmd_sim(args: argparse.Namespace) -> int:
     with _sitl_and_bridge(args) as (bridge, client):
-        wait_for_replies(bridge)
         monitor = HealthMonitor(bridge, client)
         if args.speed != 1.0 and args.timestamps == "frozen":
             progress(f"locking the firmware clock to {args.speed}x (a few seconds)")

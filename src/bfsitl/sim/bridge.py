@@ -28,14 +28,16 @@ import select
 import socket
 import threading
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Iterator
+from contextlib import contextmanager
 from dataclasses import dataclass
-from typing import Literal, Protocol, TypeVar
+from typing import Any, Literal, Protocol, TypeVar
 
 from bfsitl.errors import PacketError, PortInUseError, SitlError
 from bfsitl.protocol.sitl_packets import FdmPacket, ServoPacket
 from bfsitl.sim.clock_lock import PRIMER_PACKETS, PRIMER_SPACING_S, FrozenRateStamps
 from bfsitl.sitl.ports import SIM_UDP_PORTS, find_port_holders
+from bfsitl.sitl.process import SitlProcess
 from bfsitl.sitl.timer_slack import set_timer_slack
 
 SITL_HOST = "127.0.0.1"
@@ -404,3 +406,24 @@ def wait_for_replies(bridge: SitlBridge, count: int = 50, timeout_s: float = 5.0
         f"its gyro/PID loop is not running: on a busy machine 4.6.0's scheduler can lock "
         f"those tasks out (see `bfsitl cli tasks`); try a lower --speed or a quieter machine."
     )
+
+
+@contextmanager
+def bridged_sitl(
+    sitl: SitlProcess, simulator: SensorSource, **bridge_options: Any
+) -> Iterator[SitlBridge]:
+    """A SITL with the physics bridge running and answering; everything stopped on exit.
+
+    The order matters: the motor port is bound before the SITL boots (its boot-time packet is
+    caught, a second simulator fails loudly), the bridge starts only once the FC answers MSP,
+    and on the way out the bridge stops before the SITL does.
+    """
+    bridge = SitlBridge(simulator, sitl.prepare_network(), **bridge_options)
+    bridge.bind()
+    try:
+        with sitl:
+            bridge.start()
+            wait_for_replies(bridge)
+            yield bridge
+    finally:
+        bridge.close()

@@ -28,6 +28,23 @@ RTC_REFERENCE_UNIX_S = 1_700_000_000
 CYCLE_POLLS = 5
 
 
+#: The physics issue's targets for a faithful simulation.
+CLOCK_RATIO_TOLERANCE = 0.02
+MAX_CYCLE_US = 150.0
+MIN_ANSWERED_RATIO = 0.99
+
+
+def meets_targets(
+    fc_clock_ratio: float | None, fc_cycle_us: float | None, answered_ratio: float
+) -> bool:
+    """Firmware time / sim time 1.00 +/- 0.02, PID cycle <= 150 us, >= 99 % answered."""
+    return (
+        fc_clock_ratio is not None and abs(fc_clock_ratio - 1.0) <= CLOCK_RATIO_TOLERANCE
+        and fc_cycle_us is not None and fc_cycle_us <= MAX_CYCLE_US
+        and answered_ratio >= MIN_ANSWERED_RATIO
+    )
+
+
 @dataclass(frozen=True, slots=True)
 class HealthSample:
     sim_time_s: float
@@ -41,12 +58,7 @@ class HealthSample:
 
     @property
     def faithful(self) -> bool:
-        """Every target of the physics issue met (clock +/-2 %, cycle <= 150 us, >= 99 %)."""
-        return (
-            self.fc_clock_ratio is not None and abs(self.fc_clock_ratio - 1.0) <= 0.02
-            and self.fc_cycle_us is not None and self.fc_cycle_us <= 150
-            and self.answered_ratio >= 0.99
-        )
+        return meets_targets(self.fc_clock_ratio, self.fc_cycle_us, self.answered_ratio)
 
     def as_dict(self) -> dict[str, object]:
         record = asdict(self)

@@ -30,7 +30,7 @@ def pid_alive(pid: int) -> bool:
     try:
         with open(f"/proc/{pid}/stat") as stat:
             return stat.read().split(")")[-1].split()[0] != "Z"
-    except FileNotFoundError:
+    except (FileNotFoundError, ProcessLookupError):  # it ended between the two calls
         return False
 
 
@@ -91,7 +91,9 @@ def test_telemetry_json_lines_for_a_duration(firmware):
     records = [json.loads(line) for line in result.stdout.splitlines()]
     assert 15 <= len(records) <= 40
     assert records[-1]["time_s"] > records[0]["time_s"]
-    assert records[0]["motors_us"][:4] == [1000, 1000, 1000, 1000]
+    # Disarmed motor outputs, once boot has settled (the very first snapshot can come before
+    # the firmware has initialised its motors and read 0).
+    assert records[-1]["motors_us"][:4] == [1000, 1000, 1000, 1000]
 
 
 def test_ctrl_c_stops_the_sitl_and_exits_130(firmware):

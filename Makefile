@@ -1,6 +1,7 @@
 # The two quick-start commands (see README):
 #   make demo   set everything up (virtualenv, bfsitl, Betaflight 4.6.0 SITL compiled from
-#               source) and run the main job against a SITL it starts
+#               source) and fly the default mission headless: take off to 2 m, hold, land;
+#               writes flight.csv, flight.png and flight.json and prints the summary
 #   make test   the whole test suite, integration tests against the real SITL included
 PYTHON ?= python3
 VENV ?= .venv
@@ -20,7 +21,7 @@ $(STAMP): pyproject.toml
 	@touch $@
 
 demo: $(STAMP)
-	$(BIN)/bfsitl status --start
+	$(BIN)/bfsitl fly --log flight.csv --plot flight.png --summary flight.json
 
 test: $(STAMP)
 	BFSITL_REQUIRE_SITL=1 $(BIN)/python -m pytest
@@ -28,6 +29,7 @@ test: $(STAMP)
 bench: $(STAMP)
 	$(BIN)/python benchmarks/telemetry.py
 	$(BIN)/python benchmarks/physics.py
+	$(BIN)/python benchmarks/altitude.py --plot docs/altitude-step.png
 
 clean:
 	rm -rf $(VENV) build src/*.egg-info .pytest_cache .hypothesis

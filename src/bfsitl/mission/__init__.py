@@ -1,0 +1,26 @@
+"""Flights: a session (SITL + physics + provisioning + RC), missions and their records.
+
+    from bfsitl.control import make_controller
+    from bfsitl.mission import FlightSession, MissionPlan, run_mission
+
+    with FlightSession() as session:
+        result = run_mission(session, MissionPlan(target_alt_m=2.0, hold_s=10),
+                             make_controller("cascade"))
+    print(result.outcome, result.hold)
+"""
+
+from bfsitl.mission.flight_log import CsvFlightLog, FlightRow
+from bfsitl.mission.runner import (
+    HoldStats,
+    Mission,
+    MissionPlan,
+    MissionResult,
+    Outcome,
+    run_mission,
+)
+from bfsitl.mission.session import FLY_PROFILE, FlightSample, FlightSession, SessionConfig
+
+__all__ = [
+    "FLY_PROFILE", "CsvFlightLog", "FlightRow", "FlightSample", "FlightSession", "HoldStats",
+    "Mission", "MissionPlan", "MissionResult", "Outcome", "SessionConfig", "run_mission",
+]

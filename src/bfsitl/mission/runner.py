@@ -1,0 +1,412 @@
+"""Missions: arm, take off, hold, go to an altitude, land, each a closed loop over a session.
+
+A :class:`Mission` is the scriptable form (one method per manoeuvre, raising on trouble);
+:func:`run_mission` flies the default plan and turns every way a flight can end into an
+:class:`Outcome` with a reason, so callers get data, not exceptions.
+
+The loop (``rate_hz`` in simulation time): sample the FC and the truth, estimate the climb
+rate from the FC's altitude, ask the controller for a throttle, send it, record a row.  The
+controllers see only what a real board would report (FC altitude, not the simulated truth);
+the truth is recorded next to it to judge them.
+"""
+
+from __future__ import annotations
+
+import enum
+import math
+import time
+from collections.abc import Callable
+from dataclasses import dataclass, field, replace
+from typing import Any
+
+from bfsitl.control.base import AltitudeController, AltitudeInput
+from bfsitl.errors import (
+    ArmingBlockedError,
+    BfsitlError,
+    CrashDetectedError,
+    MissionError,
+    MissionTimeoutError,
+    SitlExitedError,
+)
+from bfsitl.fc.rc_link import RC_MIN_US
+from bfsitl.mission.climb_rate import ClimbRateEstimator
+from bfsitl.mission.flight_log import CsvFlightLog, FlightRow
+from bfsitl.mission.session import SWITCH_OFF_US, FlightSample, FlightSession
+
+DEFAULT_RATE_HZ = 50.0
+#: "Reached" means within this band of the target, nearly still, for REACHED_HOLD_S.
+REACHED_BAND_M = 0.05
+REACHED_CLIMB_M_S = 0.10
+REACHED_HOLD_S = 0.5
+#: Tilt beyond which the vehicle is taken as crashed (ANGLE mode limits it to about 55 deg).
+CRASH_TILT_DEG = 70.0
+#: Hitting the ground faster than this is a crash, not a landing.
+CRASH_TOUCHDOWN_M_S = 2.5
+
+
+class Outcome(enum.Enum):
+    LANDED = "landed"
+    ARMING_BLOCKED = "arming-blocked"
+    SITL_EXITED = "sitl-exited"
+    TIMEOUT = "timeout"
+    CRASHED = "crashed"
+    INTERRUPTED = "interrupted"
+    ERROR = "error"
+
+    @property
+    def succeeded(self) -> bool:
+        return self is Outcome.LANDED
+
+
+@dataclass(frozen=True, slots=True)
+class MissionPlan:
+    """The default mission: take off to ``target_alt_m``, hold ``hold_s``, land, disarm."""
+
+    target_alt_m: float = 2.0
+    hold_s: float = 10.0
+    #: Simulation seconds allowed for the climb to be reached and settled.
+    takeoff_timeout_s: float = 20.0
+    land_timeout_s: float = 30.0
+
+    def __post_init__(self) -> None:
+        if not (math.isfinite(self.target_alt_m) and 0.3 <= self.target_alt_m <= 100.0):
+            raise MissionError(f"target altitude {self.target_alt_m} m is outside 0.3..100 m")
+        if not (math.isfinite(self.hold_s) and 0.0 <= self.hold_s <= 3600.0):
+            raise MissionError(f"hold time {self.hold_s} s is outside 0..3600 s")
+
+
+@dataclass(frozen=True, slots=True)
+class HoldStats:
+    """Simulated truth against the target while holding."""
+
+    rms_error_m: float
+    max_abs_error_m: float
+    mean_error_m: float
+    samples: int
+
+
+@dataclass
+class MissionResult:
+    outcome: Outcome
+    reason: str
+    controller: str
+    plan: MissionPlan
+    rows: list[FlightRow] = field(default_factory=list)
+    blockers: tuple[str, ...] = ()
+    armed_after_s: float | None = None
+    hold: HoldStats | None = None
+    metrics: Any = None  # bfsitl.control.metrics.StepMetrics of the take-off step
+    extra: dict[str, Any] = field(default_factory=dict)
+
+    @property
+    def succeeded(self) -> bool:
+        return self.outcome.succeeded
+
+    def summary(self) -> dict[str, Any]:
+        """Everything worth keeping, JSON-ready."""
+        def plain(value: Any) -> Any:
+            if value is None:
+                return None
+            if hasattr(value, "__dataclass_fields__"):
+                return {name: plain(getattr(value, name)) for name in value.__dataclass_fields__}
+            if isinstance(value, float):
+                return round(value, 4) if math.isfinite(value) else None
+            if isinstance(value, (list, tuple)):
+                return [plain(v) for v in value]
+            if isinstance(value, dict):
+                return {k: plain(v) for k, v in value.items()}
+            return value
+
+        return {
+            "outcome": self.outcome.value,
+            "succeeded": self.succeeded,
+            "reason": self.reason,
+            "controller": self.controller,
+            "plan": plain(self.plan),
+            "blockers": list(self.blockers),
+            "armed_after_s": plain(self.armed_after_s),
+            "hold": plain(self.hold),
+            "step_response": plain(self.metrics),
+            "rows": len(self.rows),
+            "flight_time_s": plain(self.rows[-1].time_s - self.rows[0].time_s)
+            if self.rows else None,
+            **plain(self.extra),
+        }
+
+
+RowCallback = Callable[[FlightRow, FlightSample], None]
+EventCallback = Callable[[str], None]
+
+
+class Mission:
+    """Closed-loop manoeuvres on a started :class:`FlightSession`.
+
+    >>> mission = Mission(session, CascadedAltitudeController())   # doctest: +SKIP
+    >>> mission.arm(); mission.takeoff(2.0); mission.hold(10); mission.land()
+    """
+
+    def __init__(
+        self,
+        session: FlightSession,
+        controller: AltitudeController,
+        *,
+        landing: AltitudeController | None = None,
+        rate_hz: float = DEFAULT_RATE_HZ,
+        log: CsvFlightLog | None = None,
+        on_row: RowCallback | None = None,
+        on_event: EventCallback | None = None,
+    ) -> None:
+        if not 1.0 <= rate_hz <= 200.0:
+            raise MissionError(f"control rate {rate_hz} Hz is outside 1..200 Hz")
+        self.session = session
+        self.controller = controller
+        if landing is None:
+            from bfsitl.control.landing import LandingController
+
+            landing = LandingController()
+        self.landing = landing
+        self.rate_hz = rate_hz
+        self.log = log
+        self.rows: list[FlightRow] = []
+        self.target_alt_m = 0.0
+        self.phase = "arming"
+        self.last_sample: FlightSample | None = None
+        self._on_row = on_row
+        self._on_event = on_event or (lambda _message: None)
+        self._climb = ClimbRateEstimator()
+        self._started_wall_s = time.monotonic()
+        self._airborne = False
+
+    # -- manoeuvres ------------------------------------------------------------------------
+    def arm(self) -> None:
+        self.phase = "arming"
+        self._on_event("arming: waiting for the FC's blockers to clear")
+        self.session.arm()
+        self._climb.reset()
+        self.controller.reset(self.session.time_s)
+        self._on_event(f"armed {self.session.armed_after_s:.1f} s after start")
+
+    def takeoff(self, altitude_m: float, *, timeout_s: float = 20.0) -> float:
+        """Climb to ``altitude_m`` above the take-off point; returns the sim time it took."""
+        self._on_event(f"take-off to {altitude_m:.2f} m")
+        return self._reach("takeoff", altitude_m, timeout_s)
+
+    def goto(self, altitude_m: float, *, timeout_s: float = 20.0) -> float:
+        self._on_event(f"go to {altitude_m:.2f} m")
+        return self._reach("goto", altitude_m, timeout_s)
+
+    def hold(self, seconds: float) -> None:
+        self._on_event(f"hold {self.target_alt_m:.2f} m for {seconds:g} s")
+        end_s = self.session.time_s + seconds
+        self._fly("hold", self.target_alt_m, lambda s: s.time_s >= end_s, timeout_s=seconds + 5)
+
+    def land(self, *, timeout_s: float = 30.0) -> None:
+        """Descend, touch down, cut the throttle, disarm."""
+        self._on_event("landing")
+        if not hasattr(self.landing, "touched_down"):
+            raise MissionError("the landing controller has no touched_down property")
+        # Start the descent from the flying controller's hover estimate, not a guess.
+        hover_us = getattr(self.controller, "hover_throttle_us", None)
+        if hover_us is not None and hasattr(self.landing, "set_hover_estimate"):
+            self.landing.set_hover_estimate(hover_us)
+        self.landing.reset(self.session.time_s)
+        self._fly("land", 0.0, lambda _s: bool(self.landing.touched_down),  # type: ignore
+                  timeout_s=timeout_s, controller=self.landing)
+        self._on_event("touched down; disarming")
+        self.phase = "landed"
+        if not self.session.disarm():
+            raise MissionError("the FC did not disarm after touch-down")
+        self._airborne = False
+        sample = self.session.sample()
+        self._record("landed", 0.0, sample, self._climb.update(sample.time_s, sample.fc_alt_m))
+        self._on_event("disarmed")
+
+    # -- the loop --------------------------------------------------------------------------
+    def _reach(self, phase: str, altitude_m: float, timeout_s: float) -> float:
+        start_s = self.session.time_s
+        settled_since: list[float] = []
+
+        def reached(sample: FlightSample) -> bool:
+            near = abs(sample.fc_alt_m - altitude_m) <= REACHED_BAND_M and \
+                abs(self._climb.rate_m_s) <= REACHED_CLIMB_M_S
+            if not near:
+                settled_since.clear()
+                return False
+            if not settled_since:
+                settled_since.append(sample.time_s)
+            return sample.time_s - settled_since[0] >= REACHED_HOLD_S
+
+        self._fly(phase, altitude_m, reached, timeout_s=timeout_s)
+        took_s = self.session.time_s - start_s
+        self._on_event(f"reached {altitude_m:.2f} m after {took_s:.1f} s")
+        return took_s
+
+    def _fly(
+        self, phase: str, target_alt_m: float, done: Callable[[FlightSample], bool], *,
+        timeout_s: float, controller: AltitudeController | None = None,
+    ) -> None:
+        controller = controller or self.controller
+        self.phase, self.target_alt_m = phase, target_alt_m
+        self._airborne = True
+        speed = self.session.config.speed
+        period_s = 1.0 / (self.rate_hz * speed)  # wall period; the rate holds in sim time
+        deadline_s = self.session.time_s + timeout_s
+        next_wall_s = time.monotonic()
+        while True:
+            sample = self.session.sample()
+            climb_m_s = self._climb.update(sample.time_s, sample.fc_alt_m)
+            self._check(sample)
+            throttle_us = controller.update(
+                AltitudeInput(sample.time_s, sample.fc_alt_m, climb_m_s, target_alt_m))
+            if not math.isfinite(throttle_us):
+                raise MissionError(f"controller {getattr(controller, 'name', controller)} "
+                                   f"returned throttle {throttle_us}")
+            self.session.set_throttle(throttle_us)
+            self._record(phase, target_alt_m, sample, climb_m_s)
+            if done(sample):
+                return
+            if sample.time_s >= deadline_s:
+                raise MissionTimeoutError(
+                    f"{phase} did not finish within {timeout_s:.0f} s of simulation time "
+                    f"(FC altitude {sample.fc_alt_m:.2f} m, target {target_alt_m:.2f} m)")
+            next_wall_s += period_s
+            delay_s = next_wall_s - time.monotonic()
+            if delay_s > 0:
+                time.sleep(delay_s)
+            else:
+                next_wall_s = time.monotonic()  # late: do not try to catch up in a burst
+
+    def _check(self, sample: FlightSample) -> None:
+        # The truth when the physics is ours; the FC's attitude otherwise (Gazebo).
+        tilt_deg = sample.sim_tilt_deg if math.isfinite(sample.sim_tilt_deg) else \
+            max(abs(sample.roll_deg), abs(sample.pitch_deg))
+        if tilt_deg > CRASH_TILT_DEG:
+            raise CrashDetectedError(f"the vehicle tipped over ({tilt_deg:.0f} deg "
+                                     f"from level at t={sample.time_s:.1f} s)")
+        if sample.on_ground and sample.sim_climb_m_s < -CRASH_TOUCHDOWN_M_S:
+            raise CrashDetectedError(f"hit the ground at {-sample.sim_climb_m_s:.1f} m/s")
+        if not sample.armed:
+            names = ", ".join(sample.arming_blockers) or "no blocker reported"
+            raise MissionError(f"the FC disarmed during {self.phase} ({names})")
+
+    def _record(self, phase: str, target_alt_m: float, sample: FlightSample,
+                climb_m_s: float) -> FlightRow:
+        rc = self.session.rc_command  # what goes out from this step on
+        aux = tuple(rc.aux_us) + (SWITCH_OFF_US, SWITCH_OFF_US)
+        row = FlightRow(
+            time_s=sample.time_s, phase=phase, target_alt_m=target_alt_m,
+            sim_alt_m=sample.sim_alt_m, fc_alt_m=sample.fc_alt_m, climb_m_s=climb_m_s,
+            sim_climb_m_s=sample.sim_climb_m_s, roll_deg=sample.roll_deg,
+            pitch_deg=sample.pitch_deg, yaw_deg=sample.yaw_deg,
+            sim_tilt_deg=sample.sim_tilt_deg,
+            rc_roll_us=round(rc.roll_us), rc_pitch_us=round(rc.pitch_us),
+            rc_throttle_us=round(rc.throttle_us), rc_yaw_us=round(rc.yaw_us),
+            rc_aux1_us=round(aux[0]), rc_aux2_us=round(aux[1]),
+            motor1=sample.motors[0], motor2=sample.motors[1], motor3=sample.motors[2],
+            motor4=sample.motors[3], armed=sample.armed,
+            wall_s=sample.wall_s - self._started_wall_s,
+        )
+        self.rows.append(row)
+        self.last_sample = sample
+        if self.log is not None:
+            self.log.write(row)
+        if self._on_row is not None:
+            self._on_row(row, sample)
+        return row
+
+    def abort(self, ending: str) -> None:
+        """Sticks to disarm now (the RC link repeats it on close) and record the final row."""
+        session = self.session
+        if session.rc is None:
+            return
+        safe = replace(session.rc_command, throttle_us=RC_MIN_US,
+                       aux_us=(SWITCH_OFF_US, SWITCH_OFF_US))
+        session.set_rc(safe)
+        if self.last_sample is not None:
+            self._record(ending, self.target_alt_m, self.last_sample, self._climb.rate_m_s)
+
+
+def judged_alt_m(row: FlightRow) -> float:
+    """The simulated truth, or the FC's altitude when the physics is external (Gazebo)."""
+    return row.sim_alt_m if math.isfinite(row.sim_alt_m) else row.fc_alt_m
+
+
+def hold_stats(rows: list[FlightRow]) -> HoldStats | None:
+    errors = [judged_alt_m(r) - r.target_alt_m for r in rows if r.phase == "hold"]
+    if not errors:
+        return None
+    return HoldStats(
+        rms_error_m=math.sqrt(sum(e * e for e in errors) / len(errors)),
+        max_abs_error_m=max(abs(e) for e in errors),
+        mean_error_m=sum(errors) / len(errors), samples=len(errors))
+
+
+def takeoff_metrics(rows: list[FlightRow], target_alt_m: float) -> Any:
+    """Step-response figures of the take-off and hold, from the simulated truth."""
+    from bfsitl.control.metrics import step_response
+
+    flown = [r for r in rows if r.phase in ("takeoff", "hold")]
+    if len(flown) < 10:
+        return None
+    return step_response(
+        [r.time_s for r in flown], [judged_alt_m(r) for r in flown], target_m=target_alt_m,
+        start_m=0.0, roll_deg=[r.roll_deg for r in flown],
+        pitch_deg=[r.pitch_deg for r in flown])
+
+
+def run_mission(
+    session: FlightSession,
+    plan: MissionPlan,
+    controller: AltitudeController,
+    *,
+    landing: AltitudeController | None = None,
+    log: CsvFlightLog | None = None,
+    on_row: RowCallback | None = None,
+    on_event: EventCallback | None = None,
+    rate_hz: float = DEFAULT_RATE_HZ,
+) -> MissionResult:
+    """Fly ``plan`` on a started session; every ending becomes an :class:`Outcome`.
+
+    Ctrl-C becomes :attr:`Outcome.INTERRUPTED` (the sticks go to disarm at once and a last
+    row records them); the caller still closes the session.
+    """
+    mission = Mission(session, controller, landing=landing, rate_hz=rate_hz, log=log,
+                      on_row=on_row, on_event=on_event)
+    name = getattr(controller, "name", type(controller).__name__)
+    outcome, reason, blockers = Outcome.LANDED, "landed and disarmed", ()
+    try:
+        mission.arm()
+        mission.takeoff(plan.target_alt_m, timeout_s=plan.takeoff_timeout_s)
+        mission.hold(plan.hold_s)
+        mission.land(timeout_s=plan.land_timeout_s)
+    except KeyboardInterrupt:
+        outcome, reason = Outcome.INTERRUPTED, "interrupted (Ctrl-C)"
+    except ArmingBlockedError as exc:
+        outcome, reason, blockers = Outcome.ARMING_BLOCKED, str(exc), exc.blockers
+    except SitlExitedError as exc:
+        outcome, reason = Outcome.SITL_EXITED, str(exc)
+    except MissionTimeoutError as exc:
+        outcome, reason = Outcome.TIMEOUT, str(exc)
+    except CrashDetectedError as exc:
+        outcome, reason = Outcome.CRASHED, str(exc)
+    except BfsitlError as exc:
+        outcome, reason = Outcome.ERROR, str(exc)
+    if outcome is not Outcome.LANDED:
+        try:
+            mission.abort(outcome.value)
+        except (BfsitlError, OSError):
+            pass  # the session's close still sends disarm through the RC link
+    if outcome is Outcome.ERROR and session.sitl is not None and session.sitl.poll() is not None:
+        outcome = Outcome.SITL_EXITED
+    result = MissionResult(outcome, reason.splitlines()[0] if reason else "", name, plan,
+                           mission.rows, blockers, session.armed_after_s)
+    result.hold = hold_stats(mission.rows)
+    result.metrics = takeoff_metrics(mission.rows, plan.target_alt_m)
+    rc_stats, bridge_stats = session.rc_stats(), session.bridge_stats()
+    if rc_stats is not None:
+        result.extra["rc_link"] = rc_stats
+    if bridge_stats is not None:
+        result.extra["physics"] = {
+            "answered_ratio": bridge_stats.answered_ratio, "speed": bridge_stats.speed,
+            "steps": bridge_stats.steps}
+    return result

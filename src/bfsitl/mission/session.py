@@ -1,0 +1,401 @@
+"""A flight session: one SITL, the embedded physics, a provisioned FC and an RC link.
+
+The order of things is what makes a SITL flight reliable (``shared/FIRMWARE_FACTS.md``):
+
+1. the physics bridge binds its motor port, then the SITL starts in its own network namespace
+   and is *probed* until it answers MSP (never a fixed sleep);
+2. the bridge starts feeding fdm packets (without them ANGLE blocks arming forever);
+3. the FC is provisioned (ARM on AUX1, ANGLE on AUX2) by MSP, saved without a reboot; if a
+   user's CLI line needs one, the process ends and is restarted on the same run directory;
+4. only now the UDP RC stream starts: an rc packet that reaches 4.6.0 while it boots leaves it
+   in RXLOSS forever;
+5. :meth:`FlightSession.arm` waits until the FC's own blockers clear (boot grace, calibration),
+   then raises the ARM switch.
+
+On the way out everything stops in reverse: the RC link sends disarm and low throttle (the
+SITL holds the last sticks forever when UDP goes quiet), then the bridge stops, then the SITL.
+That happens on success, on any exception and on Ctrl-C alike.
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from collections.abc import Callable
+from contextlib import ExitStack
+from dataclasses import dataclass, field, replace
+from pathlib import Path
+
+from bfsitl.errors import (
+    ArmingBlockedError,
+    BfsitlError,
+    LinkError,
+    MspError,
+    SitlError,
+    SitlExitedError,
+)
+from bfsitl.fc.msp_client import MspClient, Telemetry
+from bfsitl.fc.provisioning import (
+    ANGLE_ON_AUX2,
+    ARM_ON_AUX1,
+    Profile,
+    ProvisionResult,
+    provision,
+)
+from bfsitl.fc.rc_link import RC_MIN_US, RcCommand, RcLinkStats, UdpRcLink
+from bfsitl.protocol.boxes import BoxId
+from bfsitl.sim import Simulator
+from bfsitl.sim.bridge import BridgeStats, SitlBridge, bridged_sitl, wait_for_replies
+from bfsitl.sim.health import HealthMonitor, lock_clock
+from bfsitl.sim.sensors import SensorConfig
+from bfsitl.sitl.process import SitlProcess
+
+#: What ``bfsitl fly`` provisions: ARM on AUX1 and self-levelling (ANGLE) on AUX2.
+FLY_PROFILE = Profile(mode_ranges=(ARM_ON_AUX1, ANGLE_ON_AUX2))
+#: Switch positions sent for "on": inside the 1700-2100 us ranges above, with margin.
+SWITCH_ON_US = 1800
+SWITCH_OFF_US = RC_MIN_US
+#: The FC's boot grace is 5 s of FC time; calibration and the first fdm packets add a little.
+DEFAULT_ARM_TIMEOUT_S = 15.0
+_POLL_INTERVAL_S = 0.05
+
+Progress = Callable[[str], None]
+
+
+@dataclass(frozen=True, slots=True)
+class SessionConfig:
+    """Everything a session needs to know before it starts; all of it has a default."""
+
+    firmware: str | Path | None = None
+    #: Run directory of the SITL; its ``eeprom.bin`` persists.  None: a fresh temporary one.
+    workdir: str | Path | None = None
+    #: Run the SITL in a private network namespace (so a stale SITL cannot share its ports).
+    isolate: bool = True
+    #: Simulation speed, x wall time.  1.0 is real time; 0.5 is the faithful speed on a busy
+    #: 2-core machine (see the README's simulation table).
+    speed: float = 1.0
+    #: What to provision.  None flies with whatever the FC already holds.
+    profile: Profile | None = FLY_PROFILE
+    #: Hold AUX2 on while armed (ANGLE, when the profile puts ANGLE there).
+    angle_mode: bool = True
+    sensors: SensorConfig = field(default_factory=SensorConfig)
+    arm_timeout_s: float = DEFAULT_ARM_TIMEOUT_S
+    #: "embedded" (bfsitl's simulator and bridge) or "gazebo" (``gz sim`` with the
+    #: BetaflightPlugin, started in the SITL's namespace; no simulated truth is then known).
+    physics: str = "embedded"
+    #: Where libBetaflightPlugin.so is, for ``physics="gazebo"`` (default: the search path).
+    gz_plugin_dir: str | Path | None = None
+
+
+@dataclass(frozen=True, slots=True)
+class FlightSample:
+    """One look at the flight: what the FC reports next to the simulated truth."""
+
+    time_s: float               # simulation time: the mission clock
+    wall_s: float               # time.monotonic() when the sample was taken
+    fc_alt_m: float             # MSP_ALTITUDE, up positive, zeroed by the FC at arming
+    fc_climb_m_s: float         # MSP_ALTITUDE vario, up positive
+    roll_deg: float             # MSP_ATTITUDE
+    pitch_deg: float            # positive nose down (Betaflight's convention)
+    yaw_deg: float
+    sim_alt_m: float            # true height above the take-off point
+    sim_climb_m_s: float        # true vertical speed, up positive
+    sim_tilt_deg: float         # true angle between the body z axis and the vertical
+    on_ground: bool             # the simulated skids touch the ground
+    armed: bool
+    arming_blockers: tuple[str, ...]
+    flight_modes: tuple[str, ...]
+    motors: tuple[float, float, float, float]  # applied motor commands 0..1, Betaflight M1..M4
+    rc: RcCommand               # what the RC link is sending
+
+
+@dataclass(frozen=True, slots=True)
+class _Truth:
+    time_s: float
+    altitude_m: float
+    climb_m_s: float
+    tilt_deg: float
+    on_ground: bool
+    motors: tuple[float, float, float, float]
+
+
+class FlightSession:
+    """Start, provision, arm and feed one simulated flight; stop all of it on the way out.
+
+    >>> with FlightSession() as session:                    # doctest: +SKIP
+    ...     session.arm()
+    ...     session.set_throttle(1550)
+    ...     print(session.sample().sim_alt_m)
+    """
+
+    def __init__(self, config: SessionConfig | None = None, *,
+                 progress: Progress | None = None) -> None:
+        self.config = config or SessionConfig()
+        if not (math.isfinite(self.config.speed) and 0.05 <= self.config.speed <= 4.0):
+            raise BfsitlError(f"speed {self.config.speed} is outside 0.05..4")
+        self._progress = progress or (lambda _message: None)
+        self.created_at_s = time.monotonic()
+        self.sitl: SitlProcess | None = None
+        self.simulator: Simulator | None = None
+        self.bridge: SitlBridge | None = None
+        self.rc: UdpRcLink | None = None
+        self.provisioned: ProvisionResult | None = None
+        #: Wall seconds from the session's creation to the FC reporting armed.
+        self.armed_after_s: float | None = None
+        self._stack = ExitStack()
+        self._ground_alt_m = 0.0
+        self._base = RcCommand(aux_us=(SWITCH_OFF_US, SWITCH_OFF_US))
+
+    # -- lifecycle ---------------------------------------------------------------------------
+    def start(self) -> FlightSession:
+        config = self.config
+        try:
+            if config.physics == "gazebo":
+                self._start_with_gazebo()
+            elif config.physics == "embedded":
+                self.sitl = SitlProcess(config.firmware, workdir=config.workdir,
+                                        isolate=config.isolate, progress=self._progress)
+                self.simulator = Simulator(sensors=config.sensors)
+                self.bridge = self._stack.enter_context(
+                    bridged_sitl(self.sitl, self.simulator, speed=config.speed))
+                self._progress(f"physics running at {config.speed:g}x real time")
+            else:
+                raise BfsitlError(f"unknown physics {config.physics!r}: embedded or gazebo")
+            assert self.sitl is not None
+            if config.speed != 1.0 and self.bridge is not None:
+                self._progress(f"locking the firmware clock to {config.speed:g}x")
+                lock_clock(HealthMonitor(self.bridge, self.client))
+            if config.profile is not None:
+                self.provisioned = provision(self.client, config.profile, reboot=self._reboot)
+                self._progress("provisioned: " + (
+                    "written and saved" + (", rebooted" if self.provisioned.rebooted else "")
+                    if self.provisioned.changed else "already configured, nothing written"))
+            # Only now: an RC packet during boot leaves 4.6.0 in RXLOSS for good.
+            assert self.sitl.network is not None
+            self.rc = UdpRcLink(self.sitl.network)
+            self.rc.set(self._base)
+            self.rc.start()
+            self._stack.callback(self.rc.close)  # closes first: disarm goes out before the rest
+        except BaseException:
+            self.close()
+            raise
+        return self
+
+    def _start_with_gazebo(self) -> None:
+        """``gz sim`` with the BetaflightPlugin in the SITL's network, then the SITL.
+
+        Gazebo starts first and must have bound UDP 9002 before the SITL boots, as in the
+        tutorial; both live in the same namespace because both ends use fixed loopback ports.
+        """
+        from bfsitl.gazebo import (
+            check_plugin_port_free,
+            plan_gazebo_launch,
+            stop_gazebo,
+            wait_for_plugin,
+        )
+
+        config = self.config
+        if config.speed != 1.0:
+            raise BfsitlError("--speed applies to the embedded physics only; Gazebo sets its "
+                              "own pace")
+        launch = plan_gazebo_launch(plugin_dir=config.gz_plugin_dir)  # fails early, with fix
+        self.sitl = SitlProcess(config.firmware, workdir=config.workdir,
+                                isolate=config.isolate, progress=self._progress)
+        sitl = self.sitl
+        network = sitl.prepare_network()
+        self._stack.callback(sitl.stop)  # runs last: after Gazebo has stopped
+        check_plugin_port_free(network)
+        self._progress(f"starting Gazebo: {launch.command_line()}")
+        gazebo = network.spawn(launch.argv, sitl.workdir, sitl.workdir / "gazebo.log",
+                               env=launch.env_dict())
+        self._stack.callback(stop_gazebo, gazebo)
+        wait_for_plugin(network, gazebo)
+        sitl.start()
+
+    def close(self) -> None:
+        """RC link (disarm sent), bridge, SITL: stopped in that order.  Safe to call twice."""
+        self._stack.close()
+
+    def __enter__(self) -> FlightSession:
+        return self.start()
+
+    def __exit__(self, *exc_info: object) -> None:
+        self.close()
+
+    def _reboot(self) -> None:
+        """A CLI line needed a reboot: in SITL the process ends, so start it again."""
+        assert self.sitl is not None
+        self._progress("the configuration needs a reboot; restarting the SITL")
+        if self.bridge is not None:
+            self.bridge.pause()
+        self.client.reboot()
+        self.sitl.restart_after_reboot()
+        if self.bridge is not None:
+            self.bridge.resume()
+            wait_for_replies(self.bridge)
+
+    # -- parts -------------------------------------------------------------------------------
+    @property
+    def client(self) -> MspClient:
+        if self.sitl is None or self.sitl.client is None:
+            raise SitlError("the session is not started")
+        return self.sitl.client
+
+    @property
+    def time_s(self) -> float:
+        """The mission clock: simulation time (wall time since start with Gazebo)."""
+        if self.simulator is not None:
+            return self.simulator.time_s
+        return time.monotonic() - self.created_at_s
+
+    def check_alive(self) -> None:
+        """Raise :class:`SitlExitedError` (with the log tail) if the SITL or bridge has died."""
+        if self.sitl is None:
+            raise SitlError("the session is not started")
+        code = self.sitl.poll()
+        if code is not None:
+            raise SitlExitedError(
+                f"the SITL exited with code {code} during the flight; its log "
+                f"({self.sitl.log_path}) ends with:\n{self.sitl.log_tail()}",
+                code, self.sitl.log_tail())
+        if self.bridge is not None and self.bridge.error is not None:
+            raise SitlError(f"the physics bridge failed: {self.bridge.error!r}")
+
+    # -- RC ----------------------------------------------------------------------------------
+    @property
+    def rc_command(self) -> RcCommand:
+        return self.rc.command if self.rc is not None else self._base
+
+    def set_rc(self, command: RcCommand) -> None:
+        if self.rc is None:
+            raise SitlError("the session is not started")
+        self.rc.set(command)
+
+    def set_throttle(self, throttle_us: float) -> None:
+        """Throttle only; the switches stay as :meth:`arm` / :meth:`disarm` left them."""
+        self.set_rc(replace(self.rc_command, throttle_us=throttle_us))
+
+    # -- arming ------------------------------------------------------------------------------
+    def arm(self, timeout_s: float | None = None) -> None:
+        """Wait until nothing blocks arming, raise the ARM switch, wait for ARMED.
+
+        Raises :class:`ArmingBlockedError` naming the blockers if it does not arm in time,
+        and at once if no ARM mode range would react to the switch (a case the firmware has
+        no flag for: it simply never arms).
+        """
+        timeout_s = self.config.arm_timeout_s if timeout_s is None else timeout_s
+        client = self.client
+        arm_ranges = [r for r in client.mode_ranges().ranges
+                      if r.is_used and r.box_id == BoxId.ARM]
+        if not any(r.aux_channel_index == 0 and r.start_us <= SWITCH_ON_US < r.end_us
+                   for r in arm_ranges):
+            found = ", ".join(f"AUX{r.aux_channel_index + 1} {r.start_us}-{r.end_us} us"
+                              for r in arm_ranges) or "none"
+            raise ArmingBlockedError(
+                f"no ARM mode range on AUX1 covers {SWITCH_ON_US} us (ARM ranges: {found}); "
+                f"provision with the default profile or add `aux 0 0 0 1700 2100 0 0`",
+                ("NO_ARM_RANGE",))
+        deadline = time.monotonic() + timeout_s
+        blockers = self._wait_unblocked(deadline)
+        if blockers:
+            raise self._blocked_error(blockers, timeout_s)
+        aux2 = SWITCH_ON_US if self.config.angle_mode else SWITCH_OFF_US
+        self.set_rc(replace(self.rc_command, throttle_us=RC_MIN_US,
+                            aux_us=(SWITCH_ON_US, aux2)))
+        while time.monotonic() < deadline:
+            self.check_alive()
+            status = client.status()
+            if status.armed:
+                self.armed_after_s = time.monotonic() - self.created_at_s
+                truth_alt_m = self._truth().altitude_m
+                self._ground_alt_m = truth_alt_m if math.isfinite(truth_alt_m) else 0.0
+                return
+            time.sleep(_POLL_INTERVAL_S)
+        self.set_rc(replace(self.rc_command, aux_us=(SWITCH_OFF_US, SWITCH_OFF_US)))
+        names = tuple(b.cli_name for b in client.status().arming_blockers)
+        raise self._blocked_error(names or ("UNKNOWN",), timeout_s)
+
+    def _wait_unblocked(self, deadline_s: float) -> tuple[str, ...]:
+        """Blockers left at the deadline (empty when it may arm); reports each change."""
+        seen: tuple[str, ...] | None = None
+        while True:
+            self.check_alive()
+            names = tuple(b.cli_name for b in self.client.status().arming_blockers)
+            if names != seen:
+                if names:
+                    self._progress("waiting for the FC: " + ", ".join(names))
+                seen = names
+            if not names or time.monotonic() >= deadline_s:
+                return names
+            time.sleep(_POLL_INTERVAL_S)
+
+    @staticmethod
+    def _blocked_error(names: tuple[str, ...], timeout_s: float) -> ArmingBlockedError:
+        from bfsitl.protocol.arming import ARMING_FLAGS
+
+        fixes = {info.cli_name: info.fix for info in ARMING_FLAGS}
+        explained = "; ".join(f"{name}: {fixes.get(name, 'see `bfsitl doctor`')}"
+                              for name in names)
+        return ArmingBlockedError(f"the FC did not arm within {timeout_s:.0f} s, blocked by "
+                                  f"{explained}", names)
+
+    def disarm(self, timeout_s: float = 3.0) -> bool:
+        """Throttle low, both switches off; True once the FC reports disarmed."""
+        self.set_rc(replace(self.rc_command, throttle_us=RC_MIN_US,
+                            aux_us=(SWITCH_OFF_US, SWITCH_OFF_US)))
+        deadline = time.monotonic() + timeout_s
+        while time.monotonic() < deadline:
+            self.check_alive()
+            if not self.client.status().armed:
+                return True
+            time.sleep(_POLL_INTERVAL_S)
+        return False
+
+    # -- observation -------------------------------------------------------------------------
+    def _truth(self) -> _Truth:
+        if self.bridge is None or self.simulator is None:  # external physics: truth unknown
+            nan = math.nan
+            return _Truth(self.time_s, nan, nan, nan, False, (nan, nan, nan, nan))
+        simulator, bridge = self.simulator, self.bridge
+
+        def read() -> _Truth:
+            state = simulator.state
+            w, x, y, z = state.quaternion_wxyz
+            # Body z in world NED has z component 1 - 2(x^2 + y^2): cos(tilt).
+            cos_tilt = max(-1.0, min(1.0, 1.0 - 2.0 * (x * x + y * y)))
+            return _Truth(state.time_s, simulator.altitude_m, -state.velocity_ned_m_s[2],
+                          math.degrees(math.acos(cos_tilt)), simulator.on_ground,
+                          tuple(bridge.motors))  # type: ignore[arg-type]
+
+        # On the bridge thread, between two steps: one consistent state.
+        return bridge.between_steps(read)
+
+    def telemetry(self) -> Telemetry:
+        try:
+            return self.client.telemetry()
+        except (LinkError, MspError):
+            self.check_alive()  # a dead SITL explains itself better than a lost reply
+            raise
+
+    def sample(self) -> FlightSample:
+        """The FC's view (one MSP round trip) and the simulated truth."""
+        self.check_alive()
+        telemetry = self.telemetry()
+        truth = self._truth()
+        return FlightSample(
+            time_s=truth.time_s, wall_s=time.monotonic(),
+            fc_alt_m=telemetry.altitude.altitude_m, fc_climb_m_s=telemetry.altitude.vario_m_s,
+            roll_deg=telemetry.attitude.roll_deg, pitch_deg=telemetry.attitude.pitch_deg,
+            yaw_deg=float(telemetry.attitude.yaw_deg),
+            sim_alt_m=truth.altitude_m - self._ground_alt_m, sim_climb_m_s=truth.climb_m_s,
+            sim_tilt_deg=truth.tilt_deg, on_ground=truth.on_ground,
+            armed=telemetry.armed, arming_blockers=telemetry.arming_blockers,
+            flight_modes=telemetry.flight_modes, motors=truth.motors, rc=self.rc_command,
+        )
+
+    def rc_stats(self) -> RcLinkStats | None:
+        return self.rc.stats() if self.rc is not None else None
+
+    def bridge_stats(self) -> BridgeStats | None:
+        return self.bridge.stats() if self.bridge is not None else None
+

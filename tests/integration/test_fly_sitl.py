@@ -1,0 +1,145 @@
+"""`bfsitl fly` end to end: the real SITL, the embedded physics, a real process, real files.
+
+Each flight starts its own SITL in its own network namespace.  Hold times are shortened to
+keep CI quick; the altitude and outcome checks are the issue's own.
+"""
+
+from __future__ import annotations
+
+import csv
+import json
+import os
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import pytest
+
+from bfsitl.mission.flight_log import COLUMNS
+
+pytestmark = pytest.mark.sitl
+
+BFSITL = [sys.executable, "-m", "bfsitl.cli.main"]
+HOLD_TOLERANCE_M = 0.10
+
+
+def fly(tmp_path: Path, *args: str, timeout_s: float = 120.0) -> subprocess.CompletedProcess[str]:
+    return subprocess.run([*BFSITL, "fly", *args], capture_output=True, text=True,
+                          timeout=timeout_s, cwd=tmp_path)
+
+
+def read_rows(path: Path) -> list[dict[str, str]]:
+    with path.open(newline="") as file:
+        reader = csv.DictReader(file)
+        assert tuple(reader.fieldnames or ()) == COLUMNS
+        return list(reader)
+
+
+def processes_in(directory: Path) -> list[str]:
+    """Processes whose working directory is inside ``directory`` (a SITL, its agent)."""
+    found = []
+    for entry in Path("/proc").iterdir():
+        if not entry.name.isdigit() or int(entry.name) == os.getpid():
+            continue
+        try:
+            cwd = Path(os.readlink(entry / "cwd"))
+            state = (entry / "stat").read_text().split(")")[-1].split()[0]
+            cmdline = (entry / "cmdline").read_bytes().replace(b"\0", b" ").decode()
+        except OSError:
+            continue
+        if state != "Z" and (cwd == directory or directory in cwd.parents):
+            found.append(f"{entry.name}: {cmdline}")
+    return found
+
+
+def test_default_mission_lands_and_holds_then_a_second_flight_in_the_same_workdir(
+        firmware, tmp_path):
+    workdir = tmp_path / "quad"
+    log, plot, summary_path = tmp_path / "f1.csv", tmp_path / "f1.png", tmp_path / "f1.json"
+    first = fly(tmp_path, "--workdir", str(workdir), "--hold", "6", "--log", str(log),
+                "--plot", str(plot), "--summary", str(summary_path))
+    assert first.returncode == 0, first.stdout + first.stderr
+    summary = json.loads(summary_path.read_text())
+    assert summary["outcome"] == "landed"
+    assert summary["hold"]["max_abs_error_m"] <= HOLD_TOLERANCE_M, summary["hold"]
+    assert summary["armed_after_s"] < 10.0
+    rows = read_rows(log)
+    assert len(rows) == summary["rows"]
+    phases = [r["phase"] for r in rows]
+    assert phases[0] == "takeoff" and phases[-1] == "landed"
+    assert {"takeoff", "hold", "land"} <= set(phases)
+    holding = [r for r in rows if r["phase"] == "hold"]
+    assert all(abs(float(r["sim_alt_m"]) - 2.0) <= HOLD_TOLERANCE_M for r in holding)
+    # The FC's own altitude agrees with the truth within its barometer's resolution.
+    assert all(abs(float(r["fc_alt_m"]) - float(r["sim_alt_m"])) < 0.3 for r in holding)
+    last = rows[-1]
+    assert last["armed"] == "0" and last["rc_aux1_us"] == "1000"
+    assert float(last["sim_alt_m"]) < 0.05
+    assert plot.stat().st_size > 10_000 and plot.read_bytes()[:4] == b"\x89PNG"
+    assert "outcome        landed" in first.stdout
+
+    second = fly(tmp_path, "--workdir", str(workdir), "--hold", "1", "--json")
+    assert second.returncode == 0, second.stdout + second.stderr
+    assert json.loads(second.stdout)["outcome"] == "landed"
+    assert "already configured" in second.stderr  # the persisted eeprom.bin held the ranges
+
+
+def test_no_arm_range_ends_arming_blocked_naming_it(firmware, tmp_path):
+    result = fly(tmp_path, "--no-provision", "--json", timeout_s=60)
+    assert result.returncode == 1, result.stderr
+    summary = json.loads(result.stdout)
+    assert summary["outcome"] == "arming-blocked"
+    assert summary["blockers"] == ["NO_ARM_RANGE"]
+    assert "aux 0 0 0 1700 2100 0 0" in summary["reason"]
+
+
+def test_interrupt_leaves_no_process_a_complete_log_and_rc_at_disarm(firmware, tmp_path):
+    log = tmp_path / "flight.csv"
+    workdir = tmp_path / "run"
+    process = subprocess.Popen(
+        [*BFSITL, "fly", "--workdir", str(workdir), "--hold", "60", "--log", str(log)],
+        stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, cwd=tmp_path)
+    try:
+        assert process.stderr is not None
+        deadline = time.monotonic() + 60
+        seen = []
+        while time.monotonic() < deadline:
+            line = process.stderr.readline()
+            seen.append(line)
+            if "hold" in line or not line:
+                break
+        assert any("hold" in line for line in seen), "".join(seen)
+        time.sleep(1.0)
+        process.send_signal(signal.SIGINT)
+        stdout, stderr = process.communicate(timeout=30)
+    finally:
+        if process.poll() is None:
+            process.kill()
+    assert process.returncode == 130, stderr
+    assert "outcome: interrupted" in "".join(seen) + stderr
+    rows = read_rows(log)  # complete: the header and every row parse
+    assert rows[-1]["phase"] == "interrupted"
+    assert rows[-1]["rc_aux1_us"] == "1000" and rows[-1]["rc_throttle_us"] == "1000"
+    assert any(r["phase"] == "hold" for r in rows)
+    time.sleep(0.5)  # the namespace agent exits once its SITL has gone
+    assert processes_in(tmp_path) == []
+
+
+def test_scripted_mission_from_python_goes_to_a_second_altitude(firmware, tmp_path):
+    from bfsitl.control import make_controller
+    from bfsitl.mission import FlightSession, Mission, SessionConfig
+
+    with FlightSession(SessionConfig(firmware=firmware.path, workdir=tmp_path / "run")) as s:
+        mission = Mission(s, make_controller("cascade"))
+        mission.arm()
+        mission.takeoff(1.0)
+        mission.goto(2.5)
+        mission.hold(1.0)
+        held = [r.sim_alt_m for r in mission.rows if r.phase == "hold"]
+        assert held and all(abs(alt - 2.5) <= HOLD_TOLERANCE_M for alt in held)
+        mission.land()
+        assert not s.client.status().armed
+    assert mission.rows[-1].phase == "landed"
+    assert max(r.sim_alt_m for r in mission.rows if r.phase == "takeoff") < 1.0 + 0.15

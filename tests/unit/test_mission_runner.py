@@ -1,0 +1,220 @@
+"""The mission loop against a fake session: phases, outcomes, rows, the disarm on abort.
+
+The fake vehicle is a point mass whose climb rate follows the throttle, with an FC altitude
+that lags it; enough to drive every branch of the runner without a SITL.  The real flights
+are in tests/integration/test_fly_sitl.py.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, replace
+
+import pytest
+
+from bfsitl.errors import ArmingBlockedError, SitlExitedError
+from bfsitl.fc.rc_link import RcCommand, RcLinkStats
+from bfsitl.mission.flight_log import CsvFlightLog, read_flight_log
+from bfsitl.mission.runner import Mission, MissionPlan, Outcome, hold_stats, run_mission
+from bfsitl.mission.session import SWITCH_ON_US, FlightSample
+
+HOVER_US = 1500.0
+
+
+@dataclass
+class _Config:
+    speed: float = 1.0
+
+
+class FakeSession:
+    """Time advances 20 ms per sample; climb rate = (throttle - hover) / 200 m/s."""
+
+    def __init__(self, *, tilt_deg: float = 0.0, arm_error: Exception | None = None,
+                 fail_after: int | None = None, failure: BaseException | None = None) -> None:
+        self.config = _Config(speed=50.0)  # the loop's wall period shrinks with speed
+        self.time_s = 0.0
+        self.altitude_m = 0.0
+        self.armed = False
+        self.armed_after_s: float | None = None
+        self.rc = self
+        self.sitl = None
+        self.command = RcCommand(aux_us=(1000, 1000))
+        self.tilt_deg = tilt_deg
+        self.arm_error = arm_error
+        self.samples = 0
+        self.fail_after = fail_after
+        self.failure = failure
+
+    # the parts of FlightSession the runner uses
+    def arm(self) -> None:
+        if self.arm_error is not None:
+            raise self.arm_error
+        self.armed, self.armed_after_s = True, 5.2
+        self.command = replace(self.command, aux_us=(SWITCH_ON_US, SWITCH_ON_US))
+
+    def disarm(self) -> bool:
+        self.command = replace(self.command, throttle_us=1000, aux_us=(1000, 1000))
+        self.armed = False
+        return True
+
+    @property
+    def rc_command(self) -> RcCommand:
+        return self.command
+
+    def set_rc(self, command: RcCommand) -> None:
+        self.command = command
+
+    def set_throttle(self, throttle_us: float) -> None:
+        self.command = replace(self.command, throttle_us=throttle_us)
+
+    def sample(self) -> FlightSample:
+        self.samples += 1
+        if self.fail_after is not None and self.samples > self.fail_after:
+            assert self.failure is not None
+            raise self.failure
+        climb = (self.command.throttle_us - HOVER_US) / 200.0 if self.armed else 0.0
+        self.altitude_m = max(0.0, self.altitude_m + climb * 0.02)
+        self.time_s += 0.02
+        on_ground = self.altitude_m <= 0.0
+        return FlightSample(
+            time_s=self.time_s, wall_s=self.time_s, fc_alt_m=round(self.altitude_m, 2),
+            fc_climb_m_s=climb, roll_deg=0.0, pitch_deg=0.0, yaw_deg=0.0,
+            sim_alt_m=self.altitude_m, sim_climb_m_s=0.0 if on_ground else climb,
+            sim_tilt_deg=self.tilt_deg, on_ground=on_ground, armed=self.armed,
+            arming_blockers=(), flight_modes=("ARM",), motors=(0.5,) * 4, rc=self.command)
+
+    def rc_stats(self) -> RcLinkStats:
+        return RcLinkStats(10, 10.0, 10.5, 11.0, 0)
+
+    def bridge_stats(self) -> None:
+        return None
+
+
+class PController:
+    """Climb-rate proportional to the error; enough to reach and hold in the fake."""
+
+    name = "p"
+
+    def __init__(self) -> None:
+        self.resets = 0
+
+    def reset(self, time_s: float) -> None:
+        self.resets += 1
+
+    def update(self, sample) -> float:  # type: ignore[no-untyped-def]
+        return HOVER_US + 150.0 * (sample.target_alt_m - sample.altitude_m)
+
+
+class Descend:
+    name = "descend"
+
+    def __init__(self) -> None:
+        self.touched_down = False
+
+    def reset(self, time_s: float) -> None:
+        self.touched_down = False
+
+    def update(self, sample) -> float:  # type: ignore[no-untyped-def]
+        if sample.altitude_m <= 0.0:
+            self.touched_down = True
+            return 1000.0
+        return HOVER_US - 100.0
+
+
+def test_default_plan_takes_off_holds_lands_and_records_every_step(tmp_path):
+    session = FakeSession()
+    log = CsvFlightLog(tmp_path / "f.csv")
+    result = run_mission(session, MissionPlan(target_alt_m=2.0, hold_s=1.0), PController(),
+                         landing=Descend(), log=log)
+    log.close()
+    assert result.outcome is Outcome.LANDED and result.succeeded
+    phases = [row.phase for row in result.rows]
+    assert phases[0] == "takeoff" and phases[-1] == "landed"
+    assert phases.index("hold") < phases.index("land")
+    assert result.hold is not None and result.hold.max_abs_error_m < 0.06
+    assert result.armed_after_s == 5.2
+    written = read_flight_log(tmp_path / "f.csv")
+    assert len(written) == len(result.rows)
+    assert written[-1]["armed"] == "0" and written[-1]["rc_aux1_us"] == "1000"
+    summary = result.summary()
+    assert summary["outcome"] == "landed" and summary["rc_link"]["packets"] == 10
+
+
+def test_hold_lasts_its_simulation_time():
+    session = FakeSession()
+    mission = Mission(session, PController(), landing=Descend())
+    mission.arm()
+    mission.takeoff(1.0)
+    start_s = session.time_s
+    mission.hold(2.0)
+    assert 2.0 <= session.time_s - start_s <= 2.05
+
+
+def test_arming_blocked_is_an_outcome_with_the_blockers():
+    session = FakeSession(arm_error=ArmingBlockedError("blocked by RXLOSS", ("RXLOSS",)))
+    result = run_mission(session, MissionPlan(), PController(), landing=Descend())
+    assert result.outcome is Outcome.ARMING_BLOCKED
+    assert result.blockers == ("RXLOSS",)
+    assert result.rows == [] and result.metrics is None
+
+
+def test_tipping_over_is_a_crash():
+    result = run_mission(FakeSession(tilt_deg=85.0), MissionPlan(), PController(),
+                         landing=Descend())
+    assert result.outcome is Outcome.CRASHED
+    assert "tipped over" in result.reason
+
+
+def test_a_slow_controller_times_out_with_the_altitude_in_the_reason():
+    class Weak(PController):
+        def update(self, sample):  # type: ignore[no-untyped-def]
+            return HOVER_US + 1.0
+
+    plan = MissionPlan(target_alt_m=2.0, takeoff_timeout_s=1.0)
+    result = run_mission(FakeSession(), plan, Weak(), landing=Descend())
+    assert result.outcome is Outcome.TIMEOUT
+    assert "target 2.00 m" in result.reason
+
+
+@pytest.mark.parametrize(("failure", "outcome"), [
+    (KeyboardInterrupt(), Outcome.INTERRUPTED),
+    (SitlExitedError("the SITL exited with code 139"), Outcome.SITL_EXITED),
+])
+def test_interrupt_and_sitl_exit_end_with_the_sticks_at_disarm(failure, outcome, tmp_path):
+    session = FakeSession(fail_after=40, failure=failure)
+    log = CsvFlightLog(tmp_path / "f.csv")
+    result = run_mission(session, MissionPlan(), PController(), landing=Descend(), log=log)
+    log.close()
+    assert result.outcome is outcome
+    last = read_flight_log(tmp_path / "f.csv")[-1]
+    assert last["phase"] == outcome.value
+    assert last["rc_throttle_us"] == "1000" and last["rc_aux1_us"] == "1000"
+    assert session.command.aux_us == (1000, 1000)
+
+
+def test_a_non_finite_throttle_is_refused():
+    class Broken(PController):
+        def update(self, sample):  # type: ignore[no-untyped-def]
+            return float("nan")
+
+    result = run_mission(FakeSession(), MissionPlan(), Broken(), landing=Descend())
+    assert result.outcome is Outcome.ERROR and "throttle nan" in result.reason
+
+
+def test_hold_stats_use_the_truth_in_the_hold_phase_only():
+    session = FakeSession()
+    mission = Mission(session, PController(), landing=Descend())
+    mission.arm()
+    mission.takeoff(1.0)
+    mission.hold(0.5)
+    stats = hold_stats(mission.rows)
+    assert stats is not None
+    assert stats.samples == sum(1 for r in mission.rows if r.phase == "hold")
+
+
+def test_plan_rejects_nonsense():
+    from bfsitl.errors import MissionError
+
+    with pytest.raises(MissionError, match="outside"):
+        MissionPlan(target_alt_m=-1.0)
+    with pytest.raises(MissionError, match="hold"):
+        MissionPlan(hold_s=float("nan"))

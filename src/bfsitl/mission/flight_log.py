@@ -9,6 +9,7 @@ from __future__ import annotations
 import csv
 import dataclasses
 import io
+import math
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -51,7 +52,8 @@ def _cell(value: object) -> str:
     if isinstance(value, bool):
         return "1" if value else "0"
     if isinstance(value, float):
-        return f"{value:.4f}"
+        # Unknown values (no simulated truth with Gazebo) are empty cells, not "nan".
+        return f"{value:.4f}" if math.isfinite(value) else ""
     return str(value)
 
 

@@ -15,6 +15,7 @@ from pathlib import Path
 
 from bfsitl import __version__
 from bfsitl.cli import render
+from bfsitl.cli.bridge_commands import add_configurator_parser, add_serial_bridge_parser
 from bfsitl.cli.doctor import add_doctor_parser
 from bfsitl.cli.fly_command import add_fly_parser
 from bfsitl.cli.sim_command import add_sim_parser
@@ -140,7 +141,10 @@ def build_parser() -> argparse.ArgumentParser:
                "  bfsitl sim --duration 10 --json  physics against a SITL, health once a second\n"
                "  bfsitl doctor                    firmware, ports, a live probe, blockers\n"
                "  bfsitl top --start               live dashboard: attitude, motors, RC, "
-               "blockers, link",
+               "blockers, link\n"
+               "  bfsitl configurator --start      the web Configurator reaches the SITL at "
+               "ws://127.0.0.1:6761\n"
+               "  bfsitl serial-bridge --start --link /tmp/ttyBF   a pty for serial-only tools",
         formatter_class=argparse.RawDescriptionHelpFormatter,
     )
     parser.add_argument("--version", action="version", version=f"bfsitl {__version__}")
@@ -186,6 +190,8 @@ def build_parser() -> argparse.ArgumentParser:
     add_sim_parser(sub)
     add_doctor_parser(sub)
     add_top_parser(sub)
+    add_configurator_parser(sub)
+    add_serial_bridge_parser(sub)
     return parser
 
 

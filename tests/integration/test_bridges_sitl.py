@@ -1,0 +1,347 @@
+"""The bridges against the real SITL, each SITL in its own network namespace.
+
+The WebSocket server listens on the host's 127.0.0.1 and reaches the namespaced SITL through
+the namespace's socket factory, so a browser on the host (headless Chromium here) talks to a
+SITL that nothing else on the host can see.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import http.server
+import os
+import shutil
+import signal
+import socket
+import subprocess
+import sys
+import tempfile
+import threading
+import time
+from collections.abc import Iterator
+from pathlib import Path
+from urllib.parse import parse_qs, urlencode, urlsplit
+
+import pytest
+import serial  # type: ignore[import-untyped]
+from websockets.exceptions import ConnectionClosed
+from websockets.sync.client import connect
+
+from bfsitl.bridges.websocket_relay import CLOSE_BUSY, CLOSE_UPSTREAM_GONE, WebSocketRelay
+from bfsitl.cli.bridge_commands import sitl_upstream
+from bfsitl.protocol import msp_messages as msg
+from bfsitl.protocol.msp_codes import MspCommand
+from bfsitl.protocol.msp_frame import MspFrame, MspParser, encode_request
+from bfsitl.sitl.process import SitlProcess
+
+pytestmark = pytest.mark.sitl
+
+API_VERSION_REQUEST = encode_request(MspCommand.API_VERSION)
+#: The two commands on a parser of their own, with bfsitl's error convention (one line, exit
+#: code 1), so these tests do not depend on how cli/main.py wires them.
+_BRIDGE_MAIN = (
+    "import argparse, sys\n"
+    "from bfsitl.cli.bridge_commands import add_configurator_parser, "
+    "add_serial_bridge_parser\n"
+    "parser = argparse.ArgumentParser(prog='bfsitl')\n"
+    "sub = parser.add_subparsers(required=True)\n"
+    "add_configurator_parser(sub)\n"
+    "add_serial_bridge_parser(sub)\n"
+    "args = parser.parse_args()\n"
+    "from bfsitl.errors import BfsitlError\n"
+    "try:\n"
+    "    sys.exit(args.func(args))\n"
+    "except BfsitlError as exc:\n"
+    "    print(f'bfsitl: error: {exc}', file=sys.stderr)\n"
+    "    sys.exit(1)\n"
+)
+
+
+@pytest.fixture
+def sitl(firmware, tmp_path) -> Iterator[SitlProcess]:
+    process = SitlProcess(firmware, workdir=tmp_path / "run", isolate=True)
+    process.start()
+    try:
+        yield process
+    finally:
+        process.stop()
+
+
+@pytest.fixture
+def relay_url(sitl) -> Iterator[str]:
+    with WebSocketRelay(sitl_upstream(sitl), port=0).running() as url:
+        yield url
+
+
+def api_over_websocket(ws) -> msg.ApiVersion:
+    ws.send(API_VERSION_REQUEST)
+    parser = MspParser()
+    deadline = time.monotonic() + 3.0
+    while time.monotonic() < deadline:
+        for event in parser.feed(ws.recv(timeout=3.0)):
+            if isinstance(event, MspFrame) and event.command == MspCommand.API_VERSION:
+                return msg.ApiVersion.decode(event.payload)
+    raise AssertionError("no MSP_API_VERSION reply through the bridge")
+
+
+def test_websocket_client_reaches_the_namespaced_sitl(relay_url):
+    with connect(relay_url, subprotocols=["wsSerial"]) as ws:
+        assert api_over_websocket(ws).api == (1, 47)
+        with connect(relay_url, subprotocols=["binary"]) as second:
+            with pytest.raises(ConnectionClosed):
+                second.recv(timeout=3.0)
+            assert second.close_code == CLOSE_BUSY
+        assert api_over_websocket(ws).api == (1, 47)  # the first client still works
+    # The TCP slot was released: the next client gets the SITL.
+    with connect(relay_url, subprotocols=["binary"]) as ws:
+        assert api_over_websocket(ws).api == (1, 47)
+
+
+def test_reboot_ends_the_client_and_the_started_sitl_comes_back(sitl, relay_url):
+    """A Configurator's "save and reboot" ends a SITL process; the bridge restarts it."""
+    with connect(relay_url, subprotocols=["wsSerial"]) as ws:
+        ws.send(encode_request(MspCommand.REBOOT))
+        with pytest.raises(ConnectionClosed):
+            while True:
+                ws.recv(timeout=10.0)
+        assert ws.close_code == CLOSE_UPSTREAM_GONE
+    with connect(relay_url, subprotocols=["wsSerial"], open_timeout=15) as ws:
+        assert api_over_websocket(ws).api == (1, 47)
+    assert sitl.starts == 2
+
+
+# --- the browser ---------------------------------------------------------------------------
+
+BROWSER_PAGE = """<!doctype html>
+<html><head><title>waiting</title></head><body><script>
+// Opens the bridge as the web Configurator's WebSocket transport does (it offers the
+// subprotocols "binary" and "wsSerial" and reads each message as a Blob), sends the request
+// given in the query string, and reports the raw bytes of the answer to the test's server.
+const params = new URLSearchParams(location.search);
+function report(fields) {
+  document.title = JSON.stringify(fields);
+  fetch("/report?" + new URLSearchParams(fields));
+}
+const received = [];
+let reported = false;
+let inOrder = Promise.resolve();  // Blob reads are asynchronous; keep the bytes in order
+try {
+  const ws = new WebSocket(params.get("ws"), params.get("protocols").split(","));
+  ws.onopen = () => ws.send(new Uint8Array(params.get("request").match(/../g)
+                                           .map((h) => parseInt(h, 16))));
+  ws.onmessage = (event) => {
+    inOrder = inOrder.then(async () => {
+      received.push(...new Uint8Array(await event.data.arrayBuffer()));
+      if (received.length >= 9 && !reported) {  // $ M > size cmd payload(3) checksum
+        reported = true;
+        report({hex: received.map((b) => b.toString(16).padStart(2, "0")).join(""),
+                protocol: ws.protocol});
+        ws.close();
+      }
+    });
+  };
+  ws.onclose = (event) => {
+    if (!reported) { reported = true; report({closed: event.code, reason: event.reason}); }
+  };
+} catch (error) {
+  report({exception: String(error)});
+}
+</script></body></html>
+"""
+
+
+@pytest.fixture
+def chromium() -> str:
+    """The browser binary; skips without one, unless BFSITL_REQUIRE_BROWSER=1 (CI)."""
+    path = shutil.which("chromium") or shutil.which("chromium-browser")
+    if path is None:
+        if os.environ.get("BFSITL_REQUIRE_BROWSER") == "1":
+            pytest.fail("BFSITL_REQUIRE_BROWSER=1 but chromium is not installed "
+                        "(apt-get install chromium)")
+        pytest.skip("chromium is not installed (apt-get install chromium)")
+    return path
+
+
+class _ReportServer:
+    """Serves the test page and receives the page's report (one GET /report?...)."""
+
+    def __init__(self, page_dir: Path) -> None:
+        self.reports: list[dict[str, str]] = []
+        self.arrived = threading.Event()
+        outer = self
+
+        class Handler(http.server.SimpleHTTPRequestHandler):
+            def __init__(self, *args, **kwargs) -> None:
+                super().__init__(*args, directory=str(page_dir), **kwargs)
+
+            def do_GET(self) -> None:  # noqa: N802 - http.server's name
+                parts = urlsplit(self.path)
+                if parts.path == "/report":
+                    fields = {k: v[0] for k, v in parse_qs(parts.query).items()}
+                    outer.reports.append(fields)
+                    outer.arrived.set()
+                    self.send_response(204)
+                    self.end_headers()
+                    return
+                super().do_GET()
+
+            def log_message(self, *args: object) -> None:
+                pass
+
+        self._server = http.server.ThreadingHTTPServer(("127.0.0.1", 0), Handler)
+        self.port = self._server.server_address[1]
+        self._thread = threading.Thread(target=self._server.serve_forever, daemon=True)
+
+    def __enter__(self) -> _ReportServer:
+        self._thread.start()
+        return self
+
+    def __exit__(self, *exc_info: object) -> None:
+        self._server.shutdown()
+        self._server.server_close()
+
+
+@contextlib.contextmanager
+def headless_chromium(binary: str, url: str) -> Iterator[subprocess.Popen[bytes]]:
+    with tempfile.TemporaryDirectory(prefix="bfsitl-chromium-") as profile:
+        process = subprocess.Popen(
+            [binary, "--headless", "--no-sandbox", "--disable-gpu", "--no-first-run",
+             "--no-default-browser-check", "--disable-extensions",
+             "--disable-background-networking", "--disable-component-update",
+             "--disable-dev-shm-usage", f"--user-data-dir={profile}", url],
+            stdin=subprocess.DEVNULL, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE,
+            start_new_session=True,
+        )
+        try:
+            yield process
+        finally:
+            _stop_group(process)
+
+
+def _stop_group(process: subprocess.Popen[bytes]) -> None:
+    """Chromium runs a process tree; end the whole group we started, then reap it."""
+    for signum in (signal.SIGTERM, signal.SIGKILL):
+        with contextlib.suppress(ProcessLookupError):
+            os.killpg(process.pid, signum)
+        try:
+            process.wait(timeout=5.0)
+            break
+        except subprocess.TimeoutExpired:
+            continue
+    if process.stderr is not None:
+        process.stderr.close()
+
+
+def test_headless_chromium_reads_the_api_version(chromium, relay_url, tmp_path):
+    (tmp_path / "page").mkdir()
+    (tmp_path / "page" / "index.html").write_text(BROWSER_PAGE)
+    with _ReportServer(tmp_path / "page") as reports:
+        query = urlencode({"ws": relay_url, "protocols": "binary,wsSerial",
+                           "request": API_VERSION_REQUEST.hex()})
+        page = f"http://127.0.0.1:{reports.port}/index.html?{query}"
+        with headless_chromium(chromium, page) as browser:
+            if not reports.arrived.wait(timeout=30.0):
+                code = browser.poll()
+                pytest.fail(f"the page reported nothing within 30 s (chromium exit code "
+                            f"{code})")
+    report = reports.reports[0]
+    assert "hex" in report, f"the browser's WebSocket failed: {report}"
+    assert report["protocol"] == "binary"  # the first the page offered
+    frames = [e for e in MspParser().feed(bytes.fromhex(report["hex"]))
+              if isinstance(e, MspFrame)]
+    assert frames and frames[0].command == MspCommand.API_VERSION
+    assert msg.ApiVersion.decode(frames[0].payload).api == (1, 47)
+
+
+# --- the commands, end to end ---------------------------------------------------------------
+
+@contextlib.contextmanager
+def run_bridge(*args: str) -> Iterator[tuple[subprocess.Popen[str], str]]:
+    """Start a bridge command; yield it and the first line it prints (its URL or path)."""
+    process = subprocess.Popen(
+        [sys.executable, "-c", _BRIDGE_MAIN, *args], stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE, text=True, start_new_session=True,
+    )
+    try:
+        line = process.stdout.readline().strip() if process.stdout else ""
+        if not line:
+            process.wait(timeout=10)
+            raise AssertionError(f"the bridge printed nothing; stderr:\n"
+                                 f"{process.stderr.read() if process.stderr else ''}")
+        yield process, line
+    finally:
+        if process.poll() is None:
+            os.killpg(process.pid, signal.SIGKILL)
+            process.wait()
+
+
+def _sitl_pid(stderr: str) -> int:
+    line = next(ln for ln in stderr.splitlines() if "SITL ready (pid " in ln)
+    return int(line.split("(pid ")[1].split(")")[0])
+
+
+def _alive(pid: int) -> bool:
+    try:
+        with open(f"/proc/{pid}/stat") as stat:
+            return stat.read().split(")")[-1].split()[0] != "Z"
+    except (FileNotFoundError, ProcessLookupError):
+        return False
+
+
+def test_serial_bridge_command_start_and_ctrl_c(firmware, tmp_path):
+    link = tmp_path / "ttyBF"
+    with run_bridge("serial-bridge", "--start", "--link", str(link)) as (process, printed):
+        assert printed == str(link) and link.is_symlink()
+        with serial.Serial(printed, timeout=0.1) as port:
+            port.write(API_VERSION_REQUEST)
+            parser, frames = MspParser(), []
+            deadline = time.monotonic() + 3.0
+            while not frames and time.monotonic() < deadline:
+                frames = [e for e in parser.feed(port.read(64)) if isinstance(e, MspFrame)]
+        assert frames and msg.ApiVersion.decode(frames[0].payload).api == (1, 47)
+        process.send_signal(signal.SIGINT)
+        assert process.wait(timeout=15) == 0
+        stderr = process.stderr.read() if process.stderr else ""
+    assert not link.exists() and not link.is_symlink()
+    assert "SITL stopped" in stderr
+    assert not _alive(_sitl_pid(stderr))
+
+
+def test_configurator_command_start_and_ctrl_c(firmware):
+    with run_bridge("configurator", "--start", "--port", "0") as (process, url):
+        assert url.startswith("ws://127.0.0.1:")
+        with connect(url, subprotocols=["wsSerial"]) as ws:
+            assert api_over_websocket(ws).api == (1, 47)
+            process.send_signal(signal.SIGINT)
+            with pytest.raises(ConnectionClosed):
+                ws.recv(timeout=10.0)
+        assert process.wait(timeout=15) == 0
+        stderr = process.stderr.read() if process.stderr else ""
+    assert "SITL stopped" in stderr
+    assert not _alive(_sitl_pid(stderr))
+
+
+def test_configurator_command_errors_are_one_clear_line(tmp_path):
+    with socket.create_server(("127.0.0.1", 0)) as taken:
+        port = str(taken.getsockname()[1])
+        refused = subprocess.run(
+            [sys.executable, "-c", _BRIDGE_MAIN, "configurator", "--uri", "tcp://127.0.0.1:1"],
+            capture_output=True, text=True, timeout=30,
+        )
+        assert refused.returncode == 1 and "connection refused" in refused.stderr
+        assert len(refused.stderr.strip().splitlines()) == 1
+        not_tcp = subprocess.run(
+            [sys.executable, "-c", _BRIDGE_MAIN, "serial-bridge", "--uri", "serial:///dev/x"],
+            capture_output=True, text=True, timeout=30,
+        )
+        assert not_tcp.returncode == 1 and "tcp://HOST:PORT" in not_tcp.stderr
+        regular = tmp_path / "file"
+        regular.write_text("x")
+        # A listening socket stands in for a SITL: the path check must come first anyway.
+        occupied = subprocess.run(
+            [sys.executable, "-c", _BRIDGE_MAIN, "serial-bridge", "--uri",
+             f"tcp://127.0.0.1:{port}", "--link", str(regular)],
+            capture_output=True, text=True, timeout=30,
+        )
+        assert occupied.returncode == 1 and "refusing to overwrite" in occupied.stderr
+        assert regular.read_text() == "x"

@@ -1,0 +1,116 @@
+"""Altitude controllers: RC throttle from the FC's barometric altitude.
+
+Every controller follows :class:`~bfsitl.control.base.AltitudeController`: ``reset(time_s)``
+after arming, then ``update(AltitudeInput) -> throttle_us`` at the mission's rate.
+
+==============  ==============================================================================
+name            what it is
+==============  ==============================================================================
+cascade         (default) spool-up, smooth reference, feedforward, lag-matched cascade
+tutorial-pid    the tutorial's single altitude PID, re-created faithfully as the baseline
+open-loop       the tutorial's throttle-by-the-clock take-off (no feedback at all)
+==============  ==============================================================================
+
+:func:`make_controller` builds one by name with gain overrides (``--gain kp=150`` on the
+command line); :func:`gain_names` lists a controller's gains with their defaults.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+from collections.abc import Mapping
+
+from bfsitl.control.base import AltitudeController, AltitudeInput, ControllerConfigError
+from bfsitl.control.cascade import CascadedAltitudeController, CascadeGains
+from bfsitl.control.landing import LandingController, LandingGains
+from bfsitl.control.metrics import StepMetrics, step_response
+from bfsitl.control.tutorial import (
+    OpenLoopGains,
+    OpenLoopTakeoff,
+    TutorialPid,
+    TutorialPidGains,
+)
+
+DEFAULT_CONTROLLER = "cascade"
+
+#: Controller name -> class.  Each class takes one optional argument, its gains dataclass
+#: (see :data:`GAINS`).
+CONTROLLERS: dict[str, type] = {
+    "cascade": CascadedAltitudeController,
+    "tutorial-pid": TutorialPid,
+    "open-loop": OpenLoopTakeoff,
+}
+
+#: Controller name -> its gains dataclass.
+GAINS: dict[str, type] = {
+    "cascade": CascadeGains,
+    "tutorial-pid": TutorialPidGains,
+    "open-loop": OpenLoopGains,
+}
+
+
+def _gains_type(name: str) -> type:
+    try:
+        return GAINS[name]
+    except KeyError:
+        known = ", ".join(sorted(CONTROLLERS))
+        raise ControllerConfigError(
+            f"unknown controller {name!r}; choose one of: {known}") from None
+
+
+def gain_names(name: str) -> dict[str, float]:
+    """The gains of controller ``name`` and their defaults, in declaration order."""
+    defaults = _gains_type(name)()
+    return {f.name: getattr(defaults, f.name) for f in dataclasses.fields(defaults)}
+
+
+def make_controller(
+    name: str = DEFAULT_CONTROLLER, gains: Mapping[str, float] | None = None,
+) -> AltitudeController:
+    """Controller ``name`` with its default gains, overridden by ``gains``.
+
+    Raises :class:`ControllerConfigError` (also a ``ValueError``) for an unknown controller, an
+    unknown gain name (listing the known ones) or a value the controller cannot work with.
+    """
+    gains_type = _gains_type(name)
+    overrides = dict(gains or {})
+    known = gain_names(name)
+    unknown = sorted(set(overrides) - set(known))
+    if unknown:
+        raise ControllerConfigError(
+            f"controller {name!r} has no gain {', '.join(map(repr, unknown))}; its gains are: "
+            + ", ".join(known))
+    values: dict[str, float] = {}
+    for key, value in overrides.items():
+        try:
+            number = float(value)
+        except (TypeError, ValueError):
+            raise ControllerConfigError(
+                f"gain {key} of {name!r} must be a number, got {value!r}") from None
+        if not math.isfinite(number):
+            raise ControllerConfigError(f"gain {key} of {name!r} must be finite, got {value!r}")
+        values[key] = number
+    return CONTROLLERS[name](gains_type(**values))
+
+
+__all__ = [
+    "CONTROLLERS",
+    "DEFAULT_CONTROLLER",
+    "GAINS",
+    "AltitudeController",
+    "AltitudeInput",
+    "CascadeGains",
+    "CascadedAltitudeController",
+    "ControllerConfigError",
+    "LandingController",
+    "LandingGains",
+    "OpenLoopGains",
+    "OpenLoopTakeoff",
+    "StepMetrics",
+    "TutorialPid",
+    "TutorialPidGains",
+    "gain_names",
+    "make_controller",
+    "step_response",
+]

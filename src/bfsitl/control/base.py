@@ -1,0 +1,87 @@
+"""The contract between a mission and an altitude controller.
+
+A mission samples the flight controller at its control rate (about 50 Hz of simulation time),
+hands the controller what a real board reports, and sends the returned throttle over RC.  The
+controller sees only the FC's view: the barometric altitude (``MSP_ALTITUDE``, zeroed at arming,
+quantised to ~8 cm and low-pass filtered by the firmware, so it lags the truth) and a climb rate
+derived from it.  It never sees the simulated truth: that is kept to judge it.
+
+Everything here is plain data and a :class:`typing.Protocol`, so controllers can be tested
+offline (``tests/unit/altitude_plant.py``) exactly as the mission runner calls them.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, fields
+from typing import Protocol, runtime_checkable
+
+from bfsitl.errors import BfsitlError
+
+#: RC throttle range the controllers speak, microseconds (the RC link clamps to it as well).
+THROTTLE_MIN_US = 1000.0
+THROTTLE_MAX_US = 2000.0
+
+
+class ControllerConfigError(BfsitlError, ValueError):
+    """A controller name or gain that does not exist, or a gain value that cannot work.
+
+    Also a :class:`ValueError`, so argument parsers and generic callers treat it as bad input.
+    """
+
+
+@dataclass(frozen=True, slots=True)
+class AltitudeInput:
+    """One control step's measurements, in the FC's frame (up positive, metres, seconds)."""
+
+    time_s: float          # mission clock in seconds (simulation time), strictly increasing
+    altitude_m: float      # measured altitude relative to the arming point (MSP_ALTITUDE / 100)
+    climb_rate_m_s: float  # measured vertical speed, up positive
+    target_alt_m: float    # wanted altitude, same reference
+
+
+@runtime_checkable
+class AltitudeController(Protocol):
+    """What a mission calls: ``reset`` once after arming, then ``update`` every control step."""
+
+    name: str
+
+    def reset(self, time_s: float) -> None:
+        """Forget the past: called right after arming, with the throttle at minimum."""
+        ...
+
+    def update(self, sample: AltitudeInput) -> float:
+        """Return the RC throttle in microseconds (1000..2000) for this step."""
+        ...
+
+
+def clamp(value: float, low: float, high: float) -> float:
+    """``value`` limited to ``[low, high]`` (``low`` wins if the bounds cross)."""
+    return low if value < low else (high if value > high else value)
+
+
+def check_gains(gains: object) -> None:
+    """Reject non-finite gain values early, with the gain's name in the message.
+
+    Called from each gains dataclass's ``__post_init__``; the controller-specific range checks
+    follow it there.
+    """
+    for field in fields(gains):  # type: ignore[arg-type]
+        value = getattr(gains, field.name)
+        if not isinstance(value, (int, float)) or isinstance(value, bool) \
+                or not math.isfinite(value):
+            raise ControllerConfigError(
+                f"{type(gains).__name__}: {field.name} must be a finite number, got {value!r}")
+
+
+def require(condition: bool, gains: object, message: str) -> None:
+    """Raise :class:`ControllerConfigError` naming the gains class unless ``condition``."""
+    if not condition:
+        raise ControllerConfigError(f"{type(gains).__name__}: {message}")
+
+
+def throttle_range_ok(gains: object, low_us: float, high_us: float) -> None:
+    """The common throttle-limit check: inside the RC range and low below high."""
+    require(THROTTLE_MIN_US <= low_us < high_us <= THROTTLE_MAX_US, gains,
+            f"throttle limits must satisfy {THROTTLE_MIN_US:.0f} <= min < max <= "
+            f"{THROTTLE_MAX_US:.0f} us, got {low_us:g}..{high_us:g}")

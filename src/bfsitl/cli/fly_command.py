@@ -70,6 +70,9 @@ def add_fly_parser(sub: argparse._SubParsersAction) -> None:  # type: ignore[typ
     sitl.add_argument("--speed", type=float, default=1.0, metavar="X",
                       help="simulation speed x real time (default 1; 0.5 is the faithful "
                            "speed on a busy 2-core machine)")
+    sitl.add_argument("--baro-noise-pa", type=float, default=None, metavar="PA",
+                      help="barometer noise std of the embedded physics (default 0.5: dithers "
+                           "the SITL's whole-pascal pressure; 0 for a noiseless barometer)")
     sitl.add_argument("--physics", choices=("embedded", "gazebo"), default="embedded",
                       help="embedded (default, nothing to install) or gazebo (needs `gz` of "
                            "Gazebo Harmonic and libBetaflightPlugin.so; see docs/gazebo.md)")
@@ -172,6 +175,7 @@ def cmd_fly(args: argparse.Namespace) -> int:
     from bfsitl.mission import FLY_PROFILE, FlightSession, SessionConfig
     from bfsitl.mission.flight_log import CsvFlightLog
     from bfsitl.mission.runner import MissionPlan, Outcome, run_mission
+    from bfsitl.sim.sensors import SensorConfig
 
     if args.list_gains:
         for name, default in gain_names(args.controller).items():
@@ -186,7 +190,9 @@ def cmd_fly(args: argparse.Namespace) -> int:
         if args.profile:
             extra = Profile.from_file(args.profile, mode_ranges=profile.mode_ranges)
             profile = extra
-    config = SessionConfig(firmware=args.firmware, workdir=args.workdir,
+    sensors = {} if args.baro_noise_pa is None else {
+        "sensors": SensorConfig(baro_noise_std_pa=args.baro_noise_pa)}
+    config = SessionConfig(**sensors, firmware=args.firmware, workdir=args.workdir,
                            isolate=not args.no_isolate, speed=args.speed, profile=profile,
                            angle_mode=not args.no_angle, physics=args.physics,
                            gz_plugin_dir=args.gz_plugin_dir)

@@ -85,3 +85,23 @@ def throttle_range_ok(gains: object, low_us: float, high_us: float) -> None:
     require(THROTTLE_MIN_US <= low_us < high_us <= THROTTLE_MAX_US, gains,
             f"throttle limits must satisfy {THROTTLE_MIN_US:.0f} <= min < max <= "
             f"{THROTTLE_MAX_US:.0f} us, got {low_us:g}..{high_us:g}")
+
+
+
+class HoverLimits(Protocol):
+    """Gains with a throttle range and hover bounds (the cascade's and the landing's)."""
+
+    throttle_min_us: float
+    hover_min_us: float
+    hover_guess_us: float
+    hover_max_us: float
+    throttle_max_us: float
+
+
+def hover_range_ok(gains: HoverLimits) -> None:
+    """The throttle limits, and the hover bounds and guess inside them, in that order."""
+    throttle_range_ok(gains, gains.throttle_min_us, gains.throttle_max_us)
+    require(gains.throttle_min_us <= gains.hover_min_us <= gains.hover_guess_us
+            <= gains.hover_max_us <= gains.throttle_max_us, gains,
+            "need throttle_min_us <= hover_min_us <= hover_guess_us <= hover_max_us "
+            "<= throttle_max_us")

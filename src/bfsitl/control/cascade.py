@@ -6,10 +6,14 @@ single PID on that signal (the tutorial's) starts with a guessed hover throttle,
 as its P term says, sees the vehicle late and kicks the throttle at every 8 cm step.  This
 controller splits the job:
 
-1. **Spool-up**: on the ground the throttle rises from a low hover guess at a fixed rate until
-   the FC sees the vehicle leave the ground (altitude and climb rate both up, on two samples in a
-   row).  The FC shows the lift-off ``liftoff_delay_s`` late, so that much of the ramp is taken
-   back: the hover estimate lands within a few microseconds of the truth without knowing it.
+1. **Spool-up and identification**: on the ground the throttle rises from a low hover guess
+   at a fixed rate until the FC sees the vehicle leave the ground (altitude and climb rate both
+   up, on two samples in a row).  Then the recorded spool-up is replayed through the vertical
+   model and the FC's lag for every candidate hover throttle, and the best fit wins
+   (:meth:`CascadedAltitudeController._identify_hover`): the hover estimate lands within a few
+   microseconds of the truth without knowing it, and the replay's final state tells where the
+   vehicle truly is, ahead of the lagging reading.  (A spool-up too short to fit falls back to
+   taking back ``liftoff_delay_s`` of the ramp.)
 2. **Reference profile**: the target is approached along a smooth path (acceleration and
    climb/descent rates limited, an exponential finish), so nothing is ever asked that the
    vehicle cannot do, and nothing winds up.
@@ -50,8 +54,8 @@ from bfsitl.control.base import (
     AltitudeInput,
     check_gains,
     clamp,
+    hover_range_ok,
     require,
-    throttle_range_ok,
 )
 
 #: Longer gaps between samples are treated as this long (a stalled loop must not make the
@@ -62,6 +66,8 @@ MAX_STEP_S = 0.1
 FALSE_LIFTOFF_LEAD_M = 0.3
 #: How far the (lag-matched) profile may run ahead of the FC's altitude before it waits.
 MAX_LEAD_M = 0.25
+#: Spool-up samples needed to identify the hover throttle (fewer: the ramp take-back).
+MIN_IDENTIFY_SAMPLES = 12
 
 
 @dataclass(frozen=True, slots=True)
@@ -72,16 +78,16 @@ class CascadeGains:
     hover_min_us: float = 1250.0         # bounds of the adapted hover estimate
     hover_max_us: float = 1800.0
     spool_rate_us_s: float = 100.0       # how fast the throttle rises on the ground
-    liftoff_alt_m: float = 0.04          # FC altitude that means "off the ground" ...
-    liftoff_climb_m_s: float = 0.15      # ... together with this climb rate
+    liftoff_alt_m: float = 0.08          # FC altitude that means "off the ground" ...
+    liftoff_climb_m_s: float = 0.20      # ... together with this climb rate
     liftoff_delay_s: float = 0.64        # true lift-off to the FC showing it, at that ramp
-    max_climb_m_s: float = 2.0
+    max_climb_m_s: float = 3.0
     max_descent_m_s: float = 1.0
-    max_accel_m_s2: float = 2.5
+    max_accel_m_s2: float = 5.0
     approach_rate_hz: float = 3.0        # final approach: climb rate = this x distance
     alt_kp: float = 1.5                  # 1/s: climb-rate correction per m of altitude error
     alt_ki: float = 30.0                 # us per (m s): hover adaptation
-    rate_kp: float = 30.0                # us per m/s of climb-rate error
+    rate_kp: float = 50.0                # us per m/s of climb-rate error
     rate_filter_s: float = 0.08          # time constant of the climb rate derived here
     accel_ff_us: float = 28.0            # us per m/s^2 (1 / b, the vehicle's throttle gain)
     climb_ff_us: float = 24.0            # us per m/s (rotor-inflow damping, in throttle)
@@ -94,11 +100,7 @@ class CascadeGains:
 
     def __post_init__(self) -> None:
         check_gains(self)
-        throttle_range_ok(self, self.throttle_min_us, self.throttle_max_us)
-        require(self.throttle_min_us <= self.hover_min_us <= self.hover_guess_us
-                <= self.hover_max_us <= self.throttle_max_us, self,
-                "need throttle_min_us <= hover_min_us <= hover_guess_us <= hover_max_us "
-                "<= throttle_max_us")
+        hover_range_ok(self)
         for name in ("spool_rate_us_s", "max_climb_m_s", "max_descent_m_s", "max_accel_m_s2",
                      "approach_rate_hz", "liftoff_alt_m", "liftoff_climb_m_s", "accel_ff_us"):
             require(getattr(self, name) > 0, self, f"{name} must be > 0")
@@ -195,6 +197,8 @@ class CascadedAltitudeController:
         self.hover_throttle_us = self.gains.hover_guess_us
         self.airborne = False
         self._liftoff_votes = 0
+        #: (time_s, FC altitude_m then, throttle_us sent from then on) during the spool-up.
+        self._spool_log: list[tuple[float, float, float]] = []
         self._prev_time_s = time_s
         self._prev_alt_m: float | None = None
         self._climb_m_s = 0.0
@@ -220,7 +224,9 @@ class CascadedAltitudeController:
         if not self.airborne:
             if not self._lifted_off(sample):
                 self._output_us = self._spool(sample, dt_s)
+                self._spool_log.append((sample.time_s, sample.altitude_m, self._output_us))
                 return self._output_us
+            self._spool_log.append((sample.time_s, sample.altitude_m, self._output_us))
             self._take_off(sample)
         elif self._still_on_ground(sample):
             self.airborne = False  # a false lift-off (a noisy reading): spool up again
@@ -263,11 +269,24 @@ class CascadedAltitudeController:
         return self.hover_throttle_us
 
     def _take_off(self, sample: AltitudeInput) -> None:
-        """Take back the last ``liftoff_delay_s`` of the ramp, and start the profile where the
-        vehicle truly is by now: with the throttle ramping at r above hover for T seconds it
-        has climbed about r T^3 / 6 b at r T^2 / 2 b (1 / b = ``accel_ff_us``)."""
+        """Find the hover throttle from the spool-up, and start the profile where the vehicle
+        truly is by now.
+
+        First choice: identify it (:meth:`_identify_hover`).  Fallback, when the spool-up was
+        too short to tell: take back the last ``liftoff_delay_s`` of the ramp (with the
+        throttle ramping at r above hover for T seconds the vehicle has climbed about
+        r T^3 / 6 b at r T^2 / 2 b, 1 / b = ``accel_ff_us``)."""
         g = self.gains
         self.airborne = True
+        identified = self._identify_hover()
+        self._spool_log = []
+        if identified is not None:
+            hover_us, alt_m, climb_m_s = identified
+            self.hover_throttle_us = hover_us
+            self._profile.reset(alt_m, min(climb_m_s, g.max_climb_m_s))
+            self._seen_alt.reset(sample.altitude_m)
+            self._seen_climb.reset(sample.climb_rate_m_s)
+            return
         delay_s = g.liftoff_delay_s
         self.hover_throttle_us = clamp(self.hover_throttle_us - g.spool_rate_us_s * delay_s,
                                        g.hover_min_us, g.hover_max_us)
@@ -277,6 +296,46 @@ class CascadedAltitudeController:
         self._profile.reset(alt, climb)
         self._seen_alt.reset(sample.altitude_m)
         self._seen_climb.reset(sample.climb_rate_m_s)
+
+    def _identify_hover(self) -> tuple[float, float, float] | None:
+        """Least-squares hover throttle from the spool-up: (hover_us, altitude_m, climb_m_s).
+
+        Every candidate hover throttle H (1 us apart, within the hover bounds) replays the
+        throttle that was sent through the vertical model (acceleration (u - H) / b minus the
+        inflow damping, resting on the ground while u < H) and through the FC's lag; the H
+        whose lagged altitude best matches what the FC reported wins.  The lag is in the
+        model, so the answer does not depend on when the lift-off was noticed, and the
+        replay's final state is where the vehicle truly is now, ahead of the FC's reading.
+        """
+        g = self.gains
+        log = self._spool_log
+        if len(log) < MIN_IDENTIFY_SAMPLES:
+            return None
+        best: tuple[float, float, float, float] | None = None
+        for hover_us in range(math.ceil(g.hover_min_us), math.floor(g.hover_max_us) + 1):
+            cost, alt_m, climb_m_s = self._replay(float(hover_us), log)
+            if best is None or cost < best[0]:
+                best = (cost, float(hover_us), alt_m, climb_m_s)
+        assert best is not None
+        return best[1], best[2], best[3]
+
+    def _replay(self, hover_us: float, log: list[tuple[float, float, float]],
+                ) -> tuple[float, float, float]:
+        g = self.gains
+        lag = SensorLag(g.lag_s)
+        alt_m = climb_m_s = cost = 0.0
+        damping = g.climb_ff_us / g.accel_ff_us
+        for (t0, _, throttle_us), (t1, seen_m, _) in zip(log, log[1:], strict=False):
+            dt_s = min(t1 - t0, MAX_STEP_S)
+            accel = (throttle_us - hover_us) / g.accel_ff_us - damping * climb_m_s
+            if alt_m <= 0.0 and accel <= 0.0:
+                climb_m_s = 0.0  # resting on the ground
+            else:
+                climb_m_s += accel * dt_s
+                alt_m = max(0.0, alt_m + climb_m_s * dt_s)
+            error = lag.step(alt_m, dt_s) - seen_m
+            cost += error * error
+        return cost, alt_m, climb_m_s
 
     def _fly(self, sample: AltitudeInput, climb_m_s: float, dt_s: float) -> float:
         g = self.gains

@@ -28,8 +28,8 @@ from bfsitl.control.base import (
     ControllerConfigError,
     check_gains,
     clamp,
+    hover_range_ok,
     require,
-    throttle_range_ok,
 )
 from bfsitl.control.cascade import MAX_STEP_S
 
@@ -57,11 +57,7 @@ class LandingGains:
 
     def __post_init__(self) -> None:
         check_gains(self)
-        throttle_range_ok(self, self.throttle_min_us, self.throttle_max_us)
-        require(self.throttle_min_us <= self.hover_min_us <= self.hover_guess_us
-                <= self.hover_max_us <= self.throttle_max_us, self,
-                "need throttle_min_us <= hover_min_us <= hover_guess_us <= hover_max_us "
-                "<= throttle_max_us")
+        hover_range_ok(self)
         require(0 < self.slow_descent_m_s <= self.descent_m_s, self,
                 "need 0 < slow_descent_m_s <= descent_m_s")
         for name in ("slow_over_m", "touchdown_alt_m", "touchdown_climb_m_s",

@@ -49,7 +49,7 @@ class LandingGains:
     rate_ki: float = 40.0                # us per m of integrated climb-rate error
     climb_ff_us: float = 24.0            # us per m/s (rotor-inflow damping)
     touchdown_alt_m: float = 0.3         # "near the arming point"
-    touchdown_climb_m_s: float = 0.08    # "not moving"
+    touchdown_climb_m_s: float = 0.15    # "not moving" (the dithered baro wanders ~0.1 m/s)
     touchdown_hold_s: float = 0.8
     ground_windup_us: float = 80.0
     throttle_min_us: float = 1100.0      # in flight; after touchdown it is 1000

@@ -21,7 +21,6 @@ Facts that shape it (``shared/FIRMWARE_FACTS.md``, ``drivers/serial_tcp.c``):
 
 from __future__ import annotations
 
-import errno
 import select
 import socket
 import time
@@ -29,7 +28,7 @@ from collections.abc import Callable
 from dataclasses import dataclass
 
 from bfsitl.errors import LinkError
-from bfsitl.link.tcp_link import SocketFactory
+from bfsitl.link.tcp_link import SocketFactory, connect_tcp
 from bfsitl.protocol.msp_frame import MAX_REQUEST_PAYLOAD, MspFrame, MspParser
 
 __all__ = [
@@ -128,29 +127,15 @@ def connect_upstream(upstream: Upstream) -> socket.socket:
 
 
 def _connect_once(upstream: Upstream) -> socket.socket:
-    family = socket.AF_INET6 if ":" in upstream.host else socket.AF_INET
-    factory = upstream.socket_factory or socket.socket
-    sock = factory(family, socket.SOCK_STREAM)
     try:
-        sock.settimeout(upstream.connect_timeout_s)
-        sock.connect((upstream.host, upstream.port))
-        # MSP frames are tiny; Nagle would hold each one back for an ACK.
-        sock.setsockopt(socket.IPPROTO_TCP, socket.TCP_NODELAY, 1)
-        sock.settimeout(None)
-    except TimeoutError as exc:
-        sock.close()
-        raise UpstreamUnreachableError(
-            f"{upstream.uri}: no answer to connect within {upstream.connect_timeout_s} s"
-        ) from exc
-    except OSError as exc:
-        sock.close()
-        if exc.errno == errno.ECONNREFUSED:
-            raise UpstreamUnreachableError(
-                f"{upstream.uri}: connection refused, nothing listens there. Is the SITL "
-                f"running, in this network namespace? Use --start to have the bridge start "
-                f"one, or --uri tcp://HOST:PORT for one that is running."
-            ) from exc
-        raise UpstreamUnreachableError(f"{upstream.uri}: cannot connect: {exc}") from exc
+        sock = connect_tcp(
+            upstream.host, upstream.port, connect_timeout_s=upstream.connect_timeout_s,
+            socket_factory=upstream.socket_factory,
+            hint="Use --start to have the bridge start one, or --uri tcp://HOST:PORT for one "
+                 "that is running.")
+    except LinkError as exc:
+        raise UpstreamUnreachableError(str(exc)) from exc
+    sock.settimeout(None)
     return sock
 
 

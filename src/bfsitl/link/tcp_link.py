@@ -18,6 +18,43 @@ def _default_socket_factory(family: int, kind: int) -> socket.socket:
     return socket.socket(family, kind)
 
 
+def connect_tcp(
+    host: str,
+    port: int,
+    *,
+    connect_timeout_s: float,
+    socket_factory: SocketFactory | None = None,
+    hint: str = "Start one with `bfsitl status --start`.",
+) -> socket.socket:
+    """A connected TCP socket with Nagle off, or a :class:`LinkError` that says why.
+
+    ``socket_factory`` makes the socket (an isolated SITL's namespace provides one); ``hint``
+    ends the "connection refused" message with what the caller's user can do about it.  The
+    socket is left with the connect timeout set: the caller chooses its blocking mode.
+    """
+    uri = f"tcp://{host}:{port}"
+    factory = socket_factory or _default_socket_factory
+    sock = factory(socket.AF_INET6 if ":" in host else socket.AF_INET, socket.SOCK_STREAM)
+    try:
+        sock.settimeout(connect_timeout_s)
+        sock.connect((host, port))
+        # MSP frames are tiny; Nagle would hold a request back for an ACK.
+        sock.setsockopt(socket.IPPROTO_TCP, socket.TCP_NODELAY, 1)
+    except TimeoutError as exc:
+        sock.close()
+        raise LinkTimeoutError(f"{uri}: no answer to connect within {connect_timeout_s} s") \
+            from exc
+    except OSError as exc:
+        sock.close()
+        if exc.errno == errno.ECONNREFUSED:
+            raise LinkError(
+                f"{uri}: connection refused: nothing listens there. Is the SITL running (in "
+                f"this network namespace)? {hint}"
+            ) from exc
+        raise LinkError(f"{uri}: cannot connect: {exc}") from exc
+    return sock
+
+
 class TcpLink(Link):
     """A TCP connection to a SITL UART (or any MSP-over-TCP bridge)."""
 
@@ -32,28 +69,9 @@ class TcpLink(Link):
         super().__init__(f"tcp://{host}:{port}", timeout_s)
         self.host = host
         self.port = port
-        factory = socket_factory or _default_socket_factory
-        sock = factory(socket.AF_INET6 if ":" in host else socket.AF_INET, socket.SOCK_STREAM)
-        try:
-            sock.settimeout(connect_timeout_s)
-            sock.connect((host, port))
-            sock.setblocking(False)
-            # MSP frames are tiny; Nagle would hold a request back for an ACK.
-            sock.setsockopt(socket.IPPROTO_TCP, socket.TCP_NODELAY, 1)
-        except TimeoutError as exc:
-            sock.close()
-            raise LinkTimeoutError(
-                f"{self.uri}: no answer to connect within {connect_timeout_s} s"
-            ) from exc
-        except OSError as exc:
-            sock.close()
-            if exc.errno == errno.ECONNREFUSED:
-                raise LinkError(
-                    f"{self.uri}: connection refused: nothing listens there. Is the SITL "
-                    f"running (in this network namespace)? Start one with `bfsitl status "
-                    f"--start`."
-                ) from exc
-            raise LinkError(f"{self.uri}: cannot connect: {exc}") from exc
+        sock = connect_tcp(host, port, connect_timeout_s=connect_timeout_s,
+                           socket_factory=socket_factory)
+        sock.setblocking(False)
         self._sock = sock
 
     def _write_bytes(self, data: bytes) -> None:

@@ -188,8 +188,7 @@ def cmd_fly(args: argparse.Namespace) -> int:
     else:
         profile = FLY_PROFILE if not args.no_angle else Profile(mode_ranges=(ARM_ON_AUX1,))
         if args.profile:
-            extra = Profile.from_file(args.profile, mode_ranges=profile.mode_ranges)
-            profile = extra
+            profile = Profile.from_file(args.profile, mode_ranges=profile.mode_ranges)
     sensors = {} if args.baro_noise_pa is None else {
         "sensors": SensorConfig(baro_noise_std_pa=args.baro_noise_pa)}
     config = SessionConfig(**sensors, firmware=args.firmware, workdir=args.workdir,
@@ -200,7 +199,6 @@ def cmd_fly(args: argparse.Namespace) -> int:
     log = CsvFlightLog(args.log) if args.log else None
     startup_s = process_age_s()  # the command's own start-up, before the session's clock
     session = FlightSession(config, progress=live.event)
-    interrupted = False
     try:
         with _sigterm_as_interrupt():
             try:
@@ -208,7 +206,6 @@ def cmd_fly(args: argparse.Namespace) -> int:
                 result = run_mission(session, plan, controller, log=log, on_row=live.row,
                                      on_event=live.event, rate_hz=args.rate)
             except KeyboardInterrupt:
-                interrupted = True
                 result = None
     finally:
         with _no_interrupts():
@@ -242,7 +239,7 @@ def cmd_fly(args: argparse.Namespace) -> int:
         print(render_summary(summary))
     if written:
         live.event("wrote " + ", ".join(written))
-    if interrupted or result.outcome is Outcome.INTERRUPTED:
+    if result.outcome is Outcome.INTERRUPTED:
         return EXIT_INTERRUPTED
     return EXIT_OK if result.succeeded else EXIT_FAILED
 

@@ -18,7 +18,8 @@ def _pyplot():  # type: ignore[no-untyped-def]
         import matplotlib
     except ImportError as exc:
         raise ExtraMissingError(
-            "plots need matplotlib: pip install 'bfsitl[plot]' (or pip install matplotlib)"
+            "plots need matplotlib, a dependency of bfsitl that is missing here: "
+            "pip install matplotlib"
         ) from exc
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt

@@ -30,8 +30,7 @@ from dataclasses import asdict, dataclass, field
 from bfsitl.control import LandingController, make_controller
 from bfsitl.control.metrics import StepMetrics, step_response
 from bfsitl.mission import FlightRow, FlightSession, MissionPlan, SessionConfig, run_mission
-from bfsitl.mission.session import DEFAULT_BARO_NOISE_PA
-from bfsitl.sim.sensors import SensorConfig
+from bfsitl.mission.session import DEFAULT_BARO_NOISE_PA, fly_sensors
 
 DEFAULT_CONTROLLERS = ("tutorial-pid", "cascade")
 STEADY_WINDOW_S = 5.0
@@ -54,7 +53,7 @@ def fly_once(controller_name: str, plan: MissionPlan, band_m: float, speed: floa
     controller = make_controller(controller_name, {})
     landing = LandingController(hover_from=controller)
     started = time.monotonic()
-    config = SessionConfig(speed=speed, sensors=SensorConfig(baro_noise_std_pa=baro_noise_pa))
+    config = SessionConfig(speed=speed, sensors=fly_sensors(baro_noise_std_pa=baro_noise_pa))
     with FlightSession(config, progress=_progress) as session:
         result = run_mission(session, plan, controller, landing=landing)
     flown = [r for r in result.rows if r.phase in ("takeoff", "hold")]

@@ -185,6 +185,7 @@ def telemetry_handlers(
     analog: msg.Analog,
     rc: msg.Rc,
     motor: msg.Motor,
+    imu: msg.RawImu,
     box_ids: tuple[int, ...],
 ) -> dict[int, Handler]:
     """Handlers answering each telemetry read with its codec's encoding, plus BOXIDS.
@@ -192,7 +193,7 @@ def telemetry_handlers(
     Install MSP_MULTIPLE_MSP with ``link.handlers[MULTIPLE_MSP] = multiple_msp(link.handlers)``
     so that it follows later changes to the link's handlers.
     """
-    messages = (attitude, altitude, status, analog, rc, motor, msg.BoxIds(box_ids))
+    messages = (attitude, altitude, status, analog, rc, motor, imu, msg.BoxIds(box_ids))
     return {int(m.COMMAND): fixed(m.encode()) for m in messages}
 
 

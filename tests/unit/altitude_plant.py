@@ -55,6 +55,8 @@ class FcModel:
     altitude_lpf_hz: float = 3.0        # altitude_lpf 300 / 100
     altitude_filter_dt_s: float = 0.01  # the filter gain assumes the nominal 100 Hz
     msp_delay_s: float = 0.03            # telemetry round trip at the mission rate
+    acc_lpf_hz: float = 25.0            # acc_lpf_hz, a PT2 at the accelerometer's rate
+    acc_1g_lsb: float = 256.0           # the SITL's scale (MSP_RAW_IMU is rounded to LSB)
     #: The real SITL hovered at 1541.5 us where the formula above gives 1539.3: some offset in
     #: the throttle path that the formula misses, taken as a constant.
     rc_offset_us: float = -2.2
@@ -112,14 +114,16 @@ class AltitudePlant:
         home_alt_m: float = 0.0,
         hover_scale: float = 1.0,
         baro_noise_pa: float = 0.0,
+        accel_noise_m_s2: float = 0.0,
         seed: int = 0,
     ) -> None:
         """``hover_scale`` multiplies every motor command (< 1: a heavier vehicle, whose hover
-        throttle the controller does not know); ``baro_noise_pa`` adds white noise to the
-        pressure the FC reads."""
+        throttle the controller does not know); ``baro_noise_pa`` and ``accel_noise_m_s2`` add
+        white noise to the pressure and the acceleration the FC reads."""
         self.fc = fc or FcModel()
         self.sim = Simulator(home=GeoPoint(0.0, 0.0, home_alt_m), seed=seed,
-                             sensors=SensorConfig(baro_noise_std_pa=baro_noise_pa))
+                             sensors=SensorConfig(baro_noise_std_pa=baro_noise_pa,
+                                                  accel_noise_std_m_s2=accel_noise_m_s2))
         self.physics_step_s = physics_step_s
         self.control_period_s = 1.0 / control_rate_hz
         self.control_jitter_s = control_jitter_s
@@ -129,14 +133,19 @@ class AltitudePlant:
         self.climb = ClimbRateEstimator()
         fc = self.fc
         # The FC zeroes the altitude at arming against a smoothed ground reading
-        # (position.c: newBaroAltOffsetCm); with noise that is an average of readings.
-        self._ground_cm = self._mean_ground_cm(200 if baro_noise_pa > 0 else 1)
+        # (position.c: newBaroAltOffsetCm = 0.2 x reading + 0.8 x itself, every ALTITUDE task):
+        # a short average, so with a noisy barometer every flight has its own zero error.
+        self._ground_cm = self._smoothed_ground_cm(100 if baro_noise_pa > 0 else 1)
         self._ground_true_m = self.sim.altitude_m
         k = 2.0 * math.pi * fc.altitude_lpf_hz * _PT2_CUTOFF_CORRECTION * fc.altitude_filter_dt_s
         self._pt2_k = k / (k + 1.0)
         self._pt2 = [0.0, 0.0]
         self._baro_cm = 0.0
         self._history: deque[tuple[float, float]] = deque([(0.0, 0.0)])
+        acc_k = 2.0 * math.pi * fc.acc_lpf_hz * _PT2_CUTOFF_CORRECTION * physics_step_s
+        self._acc_k = acc_k / (acc_k + 1.0)
+        self._acc = [fc.acc_1g_lsb, fc.acc_1g_lsb]
+        self._acc_history: deque[tuple[float, float]] = deque([(0.0, fc.acc_1g_lsb)])
         self._next_baro_s = 0.0
         self._next_alt_s = 0.0
         self._next_rc_s = 0.0
@@ -148,14 +157,19 @@ class AltitudePlant:
         self._boost_k = boost_k / (boost_k + 1.0)
         self._smooth_k = -math.expm1(-physics_step_s / fc.rc_smoothing_tau_s)
 
-    def _mean_ground_cm(self, samples: int) -> float:
-        """The ground reading averaged over ``samples`` physics steps (vehicle parked)."""
-        total = 0.0
+    def _smoothed_ground_cm(self, samples: int) -> float:
+        """The FC's ground reference: ``samples`` readings (vehicle parked, one per altitude
+        task), exponentially smoothed like position.c's."""
+        smoothed: float | None = None
+        per_task = max(1, round(1.0 / (self.fc.altitude_task_rate_hz * self.physics_step_s)))
         for _ in range(samples):
-            total += betaflight_altitude_cm(int(self.sim.read_sensors().pressure_pa))
+            reading = betaflight_altitude_cm(int(self.sim.read_sensors().pressure_pa))
+            smoothed = reading if smoothed is None else 0.2 * reading + 0.8 * smoothed
             if samples > 1:
-                self.sim.step((0.0, 0.0, 0.0, 0.0), self.physics_step_s)
-        return total / samples
+                for _ in range(per_task):
+                    self.sim.step((0.0, 0.0, 0.0, 0.0), self.physics_step_s)
+        assert smoothed is not None
+        return smoothed
 
     @property
     def time_s(self) -> float:
@@ -182,6 +196,14 @@ class AltitudePlant:
             pressure = int(self.sim.read_sensors().pressure_pa)
             self._baro_cm = betaflight_altitude_cm(pressure) - self._ground_cm
             self._next_baro_s += 1.0 / fc.baro_rate_hz
+        # The accelerometer: body z specific force (up, the vehicle stays level) in LSB,
+        # PT2-filtered at the sensor's rate.
+        force_up = -self.sim.read_sensors().specific_force_frd_m_s2[2]
+        acc = self._acc
+        # sitl.c hands the FC int16 values made by truncation (half an LSB low on average).
+        acc[0] += self._acc_k * (int(force_up / 9.80665 * fc.acc_1g_lsb) - acc[0])
+        acc[1] += self._acc_k * (acc[0] - acc[1])
+        self._acc_history.append((t, acc[1]))
         if t >= self._next_alt_s:
             k, state = self._pt2_k, self._pt2
             state[0] += k * (self._baro_cm - state[0])
@@ -208,6 +230,15 @@ class AltitudePlant:
             history.popleft()
         return round(history[0][1] * 100.0) / 100.0
 
+    def fc_accel_up_m_s2(self) -> float:
+        """What MSP_RAW_IMU's z (whole LSB) says, ``msp_delay_s`` ago, gravity removed, with
+        the half LSB the SITL's truncation takes put back (as the flight session does)."""
+        seen_at = self.sim.time_s - self.fc.msp_delay_s
+        history = self._acc_history
+        while len(history) > 1 and history[1][0] <= seen_at:
+            history.popleft()
+        return (round(history[0][1]) + 0.5) / self.fc.acc_1g_lsb * 9.80665 - 9.80665
+
     def _advance_to(self, time_s: float) -> None:
         while self.sim.time_s < time_s - 1e-9:
             self._fc_tick()
@@ -224,14 +255,19 @@ class AltitudePlant:
         phase: str = "fly",
         reset: bool = True,
         until: Callable[[], bool] | None = None,
+        ground_s: float = 0.0,
     ) -> Trace:
         """Run the mission loop for ``duration_s`` (or until ``until()``), rows into ``trace``.
 
-        ``target_alt_m`` may be a function of the time since the phase began.
+        ``target_alt_m`` may be a function of the time since the phase began.  ``ground_s``:
+        first sit armed at idle that long, like the mission's ground phase (the samples go to
+        the controller's ``observe_ground`` if it has one; no rows are recorded).
         """
-        start_s = self.sim.time_s
         if reset:
-            controller.reset(start_s)
+            controller.reset(self.sim.time_s)
+        if ground_s > 0:
+            self._ground_phase(controller, ground_s)
+        start_s = self.sim.time_s
         next_s = start_s
         while self.sim.time_s < start_s + duration_s:
             self._advance_to(next_s)
@@ -239,7 +275,8 @@ class AltitudePlant:
             fc_alt = self.fc_alt_m()
             climb = self.climb.update(t, fc_alt)
             target = target_alt_m(t - start_s) if callable(target_alt_m) else target_alt_m
-            throttle = controller.update(AltitudeInput(t, fc_alt, climb, target))
+            throttle = controller.update(
+                AltitudeInput(t, fc_alt, climb, target, self.fc_accel_up_m_s2()))
             if not math.isfinite(throttle):
                 raise AssertionError(f"{controller.name} returned {throttle}")
             self._command_us = throttle
@@ -260,3 +297,18 @@ class AltitudePlant:
             # Never step backwards or stand still: the mission clock strictly increases.
             next_s = max(next_s, self.sim.time_s + self.physics_step_s)
         return self.trace
+
+    def _ground_phase(self, controller: AltitudeController, ground_s: float) -> None:
+        observe = getattr(controller, "observe_ground", None)
+        self._command_us = 1000.0
+        end_s = self.sim.time_s + ground_s
+        next_s = self.sim.time_s
+        while self.sim.time_s < end_s:
+            self._advance_to(next_s)
+            if observe is not None:
+                t = self.sim.time_s
+                observe(AltitudeInput(t, self.fc_alt_m(), 0.0, 0.0, self.fc_accel_up_m_s2()))
+            next_s += self.control_period_s
+            next_s = max(next_s, self.sim.time_s + self.physics_step_s)
+        if observe is None:
+            controller.reset(self.sim.time_s)  # as the mission does: it saw nothing

@@ -16,9 +16,9 @@ from bfsitl.control import (
 from bfsitl.errors import BfsitlError
 
 
-def test_the_three_names_and_the_default():
-    assert set(CONTROLLERS) == {"cascade", "tutorial-pid", "open-loop"}
-    assert DEFAULT_CONTROLLER == "cascade"
+def test_the_four_names_and_the_default():
+    assert set(CONTROLLERS) == {"fused", "cascade", "tutorial-pid", "open-loop"}
+    assert DEFAULT_CONTROLLER == "fused"
     for name in CONTROLLERS:
         controller = make_controller(name, {})
         assert isinstance(controller, AltitudeController)
@@ -38,7 +38,7 @@ def test_overrides_are_applied():
 
 
 @pytest.mark.parametrize("name, gains, message", [
-    ("pid", {}, "unknown controller 'pid'; choose one of: cascade, open-loop, tutorial-pid"),
+    ("pid", {}, "unknown controller 'pid'; choose one of: cascade, fused, open-loop, tutorial-pid"),
     ("tutorial-pid", {"kq": 1.0}, "has no gain 'kq'; its gains are: hover_base_us, kp"),
     ("tutorial-pid", {"kp": "fast"}, "must be a number"),
     ("tutorial-pid", {"kp": float("inf")}, "must be finite"),

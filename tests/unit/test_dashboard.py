@@ -58,6 +58,7 @@ MESSAGES = dict(
     analog=msg.Analog(126, 0, 0, 0, 1260),
     rc=msg.Rc((1500, 1600, 1400, 1000, 1800) + (1500,) * 11),
     motor=msg.Motor((1000, 1100, 1200, 2100, 0, 1300, 0, 0)),
+    imu=msg.RawImu((0, 0, 256), (0, 0, 0), (0, 0, 0)),
     box_ids=SITL_DEFAULT_BOX_IDS,
 )
 
@@ -68,7 +69,7 @@ def snapshot(**changes: object) -> Telemetry:
     return Telemetry(
         received_at_s=10.0, attitude=fields["attitude"], altitude=fields["altitude"],
         status=fields["status"], analog=fields["analog"], rc=fields["rc"],
-        motors=fields["motor"], box_ids=SITL_DEFAULT_BOX_IDS,
+        motors=fields["motor"], imu=fields["imu"], box_ids=SITL_DEFAULT_BOX_IDS,
     )
 
 

@@ -11,7 +11,7 @@ from dataclasses import dataclass, replace
 
 import pytest
 
-from bfsitl.errors import ArmingBlockedError, SitlExitedError
+from bfsitl.errors import ArmingBlockedError, MissionError, SitlExitedError
 from bfsitl.fc.rc_link import RcCommand, RcLinkStats
 from bfsitl.mission.flight_log import CsvFlightLog, read_flight_log
 from bfsitl.mission.runner import Mission, MissionPlan, Outcome, hold_stats, run_mission
@@ -33,6 +33,7 @@ class FakeSession:
         self.config = _Config(speed=50.0)  # the loop's wall period shrinks with speed
         self.time_s = 0.0
         self.altitude_m = 0.0
+        self.climb_m_s = 0.0
         self.armed = False
         self.armed_after_s: float | None = None
         self.rc = self
@@ -72,12 +73,15 @@ class FakeSession:
             assert self.failure is not None
             raise self.failure
         climb = (self.command.throttle_us - HOVER_US) / 200.0 if self.armed else 0.0
+        accel_up = (climb - self.climb_m_s) / 0.02
+        self.climb_m_s = climb
         self.altitude_m = max(0.0, self.altitude_m + climb * 0.02)
         self.time_s += 0.02
         on_ground = self.altitude_m <= 0.0
         return FlightSample(
             time_s=self.time_s, wall_s=self.time_s, fc_alt_m=round(self.altitude_m, 2),
-            fc_climb_m_s=climb, roll_deg=0.0, pitch_deg=0.0, yaw_deg=0.0,
+            fc_climb_m_s=climb, fc_accel_up_m_s2=accel_up, roll_deg=0.0, pitch_deg=0.0,
+            yaw_deg=0.0,
             sim_alt_m=self.altitude_m, sim_climb_m_s=0.0 if on_ground else climb,
             sim_tilt_deg=self.tilt_deg, on_ground=on_ground, armed=self.armed,
             arming_blockers=(), flight_modes=("ARM",), motors=(0.5,) * 4, rc=self.command)
@@ -128,8 +132,9 @@ def test_default_plan_takes_off_holds_lands_and_records_every_step(tmp_path):
     log.close()
     assert result.outcome is Outcome.LANDED and result.succeeded
     phases = [row.phase for row in result.rows]
-    assert phases[0] == "takeoff" and phases[-1] == "landed"
-    assert phases.index("hold") < phases.index("land")
+    assert phases[0] == "ground" and phases[-1] == "landed"
+    assert phases.index("ground") < phases.index("takeoff") < phases.index("hold") \
+        < phases.index("land")
     assert result.hold is not None and result.hold.max_abs_error_m < 0.06
     assert result.armed_after_s == 5.2
     written = read_flight_log(tmp_path / "f.csv")
@@ -137,6 +142,67 @@ def test_default_plan_takes_off_holds_lands_and_records_every_step(tmp_path):
     assert written[-1]["armed"] == "0" and written[-1]["rc_aux1_us"] == "1000"
     summary = result.summary()
     assert summary["outcome"] == "landed" and summary["rc_link"]["packets"] == 10
+
+
+def test_the_ground_phase_idles_feeds_observe_ground_and_restarts_a_plain_controller():
+    """Armed at idle first: a controller with observe_ground gets those samples and is not
+    reset afterwards; one without is reset when the take-off begins (its clock starts then)."""
+    observed: list[float] = []
+    resets: list[float] = []
+
+    class Observing(PController):
+        def observe_ground(self, sample):  # type: ignore[no-untyped-def]
+            observed.append(sample.time_s)
+
+    class Plain(PController):
+        def reset(self, time_s):  # type: ignore[no-untyped-def]
+            resets.append(time_s)
+            super().reset(time_s)
+
+    plan = MissionPlan(target_alt_m=1.0, hold_s=0.2, ground_s=0.5)
+    session = FakeSession()
+    result = run_mission(session, plan, Observing(), landing=Descend())
+    ground = [r for r in result.rows if r.phase == "ground"]
+    assert result.outcome is Outcome.LANDED
+    assert len(ground) >= 20 and all(r.rc_throttle_us == 1000 for r in ground)
+    assert len(observed) == len(ground)
+    assert ground[-1].time_s - ground[0].time_s >= 0.5 - 0.021
+    result = run_mission(FakeSession(), plan, Plain(), landing=Descend())
+    first_takeoff = next(r for r in result.rows if r.phase == "takeoff")
+    assert len(resets) == 2 and resets[1] < first_takeoff.time_s
+    # No ground phase at all when it is 0; a bad value is refused.
+    result = run_mission(FakeSession(), MissionPlan(target_alt_m=1.0, hold_s=0.2, ground_s=0.0),
+                         PController(), landing=Descend())
+    assert result.rows[0].phase == "takeoff"
+    with pytest.raises(MissionError, match="ground time"):
+        MissionPlan(ground_s=-1.0)
+
+
+def test_controllers_get_the_fc_acceleration_and_the_log_records_it(tmp_path):
+    """The flying and the landing controller see each sample's accelerometer reading."""
+    seen: list[tuple[float, float | None]] = []
+
+    class Recording(PController):
+        def update(self, sample):  # type: ignore[no-untyped-def]
+            seen.append((sample.time_s, sample.accel_up_m_s2))
+            return super().update(sample)
+
+    class RecordingDescend(Descend):
+        def update(self, sample):  # type: ignore[no-untyped-def]
+            seen.append((sample.time_s, sample.accel_up_m_s2))
+            return super().update(sample)
+
+    log = CsvFlightLog(tmp_path / "f.csv")
+    result = run_mission(FakeSession(), MissionPlan(target_alt_m=1.0, hold_s=0.5), Recording(),
+                         landing=RecordingDescend(), log=log)
+    log.close()
+    assert result.outcome is Outcome.LANDED
+    by_time = {row.time_s: row.fc_accel_up_m_s2 for row in result.rows}
+    assert seen and all(accel == by_time[time_s] for time_s, accel in seen)
+    assert any(accel != 0.0 for _time_s, accel in seen)
+    written = read_flight_log(tmp_path / "f.csv")
+    assert [float(r["fc_accel_up_m_s2"]) for r in written] == \
+        pytest.approx([row.fc_accel_up_m_s2 for row in result.rows], abs=1e-4)
 
 
 def test_hold_lasts_its_simulation_time():

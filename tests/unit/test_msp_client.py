@@ -23,6 +23,7 @@ from bfsitl.fc.msp_client import (  # noqa: E402
     TELEMETRY_COMMANDS,
     MspClient,
     MspRequest,
+    Telemetry,
     is_idempotent,
 )
 from bfsitl.protocol import msp_messages as msg  # noqa: E402
@@ -36,6 +37,8 @@ ALT = msg.Altitude(altitude_cm=1234, vario_cm_s=-5)
 ANALOG = msg.Analog(vbat_dv=126, mah_drawn=10, rssi=1023, amperage_ca=150, vbat_cv=1260)
 RC = msg.Rc((1500, 1510, 1490, 1000, 1800, 1000, 1500, 1500))
 MOTOR = msg.Motor((1000, 1001, 1002, 1003, 0, 0, 0, 0))
+#: Level at rest in the SITL: 1 g on body z at 256 LSB per g.
+IMU = msg.RawImu(acc_raw=(0, 0, 256), gyro_raw=(1, -2, 3), mag_raw=(0, 0, 0))
 #: Armed, with flight-mode bit 4 set: on the stock SITL box list that is FAILSAFE (permanent id
 #: 27), not ANTIGRAVITY (permanent id 4).
 STATUS = msg.StatusEx(
@@ -51,7 +54,7 @@ MODE_RANGE = msg.ModeRange.from_us(0, 0, 1700, 2100)
 def read_handlers() -> dict[int, Handler]:
     """Handlers for the reads the tests use, each answering its codec's encoding."""
     handlers = telemetry_handlers(
-        attitude=ATT, altitude=ALT, status=STATUS, analog=ANALOG, rc=RC, motor=MOTOR,
+        attitude=ATT, altitude=ALT, status=STATUS, analog=ANALOG, rc=RC, motor=MOTOR, imu=IMU,
         box_ids=SITL_DEFAULT_BOX_IDS,
     )
     handlers[MspCommand.SET_MODE_RANGE] = fixed(b"")
@@ -463,8 +466,8 @@ def test_telemetry_decodes_every_field_in_one_round_trip() -> None:
     """telemetry() asks MULTIPLE_MSP once and decodes each sub-reply with its codec."""
     link, client = make()
     t = client.telemetry()
-    assert (t.attitude, t.altitude, t.status, t.analog, t.rc, t.motors) == (
-        ATT, ALT, STATUS, ANALOG, RC, MOTOR)
+    assert (t.attitude, t.altitude, t.status, t.analog, t.rc, t.motors, t.imu) == (
+        ATT, ALT, STATUS, ANALOG, RC, MOTOR, IMU)
     assert t.armed is True
     assert t.arming_blockers == ("RXLOSS", "CLI")
     # Bit 4 is the fifth entry of BOXIDS (FAILSAFE on the stock SITL), not permanent id 4.
@@ -522,6 +525,41 @@ def test_pipelined_telemetry_requests_decode() -> None:
     snapshots = [client.decode_telemetry(r) for r in results if isinstance(r, bytes)]
     assert len(snapshots) == 3
     assert all(s.attitude == ATT and s.flight_modes == ("ARM", "FAILSAFE") for s in snapshots)
+
+
+def imu_snapshot(roll_decideg: int, pitch_decideg: int, acc_z: int) -> Telemetry:
+    """A snapshot whose only meaningful parts are the attitude and the accelerometer."""
+    return Telemetry(
+        received_at_s=0.0, attitude=msg.Attitude(roll_decideg, pitch_decideg, 0), altitude=ALT,
+        status=STATUS, analog=ANALOG, rc=RC, motors=MOTOR,
+        imu=msg.RawImu((0, 0, acc_z), (0, 0, 0), (0, 0, 0)),
+    )
+
+
+def test_accel_up_is_zero_level_at_rest() -> None:
+    """1 g on body z, level: the accelerometer reads gravity alone, so no acceleration."""
+    assert imu_snapshot(0, 0, 256).accel_up_m_s2() == 0.0
+
+
+def test_accel_up_level_at_two_g_is_one_g_up() -> None:
+    """2 g on body z, level: gravity removed leaves 1 g upwards."""
+    assert imu_snapshot(0, 0, 512).accel_up_m_s2() == pytest.approx(9.80665)
+
+
+@pytest.mark.parametrize(("roll_decideg", "pitch_decideg"), [(600, 0), (-600, 0), (0, 600)])
+def test_accel_up_projects_body_z_onto_the_vertical(roll_decideg: int,
+                                                    pitch_decideg: int) -> None:
+    """Tilted 60 deg with 2 g along the thrust axis: cos(60) = 1/2 of it is up, holding 1 g."""
+    t = imu_snapshot(roll_decideg, pitch_decideg, 512)
+    assert t.accel_up_m_s2() == pytest.approx(0.0, abs=1e-9)
+
+
+def test_accel_up_takes_the_sensor_scale() -> None:
+    """A real IMU's 2048 LSB per g: the same reading means 1/8 of the SITL's g."""
+    assert imu_snapshot(0, 0, 2048).accel_up_m_s2(acc_1g_lsb=2048) == pytest.approx(0.0)
+    assert imu_snapshot(0, 0, 3072).accel_up_m_s2(acc_1g_lsb=2048) == \
+        pytest.approx(0.5 * 9.80665)
+    assert imu_snapshot(0, 0, 2048).accel_up_m_s2() == pytest.approx(7 * 9.80665)
 
 
 

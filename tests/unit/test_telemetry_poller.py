@@ -48,6 +48,7 @@ def make_link() -> FakeFcLink:
         analog=msg.Analog(126, 0, 0, 0, 1260),
         rc=msg.Rc((1500, 1500, 1500, 1000)),
         motor=msg.Motor((1000, 1000, 1000, 1000)),
+        imu=msg.RawImu((0, 0, 256), (0, 0, 0), (0, 0, 0)),
         box_ids=SITL_DEFAULT_BOX_IDS,
     )
     # Yaw counts the attitude reads, so every snapshot is distinguishable.
@@ -219,7 +220,7 @@ def test_context_manager_starts_and_stops() -> None:
 def test_decode_errors_are_counted_not_raised(running: list[TelemetryPoller]) -> None:
     """A reply that does not decode counts in stats().errors; the poller keeps going."""
     link = make_link()
-    # The FC truncates MULTIPLE_MSP: 3 sub-replies for 6 commands cannot make a snapshot.
+    # The FC truncates MULTIPLE_MSP: 3 sub-replies for 7 commands cannot make a snapshot.
     link.handlers[MspCommand.MULTIPLE_MSP] = multiple_msp(link.handlers, limit=3)
     poller = make_poller(None, link).start()
     running.append(poller)

@@ -175,7 +175,7 @@ def cmd_fly(args: argparse.Namespace) -> int:
     from bfsitl.mission import FLY_PROFILE, FlightSession, SessionConfig
     from bfsitl.mission.flight_log import CsvFlightLog
     from bfsitl.mission.runner import MissionPlan, Outcome, run_mission
-    from bfsitl.sim.sensors import SensorConfig
+    from bfsitl.mission.session import fly_sensors
 
     if args.list_gains:
         for name, default in gain_names(args.controller).items():
@@ -190,7 +190,7 @@ def cmd_fly(args: argparse.Namespace) -> int:
         if args.profile:
             profile = Profile.from_file(args.profile, mode_ranges=profile.mode_ranges)
     sensors = {} if args.baro_noise_pa is None else {
-        "sensors": SensorConfig(baro_noise_std_pa=args.baro_noise_pa)}
+        "sensors": fly_sensors(baro_noise_std_pa=args.baro_noise_pa)}
     config = SessionConfig(**sensors, firmware=args.firmware, workdir=args.workdir,
                            isolate=not args.no_isolate, speed=args.speed, profile=profile,
                            angle_mode=not args.no_angle, physics=args.physics,

@@ -1,4 +1,4 @@
-"""Altitude controllers: RC throttle from the FC's barometric altitude.
+"""Altitude controllers: RC throttle from the FC's altitude (and accelerometer).
 
 Every controller follows :class:`~bfsitl.control.base.AltitudeController`: ``reset(time_s)``
 after arming, then ``update(AltitudeInput) -> throttle_us`` at the mission's rate.
@@ -6,7 +6,8 @@ after arming, then ``update(AltitudeInput) -> throttle_us`` at the mission's rat
 ==============  ==============================================================================
 name            what it is
 ==============  ==============================================================================
-cascade         (default) spool-up, smooth reference, feedforward, lag-matched cascade
+fused           (default) barometer + accelerometer estimate, reference, PD, hover learnt
+cascade         barometer only: spool-up, smooth reference, feedforward, lag-matched cascade
 tutorial-pid    the tutorial's single altitude PID, re-created faithfully as the baseline
 open-loop       the tutorial's throttle-by-the-clock take-off (no feedback at all)
 ==============  ==============================================================================
@@ -23,6 +24,7 @@ from collections.abc import Mapping
 
 from bfsitl.control.base import AltitudeController, AltitudeInput, ControllerConfigError
 from bfsitl.control.cascade import CascadedAltitudeController, CascadeGains
+from bfsitl.control.fused import FusedAltitudeController, FusedGains
 from bfsitl.control.landing import LandingController, LandingGains
 from bfsitl.control.metrics import StepMetrics, step_response
 from bfsitl.control.tutorial import (
@@ -32,12 +34,13 @@ from bfsitl.control.tutorial import (
     TutorialPidGains,
 )
 
-DEFAULT_CONTROLLER = "cascade"
+DEFAULT_CONTROLLER = "fused"
 
 #: Controller name -> class.  Each class takes one optional argument, its gains dataclass
 #: (see :data:`GAINS`).
 CONTROLLERS: dict[str, type] = {
     "cascade": CascadedAltitudeController,
+    "fused": FusedAltitudeController,
     "tutorial-pid": TutorialPid,
     "open-loop": OpenLoopTakeoff,
 }
@@ -45,6 +48,7 @@ CONTROLLERS: dict[str, type] = {
 #: Controller name -> its gains dataclass.
 GAINS: dict[str, type] = {
     "cascade": CascadeGains,
+    "fused": FusedGains,
     "tutorial-pid": TutorialPidGains,
     "open-loop": OpenLoopGains,
 }
@@ -103,6 +107,8 @@ __all__ = [
     "CascadeGains",
     "CascadedAltitudeController",
     "ControllerConfigError",
+    "FusedAltitudeController",
+    "FusedGains",
     "LandingController",
     "LandingGains",
     "OpenLoopGains",

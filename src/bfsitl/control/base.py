@@ -38,6 +38,10 @@ class AltitudeInput:
     altitude_m: float      # measured altitude relative to the arming point (MSP_ALTITUDE / 100)
     climb_rate_m_s: float  # measured vertical speed, up positive
     target_alt_m: float    # wanted altitude, same reference
+    #: Vertical acceleration, up positive, gravity removed, from the FC's accelerometer
+    #: (MSP_RAW_IMU) and attitude; None when the source has none.  Unlike the barometric
+    #: altitude it is not late, so a controller can fuse the two (:mod:`.altitude_estimator`).
+    accel_up_m_s2: float | None = None
 
 
 @runtime_checkable

@@ -128,6 +128,12 @@ class SensorLag:
     def value(self) -> float:
         return self._b
 
+    def shift(self, offset: float) -> None:
+        """Move the filtered history by ``offset``: what a constant input offset would have
+        done (a correction to where the vehicle was, not a change of where it goes)."""
+        self._a += offset
+        self._b += offset
+
     def step(self, value: float, dt_s: float) -> float:
         if self.delay_s <= 0:
             self._a = self._b = value

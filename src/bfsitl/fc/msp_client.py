@@ -23,6 +23,7 @@ Why it is built this way (facts in ``shared/FIRMWARE_FACTS.md``):
 
 from __future__ import annotations
 
+import math
 import threading
 import time
 from collections import deque
@@ -68,8 +69,11 @@ _MUTATING_COMMANDS = frozenset({
 #: What :meth:`MspClient.telemetry` asks for in one MSP_MULTIPLE_MSP round trip.
 TELEMETRY_COMMANDS: tuple[int, ...] = (
     MspCommand.ATTITUDE, MspCommand.ALTITUDE, MspCommand.STATUS_EX, MspCommand.ANALOG,
-    MspCommand.RC, MspCommand.MOTOR,
+    MspCommand.RC, MspCommand.MOTOR, MspCommand.RAW_IMU,
 )
+
+#: Standard gravity, m/s^2: what the accelerometer reads at rest, in the units of ``acc_1G``.
+STANDARD_GRAVITY_M_S2 = 9.80665
 
 T = TypeVar("T")
 
@@ -143,6 +147,7 @@ class Telemetry:
     analog: msg.Analog
     rc: msg.Rc
     motors: msg.Motor
+    imu: msg.RawImu
     box_ids: tuple[int, ...] = field(default=())
 
     @property
@@ -159,6 +164,25 @@ class Telemetry:
         from bfsitl.protocol.boxes import decode_flight_modes
 
         return decode_flight_modes(self.status.flight_mode_flags, self.box_ids)
+
+    def accel_up_m_s2(self, acc_1g_lsb: float = msg.SITL_ACC_1G_LSB,
+                      offset_lsb: float = 0.0) -> float:
+        """Vertical acceleration in m/s^2, up positive, gravity removed (0 at rest or hovering).
+
+        ``acc_1g_lsb``: the SITL reports 256 LSB per g; real IMUs usually 2048 (the board's
+        ``acc_1G``).  ``offset_lsb`` is added to the z reading first: a known bias of the
+        source (``msg.SITL_ACC_TRUNCATION_LSB`` for the SITL).
+        """
+        # Only the body z axis: a multirotor's specific force is along its thrust axis, so the
+        # body x/y readings stay near 0 and their terms (whose signs depend on the sensor
+        # alignment convention) are negligible.  Projecting body z onto the vertical takes
+        # cos(roll) * cos(pitch); the sign of the angles does not matter.
+        roll_rad = math.radians(self.attitude.roll_deg)
+        pitch_rad = math.radians(self.attitude.pitch_deg)
+        z_g = (self.imu.acc_raw[2] + offset_lsb) / acc_1g_lsb
+        specific_force_up_m_s2 = (z_g * STANDARD_GRAVITY_M_S2
+                                  * math.cos(roll_rad) * math.cos(pitch_rad))
+        return specific_force_up_m_s2 - STANDARD_GRAVITY_M_S2
 
 
 class MspClient:
@@ -308,7 +332,7 @@ class MspClient:
         return self._box_ids
 
     def telemetry(self) -> Telemetry:
-        """Attitude, altitude, status, analog, RC and motors in one round trip."""
+        """Attitude, altitude, status, analog, RC, motors and raw IMU in one round trip."""
         box_ids = self.box_ids()
         return _telemetry_from_payloads(self.multiple(TELEMETRY_COMMANDS), self._clock(),
                                         box_ids)
@@ -591,7 +615,7 @@ def _telemetry_from_payloads(
         raise MspDecodeError(
             f"telemetry: expected {len(TELEMETRY_COMMANDS)} sub-replies, got {len(payloads)}"
         )
-    attitude, altitude, status, analog, rc, motors = payloads
+    attitude, altitude, status, analog, rc, motors, imu = payloads
     return Telemetry(
         received_at_s=received_at_s,
         attitude=msg.Attitude.decode(attitude),
@@ -600,6 +624,7 @@ def _telemetry_from_payloads(
         analog=msg.Analog.decode(analog),
         rc=msg.Rc.decode(rc),
         motors=msg.Motor.decode(motors),
+        imu=msg.RawImu.decode(imu),
         box_ids=box_ids,
     )
 

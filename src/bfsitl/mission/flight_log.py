@@ -27,6 +27,7 @@ class FlightRow:
     fc_alt_m: float          # what the FC reports (MSP_ALTITUDE)
     climb_m_s: float         # climb rate the controller was given (slope of fc_alt_m)
     sim_climb_m_s: float
+    fc_accel_up_m_s2: float  # FC accelerometer (MSP_RAW_IMU) made vertical, gravity removed
     roll_deg: float          # FC attitude
     pitch_deg: float
     yaw_deg: float

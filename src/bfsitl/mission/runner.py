@@ -19,7 +19,7 @@ from collections.abc import Callable
 from dataclasses import dataclass, field, replace
 from typing import Any
 
-from bfsitl.control.base import AltitudeController, AltitudeInput
+from bfsitl.control.base import THROTTLE_MIN_US, AltitudeController, AltitudeInput
 from bfsitl.errors import (
     ArmingBlockedError,
     BfsitlError,
@@ -67,12 +67,16 @@ class MissionPlan:
     #: Simulation seconds allowed for the climb to be reached and settled.
     takeoff_timeout_s: float = 20.0
     land_timeout_s: float = 30.0
+    #: Armed at idle before the take-off (:meth:`Mission.wait_on_ground`), seconds.
+    ground_s: float = 2.0
 
     def __post_init__(self) -> None:
         if not (math.isfinite(self.target_alt_m) and 0.3 <= self.target_alt_m <= 100.0):
             raise MissionError(f"target altitude {self.target_alt_m} m is outside 0.3..100 m")
         if not (math.isfinite(self.hold_s) and 0.0 <= self.hold_s <= 3600.0):
             raise MissionError(f"hold time {self.hold_s} s is outside 0..3600 s")
+        if not (math.isfinite(self.ground_s) and 0.0 <= self.ground_s <= 60.0):
+            raise MissionError(f"ground time {self.ground_s} s is outside 0..60 s")
 
 
 @dataclass(frozen=True, slots=True)
@@ -175,7 +179,6 @@ class Mission:
         self._on_event = on_event or (lambda _message: None)
         self._climb = ClimbRateEstimator()
         self._started_wall_s = time.monotonic()
-        self._airborne = False
 
     # -- manoeuvres ------------------------------------------------------------------------
     def arm(self) -> None:
@@ -185,6 +188,19 @@ class Mission:
         self._climb.reset()
         self.controller.reset(self.session.time_s)
         self._on_event(f"armed {self.session.armed_after_s:.1f} s after start")
+
+    def wait_on_ground(self, seconds: float) -> None:
+        """Stay armed at idle for ``seconds``: the FC's altitude filter, which restarts from
+        zero at arming, settles, and a controller with ``observe_ground`` (the fused one) learns
+        the barometer's zero error from the vehicle at rest, where the truth is known."""
+        self._on_event(f"on the ground for {seconds:g} s (the barometer settles)")
+        end_s = self.session.time_s + seconds
+        self._fly("ground", 0.0, lambda s: s.time_s >= end_s, timeout_s=seconds + 5,
+                  controller=_GroundObserver(self.controller))
+        if not hasattr(self.controller, "observe_ground"):
+            # It saw nothing of the wait: start its clock now, as if it had just been armed
+            # (a PID would otherwise integrate the whole wait in its first step).
+            self.controller.reset(self.session.time_s)
 
     def takeoff(self, altitude_m: float, *, timeout_s: float = 20.0) -> float:
         """Climb to ``altitude_m`` above the take-off point; returns the sim time it took."""
@@ -216,7 +232,6 @@ class Mission:
         self.phase = "landed"
         if not self.session.disarm():
             raise MissionError("the FC did not disarm after touch-down")
-        self._airborne = False
         sample = self.session.sample()
         self._record("landed", 0.0, sample, self._climb.update(sample.time_s, sample.fc_alt_m))
         self._on_event("disarmed")
@@ -247,7 +262,6 @@ class Mission:
     ) -> None:
         controller = controller or self.controller
         self.phase, self.target_alt_m = phase, target_alt_m
-        self._airborne = True
         speed = self.session.config.speed
         period_s = 1.0 / (self.rate_hz * speed)  # wall period; the rate holds in sim time
         deadline_s = self.session.time_s + timeout_s
@@ -257,7 +271,8 @@ class Mission:
             climb_m_s = self._climb.update(sample.time_s, sample.fc_alt_m)
             self._check(sample)
             throttle_us = controller.update(
-                AltitudeInput(sample.time_s, sample.fc_alt_m, climb_m_s, target_alt_m))
+                AltitudeInput(sample.time_s, sample.fc_alt_m, climb_m_s, target_alt_m,
+                              accel_up_m_s2=sample.fc_accel_up_m_s2))
             if not math.isfinite(throttle_us):
                 raise MissionError(f"controller {getattr(controller, 'name', controller)} "
                                    f"returned throttle {throttle_us}")
@@ -296,8 +311,8 @@ class Mission:
         row = FlightRow(
             time_s=sample.time_s, phase=phase, target_alt_m=target_alt_m,
             sim_alt_m=sample.sim_alt_m, fc_alt_m=sample.fc_alt_m, climb_m_s=climb_m_s,
-            sim_climb_m_s=sample.sim_climb_m_s, roll_deg=sample.roll_deg,
-            pitch_deg=sample.pitch_deg, yaw_deg=sample.yaw_deg,
+            sim_climb_m_s=sample.sim_climb_m_s, fc_accel_up_m_s2=sample.fc_accel_up_m_s2,
+            roll_deg=sample.roll_deg, pitch_deg=sample.pitch_deg, yaw_deg=sample.yaw_deg,
             sim_tilt_deg=sample.sim_tilt_deg,
             rc_roll_us=round(rc.roll_us), rc_pitch_us=round(rc.pitch_us),
             rc_throttle_us=round(rc.throttle_us), rc_yaw_us=round(rc.yaw_us),
@@ -354,6 +369,23 @@ def takeoff_metrics(rows: list[FlightRow], target_alt_m: float) -> Any:
         pitch_deg=[r.pitch_deg for r in flown])
 
 
+class _GroundObserver:
+    """Idle throttle on the ground; the samples go to the controller's ``observe_ground``
+    when it has one (an altitude controller's ``update`` would spool up or wind up)."""
+
+    def __init__(self, controller: AltitudeController) -> None:
+        self.name = getattr(controller, "name", "controller")
+        self._observe = getattr(controller, "observe_ground", None)
+
+    def reset(self, time_s: float) -> None:
+        pass
+
+    def update(self, sample: AltitudeInput) -> float:
+        if self._observe is not None:
+            self._observe(sample)
+        return THROTTLE_MIN_US
+
+
 def run_mission(
     session: FlightSession,
     plan: MissionPlan,
@@ -376,6 +408,8 @@ def run_mission(
     outcome, reason, blockers = Outcome.LANDED, "landed and disarmed", ()
     try:
         mission.arm()
+        if plan.ground_s > 0:
+            mission.wait_on_ground(plan.ground_s)
         mission.takeoff(plan.target_alt_m, timeout_s=plan.takeoff_timeout_s)
         mission.hold(plan.hold_s)
         mission.land(timeout_s=plan.land_timeout_s)

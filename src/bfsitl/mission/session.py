@@ -43,6 +43,7 @@ from bfsitl.fc.provisioning import (
     provision,
 )
 from bfsitl.fc.rc_link import RC_MIN_US, RcCommand, RcLinkStats, UdpRcLink
+from bfsitl.protocol import msp_messages as msg
 from bfsitl.protocol.boxes import BoxId
 from bfsitl.sim import Simulator
 from bfsitl.sim.bridge import BridgeStats, SitlBridge, bridged_sitl, wait_for_replies
@@ -60,6 +61,18 @@ DEFAULT_ARM_TIMEOUT_S = 15.0
 _POLL_INTERVAL_S = 0.05
 #: See SessionConfig.sensors; measured: FC altitude within 1-2 cm of the truth on average.
 DEFAULT_BARO_NOISE_PA = 0.5
+#: Accelerometer noise by default, m/s^2 per physics step.  sitl.c truncates the fdm's
+#: acceleration to whole LSB (0.038 m/s^2); without noise a hovering vehicle's reading sits
+#: on one side of a step, an error of up to one LSB that integrating it turns into drift (it
+#: was 2-3 cm/s after a few seconds of hover).  0.05 m/s^2 (about 5 mg, less than a real MEMS
+#: accelerometer shows) dithers the steps so they average out.
+DEFAULT_ACCEL_NOISE_M_S2 = 0.05
+
+
+def fly_sensors(**overrides: float) -> SensorConfig:
+    """The sensor errors ``bfsitl fly`` simulates by default, with ``overrides`` applied."""
+    return replace(SensorConfig(baro_noise_std_pa=DEFAULT_BARO_NOISE_PA,
+                                accel_noise_std_m_s2=DEFAULT_ACCEL_NOISE_M_S2), **overrides)
 
 Progress = Callable[[str], None]
 
@@ -80,12 +93,12 @@ class SessionConfig:
     profile: Profile | None = FLY_PROFILE
     #: Hold AUX2 on while armed (ANGLE, when the profile puts ANGLE there).
     angle_mode: bool = True
-    #: Barometer noise by default: 4.6.0 SITL truncates the fdm pressure to whole pascals
-    #: (~8.3 cm of altitude), so a noiseless barometer gives the FC a staircase it cannot
-    #: resolve inside a step.  Half a pascal of noise (about what a board's barometer shows)
-    #: dithers it: the FC's own filter then averages to the true sub-pascal value.
-    sensors: SensorConfig = field(default_factory=lambda: SensorConfig(
-        baro_noise_std_pa=DEFAULT_BARO_NOISE_PA))
+    #: Barometer and accelerometer noise by default (:func:`fly_sensors`): 4.6.0 SITL
+    #: truncates the fdm pressure to whole pascals (~8.3 cm of altitude), so a noiseless
+    #: barometer gives the FC a staircase it cannot resolve inside a step.  Half a pascal of
+    #: noise (about what a board's barometer shows) dithers it: the FC's own filter then
+    #: averages to the true sub-pascal value.  The accelerometer likewise.
+    sensors: SensorConfig = field(default_factory=fly_sensors)
     arm_timeout_s: float = DEFAULT_ARM_TIMEOUT_S
     #: "embedded" (bfsitl's simulator and bridge) or "gazebo" (``gz sim`` with the
     #: BetaflightPlugin, started in the SITL's namespace; no simulated truth is then known).
@@ -102,6 +115,8 @@ class FlightSample:
     wall_s: float               # time.monotonic() when the sample was taken
     fc_alt_m: float             # MSP_ALTITUDE, up positive, zeroed by the FC at arming
     fc_climb_m_s: float         # MSP_ALTITUDE vario, up positive
+    fc_accel_up_m_s2: float     # MSP_RAW_IMU z and MSP_ATTITUDE: vertical acceleration,
+                                # gravity removed
     roll_deg: float             # MSP_ATTITUDE
     pitch_deg: float            # positive nose down (Betaflight's convention)
     yaw_deg: float
@@ -392,6 +407,8 @@ class FlightSession:
         return FlightSample(
             time_s=truth.time_s, wall_s=time.monotonic(),
             fc_alt_m=telemetry.altitude.altitude_m, fc_climb_m_s=telemetry.altitude.vario_m_s,
+            fc_accel_up_m_s2=telemetry.accel_up_m_s2(
+                offset_lsb=msg.SITL_ACC_TRUNCATION_LSB),
             roll_deg=telemetry.attitude.roll_deg, pitch_deg=telemetry.attitude.pitch_deg,
             yaw_deg=float(telemetry.attitude.yaw_deg),
             sim_alt_m=truth.altitude_m - self._ground_alt_m, sim_climb_m_s=truth.climb_m_s,

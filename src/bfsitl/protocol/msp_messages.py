@@ -44,6 +44,10 @@ from bfsitl.protocol.payload import PayloadReader, PayloadWriter
 #: 1 g in accelerometer LSB on the SITL: ``acc.dev.acc_1G = 256`` (sensors/acceleration_init.c:385)
 #: and the virtual accelerometer never changes it. Real IMUs usually report 2048 per g.
 SITL_ACC_1G_LSB = 256
+#: The SITL turns the fdm's acceleration into int16 by truncation (``sitl.c``: ``int16_t z =
+#: constrain(-acc * ACC_SCALE, ...)``), not rounding, so in flight its z axis reads half an LSB
+#: low on average: 0.019 m/s^2, which integrated is a climb-rate drift of 2 cm/s per second.
+SITL_ACC_TRUNCATION_LSB = 0.5
 
 #: MSP_RAW_IMU gyro is raw LSB: ``gyroRateDps()`` divides deg/s by the sensor scale
 #: (sensors/gyro_init.c:747-750); 2000 dps sensors and the SITL's virtual gyro use

@@ -32,7 +32,7 @@ from bfsitl.control.metrics import StepMetrics, step_response
 from bfsitl.mission import FlightRow, FlightSession, MissionPlan, SessionConfig, run_mission
 from bfsitl.mission.session import DEFAULT_BARO_NOISE_PA, fly_sensors
 
-DEFAULT_CONTROLLERS = ("tutorial-pid", "cascade")
+DEFAULT_CONTROLLERS = ("tutorial-pid", "cascade", "fused")
 STEADY_WINDOW_S = 5.0
 
 

@@ -183,3 +183,32 @@ def test_a_repeated_sample_changes_nothing_and_reset_starts_over():
 def test_bad_gains_are_rejected(bad):
     with pytest.raises(ControllerConfigError):
         FusedGains(**bad)
+
+
+def test_a_feedforward_lead_rises_sooner():
+    """ff_lead_s takes the reference's acceleration from a little ahead (the thrust answers
+    the throttle late): the climb follows the reference more closely."""
+    _, _, plain = fly(FusedAltitudeController())
+    _, _, led = fly(FusedAltitudeController(FusedGains(ff_lead_s=0.05)))
+    assert led.rise_time_s < plain.rise_time_s
+    assert led.overshoot_pct < 6.0
+
+
+def test_a_long_gap_between_samples_is_integrated_in_full():
+    """A stalled loop (0.3 s without a sample) while climbing at 2 m/s: the estimate moves
+    the whole 0.6 m, not just the loop's step cap."""
+    est = AltitudeEstimator(accel_delay_s=0.0)
+    est.reset(alt_m=1.0, climb_m_s=2.0)
+    moved = est.update(0.3, 0.0, 0.5).alt_m - 1.0
+    assert moved == pytest.approx(0.6, abs=0.02)
+
+
+def test_reference_copy_is_independent():
+    from bfsitl.control.cascade import ReferenceProfile
+
+    ref = ReferenceProfile(3.0, 1.0, 5.0, 3.0)
+    ref.step(2.0, 0.1)
+    twin = ref.copy()
+    twin.step(2.0, 0.5)
+    assert (ref.alt_m, ref.climb_m_s) != (twin.alt_m, twin.climb_m_s)
+    assert twin.copy().alt_m == twin.alt_m

@@ -26,7 +26,8 @@ LIVE_REFRESH_HZ = 5.0
 
 
 def add_fly_parser(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]
-    from bfsitl.control import CONTROLLERS
+    from bfsitl.control import CONTROLLERS, DEFAULT_CONTROLLER
+    from bfsitl.mission.runner import MissionPlan
 
     fly = sub.add_parser(
         "fly", help="fly an autonomous mission on a SITL with the embedded physics",
@@ -45,9 +46,15 @@ def add_fly_parser(sub: argparse._SubParsersAction) -> None:  # type: ignore[typ
                          help="take-off altitude above the ground, metres (default 2.0)")
     mission.add_argument("--hold", type=float, default=10.0, metavar="S",
                          help="seconds to hold the altitude before landing (default 10)")
-    mission.add_argument("--controller", choices=sorted(CONTROLLERS), default="cascade",
-                         help="altitude controller (default cascade; tutorial-pid and "
+    mission.add_argument("--controller", choices=sorted(CONTROLLERS),
+                         default=DEFAULT_CONTROLLER,
+                         help=f"altitude controller (default {DEFAULT_CONTROLLER}: barometer + "
+                              "accelerometer; cascade: barometer only; tutorial-pid and "
                               "open-loop re-create the tutorial's scripts)")
+    mission.add_argument("--ground", type=float, default=MissionPlan().ground_s, metavar="S",
+                         help="seconds armed at idle before the take-off, while the FC's "
+                              "altitude settles and the fused controller learns the "
+                              f"barometer's zero (default {MissionPlan().ground_s:g})")
     mission.add_argument("--gain", action="append", default=[], metavar="NAME=VALUE",
                          help="override a controller gain, repeatable (see --list-gains)")
     mission.add_argument("--list-gains", action="store_true",
@@ -73,6 +80,9 @@ def add_fly_parser(sub: argparse._SubParsersAction) -> None:  # type: ignore[typ
     sitl.add_argument("--baro-noise-pa", type=float, default=None, metavar="PA",
                       help="barometer noise std of the embedded physics (default 0.5: dithers "
                            "the SITL's whole-pascal pressure; 0 for a noiseless barometer)")
+    sitl.add_argument("--accel-noise", type=float, default=None, metavar="M_S2",
+                      help="accelerometer noise std, m/s^2 (default 0.05: dithers the SITL's "
+                           "truncated acceleration; 0 for a noiseless accelerometer)")
     sitl.add_argument("--physics", choices=("embedded", "gazebo"), default="embedded",
                       help="embedded (default, nothing to install) or gazebo (needs `gz` of "
                            "Gazebo Harmonic and libBetaflightPlugin.so; see docs/gazebo.md)")
@@ -182,15 +192,17 @@ def cmd_fly(args: argparse.Namespace) -> int:
             print(f"{name} = {default:g}")
         return EXIT_OK
     controller = make_controller(args.controller, parse_gains(args.gain))
-    plan = MissionPlan(target_alt_m=args.target_alt, hold_s=args.hold)
+    plan = MissionPlan(target_alt_m=args.target_alt, hold_s=args.hold, ground_s=args.ground)
     if args.no_provision:
         profile = None
     else:
         profile = FLY_PROFILE if not args.no_angle else Profile(mode_ranges=(ARM_ON_AUX1,))
         if args.profile:
             profile = Profile.from_file(args.profile, mode_ranges=profile.mode_ranges)
-    sensors = {} if args.baro_noise_pa is None else {
-        "sensors": fly_sensors(baro_noise_std_pa=args.baro_noise_pa)}
+    noise = {name: value for name, value in (("baro_noise_std_pa", args.baro_noise_pa),
+                                             ("accel_noise_std_m_s2", args.accel_noise))
+             if value is not None}
+    sensors = {"sensors": fly_sensors(**noise)} if noise else {}
     config = SessionConfig(**sensors, firmware=args.firmware, workdir=args.workdir,
                            isolate=not args.no_isolate, speed=args.speed, profile=profile,
                            angle_mode=not args.no_angle, physics=args.physics,

@@ -50,16 +50,18 @@ class AltitudeEstimator:
 
     def __init__(self, *, lag_s: float = 0.15, bandwidth_rad_s: float = 1.0,
                  fast_m_s: float = 0.2, accel_delay_s: float = 0.02,
-                 ground_settle_s: float = 0.4, max_step_s: float = 0.1) -> None:
+                 ground_settle_s: float = 0.4, bias_share: float = 1.0,
+                 max_step_s: float = 0.5) -> None:
         if not (lag_s >= 0 and bandwidth_rad_s > 0 and fast_m_s > 0 and accel_delay_s >= 0
-                and max_step_s > 0):
+                and bias_share >= 0 and max_step_s > 0):
             raise ValueError("lag_s >= 0, bandwidth_rad_s > 0, fast_m_s > 0, "
-                             "accel_delay_s >= 0, max_step_s > 0")
+                             "accel_delay_s >= 0, bias_share >= 0, max_step_s > 0")
         self.lag_s = lag_s
         self.bandwidth_rad_s = bandwidth_rad_s
         self.fast_m_s = fast_m_s
         self.accel_delay_s = accel_delay_s
         self.ground_settle_s = ground_settle_s
+        self.bias_share = bias_share
         self.max_step_s = max_step_s
         self._seen = SensorLag(lag_s)
         self.reset()
@@ -121,7 +123,7 @@ class AltitudeEstimator:
         self._seen.shift(3.0 * w * correction)
         self._climb_m_s += 3.0 * w * w * correction
         if not on_ground:
-            self.accel_bias_m_s2 -= w ** 3 * correction
+            self.accel_bias_m_s2 -= self.bias_share * w ** 3 * correction
         return self.estimate
 
     def _learn_ground(self, dt_s: float, measured_alt_m: float) -> None:

@@ -165,6 +165,11 @@ class ReferenceProfile:
     def reset(self, alt_m: float, climb_m_s: float = 0.0) -> None:
         self.alt_m, self.climb_m_s, self.accel_m_s2 = alt_m, climb_m_s, 0.0
 
+    def copy(self) -> ReferenceProfile:
+        twin = ReferenceProfile(self._climb, self._descent, self._accel, self._k)
+        twin.alt_m, twin.climb_m_s, twin.accel_m_s2 = self.alt_m, self.climb_m_s, self.accel_m_s2
+        return twin
+
     def arrived(self, target_m: float) -> bool:
         """At the target and (nearly) still: the profile has nothing left to do."""
         return abs(target_m - self.alt_m) < 0.005 and abs(self.climb_m_s) < 0.02

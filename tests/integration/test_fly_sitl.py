@@ -68,8 +68,13 @@ def test_default_mission_lands_and_holds_then_a_second_flight_in_the_same_workdi
     rows = read_rows(log)
     assert len(rows) == summary["rows"]
     phases = [r["phase"] for r in rows]
-    assert phases[0] == "takeoff" and phases[-1] == "landed"
-    assert {"takeoff", "hold", "land"} <= set(phases)
+    assert phases[0] == "ground" and phases[-1] == "landed"
+    assert {"ground", "takeoff", "hold", "land"} <= set(phases)
+    # Armed at idle on the ground first (the fused controller learns the barometer's zero).
+    ground = [r for r in rows if r["phase"] == "ground"]
+    assert all(r["rc_throttle_us"] == "1000" and r["armed"] == "1" for r in ground)
+    assert float(ground[-1]["time_s"]) - float(ground[0]["time_s"]) >= 1.9
+    assert summary["controller"] == "fused"
     holding = [r for r in rows if r["phase"] == "hold"]
     assert all(abs(float(r["sim_alt_m"]) - 2.0) <= HOLD_TOLERANCE_M for r in holding)
     # The FC's own altitude agrees with the truth within its barometer's resolution.

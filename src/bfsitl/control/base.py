@@ -3,8 +3,13 @@
 A mission samples the flight controller at its control rate (about 50 Hz of simulation time),
 hands the controller what a real board reports, and sends the returned throttle over RC.  The
 controller sees only the FC's view: the barometric altitude (``MSP_ALTITUDE``, zeroed at arming,
-quantised to ~8 cm and low-pass filtered by the firmware, so it lags the truth) and a climb rate
-derived from it.  It never sees the simulated truth: that is kept to judge it.
+quantised to ~8 cm and low-pass filtered by the firmware, so it lags the truth), a climb rate
+derived from it, and the vertical acceleration from the FC's accelerometer (``MSP_RAW_IMU``).
+It never sees the simulated truth: that is kept to judge it.
+
+Besides ``reset`` and ``update`` a controller may have ``observe_ground(sample)``: the mission
+then hands it the samples of its ground phase (armed at idle before the take-off) instead of
+resetting it when the take-off begins.
 
 Everything here is plain data and a :class:`typing.Protocol`, so controllers can be tested
 offline (``tests/unit/altitude_plant.py``) exactly as the mission runner calls them.

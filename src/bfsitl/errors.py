@@ -151,3 +151,7 @@ class SitlExitedError(SitlError):
 
 class SitlNotReadyError(SitlError, TimeoutError):
     """The SITL process never answered MSP."""
+
+
+class SitlLockedOutError(SitlNotReadyError):
+    """The SITL answers MSP, but its gyro/PID tasks never ran (and never will)."""

@@ -403,8 +403,9 @@ def wait_for_replies(bridge: SitlBridge, count: int = 50, timeout_s: float = 5.0
     raise SitlError(
         f"the SITL answered {stats.replies + stats.late_replies} of {stats.fdm_sent} fdm "
         f"packets in {timeout_s:.0f} s. Either it runs in another network than the bridge, or "
-        f"its gyro/PID loop is not running: on a busy machine 4.6.0's scheduler can lock "
-        f"those tasks out (see `bfsitl cli tasks`); try a lower --speed or a quieter machine."
+        f"its gyro/PID loop is not running (`bfsitl cli tasks` shows GYRO/PID at 0 Hz; 4.6.0's "
+        f"scheduler can lock them out for good at boot, which starting the SITL checks for): "
+        f"start it again."
     )
 
 

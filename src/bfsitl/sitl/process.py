@@ -26,6 +26,7 @@ from bfsitl.errors import (
     LinkError,
     SitlError,
     SitlExitedError,
+    SitlLockedOutError,
     SitlNotReadyError,
 )
 from bfsitl.fc.msp_client import DEFAULT_RETRIES, DEFAULT_TIMEOUT_S, MspClient
@@ -43,6 +44,8 @@ LOG_NAME = "sitl.log"
 DEFAULT_READY_TIMEOUT_S = 10.0
 _START_ATTEMPTS = 2
 _PROBE_INTERVAL_S = 0.05
+#: A healthy SITL has run its PID task many times by the time MSP first answers.
+PID_LOOP_TIMEOUT_S = 0.5
 _TERM_GRACE_S = 3.0
 
 
@@ -143,7 +146,15 @@ class SitlProcess:
             self.starts += 1
             try:
                 self.client = self._wait_ready(self.ready_timeout_s)
+                self._check_pid_loop(self.client)
                 break
+            except SitlLockedOutError:
+                # A few % of starts on a busy machine, and for good: see _check_pid_loop.
+                self._terminate()
+                if attempt == _START_ATTEMPTS:
+                    raise
+                self._progress("the SITL's gyro/PID tasks never started (4.6.0 scheduler "
+                               "lock-out at boot); killed it, starting again")
             except SitlNotReadyError:
                 # Seen once in hundreds of starts: 4.6.0 SITL alive, EEPROM loaded, but TCP
                 # 5761 never opened.  A second start has always worked.
@@ -187,6 +198,28 @@ class SitlProcess:
             f"SITL did not answer MSP within {timeout_s:.0f} s ({last_problem}); log "
             f"({self.log_path}) ends with:\n{self.log_tail()}"
         )
+
+    def _check_pid_loop(self, client: MspClient) -> None:
+        """Raise :class:`SitlLockedOutError` if the firmware's PID task has not run.
+
+        4.6.0's ``scheduler()`` runs GYRO/FILTER/PID only from a pass that arrives at most
+        one 125 us period late, or, after a longer gap, from one that lands less than
+        ``schedLoopStartCycles`` before a period boundary.  In SITL a cycle is 1 us, that
+        margin starts at 1 and grows only on a late run, and ``lastTargetCycles`` moves only
+        when the tasks run.  So if the main thread's first passes after ``tasksInit()`` skip
+        the 125..250 us window (preempted or faulting for ~100 us on a busy machine) the
+        tasks never run in this process, and no fdm packet is ever answered.  MSP_STATUS
+        cycleTime is the PID task's last period: 0 until the task has run.
+        """
+        deadline = time.monotonic() + PID_LOOP_TIMEOUT_S
+        while not client.status().cycle_time_us:
+            if time.monotonic() >= deadline:
+                raise SitlLockedOutError(
+                    f"the SITL (pid {self.pid}) answers MSP but its gyro/PID tasks have not "
+                    f"run in {PID_LOOP_TIMEOUT_S} s (MSP_STATUS cycleTime 0): 4.6.0's "
+                    f"scheduler locked them out at boot, for the life of the process"
+                )
+            time.sleep(_PROBE_INTERVAL_S)
 
     def connect(
         self, *, timeout_s: float = DEFAULT_TIMEOUT_S, retries: int = DEFAULT_RETRIES

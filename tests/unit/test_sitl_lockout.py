@@ -1,0 +1,53 @@
+"""The boot-time scheduler lock-out check of SitlProcess (the real case is in the integration
+tests' starts; the stall that causes it cannot be provoked reliably without stopping the SITL
+at the right 100 us, so the decision itself is tested here)."""
+
+from __future__ import annotations
+
+from types import SimpleNamespace
+
+import pytest
+
+import bfsitl.sitl.process as process
+from bfsitl.errors import SitlLockedOutError, SitlNotReadyError
+from bfsitl.sitl.process import SitlProcess
+
+
+class StubClient:
+    """MSP_STATUS answers with these cycle times, the last one repeated."""
+
+    def __init__(self, *cycle_times_us: int) -> None:
+        self.cycle_times_us = list(cycle_times_us)
+        self.asked = 0
+
+    def status(self) -> SimpleNamespace:
+        self.asked += 1
+        value = self.cycle_times_us.pop(0) if len(self.cycle_times_us) > 1 \
+            else self.cycle_times_us[0]
+        return SimpleNamespace(cycle_time_us=value)
+
+
+def bare_process() -> SitlProcess:
+    sitl = SitlProcess.__new__(SitlProcess)  # no binary needed to judge the answers
+    sitl._process = None  # type: ignore[attr-defined]
+    return sitl
+
+
+def test_a_running_pid_loop_passes_at_once():
+    client = StubClient(125)
+    bare_process()._check_pid_loop(client)  # type: ignore[arg-type]
+    assert client.asked == 1
+
+
+def test_a_pid_loop_that_starts_a_little_late_passes():
+    client = StubClient(0, 0, 125)
+    bare_process()._check_pid_loop(client)  # type: ignore[arg-type]
+    assert client.asked == 3
+
+
+def test_a_locked_out_pid_loop_is_named(monkeypatch):
+    monkeypatch.setattr(process, "PID_LOOP_TIMEOUT_S", 0.12)
+    with pytest.raises(SitlLockedOutError, match="locked them out") as caught:
+        bare_process()._check_pid_loop(StubClient(0))  # type: ignore[arg-type]
+    # A kind of "not ready": callers that handle that handle this too.
+    assert isinstance(caught.value, SitlNotReadyError)

@@ -114,3 +114,19 @@ def hover_range_ok(gains: HoverLimits) -> None:
             <= gains.hover_max_us <= gains.throttle_max_us, gains,
             "need throttle_min_us <= hover_min_us <= hover_guess_us <= hover_max_us "
             "<= throttle_max_us")
+
+
+class WholeMicroseconds:
+    """Rounds a throttle to whole microseconds (what the RC link sends), carrying the
+    remainder to the next step so the fraction is kept on average: 1 us is ~4 cm/s of drift
+    on the IRIS, so a hover between two whole values must alternate, not stick to one."""
+
+    __slots__ = ("carry_us",)
+
+    def __init__(self) -> None:
+        self.carry_us = 0.0
+
+    def __call__(self, throttle_us: float) -> float:
+        whole = float(round(throttle_us + self.carry_us))
+        self.carry_us = clamp(self.carry_us + throttle_us - whole, -0.5, 0.5)
+        return whole

@@ -52,6 +52,7 @@ from dataclasses import dataclass
 from bfsitl.control.base import (
     THROTTLE_MIN_US,
     AltitudeInput,
+    WholeMicroseconds,
     check_gains,
     clamp,
     hover_range_ok,
@@ -214,7 +215,7 @@ class CascadedAltitudeController:
         self._prev_alt_m: float | None = None
         self._climb_m_s = 0.0
         self._output_us = THROTTLE_MIN_US
-        self._carry_us = 0.0
+        self._whole_us = WholeMicroseconds()
         self._profile.reset(0.0)
         self._seen_alt.reset(0.0)
         self._seen_climb.reset(0.0)
@@ -378,12 +379,6 @@ class CascadedAltitudeController:
                                            + g.alt_ki * integrated_error * dt_s,
                                            g.hover_min_us, g.hover_max_us)
         return output
-
-    def _whole_us(self, throttle_us: float) -> float:
-        """Round to whole microseconds carrying the remainder to the next step."""
-        whole = float(round(throttle_us + self._carry_us))
-        self._carry_us = clamp(self._carry_us + throttle_us - whole, -0.5, 0.5)
-        return whole
 
 
 def _deadband(error: float, band: float) -> float:

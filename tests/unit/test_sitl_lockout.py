@@ -51,3 +51,45 @@ def test_a_locked_out_pid_loop_is_named(monkeypatch):
         bare_process()._check_pid_loop(StubClient(0))  # type: ignore[arg-type]
     # A kind of "not ready": callers that handle that handle this too.
     assert isinstance(caught.value, SitlNotReadyError)
+
+
+class StubNetwork:
+    """Spawns nothing; counts the launches a start asked for."""
+
+    netns_pid = None
+    isolated = True
+
+    def __init__(self) -> None:
+        self.spawned = 0
+
+    def spawn(self, *_args: object, **_kwargs: object) -> None:
+        self.spawned += 1
+
+
+def startable(clients: list[StubClient], monkeypatch) -> SitlProcess:
+    """A SitlProcess whose launches answer MSP with ``clients`` in turn."""
+    sitl = bare_process()
+    sitl.network = StubNetwork()  # type: ignore[assignment]
+    sitl.firmware = SimpleNamespace(command=lambda: ["sitl"], path=SimpleNamespace(name="sitl"))
+    sitl.workdir, sitl.log_path, sitl.timer_slack_ns = "run", "run/log", None
+    sitl.ready_timeout_s, sitl.starts, sitl.launches = 1.0, 0, 0
+    sitl._progress = lambda _message: None  # type: ignore[attr-defined]
+    sitl._terminate = lambda: None  # type: ignore[attr-defined]
+    sitl._wait_ready = lambda _timeout_s: clients.pop(0)  # type: ignore[attr-defined]
+    monkeypatch.setattr(process, "check_ports_free", lambda *_args, **_kwargs: None)
+    monkeypatch.setattr(process, "PID_LOOP_TIMEOUT_S", 0.05)
+    return sitl
+
+
+def test_a_locked_out_launch_is_retried_and_counts_as_a_launch_not_a_start(monkeypatch):
+    sitl = startable([StubClient(0), StubClient(125)], monkeypatch)
+    sitl.start()
+    # Tests and callers count starts to see reboots; a retried launch must not look like one.
+    assert (sitl.starts, sitl.launches, sitl.network.spawned) == (1, 2, 2)
+
+
+def test_a_launch_locked_out_twice_is_reported(monkeypatch):
+    sitl = startable([StubClient(0), StubClient(0)], monkeypatch)
+    with pytest.raises(SitlLockedOutError):
+        sitl.start()
+    assert (sitl.starts, sitl.launches) == (0, 2)

@@ -85,7 +85,10 @@ class SitlProcess:
         self.network: Network | None = network
         self._process: ProcessHandle | None = None
         self.client: MspClient | None = None
+        #: Starts that came up ready (a reboot's restart counts; a retried launch does not).
         self.starts = 0
+        #: Every process launched, including ones killed and retried (hung or locked out).
+        self.launches = 0
 
     # -- state -----------------------------------------------------------------------------
     @property
@@ -143,10 +146,11 @@ class SitlProcess:
         for attempt in range(1, _START_ATTEMPTS + 1):
             self._process = self.network.spawn(argv, self.workdir, self.log_path,
                                                timer_slack_ns=self.timer_slack_ns)
-            self.starts += 1
+            self.launches += 1
             try:
                 self.client = self._wait_ready(self.ready_timeout_s)
                 self._check_pid_loop(self.client)
+                self.starts += 1
                 break
             except SitlLockedOutError:
                 # A few % of starts on a busy machine, and for good: see _check_pid_loop.

@@ -73,7 +73,8 @@ def startable(clients: list[StubClient], monkeypatch) -> SitlProcess:
     sitl.firmware = SimpleNamespace(command=lambda: ["sitl"], path=SimpleNamespace(name="sitl"))
     sitl.workdir, sitl.log_path, sitl.timer_slack_ns = "run", "run/log", None
     sitl.ready_timeout_s, sitl.starts, sitl.launches = 1.0, 0, 0
-    sitl._progress = lambda _message: None  # type: ignore[attr-defined]
+    sitl.said = []  # type: ignore[attr-defined]
+    sitl._progress = sitl.said.append  # type: ignore[attr-defined]
     sitl._terminate = lambda: None  # type: ignore[attr-defined]
     sitl._wait_ready = lambda _timeout_s: clients.pop(0)  # type: ignore[attr-defined]
     monkeypatch.setattr(process, "check_ports_free", lambda *_args, **_kwargs: None)
@@ -86,6 +87,7 @@ def test_a_locked_out_launch_is_retried_and_counts_as_a_launch_not_a_start(monke
     sitl.start()
     # Tests and callers count starts to see reboots; a retried launch must not look like one.
     assert (sitl.starts, sitl.launches, sitl.network.spawned) == (1, 2, 2)
+    assert any("lock-out" in line and "starting again" in line for line in sitl.said)
 
 
 def test_a_launch_locked_out_twice_is_reported(monkeypatch):

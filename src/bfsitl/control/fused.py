@@ -78,8 +78,7 @@ class FusedGains:
                      "hover_learn_s", "baro_bandwidth_rad_s"):
             require(getattr(self, name) > 0, self, f"{name} must be > 0")
         for name in ("pos_kp", "vel_kp", "climb_ff_us", "motor_lag_s", "ff_lead_s",
-                     "learn_below_m_s2",
-                     "baro_lag_s"):
+                     "learn_below_m_s2", "baro_lag_s"):
             require(getattr(self, name) >= 0, self, f"{name} must be >= 0")
 
 

@@ -152,21 +152,18 @@ class SitlProcess:
                 self._check_pid_loop(self.client)
                 self.starts += 1
                 break
-            except SitlLockedOutError:
-                # A few % of starts on a busy machine, and for good: see _check_pid_loop.
+            except SitlNotReadyError as exc:
+                # Both are the launch's fault, not the firmware image's, and a second launch
+                # has always worked: a lock-out (a few % of starts on a busy machine, see
+                # _check_pid_loop) or, seen once in hundreds of starts, 4.6.0 SITL alive with
+                # its EEPROM loaded but TCP 5761 never opened.
                 self._terminate()
                 if attempt == _START_ATTEMPTS:
                     raise
-                self._progress("the SITL's gyro/PID tasks never started (4.6.0 scheduler "
-                               "lock-out at boot); killed it, starting again")
-            except SitlNotReadyError:
-                # Seen once in hundreds of starts: 4.6.0 SITL alive, EEPROM loaded, but TCP
-                # 5761 never opened.  A second start has always worked.
-                self._terminate()
-                if attempt == _START_ATTEMPTS:
-                    raise
-                self._progress(f"SITL still silent after {self.ready_timeout_s:.0f} s (a hung "
-                               f"start); killed it, starting again")
+                why = ("the SITL's gyro/PID tasks never started (4.6.0 scheduler lock-out "
+                       "at boot)" if isinstance(exc, SitlLockedOutError) else
+                       f"SITL still silent after {self.ready_timeout_s:.0f} s (a hung start)")
+                self._progress(f"{why}; killed it, starting again")
             except BaseException:
                 self._terminate()
                 raise

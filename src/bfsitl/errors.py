@@ -29,6 +29,8 @@ Messages are written for the person at the terminal: what went wrong, then what 
         ├── PortInUseError             another process already holds the SITL's ports
         ├── SitlExitedError            the process ended (crash, reboot) while we needed it
         └── SitlNotReadyError          (also TimeoutError) it never answered MSP
+            ├── SitlLockedOutError     it answers, but its gyro/PID tasks never ran
+            └── SitlTcpServerLostError its MSP port's TCP server was lost at boot
 """
 
 from __future__ import annotations
@@ -152,6 +154,17 @@ class SitlExitedError(SitlError):
 class SitlNotReadyError(SitlError, TimeoutError):
     """The SITL process never answered MSP."""
 
+    #: What went wrong, in a few words, for "... ; killed it, starting again".
+    brief = "the SITL stayed silent (a hung start)"
+
 
 class SitlLockedOutError(SitlNotReadyError):
     """The SITL answers MSP, but its gyro/PID tasks never ran (and never will)."""
+
+    brief = "the SITL's gyro/PID tasks never started (4.6.0 scheduler lock-out at boot)"
+
+
+class SitlTcpServerLostError(SitlNotReadyError):
+    """The SITL's TCP server for its MSP port failed at boot (and will never serve)."""
+
+    brief = "the SITL's MSP port never served (4.6.0 TCP-server race at boot)"

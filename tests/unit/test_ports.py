@@ -32,7 +32,7 @@ needs_proc = pytest.mark.skipif(not os.path.exists("/proc/self/net/tcp"), reason
 # Taken from a 4.6.0 SITL in its own namespace, plus a client connection and a TIME_WAIT row.
 PROC_NET_TCP = """\
   sl  local_address rem_address   st tx_queue rx_queue tr tm->when retrnsmt   uid  timeout inode
-   0: 00000000:1681 00000000:0000 0A 00000000:00000000 00:00000000 00000000     0        0 8423 1 0000000022ca58bd 100 0 0 10 0
+   0: 00000000:1681 00000000:0000 0A 00000000:0000000B 00:00000000 00000000     0        0 8423 1 0000000022ca58bd 100 0 0 10 0
    1: 0100007F:1682 00000000:0000 0A 00000000:00000000 00:00000000 00000000  1000        0 9001 1 0000000000000000 100 0 0 10 0
    2: 0100007F:D2F0 0100007F:1681 01 00000000:00000000 00:00000000 00000000     0        0 8500 1 0000000000000000 20 4 30 10 -1
    3: 0100007F:1681 0100007F:D2EE 06 00000000:00000000 03:00000E5A 00000000     0        0 0 3 0000000000000000
@@ -87,8 +87,9 @@ def test_decode_rejects_garbage(bad: str) -> None:
 @needs_little_endian
 def test_parse_tcp_rows() -> None:
     rows = parse_proc_net(PROC_NET_TCP, "tcp")
-    assert rows[0] == ProcNetSocket("tcp", "0.0.0.0", 5761, 0x0A, 8423)
-    assert rows[1] == ProcNetSocket("tcp", "127.0.0.1", 5762, 0x0A, 9001)
+    # rx_queue of a listener: 11 connections never accepted (a SITL whose TCP server was lost).
+    assert rows[0] == ProcNetSocket("tcp", "0.0.0.0", 5761, 0x0A, 8423, rx_queue=11)
+    assert rows[1] == ProcNetSocket("tcp", "127.0.0.1", 5762, 0x0A, 9001, rx_queue=0)
     assert [row.state for row in rows] == [0x0A, 0x0A, 0x01, 0x06]
     assert rows[2].port == 0xD2F0
 

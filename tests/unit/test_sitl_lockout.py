@@ -66,32 +66,33 @@ class StubNetwork:
         self.spawned += 1
 
 
-def startable(clients: list[StubClient], monkeypatch) -> SitlProcess:
+def startable(clients: list[StubClient], monkeypatch, tmp_path) -> SitlProcess:
     """A SitlProcess whose launches answer MSP with ``clients`` in turn."""
     sitl = bare_process()
     sitl.network = StubNetwork()  # type: ignore[assignment]
     sitl.firmware = SimpleNamespace(command=lambda: ["sitl"], path=SimpleNamespace(name="sitl"))
-    sitl.workdir, sitl.log_path, sitl.timer_slack_ns = "run", "run/log", None
+    sitl.workdir, sitl.log_path, sitl.timer_slack_ns = tmp_path, tmp_path / "sitl.log", None
     sitl.ready_timeout_s, sitl.starts, sitl.launches = 1.0, 0, 0
     sitl.said = []  # type: ignore[attr-defined]
     sitl._progress = sitl.said.append  # type: ignore[attr-defined]
     sitl._terminate = lambda: None  # type: ignore[attr-defined]
-    sitl._wait_ready = lambda _timeout_s: clients.pop(0)  # type: ignore[attr-defined]
+    sitl._wait_ready = lambda _timeout_s, _check: clients.pop(0)  # type: ignore[attr-defined]
     monkeypatch.setattr(process, "check_ports_free", lambda *_args, **_kwargs: None)
     monkeypatch.setattr(process, "PID_LOOP_TIMEOUT_S", 0.05)
     return sitl
 
 
-def test_a_locked_out_launch_is_retried_and_counts_as_a_launch_not_a_start(monkeypatch):
-    sitl = startable([StubClient(0), StubClient(125)], monkeypatch)
+def test_a_locked_out_launch_is_retried_and_counts_as_a_launch_not_a_start(monkeypatch,
+                                                                          tmp_path):
+    sitl = startable([StubClient(0), StubClient(125)], monkeypatch, tmp_path)
     sitl.start()
     # Tests and callers count starts to see reboots; a retried launch must not look like one.
     assert (sitl.starts, sitl.launches, sitl.network.spawned) == (1, 2, 2)
     assert any("lock-out" in line and "starting again" in line for line in sitl.said)
 
 
-def test_a_launch_locked_out_twice_is_reported(monkeypatch):
-    sitl = startable([StubClient(0), StubClient(0)], monkeypatch)
+def test_a_launch_locked_out_twice_is_reported(monkeypatch, tmp_path):
+    sitl = startable([StubClient(0), StubClient(0)], monkeypatch, tmp_path)
     with pytest.raises(SitlLockedOutError):
         sitl.start()
     assert (sitl.starts, sitl.launches) == (0, 2)

@@ -76,6 +76,8 @@ class ProcNetSocket:
     port: int
     state: int
     inode: int
+    #: Bytes waiting to be read; for a LISTEN socket, connections waiting to be accepted.
+    rx_queue: int = 0
 
 
 @dataclass(frozen=True)
@@ -151,7 +153,9 @@ def _parse_row(line: str, protocol: str) -> ProcNetSocket | None:
         return None
     try:
         address, port = decode_address(fields[1])
-        return ProcNetSocket(protocol, address, port, int(fields[3], 16), int(fields[9]))
+        rx_queue = int(fields[4].partition(":")[2], 16)  # the column is tx_queue:rx_queue
+        return ProcNetSocket(protocol, address, port, int(fields[3], 16), int(fields[9]),
+                             rx_queue)
     except ValueError:
         return None
 

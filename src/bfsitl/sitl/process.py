@@ -35,6 +35,7 @@ from bfsitl.protocol.msp_messages import ApiVersion
 from bfsitl.sitl.firmware import FirmwareBinary, find_firmware
 from bfsitl.sitl.network import HostNetwork, IsolatedNetwork, Network, ProcessHandle
 from bfsitl.sitl.ports import SITL_TCP_PORTS, SITL_UDP_PORTS, check_ports_free
+from bfsitl.sitl.tcp_server_check import TcpServerCheck
 from bfsitl.sitl.timer_slack import SITL_TIMER_SLACK_NS
 
 SITL_HOST = "127.0.0.1"
@@ -144,36 +145,42 @@ class SitlProcess:
             + (" (isolated network namespace)" if self.isolated else "")
         )
         for attempt in range(1, _START_ATTEMPTS + 1):
+            server_check = TcpServerCheck(log_path=self.log_path, log_offset=self._log_size(),
+                                          netns_pid=self.network.netns_pid, port=SITL_MSP_PORT)
             self._process = self.network.spawn(argv, self.workdir, self.log_path,
                                                timer_slack_ns=self.timer_slack_ns)
             self.launches += 1
             try:
-                self.client = self._wait_ready(self.ready_timeout_s)
+                self.client = self._wait_ready(self.ready_timeout_s, server_check)
                 self._check_pid_loop(self.client)
                 self.starts += 1
                 break
             except SitlNotReadyError as exc:
-                # Both are the launch's fault, not the firmware image's, and a second launch
-                # has always worked: a lock-out (a few % of starts on a busy machine, see
-                # _check_pid_loop) or, seen once in hundreds of starts, 4.6.0 SITL alive with
-                # its EEPROM loaded but TCP 5761 never opened.
+                # The launch's fault, not the firmware image's, and a second launch has always
+                # worked: a race at boot lost the MSP port's server (tcp_server_check) or
+                # locked the PID task out (_check_pid_loop), a few % of starts on a busy
+                # machine; or the SITL stayed silent for another reason.
                 self._terminate()
                 if attempt == _START_ATTEMPTS:
                     raise
-                why = ("the SITL's gyro/PID tasks never started (4.6.0 scheduler lock-out "
-                       "at boot)" if isinstance(exc, SitlLockedOutError) else
-                       f"SITL still silent after {self.ready_timeout_s:.0f} s (a hung start)")
-                self._progress(f"{why}; killed it, starting again")
+                self._progress(f"{exc.brief}; killed it, starting again")
             except BaseException:
                 self._terminate()
                 raise
         self._progress(f"SITL ready (pid {self.pid}) on {self.uri}")
         return self
 
-    def _wait_ready(self, timeout_s: float) -> MspClient:
+    def _log_size(self) -> int:
+        try:
+            return self.log_path.stat().st_size
+        except OSError:
+            return 0
+
+    def _wait_ready(self, timeout_s: float, server_check: TcpServerCheck) -> MspClient:
         deadline = time.monotonic() + timeout_s
         last_problem = "no answer yet"
         while time.monotonic() < deadline:
+            server_check.check(time.monotonic())
             code = self.poll()
             if code is not None:
                 raise SitlExitedError(

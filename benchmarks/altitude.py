@@ -1,4 +1,4 @@
-"""Altitude controllers on the real Betaflight 4.6.0 SITL: a 0 -> 2 m step, a hold, a landing.
+"""Altitude controllers on the real Betaflight SITL: a 0 -> 2 m step, a hold, a landing.
 
 For each controller (default: the tutorial's PID, then the cascade) a fresh isolated SITL with
 the embedded physics is started (:class:`bfsitl.mission.FlightSession`), the default mission is
@@ -14,7 +14,10 @@ simulated truth (:func:`bfsitl.control.metrics.step_response`):
 The controllers see only what a real board reports (the FC's barometric altitude: whole
 pascals, ~8 cm steps, low-pass filtered, ~0.2 s late); the truth is only used to judge them.
 ``--plot PATH`` writes both altitude traces (truth solid, FC reading dotted) against the target.
-Run: ``python benchmarks/altitude.py [--repeats 1] [--plot altitude.png] [--json]``.
+``--firmware PATH_OR_NAME`` (repeatable) flies the same on each firmware (default: the one
+``bfsitl fly`` finds, 4.6.0 from the package); the table has a block per firmware, named as the
+firmware reported itself.
+Run: ``python benchmarks/altitude.py [--repeats 1] [--firmware master] [--plot altitude.png]``.
 """
 
 from __future__ import annotations
@@ -39,6 +42,7 @@ STEADY_WINDOW_S = 5.0
 @dataclass
 class Run:
     controller: str
+    firmware: str
     outcome: str
     reason: str
     armed_after_s: float | None
@@ -49,16 +53,20 @@ class Run:
 
 
 def fly_once(controller_name: str, plan: MissionPlan, band_m: float, speed: float,
-             baro_noise_pa: float = DEFAULT_BARO_NOISE_PA) -> Run:
+             baro_noise_pa: float = DEFAULT_BARO_NOISE_PA, firmware: str | None = None) -> Run:
     controller = make_controller(controller_name, {})
     landing = LandingController(hover_from=controller)
     started = time.monotonic()
-    config = SessionConfig(speed=speed, sensors=fly_sensors(baro_noise_std_pa=baro_noise_pa))
+    config = SessionConfig(speed=speed, sensors=fly_sensors(baro_noise_std_pa=baro_noise_pa),
+                           firmware=firmware)
     with FlightSession(config, progress=_progress) as session:
         result = run_mission(session, plan, controller, landing=landing)
+        assert session.sitl is not None
+        firmware_name = session.sitl.profile.firmware_version
     flown = [r for r in result.rows if r.phase in ("takeoff", "hold")]
     return Run(
-        controller=controller_name, outcome=result.outcome.value, reason=result.reason,
+        controller=controller_name, firmware=firmware_name, outcome=result.outcome.value,
+        reason=result.reason,
         armed_after_s=result.armed_after_s, metrics=_metrics(flown, plan, band_m),
         wall_s=time.monotonic() - started, trace=_trace(flown),
     )
@@ -90,12 +98,12 @@ def _median(values: list[float]) -> float:
 
 
 def table(runs: list[Run], band_m: float) -> str:
-    header = (f"{'controller':<13} {'runs':>4} {'landed':>6} {'rise s':>7} {'overshoot %':>11} "
-              f"{'settle s':>8} {'RMS cm':>7} {'bias cm':>7} {'max att deg':>11} "
-              f"{'armed after s':>13}")
+    header = (f"{'firmware':<16} {'controller':<13} {'runs':>4} {'landed':>6} {'rise s':>7} "
+              f"{'overshoot %':>11} {'settle s':>8} {'RMS cm':>7} {'bias cm':>7} "
+              f"{'max att deg':>11} {'armed after s':>13}")
     lines = [header, "-" * len(header)]
-    for name in dict.fromkeys(r.controller for r in runs):
-        mine = [r for r in runs if r.controller == name]
+    for firmware, name in dict.fromkeys((r.firmware, r.controller) for r in runs):
+        mine = [r for r in runs if r.controller == name and r.firmware == firmware]
         done = [r.metrics for r in mine if r.metrics is not None]
 
         def med(attribute: str, scale: float = 1.0, done: list[StepMetrics] = done) -> float:
@@ -104,7 +112,7 @@ def table(runs: list[Run], band_m: float) -> str:
         landed = sum(r.outcome == "landed" for r in mine)
         armed = _median([r.armed_after_s for r in mine if r.armed_after_s is not None])
         lines.append(
-            f"{name:<13} {len(mine):>4} {landed:>6} {med('rise_time_s'):>7.2f} "
+            f"{firmware:<16} {name:<13} {len(mine):>4} {landed:>6} {med('rise_time_s'):>7.2f} "
             f"{med('overshoot_pct'):>11.1f} {med('settling_time_s'):>8.2f} "
             f"{med('steady_state_rms_m', 100):>7.1f} "
             f"{med('steady_state_mean_error_m', 100):>+7.1f} "
@@ -123,22 +131,26 @@ def plot(runs: list[Run], plan: MissionPlan, band_m: float, path: str) -> None:
 
     figure, axis = plt.subplots(figsize=(10, 5))
     colours = plt.rcParams["axes.prop_cycle"].by_key()["color"]
-    names = list(dict.fromkeys(r.controller for r in runs))
+    names = list(dict.fromkeys((r.firmware, r.controller) for r in runs))
     for run in runs:
         if not run.trace:
             continue
-        colour = colours[names.index(run.controller) % len(colours)]
+        key = (run.firmware, run.controller)
+        colour = colours[names.index(key) % len(colours)]
+        label = f"{run.firmware} {run.controller}" if len({r.firmware for r in runs}) > 1 \
+            else run.controller
         t = [p[0] for p in run.trace]
-        axis.plot(t, [p[1] for p in run.trace], color=colour, label=f"{run.controller} (truth)")
+        axis.plot(t, [p[1] for p in run.trace], color=colour, label=f"{label} (truth)")
         axis.plot(t, [p[2] for p in run.trace], ":", color=colour, alpha=0.8,
-                  label=f"{run.controller} (FC reading)")
+                  label=f"{label} (FC reading)")
     axis.axhline(plan.target_alt_m, color="k", linestyle="--", linewidth=1, label="target")
     for edge in (plan.target_alt_m - band_m, plan.target_alt_m + band_m):
         axis.axhline(edge, color="grey", linewidth=0.5)
     axis.set_xlabel("time since the take-off command (s, simulation)")
     axis.set_ylabel("altitude above take-off (m)")
+    firmwares = ", ".join(dict.fromkeys(r.firmware for r in runs))
     axis.set_title(f"0 -> {plan.target_alt_m:g} m step and {plan.hold_s:g} s hold, "
-                   "Betaflight 4.6.0 SITL")
+                   f"Betaflight {firmwares} SITL")
     handles, labels = axis.get_legend_handles_labels()
     unique = dict(zip(labels, handles, strict=True))
     axis.legend(unique.values(), unique.keys(), loc="lower right", fontsize=8)
@@ -161,17 +173,24 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--baro-noise-pa", type=float, default=DEFAULT_BARO_NOISE_PA,
                         help="barometer noise std, Pa (default %(default)s, as `bfsitl fly`; "
                              "0 gives the FC a whole-pascal staircase)")
+    parser.add_argument("--firmware", action="append", metavar="PATH_OR_NAME",
+                        help="SITL binary or cached build name, repeatable (default: the one "
+                             "`bfsitl fly` uses)")
     parser.add_argument("--plot", metavar="PATH", help="write the altitude traces as a PNG")
     parser.add_argument("--json", action="store_true", help="print the runs as JSON")
     args = parser.parse_args(argv)
     plan = MissionPlan(target_alt_m=args.target, hold_s=args.hold)
     runs: list[Run] = []
-    for _ in range(max(1, args.repeats)):
-        for name in args.controllers.split(","):
-            print(f"{name}: flying", file=sys.stderr)
-            run = fly_once(name.strip(), plan, args.band, args.speed, args.baro_noise_pa)
-            print(f"{name}: {run.outcome} ({run.reason}), {run.wall_s:.0f} s", file=sys.stderr)
-            runs.append(run)
+    for firmware in args.firmware or [None]:
+        for _ in range(max(1, args.repeats)):
+            for name in args.controllers.split(","):
+                print(f"{name}: flying on {firmware or 'the default firmware'}",
+                      file=sys.stderr)
+                run = fly_once(name.strip(), plan, args.band, args.speed, args.baro_noise_pa,
+                               firmware)
+                print(f"{name}: {run.outcome} ({run.reason}), {run.wall_s:.0f} s",
+                      file=sys.stderr)
+                runs.append(run)
     if args.json:
         print(json.dumps([{k: v for k, v in asdict(r).items() if k != "trace"} for r in runs],
                          indent=2, default=str))

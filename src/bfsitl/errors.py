@@ -26,6 +26,10 @@ Messages are written for the person at the terminal: what went wrong, then what 
     │   └── MissionTimeoutError        (also TimeoutError) a phase did not finish in time
     └── SitlError                      the SITL process
         ├── FirmwareNotFoundError      no SITL binary anywhere we looked
+        ├── FirmwareBuildError         `bfsitl firmware build` could not make a SITL binary
+        │   ├── BuildToolMissingError  gcc or make is not installed
+        │   └── FirmwareSourceError    not a Betaflight source tree, or an unsafe tarball
+        ├── UnsupportedFirmwareError   a generation or build variant bfsitl cannot drive
         ├── PortInUseError             another process already holds the SITL's ports
         ├── SitlExitedError            the process ended (crash, reboot) while we needed it
         └── SitlNotReadyError          (also TimeoutError) it never answered MSP
@@ -138,6 +142,26 @@ class FirmwareNotFoundError(SitlError):
     """No SITL binary was found."""
 
 
+class FirmwareBuildError(SitlError):
+    """A SITL build failed; ``log_tail`` holds the last lines of the compiler's output."""
+
+    def __init__(self, message: str, log_tail: str = "") -> None:
+        self.log_tail = log_tail
+        super().__init__(message)
+
+
+class BuildToolMissingError(FirmwareBuildError):
+    """gcc or make is missing; the message names the Debian package to install."""
+
+
+class FirmwareSourceError(FirmwareBuildError):
+    """The source to build from is not a Betaflight tree, or its tarball is unsafe to unpack."""
+
+
+class UnsupportedFirmwareError(SitlError):
+    """The firmware runs, but is of a generation or build variant bfsitl cannot drive."""
+
+
 class PortInUseError(SitlError):
     """Another process already holds a port the SITL needs."""
 
@@ -161,10 +185,10 @@ class SitlNotReadyError(SitlError, TimeoutError):
 class SitlLockedOutError(SitlNotReadyError):
     """The SITL answers MSP, but its gyro/PID tasks never ran (and never will)."""
 
-    brief = "the SITL's gyro/PID tasks never started (4.6.0 scheduler lock-out at boot)"
+    brief = "the SITL's gyro/PID tasks never started (the scheduler lock-out at boot)"
 
 
 class SitlTcpServerLostError(SitlNotReadyError):
     """The SITL's TCP server for its MSP port failed at boot (and will never serve)."""
 
-    brief = "the SITL's MSP port never served (4.6.0 TCP-server race at boot)"
+    brief = "the SITL's MSP port never served (the dyad TCP-server race at boot)"

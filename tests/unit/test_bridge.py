@@ -19,17 +19,17 @@ from bfsitl.errors import PortInUseError
 from bfsitl.protocol.sitl_packets import FdmPacket, ServoPacket
 from bfsitl.sim.bridge import FDM_PORT, SERVO_PORT, SitlBridge
 from bfsitl.sim.clock_lock import ESTIMATOR_WINDOW_S, FROZEN_STEP_S
+from bfsitl.sim.sensors import SensorReading
 from bfsitl.sitl.network import IsolatedNetwork, unshare_available
 
 pytestmark = pytest.mark.skipif(not unshare_available(), reason="needs unshare")
 
 
-class _Reading:
-    def __init__(self, altitude_m: float) -> None:
-        self.altitude_m = altitude_m
-
-    def to_fdm_packet(self, timestamp_s: float, position_mode: str = "ned") -> FdmPacket:
-        return FdmPacket(timestamp_s, position=(0.0, 0.0, -self.altitude_m))
+def _reading(altitude_m: float) -> SensorReading:
+    """A level vehicle at rest ``altitude_m`` above home (the stock 4.6.0 build sends NED)."""
+    return SensorReading(0.0, (0.0, 0.0, 0.0), (0.0, 0.0, -9.80665), (1.0, 0.0, 0.0, 0.0),
+                         101325.0, (0.0, 0.0, -altitude_m), (0.0, 0.0, 0.0),
+                         (0.0, 0.0, altitude_m), (0.0, 0.0, 0.0))
 
 
 class RecordingSim:
@@ -43,8 +43,8 @@ class RecordingSim:
         self.commands.append(motors)
         self.time_s += dt_s
 
-    def read_sensors(self) -> _Reading:
-        return _Reading(self.time_s)
+    def read_sensors(self) -> SensorReading:
+        return _reading(self.time_s)
 
 
 class FakeSitl:

@@ -66,6 +66,25 @@ def test_enter_from_msp_state_with_firmware_timing() -> None:
     assert session.run("get small_angle").splitlines()[0] == "small_angle = 25"
 
 
+def test_enter_tries_once_more_with_a_longer_silence(monkeypatch: pytest.MonkeyPatch) -> None:
+    """A starved SITL that needs more silence than the first try gives still enters."""
+    monkeypatch.setattr(cli_session, "_ENTER_SILENCE_S", 0.03)
+    monkeypatch.setattr(cli_session, "_ENTER_RETRY_SILENCE_S", 0.2)
+    link = make_link(enter_silence_s=0.1)
+    session = CliSession(link, timeout_s=0.5).enter()
+    assert session.active and link.state == "cli" and link.cli_entries == 1
+
+
+def test_a_port_that_never_enters_fails_after_the_second_try(
+        monkeypatch: pytest.MonkeyPatch) -> None:
+    monkeypatch.setattr(cli_session, "_ENTER_SILENCE_S", 0.03)
+    monkeypatch.setattr(cli_session, "_ENTER_RETRY_SILENCE_S", 0.05)
+    link = make_link(enter_silence_s=0.1)
+    with pytest.raises(CliError, match="did not answer"):
+        CliSession(link, timeout_s=0.3).enter()
+    assert link.cli_entries == 0
+
+
 def test_enter_when_port_was_left_in_cli(fast_enter: None) -> None:
     """A port a dropped client left in CLI mode is taken over, and commands work at once."""
     link = make_link(state="cli")

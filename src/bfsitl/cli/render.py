@@ -2,14 +2,31 @@
 
 from __future__ import annotations
 
+from bfsitl.errors import UnsupportedFirmwareError
 from bfsitl.fc.identity import FcIdentity
 from bfsitl.fc.msp_client import Telemetry
+from bfsitl.protocol.firmware_profile import TESTED_VERSIONS, profile_for
+
+
+def conventions_text(identity: FcIdentity) -> str | None:
+    """Which SITL conventions bfsitl uses for this firmware, and whether it was tested."""
+    if not identity.is_sitl:
+        return None
+    try:
+        profile = profile_for(identity.api_version, identity.firmware_version)
+    except UnsupportedFirmwareError as exc:
+        return f"unsupported: {exc}"
+    if profile.tested:
+        return f"{profile.generation.value} (tested with bfsitl)"
+    like = ", ".join(TESTED_VERSIONS[profile.generation])
+    return f"{profile.generation.value} (not tested with bfsitl; assumed to behave like {like})"
 
 
 def status_report(identity: FcIdentity, telemetry: Telemetry) -> str:
     status, a = telemetry.status, telemetry.attitude
     lines = [
         f"firmware   {identity.describe()}",
+        *([f"sitl       {text}"] if (text := conventions_text(identity)) else []),
         f"sensors    {', '.join(status.sensors) or 'none'}",
         f"pid loop   {status.cycle_time_us} us cycle, CPU load {status.cpu_load_percent} %",
         f"armed      {'YES' if status.armed else 'no'}",

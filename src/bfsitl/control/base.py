@@ -64,6 +64,21 @@ class AltitudeController(Protocol):
         ...
 
 
+@runtime_checkable
+class EstimatesAltitude(Protocol):
+    """A controller that keeps its own estimate of the true altitude (the fused one).
+
+    The FC's reading carries a zero error of its own, different in every flight (a few cm on
+    4.6.0; up to ~8 cm on master, whose altitude also takes the virtual GPS's, zeroed on one
+    noisy sample); a mission judges "reached" on this estimate when a controller has one.
+    """
+
+    @property
+    def altitude_estimate_m(self) -> float | None:
+        """The estimated altitude above the take-off point, or None before it is known."""
+        ...
+
+
 def clamp(value: float, low: float, high: float) -> float:
     """``value`` limited to ``[low, high]`` (``low`` wins if the bounds cross)."""
     return low if value < low else (high if value > high else value)

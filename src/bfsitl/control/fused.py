@@ -112,6 +112,11 @@ class FusedAltitudeController:
     def reference_alt_m(self) -> float:
         return self._profile.alt_m
 
+    @property
+    def altitude_estimate_m(self) -> float | None:
+        """The estimator's altitude (the FC's, with the zero error learnt on the ground)."""
+        return self.estimator.estimate.alt_m if self.airborne else None
+
     def observe_ground(self, sample: AltitudeInput) -> None:
         """Armed at idle before the take-off (the mission's ground phase): learn the
         barometer's zero error while the vehicle certainly rests."""

@@ -10,6 +10,7 @@ from __future__ import annotations
 import abc
 import errno
 import threading
+import time
 from types import TracebackType
 
 from bfsitl.errors import LinkClosedError, LinkError, LinkTimeoutError
@@ -78,6 +79,15 @@ class Link(abc.ABC):
             )
         self.bytes_read += len(data)
         return data
+
+    def pause(self, seconds: float) -> None:
+        """Let ``seconds`` pass on the FC's side of the link (a guard time it needs).
+
+        Wall time here; a lockstep link lets simulation time pass instead (the FC's clock
+        moves only when the simulation steps).
+        """
+        if seconds > 0:
+            time.sleep(seconds)
 
     def drain_input(self, quiet_s: float = 0.05) -> bytes:
         """Read and return everything until the line has been quiet for ``quiet_s``."""

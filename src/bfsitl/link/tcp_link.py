@@ -87,9 +87,12 @@ class TcpLink(Link):
             view = view[sent:]
 
     def _read_bytes(self, max_bytes: int, timeout_s: float) -> bytes | None:
-        readable, _, _ = select.select([self._sock], [], [], timeout_s)
-        if not readable:
-            return b""
+        # A zero timeout is a poll (a lockstep link makes one per simulation step): the
+        # socket is non-blocking, so recv alone answers it, without a select() call.
+        if timeout_s > 0:
+            readable, _, _ = select.select([self._sock], [], [], timeout_s)
+            if not readable:
+                return b""
         try:
             data = self._sock.recv(max_bytes)
         except BlockingIOError:

@@ -32,6 +32,9 @@ class FlightRow:
     pitch_deg: float
     yaw_deg: float
     sim_tilt_deg: float
+    sim_roll_deg: float      # simulated truth in Betaflight's convention: roll right wing
+    sim_pitch_deg: float     # down positive, pitch nose down positive, yaw the heading
+    sim_yaw_deg: float       # clockwise from north, 0..360
     rc_roll_us: int
     rc_pitch_us: int
     rc_throttle_us: int

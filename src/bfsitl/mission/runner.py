@@ -19,7 +19,12 @@ from collections.abc import Callable
 from dataclasses import dataclass, field, replace
 from typing import Any
 
-from bfsitl.control.base import THROTTLE_MIN_US, AltitudeController, AltitudeInput
+from bfsitl.control.base import (
+    THROTTLE_MIN_US,
+    AltitudeController,
+    AltitudeInput,
+    EstimatesAltitude,
+)
 from bfsitl.errors import (
     ArmingBlockedError,
     BfsitlError,
@@ -28,7 +33,7 @@ from bfsitl.errors import (
     MissionTimeoutError,
     SitlExitedError,
 )
-from bfsitl.fc.rc_link import RC_MIN_US
+from bfsitl.fc.rc_link import RC_MID_US, RC_MIN_US
 from bfsitl.mission.climb_rate import ClimbRateEstimator
 from bfsitl.mission.flight_log import CsvFlightLog, FlightRow
 from bfsitl.mission.session import SWITCH_OFF_US, FlightSample, FlightSession
@@ -99,6 +104,7 @@ class MissionResult:
     blockers: tuple[str, ...] = ()
     armed_after_s: float | None = None
     hold: HoldStats | None = None
+    attitude: AttitudeTracking | None = None  # FC roll/pitch vs the truth in the air
     metrics: Any = None  # bfsitl.control.metrics.StepMetrics of the take-off step
     extra: dict[str, Any] = field(default_factory=dict)
 
@@ -130,6 +136,7 @@ class MissionResult:
             "blockers": list(self.blockers),
             "armed_after_s": plain(self.armed_after_s),
             "hold": plain(self.hold),
+            "attitude": plain(self.attitude),
             "step_response": plain(self.metrics),
             "rows": len(self.rows),
             "flight_time_s": plain(self.rows[-1].time_s - self.rows[0].time_s)
@@ -211,10 +218,29 @@ class Mission:
         self._on_event(f"go to {altitude_m:.2f} m")
         return self._reach("goto", altitude_m, timeout_s)
 
-    def hold(self, seconds: float) -> None:
-        self._on_event(f"hold {self.target_alt_m:.2f} m for {seconds:g} s")
+    def hold(self, seconds: float, *, roll_us: float = RC_MID_US, pitch_us: float = RC_MID_US,
+             yaw_us: float = RC_MID_US) -> None:
+        """Hold the altitude for ``seconds`` of simulation time.
+
+        Off-centre ``roll_us`` / ``pitch_us`` / ``yaw_us`` are held for the whole time (a stick
+        step: in ANGLE mode roll and pitch set an angle, yaw a rate) and centred again at the
+        end; the altitude controller keeps working throughout.
+        """
+        sticks = (roll_us, pitch_us, yaw_us)
+        stepped = any(value != RC_MID_US for value in sticks)
+        what = (f" with sticks roll {roll_us:.0f}, pitch {pitch_us:.0f}, yaw {yaw_us:.0f} us"
+                if stepped else "")
+        self._on_event(f"hold {self.target_alt_m:.2f} m for {seconds:g} s{what}")
         end_s = self.session.time_s + seconds
-        self._fly("hold", self.target_alt_m, lambda s: s.time_s >= end_s, timeout_s=seconds + 5)
+        self.session.set_rc(replace(self.session.rc_command, roll_us=roll_us,
+                                    pitch_us=pitch_us, yaw_us=yaw_us))
+        try:
+            self._fly("hold", self.target_alt_m, lambda s: s.time_s >= end_s,
+                      timeout_s=seconds + 5)
+        finally:
+            if stepped:
+                self.session.set_rc(replace(self.session.rc_command, roll_us=RC_MID_US,
+                                            pitch_us=RC_MID_US, yaw_us=RC_MID_US))
 
     def land(self, *, timeout_s: float = 30.0) -> None:
         """Descend, touch down, cut the throttle, disarm."""
@@ -242,7 +268,13 @@ class Mission:
         settled_since: list[float] = []
 
         def reached(sample: FlightSample) -> bool:
-            near = abs(sample.fc_alt_m - altitude_m) <= REACHED_BAND_M and \
+            # The FC's reading, or the controller's own estimate when it keeps one (it knows
+            # the FC's zero error, which on master can exceed the band).
+            estimate = self.controller.altitude_estimate_m \
+                if isinstance(self.controller, EstimatesAltitude) else None
+            within = abs(sample.fc_alt_m - altitude_m) <= REACHED_BAND_M or (
+                estimate is not None and abs(estimate - altitude_m) <= REACHED_BAND_M)
+            near = within and \
                 abs(self._climb.rate_m_s) <= REACHED_CLIMB_M_S
             if not near:
                 settled_since.clear()
@@ -262,10 +294,10 @@ class Mission:
     ) -> None:
         controller = controller or self.controller
         self.phase, self.target_alt_m = phase, target_alt_m
-        speed = self.session.config.speed
-        period_s = 1.0 / (self.rate_hz * speed)  # wall period; the rate holds in sim time
+        clock = self.session.clock
+        period_s = 1.0 / self.rate_hz  # in simulation time, whatever the pace
         deadline_s = self.session.time_s + timeout_s
-        next_wall_s = time.monotonic()
+        next_s = clock.now_s()
         while True:
             sample = self.session.sample()
             climb_m_s = self._climb.update(sample.time_s, sample.fc_alt_m)
@@ -284,12 +316,12 @@ class Mission:
                 raise MissionTimeoutError(
                     f"{phase} did not finish within {timeout_s:.0f} s of simulation time "
                     f"(FC altitude {sample.fc_alt_m:.2f} m, target {target_alt_m:.2f} m)")
-            next_wall_s += period_s
-            delay_s = next_wall_s - time.monotonic()
+            next_s += period_s
+            delay_s = next_s - clock.now_s()
             if delay_s > 0:
-                time.sleep(delay_s)
+                clock.sleep_s(delay_s)
             else:
-                next_wall_s = time.monotonic()  # late: do not try to catch up in a burst
+                next_s = clock.now_s()  # late: do not try to catch up in a burst
 
     def _check(self, sample: FlightSample) -> None:
         # The truth when the physics is ours; the FC's attitude otherwise (Gazebo).
@@ -313,7 +345,8 @@ class Mission:
             sim_alt_m=sample.sim_alt_m, fc_alt_m=sample.fc_alt_m, climb_m_s=climb_m_s,
             sim_climb_m_s=sample.sim_climb_m_s, fc_accel_up_m_s2=sample.fc_accel_up_m_s2,
             roll_deg=sample.roll_deg, pitch_deg=sample.pitch_deg, yaw_deg=sample.yaw_deg,
-            sim_tilt_deg=sample.sim_tilt_deg,
+            sim_tilt_deg=sample.sim_tilt_deg, sim_roll_deg=sample.sim_roll_deg,
+            sim_pitch_deg=sample.sim_pitch_deg, sim_yaw_deg=sample.sim_yaw_deg,
             rc_roll_us=round(rc.roll_us), rc_pitch_us=round(rc.pitch_us),
             rc_throttle_us=round(rc.throttle_us), rc_yaw_us=round(rc.yaw_us),
             rc_aux1_us=round(aux[0]), rc_aux2_us=round(aux[1]),
@@ -339,6 +372,38 @@ class Mission:
         session.set_rc(safe)
         if self.last_sample is not None:
             self._record(ending, self.target_alt_m, self.last_sample, self._climb.rate_m_s)
+
+
+@dataclass(frozen=True, slots=True)
+class AttitudeTracking:
+    """How well the FC's attitude followed the simulated truth while airborne (degrees)."""
+
+    samples: int
+    roll_rms_error_deg: float
+    pitch_rms_error_deg: float
+    max_abs_error_deg: float      # roll or pitch, whichever is worse
+    max_true_tilt_deg: float
+
+
+def attitude_tracking(rows: list[FlightRow]) -> AttitudeTracking | None:
+    """FC roll/pitch vs the truth over the rows flown above the ground (None without truth).
+
+    MSP_ATTITUDE comes from the same round trip as the rest of the sample and the truth is
+    read right after it, so the comparison carries at most one exchange of delay.
+    """
+    flown = [r for r in rows if r.armed and r.phase in {"takeoff", "hold", "goto", "land"}
+             and math.isfinite(r.sim_roll_deg) and r.sim_alt_m > 0.2]
+    if not flown:
+        return None
+    roll = [r.roll_deg - r.sim_roll_deg for r in flown]
+    pitch = [r.pitch_deg - r.sim_pitch_deg for r in flown]
+
+    def rms(errors: list[float]) -> float:
+        return math.sqrt(sum(e * e for e in errors) / len(errors))
+
+    return AttitudeTracking(len(flown), rms(roll), rms(pitch),
+                            max(max(map(abs, roll)), max(map(abs, pitch))),
+                            max(r.sim_tilt_deg for r in flown))
 
 
 def judged_alt_m(row: FlightRow) -> float:
@@ -435,6 +500,12 @@ def run_mission(
     result = MissionResult(outcome, reason.splitlines()[0] if reason else "", name, plan,
                            mission.rows, blockers, session.armed_after_s)
     result.hold = hold_stats(mission.rows)
+    result.attitude = attitude_tracking(mission.rows)
+    if session.sitl is not None:
+        profile = session.sitl.profile
+        result.extra["firmware"] = {
+            "version": profile.firmware_version, "api": profile.api_version,
+            "conventions": profile.generation.value, "gps": profile.has_gps}
     result.metrics = takeoff_metrics(mission.rows, plan.target_alt_m)
     rc_stats, bridge_stats = session.rc_stats(), session.bridge_stats()
     if rc_stats is not None:
@@ -442,5 +513,5 @@ def run_mission(
     if bridge_stats is not None:
         result.extra["physics"] = {
             "answered_ratio": bridge_stats.answered_ratio, "speed": bridge_stats.speed,
-            "steps": bridge_stats.steps}
+            "steps": bridge_stats.steps, "lockstep": session.lockstep}
     return result

@@ -12,6 +12,11 @@ The order of things is what makes a SITL flight reliable (``shared/FIRMWARE_FACT
 5. :meth:`FlightSession.arm` waits until the FC's own blockers clear (boot grace, calibration),
    then raises the ARM switch.
 
+With a ``--lockstep`` build (:mod:`bfsitl.sim.lockstep`) steps 2 and 4 change: the SITL boots,
+answers and is provisioned while its clock free-runs, then the lockstep bridge takes over: the
+physics steps only when asked, RC rides in the fdm packets, MSP requests step the simulation
+until they are answered, and the mission's waits are steps too (:attr:`FlightSession.clock`).
+
 On the way out everything stops in reverse: the RC link sends disarm and low throttle (the
 SITL holds the last sticks forever when UDP goes quiet), then the bridge stops, then the SITL.
 That happens on success, on any exception and on Ctrl-C alike.
@@ -25,6 +30,7 @@ from collections.abc import Callable
 from contextlib import ExitStack
 from dataclasses import dataclass, field, replace
 from pathlib import Path
+from typing import Protocol
 
 from bfsitl.errors import (
     ArmingBlockedError,
@@ -34,6 +40,7 @@ from bfsitl.errors import (
     SitlError,
     SitlExitedError,
 )
+from bfsitl.fc.firmware_detect import profile_of_binary
 from bfsitl.fc.msp_client import MspClient, Telemetry
 from bfsitl.fc.provisioning import (
     ANGLE_ON_AUX2,
@@ -47,7 +54,10 @@ from bfsitl.protocol import msp_messages as msg
 from bfsitl.protocol.boxes import BoxId
 from bfsitl.sim import Simulator
 from bfsitl.sim.bridge import BridgeStats, SitlBridge, bridged_sitl, wait_for_replies
+from bfsitl.sim.frames import betaflight_attitude_deg
 from bfsitl.sim.health import HealthMonitor, lock_clock
+from bfsitl.sim.lockstep import LockstepBridge, LockstepClock, LockstepRc, SteppedLink
+from bfsitl.sim.params import Wind
 from bfsitl.sim.sensors import SensorConfig
 from bfsitl.sitl.process import SitlProcess
 
@@ -86,9 +96,12 @@ class SessionConfig:
     workdir: str | Path | None = None
     #: Run the SITL in a private network namespace (so a stale SITL cannot share its ports).
     isolate: bool = True
-    #: Simulation speed, x wall time.  1.0 is real time; 0.5 is the faithful speed on a busy
-    #: 2-core machine (see the README's simulation table).
-    speed: float = 1.0
+    #: Simulation speed, x wall time.  None: real time (1.0) with a stock SITL, as fast as
+    #: possible with a lockstep build.  Real time allows 0.05..4 (0.5 is the faithful speed on
+    #: a busy 2-core machine, see the README); lockstep any positive speed, ``math.inf`` = max.
+    speed: float | None = None
+    #: Lockstep (a ``--lockstep`` build is needed).  None: whenever the firmware is one.
+    lockstep: bool | None = None
     #: What to provision.  None flies with whatever the FC already holds.
     profile: Profile | None = FLY_PROFILE
     #: Hold AUX2 on while armed (ANGLE, when the profile puts ANGLE there).
@@ -105,6 +118,34 @@ class SessionConfig:
     physics: str = "embedded"
     #: Where libBetaflightPlugin.so is, for ``physics="gazebo"`` (default: the search path).
     gz_plugin_dir: str | Path | None = None
+    #: Wind and gusts of the embedded physics (None: still air).
+    wind: Wind | None = None
+    #: Seeds the sensor noise and the gusts: the same seed gives the same disturbances.
+    seed: int = 0
+
+
+class SessionClock(Protocol):
+    """The mission clock (simulation time) and how to let some of it pass."""
+
+    def now_s(self) -> float: ...
+
+    def sleep_s(self, seconds: float) -> None: ...
+
+
+class RealTimeClock:
+    """A real-time session's clock: the physics runs on its own thread at ``speed`` x wall
+    time, so letting simulation time pass is a wall-clock sleep."""
+
+    def __init__(self, session: FlightSession) -> None:
+        self.session = session
+
+    def now_s(self) -> float:
+        return self.session.time_s
+
+    def sleep_s(self, seconds: float) -> None:
+        if seconds > 0:
+            speed = self.session.real_time_speed if self.session.simulator is not None else 1.0
+            time.sleep(seconds / speed)
 
 
 @dataclass(frozen=True, slots=True)
@@ -123,6 +164,9 @@ class FlightSample:
     sim_alt_m: float            # true height above the take-off point
     sim_climb_m_s: float        # true vertical speed, up positive
     sim_tilt_deg: float         # true angle between the body z axis and the vertical
+    sim_roll_deg: float         # true attitude in Betaflight's convention (as MSP_ATTITUDE)
+    sim_pitch_deg: float
+    sim_yaw_deg: float
     on_ground: bool             # the simulated skids touch the ground
     armed: bool
     arming_blockers: tuple[str, ...]
@@ -137,6 +181,7 @@ class _Truth:
     altitude_m: float
     climb_m_s: float
     tilt_deg: float
+    attitude_deg: tuple[float, float, float]  # Betaflight's roll, pitch, yaw
     on_ground: bool
     motors: tuple[float, float, float, float]
 
@@ -153,14 +198,17 @@ class FlightSession:
     def __init__(self, config: SessionConfig | None = None, *,
                  progress: Progress | None = None) -> None:
         self.config = config or SessionConfig()
-        if not (math.isfinite(self.config.speed) and 0.05 <= self.config.speed <= 4.0):
-            raise BfsitlError(f"speed {self.config.speed} is outside 0.05..4")
+        speed = self.config.speed
+        if speed is not None and not (speed > 0 and not math.isnan(speed)):
+            raise BfsitlError(f"speed {speed} must be a positive number")
         self._progress = progress or (lambda _message: None)
         self.created_at_s = time.monotonic()
         self.sitl: SitlProcess | None = None
         self.simulator: Simulator | None = None
-        self.bridge: SitlBridge | None = None
-        self.rc: UdpRcLink | None = None
+        self.bridge: SitlBridge | LockstepBridge | None = None
+        self.rc: UdpRcLink | LockstepRc | None = None
+        #: The mission clock: simulation time, and how to let some of it pass.
+        self.clock: SessionClock = RealTimeClock(self)
         self.provisioned: ProvisionResult | None = None
         #: Wall seconds from the session's creation to the FC reporting armed.
         self.armed_after_s: float | None = None
@@ -177,15 +225,20 @@ class FlightSession:
             elif config.physics == "embedded":
                 self.sitl = SitlProcess(config.firmware, workdir=config.workdir,
                                         isolate=config.isolate, progress=self._progress)
-                self.simulator = Simulator(sensors=config.sensors)
+                self.simulator = Simulator(sensors=config.sensors, wind=config.wind,
+                                           seed=config.seed)
+                if self._wants_lockstep():
+                    self._start_lockstep()
+                    return self
+                speed = self.real_time_speed
                 self.bridge = self._stack.enter_context(
-                    bridged_sitl(self.sitl, self.simulator, speed=config.speed))
-                self._progress(f"physics running at {config.speed:g}x real time")
+                    bridged_sitl(self.sitl, self.simulator, speed=speed))
+                self._progress(f"physics running at {speed:g}x real time")
             else:
                 raise BfsitlError(f"unknown physics {config.physics!r}: embedded or gazebo")
             assert self.sitl is not None
-            if config.speed != 1.0 and self.bridge is not None:
-                self._progress(f"locking the firmware clock to {config.speed:g}x")
+            if self.real_time_speed != 1.0 and self.bridge is not None:
+                self._progress(f"locking the firmware clock to {self.real_time_speed:g}x")
                 lock_clock(HealthMonitor(self.bridge, self.client))
             if config.profile is not None:
                 self.provisioned = provision(self.client, config.profile, reboot=self._reboot)
@@ -203,6 +256,55 @@ class FlightSession:
             raise
         return self
 
+    @property
+    def real_time_speed(self) -> float:
+        """The speed of a real-time (not lockstep) session, checked against its range."""
+        speed = 1.0 if self.config.speed is None else self.config.speed
+        if not 0.05 <= speed <= 4.0:
+            raise BfsitlError(
+                f"speed {speed:g} is outside 0.05..4 for a stock SITL, which runs on the wall "
+                f"clock; faster (or --speed max) needs a lockstep build: `bfsitl firmware "
+                f"build --lockstep`, then --firmware with its name")
+        return speed
+
+    def _wants_lockstep(self) -> bool:
+        assert self.sitl is not None
+        is_lockstep = self.sitl.firmware.lockstep
+        if self.config.lockstep and not is_lockstep:
+            raise BfsitlError(
+                f"lockstep asked for, but {self.sitl.firmware.path} is not a lockstep build: "
+                f"build one with `bfsitl firmware build --lockstep` and pass its name")
+        return is_lockstep if self.config.lockstep is None else self.config.lockstep
+
+    def _start_lockstep(self) -> None:
+        """The SITL locked to the physics from its first pass (see the module doc)."""
+        config, sitl, simulator = self.config, self.sitl, self.simulator
+        assert sitl is not None and simulator is not None
+        speed = None if config.speed is None or math.isinf(config.speed) else config.speed
+        bridge = LockstepBridge(simulator, sitl.prepare_network(), speed=speed,
+                                profile=profile_of_binary(sitl.firmware.path))
+        self.bridge = bridge
+        bridge.bind()
+        self._stack.callback(bridge.close)
+        bridge.alive = self.check_alive  # a wait that runs long asks whether the SITL ended
+        sitl.on_spawn = bridge.lock
+        sitl.link_wrapper = lambda link: SteppedLink(link, bridge)
+        sitl.client_clock = lambda: bridge.sim_time_s
+        self.clock = LockstepClock(bridge)
+        self._stack.callback(sitl.stop)
+        sitl.start()
+        bridge.set_profile(sitl.profile)
+        pace = "as fast as it goes" if speed is None else f"paced to {speed:g}x real time"
+        self._progress(f"lockstep: the FC's clock follows the physics, {pace}")
+        if config.profile is not None:
+            self.provisioned = provision(self.client, config.profile, reboot=self._reboot)
+            self._progress("provisioned: " + (
+                "written and saved" + (", rebooted" if self.provisioned.rebooted else "")
+                if self.provisioned.changed else "already configured, nothing written"))
+        self.rc = LockstepRc(bridge)
+        self.rc.set(self._base)
+        self._stack.callback(self.rc.close)  # closes first: disarm is stepped in before the rest
+
     def _start_with_gazebo(self) -> None:
         """``gz sim`` with the BetaflightPlugin in the SITL's network, then the SITL.
 
@@ -217,12 +319,17 @@ class FlightSession:
         )
 
         config = self.config
-        if config.speed != 1.0:
+        if config.speed not in (None, 1.0):
             raise BfsitlError("--speed applies to the embedded physics only; Gazebo sets its "
                               "own pace")
         launch = plan_gazebo_launch(plugin_dir=config.gz_plugin_dir)  # fails early, with fix
         self.sitl = SitlProcess(config.firmware, workdir=config.workdir,
                                 isolate=config.isolate, progress=self._progress)
+        if self.sitl.firmware.lockstep:
+            raise BfsitlError(
+                f"{self.sitl.firmware.path} is a lockstep build: its clock follows bfsitl's "
+                f"own physics, and Gazebo's plugin reads only stock motor packets. Use a "
+                f"stock build with --physics gazebo")
         sitl = self.sitl
         network = sitl.prepare_network()
         self._stack.callback(sitl.stop)  # runs last: after Gazebo has stopped
@@ -248,20 +355,32 @@ class FlightSession:
         """A CLI line needed a reboot: in SITL the process ends, so start it again."""
         assert self.sitl is not None
         self._progress("the configuration needs a reboot; restarting the SITL")
-        if self.bridge is not None:
-            self.bridge.pause()
+        bridge = self.bridge if isinstance(self.bridge, SitlBridge) else None
+        if bridge is not None:
+            bridge.pause()
         self.client.reboot()
+        if self.lockstep:
+            # The FC acts on the reboot in a later pass: step until the process has ended.
+            try:
+                self.clock.sleep_s(10.0)
+            except SitlExitedError:
+                pass
         self.sitl.restart_after_reboot()
-        if self.bridge is not None:
-            self.bridge.resume()
-            wait_for_replies(self.bridge)
+        if bridge is not None:
+            bridge.resume()
+            wait_for_replies(bridge)
 
     # -- parts -------------------------------------------------------------------------------
     @property
     def client(self) -> MspClient:
+        """The FC's MSP client; in lockstep its waits step the simulation."""
         if self.sitl is None or self.sitl.client is None:
             raise SitlError("the session is not started")
         return self.sitl.client
+
+    @property
+    def lockstep(self) -> bool:
+        return isinstance(self.clock, LockstepClock)
 
     @property
     def time_s(self) -> float:
@@ -317,14 +436,15 @@ class FlightSession:
                 f"no ARM mode range on AUX1 covers {SWITCH_ON_US} us (ARM ranges: {found}); "
                 f"provision with the default profile or add `aux 0 0 0 1700 2100 0 0`",
                 ("NO_ARM_RANGE",))
-        deadline = time.monotonic() + timeout_s
+        clock = self.clock
+        deadline = clock.now_s() + timeout_s
         blockers = self._wait_unblocked(deadline)
         if blockers:
             raise self._blocked_error(blockers, timeout_s)
         aux2 = SWITCH_ON_US if self.config.angle_mode else SWITCH_OFF_US
         self.set_rc(replace(self.rc_command, throttle_us=RC_MIN_US,
                             aux_us=(SWITCH_ON_US, aux2)))
-        while time.monotonic() < deadline:
+        while clock.now_s() < deadline:
             self.check_alive()
             status = client.status()
             if status.armed:
@@ -332,7 +452,7 @@ class FlightSession:
                 truth_alt_m = self._truth().altitude_m
                 self._ground_alt_m = truth_alt_m if math.isfinite(truth_alt_m) else 0.0
                 return
-            time.sleep(_POLL_INTERVAL_S)
+            clock.sleep_s(_POLL_INTERVAL_S)
         self.set_rc(replace(self.rc_command, aux_us=(SWITCH_OFF_US, SWITCH_OFF_US)))
         names = tuple(b.cli_name for b in client.status().arming_blockers)
         raise self._blocked_error(names or ("UNKNOWN",), timeout_s)
@@ -347,15 +467,15 @@ class FlightSession:
                 if names:
                     self._progress("waiting for the FC: " + ", ".join(names))
                 seen = names
-            if not names or time.monotonic() >= deadline_s:
+            if not names or self.clock.now_s() >= deadline_s:
                 return names
-            time.sleep(_POLL_INTERVAL_S)
+            self.clock.sleep_s(_POLL_INTERVAL_S)
 
     @staticmethod
     def _blocked_error(names: tuple[str, ...], timeout_s: float) -> ArmingBlockedError:
-        from bfsitl.protocol.arming import ARMING_FLAGS
+        from bfsitl.protocol.arming import all_arming_flags
 
-        fixes = {info.cli_name: info.fix for info in ARMING_FLAGS}
+        fixes = {info.cli_name: info.fix for info in all_arming_flags()}
         explained = "; ".join(f"{name}: {fixes.get(name, 'see `bfsitl doctor`')}"
                               for name in names)
         return ArmingBlockedError(f"the FC did not arm within {timeout_s:.0f} s, blocked by "
@@ -365,19 +485,20 @@ class FlightSession:
         """Throttle low, both switches off; True once the FC reports disarmed."""
         self.set_rc(replace(self.rc_command, throttle_us=RC_MIN_US,
                             aux_us=(SWITCH_OFF_US, SWITCH_OFF_US)))
-        deadline = time.monotonic() + timeout_s
-        while time.monotonic() < deadline:
+        deadline = self.clock.now_s() + timeout_s
+        while self.clock.now_s() < deadline:
             self.check_alive()
             if not self.client.status().armed:
                 return True
-            time.sleep(_POLL_INTERVAL_S)
+            self.clock.sleep_s(_POLL_INTERVAL_S)
         return False
 
     # -- observation -------------------------------------------------------------------------
     def _truth(self) -> _Truth:
         if self.bridge is None or self.simulator is None:  # external physics: truth unknown
             nan = math.nan
-            return _Truth(self.time_s, nan, nan, nan, False, (nan, nan, nan, nan))
+            return _Truth(self.time_s, nan, nan, nan, (nan, nan, nan), False,
+                          (nan, nan, nan, nan))
         simulator, bridge = self.simulator, self.bridge
 
         def read() -> _Truth:
@@ -386,7 +507,8 @@ class FlightSession:
             # Body z in world NED has z component 1 - 2(x^2 + y^2): cos(tilt).
             cos_tilt = max(-1.0, min(1.0, 1.0 - 2.0 * (x * x + y * y)))
             return _Truth(state.time_s, simulator.altitude_m, -state.velocity_ned_m_s[2],
-                          math.degrees(math.acos(cos_tilt)), simulator.on_ground,
+                          math.degrees(math.acos(cos_tilt)),
+                          betaflight_attitude_deg(state.quaternion_wxyz), simulator.on_ground,
                           tuple(bridge.motors))  # type: ignore[arg-type]
 
         # On the bridge thread, between two steps: one consistent state.
@@ -412,7 +534,9 @@ class FlightSession:
             roll_deg=telemetry.attitude.roll_deg, pitch_deg=telemetry.attitude.pitch_deg,
             yaw_deg=float(telemetry.attitude.yaw_deg),
             sim_alt_m=truth.altitude_m - self._ground_alt_m, sim_climb_m_s=truth.climb_m_s,
-            sim_tilt_deg=truth.tilt_deg, on_ground=truth.on_ground,
+            sim_tilt_deg=truth.tilt_deg, sim_roll_deg=truth.attitude_deg[0],
+            sim_pitch_deg=truth.attitude_deg[1], sim_yaw_deg=truth.attitude_deg[2],
+            on_ground=truth.on_ground,
             armed=telemetry.armed, arming_blockers=telemetry.arming_blockers,
             flight_modes=telemetry.flight_modes, motors=truth.motors, rc=self.rc_command,
         )

@@ -2,7 +2,8 @@
 
 MSP_STATUS / MSP_STATUS_EX report a U32 mask of the reasons the FC refuses to arm. The bit order
 is ``armingDisableFlags_e`` in ``fc/runtime_config.h:42-72`` (29 flags in 4.6,
-``ARMING_DISABLE_FLAGS_COUNT``); the names the CLI ``status`` command prints are
+``ARMING_DISABLE_FLAGS_COUNT``; master has 30, with AUTOPILOT at 28 and ARM_SWITCH moved to 29:
+MSP_STATUS sends the count, which picks the table); the names the CLI ``status`` command prints are
 ``armingDisableFlagNames`` in ``fc/runtime_config.c:38-68``. Older peer libraries ship stale tables
 (a 4.2-era bit 20 "RPMFILTER", ARM_SWITCH at bit 21 or 25), so this table follows the 4.6 source,
 and a bit it does not know becomes ``UNKNOWN_<bit>`` instead of an exception: newer firmware adds
@@ -12,7 +13,7 @@ flags, and a status display must never crash on them.
 from __future__ import annotations
 
 import re
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from enum import IntEnum
 
 #: Number of arming-disable flags in 4.6 (``ARMING_DISABLE_FLAGS_COUNT``, runtime_config.h:74).
@@ -245,12 +246,40 @@ ARMING_FLAGS: tuple[ArmingFlagInfo, ...] = tuple(
     ArmingFlagInfo(flag.value, flag.name, *_split_source(*_TABLE[flag])) for flag in ArmingFlag
 )
 
+#: Master (MSP API 1.49) adds AUTOPILOT at bit 28 and moves ARM_SWITCH to 29, the last bit
+#: ("needs to be the last element", master fc/runtime_config.h).
+AUTOPILOT_FLAG = ArmingFlagInfo(
+    28, "AUTOPILOT", "AUTOPILOT",
+    "the AUTOPILOT (flight plan) switch is on while disarmed",
+    "turn the AUTOPILOT switch (AUX) off before arming",
+    "fc/core.c (master)",
+)
+
+#: Flags per ``ARMING_DISABLE_FLAGS_COUNT``, which MSP_STATUS sends with the mask: 29 in 4.6,
+#: 30 in master. The count is the firmware's own word on which table applies.
+ARMING_FLAGS_BY_COUNT: dict[int, tuple[ArmingFlagInfo, ...]] = {
+    ARMING_DISABLE_FLAGS_COUNT: ARMING_FLAGS,
+    30: (*ARMING_FLAGS[:28], AUTOPILOT_FLAG, replace(ARMING_FLAGS[28], bit=29)),
+}
+
 _BY_BIT: dict[int, ArmingFlagInfo] = {info.bit: info for info in ARMING_FLAGS}
+_BY_COUNT_AND_BIT: dict[int, dict[int, ArmingFlagInfo]] = {
+    count: {info.bit: info for info in table} for count, table in ARMING_FLAGS_BY_COUNT.items()
+}
 
 
-def arming_flag_info(bit: int) -> ArmingFlagInfo:
-    """The description of one bit; a bit unknown to 4.6 gets a generic entry."""
-    known = _BY_BIT.get(bit)
+def arming_flag_info(bit: int, flag_count: int = ARMING_DISABLE_FLAGS_COUNT) -> ArmingFlagInfo:
+    """The description of one bit for a firmware with ``flag_count`` flags.
+
+    A count no table knows (newer firmware) keeps the common bits 0..27, names its last bit
+    ARM_SWITCH (the firmware keeps that one last) and calls the rest ``UNKNOWN_<bit>``.
+    """
+    table = _BY_COUNT_AND_BIT.get(flag_count)
+    if table is None:
+        if flag_count > 0 and bit == flag_count - 1:
+            return replace(ARMING_FLAGS[ArmingFlag.ARM_SWITCH], bit=bit)
+        table = _BY_BIT if bit < ArmingFlag.ARM_SWITCH else {}
+    known = table.get(bit)
     if known is not None:
         return known
     return ArmingFlagInfo(
@@ -262,13 +291,21 @@ def arming_flag_info(bit: int) -> ArmingFlagInfo:
     )
 
 
-def decode_arming_flags(mask: int) -> tuple[ArmingFlagInfo, ...]:
+def decode_arming_flags(
+    mask: int, flag_count: int = ARMING_DISABLE_FLAGS_COUNT
+) -> tuple[ArmingFlagInfo, ...]:
     """Every set bit of an arming-disable mask, in bit order (most critical first)."""
     if mask < 0:
         raise ValueError(f"arming-disable mask must be non-negative, got {mask}")
-    return tuple(arming_flag_info(bit) for bit in range(mask.bit_length()) if mask >> bit & 1)
+    return tuple(arming_flag_info(bit, flag_count)
+                 for bit in range(mask.bit_length()) if mask >> bit & 1)
 
 
-def arming_flags_text(mask: int) -> str:
+def arming_flags_text(mask: int, flag_count: int = ARMING_DISABLE_FLAGS_COUNT) -> str:
     """The mask as CLI ``status`` would print it, e.g. ``"RXLOSS ANGLE BOOTGRACE"``."""
-    return " ".join(info.cli_name for info in decode_arming_flags(mask))
+    return " ".join(info.cli_name for info in decode_arming_flags(mask, flag_count))
+
+
+def all_arming_flags() -> tuple[ArmingFlagInfo, ...]:
+    """Every flag any supported firmware has (for looking a name up)."""
+    return (*ARMING_FLAGS, AUTOPILOT_FLAG)

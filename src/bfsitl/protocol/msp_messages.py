@@ -281,25 +281,38 @@ class FcVariant:
 
 @dataclass(frozen=True, slots=True)
 class FcVersion:
-    """MSP_FC_VERSION (3): U8 major, minor, patch (msp.c:642-646)."""
+    """MSP_FC_VERSION (3): U8 major, minor, patch (4.6 msp.c:642-646).
+
+    Master (calendar versions) sends U8 year - 2000, U8 month, U8 patch and then the whole
+    version as a PStr, e.g. ``2026.12.0-alpha`` (master msp.c:688-695); :attr:`text` is that
+    string when present.
+    """
 
     COMMAND: ClassVar[int] = MspCommand.FC_VERSION
     major: int
     minor: int
     patch: int
+    version_string: str | None = None
 
     @property
     def text(self) -> str:
+        if self.version_string:
+            return self.version_string
         return f"{self.major}.{self.minor}.{self.patch}"
 
     @classmethod
     def decode(cls, payload: bytes) -> Self:
         r = _reader(cls, payload)
-        return cls(r.u8(), r.u8(), r.u8())
+        major, minor, patch = r.u8(), r.u8(), r.u8()
+        version_string = _read_pstr(r) if r.remaining() else None
+        return cls(major, minor, patch, version_string)
 
     @_encoder
     def encode(self) -> bytes:
-        return PayloadWriter().u8(self.major).u8(self.minor).u8(self.patch).build()
+        w = PayloadWriter().u8(self.major).u8(self.minor).u8(self.patch)
+        if self.version_string is not None:
+            w.raw(_pstr_bytes(self.version_string))
+        return w.build()
 
 
 @dataclass(frozen=True, slots=True)
@@ -497,6 +510,7 @@ class _StatusView:
     __slots__ = ()
     flight_mode_flags: int
     arming_disable_flags: int
+    arming_disable_flag_count: int
     sensors_mask: int
     config_state: int
 
@@ -507,7 +521,8 @@ class _StatusView:
 
     @property
     def arming_blockers(self) -> tuple[ArmingFlagInfo, ...]:
-        return decode_arming_flags(self.arming_disable_flags)
+        # The flag count the firmware sends picks the bit table (4.6: 29, master: 30).
+        return decode_arming_flags(self.arming_disable_flags, self.arming_disable_flag_count)
 
     @property
     def sensors(self) -> tuple[str, ...]:
@@ -701,27 +716,36 @@ class Rc:
     yaw, throttle, AUX1... (msp.c:1311-1315) - not the AETR order MSP_SET_RAW_RC takes.
 
     The count is the receiver's (18 for MSP RX, 16 after the SITL's UDP RC took over). Only the
-    first ``max_aux_channels + 4`` are processed (10 on SITL); the rest read 1500.
+    first ``max_aux_channels + 4`` are processed (10 on SITL); the rest read 1500. Master's UDP
+    receiver reports no channels at all until the first RC packet: an empty reply is valid
+    (:attr:`has_channels` False), and the stick properties then read 0.
     """
 
     COMMAND: ClassVar[int] = MspCommand.RC
     channels_us: tuple[int, ...]
 
     @property
+    def has_channels(self) -> bool:
+        return bool(self.channels_us)
+
+    def _channel(self, index: int) -> int:
+        return self.channels_us[index] if index < len(self.channels_us) else 0
+
+    @property
     def roll_us(self) -> int:
-        return self.channels_us[0]
+        return self._channel(0)
 
     @property
     def pitch_us(self) -> int:
-        return self.channels_us[1]
+        return self._channel(1)
 
     @property
     def yaw_us(self) -> int:
-        return self.channels_us[2]
+        return self._channel(2)
 
     @property
     def throttle_us(self) -> int:
-        return self.channels_us[3]
+        return self._channel(3)
 
     @property
     def aux_us(self) -> tuple[int, ...]:
@@ -732,8 +756,9 @@ class Rc:
     def decode(cls, payload: bytes) -> Self:
         r = _reader(cls, payload)
         count = _array(r, 2, "MSP Rc")
-        if count < 4:
-            raise MspDecodeError(f"MSP Rc: needs at least 4 channels (8 bytes), got {len(payload)}")
+        if 0 < count < 4:
+            raise MspDecodeError(f"MSP Rc: needs 0 or at least 4 channels (8 bytes), got "
+                                 f"{len(payload)} bytes")
         return cls(tuple(r.u16() for _ in range(count)))
 
     @_encoder
@@ -777,6 +802,55 @@ class Attitude:
         return (
             PayloadWriter().s16(self.roll_decideg).s16(self.pitch_decideg).s16(self.yaw_deg).build()
         )
+
+
+@dataclass(frozen=True, slots=True)
+class RawGps:
+    """MSP_RAW_GPS (106): U8 fix, U8 satellites, S32 lat and lon in 1e-7 deg, U16 altitude in
+    WHOLE metres (clamped at 0), U16 ground speed cm/s, U16 course in decidegrees, U16 PDOP
+    (1.44) (msp.c MSP_RAW_GPS). Only builds with GPS answer it; others send an error frame.
+    """
+
+    COMMAND: ClassVar[int] = MspCommand.RAW_GPS
+    fix: int
+    satellites: int
+    lat_e7: int
+    lon_e7: int
+    altitude_m: int
+    ground_speed_cm_s: int
+    course_decideg: int
+    pdop: int | None = None
+
+    @property
+    def has_fix(self) -> bool:
+        return bool(self.fix)
+
+    @property
+    def lat_deg(self) -> float:
+        return self.lat_e7 * 1e-7
+
+    @property
+    def lon_deg(self) -> float:
+        return self.lon_e7 * 1e-7
+
+    @property
+    def ground_speed_m_s(self) -> float:
+        return self.ground_speed_cm_s * 0.01
+
+    @classmethod
+    def decode(cls, payload: bytes) -> Self:
+        r = _reader(cls, payload)
+        head = (r.u8(), r.u8(), r.s32(), r.s32(), r.u16(), r.u16(), r.u16())
+        pdop = r.u16() if r.remaining() >= 2 else None
+        return cls(*head, pdop)
+
+    @_encoder
+    def encode(self) -> bytes:
+        w = (PayloadWriter().u8(self.fix).u8(self.satellites).s32(self.lat_e7).s32(self.lon_e7)
+             .u16(self.altitude_m).u16(self.ground_speed_cm_s).u16(self.course_decideg))
+        if self.pdop is not None:
+            w.u16(self.pdop)
+        return w.build()
 
 
 @dataclass(frozen=True, slots=True)

@@ -39,6 +39,10 @@ def _check_size(kind: str, data: bytes, expected: int) -> None:
 
 
 def _check_finite(kind: str, values: tuple[float, ...]) -> None:
+    # One sum for the usual case (a NaN or an infinity makes it non-finite, and so would an
+    # overflow of huge values, which the loop then clears); the loop names the field.
+    if math.isfinite(sum(values)):
+        return
     for index, value in enumerate(values):
         if not math.isfinite(value):
             raise PacketError(f"{kind}: field {index} is {value!r}; every value must be finite")
@@ -48,6 +52,8 @@ def _check_finite(kind: str, values: tuple[float, ...]) -> None:
 class FdmPacket:
     """Flight dynamics state for the FC (UDP 9003).
 
+    The layout is the same in every generation; what the fields mean differs
+    (:mod:`bfsitl.protocol.firmware_profile`, encoded by :mod:`bfsitl.sim.fdm_encoding`).
     Conventions as the 4.6.0 SITL reads them (``sitl.c updateState``): gyro in body FRD rad/s
     (FC uses +x, -y, -z); accelerometer as specific force in m/s^2, which the FC negates, so a
     level craft at rest sends (0, 0, -9.80665); quaternion w, x, y, z body-FRD to world-NED,
@@ -93,9 +99,11 @@ class FdmPacket:
 class ServoPacket:
     """Motor commands from the FC (UDP 9002): 0..1 (3D mode: -1..1).
 
-    The slots are in the FC's remapped order: ``motor_speed[3]`` is Betaflight motor 1,
-    ``[0]`` motor 2, ``[1]`` motor 3, ``[2]`` motor 4 (``sitl.c pwmCompleteMotorUpdate``);
-    :meth:`betaflight_motors` undoes that.
+    The slot order depends on the firmware generation
+    (``FirmwareProfile.motor_slot_of_betaflight_motor``): 4.6.0 remaps them,
+    ``motor_speed[3]`` is Betaflight motor 1, ``[0]`` motor 2, ``[1]`` motor 3, ``[2]`` motor 4
+    (``sitl.c pwmCompleteMotorUpdate``); master sends them in order. :meth:`betaflight_motors`
+    undoes either.
     """
 
     motor_speed: tuple[float, float, float, float]
@@ -117,16 +125,26 @@ class ServoPacket:
         return cls(values)
 
     @classmethod
-    def from_betaflight_motors(cls, motors: tuple[float, float, float, float]) -> ServoPacket:
-        slots = [0.0] * 4
-        for motor_index, slot in enumerate(cls.SLOT_OF_BETAFLIGHT_MOTOR):
-            slots[slot] = motors[motor_index]
-        return cls((slots[0], slots[1], slots[2], slots[3]))
+    def from_betaflight_motors(
+        cls, motors: tuple[float, float, float, float],
+        slots: tuple[int, int, int, int] | None = None,
+    ) -> ServoPacket:
+        values = [0.0] * 4
+        for motor_index, slot in enumerate(cls.SLOT_OF_BETAFLIGHT_MOTOR if slots is None
+                                           else slots):
+            values[slot] = motors[motor_index]
+        return cls((values[0], values[1], values[2], values[3]))
 
-    def betaflight_motors(self) -> tuple[float, float, float, float]:
-        """Motor commands in Betaflight numbering (M1, M2, M3, M4)."""
+    def betaflight_motors(
+        self, slots: tuple[int, int, int, int] | None = None
+    ) -> tuple[float, float, float, float]:
+        """Motor commands in Betaflight numbering (M1, M2, M3, M4).
+
+        ``slots``: the slot of each motor, from the firmware profile
+        (``FirmwareProfile.motor_slot_of_betaflight_motor``); default 4.6's remap.
+        """
         s = self.motor_speed
-        m = self.SLOT_OF_BETAFLIGHT_MOTOR
+        m = self.SLOT_OF_BETAFLIGHT_MOTOR if slots is None else slots
         return (s[m[0]], s[m[1]], s[m[2]], s[m[3]])
 
 

@@ -34,8 +34,12 @@ from dataclasses import dataclass
 from typing import Any, Literal, Protocol, TypeVar
 
 from bfsitl.errors import PacketError, PortInUseError, SitlError
-from bfsitl.protocol.sitl_packets import FdmPacket, ServoPacket
+from bfsitl.protocol.firmware_profile import DEFAULT_PROFILE, FirmwareProfile
+from bfsitl.protocol.sitl_packets import ServoPacket
 from bfsitl.sim.clock_lock import PRIMER_PACKETS, PRIMER_SPACING_S, FrozenRateStamps
+from bfsitl.sim.fdm_encoding import FdmEncoder
+from bfsitl.sim.frames import GeoPoint
+from bfsitl.sim.sensors import SensorReading
 from bfsitl.sitl.ports import SIM_UDP_PORTS, find_port_holders
 from bfsitl.sitl.process import SitlProcess
 from bfsitl.sitl.timer_slack import set_timer_slack
@@ -44,6 +48,8 @@ SITL_HOST = "127.0.0.1"
 FDM_PORT = 9003
 SERVO_PORT = 9002
 DEFAULT_STEP_S = 0.001
+#: A lockstep build answers with the servo packet and the fdm timestamp (sim/lockstep.py).
+LOCKSTEP_REPLY_SIZE = 24
 
 Motors = tuple[float, float, float, float]
 T = TypeVar("T")
@@ -58,11 +64,7 @@ class SensorSource(Protocol):
 
     def step(self, motors: Motors, dt_s: float) -> None: ...
 
-    def read_sensors(self) -> _Reading: ...
-
-
-class _Reading(Protocol):
-    def to_fdm_packet(self, timestamp_s: float, position_mode: str = "ned") -> FdmPacket: ...
+    def read_sensors(self) -> SensorReading: ...
 
 
 class _SocketFactory(Protocol):
@@ -101,6 +103,26 @@ class BridgeStats:
         )
 
 
+def bind_motor_port(network: _SocketFactory) -> socket.socket:
+    """UDP 9002 bound (non-blocking) in ``network``, or a PortInUseError naming who has it."""
+    sock = network.socket(socket.AF_INET, socket.SOCK_DGRAM)
+    try:
+        sock.bind((SITL_HOST, SERVO_PORT))
+    except OSError as exc:
+        sock.close()
+        if exc.errno == errno.EADDRINUSE:
+            netns_pid = getattr(network, "netns_pid", None)
+            holders = find_port_holders((), SIM_UDP_PORTS[:1], netns_pid=netns_pid)
+            who = "; ".join(h.describe() for h in holders) or "another process"
+            raise PortInUseError(
+                f"UDP {SERVO_PORT} (motor packets from the SITL) is taken: {who}. Stop "
+                f"the other simulator, or run isolated (--start uses its own namespace)."
+            ) from exc
+        raise SitlError(f"cannot bind UDP {SERVO_PORT}: {exc}") from exc
+    sock.setblocking(False)
+    return sock
+
+
 class SitlBridge:
     """Runs a physics model against a SITL, on a thread of its own.
 
@@ -116,7 +138,7 @@ class SitlBridge:
         speed: float = 1.0,
         step_s: float = DEFAULT_STEP_S,
         timestamps: TimestampMode = "frozen",
-        position_mode: str = "ned",
+        profile: FirmwareProfile = DEFAULT_PROFILE,
         on_step: Callable[[SitlBridge], None] | None = None,
     ) -> None:
         if not 0.0001 <= step_s <= 0.01:
@@ -126,7 +148,7 @@ class SitlBridge:
         self.speed = speed
         self.step_s = step_s
         self.timestamps = timestamps
-        self.position_mode = position_mode
+        self._use_profile(profile, getattr(simulator, "home", GeoPoint(0.0, 0.0)))
         self.on_step = on_step
         #: The command applied to the physics, Betaflight motor order M1..M4.
         self.motors: Motors = (0.0, 0.0, 0.0, 0.0)
@@ -147,27 +169,26 @@ class SitlBridge:
         self.error: BaseException | None = None
         self._actions: queue.SimpleQueue[Callable[[], None]] = queue.SimpleQueue()
 
+    @property
+    def profile(self) -> FirmwareProfile:
+        return self.encoder.profile
+
+    def set_profile(self, profile: FirmwareProfile) -> None:
+        """Speak another firmware generation's conventions (before :meth:`start`: the
+        profile is known once the FC has said who it is, after the motor port is bound)."""
+        if self._thread is not None:
+            raise SitlError("the firmware profile must be set before the bridge starts")
+        self._use_profile(profile, self.encoder.home)
+
+    def _use_profile(self, profile: FirmwareProfile, home: GeoPoint) -> None:
+        self.encoder = FdmEncoder(profile, home)
+        self._motor_slots = profile.motor_slot_of_betaflight_motor
+
     # -- sockets ---------------------------------------------------------------------------
     def bind(self) -> None:
         """Bind the motor port; call before the SITL starts so its boot packet is caught."""
-        if self._sock is not None:
-            return
-        sock = self.network.socket(socket.AF_INET, socket.SOCK_DGRAM)
-        try:
-            sock.bind((SITL_HOST, SERVO_PORT))
-        except OSError as exc:
-            sock.close()
-            if exc.errno == errno.EADDRINUSE:
-                netns_pid = getattr(self.network, "netns_pid", None)
-                holders = find_port_holders((), SIM_UDP_PORTS[:1], netns_pid=netns_pid)
-                who = "; ".join(h.describe() for h in holders) or "another process"
-                raise PortInUseError(
-                    f"UDP {SERVO_PORT} (motor packets from the SITL) is taken: {who}. Stop "
-                    f"the other simulator, or run isolated (--start uses its own namespace)."
-                ) from exc
-            raise SitlError(f"cannot bind UDP {SERVO_PORT}: {exc}") from exc
-        sock.setblocking(False)
-        self._sock = sock
+        if self._sock is None:
+            self._sock = bind_motor_port(self.network)
 
     def close(self) -> None:
         self.stop()
@@ -261,7 +282,7 @@ class SitlBridge:
     # -- the loop --------------------------------------------------------------------------
     def _send(self, timestamp_s: float) -> None:
         assert self._sock is not None
-        packet = self.simulator.read_sensors().to_fdm_packet(timestamp_s, self.position_mode)
+        packet = self.encoder.encode(self.simulator.read_sensors(), timestamp_s)
         try:
             self._sock.sendto(packet.pack(), (SITL_HOST, FDM_PORT))
         except (BlockingIOError, ConnectionRefusedError):
@@ -281,8 +302,12 @@ class SitlBridge:
                 return count
             except ConnectionRefusedError:
                 continue  # ICMP from an earlier send to a closed 9003
+            if len(data) == LOCKSTEP_REPLY_SIZE:
+                # A lockstep build's reply: the servo packet, then the stamp it answers. Paced
+                # by this bridge, such a build simply follows the packets' time.
+                data = data[:ServoPacket.SIZE]
             try:
-                self.motors = ServoPacket.unpack(data).betaflight_motors()
+                self.motors = ServoPacket.unpack(data).betaflight_motors(self._motor_slots)
             except PacketError:
                 continue  # not ours (9001's raw packet has another size): ignore
             count += 1
@@ -420,9 +445,15 @@ def bridged_sitl(
     and on the way out the bridge stops before the SITL does.
     """
     bridge = SitlBridge(simulator, sitl.prepare_network(), **bridge_options)
+    if sitl.firmware.lockstep:
+        # A lockstep build's clock *is* the timestamps: the rate-frozen ones, made to steer a
+        # stock SITL's rate estimate, would run it 60x fast. Paced here, it follows sim time.
+        bridge.timestamps = "sim"
     bridge.bind()
     try:
         with sitl:
+            if "profile" not in bridge_options:
+                bridge.set_profile(sitl.profile)
             bridge.start()
             wait_for_replies(bridge)
             yield bridge

@@ -311,3 +311,16 @@ class Wind:
             raise SimInputError(
                 f"Wind: gust_time_constant_s must be > 0, got {self.gust_time_constant_s}"
             )
+
+    @classmethod
+    def from_direction(cls, speed_m_s: float, from_deg: float = 0.0,
+                       gust_std_m_s: float = 0.0) -> Wind:
+        """A horizontal wind of ``speed_m_s`` blowing FROM ``from_deg`` (the meteorological
+        convention: 0 = from the north, so the air moves south; 90 = from the east)."""
+        if not (math.isfinite(speed_m_s) and speed_m_s >= 0):
+            raise SimInputError(f"Wind: speed must be >= 0 m/s, got {speed_m_s}")
+        if not math.isfinite(from_deg):
+            raise SimInputError(f"Wind: direction must be finite, got {from_deg}")
+        heading = math.radians(from_deg)
+        return cls((-speed_m_s * math.cos(heading), -speed_m_s * math.sin(heading), 0.0),
+                   gust_std_m_s)

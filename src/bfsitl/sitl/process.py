@@ -10,10 +10,14 @@ Facts that shape it (``shared/FIRMWARE_FACTS.md``):
 * The ports are bound with SO_REUSEADDR: a second SITL would share them silently, so they are
   checked before the start, in the network the SITL will run in.
 * One TCP client per UART: the probe's connection is kept and handed out as :attr:`client`.
+* Once it answers, the firmware says who it is and :attr:`profile` holds the conventions of its
+  generation (:mod:`bfsitl.protocol.firmware_profile`), which the physics bridge, the RC link
+  and the commands follow.
 """
 
 from __future__ import annotations
 
+import os
 import shutil
 import signal
 import tempfile
@@ -29,8 +33,11 @@ from bfsitl.errors import (
     SitlLockedOutError,
     SitlNotReadyError,
 )
+from bfsitl.fc.firmware_detect import detect_profile
 from bfsitl.fc.msp_client import DEFAULT_RETRIES, DEFAULT_TIMEOUT_S, MspClient
+from bfsitl.link.base import Link
 from bfsitl.link.tcp_link import TcpLink
+from bfsitl.protocol.firmware_profile import DEFAULT_PROFILE, BuildOptions, FirmwareProfile
 from bfsitl.protocol.msp_messages import ApiVersion
 from bfsitl.sitl.firmware import FirmwareBinary, find_firmware
 from bfsitl.sitl.network import HostNetwork, IsolatedNetwork, Network, ProcessHandle
@@ -43,11 +50,32 @@ SITL_MSP_PORT = 5761
 LOG_NAME = "sitl.log"
 #: A healthy start answers in well under a second; see start() for why there is a retry.
 DEFAULT_READY_TIMEOUT_S = 10.0
-_START_ATTEMPTS = 2
+#: Launches before giving up.  A boot race hits a few % of launches on a loaded 2-core
+#: machine, but in runs: three launches in a row (a restart after `save`) ended one CI run
+#: and five in a row another, so the retries wait longer each time (_retry_wait_s) to outlast
+#: a busy spell.  A lockstep build has no such race (its scheduler passes land on the gyro
+#: grid).
+_START_ATTEMPTS = 8
+#: The first retry's wait; it doubles per retry up to _RETRY_WAIT_MAX_S (about 10 s in all).
+_RETRY_WAIT_S = 0.25
+_RETRY_WAIT_MAX_S = 2.0
 _PROBE_INTERVAL_S = 0.05
 #: A healthy SITL has run its PID task many times by the time MSP first answers.
 PID_LOOP_TIMEOUT_S = 0.5
 _TERM_GRACE_S = 3.0
+
+
+def _retry_wait_s(attempt: int) -> float:
+    """The wait before launch ``attempt + 1``: doubling from _RETRY_WAIT_S, capped."""
+    return min(_RETRY_WAIT_S * 2.0 ** (attempt - 1), _RETRY_WAIT_MAX_S)
+
+
+def _load_average() -> str:
+    """The machine's 1-minute load for a failed launch's message (the races need a busy one)."""
+    try:
+        return f"load average {os.getloadavg()[0]:.1f} on {os.cpu_count()} CPUs"
+    except OSError:
+        return "load average unknown"
 
 
 class SitlProcess:
@@ -86,10 +114,19 @@ class SitlProcess:
         self.network: Network | None = network
         self._process: ProcessHandle | None = None
         self.client: MspClient | None = None
+        #: The conventions of the running firmware, detected at every start; 4.6.0's before.
+        self.profile: FirmwareProfile = DEFAULT_PROFILE
         #: Starts that came up ready (a reboot's restart counts; a retried launch does not).
         self.starts = 0
         #: Every process launched, including ones killed and retried (hung or locked out).
         self.launches = 0
+        #: Called right after each launch, before the SITL is probed (a lockstep bridge locks
+        #: the booting FC to the simulator's clock here).
+        self.on_spawn: Callable[[], None] | None = None
+        #: Wraps every MSP link this process opens, with the clock its clients time out on
+        #: (lockstep: a link whose waits step the simulation, and simulation time).
+        self.link_wrapper: Callable[[Link], Link] | None = None
+        self.client_clock: Callable[[], float] | None = None
 
     # -- state -----------------------------------------------------------------------------
     @property
@@ -151,8 +188,11 @@ class SitlProcess:
                                                timer_slack_ns=self.timer_slack_ns)
             self.launches += 1
             try:
+                if self.on_spawn is not None:
+                    self.on_spawn()
                 self.client = self._wait_ready(self.ready_timeout_s, server_check)
                 self._check_pid_loop(self.client)
+                self.profile = detect_profile(self.client, self.build_options())
                 self.starts += 1
                 break
             except SitlNotReadyError as exc:
@@ -161,14 +201,29 @@ class SitlProcess:
                 # locked the PID task out (_check_pid_loop), a few % of starts on a busy
                 # machine; or the SITL stayed silent for another reason.
                 self._terminate()
+                load = _load_average()
                 if attempt == _START_ATTEMPTS:
+                    exc.args = (f"{exc} ({attempt} launches in a row failed at boot; "
+                                f"{load}; a lockstep build has no such boot race: "
+                                f"bfsitl firmware build --lockstep)",)
                     raise
-                self._progress(f"{exc.brief}; killed it, starting again")
+                wait_s = _retry_wait_s(attempt)
+                self._progress(f"{exc.brief}; killed it ({load}), starting again in "
+                               f"{wait_s:.2g} s")
+                time.sleep(wait_s)  # let a busy spell pass: these races come in runs
             except BaseException:
                 self._terminate()
                 raise
         self._progress(f"SITL ready (pid {self.pid}) on {self.uri}")
         return self
+
+    def build_options(self) -> BuildOptions | None:
+        """What the binary was built with, when bfsitl built it (its build record)."""
+        try:
+            from bfsitl.build import build_options_for_binary
+        except ImportError:
+            return None
+        return build_options_for_binary(self.firmware.path)
 
     def _log_size(self) -> int:
         try:
@@ -217,14 +272,16 @@ class SitlProcess:
         when the tasks run.  So if the main thread's first passes after ``tasksInit()`` skip
         the 125..250 us window (preempted or faulting for ~100 us on a busy machine) the
         tasks never run in this process, and no fdm packet is ever answered.  MSP_STATUS
-        cycleTime is the PID task's last period: 0 until the task has run.
+        cycleTime is the PID task's last period: 0 until the task has run.  Master's scheduler
+        has the same start margin (``schedLoopStartCycles``, scheduler.c) and was seen locked
+        out the same way.
         """
         deadline = time.monotonic() + PID_LOOP_TIMEOUT_S
         while not client.status().cycle_time_us:
             if time.monotonic() >= deadline:
                 raise SitlLockedOutError(
                     f"the SITL (pid {self.pid}) answers MSP but its gyro/PID tasks have not "
-                    f"run in {PID_LOOP_TIMEOUT_S} s (MSP_STATUS cycleTime 0): 4.6.0's "
+                    f"run in {PID_LOOP_TIMEOUT_S} s (MSP_STATUS cycleTime 0): the firmware's "
                     f"scheduler locked them out at boot, for the life of the process"
                 )
             time.sleep(_PROBE_INTERVAL_S)
@@ -235,9 +292,13 @@ class SitlProcess:
         """A new MSP client on a new connection (the SITL serves one client per port)."""
         if self.network is None:
             raise SitlError("SITL not started")
-        link = TcpLink(SITL_HOST, SITL_MSP_PORT, timeout_s=timeout_s,
-                       socket_factory=self.network.socket)
-        return MspClient(link, timeout_s=timeout_s, retries=retries)
+        link: Link = TcpLink(SITL_HOST, SITL_MSP_PORT, timeout_s=timeout_s,
+                             socket_factory=self.network.socket)
+        if self.link_wrapper is None:
+            return MspClient(link, timeout_s=timeout_s, retries=retries)
+        # Stepped: the FC reads TCP at every packet, so no wake bytes; time is simulated.
+        return MspClient(self.link_wrapper(link), timeout_s=timeout_s, retries=retries,
+                         wake_interval_s=None, clock=self.client_clock or time.monotonic)
 
     def wait_exit(self, timeout_s: float) -> int | None:
         """Wait for the process to end by itself (after a reboot); its exit code or None."""

@@ -51,7 +51,7 @@ class TcpServerCheck:
         if self._bind_failed():
             raise SitlTcpServerLostError(
                 f"the SITL could not open TCP {self.port} (its log says the bind failed): "
-                f"4.6.0's TCP thread freed the port's server while the main thread was "
+                f"the SITL's TCP thread freed the port's server while the main thread was "
                 f"creating it (a race at boot), or another process holds the port"
             )
         if self.accept_queue() > 0:
@@ -60,7 +60,8 @@ class TcpServerCheck:
             elif now_s - self._queued_since_s >= self.stall_s:
                 raise SitlTcpServerLostError(
                     f"the SITL listens on TCP {self.port} but has accepted no connection in "
-                    f"{self.stall_s:g} s: 4.6.0's TCP thread lost the port's server at boot "
+                    f"{self.stall_s:g} s: the SITL's TCP thread (4.6.0 and master) lost the "
+                    f"port's server at boot "
                     f"(a race), so it will never answer MSP"
                 )
         else:

@@ -1,0 +1,219 @@
+"""Lockstep vs real time: the default mission on the stock SITL and on a ``--lockstep`` build.
+
+For each generation (4.6.0 and master) the default mission (arm, 2 s on the ground, take off
+to 2 m, hold ``--hold`` s, land) is flown with the fused controller and ``--seed``:
+
+* on the stock binary in real-time mode (the baseline, measured in the same run), and
+* on the lockstep build at ``--speed max``.
+
+Per flight: wall time from the session's start to its end, simulated time, their ratio, the
+share of fdm packets answered, the FC clock against the simulated clock (MSP_RTC, over 2 s of
+simulated time after landing), the PID cycle in FC time, and the altitude metrics (rise,
+settling, hold RMS/max) so that the two modes can be compared.  For lockstep, the per-step
+time budget: the exchange with the FC (packing, UDP both ways and the firmware's passes), the
+physics, and the Python rest (mission loop, MSP parsing, log), plus the SITL's CPU time per
+step (it polls for the next packet for up to 0.3 ms before it sleeps, so this includes a
+little waiting).
+
+``--starts N`` also starts N lockstep SITLs (each locked at boot and probed over MSP, then
+stopped) while ``--busy`` processes spin on the CPU, and counts the failed starts.
+
+Firmware: the stock 4.6.0 of the betaflight package and the cached builds named ``master``,
+``4.6.0-lockstep`` and ``master-lockstep`` (``--build`` makes any that are missing).
+Run: ``python benchmarks/lockstep.py [--hold 10] [--repeats 1] [--starts 200 --busy 2]``.
+"""
+
+from __future__ import annotations
+
+import argparse
+import multiprocessing
+import os
+import statistics
+import sys
+import time
+from dataclasses import dataclass
+from pathlib import Path
+
+from bfsitl.build import BuildProgress, FirmwareBuildOptions, FirmwareCache, build_firmware
+from bfsitl.control import make_controller
+from bfsitl.errors import BfsitlError
+from bfsitl.mission import FlightSession, MissionPlan, SessionConfig, run_mission
+from bfsitl.sim.health import HealthMonitor
+from bfsitl.sitl.firmware import find_firmware
+
+MASTER_TARBALL = (Path(__file__).resolve().parents[2] / "shared" / "firmware" /
+                  "betaflight-2026.12.0-alpha-301d01a-sitl-src.tar.xz")
+BUILDS = {  # name: (source, lockstep)
+    "master": (MASTER_TARBALL, False),
+    "4.6.0-lockstep": (None, True),
+    "master-lockstep": (MASTER_TARBALL, True),
+}
+
+
+@dataclass
+class Flight:
+    firmware: str
+    mode: str
+    outcome: str
+    wall_s: float
+    sim_s: float
+    answered: float
+    fc_clock_ratio: float | None
+    cycle_us: float
+    rise_s: float | None
+    settle_s: float | None
+    hold_rms_cm: float | None
+    hold_max_cm: float | None
+    exchange_us: float | None = None
+    physics_us: float | None = None
+    python_us: float | None = None
+    fc_cpu_us: float | None = None
+
+
+def firmware_path(name: str, build_missing: bool) -> str:
+    if name == "4.6.0":
+        return str(find_firmware(None).path)
+    cache = FirmwareCache()
+    entry = cache.resolve(name)
+    if entry is not None:
+        return str(entry.binary_path)
+    if not build_missing:
+        sys.exit(f"no cached build named {name!r}: run with --build (or `bfsitl firmware "
+                 f"build ... --name {name}`)")
+    source, lockstep = BUILDS[name]
+    print(f"building {name} ...", file=sys.stderr)
+    result = build_firmware(source, FirmwareBuildOptions(lockstep=lockstep), name=name,
+                            cache=cache, progress=BuildProgress(live=False))
+    return str(result.binary_path)
+
+
+def sitl_cpu_s(pid: int | None) -> float | None:
+    if pid is None:
+        return None
+    try:
+        fields = Path(f"/proc/{pid}/stat").read_text().split(")")[-1].split()
+    except OSError:
+        return None
+    return (int(fields[11]) + int(fields[12])) / os.sysconf("SC_CLK_TCK")
+
+
+def fly(name: str, path: str, lockstep: bool, hold_s: float, seed: int) -> Flight:
+    config = SessionConfig(firmware=path, seed=seed, lockstep=lockstep)
+    started_s = time.perf_counter()
+    with FlightSession(config) as session:
+        result = run_mission(session, MissionPlan(hold_s=hold_s), make_controller("fused"))
+        assert session.bridge is not None
+        monitor = HealthMonitor(session.bridge, session.client)  # type: ignore[arg-type]
+        monitor.reset()
+        session.clock.sleep_s(2.0)
+        health = monitor.sample()
+        stats = session.bridge.stats()
+        flight = Flight(
+            name, "lockstep max" if lockstep else "real time 1x", result.outcome.value, 0.0,
+            stats.sim_time_s, stats.answered_ratio, health.fc_clock_ratio,
+            health.fc_cycle_us or 0.0,
+            getattr(result.metrics, "rise_time_s", None),
+            getattr(result.metrics, "settling_time_s", None),
+            result.hold.rms_error_m * 100 if result.hold else None,
+            result.hold.max_abs_error_m * 100 if result.hold else None)
+        if lockstep:
+            budget = session.bridge.lockstep_stats()  # type: ignore[union-attr]
+            steps = max(budget.steps, 1)
+            flight.exchange_us = budget.exchange_s / steps * 1e6
+            flight.physics_us = budget.physics_s / steps * 1e6
+            flight.python_us = (budget.wall_time_s - budget.exchange_s - budget.physics_s) \
+                / steps * 1e6
+            cpu_s = sitl_cpu_s(session.sitl.pid if session.sitl else None)
+            flight.fc_cpu_us = cpu_s / steps * 1e6 if cpu_s is not None else None
+    flight.wall_s = time.perf_counter() - started_s
+    return flight
+
+
+def spin() -> None:
+    while True:
+        pass
+
+
+def starts(path: str, count: int, busy: int) -> tuple[int, list[str], float]:
+    spinners = [multiprocessing.Process(target=spin, daemon=True) for _ in range(busy)]
+    for process in spinners:
+        process.start()
+    failures: list[str] = []
+    started_s = time.perf_counter()
+    try:
+        for index in range(count):
+            try:
+                with FlightSession(SessionConfig(firmware=path, profile=None, lockstep=True)) \
+                        as session:
+                    session.client.status()
+            except BfsitlError as exc:
+                failures.append(f"start {index + 1}: {str(exc).splitlines()[0]}")
+    finally:
+        for process in spinners:
+            process.terminate()
+    return count, failures, time.perf_counter() - started_s
+
+
+def fmt(value: float | None, spec: str) -> str:
+    return "-" if value is None else format(value, spec)
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--hold", type=float, default=10.0, help="hold seconds (default 10)")
+    parser.add_argument("--repeats", type=int, default=1, help="flights per row (median)")
+    parser.add_argument("--seed", type=int, default=1)
+    parser.add_argument("--build", action="store_true", help="build missing firmware")
+    parser.add_argument("--starts", type=int, default=0, help="lockstep starts to count")
+    parser.add_argument("--busy", type=int, default=2, help="busy loops during --starts")
+    parser.add_argument("--generations", default="4.6.0,master")
+    args = parser.parse_args()
+
+    rows: list[Flight] = []
+    for generation in args.generations.split(","):
+        stock = firmware_path(generation, args.build)
+        lockstep = firmware_path(f"{generation}-lockstep", args.build)
+        for path, is_lockstep in ((stock, False), (lockstep, True)):
+            flights = [fly(generation, path, is_lockstep, args.hold, args.seed)
+                       for _ in range(args.repeats)]
+            flights.sort(key=lambda f: f.wall_s)
+            rows.append(flights[len(flights) // 2])
+            print(f"flew {generation} {rows[-1].mode}: {rows[-1].wall_s:.1f} s",
+                  file=sys.stderr)
+
+    print("| firmware | mode | outcome | wall s | sim s | sim/wall | vs real time | answered "
+          "| FC clock / sim | PID cycle us | rise s | settle s | hold RMS cm | hold max cm |")
+    print("|" + "---|" * 14)
+    baseline = {r.firmware: r.wall_s for r in rows if r.mode.startswith("real")}
+    for r in rows:
+        speedup = baseline.get(r.firmware, r.wall_s) / r.wall_s
+        print(f"| {r.firmware} | {r.mode} | {r.outcome} | {r.wall_s:.1f} | {r.sim_s:.1f} | "
+              f"{r.sim_s / r.wall_s:.2f}x | {speedup:.2f}x | {r.answered * 100:.1f} % | "
+              f"{fmt(r.fc_clock_ratio, '.3f')} | {r.cycle_us:.0f} | {fmt(r.rise_s, '.2f')} | "
+              f"{fmt(r.settle_s, '.2f')} | {fmt(r.hold_rms_cm, '.1f')} | "
+              f"{fmt(r.hold_max_cm, '.1f')} |")
+    print()
+    print("| firmware | per step: exchange us | physics us | Python rest us | total us | "
+          "SITL CPU us |")
+    print("|---|---|---|---|---|---|")
+    for r in rows:
+        if r.exchange_us is None:
+            continue
+        total = (r.exchange_us or 0) + (r.physics_us or 0) + (r.python_us or 0)
+        print(f"| {r.firmware} | {r.exchange_us:.0f} | {r.physics_us:.0f} | "
+              f"{r.python_us:.0f} | {total:.0f} | {fmt(r.fc_cpu_us, '.0f')} |")
+    if args.starts:
+        path = firmware_path(f"{args.generations.split(',')[0]}-lockstep", args.build)
+        count, failures, took_s = starts(path, args.starts, args.busy)
+        print()
+        print(f"lockstep starts with {args.busy} busy loops: {count - len(failures)}/{count} "
+              f"ready ({took_s / count:.2f} s each)")
+        for failure in failures[:10]:
+            print("  " + failure)
+    spread = [r.hold_rms_cm for r in rows if r.hold_rms_cm is not None]
+    if spread:
+        print(f"\nhold RMS across rows: median {statistics.median(spread):.1f} cm")
+
+
+if __name__ == "__main__":
+    main()

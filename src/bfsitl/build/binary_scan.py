@@ -1,0 +1,76 @@
+"""What a SITL binary is, read from its bytes without running it.
+
+* The command-line form: master's ``targetParseArgs`` prints a usage text that contains
+  ``--ip <address>``, takes the address only as ``--ip ADDR`` and exits 1 on anything else, a
+  bare address included; 4.6.0 copies ``argv[1]`` as the address and has no such text.  The
+  file name says nothing reliable (binaries get renamed and copied), so the bytes decide.
+* Compiled-in features: the CLI's setting names are NUL-terminated strings in the binary, and a
+  setting exists only when its feature is compiled in (``gps_provider`` only with USE_GPS,
+  ``gps_rescue_*`` with USE_GPS_RESCUE, ``alt_hold_*`` / ``pos_hold_*`` with altitude and
+  position hold).
+
+A SITL is half a megabyte; the scan maps it and searches it in a few milliseconds, and its
+result is kept per (path, size, mtime, inode), so asking twice costs a ``stat``.
+"""
+
+from __future__ import annotations
+
+import functools
+import mmap
+import os
+from dataclasses import dataclass
+
+IP_FLAG_MARKER = b"--ip <address>"
+LOCKSTEP_MARKER = b"[LOCKSTEP] bfsitl lockstep build"
+"""Printed at boot by a ``--lockstep`` build (:mod:`bfsitl.build.lockstep`)."""
+"""In master's usage text (sitl.c ``targetParseArgs``); absent from 4.6.0."""
+
+FEATURE_MARKERS: dict[str, bytes] = {
+    "gps": b"\x00gps_provider\x00",
+    "gps_rescue": b"\x00gps_rescue_",
+    "altitude_hold": b"\x00alt_hold_",
+    "position_hold": b"\x00pos_hold_",
+}
+"""Feature name -> a CLI setting name that exists only when the feature is compiled in."""
+
+
+@dataclass(frozen=True)
+class BinaryTraits:
+    """What the bytes of one SITL binary say."""
+
+    #: The address is passed as ``--ip ADDR`` (master), not as a bare ``argv[1]`` (4.6.0).
+    takes_ip_flag: bool
+    #: Names from :data:`FEATURE_MARKERS` whose settings the binary contains.
+    features: tuple[str, ...]
+    #: Built with ``--lockstep``: its clock follows fdm packets, RC rides in them.
+    lockstep: bool = False
+
+    @property
+    def has_gps(self) -> bool:
+        return "gps" in self.features
+
+
+def binary_traits(path: str | os.PathLike[str]) -> BinaryTraits:
+    """Scan ``path`` (following symlinks); raises OSError when it cannot be read."""
+    info = os.stat(path)
+    return _scan(os.path.realpath(path), info.st_size, info.st_mtime_ns, info.st_ino, info.st_dev)
+
+
+@functools.lru_cache(maxsize=64)
+def _scan(real_path: str, _size: int, _mtime_ns: int, _ino: int, _dev: int) -> BinaryTraits:
+    # The stat fields are only part of the cache key: a rebuilt binary is scanned afresh.
+    with open(real_path, "rb") as handle:
+        if os.fstat(handle.fileno()).st_size == 0:
+            return BinaryTraits(False, ())
+        with mmap.mmap(handle.fileno(), 0, access=mmap.ACCESS_READ) as mapped:
+            takes_ip = mapped.find(IP_FLAG_MARKER) >= 0
+            lockstep = mapped.find(LOCKSTEP_MARKER) >= 0
+            features = tuple(name for name, marker in FEATURE_MARKERS.items()
+                             if mapped.find(marker) >= 0)
+    return BinaryTraits(takes_ip, features, lockstep)
+
+
+def clear_cache() -> None:
+    """Forget every scan (tests that rewrite a file within one mtime tick)."""
+    _scan.cache_clear()
+

@@ -1,0 +1,148 @@
+"""The lockstep patch: hooks added to the SITL platform's ``sitl.c``, and the code they call.
+
+The code is ``sitl_lockstep.c`` beside this file (its header says why it works as it does).
+It is included at the end of ``src/platform/SIMULATOR/sitl.c``, so it sees that file's static
+sockets and packets, and the edits below route the platform's clock, delays, main-loop pause,
+motor output and I/O threads to it.  Each edit is anchored on a line of ``sitl.c`` that 4.6.0
+and master share and must match exactly once; a tree where any anchor is missing (another
+release reorganised the file) is refused with the anchor's name instead of being half-patched.
+Only the copy bfsitl builds is changed, never the user's source.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import re
+from dataclasses import dataclass
+from importlib import resources
+from pathlib import Path
+
+from bfsitl.errors import FirmwareBuildError
+
+SITL_C = Path("src/platform/SIMULATOR/sitl.c")
+LOCKSTEP_C_NAME = "sitl_lockstep.c"
+#: Written into the patched sitl.c; `binary_traits` finds it in the binary's strings.
+MARKER = "[LOCKSTEP] bfsitl lockstep build"
+
+
+@dataclass(frozen=True)
+class Edit:
+    """Insert ``text`` after (or instead of) the one match of ``anchor`` in sitl.c."""
+
+    name: str
+    anchor: str          # a regular expression (re.MULTILINE)
+    text: str
+    replace: bool = False
+
+    def apply(self, source: str) -> str:
+        matches = list(re.finditer(self.anchor, source, re.MULTILINE))
+        if len(matches) != 1:
+            found = "not found" if not matches else f"found {len(matches)} times"
+            raise FirmwareBuildError(
+                f"--lockstep does not fit this tree: sitl.c's {self.name} ({found}). The patch "
+                f"knows Betaflight 4.6 and master (2026.12); build this tree without --lockstep"
+            )
+        match = matches[0]
+        if self.replace:
+            return source[:match.start()] + self.text + source[match.end():]
+        return source[:match.end()] + self.text + source[match.end():]
+
+
+def _body_start(signature: str) -> str:
+    """A function definition's opening: its signature line and the brace line."""
+    return r"^" + signature + r"\s*\n\{\n"
+
+
+def _thread_start(name: str) -> str:
+    """A thread function's opening, through its ``UNUSED(data);`` line."""
+    return _body_start(rf"static void\s*\*\s*{name}\(void\s*\*\s*data\)") + \
+        r"    UNUSED\(data\);\n"
+
+
+def _early_return(value: str) -> str:
+    return f"#if defined(SITL_LOCKSTEP)\n    return {value};\n#endif\n"
+
+
+EDITS: tuple[Edit, ...] = (
+    Edit("includes (#include \"udplink.h\")", r'^#include "udplink\.h"\n',
+         "\n#define SITL_LOCKSTEP 1\n"
+         "static uint64_t lockstepNowUs(void);\n"
+         "static uint32_t lockstepCycleCounter(void);\n"
+         "static void lockstepAdvanceBy(uint64_t us);\n"
+         "static void lockstepLoopEnd(void);\n"
+         "static void lockstepInit(void);\n"),
+    Edit("fdm thread (udpThread)",
+         _thread_start("udpThread"),
+         "#if defined(SITL_LOCKSTEP)\n    return NULL;  // the main loop reads fdm packets\n"
+         "#endif\n"),
+    Edit("TCP thread (tcpThread)",
+         _thread_start("tcpThread"),
+         "#if defined(SITL_LOCKSTEP)\n    return NULL;  // the main loop services dyad\n"
+         "#endif\n"),
+    Edit("system start (systemInit's clock_gettime)",
+         r"^    clock_gettime\(CLOCK_MONOTONIC, &start_time\);\n",
+         "#if defined(SITL_LOCKSTEP)\n    lockstepInit();\n#endif\n"),
+    Edit("clock (micros64)", _body_start(r"uint64_t micros64\(void\)"),
+         _early_return("lockstepNowUs()")),
+    Edit("clock (millis64)", _body_start(r"uint64_t millis64\(void\)"),
+         _early_return("lockstepNowUs() / 1000")),
+    Edit("cycle counter (getCycleCounter)", _body_start(r"uint32_t getCycleCounter\(void\)"),
+         _early_return("lockstepCycleCounter()")),
+    Edit("delay (delayMicroseconds)",
+         _body_start(r"void delayMicroseconds\(uint32_t us\)"),
+         "#if defined(SITL_LOCKSTEP)\n    lockstepAdvanceBy(us);\n    return;\n#endif\n"),
+    Edit("delay (delay)", _body_start(r"void delay\(uint32_t ms\)"),
+         "#if defined(SITL_LOCKSTEP)\n    lockstepAdvanceBy((uint64_t)ms * 1000);\n"
+         "    return;\n#endif\n"),
+    Edit("main-loop pause (delayMicroseconds_real)",
+         _body_start(r"void delayMicroseconds_real\(uint32_t us\)"),
+         "#if defined(SITL_LOCKSTEP)\n    UNUSED(us);\n    lockstepLoopEnd();\n    return;\n"
+         "#endif\n"),
+    Edit("motor output (pwmCompleteMotorUpdate's reply)",
+         r'^    // get one "fdm_packet" can only send one "servo_packet"!!\n',
+         "#if defined(SITL_LOCKSTEP)\n    return;  // the main loop sends one reply per packet\n"
+         "#endif\n"),
+    Edit("fdm wall-clock timeout (updateState)",
+         r"^    if \(realtime_now > last_realtime \+ 500\*1e3\) \{",
+         "    if (!SITL_LOCKSTEP && realtime_now > last_realtime + 500*1e3) {", replace=True),
+)
+
+
+def lockstep_source() -> str:
+    return resources.files(__package__).joinpath(LOCKSTEP_C_NAME).read_text()
+
+
+def patch_sitl_source(source: str) -> str:
+    """sitl.c with the lockstep hooks and code; raises FirmwareBuildError if it does not fit."""
+    if MARKER in source or "lockstepLoopEnd" in source:
+        raise FirmwareBuildError("this sitl.c already carries the lockstep patch")
+    patched = source
+    for edit in EDITS:
+        patched = edit.apply(patched)
+    # master feeds UDP RC through rx.c's rxUpdateUdpChannels; 4.6 sets the rx callbacks itself.
+    rc_via_rx_udp = int("rxUpdateUdpChannels(" in source)
+    return (patched.rstrip("\n") + "\n\n/* bfsitl lockstep (see sitl_lockstep.c) */\n"
+            f"#define LOCKSTEP_RC_VIA_RX_UDP {rc_via_rx_udp}\n"
+            f'#include "{LOCKSTEP_C_NAME}"\n')
+
+
+@dataclass(frozen=True)
+class LockstepPatch:
+    """The tree hook of ``bfsitl firmware build --lockstep``."""
+
+    description: str = "apply the lockstep patch (FC clock driven by fdm packets)"
+
+    def key_material(self) -> str:
+        digest = hashlib.sha256(lockstep_source().encode())
+        for edit in EDITS:
+            digest.update(f"{edit.name}\0{edit.anchor}\0{edit.text}\0{edit.replace}".encode())
+        return "lockstep:" + digest.hexdigest()[:16]
+
+    def __call__(self, tree: Path) -> None:
+        sitl_c = tree / SITL_C
+        if not sitl_c.is_file():
+            raise FirmwareBuildError(
+                f"--lockstep: this tree has no {SITL_C} (the SIMULATOR platform the patch "
+                f"changes); build it without --lockstep")
+        sitl_c.write_text(patch_sitl_source(sitl_c.read_text()))
+        (sitl_c.parent / LOCKSTEP_C_NAME).write_text(lockstep_source())

@@ -1,0 +1,293 @@
+/*
+ * bfsitl lockstep for the Betaflight SITL (SIMULATOR platform only).
+ *
+ * Written for bfsitl and applied by `bfsitl firmware build --lockstep`, which includes this
+ * file at the end of src/platform/SIMULATOR/sitl.c (so it sees that file's statics) and adds a
+ * few hooks there (see bfsitl/build/lockstep/patch.py).  Nothing outside the platform changes:
+ * the scheduler, the PID loop and every flight feature run as they are.
+ *
+ * WHY, and how:
+ *
+ * 1. The FC clock is a counter, never the wall clock.  micros(), millis() and the scheduler's
+ *    cycle counter read `lockstepClockUs`; nothing moves it but this file.
+ *
+ * 2. The main loop's pause between scheduler passes (delayMicroseconds_real, the only caller
+ *    is run() in main.c) is where time moves: each pass advances the clock by one quantum
+ *    (`lockstepPassUs`, at most 25 us, a divisor of the gyro period and of 1 ms).  Passes
+ *    land exactly on every gyro target, so GYRO/FILTER/PID run once per gyro period and the
+ *    passes between them run the other tasks.  Stock 4.6.0 can lock its gyro/PID tasks out
+ *    for the life of the process when the first passes after boot miss a 1 us window on the
+ *    wall clock; on this grid that window is always hit.
+ *    A pass between two gyro targets that ran no task is followed by a jump to the next gyro
+ *    target (such a pass reads the cycle counter at most LOCKSTEP_IDLE_READS times; one that
+ *    ran a task reads it five times): most of those passes have nothing to do, and each still
+ *    costs a walk over every task's check.  The pass after a gyro target is never skipped (the
+ *    scheduler runs no other task in the gyro's own pass), so a task that falls due in the
+ *    skipped time runs at most one gyro period late, the next ones one pass apart.  The gyro targets are multiples of the gyro period: the scheduler takes
+ *    its first one from the clock, which boot leaves on whole milliseconds (5. below).
+ *
+ * 3. The first fdm packet locks the clock: from then on FC time = packet time + a fixed
+ *    offset, chosen so that the clock does not jump (the scheduler cannot recover from a jump
+ *    of more than one gyro period: its catch-up always aims past the next grid point).  For
+ *    each packet the passes run up to its time, then exactly one reply goes back and the main
+ *    thread waits for the next packet: it polls the socket for LOCKSTEP_SPIN_US (a stepping
+ *    simulator answers within that, and waking a sleeping thread costs as much again), then
+ *    sleeps in select(); nothing depends on how fast the host is.  A packet whose time is not newer is answered again and not applied.
+ *    The reply is the servo packet followed by the timestamp of the packet it answers (a
+ *    double), so a simulator that resends can tell a late answer from the current one.
+ *    The main loop waits up to LOCKSTEP_BOOT_WAIT_US of wall time for the first packet: a
+ *    simulator that sends it while the SITL boots (bfsitl does) locks it at its first pass,
+ *    so a run is deterministic from boot.  Without one the clock free-runs until a packet
+ *    comes: it follows the wall clock (sleeping when ahead), so a SITL without a simulator
+ *    boots, answers MSP and the CLI as before.
+ *
+ * 4. Inputs take effect at a defined FC time, so a run repeats:
+ *    - RC rides in the fdm datagram (fdm_packet followed by rc_packet) and is applied with the
+ *      sensors when the packet is taken, before the passes it covers.  The stock RC port stays
+ *      open for other tools; bfsitl does not use it in lockstep.
+ *    - TCP (MSP and the CLI, through dyad) is serviced by the main thread only, once per
+ *      packet, just before its reply goes out (see lockstepReply).  There is no TCP
+ *      thread, which also removes the stock races between it and the main thread (the listen
+ *      socket set up while the thread starts dyad, and the serial TX buffer it flushes while
+ *      the main thread writes it).
+ *    - The fdm thread is gone too: the main thread reads the fdm socket itself.
+ *
+ * 5. delay()/delayMicroseconds() advance the clock during boot (rounded up to whole
+ *    milliseconds, which keeps the pass grid aligned with the scheduler's first gyro target)
+ *    and do nothing once the main loop runs: a pass takes no FC time, as if the FC were
+ *    infinitely fast, and FC time never passes the packet's time.
+ *
+ * Sensor timing: packet k's sensors are seen by every pass after packet k-1's time up to
+ * packet k's time, and the motor command sent back is the one computed at packet k's time.
+ */
+
+#include <sys/select.h>
+#include <sys/socket.h>
+
+#ifndef LOCKSTEP_MAX_PASS_US
+#define LOCKSTEP_MAX_PASS_US 25
+#endif
+#ifndef LOCKSTEP_BOOT_WAIT_US
+#define LOCKSTEP_BOOT_WAIT_US 1000000
+#endif
+#ifndef LOCKSTEP_BOOT_GRID_US
+#define LOCKSTEP_BOOT_GRID_US 1000ULL
+#endif
+#ifndef LOCKSTEP_WAIT_POLL_US
+#define LOCKSTEP_WAIT_POLL_US 20000
+#endif
+#ifndef LOCKSTEP_SPIN_US
+#define LOCKSTEP_SPIN_US 300
+#endif
+#ifndef LOCKSTEP_IDLE_READS
+#define LOCKSTEP_IDLE_READS 3
+#endif
+#ifndef LOCKSTEP_FREE_RUN_IO_US
+#define LOCKSTEP_FREE_RUN_IO_US 1000ULL
+#endif
+
+typedef struct {
+    fdm_packet fdm;
+    rc_packet rc;
+} lockstepDatagram_t;
+
+typedef struct {
+    servo_packet servo;
+    double timestamp;  // of the fdm packet answered
+} lockstepReply_t;
+
+static uint64_t lockstepClockUs;
+static uint32_t lockstepCycleSkew;
+static bool lockstepLoopRunning;
+static bool lockstepLocked;
+static uint64_t lockstepTargetUs;
+static int64_t lockstepOffsetUs;
+static uint32_t lockstepPassUs = LOCKSTEP_MAX_PASS_US;
+static uint32_t lockstepGyroPeriodUs = 125;
+static uint64_t lockstepNextIoUs;
+static uint64_t lockstepPaceOriginClockUs;
+static uint64_t lockstepPaceOriginWallUs;
+static uint64_t lockstepPacketsTaken;
+static double lockstepLastStampS;
+
+static void lockstepInit(void)
+{
+    // The main thread owns dyad: set it up before the serial ports open their listeners.
+    dyad_init();
+    dyad_setTickInterval(0.2f);
+    dyad_setUpdateTimeout(0.0f);
+    printf("[LOCKSTEP] bfsitl lockstep build: FC time follows fdm packets (RC inside them)\n");
+}
+
+static uint64_t lockstepNowUs(void)
+{
+    return lockstepClockUs;
+}
+
+static uint32_t lockstepCycleCounter(void)
+{
+    if (!lockstepLoopRunning) {
+        return (uint32_t)lockstepClockUs;  // the scheduler's first gyro target: on the grid
+    }
+    // The scheduler may poll the cycle counter for a gyro target a few cycles ahead; each read
+    // within one pass moves it on by a cycle so such a poll ends (deterministically).  The
+    // count of reads also tells whether the pass ran a task (see 2. above).
+    return (uint32_t)(lockstepClockUs + lockstepCycleSkew++);
+}
+
+static void lockstepAdvanceBy(uint64_t us)
+{
+    if (lockstepLoopRunning) {
+        return;
+    }
+    const uint64_t until = lockstepClockUs + us;
+    lockstepClockUs = ((until + LOCKSTEP_BOOT_GRID_US - 1) / LOCKSTEP_BOOT_GRID_US) * LOCKSTEP_BOOT_GRID_US;
+}
+
+static uint32_t lockstepChoosePassUs(void)
+{
+    taskInfo_t gyro;
+    getTaskInfo(TASK_GYRO, &gyro);
+    const uint32_t periodUs = gyro.desiredPeriodUs > 0 ? (uint32_t)gyro.desiredPeriodUs : 125;
+    lockstepGyroPeriodUs = periodUs;
+    for (uint32_t pass = LOCKSTEP_MAX_PASS_US; pass > 1; pass--) {
+        if (periodUs % pass == 0 && LOCKSTEP_BOOT_GRID_US % pass == 0) {
+            return pass;
+        }
+    }
+    return 1;
+}
+
+static void lockstepApplyRc(const rc_packet *rc)
+{
+    rcPkt = *rc;
+#if LOCKSTEP_RC_VIA_RX_UDP
+    rxUpdateUdpChannels(rcPkt.channels, SIMULATOR_MAX_RC_CHANNELS);
+#else
+    if (!rc_received) {
+        rxRuntimeState.channelCount = SIMULATOR_MAX_RC_CHANNELS;
+        rxRuntimeState.rcReadRawFn = readRCSITL;
+        rxRuntimeState.rcFrameStatusFn = rxRCFrameStatus;
+        rxRuntimeState.rxProvider = RX_PROVIDER_UDP;
+    }
+#endif
+    rc_received = true;
+}
+
+static void lockstepReply(double stampS)
+{
+    // TCP is serviced here and only here once locked, once per packet: MSP/CLI replies
+    // written during the passes leave before the servo packet, and bytes that came since the
+    // last reply are read, to be handled in the next packet's passes.  So a request sent
+    // between two packets is answered two packets later, whatever the host's timing.  The
+    // RealFlight port (9001) gets nothing: the lockstep reply is bfsitl's.
+    dyad_update();
+    const lockstepReply_t reply = { .servo = pwmPkt, .timestamp = stampS };
+    udpSend(&pwmLink, &reply, sizeof(reply));
+}
+
+// One datagram if one comes within timeoutUs (polled for the first spinUs, then select());
+// true if it was a new packet.
+static bool lockstepTake(uint32_t timeoutUs, uint32_t spinUs)
+{
+    lockstepDatagram_t datagram;
+    ssize_t n = -1;
+    const uint64_t spinUntilUs = micros64_real() + spinUs;
+    do {
+        n = recv(stateLink.fd, &datagram, sizeof(datagram), MSG_DONTWAIT);
+    } while (n < 0 && spinUs > 0 && micros64_real() < spinUntilUs);
+    if (n < 0) {
+        fd_set fds;
+        struct timeval tv = { .tv_sec = timeoutUs / 1000000, .tv_usec = timeoutUs % 1000000 };
+        FD_ZERO(&fds);
+        FD_SET(stateLink.fd, &fds);
+        if (select(stateLink.fd + 1, &fds, NULL, NULL, &tv) != 1) {
+            return false;
+        }
+        n = recv(stateLink.fd, &datagram, sizeof(datagram), MSG_DONTWAIT);
+    }
+    if (n < (ssize_t)sizeof(fdm_packet)) {
+        return false;  // not an fdm packet: ignored
+    }
+    const int64_t stampUs = llround(datagram.fdm.timestamp * 1e6);
+    if (!lockstepLocked) {
+        // No jump: the packet's time is now (see 3. above).
+        lockstepOffsetUs = (int64_t)lockstepClockUs - stampUs;
+        lockstepLocked = true;
+        lockstepTargetUs = 0;
+        printf("[LOCKSTEP] locked to the simulator at FC time %llu us (fdm time %.6f s)%s\n",
+               (unsigned long long)lockstepClockUs, datagram.fdm.timestamp,
+               lockstepPacketsTaken == 0 && lockstepClockUs == lockstepPaceOriginClockUs
+                   ? ", at the first pass" : " after free-running");
+        fflush(stdout);
+    }
+    const int64_t targetUs = stampUs + lockstepOffsetUs;
+    if (targetUs <= (int64_t)lockstepTargetUs) {
+        lockstepReply(datagram.fdm.timestamp);  // every packet gets its one answer
+        return false;
+    }
+    lockstepLastStampS = datagram.fdm.timestamp;
+    lockstepPacketsTaken++;
+    if (n >= (ssize_t)sizeof(lockstepDatagram_t)) {
+        lockstepApplyRc(&datagram.rc);
+    }
+    fdm_received = true;
+    updateState(&datagram.fdm);
+    lockstepTargetUs = (uint64_t)targetUs;
+    return true;
+}
+
+// The end of every main-loop pass (replaces the stock 50 us sleep).
+static void lockstepLoopEnd(void)
+{
+    const bool ranNoTask = lockstepCycleSkew <= LOCKSTEP_IDLE_READS;
+    lockstepCycleSkew = 0;
+    if (!lockstepLoopRunning) {
+        lockstepLoopRunning = true;
+        lockstepPassUs = lockstepChoosePassUs();
+        lockstepPaceOriginClockUs = lockstepClockUs;
+        lockstepPaceOriginWallUs = micros64_real();
+        lockstepNextIoUs = lockstepClockUs;
+        printf("[LOCKSTEP] main loop at FC time %llu us, a pass every %u us of FC time\n",
+               (unsigned long long)lockstepClockUs, (unsigned)lockstepPassUs);
+        fflush(stdout);
+        if (lockstepTake(LOCKSTEP_BOOT_WAIT_US, 0)) {
+            return;  // locked at the first pass: the next pass is at the packet's time
+        }
+    }
+    if (lockstepLocked) {
+        if (lockstepClockUs >= lockstepTargetUs) {
+            lockstepReply(lockstepLastStampS);
+            // A stepping simulator answers within microseconds: poll briefly before sleeping.
+            while (!lockstepTake(LOCKSTEP_WAIT_POLL_US, LOCKSTEP_SPIN_US)) {
+                // The simulator is silent: FC time stands still, and TCP waits for it too.
+            }
+        }
+        uint64_t nextUs = lockstepClockUs + lockstepPassUs;
+        // Not after the gyro's own pass: the scheduler runs no other task in it.
+        if (ranNoTask && lockstepClockUs % lockstepGyroPeriodUs != 0 &&
+            lockstepGyroPeriodUs % lockstepPassUs == 0) {
+            const uint64_t gyroUs = (lockstepClockUs / lockstepGyroPeriodUs + 1) * lockstepGyroPeriodUs;
+            if (gyroUs <= lockstepTargetUs) {
+                nextUs = gyroUs;
+            }
+        }
+        lockstepClockUs = nextUs;
+        return;
+    }
+    lockstepClockUs += lockstepPassUs;
+    if (lockstepClockUs < lockstepNextIoUs) {
+        return;
+    }
+    lockstepNextIoUs = lockstepClockUs + LOCKSTEP_FREE_RUN_IO_US;
+    dyad_update();
+    if (lockstepTake(0, 0)) {
+        return;  // the next pass, at the packet's time, sees it
+    }
+    // Free run: keep the FC clock at the wall clock's pace.
+    const uint64_t clockElapsedUs = lockstepClockUs - lockstepPaceOriginClockUs;
+    const uint64_t wallElapsedUs = micros64_real() - lockstepPaceOriginWallUs;
+    if (clockElapsedUs > wallElapsedUs) {
+        microsleep((uint32_t)MIN(clockElapsedUs - wallElapsedUs, 100000ULL));
+    }
+}

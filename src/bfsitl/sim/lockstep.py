@@ -1,0 +1,418 @@
+"""Lockstep: the physics and a ``--lockstep`` SITL advance together, one step at a time.
+
+A lockstep build (``bfsitl firmware build --lockstep``, :mod:`bfsitl.build.lockstep`) takes
+its clock from the fdm packets: for each packet it runs its scheduler up to the packet's time
+and sends exactly one servo packet back.  So nothing here waits on the wall clock: a step is
+
+1. send the state at t_k, with the RC command in the same datagram (it takes effect with the
+   sensors, at a defined FC time);
+2. wait for the one reply, which names the packet it answers (MSP bytes the FC wrote during
+   those passes are already readable);
+3. integrate the physics over one step with that motor command.
+
+The SITL is locked at boot: :meth:`LockstepBridge.lock` sends the first packet while the
+process starts (``SitlProcess.on_spawn``), so the FC's first scheduler pass already runs on
+the simulator's time and the whole run, boot included, repeats exactly.
+
+Everything runs in the caller's thread: the mission loop, MSP telemetry and the physics take
+turns, so a flight is a pure function of its inputs and seed.  :class:`SteppedLink` makes the
+MSP client step the simulation while it waits for a reply (the FC only answers while its
+clock moves), and :class:`LockstepClock` is the mission's clock: waiting means stepping.
+
+``speed=None`` steps as fast as the machine allows (``--speed max``); a number paces the
+steps to that multiple of real time (a wall-clock sleep that only changes how long it takes).
+"""
+
+from __future__ import annotations
+
+import math
+import select
+import socket
+import struct
+import time
+from collections.abc import Callable
+from dataclasses import dataclass
+from typing import Protocol, TypeVar
+
+from bfsitl.errors import PacketError, SitlError, SitlExitedError
+from bfsitl.fc.rc_link import SAFE_COMMAND, RcCommand, RcLinkStats
+from bfsitl.link.base import Link
+from bfsitl.protocol.firmware_profile import DEFAULT_PROFILE, FirmwareProfile
+from bfsitl.protocol.sitl_packets import RcPacket, ServoPacket
+from bfsitl.sim.bridge import (
+    FDM_PORT,
+    SITL_HOST,
+    BridgeStats,
+    Motors,
+    SensorSource,
+    bind_motor_port,
+)
+from bfsitl.sim.fdm_encoding import FdmEncoder
+from bfsitl.sim.frames import GeoPoint
+
+T = TypeVar("T")
+
+#: Busy-poll the reply this long before sleeping in select(): a reply usually comes within
+#: tens of microseconds, and waking a sleeping thread costs about as much again.
+REPLY_SPIN_S = 0.0005
+#: No reply this long (wall time) means the FC is gone or not a lockstep build.
+REPLY_TIMEOUT_S = 2.0
+#: Resend the same packet (the FC answers a repeat without applying it) this often first.
+REPLY_RETRIES = 2
+#: The lock packet is repeated this often while the SITL boots, until it answers.
+LOCK_RESEND_S = 0.005
+LOCK_TIMEOUT_S = 10.0
+#: A lockstep reply: the servo packet, then the timestamp of the fdm packet it answers.
+REPLY_FORMAT = struct.Struct("<4fd")
+
+
+def decode_reply(data: bytes) -> tuple[tuple[float, float, float, float], float]:
+    """(motor_speed[4] as sent, timestamp answered); PacketError if ``data`` is not one."""
+    if len(data) != REPLY_FORMAT.size:
+        raise PacketError(f"a lockstep reply is {REPLY_FORMAT.size} bytes, got {len(data)}")
+    *speeds, stamp = REPLY_FORMAT.unpack(data)
+    return (speeds[0], speeds[1], speeds[2], speeds[3]), stamp
+
+
+class _SocketFactory(Protocol):
+    def socket(self, family: int, kind: int) -> socket.socket: ...
+
+
+@dataclass(frozen=True, slots=True)
+class LockstepStats:
+    """Wall-clock cost of the steps so far (what ``benchmarks/lockstep.py`` reports)."""
+
+    steps: int
+    sim_time_s: float
+    wall_time_s: float
+    exchange_s: float     # sending the packet and waiting for the FC's reply
+    physics_s: float      # integrating the physics
+    resends: int
+
+
+class LockstepBridge:
+    """Steps a physics model against a lockstep SITL, in the caller's thread.
+
+    It offers what a :class:`~bfsitl.sim.bridge.SitlBridge` offers a session (motors, stats,
+    ``between_steps``), plus :meth:`step`, :meth:`run_for` and the RC command that rides in
+    every packet.
+
+    >>> bridge = LockstepBridge(Simulator(), sitl.prepare_network())   # doctest: +SKIP
+    >>> bridge.bind(); sitl.start(); bridge.start(); bridge.run_for(1.0)
+    """
+
+    def __init__(
+        self,
+        simulator: SensorSource,
+        network: _SocketFactory,
+        *,
+        speed: float | None = None,
+        step_s: float = 0.001,
+        profile: FirmwareProfile = DEFAULT_PROFILE,
+        on_step: Callable[[LockstepBridge], None] | None = None,
+        alive: Callable[[], None] | None = None,
+        wall_clock: Callable[[], float] = time.perf_counter,
+        sleep: Callable[[float], None] = time.sleep,
+    ) -> None:
+        if not 0.0001 <= step_s <= 0.01:
+            raise ValueError(f"step_s {step_s} outside 0.1..10 ms")
+        if speed is not None and not (math.isfinite(speed) and speed > 0):
+            raise ValueError(f"speed {speed} must be a positive number or None (max)")
+        self.simulator = simulator
+        self.network = network
+        self.speed = speed
+        self.step_s = step_s
+        self.on_step = on_step
+        #: Called when a reply is overdue; raises if the SITL has died (set by the session).
+        self.alive = alive
+        self._wall = wall_clock
+        self._sleep = sleep
+        self.encoder = FdmEncoder(profile, getattr(simulator, "home", GeoPoint(0.0, 0.0)))
+        self.motors: Motors = (0.0, 0.0, 0.0, 0.0)
+        self.rc_command: RcCommand = SAFE_COMMAND
+        self.error: BaseException | None = None
+        self._sock: socket.socket | None = None
+        self._started = False
+        self._locked = False
+        self._rc_packed = b""
+        self._rc_packed_for: RcCommand | None = None
+        self._steps = self._resends = 0
+        self._exchange_s = self._physics_s = 0.0
+        self._sim_start_s = 0.0
+        self._wall_start_s = 0.0
+
+    # -- what a session needs from any bridge ------------------------------------------------
+    @property
+    def profile(self) -> FirmwareProfile:
+        return self.encoder.profile
+
+    def set_profile(self, profile: FirmwareProfile) -> None:
+        self.encoder = FdmEncoder(profile, self.encoder.home)
+
+    @property
+    def sim_time_s(self) -> float:
+        return self.simulator.time_s
+
+    def between_steps(self, action: Callable[[], T], timeout_s: float = 2.0) -> T:
+        """Steps only happen when the caller asks: between two of them is always now."""
+        return action()
+
+    def stats(self) -> BridgeStats:
+        wall_s = self._wall() - self._wall_start_s if self._started else 0.0
+        return BridgeStats(self._steps, self._steps + self._resends, self._steps, 0, 0,
+                           self.simulator.time_s - self._sim_start_s, wall_s)
+
+    def lockstep_stats(self) -> LockstepStats:
+        wall_s = self._wall() - self._wall_start_s if self._started else 0.0
+        return LockstepStats(self._steps, self.simulator.time_s - self._sim_start_s, wall_s,
+                             self._exchange_s, self._physics_s, self._resends)
+
+    # -- sockets and lifecycle ---------------------------------------------------------------
+    def bind(self) -> None:
+        """Bind the motor port (before the SITL starts, like the real-time bridge)."""
+        if self._sock is None:
+            self._sock = bind_motor_port(self.network)
+
+    def start(self) -> LockstepBridge:
+        """Ready to step (nothing runs in the background)."""
+        self.bind()
+        if not self._started:
+            self._started = True
+            self._sim_start_s = self.simulator.time_s
+            self._wall_start_s = self._wall()
+        return self
+
+    def lock(self) -> None:
+        """Lock a SITL that is booting (call right after spawning it): send the packet of now
+        until it answers, then take the physics step.  A restarted SITL is locked again."""
+        self.start()
+        assert self._sock is not None
+        stamp_s = self.simulator.time_s
+        datagram = self._datagram()
+        deadline_s = self._wall() + LOCK_TIMEOUT_S
+        while True:
+            self._send(datagram)
+            reply = self._wait_reply(stamp_s, LOCK_RESEND_S, spin=False)
+            if reply is not None:
+                break
+            if self._wall() > deadline_s:
+                raise SitlError(
+                    f"the SITL did not answer its first fdm packet within {LOCK_TIMEOUT_S:.0f} "
+                    f"s: is it a --lockstep build (`bfsitl firmware info`), in this network?")
+        self._locked = True
+        self._advance(reply, self._wall())
+
+    def stop(self) -> None:
+        self._started = False
+
+    def close(self) -> None:
+        self.stop()
+        if self._sock is not None:
+            self._sock.close()
+            self._sock = None
+
+    def __enter__(self) -> LockstepBridge:
+        return self.start()
+
+    def __exit__(self, *exc_info: object) -> None:
+        self.close()
+
+    # -- stepping --------------------------------------------------------------------------
+    def _datagram(self) -> bytes:
+        now_s = self.simulator.time_s
+        packet = self.encoder.encode(self.simulator.read_sensors(), now_s).pack()
+        return packet + self._rc_bytes(now_s)
+
+    def _rc_bytes(self, now_s: float) -> bytes:
+        # The firmware ignores the RC packet's timestamp; the channels change at the control
+        # rate, not every step, so their packing is kept.
+        command = self.rc_command
+        if command is not self._rc_packed_for:
+            self._rc_packed = RcPacket(now_s, command.channels_aetr()).pack()
+            self._rc_packed_for = command
+        return self._rc_packed
+
+    def step(self) -> None:
+        """One exchange with the FC, then one physics step with its reply."""
+        if not self._locked or self._sock is None:
+            raise SitlError("the lockstep bridge has no SITL locked to it (lock() first)")
+        began_s = self._wall()
+        stamp_s = self.simulator.time_s
+        datagram = self._datagram()
+        for _attempt in range(REPLY_RETRIES + 1):
+            self._send(datagram)
+            reply = self._wait_reply(stamp_s, REPLY_TIMEOUT_S / (REPLY_RETRIES + 1))
+            if reply is not None:
+                break
+            self._resends += 1
+        else:
+            raise SitlError(
+                f"the SITL did not answer an fdm packet within {REPLY_TIMEOUT_S:.0f} s (sim "
+                f"time {self.simulator.time_s:.3f} s). A lockstep build answers every packet: "
+                f"is it still running, and is it a --lockstep build (`bfsitl firmware info`)?")
+        self._advance(reply, began_s)
+
+    def _advance(self, motors: Motors, began_s: float) -> None:
+        self.motors = motors
+        stepped_s = self._wall()
+        self.simulator.step(self.motors, self.step_s)
+        done_s = self._wall()
+        self._exchange_s += stepped_s - began_s
+        self._physics_s += done_s - stepped_s
+        self._steps += 1
+        if self.on_step is not None:
+            self.on_step(self)
+        if self.speed is not None:
+            ahead_s = (self.simulator.time_s - self._sim_start_s) / self.speed - \
+                (done_s - self._wall_start_s)
+            if ahead_s > 0.002:
+                self._sleep(ahead_s)
+
+    def run_for(self, seconds: float) -> None:
+        """Step until ``seconds`` of simulation time have passed (at least one step if > 0)."""
+        self.run_until(self.simulator.time_s + seconds)
+
+    def run_until(self, time_s: float) -> None:
+        # Half a step of slack: float sums of step_s must not add a step.
+        while self.simulator.time_s + self.step_s / 2 < time_s:
+            self.step()
+
+    def _send(self, datagram: bytes) -> None:
+        assert self._sock is not None
+        try:
+            self._sock.sendto(datagram, (SITL_HOST, FDM_PORT))
+        except (BlockingIOError, ConnectionRefusedError):
+            pass  # no one on 9003 yet (or any more): the reply wait notices
+
+    def _receive(self, stamp_s: float) -> Motors | None:
+        """The reply to the packet stamped ``stamp_s`` if it has come; others are dropped."""
+        assert self._sock is not None
+        while True:
+            try:
+                data = self._sock.recv(64)
+            except (BlockingIOError, InterruptedError):
+                return None
+            except ConnectionRefusedError:
+                continue  # ICMP from an earlier send to a closed 9003
+            try:
+                speeds, answered_s = decode_reply(data)
+            except PacketError:
+                continue  # a stock servo packet, 9001's raw packet or garbage: not ours
+            if answered_s != stamp_s:
+                continue  # the answer to a resent packet, or to one before a restart
+            return ServoPacket(speeds).betaflight_motors(
+                self.encoder.profile.motor_slot_of_betaflight_motor)
+
+    def _wait_reply(self, stamp_s: float, timeout_s: float, *, spin: bool = True
+                    ) -> Motors | None:
+        assert self._sock is not None
+        start_s = self._wall()
+        spin_until_s = start_s + (REPLY_SPIN_S if spin else 0.0)
+        while True:
+            reply = self._receive(stamp_s)
+            if reply is not None:
+                return reply
+            now_s = self._wall()
+            if now_s < spin_until_s:
+                continue
+            remaining_s = start_s + timeout_s - now_s
+            if remaining_s <= 0:
+                return None
+            if not select.select([self._sock], [], [], min(remaining_s, 0.05))[0] and \
+                    self.alive is not None:
+                self.alive()  # a SITL that ended (a reboot, a crash) says so now
+
+
+class LockstepClock:
+    """The mission clock of a lockstep session: simulation time, and waiting steps it."""
+
+    def __init__(self, bridge: LockstepBridge) -> None:
+        self.bridge = bridge
+
+    def now_s(self) -> float:
+        return self.bridge.sim_time_s
+
+    def sleep_s(self, seconds: float) -> None:
+        if seconds > 0:
+            self.bridge.run_for(seconds)
+
+
+class LockstepRc:
+    """The RC command of a lockstep session: it rides in every fdm packet.
+
+    Offers what a session uses of an RC link (``set``, ``command``, ``stats``, ``close``);
+    closing centres the sticks, lowers the throttle and drops the switches, and steps a
+    tenth of a second so the FC has taken it.
+    """
+
+    FAREWELL_S = 0.1
+
+    def __init__(self, bridge: LockstepBridge) -> None:
+        self.bridge = bridge
+        self.closed = False
+
+    @property
+    def command(self) -> RcCommand:
+        return self.bridge.rc_command
+
+    def set(self, command: RcCommand) -> None:
+        command.channels_aetr()  # validated now, so errors surface here
+        self.bridge.rc_command = command
+
+    def start(self) -> LockstepRc:
+        return self
+
+    def stats(self) -> RcLinkStats:
+        steps = self.bridge.lockstep_stats().steps
+        period_ms = self.bridge.step_s * 1000
+        return RcLinkStats(steps, period_ms, period_ms, period_ms, 0)
+
+    def close(self) -> None:
+        if self.closed:
+            return
+        self.closed = True
+        self.bridge.rc_command = self.bridge.rc_command.disarmed()
+        try:
+            self.bridge.run_for(self.FAREWELL_S)
+        except (SitlError, OSError):
+            pass  # the SITL is gone: nothing holds the sticks any more
+
+
+class SteppedLink(Link):
+    """A link whose waits step the simulation: the lockstep FC answers only as time moves.
+
+    Reads are non-blocking on the wrapped link; while nothing has come, one step at a time is
+    taken until the timeout, counted in *simulation* seconds, has passed.
+    """
+
+    def __init__(self, inner: Link, bridge: LockstepBridge) -> None:
+        super().__init__(inner.uri, inner.timeout_s)
+        self.inner = inner
+        self.bridge = bridge
+
+    def _write_bytes(self, data: bytes) -> None:
+        self.inner._write_bytes(data)
+
+    def _read_bytes(self, max_bytes: int, timeout_s: float) -> bytes | None:
+        data = self.inner._read_bytes(max_bytes, 0.0)
+        if data or data is None or timeout_s <= 0:
+            return data
+        until_s = self.bridge.sim_time_s + timeout_s
+        while self.bridge.sim_time_s < until_s:
+            try:
+                self.bridge.step()
+            except SitlExitedError:
+                return None  # the SITL ended (a reboot): to the reader, the peer closed
+            data = self.inner._read_bytes(max_bytes, 0.0)
+            if data or data is None:
+                return data
+        return b""
+
+    def pause(self, seconds: float) -> None:
+        try:
+            self.bridge.run_for(seconds)
+        except SitlExitedError:
+            pass  # nothing on the other side to wait for; the next read reports it
+
+    def _close(self) -> None:
+        self.inner.close()

@@ -1,0 +1,164 @@
+"""Lockstep against the real firmware: both generations built with ``--lockstep``.
+
+What is checked: the same seed gives the same flight to the byte (and another seed does
+not); a disturbed flight in lockstep still has the FC's attitude follow the truth, with the
+right signs; MSP and the CLI work while the simulation steps, and a ``save`` that ends the
+process is followed by a new process locked again; a lockstep SITL without a simulator
+free-runs and answers like a stock one.  Speed is the benchmark's business
+(``benchmarks/lockstep.py``), not these tests'.
+"""
+
+from __future__ import annotations
+
+import csv
+import json
+import os
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+from bfsitl.build.binary_scan import binary_traits
+from bfsitl.fc.cli_session import CliSession
+from bfsitl.fc.rc_link import RC_MID_US
+from bfsitl.mission.runner import Mission
+from bfsitl.mission.session import FlightSession, SessionConfig
+from bfsitl.sim.params import Wind
+from bfsitl.sitl.process import SitlProcess
+
+pytestmark = pytest.mark.sitl
+
+BFSITL = [sys.executable, "-m", "bfsitl.cli.main"]
+#: Columns that hold the wall clock; everything else must repeat exactly.
+WALL_COLUMNS = {"wall_s"}
+
+
+def fly(tmp_path: Path, firmware: Path, *args: str) -> subprocess.CompletedProcess[str]:
+    env = {**os.environ}
+    env.pop("BFSITL_FIRMWARE", None)
+    return subprocess.run([*BFSITL, "fly", "--firmware", str(firmware), *args],
+                          capture_output=True, text=True, timeout=180, cwd=tmp_path, env=env)
+
+
+def simulated_columns(path: Path) -> list[dict[str, str]]:
+    with path.open(newline="") as file:
+        return [{k: v for k, v in row.items() if k not in WALL_COLUMNS}
+                for row in csv.DictReader(file)]
+
+
+def test_the_builds_are_lockstep(lockstep_firmware: Path) -> None:
+    assert binary_traits(lockstep_firmware).lockstep
+
+
+@pytest.mark.timeout(400)
+def test_the_same_seed_flies_the_same_flight_and_another_seed_does_not(
+        lockstep_firmware: Path, tmp_path: Path) -> None:
+    logs = []
+    for name, seed in (("a", "1"), ("b", "1"), ("c", "2")):
+        log, summary = tmp_path / f"{name}.csv", tmp_path / f"{name}.json"
+        done = fly(tmp_path, lockstep_firmware, "--seed", seed, "--hold", "3", "--log",
+                   str(log), "--summary", str(summary))
+        assert done.returncode == 0, done.stdout + done.stderr
+        assert "lockstep: the FC's clock follows the physics" in done.stderr
+        result = json.loads(summary.read_text())
+        assert result["outcome"] == "landed" and result["physics"]["lockstep"] is True
+        assert result["physics"]["answered_ratio"] == 1.0
+        logs.append(simulated_columns(log))
+    first, again, other = logs
+    assert len(first) > 300
+    # Byte for byte: every FC reading, every motor output, every RC value, every time.
+    assert first == again
+    # ... and the comparison can tell: other noise and gusts give another flight.
+    assert first != other
+    assert [r["time_s"] for r in first[:5]] == [r["time_s"] for r in other[:5]]
+
+
+@pytest.mark.timeout(300)
+def test_a_disturbed_lockstep_flight_keeps_the_fc_on_the_truth(
+        lockstep_firmware: Path, tmp_path: Path) -> None:
+    """Wind from the north and stick steps: FC attitude vs the simulated truth, and signs."""
+    config = SessionConfig(firmware=lockstep_firmware, workdir=tmp_path / "run",
+                           wind=Wind.from_direction(2.0, 0.0, 0.5), seed=3)
+    from bfsitl.control import make_controller
+
+    with FlightSession(config) as session:
+        assert session.lockstep
+        mission = Mission(session, make_controller("fused"))
+        mission.arm()
+        mission.wait_on_ground(1.0)
+        mission.takeoff(2.0)
+        mission.hold(1.5)
+        held = len(mission.rows)
+        mission.hold(2.0, roll_us=RC_MID_US + 150)     # roll right
+        rolled = mission.rows[held:]
+        mission.hold(2.0)
+        recentred = len(mission.rows)
+        mission.hold(2.0, pitch_us=RC_MID_US - 150)    # stick back: nose up
+        pitched = mission.rows[recentred:]
+        mission.land()
+    flown = [r for r in mission.rows if r.phase in ("hold", "takeoff") and r.sim_alt_m > 0.3]
+    # The FC's attitude is the truth's (4.6.0 copies it; master estimates it from the IMU).
+    worst = max(max(abs(r.roll_deg - r.sim_roll_deg), abs(r.pitch_deg - r.sim_pitch_deg))
+                for r in flown)
+    assert worst < 6.0
+    # ANGLE mode: a right roll stick banks right, a back pitch stick raises the nose.
+    late_roll = [r.sim_roll_deg for r in rolled[len(rolled) // 2:]]
+    assert min(late_roll) > 5.0
+    late_pitch = [r.sim_pitch_deg for r in pitched[len(pitched) // 2:]]
+    assert max(late_pitch) < -5.0  # Betaflight's pitch is positive nose down
+    assert all(abs(r.sim_alt_m - 2.0) < 0.5 for r in flown[-50:])
+
+
+@pytest.mark.timeout(200)
+def test_cli_works_while_stepping_and_a_save_relocks_the_new_process(
+        lockstep_firmware: Path, tmp_path: Path) -> None:
+    config = SessionConfig(firmware=lockstep_firmware, workdir=tmp_path / "run", profile=None)
+    with FlightSession(config) as session:
+        sitl = session.sitl
+        assert sitl is not None
+        pid_before, launches = sitl.pid, sitl.launches
+        with CliSession(session.client.link) as cli:
+            cli.set("small_angle", 33)
+            cli.save(restart=sitl.restart_after_reboot)
+        assert sitl.pid != pid_before and sitl.launches == launches + 1
+        with CliSession(session.client.link) as cli:
+            assert "small_angle = 33" in cli.run("get small_angle")
+            cli.leave()
+        status = session.client.status()
+        assert status.cycle_time_us > 0
+        before_s = session.time_s
+        session.clock.sleep_s(0.5)
+        assert session.time_s == pytest.approx(before_s + 0.5, abs=0.002)
+    log = (tmp_path / "run" / "sitl.log").read_text(errors="replace")
+    assert log.count("locked to the simulator at FC time") == 2
+    assert "after free-running" not in log
+
+
+@pytest.mark.timeout(120)
+def test_a_lockstep_sitl_without_a_simulator_free_runs(lockstep_firmware: Path,
+                                                        tmp_path: Path) -> None:
+    with SitlProcess(lockstep_firmware, workdir=tmp_path / "run", isolate=True) as sitl:
+        assert sitl.client is not None
+        first = sitl.client.status()
+        assert first.cycle_time_us > 0
+        with CliSession(sitl.client.link) as cli:
+            assert "Arming disable flags" in cli.run("status")
+            cli.leave()
+    log = (tmp_path / "run" / "sitl.log").read_text(errors="replace")
+    assert "[LOCKSTEP] main loop at FC time" in log
+    assert "locked to the simulator" not in log
+
+
+@pytest.mark.timeout(120)
+def test_the_real_time_bridge_paces_a_lockstep_build_on_sim_time(lockstep_firmware: Path,
+                                                                   tmp_path: Path) -> None:
+    """`bfsitl sim` (the real-time bridge) on a lockstep build: its clock is the timestamps,
+    so they must be simulated time; the rate-frozen ones ran it about 60x fast."""
+    done = subprocess.run([*BFSITL, "sim", "--firmware", str(lockstep_firmware), "--duration",
+                           "3", "--json"], capture_output=True, text=True, timeout=60,
+                          cwd=tmp_path)
+    assert done.returncode == 0, done.stderr
+    last = json.loads(done.stdout.strip().splitlines()[-1])
+    assert last["fc_clock_ratio"] == pytest.approx(1.0, abs=0.02)
+    assert last["answered_ratio"] > 0.9

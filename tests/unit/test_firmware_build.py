@@ -55,7 +55,8 @@ if [ "$dry" = 1 ]; then
 fi
 echo "%% (optimised) src/f0.c"
 if [ -n "$FAKE_MAKE_SLEEP" ]; then
-  echo $$ > "$FAKE_MAKE_PIDFILE"
+  # Written whole or not at all: the test reads it as soon as it exists.
+  echo $$ > "$FAKE_MAKE_PIDFILE.part" && mv "$FAKE_MAKE_PIDFILE.part" "$FAKE_MAKE_PIDFILE"
   sleep "$FAKE_MAKE_SLEEP"
 fi
 if [ -n "$FAKE_MAKE_FAIL" ]; then

@@ -43,6 +43,7 @@ def test_status_start_json_reports_identity_and_blockers(firmware):
     assert "RXLOSS" in names
     assert all(b["fix"] for b in report["arming_blockers"])
     assert "SITL ready" in result.stderr  # progress goes to stderr
+    assert "lockstep" not in result.stderr  # a stock build is not one
 
 
 def test_unreachable_fc_is_one_line_error_and_exit_code_1():

@@ -20,6 +20,7 @@ from pathlib import Path
 import pytest
 
 from bfsitl.build.binary_scan import binary_traits
+from bfsitl.cli.target import LOCKSTEP_FREE_RUN_NOTE
 from bfsitl.fc.cli_session import CliSession
 from bfsitl.fc.rc_link import RC_MID_US
 from bfsitl.mission.runner import Mission
@@ -148,6 +149,16 @@ def test_a_lockstep_sitl_without_a_simulator_free_runs(lockstep_firmware: Path,
     log = (tmp_path / "run" / "sitl.log").read_text(errors="replace")
     assert "[LOCKSTEP] main loop at FC time" in log
     assert "locked to the simulator" not in log
+
+
+def test_status_start_says_a_lockstep_build_free_runs(lockstep_firmware: Path,
+                                                      tmp_path: Path) -> None:
+    done = subprocess.run([*BFSITL, "status", "--start", "--firmware", str(lockstep_firmware),
+                           "--workdir", str(tmp_path / "run")],
+                          capture_output=True, text=True, timeout=60, cwd=tmp_path)
+    assert done.returncode == 0, done.stderr
+    assert LOCKSTEP_FREE_RUN_NOTE in done.stderr
+    assert "Arming" in done.stdout or "arming" in done.stdout
 
 
 @pytest.mark.timeout(120)

@@ -44,6 +44,13 @@ def add_target_arguments(
                        help="MSP reply timeout in seconds (default 0.5)")
 
 
+#: Said when a command starts a lockstep build with no simulator to step it.
+LOCKSTEP_FREE_RUN_NOTE = (
+    "a lockstep build with no simulator: its clock free-runs on the wall clock here "
+    "(bfsitl fly and bfsitl sim step it)"
+)
+
+
 def progress(message: str) -> None:
     print(f"bfsitl: {message}", file=sys.stderr, flush=True)
 
@@ -64,6 +71,8 @@ def open_target(args: argparse.Namespace) -> Iterator[Target]:
         )
         with sitl:
             assert sitl.client is not None
+            if sitl.firmware.lockstep:
+                progress(LOCKSTEP_FREE_RUN_NOTE)
             sitl.client.timeout_s = args.timeout
             yield Target(sitl.client, sitl)
         return

@@ -83,7 +83,7 @@ def startable(clients: list[StubClient], monkeypatch, tmp_path) -> SitlProcess:
     monkeypatch.setattr(process, "check_ports_free", lambda *_args, **_kwargs: None)
     monkeypatch.setattr(process, "PID_LOOP_TIMEOUT_S", 0.05)
     monkeypatch.setattr(process, "_RETRY_WAIT_S", 0.001)
-    monkeypatch.setattr(process, "detect_profile", lambda _client, _build: DEFAULT_PROFILE)
+    monkeypatch.setattr(process, "detect_profile", lambda _client, _build, **_kw: DEFAULT_PROFILE)
     return sitl
 
 

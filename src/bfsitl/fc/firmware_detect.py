@@ -25,7 +25,8 @@ MASTER_API_VERSION = "1.48"
 
 
 def detect_profile(client: MspClient, build: BuildOptions | None = None,
-                   *, probe_gps: bool = False) -> FirmwareProfile:
+                   *, probe_gps: bool = False,
+                   api: msg.ApiVersion | None = None) -> FirmwareProfile:
     """The profile of the firmware behind ``client``; raises UnsupportedFirmwareError.
 
     Whether the build has GPS comes from its build record when there is one, else from the
@@ -33,8 +34,10 @@ def detect_profile(client: MspClient, build: BuildOptions | None = None,
     instead (MSP_RAW_GPS answers or not). Not by default: a start should ask no more than it
     needs, and in two loaded test runs with this probe at every start a 4.6.0 SITL's port
     stayed silent to the CLI after a start (cause not established; the probe is a suspect).
+    ``api`` is an MSP_API_VERSION reply the caller already has (a start's readiness probe).
     """
-    api = client.get(msg.ApiVersion)
+    if api is None:
+        api = client.get(msg.ApiVersion)
     version = client.get(msg.FcVersion)
     has_gps: bool | None = None
     if probe_gps:

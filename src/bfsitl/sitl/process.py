@@ -120,6 +120,8 @@ class SitlProcess:
         self.starts = 0
         #: Every process launched, including ones killed and retried (hung or locked out).
         self.launches = 0
+        #: The readiness probe's MSP_API_VERSION reply, for the profile's detection.
+        self._ready_api: ApiVersion | None = None
         #: Called right after each launch, before the SITL is probed (a lockstep bridge locks
         #: the booting FC to the simulator's clock here).
         self.on_spawn: Callable[[], None] | None = None
@@ -190,9 +192,11 @@ class SitlProcess:
             try:
                 if self.on_spawn is not None:
                     self.on_spawn()
+                self._ready_api = None
                 self.client = self._wait_ready(self.ready_timeout_s, server_check)
                 self._check_pid_loop(self.client)
-                self.profile = detect_profile(self.client, self.build_options())
+                self.profile = detect_profile(self.client, self.build_options(),
+                                              api=self._ready_api)
                 self.starts += 1
                 break
             except SitlNotReadyError as exc:
@@ -250,7 +254,8 @@ class SitlProcess:
                 time.sleep(_PROBE_INTERVAL_S)  # polling interval, not a readiness guess
                 continue
             try:
-                client.get(ApiVersion)
+                # Kept: the profile needs it too, and one start should ask it once.
+                self._ready_api = client.get(ApiVersion)
                 # Probing used short timeouts; from here on the usual ones apply.
                 client.timeout_s, client.retries = DEFAULT_TIMEOUT_S, DEFAULT_RETRIES
                 return client

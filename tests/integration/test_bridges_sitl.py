@@ -73,6 +73,22 @@ def relay_url(sitl) -> Iterator[str]:
         yield url
 
 
+#: MSP API of each generation (4.6.0 msp.c; master 301d01a msp_protocol.h).
+API_OF_GENERATION = {"4.6.0": (1, 47), "master": (1, 49)}
+
+
+@pytest.fixture
+def generation_relay(generation_firmware, request, tmp_path) -> Iterator[tuple[str, tuple]]:
+    """(URL, expected MSP API) of a relay to each supported firmware in turn."""
+    process = SitlProcess(generation_firmware, workdir=tmp_path / "run", isolate=True)
+    process.start()
+    try:
+        with WebSocketRelay(sitl_upstream(process), port=0).running() as url:
+            yield url, API_OF_GENERATION[request.node.callspec.params["generation_firmware"]]
+    finally:
+        process.stop()
+
+
 def api_over_websocket(ws, timeout_s: float = 3.0) -> msg.ApiVersion:
     ws.send(API_VERSION_REQUEST)
     parser = MspParser()
@@ -84,17 +100,18 @@ def api_over_websocket(ws, timeout_s: float = 3.0) -> msg.ApiVersion:
     raise AssertionError("no MSP_API_VERSION reply through the bridge")
 
 
-def test_websocket_client_reaches_the_namespaced_sitl(relay_url):
+def test_websocket_client_reaches_the_namespaced_sitl(generation_relay):
+    relay_url, api = generation_relay
     with connect(relay_url, subprotocols=["wsSerial"]) as ws:
-        assert api_over_websocket(ws).api == (1, 47)
+        assert api_over_websocket(ws).api == api
         with connect(relay_url, subprotocols=["binary"]) as second:
             with pytest.raises(ConnectionClosed):
                 second.recv(timeout=3.0)
             assert second.close_code == CLOSE_BUSY
-        assert api_over_websocket(ws).api == (1, 47)  # the first client still works
+        assert api_over_websocket(ws).api == api  # the first client still works
     # The TCP slot was released: the next client gets the SITL.
     with connect(relay_url, subprotocols=["binary"]) as ws:
-        assert api_over_websocket(ws).api == (1, 47)
+        assert api_over_websocket(ws).api == api
 
 
 def test_reboot_ends_the_client_and_the_started_sitl_comes_back(sitl, relay_url):
@@ -235,7 +252,8 @@ def _stop_group(process: subprocess.Popen[bytes]) -> None:
         process.stderr.close()
 
 
-def test_headless_chromium_reads_the_api_version(chromium, relay_url, tmp_path):
+def test_headless_chromium_reads_the_api_version(chromium, generation_relay, tmp_path):
+    relay_url, api = generation_relay
     (tmp_path / "page").mkdir()
     (tmp_path / "page" / "index.html").write_text(BROWSER_PAGE)
     with _ReportServer(tmp_path / "page") as reports:
@@ -253,7 +271,7 @@ def test_headless_chromium_reads_the_api_version(chromium, relay_url, tmp_path):
     frames = [e for e in MspParser().feed(bytes.fromhex(report["hex"]))
               if isinstance(e, MspFrame)]
     assert frames and frames[0].command == MspCommand.API_VERSION
-    assert msg.ApiVersion.decode(frames[0].payload).api == (1, 47)
+    assert msg.ApiVersion.decode(frames[0].payload).api == api
 
 
 # --- the commands, end to end ---------------------------------------------------------------

@@ -21,8 +21,10 @@ from bfsitl.gazebo.world import (
     WORLD_NAME,
     WORLDS_DIR,
     shipped_worlds,
+    world_for_profile,
     world_path,
 )
+from bfsitl.protocol.firmware_profile import DEFAULT_PROFILE, FirmwareProfile, profile_for
 from bfsitl.protocol.sitl_packets import ServoPacket
 from bfsitl.sim.params import IRIS
 
@@ -249,3 +251,55 @@ def test_vehicle_matches_the_embedded_iris(outer: ET.Element, nested: ET.Element
     control = outer.find(".//control")
     assert control is not None
     assert float(text(control, "multiplier")) == IRIS.motor_command_speed_rad_s
+
+
+# --- the world of each generation ---------------------------------------------------------------
+
+MASTER = profile_for("1.49", "2026.12.0-alpha")
+
+
+def test_4_6_flies_the_shipped_world_as_it_is(tmp_path: Path) -> None:
+    assert world_for_profile(DEFAULT_PROFILE, tmp_path) == world_path(DEFAULT_WORLD)
+    assert list(tmp_path.iterdir()) == []
+
+
+@pytest.mark.parametrize("profile", [DEFAULT_PROFILE, MASTER], ids=["4.6.0", "master"])
+def test_each_generations_world_spins_each_betaflight_motors_rotor(
+    profile: FirmwareProfile, tmp_path: Path
+) -> None:
+    """Channel = the slot this firmware puts a motor in; that channel must spin the rotor that
+    sits where the embedded IRIS has the motor, the way it turns: a wrong slot table flips the
+    mixer (master sends motors in plain order, 4.6.0 remaps them)."""
+    root = ET.parse(world_for_profile(profile, tmp_path)).getroot()
+    world = root.find("world")
+    assert world is not None and world.get("name") == WORLD_NAME
+    outer = next(m for m in world.findall("model")
+                 if m.find("plugin[@filename='BetaflightPlugin']") is not None)
+    plugin = outer.find("plugin[@filename='BetaflightPlugin']")
+    nested = outer.find(f"model[@name='{NESTED}']")
+    assert plugin is not None and nested is not None
+    channels = sorted(int(c.get("channel", "-1")) for c in plugin.findall("control"))
+    assert channels == [0, 1, 2, 3]
+    for control in plugin.findall("control"):
+        motor = profile.motor_slot_of_betaflight_motor.index(int(control.get("channel", "-1")))
+        link_name = text(control, "jointName").split("::")[1].removesuffix("_joint")
+        x, y, _z = numbers(text(nested, f"link[@name='{link_name}']/pose"))[:3]
+        assert (x, -y) == pytest.approx(IRIS.rotor_positions_frd_m[motor][:2]), link_name
+        assert (float(text(control, "multiplier")) > 0) == IRIS.rotor_spin_ccw[motor]
+
+
+def test_master_world_leaves_the_yaw_turn_to_the_firmware(tmp_path: Path) -> None:
+    """Master's ENABLE_GAZEBO_BRIDGE turns the quaternion by Rz(pi/2) itself (sitl.c); the
+    plugin's transform must then be the reference world's roll pi alone."""
+    derived = world_for_profile(MASTER, tmp_path)
+    assert derived.parent == tmp_path
+    plugin = ET.parse(derived).getroot().find(".//plugin[@filename='BetaflightPlugin']")
+    assert plugin is not None
+    assert numbers(text(plugin, "gazeboXYZToNED")) == pytest.approx([0, 0, 0, math.pi, 0, 0],
+                                                                    abs=1e-6)
+    shipped = ET.parse(world_path()).getroot().find(".//plugin[@filename='BetaflightPlugin']")
+    assert shipped is not None
+    # Everything else the plugin reads is the shipped world's.
+    for name in ("fdm_port_in", "fcu_port_out", "imuName", "modelXYZToAirplaneXForwardZDown",
+                 "lock_step"):
+        assert text(plugin, name) == text(shipped, name)

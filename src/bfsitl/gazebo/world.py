@@ -3,13 +3,24 @@
 The worlds are package data (``bfsitl/gazebo/worlds/*.sdf``).  They are read from the
 installed package directory, not extracted from a zip: ``gz sim`` needs a real file path, and
 setuptools installs package data as plain files.
+
+The shipped world is written for 4.6.0.  :func:`world_for_profile` derives the world another
+generation needs from it (the plugin's frame transform and its motor channels), from the
+firmware profile, so that the conventions stay in one place
+(:mod:`bfsitl.protocol.firmware_profile`).
 """
 
 from __future__ import annotations
 
+import xml.etree.ElementTree as ET
 from pathlib import Path
 
 from bfsitl.errors import BfsitlError
+from bfsitl.protocol.firmware_profile import (
+    DEFAULT_PROFILE,
+    FirmwareProfile,
+    QuaternionConvention,
+)
 
 #: The folder holding the shipped worlds; it goes on GZ_SIM_RESOURCE_PATH.
 WORLDS_DIR = Path(__file__).resolve().parent / "worlds"
@@ -47,3 +58,48 @@ def world_path(world: str | Path = DEFAULT_WORLD) -> Path:
         f"no Gazebo world {str(world)!r}: give an SDF file path or one of the shipped worlds "
         f"({', '.join(shipped_worlds()) or 'none installed'})"
     )
+
+
+#: The plugin's ENU -> NED transform for a firmware that takes the quaternion as it is (4.6.0:
+#: roll pi, then yaw pi/2, so that north is +Y).
+GAZEBO_XYZ_TO_NED_COPIED = "0 0 0 3.141593 0 1.5707963"
+#: For a firmware that turns the plugin's quaternion by Rz(pi/2) itself (master's
+#: ENABLE_GAZEBO_BRIDGE): the reference world's roll pi only, or the turn is applied twice.
+GAZEBO_XYZ_TO_NED_BRIDGE = "0 0 0 3.141593 0 0"
+
+
+def world_for_profile(profile: FirmwareProfile, directory: Path) -> Path:
+    """The world for a firmware of ``profile``: the shipped one for 4.6.0's conventions, else
+    one derived from it and written into ``directory`` (which goes on Gazebo's resource path).
+
+    Two things differ between generations: the plugin's frame transform (``gazeboXYZToNED``)
+    and which servo_packet slot carries each Betaflight motor.  Each rotor joint keeps the
+    Betaflight motor it has in the shipped world, so the derived world's channel for a joint
+    is the slot ``profile`` puts that motor in.
+    """
+    shipped = world_path(DEFAULT_WORLD)
+    transform = (GAZEBO_XYZ_TO_NED_BRIDGE if profile.fdm.quaternion is QuaternionConvention.GAZEBO
+                 else GAZEBO_XYZ_TO_NED_COPIED)
+    slots_shipped = DEFAULT_PROFILE.motor_slot_of_betaflight_motor
+    slots = profile.motor_slot_of_betaflight_motor
+    if transform == GAZEBO_XYZ_TO_NED_COPIED and slots == slots_shipped:
+        return shipped
+    tree = ET.parse(shipped, parser=ET.XMLParser(target=ET.TreeBuilder(insert_comments=True)))
+    plugin = tree.getroot().find(".//plugin[@filename='BetaflightPlugin']")
+    if plugin is None:
+        raise BfsitlError(f"{shipped} has no BetaflightPlugin element")
+    frame = plugin.find("gazeboXYZToNED")
+    if frame is None:
+        raise BfsitlError(f"{shipped} has no gazeboXYZToNED in its BetaflightPlugin")
+    frame.text = transform
+    motor_in_shipped_slot = {slot: motor for motor, slot in enumerate(slots_shipped)}
+    for control in plugin.findall("control"):
+        shipped_slot = int(control.attrib["channel"])
+        control.set("channel", str(slots[motor_in_shipped_slot[shipped_slot]]))
+    plugin.insert(0, ET.Comment(
+        f" Derived by bfsitl from {DEFAULT_WORLD} for {profile.name}: gazeboXYZToNED "
+        f"and the channel numbers (the servo_packet slots this firmware uses) differ. "))
+    directory.mkdir(parents=True, exist_ok=True)
+    derived = directory / f"{Path(DEFAULT_WORLD).stem}-{profile.generation.value}.sdf"
+    tree.write(derived, encoding="unicode", xml_declaration=True)
+    return derived

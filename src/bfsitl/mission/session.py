@@ -312,27 +312,33 @@ class FlightSession:
         tutorial; both live in the same namespace because both ends use fixed loopback ports.
         """
         from bfsitl.gazebo import (
+            check_gazebo,
             check_plugin_port_free,
             plan_gazebo_launch,
             stop_gazebo,
             wait_for_plugin,
         )
+        from bfsitl.gazebo.world import world_for_profile
 
         config = self.config
         if config.speed not in (None, 1.0):
             raise BfsitlError("--speed applies to the embedded physics only; Gazebo sets its "
                               "own pace")
-        launch = plan_gazebo_launch(plugin_dir=config.gz_plugin_dir)  # fails early, with fix
+        install = check_gazebo(config.gz_plugin_dir)  # fails early, with the fix, first
         self.sitl = SitlProcess(config.firmware, workdir=config.workdir,
                                 isolate=config.isolate, progress=self._progress)
-        if self.sitl.firmware.lockstep:
+        sitl = self.sitl
+        self._stack.callback(sitl.stop)  # runs last: after Gazebo has stopped
+        if sitl.firmware.lockstep:
             raise BfsitlError(
-                f"{self.sitl.firmware.path} is a lockstep build: its clock follows bfsitl's "
+                f"{sitl.firmware.path} is a lockstep build: its clock follows bfsitl's "
                 f"own physics, and Gazebo's plugin reads only stock motor packets. Use a "
                 f"stock build with --physics gazebo")
-        sitl = self.sitl
+        # Gazebo starts before the SITL can say who it is: the binary's profile (its build
+        # record, else its bytes) picks the world's frame transform and motor channels.
+        world = world_for_profile(profile_of_binary(sitl.firmware.path), sitl.workdir)
+        launch = plan_gazebo_launch(world, install=install)
         network = sitl.prepare_network()
-        self._stack.callback(sitl.stop)  # runs last: after Gazebo has stopped
         check_plugin_port_free(network)
         self._progress(f"starting Gazebo: {launch.command_line()}")
         gazebo = network.spawn(launch.argv, sitl.workdir, sitl.workdir / "gazebo.log",

@@ -94,3 +94,44 @@ def test_profile_file_skips_comments(tmp_path):
     profile = Profile.from_file(path)
     assert profile.cli_lines == ("aux 1 1 1 1700 2100 0 0", "set small_angle = 30")
     assert profile.mode_ranges == (ARM_ON_AUX1,)
+
+
+class GetOnlyCli:
+    """CliSession.batch for ``get`` lines, answering as cli.c's cliGet prints."""
+
+    def __init__(self, values: dict[str, str]) -> None:
+        self.values = values
+        self.batches: list[list[str]] = []
+
+    def batch(self, commands: list[str], *, check: bool = True) -> str:
+        self.batches.append(list(commands))
+        out = []
+        for command in commands:
+            name = command.split()[1]
+            if name in self.values:
+                out.append(f"{name} = {self.values[name]}\r\nAllowed range: 0 - 9\r\n")
+            else:
+                out.append(f"###ERROR IN get: INVALID NAME: {name}###\r\n")
+        return "".join(out)
+
+
+def test_set_lines_whose_value_is_held_are_skipped_and_others_kept():
+    from bfsitl.fc.provisioning import _lines_to_run
+
+    cli = GetOnlyCli({"small_angle": "30", "serial_update_rate_hz": "100"})
+    lines = ("set small_angle = 30", "set serial_update_rate_hz=1000", "feature GPS",
+             "set no_such_setting = 1")
+    assert _lines_to_run(cli, lines) == [  # type: ignore[arg-type]
+        "set serial_update_rate_hz=1000", "feature GPS", "set no_such_setting = 1"]
+    # One batch of gets, only for the set lines.
+    assert cli.batches == [["get small_angle", "get serial_update_rate_hz",
+                            "get no_such_setting"]]
+
+
+def test_set_name_reads_both_spellings_and_nothing_else():
+    from bfsitl.fc.provisioning import _set_name
+
+    assert _set_name("set Serial_Update_Rate_Hz = 1000") == "serial_update_rate_hz"
+    assert _set_name("set small_angle=30") == "small_angle"
+    assert _set_name("feature GPS") is None
+    assert _set_name("set small_angle") is None  # no value: not a comparable set

@@ -74,7 +74,9 @@ def add_fly_parser(sub: argparse._SubParsersAction) -> None:  # type: ignore[typ
     mission.add_argument("--list-gains", action="store_true",
                          help="print the chosen controller's gains and defaults, then exit")
     mission.add_argument("--rate", type=float, default=50.0, metavar="HZ",
-                         help="control loop rate in simulation time (default 50)")
+                         help="control loop rate in simulation time (default 50; above 50 "
+                              "the FC's serial task is set to 1 kHz, which costs one reboot "
+                              "in a run directory that does not hold it yet)")
     out = fly.add_argument_group("outputs")
     out.add_argument("--log", metavar="FILE.csv", help="one row per control step, flushed")
     out.add_argument("--plot", metavar="FILE.png", help="altitude, throttle and attitude plot")
@@ -214,7 +216,7 @@ def cmd_fly(args: argparse.Namespace) -> int:
     from bfsitl.mission import FLY_PROFILE, FlightSession, SessionConfig
     from bfsitl.mission.flight_log import CsvFlightLog
     from bfsitl.mission.runner import MissionPlan, Outcome, run_mission
-    from bfsitl.mission.session import fly_sensors
+    from bfsitl.mission.session import FAST_SERIAL_ABOVE_HZ, fly_sensors, with_fast_serial
 
     if args.list_gains:
         for name, default in gain_names(args.controller).items():
@@ -228,6 +230,8 @@ def cmd_fly(args: argparse.Namespace) -> int:
         profile = FLY_PROFILE if not args.no_angle else Profile(mode_ranges=(ARM_ON_AUX1,))
         if args.profile:
             profile = Profile.from_file(args.profile, mode_ranges=profile.mode_ranges)
+        if args.rate > FAST_SERIAL_ABOVE_HZ:
+            profile = with_fast_serial(profile)
     noise = {name: value for name, value in (("baro_noise_std_pa", args.baro_noise_pa),
                                              ("accel_noise_std_m_s2", args.accel_noise))
              if value is not None}

@@ -7,7 +7,12 @@ ends a SITL process); an interactive CLI session blocks arming until reboot, so 
 through the non-interactive (STX) mode, a few at a time (that mode ends 2 s after it starts).
 
 Mode ranges are read back after writing and compared; a persisted configuration that already
-matches is left alone (nothing written, nothing saved).
+matches is left alone (nothing written, nothing saved).  ``set`` lines are compared the same
+way (``get`` first, in the same non-interactive mode); other CLI lines always run.
+
+Some settings are read only at boot (:data:`BOOT_ONLY_SETTINGS`): saving one does not raise
+the firmware's reboot-required flag, yet nothing changes until a reboot, so changing one
+reboots the FC as a flagged change does.
 """
 
 from __future__ import annotations
@@ -30,6 +35,10 @@ ANGLE_ON_AUX2 = msg.ModeRange.from_us(BoxId.ANGLE, 1, 1700, 2100)
 _BATCH_LINES = 8
 #: ``aux`` takes index, box, channel, start, end, logic, linked box: 7 arguments.
 _AUX_ARGUMENTS = 7
+#: Settings the firmware applies only at boot, without flagging a reboot when they change:
+#: ``serial_update_rate_hz`` is the serial task's rate, set once in ``tasksInit()`` (4.6.0
+#: and master fc/tasks.c ``rescheduleTask(TASK_SERIAL, ...)``).
+BOOT_ONLY_SETTINGS = frozenset({"serial_update_rate_hz"})
 
 
 @dataclass(frozen=True, slots=True)
@@ -123,16 +132,20 @@ def provision(
                     f"{wanted}: is the box available on this FC (MSP_BOXIDS)?"
                 )
     lines_run = 0
+    boot_setting_changed = False
     if profile.cli_lines:
         cli = CliSession(client.link)
-        for batch in _batches(profile.cli_lines, _BATCH_LINES):
+        lines = _lines_to_run(cli, profile.cli_lines)
+        boot_setting_changed = any(_set_name(line) in BOOT_ONLY_SETTINGS for line in lines)
+        for batch in _batches(lines, _BATCH_LINES):
             cli.batch(batch)
             lines_run += len(batch)
     changed = bool(written or lines_run)
     rebooted = False
     if changed:
         client.eeprom_write()
-        if msg.StatusEx.decode(client.request(msg.StatusEx.COMMAND)).config_state & 1:
+        flagged = msg.StatusEx.decode(client.request(msg.StatusEx.COMMAND)).config_state & 1
+        if flagged or boot_setting_changed:
             if reboot is None:
                 raise ProvisioningError(
                     "the configuration was saved but needs a reboot to take effect; pass "
@@ -141,3 +154,35 @@ def provision(
             reboot()
             rebooted = True
     return ProvisionResult(changed, written, lines_run, rebooted)
+
+
+def _set_name(line: str) -> str | None:
+    """The setting a ``set NAME = VALUE`` line sets (lower case), else None."""
+    words = line.replace("=", " = ").split()
+    if len(words) >= 4 and words[0].lower() == "set" and words[2] == "=":
+        return words[1].lower()
+    return None
+
+
+def _set_value(line: str) -> str:
+    return line.split("=", 1)[1].strip()
+
+
+def _lines_to_run(cli: CliSession, lines: tuple[str, ...]) -> list[str]:
+    """``lines`` without the ``set`` lines whose setting already holds that value.
+
+    The current values come from one ``get`` per setting, in non-interactive batches (which
+    leave no CLI arming flag); ``get NAME`` prints ``NAME = VALUE`` (4.6.0 and master
+    cli.c ``cliGet``).  A value that does not read back the same way (case, a number's
+    form) is simply set again.
+    """
+    names = [name for name in (_set_name(line) for line in lines) if name is not None]
+    current: dict[str, str] = {}
+    for batch in _batches(names, _BATCH_LINES):
+        output = cli.batch([f"get {name}" for name in batch], check=False)
+        for raw in output.splitlines():
+            name, sep, value = raw.partition(" = ")
+            if sep and name.strip().lower() in batch:
+                current[name.strip().lower()] = value.strip()
+    return [line for line in lines
+            if (name := _set_name(line)) is None or current.get(name) != _set_value(line)]

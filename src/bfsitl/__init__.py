@@ -1,7 +1,84 @@
-"""bfsitl: fly a real Betaflight flight controller in software-in-the-loop, from Python."""
+"""bfsitl: fly a real Betaflight flight controller in software-in-the-loop, from Python.
+
+The public surface is importable from here; each name lives in the module its docstring
+points to, and is imported on first use, so ``import bfsitl`` stays light.
+
+    from bfsitl import FlightSession, MissionPlan, make_controller, run_mission
+
+    with FlightSession() as session:
+        result = run_mission(session, MissionPlan(target_alt_m=2.0, hold_s=10),
+                             make_controller("fused"))
+    print(result.outcome, result.hold)
+"""
+
+from __future__ import annotations
+
+import importlib
+from typing import TYPE_CHECKING, Any
 
 from bfsitl.errors import BfsitlError
 
 __version__ = "0.1.0"
 
-__all__ = ["BfsitlError", "__version__"]
+#: Public name -> the module that defines it.
+_EXPORTS: dict[str, str] = {
+    # flights
+    "FlightSession": "bfsitl.mission.session",
+    "SessionConfig": "bfsitl.mission.session",
+    "FLY_PROFILE": "bfsitl.mission.session",
+    "Mission": "bfsitl.mission.runner",
+    "MissionPlan": "bfsitl.mission.runner",
+    "MissionResult": "bfsitl.mission.runner",
+    "Outcome": "bfsitl.mission.runner",
+    "run_mission": "bfsitl.mission.runner",
+    "make_controller": "bfsitl.control",
+    # the SITL and its firmware
+    "SitlProcess": "bfsitl.sitl.process",
+    "FirmwareBinary": "bfsitl.sitl.firmware",
+    "find_firmware": "bfsitl.sitl.firmware",
+    # talking to an FC (a SITL or a board)
+    "MspClient": "bfsitl.fc.msp_client",
+    "CliSession": "bfsitl.fc.cli_session",
+    "Profile": "bfsitl.fc.provisioning",
+    "provision": "bfsitl.fc.provisioning",
+    "open_link": "bfsitl.link",
+    # the embedded physics
+    "Simulator": "bfsitl.sim",
+    "Wind": "bfsitl.sim.params",
+    "SensorConfig": "bfsitl.sim",
+    "GeoPoint": "bfsitl.sim",
+}
+
+__all__ = [
+    "BfsitlError", "CliSession", "FLY_PROFILE", "FirmwareBinary", "FlightSession", "GeoPoint",
+    "Mission", "MissionPlan", "MissionResult", "MspClient", "Outcome", "Profile",
+    "SensorConfig", "SessionConfig", "Simulator", "SitlProcess", "Wind", "__version__",
+    "find_firmware", "make_controller", "open_link", "provision", "run_mission",
+]
+
+
+def __getattr__(name: str) -> Any:
+    module = _EXPORTS.get(name)
+    if module is None:
+        raise AttributeError(f"module 'bfsitl' has no attribute {name!r}")
+    value = getattr(importlib.import_module(module), name)
+    globals()[name] = value  # the next lookup is a plain attribute
+    return value
+
+
+def __dir__() -> list[str]:
+    return sorted(__all__)
+
+
+if TYPE_CHECKING:  # what type checkers and IDEs see; nothing is imported at run time
+    from bfsitl.control import make_controller
+    from bfsitl.fc.cli_session import CliSession
+    from bfsitl.fc.msp_client import MspClient
+    from bfsitl.fc.provisioning import Profile, provision
+    from bfsitl.link import open_link
+    from bfsitl.mission.runner import Mission, MissionPlan, MissionResult, Outcome, run_mission
+    from bfsitl.mission.session import FLY_PROFILE, FlightSession, SessionConfig
+    from bfsitl.sim import GeoPoint, SensorConfig, Simulator
+    from bfsitl.sim.params import Wind
+    from bfsitl.sitl.firmware import FirmwareBinary, find_firmware
+    from bfsitl.sitl.process import SitlProcess

@@ -9,17 +9,30 @@ Messages are written for the person at the terminal: what went wrong, then what 
     ├── ProtocolError                  bytes that do not follow a wire format
     │   ├── PacketError                a SITL UDP datagram: wrong size or non-finite values
     │   ├── MspFrameError              an MSP frame that cannot be built (payload too large, bad id)
+    │   │   └── MspRequestError        (also ValueError) values the FC would refuse or misread
     │   └── MspDecodeError             an MSP payload too short or inconsistent for its message
     ├── LinkError                      transport failures (TCP, serial, namespaces)
     │   ├── LinkClosedError            the peer closed the connection (SITL exited or rebooted)
     │   ├── LinkTimeoutError           (also TimeoutError) no bytes within the deadline
-    │   └── ExtraMissingError          an optional dependency is not installed
+    │   ├── ExtraMissingError          an optional dependency is not installed
+    │   └── BridgeError                a bridge (websocket, pty) could not serve
+    │       ├── UpstreamUnreachableError   nothing answers at the SITL's address
+    │       ├── UpstreamBusyError      another client holds the SITL's UART
+    │       ├── ListenAddressInUseError    the bridge's own port is taken
+    │       └── LinkPathError          the virtual port's symlink cannot be made
     ├── MspError                       the FC answered, but not with what was asked
     │   ├── MspErrorReply              the FC sent an ``!`` error frame (unknown or refused command)
     │   └── MspTimeoutError            (also TimeoutError) no reply: lost, port in CLI, FC gone
     ├── CliError                       the CLI session failed
     │   └── CliCommandError            a command answered ``###ERROR``
     ├── ProvisioningError              the FC's configuration could not be applied or verified
+    ├── SimInputError                  (also ValueError) a value the simulator cannot use
+    ├── ControllerConfigError          (also ValueError) an unknown controller or gain, a bad value
+    ├── MetricsInputError              (also ValueError) series that are no step response
+    ├── GazeboError                    the Gazebo backend (messages say what to install)
+    │   ├── GazeboNotFoundError        ``gz`` (Gazebo Harmonic) is not installed / not on PATH
+    │   │   └── GazeboPluginNotFoundError  libBetaflightPlugin.so was not found
+    │   └── GazeboStartError           ``gz sim`` ended or never loaded the plugin
     ├── MissionError                   a flight did not go as planned
     │   ├── ArmingBlockedError         the FC refused to arm; ``blockers`` names why
     │   ├── CrashDetectedError         the vehicle tipped over or hit the ground too fast
@@ -60,6 +73,10 @@ class MspDecodeError(ProtocolError):
     """An MSP payload that is too short or inconsistent for its message type."""
 
 
+class MspRequestError(MspFrameError, ValueError):
+    """A message holds values the FC would refuse, misread or crash on; nothing was sent."""
+
+
 class LinkError(BfsitlError):
     """A transport (TCP, serial) failed."""
 
@@ -74,6 +91,26 @@ class LinkTimeoutError(LinkError, TimeoutError):
 
 class ExtraMissingError(LinkError):
     """An optional dependency is missing; the message names the pip extra."""
+
+
+class BridgeError(LinkError):
+    """A bridge could not serve: its own port, the path it should create, or the SITL."""
+
+
+class UpstreamUnreachableError(BridgeError):
+    """Nothing answers at the SITL's address (not running, wrong port, other namespace)."""
+
+
+class UpstreamBusyError(BridgeError):
+    """The SITL closed our connection at once: another client already holds its UART."""
+
+
+class ListenAddressInUseError(BridgeError):
+    """The port the bridge should listen on is taken; the message says by whom if visible."""
+
+
+class LinkPathError(BridgeError):
+    """The symlink for the virtual port cannot be made where asked."""
 
 
 class MspError(BfsitlError):
@@ -112,6 +149,40 @@ class CliCommandError(CliError):
 
 class ProvisioningError(BfsitlError):
     """The FC's configuration could not be applied or did not read back as written."""
+
+
+class SimInputError(BfsitlError, ValueError):
+    """A value given to the simulator is unusable: NaN motor command, wrong length, bad parameter.
+
+    Also a :class:`ValueError`, so generic callers that validate input keep working.
+    """
+
+
+class ControllerConfigError(BfsitlError, ValueError):
+    """A controller name or gain that does not exist, or a gain value that cannot work.
+
+    Also a :class:`ValueError`, so argument parsers and generic callers treat it as bad input.
+    """
+
+
+class MetricsInputError(BfsitlError, ValueError):
+    """Series that cannot describe a step response (lengths differ, time goes back, ...)."""
+
+
+class GazeboError(BfsitlError):
+    """The Gazebo backend could not be used."""
+
+
+class GazeboNotFoundError(GazeboError):
+    """Gazebo (the ``gz`` command) or a part it needs is missing."""
+
+
+class GazeboPluginNotFoundError(GazeboNotFoundError):
+    """``gz`` is there, but the BetaflightPlugin library is not where Gazebo will look."""
+
+
+class GazeboStartError(GazeboError):
+    """``gz sim`` exited, or did not load the plugin in time."""
 
 
 class MissionError(BfsitlError):

@@ -27,7 +27,13 @@ import time
 from collections.abc import Callable
 from dataclasses import dataclass
 
-from bfsitl.errors import LinkError
+from bfsitl.errors import (  # noqa: F401 - defined in errors.py, importable here too
+    BridgeError,
+    LinkError,
+    ListenAddressInUseError,
+    UpstreamBusyError,
+    UpstreamUnreachableError,
+)
 from bfsitl.link.tcp_link import SocketFactory, connect_tcp
 from bfsitl.protocol.msp_frame import MAX_REQUEST_PAYLOAD, MspFrame, MspParser
 
@@ -52,22 +58,6 @@ REFUSAL_PROBE_S = 0.1
 _BUSY_RETRY_INTERVAL_S = 0.15
 #: The SITL's TCP receive ring (``RX_BUFFER_SIZE`` in ``serial_tcp.h``), unchecked for overflow.
 SITL_RX_RING_BYTES = 1400
-
-
-class BridgeError(LinkError):
-    """A bridge could not serve: its own port, the path it should create, or the SITL."""
-
-
-class UpstreamUnreachableError(BridgeError):
-    """Nothing answers at the SITL's address (not running, wrong port, other namespace)."""
-
-
-class UpstreamBusyError(BridgeError):
-    """The SITL closed our connection at once: another client already holds its UART."""
-
-
-class ListenAddressInUseError(BridgeError):
-    """The port the bridge should listen on is taken; the message says by whom if visible."""
 
 
 @dataclass(frozen=True, slots=True)

@@ -34,13 +34,15 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from bfsitl.bridges import (
-    BridgeError,
     RequestWatch,
     SessionStats,
     Upstream,
     connect_upstream,
 )
-from bfsitl.errors import BfsitlError
+from bfsitl.errors import (
+    BfsitlError,
+    LinkPathError,  # noqa: F401 - defined in errors.py, importable here too
+)
 
 #: How often a bridge with no client looks whether one has opened the port.
 IDLE_POLL_S = 0.05
@@ -52,10 +54,6 @@ RECONNECT_BACKOFF_S = 1.0
 MAX_PENDING_TO_CLIENT_BYTES = 64 * 1024
 _CHUNK_BYTES = 4096
 _UPSTREAM_SEND_TIMEOUT_S = 2.0
-
-
-class LinkPathError(BridgeError):
-    """The symlink for the virtual port cannot be made where asked."""
 
 
 @dataclass(frozen=True, slots=True)

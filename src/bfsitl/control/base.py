@@ -21,18 +21,13 @@ import math
 from dataclasses import dataclass, fields
 from typing import Protocol, runtime_checkable
 
-from bfsitl.errors import BfsitlError
+from bfsitl.errors import (
+    ControllerConfigError,  # noqa: F401 - defined in errors.py, importable here too
+)
 
 #: RC throttle range the controllers speak, microseconds (the RC link clamps to it as well).
 THROTTLE_MIN_US = 1000.0
 THROTTLE_MAX_US = 2000.0
-
-
-class ControllerConfigError(BfsitlError, ValueError):
-    """A controller name or gain that does not exist, or a gain value that cannot work.
-
-    Also a :class:`ValueError`, so argument parsers and generic callers treat it as bad input.
-    """
 
 
 @dataclass(frozen=True, slots=True)
@@ -109,7 +104,6 @@ def throttle_range_ok(gains: object, low_us: float, high_us: float) -> None:
     require(THROTTLE_MIN_US <= low_us < high_us <= THROTTLE_MAX_US, gains,
             f"throttle limits must satisfy {THROTTLE_MIN_US:.0f} <= min < max <= "
             f"{THROTTLE_MAX_US:.0f} us, got {low_us:g}..{high_us:g}")
-
 
 
 class HoverLimits(Protocol):

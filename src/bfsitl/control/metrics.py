@@ -25,14 +25,12 @@ import math
 from collections.abc import Sequence
 from dataclasses import dataclass
 
-from bfsitl.errors import BfsitlError
+from bfsitl.errors import (
+    MetricsInputError,  # noqa: F401 - defined in errors.py, importable here too
+)
 
 DEFAULT_BAND_M = 0.05
 DEFAULT_STEADY_WINDOW_S = 5.0
-
-
-class MetricsInputError(BfsitlError, ValueError):
-    """Series that cannot describe a step response (lengths differ, time goes back, ...)."""
 
 
 @dataclass(frozen=True, slots=True)

@@ -1,4 +1,6 @@
-"""Errors of the Gazebo backend, each telling what to install or build.
+"""What the Gazebo backend's errors tell the user to install or build.
+
+The classes live in :mod:`bfsitl.errors` (the one tree) and are importable from here too:
 
     BfsitlError
     └── GazeboError                    the Gazebo backend
@@ -9,7 +11,13 @@
 
 from __future__ import annotations
 
-from bfsitl.errors import BfsitlError
+from bfsitl.errors import (  # noqa: F401 - defined in errors.py, importable here too
+    BfsitlError,
+    GazeboError,
+    GazeboNotFoundError,
+    GazeboPluginNotFoundError,
+    GazeboStartError,
+)
 
 #: Where the long instructions are; every message points there.
 DOCS = "docs/gazebo.md"
@@ -27,17 +35,3 @@ BUILD_HINT = (
 )
 
 
-class GazeboError(BfsitlError):
-    """The Gazebo backend could not be used."""
-
-
-class GazeboNotFoundError(GazeboError):
-    """Gazebo (the ``gz`` command) or a part it needs is missing."""
-
-
-class GazeboPluginNotFoundError(GazeboNotFoundError):
-    """``gz`` is there, but the BetaflightPlugin library is not where Gazebo will look."""
-
-
-class GazeboStartError(GazeboError):
-    """``gz sim`` exited, or did not load the plugin in time."""

@@ -31,7 +31,10 @@ from datetime import UTC, datetime
 from enum import IntEnum
 from typing import Any, ClassVar, Protocol, Self, TypeVar
 
-from bfsitl.errors import MspDecodeError, MspFrameError
+from bfsitl.errors import (
+    MspDecodeError,
+    MspRequestError,  # noqa: F401 - defined in errors.py, importable here too
+)
 from bfsitl.protocol.arming import ArmingFlagInfo, decode_arming_flags
 from bfsitl.protocol.boxes import BOX_NAMES
 from bfsitl.protocol.msp_codes import MspCommand
@@ -128,10 +131,6 @@ class RebootMode(IntEnum):
     MSC = 2
     MSC_UTC = 3
     BOOTLOADER_FLASH = 4
-
-
-class MspRequestError(MspFrameError, ValueError):
-    """A message holds values the FC would refuse, misread or crash on; nothing was sent."""
 
 
 class MspMessage(Protocol):

@@ -19,7 +19,9 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
-from bfsitl.errors import BfsitlError
+from bfsitl.errors import (
+    SimInputError,  # noqa: F401 - defined in errors.py, importable here too
+)
 
 Vec3 = tuple[float, float, float]
 Quat = tuple[float, float, float, float]
@@ -30,13 +32,6 @@ Motors = tuple[float, float, float, float]
 STANDARD_GRAVITY_M_S2 = 9.80665
 #: Air density at sea level (kg/m^3), as the Gazebo LiftDrag elements of IRIS use it.
 AIR_DENSITY_KG_M3 = 1.2041
-
-
-class SimInputError(BfsitlError, ValueError):
-    """A value given to the simulator is unusable: NaN motor command, wrong length, bad parameter.
-
-    Also a :class:`ValueError`, so generic callers that validate input keep working.
-    """
 
 
 @dataclass(frozen=True, slots=True)

@@ -242,8 +242,7 @@ class PtyRelay:
                 break
         if not data or self._session is None:
             return
-        data = bytes(data)
-        for warning in self._watch.feed(data):
+        for warning in self._watch.feed(bytes(data)):
             self._on_event(f"{self._session.client}: {warning}")
         if self._upstream is None and not self._connect():
             return  # dropped, as bytes sent down a dead serial line

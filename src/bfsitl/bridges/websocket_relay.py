@@ -208,7 +208,9 @@ class WebSocketRelay:
     # -- one client ------------------------------------------------------------------------
     async def _handle(self, connection: ServerConnection) -> None:
         host, port = connection.remote_address[:2]
-        origin = connection.request.headers.get("Origin", "no Origin header")
+        request = connection.request  # set once the handshake is done, as it is here
+        origin = (request.headers.get("Origin", "no Origin header") if request is not None
+                  else "no Origin header")
         client = f"{host}:{port}"
         if self._active is not None:
             self.refused_clients += 1

@@ -136,10 +136,16 @@ def build_options_for_binary(path: str | os.PathLike[str]) -> ProfileBuildOption
         return None
     from bfsitl.protocol.firmware_profile import BuildOptions as ProfileBuildOptions
 
-    values = dict(d.split("=", 1) if "=" in d else (d, "1") for d in metadata.make_defines)
+    values = dict(_define_pair(d) for d in metadata.make_defines)
     gazebo = values.get("ENABLE_GAZEBO_BRIDGE")
     return ProfileBuildOptions(
         gps=metadata.gps,
         gazebo_bridge=None if gazebo is None else gazebo != "0",
         attitude_direct=True if "SITL_ATTITUDE_DIRECT" in values else None,
     )
+
+
+def _define_pair(define: str) -> tuple[str, str]:
+    """``NAME=VALUE`` as (NAME, VALUE); a bare ``NAME`` is defined as 1, as make's -D does."""
+    name, sep, value = define.partition("=")
+    return (name, value) if sep else (name, "1")

@@ -34,8 +34,10 @@ KEY_LENGTH = 20
 class TreeHook(Protocol):
     """A step that prepares the copied tree before make (never the user's source)."""
 
-    #: A few words for the progress output ("apply the lockstep patch").
-    description: str
+    @property
+    def description(self) -> str:
+        """A few words for the progress output ("apply the lockstep patch")."""
+        ...
 
     def key_material(self) -> str:
         """Everything that decides what the hook does (e.g. a patch's hash)."""

@@ -15,6 +15,7 @@ import os
 from collections.abc import Callable
 from dataclasses import asdict, dataclass
 from pathlib import Path
+from typing import Any
 
 from bfsitl.build.features import TreeFeatures, read_tree_features
 from bfsitl.build.fingerprint import fingerprint_tree
@@ -150,7 +151,7 @@ def _load_facts(memo_dir: Path | None, fingerprint: str) -> SourceFacts | None:
         return None
 
 
-def _load_json(path: Path | None) -> dict[str, object] | None:
+def _load_json(path: Path | None) -> dict[str, Any] | None:
     if path is None:
         return None
     try:

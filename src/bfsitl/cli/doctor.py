@@ -20,6 +20,7 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from bfsitl.errors import BfsitlError
+from bfsitl.protocol.arming import ArmingFlagInfo
 from bfsitl.sitl.firmware import find_firmware
 from bfsitl.sitl.network import unshare_available
 from bfsitl.sitl.ports import SIM_UDP_PORTS, SITL_TCP_PORTS, SITL_UDP_PORTS, find_port_holders
@@ -123,7 +124,7 @@ def live_probe(firmware: str | None, report: Callable[[str], None]) -> list[Find
             rc = UdpRcLink(sitl.network)
             rc.start()
             deadline = time.monotonic() + PROBE_TIMEOUT_S
-            blockers = []
+            blockers: tuple[ArmingFlagInfo, ...] = ()
             while time.monotonic() < deadline:
                 blockers = client.status().arming_blockers
                 seen.update({b.cli_name: b for b in blockers})

@@ -232,16 +232,14 @@ def cmd_fly(args: argparse.Namespace) -> int:
             profile = Profile.from_file(args.profile, mode_ranges=profile.mode_ranges)
         if args.rate > FAST_SERIAL_ABOVE_HZ:
             profile = with_fast_serial(profile)
-    noise = {name: value for name, value in (("baro_noise_std_pa", args.baro_noise_pa),
-                                             ("accel_noise_std_m_s2", args.accel_noise))
-             if value is not None}
-    sensors = {"sensors": fly_sensors(**noise)} if noise else {}
+    sensors = fly_sensors(baro_noise_std_pa=args.baro_noise_pa,
+                          accel_noise_std_m_s2=args.accel_noise)
     wind = None
     if args.wind or args.gusts:
         from bfsitl.sim.params import Wind
 
         wind = Wind.from_direction(args.wind, args.wind_from, args.gusts)
-    config = SessionConfig(**sensors, firmware=args.firmware, workdir=args.workdir,
+    config = SessionConfig(sensors=sensors, firmware=args.firmware, workdir=args.workdir,
                            isolate=not args.no_isolate, speed=args.speed, profile=profile,
                            lockstep=args.lockstep,
                            angle_mode=not args.no_angle, physics=args.physics,

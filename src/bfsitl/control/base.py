@@ -109,11 +109,17 @@ def throttle_range_ok(gains: object, low_us: float, high_us: float) -> None:
 class HoverLimits(Protocol):
     """Gains with a throttle range and hover bounds (the cascade's and the landing's)."""
 
-    throttle_min_us: float
-    hover_min_us: float
-    hover_guess_us: float
-    hover_max_us: float
-    throttle_max_us: float
+    # Read-only properties: frozen dataclasses (the gains) satisfy them.
+    @property
+    def throttle_min_us(self) -> float: ...
+    @property
+    def hover_min_us(self) -> float: ...
+    @property
+    def hover_guess_us(self) -> float: ...
+    @property
+    def hover_max_us(self) -> float: ...
+    @property
+    def throttle_max_us(self) -> float: ...
 
 
 def hover_range_ok(gains: HoverLimits) -> None:

@@ -29,7 +29,7 @@ import time
 from collections import deque
 from collections.abc import Callable, Iterable, Iterator, Sequence
 from dataclasses import dataclass, field
-from typing import Any, Literal, Protocol, TypeVar
+from typing import Any, ClassVar, Literal, Protocol, TypeVar
 
 from bfsitl.errors import LinkClosedError, MspDecodeError, MspErrorReply, MspTimeoutError
 from bfsitl.link.base import Link
@@ -79,7 +79,7 @@ T = TypeVar("T")
 
 
 class _Encodable(Protocol):
-    COMMAND: Any
+    COMMAND: ClassVar[int]
 
     def encode(self) -> bytes: ...
 

@@ -185,4 +185,4 @@ def _lines_to_run(cli: CliSession, lines: tuple[str, ...]) -> list[str]:
             if sep and name.strip().lower() in batch:
                 current[name.strip().lower()] = value.strip()
     return [line for line in lines
-            if (name := _set_name(line)) is None or current.get(name) != _set_value(line)]
+            if (setting := _set_name(line)) is None or current.get(setting) != _set_value(line)]

@@ -470,7 +470,8 @@ def run_mission(
     mission = Mission(session, controller, landing=landing, rate_hz=rate_hz, log=log,
                       on_row=on_row, on_event=on_event)
     name = getattr(controller, "name", type(controller).__name__)
-    outcome, reason, blockers = Outcome.LANDED, "landed and disarmed", ()
+    outcome, reason = Outcome.LANDED, "landed and disarmed"
+    blockers: tuple[str, ...] = ()
     try:
         mission.arm()
         if plan.ground_s > 0:

@@ -94,10 +94,14 @@ DEFAULT_BARO_NOISE_PA = 0.5
 DEFAULT_ACCEL_NOISE_M_S2 = 0.05
 
 
-def fly_sensors(**overrides: float) -> SensorConfig:
-    """The sensor errors ``bfsitl fly`` simulates by default, with ``overrides`` applied."""
-    return replace(SensorConfig(baro_noise_std_pa=DEFAULT_BARO_NOISE_PA,
-                                accel_noise_std_m_s2=DEFAULT_ACCEL_NOISE_M_S2), **overrides)
+def fly_sensors(*, baro_noise_std_pa: float | None = None,
+                accel_noise_std_m_s2: float | None = None) -> SensorConfig:
+    """The sensor errors ``bfsitl fly`` simulates by default; a value given replaces one."""
+    return SensorConfig(
+        baro_noise_std_pa=(DEFAULT_BARO_NOISE_PA if baro_noise_std_pa is None
+                           else baro_noise_std_pa),
+        accel_noise_std_m_s2=(DEFAULT_ACCEL_NOISE_M_S2 if accel_noise_std_m_s2 is None
+                              else accel_noise_std_m_s2))
 
 Progress = Callable[[str], None]
 
@@ -252,7 +256,7 @@ class FlightSession:
             else:
                 raise BfsitlError(f"unknown physics {config.physics!r}: embedded or gazebo")
             assert self.sitl is not None
-            if self.real_time_speed != 1.0 and self.bridge is not None:
+            if self.real_time_speed != 1.0 and isinstance(self.bridge, SitlBridge):
                 self._progress(f"locking the firmware clock to {self.real_time_speed:g}x")
                 lock_clock(HealthMonitor(self.bridge, self.client))
             if config.profile is not None:

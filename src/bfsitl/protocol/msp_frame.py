@@ -245,6 +245,7 @@ class MspParser:
             if outcome is _REJECT:
                 self._skip(1)
                 continue
+            assert isinstance(outcome, tuple)  # an (event, bytes used) pair
             event, consumed = outcome
             if isinstance(event, ChecksumFailure):
                 # The size field itself may be corrupt, so only the '$' is dropped: a frame

@@ -161,6 +161,14 @@ class Simulator:
         "_stall_ratio", "_inflow", "_drive", "_b_motor", "_damp", "_tau_max",
         "_lin", "_quad", "_box", "_k", "_c", "_mu", "_reach", "_rate", "_w_t",
     )
+    # The state's types (the slots above hold them).
+    _t: float
+    _p: Vec3
+    _v: Vec3
+    _q: Quat
+    _w: Vec3
+    _sf_world: Vec3
+    _reading: SensorReading | None
 
     def __init__(
         self,
@@ -312,12 +320,12 @@ class Simulator:
         if quaternion_wxyz is not None:
             if roll_deg or pitch_deg or yaw_deg:
                 raise SimInputError("reset: give quaternion_wxyz or Euler angles, not both")
-            q = quat_normalize(_vector(quaternion_wxyz, 4, "quaternion_wxyz"))
+            q = quat_normalize(_vec4(quaternion_wxyz, "quaternion_wxyz"))
         else:
             q = quat_normalize(quat_from_euler_deg(
                 *_vector((roll_deg, pitch_deg, yaw_deg), 3, "roll/pitch/yaw_deg")))
-        velocity = _vector(velocity_ned_m_s, 3, "velocity_ned_m_s")
-        rates = _vector(angular_velocity_frd_rad_s, 3, "angular_velocity_frd_rad_s")
+        velocity = _vec3(velocity_ned_m_s, "velocity_ned_m_s")
+        rates = _vec3(angular_velocity_frd_rad_s, "angular_velocity_frd_rad_s")
         speeds = _vector(motor_speeds_rad_s, 4, "motor_speeds_rad_s")
         if min(speeds) < 0:
             raise SimInputError(f"reset: motor speeds must be >= 0 rad/s, got {speeds}")
@@ -325,7 +333,7 @@ class Simulator:
         if position_ned_m is None:
             position = (0.0, 0.0, self.params.resting_sag_m - lowest)
         else:
-            position = _vector(position_ned_m, 3, "position_ned_m")
+            position = _vec3(position_ned_m, "position_ned_m")
             depth = position[2] + lowest
             if depth > MAX_RESET_PENETRATION_M:
                 raise SimInputError(
@@ -715,6 +723,16 @@ def _vector(values: object, length: int, name: str) -> tuple[float, ...]:
     if not all(math.isfinite(v) for v in out):
         raise SimInputError(f"{name}: every value must be finite, got {values!r}")
     return out
+
+
+def _vec3(values: object, name: str) -> Vec3:
+    x, y, z = _vector(values, 3, name)
+    return (x, y, z)
+
+
+def _vec4(values: object, name: str) -> Quat:
+    w, x, y, z = _vector(values, 4, name)
+    return (w, x, y, z)
 
 
 def _check_motors(motors: Motors) -> None:

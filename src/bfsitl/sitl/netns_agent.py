@@ -93,9 +93,10 @@ class Agent:
                 log.close()
             self.children[child.pid] = child
             return {"ok": True, "pid": child.pid}
-        child = self.children.get(int(request.get("pid", -1)))
-        if child is None:
+        known = self.children.get(int(request.get("pid", -1)))
+        if known is None:
             return {"ok": False, "error": f"no child with pid {request.get('pid')}"}
+        child = known
         if op == "poll":
             return {"ok": True, "returncode": child.poll()}
         if op == "wait":

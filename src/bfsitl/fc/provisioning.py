@@ -47,6 +47,9 @@ class Profile:
 
     mode_ranges: tuple[msg.ModeRange, ...] = (ARM_ON_AUX1,)
     cli_lines: tuple[str, ...] = ()
+    #: Reboot after saving whenever something changed: for lines the firmware applies at
+    #: boot without saying so (a feature, a serial port's function).
+    reboot_when_changed: bool = False
 
     def __post_init__(self) -> None:
         for line in self.cli_lines:
@@ -145,7 +148,7 @@ def provision(
     if changed:
         client.eeprom_write()
         flagged = msg.StatusEx.decode(client.request(msg.StatusEx.COMMAND)).config_state & 1
-        if flagged or boot_setting_changed:
+        if flagged or boot_setting_changed or profile.reboot_when_changed:
             if reboot is None:
                 raise ProvisioningError(
                     "the configuration was saved but needs a reboot to take effect; pass "

@@ -47,6 +47,13 @@ class FlightRow:
     motor4: float
     armed: bool
     wall_s: float            # seconds since the mission started, wall clock
+    # Horizontal position, metres north/east of the take-off point (empty where unknown):
+    sim_north_m: float = math.nan      # the truth
+    sim_east_m: float = math.nan
+    fc_north_m: float = math.nan       # the FC's GPS, during position control
+    fc_east_m: float = math.nan
+    target_north_m: float = math.nan   # the position target, during position control
+    target_east_m: float = math.nan
 
 
 COLUMNS: tuple[str, ...] = tuple(f.name for f in dataclasses.fields(FlightRow))

@@ -19,24 +19,28 @@ from collections.abc import Callable
 from dataclasses import dataclass, field, replace
 from typing import Any
 
+from bfsitl.control.angle_sticks import AngleStickMap
 from bfsitl.control.base import (
     THROTTLE_MIN_US,
     AltitudeController,
     AltitudeInput,
     EstimatesAltitude,
 )
+from bfsitl.control.position import PositionController, PositionInput
 from bfsitl.errors import (
     ArmingBlockedError,
     BfsitlError,
     CrashDetectedError,
     MissionError,
     MissionTimeoutError,
+    MspErrorReply,
     SitlExitedError,
 )
 from bfsitl.fc.rc_link import RC_MID_US, RC_MIN_US
 from bfsitl.mission.climb_rate import ClimbRateEstimator
 from bfsitl.mission.flight_log import CsvFlightLog, FlightRow
-from bfsitl.mission.session import SWITCH_OFF_US, FlightSample, FlightSession
+from bfsitl.mission.session import SWITCH_OFF_US, FlightSample, FlightSession, GpsPosition
+from bfsitl.protocol import msp_messages as msg
 
 DEFAULT_RATE_HZ = 50.0
 #: "Reached" means within this band of the target, nearly still, for REACHED_HOLD_S.
@@ -186,6 +190,12 @@ class Mission:
         self._on_event = on_event or (lambda _message: None)
         self._climb = ClimbRateEstimator()
         self._started_wall_s = time.monotonic()
+        self.position = PositionController()
+        #: The FC's ANGLE-mode stick curve, read from it at the first position manoeuvre.
+        self.sticks: AngleStickMap | None = None
+        #: The FC's GPS and the target of the step being recorded (position control only).
+        self._position_columns: dict[str, float] = {}
+        self.last_gps: GpsPosition | None = None
 
     # -- manoeuvres ------------------------------------------------------------------------
     def arm(self) -> None:
@@ -242,6 +252,77 @@ class Mission:
                 self.session.set_rc(replace(self.session.rc_command, roll_us=RC_MID_US,
                                             pitch_us=RC_MID_US, yaw_us=RC_MID_US))
 
+    # -- position (GPS builds) ---------------------------------------------------------------
+    def hold_position(self, seconds: float, north_m: float | None = None,
+                      east_m: float | None = None) -> None:
+        """Hold the altitude and a position (metres from the take-off point; default: where
+        the FC's GPS is now) for ``seconds``, steering through ANGLE mode."""
+        here = self._gps()
+        target = (here.north_m if north_m is None else north_m,
+                  here.east_m if east_m is None else east_m)
+        self._on_event(f"hold {target[0]:+.1f} m N {target[1]:+.1f} m E, "
+                       f"{self.target_alt_m:.2f} m up, for {seconds:g} s")
+        end_s = self.session.time_s + seconds
+        self._fly_position("hold", target, lambda s: s.time_s >= end_s, seconds + 5)
+
+    def fly_to(self, north_m: float, east_m: float, *, tolerance_m: float = 0.3,
+               timeout_s: float = 60.0) -> float:
+        """Fly to a position at the held altitude; returns once the FC's GPS puts the vehicle
+        within ``tolerance_m`` of it and slower than 0.3 m/s (the simulation time it took)."""
+        self._on_event(f"fly to {north_m:+.1f} m N {east_m:+.1f} m E")
+        started_s = self.session.time_s
+
+        def arrived(_sample: FlightSample) -> bool:
+            gps = self.last_gps
+            return gps is not None and math.hypot(gps.north_m - north_m,
+                                                  gps.east_m - east_m) <= tolerance_m \
+                and math.hypot(gps.v_north_m_s, gps.v_east_m_s) < 0.3
+
+        self._fly_position("goto", (north_m, east_m), arrived, timeout_s)
+        return self.session.time_s - started_s
+
+    def _gps(self) -> GpsPosition:
+        try:
+            gps = self.session.gps_position()
+        except MspErrorReply as exc:
+            raise MissionError(
+                "position control needs the FC's GPS, and this firmware has none (it refused "
+                "MSP_RAW_GPS): fly a GPS build (`bfsitl firmware build --gps`, add --lockstep "
+                "for lockstep; master always has it)") from exc
+        if not gps.has_fix:
+            raise MissionError(f"the FC's GPS has no fix ({gps.satellites} satellites): "
+                               f"position control needs one")
+        self.last_gps = gps
+        return gps
+
+    def _fly_position(self, phase: str, target: tuple[float, float],
+                      done: Callable[[FlightSample], bool], timeout_s: float) -> None:
+        if self.sticks is None:
+            client = self.session.client
+            self.sticks = AngleStickMap.from_replies(client.get(msg.RcTuning),
+                                                     client.get(msg.PidAdvanced))
+        sticks = self.sticks
+
+        def steer(sample: FlightSample) -> None:
+            gps = self._gps()
+            tilt = self.position.update(PositionInput(
+                sample.time_s, gps.north_m, gps.east_m, gps.v_north_m_s, gps.v_east_m_s,
+                sample.yaw_deg, target[0], target[1]))
+            self.session.set_rc(replace(self.session.rc_command,
+                                        roll_us=sticks.stick_us("roll", tilt.roll_deg),
+                                        pitch_us=sticks.stick_us("pitch", tilt.pitch_deg)))
+            self._position_columns = {
+                "fc_north_m": gps.north_m, "fc_east_m": gps.east_m,
+                "target_north_m": target[0], "target_east_m": target[1]}
+
+        self.position.reset(self.session.time_s)
+        try:
+            self._fly(phase, self.target_alt_m, done, timeout_s=timeout_s, steer=steer)
+        finally:
+            self._position_columns = {}
+            self.session.set_rc(replace(self.session.rc_command, roll_us=RC_MID_US,
+                                        pitch_us=RC_MID_US))
+
     def land(self, *, timeout_s: float = 30.0) -> None:
         """Descend, touch down, cut the throttle, disarm."""
         self._on_event("landing")
@@ -291,6 +372,7 @@ class Mission:
     def _fly(
         self, phase: str, target_alt_m: float, done: Callable[[FlightSample], bool], *,
         timeout_s: float, controller: AltitudeController | None = None,
+        steer: Callable[[FlightSample], None] | None = None,
     ) -> None:
         controller = controller or self.controller
         self.phase, self.target_alt_m = phase, target_alt_m
@@ -309,6 +391,8 @@ class Mission:
                 raise MissionError(f"controller {getattr(controller, 'name', controller)} "
                                    f"returned throttle {throttle_us}")
             self.session.set_throttle(throttle_us)
+            if steer is not None:
+                steer(sample)
             self._record(phase, target_alt_m, sample, climb_m_s)
             if done(sample):
                 return
@@ -353,6 +437,8 @@ class Mission:
             motor1=sample.motors[0], motor2=sample.motors[1], motor3=sample.motors[2],
             motor4=sample.motors[3], armed=sample.armed,
             wall_s=sample.wall_s - self._started_wall_s,
+            sim_north_m=sample.sim_north_m, sim_east_m=sample.sim_east_m,
+            **self._position_columns,
         )
         self.rows.append(row)
         self.last_sample = sample

@@ -38,6 +38,7 @@ from bfsitl.errors import (
     BfsitlError,
     LinkError,
     MspError,
+    MspErrorReply,
     SitlError,
     SitlExitedError,
 )
@@ -192,6 +193,20 @@ class FlightSample:
     flight_modes: tuple[str, ...]
     motors: tuple[float, float, float, float]  # applied motor commands 0..1, Betaflight M1..M4
     rc: RcCommand               # what the RC link is sending
+    sim_north_m: float = math.nan  # true position from the start point, NED metres
+    sim_east_m: float = math.nan
+
+
+@dataclass(frozen=True, slots=True)
+class GpsPosition:
+    """The FC's GPS (MSP_RAW_GPS) made local: metres from where it was at the first reading."""
+
+    north_m: float
+    east_m: float
+    v_north_m_s: float       # ground speed along the ground course
+    v_east_m_s: float
+    has_fix: bool
+    satellites: int
 
 
 @dataclass(frozen=True, slots=True)
@@ -203,6 +218,13 @@ class _Truth:
     attitude_deg: tuple[float, float, float]  # Betaflight's roll, pitch, yaw
     on_ground: bool
     motors: tuple[float, float, float, float]
+    north_m: float = math.nan
+    east_m: float = math.nan
+
+
+#: Metres per degree of latitude (and of longitude at the equator): the FC's own figure
+#: (``EARTH_RADIUS`` based, gps.c), which is what makes its GPS local.
+METRES_PER_DEGREE = 111_319.5
 
 
 class FlightSession:
@@ -233,6 +255,9 @@ class FlightSession:
         self.armed_after_s: float | None = None
         self._stack = ExitStack()
         self._ground_alt_m = 0.0
+        #: Where the vehicle stood at arming (NED, the truth) and its GPS then (1e-7 deg).
+        self._start_ned: tuple[float, float] = (0.0, 0.0)
+        self._gps_origin_e7: tuple[int, int] | None = None
         self._base = RcCommand(aux_us=(SWITCH_OFF_US, SWITCH_OFF_US))
 
     # -- lifecycle ---------------------------------------------------------------------------
@@ -260,7 +285,8 @@ class FlightSession:
                 self._progress(f"locking the firmware clock to {self.real_time_speed:g}x")
                 lock_clock(HealthMonitor(self.bridge, self.client))
             if config.profile is not None:
-                self.provisioned = provision(self.client, config.profile, reboot=self._reboot)
+                self.provisioned = provision(self.client, self._flight_profile(config.profile),
+                                             reboot=self._reboot)
                 self._progress("provisioned: " + (
                     "written and saved" + (", rebooted" if self.provisioned.rebooted else "")
                     if self.provisioned.changed else "already configured, nothing written"))
@@ -316,7 +342,8 @@ class FlightSession:
         pace = "as fast as it goes" if speed is None else f"paced to {speed:g}x real time"
         self._progress(f"lockstep: the FC's clock follows the physics, {pace}")
         if config.profile is not None:
-            self.provisioned = provision(self.client, config.profile, reboot=self._reboot)
+            self.provisioned = provision(self.client, self._flight_profile(config.profile),
+                                         reboot=self._reboot)
             self._progress("provisioned: " + (
                 "written and saved" + (", rebooted" if self.provisioned.rebooted else "")
                 if self.provisioned.changed else "already configured, nothing written"))
@@ -474,8 +501,15 @@ class FlightSession:
             status = client.status()
             if status.armed:
                 self.armed_after_s = time.monotonic() - self.created_at_s
-                truth_alt_m = self._truth().altitude_m
-                self._ground_alt_m = truth_alt_m if math.isfinite(truth_alt_m) else 0.0
+                truth = self._truth()
+                self._ground_alt_m = truth.altitude_m if math.isfinite(truth.altitude_m) else 0.0
+                if math.isfinite(truth.north_m):
+                    # Positions count from the take-off point, like altitudes.
+                    self._start_ned = (self._start_ned[0] + truth.north_m,
+                                       self._start_ned[1] + truth.east_m)
+                if self.sitl is not None and self.sitl.profile.has_gps:
+                    self._gps_origin_e7 = None
+                    self.gps_position()  # the FC's GPS here is the origin from now on
                 return
             clock.sleep_s(_POLL_INTERVAL_S)
         self.set_rc(replace(self.rc_command, aux_us=(SWITCH_OFF_US, SWITCH_OFF_US)))
@@ -531,10 +565,12 @@ class FlightSession:
             w, x, y, z = state.quaternion_wxyz
             # Body z in world NED has z component 1 - 2(x^2 + y^2): cos(tilt).
             cos_tilt = max(-1.0, min(1.0, 1.0 - 2.0 * (x * x + y * y)))
+            north, east, _down = state.position_ned_m
             return _Truth(state.time_s, simulator.altitude_m, -state.velocity_ned_m_s[2],
                           math.degrees(math.acos(cos_tilt)),
                           betaflight_attitude_deg(state.quaternion_wxyz), simulator.on_ground,
-                          tuple(bridge.motors))  # type: ignore[arg-type]
+                          tuple(bridge.motors),  # type: ignore[arg-type]
+                          north - self._start_ned[0], east - self._start_ned[1])
 
         # On the bridge thread, between two steps: one consistent state.
         return bridge.between_steps(read)
@@ -564,7 +600,48 @@ class FlightSession:
             on_ground=truth.on_ground,
             armed=telemetry.armed, arming_blockers=telemetry.arming_blockers,
             flight_modes=telemetry.flight_modes, motors=truth.motors, rc=self.rc_command,
+            sim_north_m=truth.north_m, sim_east_m=truth.east_m,
         )
+
+    def _flight_profile(self, profile: Profile) -> Profile:
+        """``profile``, plus the GPS set-up of a GPS build whose GPS is not on yet.
+
+        A 4.6.0 ``--gps`` build boots with FEATURE_GPS off and needs a serial port carrying
+        the GPS function (the profile's ``gps_setup_cli``), applied at boot only: a reboot.
+        Its GPS answers MSP_RAW_GPS with no satellites until then.
+        """
+        assert self.sitl is not None
+        lines = self.sitl.profile.gps_setup_cli
+        if not lines:
+            return profile
+        try:
+            if self.client.get(msg.RawGps).satellites > 0:
+                return profile  # on already (a persisted run directory)
+        except MspErrorReply:
+            return profile  # no GPS compiled in, whatever the build record says
+        self._progress("switching the GPS build's virtual GPS on (needs a reboot)")
+        return dataclasses.replace(profile, cli_lines=(*profile.cli_lines, *lines),
+                                   reboot_when_changed=True)
+
+    def gps_position(self) -> GpsPosition:
+        """The FC's GPS, local to its first reading in this session (one MSP round trip).
+
+        Only GPS builds answer (``bfsitl firmware build --gps`` for 4.6.0; master has it):
+        others raise :class:`MspErrorReply`.  The conversion is the FC's flat-earth one, good
+        to centimetres over a flying field.
+        """
+        gps = self.client.get(msg.RawGps)
+        if self._gps_origin_e7 is None and gps.has_fix:
+            self._gps_origin_e7 = (gps.lat_e7, gps.lon_e7)
+        lat0, lon0 = self._gps_origin_e7 or (gps.lat_e7, gps.lon_e7)
+        cos_lat = math.cos(math.radians(lat0 * 1e-7))
+        course = math.radians(gps.course_decideg / 10.0)
+        speed = gps.ground_speed_m_s
+        return GpsPosition(
+            north_m=(gps.lat_e7 - lat0) * 1e-7 * METRES_PER_DEGREE,
+            east_m=(gps.lon_e7 - lon0) * 1e-7 * METRES_PER_DEGREE * cos_lat,
+            v_north_m_s=speed * math.cos(course), v_east_m_s=speed * math.sin(course),
+            has_fix=gps.has_fix, satellites=gps.satellites)
 
     def rc_stats(self) -> RcLinkStats | None:
         return self.rc.stats() if self.rc is not None else None

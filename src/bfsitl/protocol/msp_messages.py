@@ -853,6 +853,84 @@ class RawGps:
 
 
 @dataclass(frozen=True, slots=True)
+class RcTuning:
+    """MSP_RC_TUNING (111), the parts that shape the sticks: per-axis RC rate (Actual rates:
+    centre sensitivity, 10 deg/s units), expo (percent) and rate (Actual: the maximum, 10 deg/s
+    units), and the rates type (4.6.0 and master msp.c: rcRates[R], rcExpo[R], rates[R, P, Y],
+    5 bytes of throttle fields, rcExpo[Y], rcRates[Y], rcRates[P], rcExpo[P], 2 throttle-limit
+    bytes, 3 U16 rate limits, then U8 rates_type from API 1.43)."""
+
+    COMMAND: ClassVar[int] = MspCommand.RC_TUNING
+    roll_rc_rate: int
+    roll_expo: int
+    roll_rate: int
+    pitch_rate: int
+    yaw_rate: int
+    yaw_expo: int
+    yaw_rc_rate: int
+    pitch_rc_rate: int
+    pitch_expo: int
+    rates_type: int | None = None   # 0 Betaflight, 1 Raceflight, 2 KISS, 3 Actual, 4 Quick
+
+    #: ``rates_type`` of Actual rates (the default of 4.6.0 and master).
+    ACTUAL: ClassVar[int] = 3
+
+    @classmethod
+    def decode(cls, payload: bytes) -> Self:
+        r = _reader(cls, payload)
+        roll_rc_rate, roll_expo, roll_rate, pitch_rate, yaw_rate = (r.u8() for _ in range(5))
+        for _ in range(5):  # was tpa_rate, thrMid8, thrExpo8, U16 was tpa_breakpoint
+            r.u8()
+        yaw_expo, yaw_rc_rate, pitch_rc_rate, pitch_expo = (r.u8() for _ in range(4))
+        rates_type = None
+        if r.remaining() >= 9:
+            for _ in range(8):  # throttle limit type and percent, three U16 rate limits
+                r.u8()
+            rates_type = r.u8()
+        return cls(roll_rc_rate, roll_expo, roll_rate, pitch_rate, yaw_rate, yaw_expo,
+                   yaw_rc_rate, pitch_rc_rate, pitch_expo, rates_type)
+
+    @_encoder
+    def encode(self) -> bytes:
+        w = PayloadWriter()
+        for value in (self.roll_rc_rate, self.roll_expo, self.roll_rate, self.pitch_rate,
+                      self.yaw_rate, 0, 0, 0, 0, 0, self.yaw_expo, self.yaw_rc_rate,
+                      self.pitch_rc_rate, self.pitch_expo):
+            w.u8(value)
+        if self.rates_type is not None:
+            for value in (0, 0, 0, 0, 0, 0, 0, 0, self.rates_type):
+                w.u8(value)
+        return w.build()
+
+
+@dataclass(frozen=True, slots=True)
+class PidAdvanced:
+    """MSP_PID_ADVANCED (94), only ``angle_limit``: the ANGLE-mode angle at full stick, in
+    degrees, a U8 at byte 17 (4.6.0 and master msp.c: three U16, four U8, two U16
+    acceleration limits, then angle_limit; read 60 there from both SITLs, 61-byte payloads);
+    the rest of the payload is kept as it came."""
+
+    COMMAND: ClassVar[int] = MspCommand.PID_ADVANCED
+    angle_limit_deg: int
+    payload: bytes = b""
+
+    ANGLE_LIMIT_OFFSET: ClassVar[int] = 17
+
+    @classmethod
+    def decode(cls, payload: bytes) -> Self:
+        if len(payload) <= cls.ANGLE_LIMIT_OFFSET:
+            raise MspDecodeError(f"MSP_PID_ADVANCED: {len(payload)} bytes, angle_limit is "
+                                 f"byte {cls.ANGLE_LIMIT_OFFSET}")
+        return cls(payload[cls.ANGLE_LIMIT_OFFSET], bytes(payload))
+
+    @_encoder
+    def encode(self) -> bytes:
+        body = bytearray(self.payload or bytes(self.ANGLE_LIMIT_OFFSET + 1))
+        body[self.ANGLE_LIMIT_OFFSET] = self.angle_limit_deg
+        return bytes(body)
+
+
+@dataclass(frozen=True, slots=True)
 class Altitude:
     """MSP_ALTITUDE (109): S32 altitude cm, S16 vario cm/s (msp.c:1323-1330).
 
@@ -1682,7 +1760,7 @@ _REPLY_CLASSES: tuple[type, ...] = (
     ApiVersion, FcVariant, FcVersion, BoardInfo, BuildInfo, McuInfo, CraftName, Uid, Status,
     StatusEx, RawImu, Motor, Rc, Attitude, Altitude, Analog, BatteryState, SensorConfigActive,
     Debug, MotorTelemetry, ArmingConfig, FeatureConfig, RxMap, BoxNames, BoxIds, ModeRanges,
-    EepromWrite, RebootReply, Rtc, MultipleMspReply,
+    EepromWrite, RebootReply, Rtc, MultipleMspReply, RcTuning, PidAdvanced,
 )  # fmt: skip
 
 _REQUEST_CLASSES: tuple[type, ...] = (

@@ -1,0 +1,92 @@
+"""ANGLE mode's stick -> angle curve, and its inverse: which stick holds a wanted tilt.
+
+In ANGLE mode the FC levels to ``angle_limit x setpoint(stick) / setpoint(full stick)``
+(4.6.0 and master ``pid.c``: ``angleTarget = angleLimit * currentPidSetpoint *
+maxSetpointRateInv``), so the angle follows the *rate curve's* shape.  With the default Actual
+rates (centre 70 deg/s, max 670 deg/s, no expo) that shape is far from a line: a third of the
+stick gives 6.7 deg, not 20 (``fc/rc.c`` ``applyActualRates``:
+``x * centre + max(0, max - centre) * |x| * (x^5 * expo + x * (1 - expo))``).  A controller
+that assumed a line would be three times too weak near the centre, where it works.
+
+The rates and the angle limit are read from the FC (MSP_RC_TUNING, MSP_PID_ADVANCED), so the
+map follows whatever the FC is configured with; only Actual rates are supported.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+from bfsitl.errors import UnsupportedFirmwareError
+from bfsitl.protocol import msp_messages as msg
+
+RC_MID_US = 1500.0
+RC_HALF_RANGE_US = 500.0
+_BISECTION_STEPS = 40
+
+
+@dataclass(frozen=True, slots=True)
+class ActualRates:
+    """One axis of Actual rates, in the firmware's units (10 deg/s, percent)."""
+
+    rc_rate: int   # centre sensitivity / 10 deg/s
+    rate: int      # max rate / 10 deg/s
+    expo: int      # percent
+
+    def setpoint(self, deflection: float) -> float:
+        """The rate setpoint (deg/s) for a stick deflection -1..1 (``applyActualRates``)."""
+        x = max(-1.0, min(1.0, deflection))
+        e = self.expo / 100.0
+        shaped = abs(x) * (x ** 5 * e + x * (1.0 - e))
+        centre = self.rc_rate * 10.0
+        return x * centre + max(0.0, self.rate * 10.0 - centre) * shaped
+
+    def share(self, deflection: float) -> float:
+        """setpoint(deflection) / setpoint(full stick): what ANGLE mode scales its limit by."""
+        full = self.setpoint(1.0)
+        return self.setpoint(deflection) / full if full > 0 else 0.0
+
+
+@dataclass(frozen=True, slots=True)
+class AngleStickMap:
+    """Stick <-> angle for roll and pitch in ANGLE mode."""
+
+    roll: ActualRates
+    pitch: ActualRates
+    angle_limit_deg: float
+
+    @classmethod
+    def linear(cls, angle_limit_deg: float = 60.0) -> AngleStickMap:
+        """A straight line (centre sensitivity = max rate): for tests and hand checks."""
+        line = ActualRates(rc_rate=67, rate=67, expo=0)
+        return cls(line, line, angle_limit_deg)
+
+    @classmethod
+    def from_replies(cls, tuning: msg.RcTuning, advanced: msg.PidAdvanced) -> AngleStickMap:
+        if tuning.rates_type not in (None, msg.RcTuning.ACTUAL):
+            raise UnsupportedFirmwareError(
+                f"position control reads the FC's rate curve and knows Actual rates only; this "
+                f"FC uses rates_type {tuning.rates_type}: `set rates_type = ACTUAL` (and set "
+                f"the rates again) for autonomous flight")
+        return cls(ActualRates(tuning.roll_rc_rate, tuning.roll_rate, tuning.roll_expo),
+                   ActualRates(tuning.pitch_rc_rate, tuning.pitch_rate, tuning.pitch_expo),
+                   float(advanced.angle_limit_deg))
+
+    def angle_deg(self, axis: str, stick_us: float) -> float:
+        """The angle the FC holds for ``stick_us`` on ``axis`` ("roll" or "pitch")."""
+        rates = self.roll if axis == "roll" else self.pitch
+        return self.angle_limit_deg * rates.share((stick_us - RC_MID_US) / RC_HALF_RANGE_US)
+
+    def stick_us(self, axis: str, angle_deg: float) -> float:
+        """The stick that makes the FC hold ``angle_deg`` (clamped to the angle limit)."""
+        rates = self.roll if axis == "roll" else self.pitch
+        wanted = max(-1.0, min(1.0, angle_deg / self.angle_limit_deg))
+        sign = 1.0 if wanted >= 0 else -1.0
+        wanted = abs(wanted)
+        low, high = 0.0, 1.0
+        for _ in range(_BISECTION_STEPS):  # share() rises monotonically with the deflection
+            mid = 0.5 * (low + high)
+            if rates.share(mid) < wanted:
+                low = mid
+            else:
+                high = mid
+        return RC_MID_US + sign * 0.5 * (low + high) * RC_HALF_RANGE_US

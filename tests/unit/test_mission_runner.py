@@ -350,3 +350,29 @@ def test_reached_also_counts_the_controllers_estimate_when_it_keeps_one():
     mission.arm()
     with pytest.raises(MissionError, match="did not finish"):
         mission.takeoff(1.0, timeout_s=3.0)
+
+
+class GustySession(FakeSession):
+    """The FC's altitude jumps 6 cm above and below the truth on alternate samples: gusts
+    through the rotors, seen by the barometer (never within 5 cm, always within 10 cm)."""
+
+    def sample(self) -> FlightSample:
+        sample = super().sample()
+        jitter_m = 0.06 if self.samples % 2 else -0.06
+        return replace(sample, fc_alt_m=round(sample.fc_alt_m + jitter_m, 2))
+
+
+def test_a_take_off_in_gusts_is_reached_with_a_wider_band_after_a_while(monkeypatch):
+    from bfsitl.errors import MissionTimeoutError
+    from bfsitl.mission import runner
+
+    mission = Mission(GustySession(), PController())  # type: ignore[arg-type]
+    mission.arm()
+    took_s = mission.takeoff(1.0, timeout_s=20.0)
+    assert runner.REACHED_PATIENCE_S <= took_s < runner.REACHED_PATIENCE_S + 3.0
+    # The control: with the band never widening, the same take-off times out.
+    monkeypatch.setattr(runner, "REACHED_PATIENCE_S", 1e9)
+    mission = Mission(GustySession(), PController())  # type: ignore[arg-type]
+    mission.arm()
+    with pytest.raises(MissionTimeoutError):
+        mission.takeoff(1.0, timeout_s=20.0)

@@ -7,6 +7,7 @@ wire behaviour it is about.
 
 from __future__ import annotations
 
+import math
 import sys
 import time
 from collections.abc import Iterator
@@ -527,12 +528,13 @@ def test_pipelined_telemetry_requests_decode() -> None:
     assert all(s.attitude == ATT and s.flight_modes == ("ARM", "FAILSAFE") for s in snapshots)
 
 
-def imu_snapshot(roll_decideg: int, pitch_decideg: int, acc_z: int) -> Telemetry:
+def imu_snapshot(roll_decideg: int, pitch_decideg: int, acc_z: int, acc_x: int = 0,
+                 acc_y: int = 0) -> Telemetry:
     """A snapshot whose only meaningful parts are the attitude and the accelerometer."""
     return Telemetry(
         received_at_s=0.0, attitude=msg.Attitude(roll_decideg, pitch_decideg, 0), altitude=ALT,
         status=STATUS, analog=ANALOG, rc=RC, motors=MOTOR,
-        imu=msg.RawImu((0, 0, acc_z), (0, 0, 0), (0, 0, 0)),
+        imu=msg.RawImu((acc_x, acc_y, acc_z), (0, 0, 0), (0, 0, 0)),
     )
 
 
@@ -552,6 +554,26 @@ def test_accel_up_projects_body_z_onto_the_vertical(roll_decideg: int,
     """Tilted 60 deg with 2 g along the thrust axis: cos(60) = 1/2 of it is up, holding 1 g."""
     t = imu_snapshot(roll_decideg, pitch_decideg, 512)
     assert t.accel_up_m_s2() == pytest.approx(0.0, abs=1e-9)
+
+
+@pytest.mark.parametrize(("roll_deg", "pitch_deg"), [(20.0, 0.0), (0.0, 15.0), (-12.0, 9.0)])
+def test_accel_up_counts_the_body_x_and_y_readings_too(roll_deg: float, pitch_deg: float) -> None:
+    """Tilted and still (hovering in a steady state): the accelerometer reads 1 g straight up
+    in the world, which in Betaflight's FLU body axes (pitch positive nose down, roll positive
+    right wing down) is (-sin(pitch), sin(roll) cos(pitch), cos(roll) cos(pitch)) g.  All of
+    it, x and y included, projects back to 1 g up: no acceleration.  Body z alone would read
+    an acceleration of g (cos^2 - 1), and a horizontal push (rotor drag) would leak into the
+    vertical through the tilt."""
+    r, p = math.radians(roll_deg), math.radians(pitch_deg)
+    lsb = 256
+    t = imu_snapshot(round(roll_deg * 10), round(pitch_deg * 10),
+                     acc_z=round(lsb * math.cos(r) * math.cos(p)),
+                     acc_x=round(-lsb * math.sin(p)), acc_y=round(lsb * math.sin(r) * math.cos(p)))
+    assert t.accel_up_m_s2() == pytest.approx(0.0, abs=0.05)  # LSB rounding only
+    # A pure forward push (x) while nose-down: part of it is "down", none of it "up".
+    pushed = imu_snapshot(0, round(pitch_deg * 10), acc_z=lsb, acc_x=64)
+    if pitch_deg > 0:
+        assert pushed.accel_up_m_s2() < imu_snapshot(0, round(pitch_deg * 10), lsb).accel_up_m_s2()
 
 
 def test_accel_up_takes_the_sensor_scale() -> None:

@@ -173,15 +173,24 @@ class Telemetry:
         ``acc_1G``).  ``offset_lsb`` is added to the z reading first: a known bias of the
         source (``msg.SITL_ACC_TRUNCATION_LSB`` for the SITL).
         """
-        # Only the body z axis: a multirotor's specific force is along its thrust axis, so the
-        # body x/y readings stay near 0 and their terms (whose signs depend on the sensor
-        # alignment convention) are negligible.  Projecting body z onto the vertical takes
-        # cos(roll) * cos(pitch); the sign of the angles does not matter.
+        # The whole specific force projected on the vertical.  Betaflight's accelerometer is
+        # in FLU body axes (x forward, y left, z up; +1 g on z at rest), its pitch is positive
+        # nose down and its roll positive right wing down: x points up by -sin(pitch), y by
+        # sin(roll) cos(pitch), z by cos(roll) cos(pitch) (signs checked against the simulated
+        # truth).  Body z alone does in still air, but a multirotor pushed by rotor drag
+        # (holding position in wind) has x/y specific force that its tilt turns partly
+        # vertical; ignoring it biased the altitude estimate enough to lose metres of height
+        # (README, "Position").
         roll_rad = math.radians(self.attitude.roll_deg)
         pitch_rad = math.radians(self.attitude.pitch_deg)
-        z_g = (self.imu.acc_raw[2] + offset_lsb) / acc_1g_lsb
-        specific_force_up_m_s2 = (z_g * STANDARD_GRAVITY_M_S2
-                                  * math.cos(roll_rad) * math.cos(pitch_rad))
+        scale = STANDARD_GRAVITY_M_S2 / acc_1g_lsb
+        ax = self.imu.acc_raw[0] * scale
+        ay = self.imu.acc_raw[1] * scale
+        az = (self.imu.acc_raw[2] + offset_lsb) * scale
+        cos_pitch = math.cos(pitch_rad)
+        specific_force_up_m_s2 = (-math.sin(pitch_rad) * ax
+                                  + math.sin(roll_rad) * cos_pitch * ay
+                                  + math.cos(roll_rad) * cos_pitch * az)
         return specific_force_up_m_s2 - STANDARD_GRAVITY_M_S2
 
 

@@ -47,6 +47,9 @@ DEFAULT_RATE_HZ = 50.0
 REACHED_BAND_M = 0.05
 REACHED_CLIMB_M_S = 0.10
 REACHED_HOLD_S = 0.5
+#: After this long trying, "reached" takes twice the band and the climb rate: in gusts the
+#: height wanders by more than 5 cm, and a take-off that is there must not time out for it.
+REACHED_PATIENCE_S = 8.0
 #: Tilt beyond which the vehicle is taken as crashed (ANGLE mode limits it to about 55 deg).
 CRASH_TILT_DEG = 70.0
 #: Hitting the ground faster than this is a crash, not a landing.
@@ -353,10 +356,12 @@ class Mission:
             # the FC's zero error, which on master can exceed the band).
             estimate = self.controller.altitude_estimate_m \
                 if isinstance(self.controller, EstimatesAltitude) else None
-            within = abs(sample.fc_alt_m - altitude_m) <= REACHED_BAND_M or (
-                estimate is not None and abs(estimate - altitude_m) <= REACHED_BAND_M)
+            widen = 2.0 if sample.time_s - start_s >= REACHED_PATIENCE_S else 1.0
+            band_m = REACHED_BAND_M * widen
+            within = abs(sample.fc_alt_m - altitude_m) <= band_m or (
+                estimate is not None and abs(estimate - altitude_m) <= band_m)
             near = within and \
-                abs(self._climb.rate_m_s) <= REACHED_CLIMB_M_S
+                abs(self._climb.rate_m_s) <= REACHED_CLIMB_M_S * widen
             if not near:
                 settled_since.clear()
                 return False

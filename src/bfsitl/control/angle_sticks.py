@@ -17,10 +17,11 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 from bfsitl.errors import UnsupportedFirmwareError
+from bfsitl.fc.rc_link import RC_MAX_US, RC_MID_US
 from bfsitl.protocol import msp_messages as msg
 
-RC_MID_US = 1500.0
-RC_HALF_RANGE_US = 500.0
+#: Full deflection, either way from the middle.
+RC_HALF_RANGE_US = float(RC_MAX_US - RC_MID_US)
 _BISECTION_STEPS = 40
 
 

@@ -26,8 +26,7 @@ import math
 from dataclasses import dataclass
 
 from bfsitl.errors import ControllerConfigError
-
-STANDARD_GRAVITY_M_S2 = 9.80665
+from bfsitl.sim.params import STANDARD_GRAVITY_M_S2
 
 
 @dataclass(frozen=True, slots=True)

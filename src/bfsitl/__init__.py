@@ -3,12 +3,14 @@
 The public surface is importable from here; each name lives in the module its docstring
 points to, and is imported on first use, so ``import bfsitl`` stays light.
 
-    from bfsitl import FlightSession, MissionPlan, make_controller, run_mission
+    from bfsitl import Autopilot, launch_sitl
 
-    with FlightSession() as session:
-        result = run_mission(session, MissionPlan(target_alt_m=2.0, hold_s=10),
-                             make_controller("fused"))
-    print(result.outcome, result.hold)
+    with launch_sitl(firmware="master") as vehicle:   # a GPS build flies positions
+        pilot = Autopilot(vehicle)
+        pilot.takeoff(2.0)
+        pilot.goto(10.0, 0.0, 2.0)
+        pilot.land()
+    print(pilot.legs)
 """
 
 from __future__ import annotations
@@ -31,6 +33,10 @@ _EXPORTS: dict[str, str] = {
     "MissionResult": "bfsitl.mission.runner",
     "Outcome": "bfsitl.mission.runner",
     "run_mission": "bfsitl.mission.runner",
+    "Waypoint": "bfsitl.mission.plan",
+    "load_mission": "bfsitl.mission.plan",
+    "Autopilot": "bfsitl.autopilot",
+    "launch_sitl": "bfsitl.autopilot",
     "make_controller": "bfsitl.control",
     # the SITL and its firmware
     "SitlProcess": "bfsitl.sitl.process",
@@ -50,10 +56,11 @@ _EXPORTS: dict[str, str] = {
 }
 
 __all__ = [
-    "BfsitlError", "CliSession", "FLY_PROFILE", "FirmwareBinary", "FlightSession", "GeoPoint",
-    "Mission", "MissionPlan", "MissionResult", "MspClient", "Outcome", "Profile",
-    "SensorConfig", "SessionConfig", "Simulator", "SitlProcess", "Wind", "__version__",
-    "find_firmware", "make_controller", "open_link", "provision", "run_mission",
+    "Autopilot", "BfsitlError", "CliSession", "FLY_PROFILE", "FirmwareBinary", "FlightSession",
+    "GeoPoint", "Mission", "MissionPlan", "MissionResult", "MspClient", "Outcome", "Profile",
+    "SensorConfig", "SessionConfig", "Simulator", "SitlProcess", "Waypoint", "Wind",
+    "__version__", "find_firmware", "launch_sitl", "load_mission", "make_controller",
+    "open_link", "provision", "run_mission",
 ]
 
 
@@ -71,11 +78,13 @@ def __dir__() -> list[str]:
 
 
 if TYPE_CHECKING:  # what type checkers and IDEs see; nothing is imported at run time
+    from bfsitl.autopilot import Autopilot, launch_sitl
     from bfsitl.control import make_controller
     from bfsitl.fc.cli_session import CliSession
     from bfsitl.fc.msp_client import MspClient
     from bfsitl.fc.provisioning import Profile, provision
     from bfsitl.link import open_link
+    from bfsitl.mission.plan import Waypoint, load_mission
     from bfsitl.mission.runner import Mission, MissionPlan, MissionResult, Outcome, run_mission
     from bfsitl.mission.session import FLY_PROFILE, FlightSession, SessionConfig
     from bfsitl.sim import GeoPoint, SensorConfig, Simulator

@@ -84,3 +84,124 @@ def test_a_build_without_gps_is_told_what_to_fly(lockstep_46_firmware, tmp_path)
         with pytest.raises(MissionError, match="firmware build --gps"):
             mission.fly_to(1.0, 0.0)
         mission.land()
+
+
+SQUARE_TOML = """
+takeoff_alt_m = 2.0
+speed_m_s = 2.0
+land = true
+
+[[waypoint]]
+north_m = 8.0
+east_m = 0.0
+alt_m = 2.0
+
+[[waypoint]]
+north_m = 8.0
+east_m = 8.0
+alt_m = 2.5
+
+[[waypoint]]
+north_m = 0.0
+east_m = 8.0
+alt_m = 2.0
+
+[[waypoint]]
+north_m = 0.0
+east_m = 0.0
+alt_m = 2.0
+"""
+
+
+def test_a_square_mission_file_flies_in_wind_and_lands_at_its_start(gps_lockstep_firmware,
+                                                                    tmp_path):
+    """`bfsitl fly --mission` end to end, in a crosswind with gusts (a swapped axis or sign
+    would end the legs elsewhere; drifting would show in the cross-track)."""
+    import json
+
+    from test_fly_sitl import fly, read_rows
+
+    mission = tmp_path / "square.toml"
+    mission.write_text(SQUARE_TOML)
+    result = fly(tmp_path, "--mission", str(mission), "--firmware", str(gps_lockstep_firmware),
+                 "--wind", "2", "--wind-from", "60", "--gusts", "0.5", "--seed", "3",
+                 "--log", "square.csv", "--plot", "square.png", "--json", timeout_s=150)
+    assert result.returncode == 0, result.stdout + result.stderr
+    summary = json.loads(result.stdout)
+    assert summary["outcome"] == "landed"
+    legs = summary["waypoints"]
+    assert [leg["waypoint"] for leg in legs] == [1, 2, 3, 4]
+    assert all(leg["arrival_error_m"] < 0.5 for leg in legs), legs
+    assert summary["cross_track_rms_m"] < 0.5
+    assert summary["landed_from_start_m"] < 0.5
+    rows = read_rows(tmp_path / "square.csv")
+    legs_rows = [r for r in rows if r["phase"] == "goto"]
+    # The FC's GPS (what the autopilot flew by) agrees with the truth along the way.
+    worst_m = max(math.hypot(float(r["fc_north_m"]) - float(r["sim_north_m"]),
+                             float(r["fc_east_m"]) - float(r["sim_east_m"])) for r in legs_rows)
+    assert worst_m < 0.4
+    # The climb on the second leg is flown (the altitude target moves with the leg).
+    second = [float(r["sim_alt_m"]) for r in rows if r["waypoint"] == "2" and r["phase"] == "goto"]
+    assert second[-1] == pytest.approx(2.5, abs=0.2)
+    assert (tmp_path / "square.png").stat().st_size > 10_000
+
+
+def test_the_autopilot_turns_to_a_heading_from_python(gps_lockstep_firmware):
+    """`launch_sitl` + `Autopilot` from the package's top level; the truth's heading after
+    yaw_to(90) is within 3 degrees (wind pushes the vehicle while it turns)."""
+    from bfsitl import Autopilot, Wind, launch_sitl
+
+    with launch_sitl(firmware=gps_lockstep_firmware, seed=4,
+                     wind=Wind.from_direction(2.0, 200.0, 0.3)) as vehicle:
+        assert vehicle.truth is not None and vehicle.fc.api_version().api >= (1, 47)
+        pilot = Autopilot(vehicle)
+        pilot.takeoff(2.0)
+        pilot.yaw_to(90.0)
+        turned = pilot.rows[-1]
+        pilot.hold(2.0)  # the heading is kept afterwards
+        kept = pilot.rows[-1]
+        pilot.land()
+    for row in (turned, kept):
+        assert abs((row.sim_yaw_deg - 90.0 + 180.0) % 360.0 - 180.0) < 3.0, row.sim_yaw_deg
+        assert math.hypot(row.sim_north_m, row.sim_east_m) < 0.6  # held its place meanwhile
+    assert pilot.rows[-1].phase == "landed"
+
+
+def test_ctrl_c_mid_mission_leaves_the_sticks_at_disarm_and_a_complete_log(
+        lockstep_master_firmware, tmp_path):
+    import signal
+    import subprocess
+    import time
+
+    from test_fly_sitl import BFSITL, processes_in, read_rows
+
+    mission = tmp_path / "square.toml"
+    mission.write_text(SQUARE_TOML)
+    log = tmp_path / "flight.csv"
+    process = subprocess.Popen(
+        [*BFSITL, "fly", "--mission", str(mission), "--workdir", str(tmp_path / "run"),
+         "--speed", "1", "--log", str(log), "--firmware", str(lockstep_master_firmware)],
+        stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, cwd=tmp_path)
+    try:
+        assert process.stderr is not None
+        deadline = time.monotonic() + 60
+        seen = []
+        while time.monotonic() < deadline:
+            line = process.stderr.readline()
+            seen.append(line)
+            if "waypoint 2" in line or not line:
+                break
+        assert any("waypoint 2" in line for line in seen), "".join(seen)
+        time.sleep(1.0)  # a second into the second leg, tilted and moving
+        process.send_signal(signal.SIGINT)
+        _stdout, stderr = process.communicate(timeout=30)
+    finally:
+        if process.poll() is None:
+            process.kill()
+    assert process.returncode == 130, stderr
+    rows = read_rows(log)
+    assert rows[-1]["phase"] == "interrupted"
+    assert rows[-1]["rc_aux1_us"] == "1000" and rows[-1]["rc_throttle_us"] == "1000"
+    assert {"1", "2"} <= {r["waypoint"] for r in rows if r["phase"] == "goto"}
+    time.sleep(0.5)
+    assert processes_in(tmp_path) == []

@@ -376,3 +376,128 @@ def test_a_take_off_in_gusts_is_reached_with_a_wider_band_after_a_while(monkeypa
     mission.arm()
     with pytest.raises(MissionTimeoutError):
         mission.takeoff(1.0, timeout_s=20.0)
+
+
+# -- position control on a planar fake ------------------------------------------------------
+class PlanarSession(FakeSession):
+    """FakeSession plus a horizontal point mass driven by the roll/pitch sticks through the
+    ANGLE-mode stick map, a heading driven by the yaw stick, and a GPS that reports the truth.
+
+    A steady wind pushes it ``wind_push_m_s2`` north, so a controller that ignores position
+    or has a sign wrong ends somewhere else.
+    """
+
+    def __init__(self, *, wind_push_m_s2: float = 0.3, **kwargs) -> None:  # type: ignore[no-untyped-def]
+        super().__init__(**kwargs)
+        from bfsitl.control.angle_sticks import AngleStickMap
+
+        self.sticks = AngleStickMap.linear()
+        self.north_m = self.east_m = self.v_north = self.v_east = 0.0
+        self.heading_deg = 0.0
+        self.wind_push_m_s2 = wind_push_m_s2
+        self.has_gps = True
+
+    def sample(self) -> FlightSample:
+        import math
+
+        sample = super().sample()
+        dt = 0.02
+        if self.armed and self.altitude_m > 0.05:
+            from bfsitl.sim.params import STANDARD_GRAVITY_M_S2 as g
+
+            roll = math.radians(self.sticks.angle_deg("roll", self.command.roll_us))
+            pitch = math.radians(self.sticks.angle_deg("pitch", self.command.pitch_us))
+            a_fwd, a_right = g * math.tan(pitch), g * math.tan(roll)
+            psi = math.radians(self.heading_deg)
+            a_n = a_fwd * math.cos(psi) - a_right * math.sin(psi) + self.wind_push_m_s2
+            a_e = a_fwd * math.sin(psi) + a_right * math.cos(psi)
+            self.v_north += (a_n - 0.3 * self.v_north) * dt
+            self.v_east += (a_e - 0.3 * self.v_east) * dt
+            self.north_m += self.v_north * dt
+            self.east_m += self.v_east * dt
+            yaw_rate = self.sticks.yaw.setpoint((self.command.yaw_us - 1500.0) / 500.0)
+            self.heading_deg = (self.heading_deg + yaw_rate * dt) % 360.0
+        return replace(sample, yaw_deg=self.heading_deg, sim_yaw_deg=self.heading_deg,
+                       sim_north_m=self.north_m, sim_east_m=self.east_m)
+
+    def gps_position(self):  # type: ignore[no-untyped-def]
+        from bfsitl.mission.session import GpsPosition
+
+        return GpsPosition(self.north_m, self.east_m, self.v_north, self.v_east, True, 12)
+
+
+def planar_mission(session: PlanarSession, log=None) -> Mission:  # type: ignore[no-untyped-def]
+    mission = Mission(session, PController(), log=log)  # type: ignore[arg-type]
+    mission.sticks = session.sticks  # the FC's curve would be read over MSP
+    return mission
+
+
+def test_a_square_mission_flies_its_legs_turns_and_lands_at_its_start(tmp_path):
+    import math
+
+    from bfsitl.mission.plan import Waypoint
+    from bfsitl.mission.runner import cross_track_rms, fly_plan, landed_from_start_m
+
+    session = PlanarSession()
+    log = CsvFlightLog(tmp_path / "square.csv")
+    mission = planar_mission(session, log)
+    square = (Waypoint(10, 0, 1.0), Waypoint(10, 10, 1.0, heading_deg=90.0),
+              Waypoint(0, 10, 1.5, hold_s=1.0), Waypoint(0, 0, 1.0))
+    fly_plan(mission, MissionPlan(target_alt_m=1.0, hold_s=0.0, ground_s=0.0,
+                                  waypoints=square))
+    log.close()
+    assert [leg.waypoint for leg in mission.legs] == [1, 2, 3, 4]
+    assert all(leg.arrival_error_m < 0.35 for leg in mission.legs)
+    assert cross_track_rms(mission.legs) < 0.5
+    assert landed_from_start_m(mission.rows) < 0.5
+    # The turn at waypoint 2 happened and was kept: the heading ends east.
+    assert abs(session.heading_deg - 90.0) < 3.0
+    # Waypoint 3 is 0.5 m higher: the altitude target moved with the leg.
+    assert max(r.target_alt_m for r in mission.rows if r.waypoint == 3) == pytest.approx(1.5)
+    rows = read_flight_log(tmp_path / "square.csv")
+    assert {"sim_north_m", "fc_east_m", "target_north_m", "target_heading_deg", "waypoint"} \
+        <= set(rows[0])
+    assert {r["waypoint"] for r in rows} == {"0", "1", "2", "3", "4"}
+    assert not math.isnan(mission.rows[-1].sim_north_m)
+
+
+def test_without_the_position_loop_the_wind_carries_the_planar_fake_away():
+    """The control of the test above: the same take-off without holding the position
+    drifts with the wind, so the square's result is the controller's doing."""
+    session = PlanarSession()
+    mission = planar_mission(session)
+    mission.arm()
+    mission.takeoff(1.0)
+    mission.hold(5.0)
+    assert session.north_m > 2.0
+    session = PlanarSession()
+    mission = planar_mission(session)
+    mission.arm()
+    mission.takeoff(1.0, hold_position=True)
+    mission.hold_position(5.0)
+    assert abs(session.north_m) < 0.3
+
+
+def test_yaw_to_turns_the_short_way_and_settles(tmp_path):
+    session = PlanarSession(wind_push_m_s2=0.0)
+    session.heading_deg = 350.0
+    mission = planar_mission(session)
+    mission.arm()
+    mission.takeoff(1.0)
+    took_s = mission.yaw_to(20.0)
+    assert abs(session.heading_deg - 20.0) < 2.5
+    headings = [r.yaw_deg for r in mission.rows if r.phase == "yaw"]
+    assert all(h >= 340.0 or h <= 25.0 for h in headings)  # through north, not round south
+    assert took_s < 5.0
+
+
+def test_waypoints_on_a_firmware_without_gps_end_before_arming_with_the_fix():
+    from bfsitl.mission.plan import Waypoint
+
+    session = FakeSession()
+    session.has_gps = False  # type: ignore[attr-defined]
+    result = run_mission(session, MissionPlan(waypoints=(Waypoint(5, 0, 2),)),  # type: ignore[arg-type]
+                         PController())  # type: ignore[arg-type]
+    assert result.outcome is Outcome.ERROR
+    assert "GPS build" in result.reason and "--gps" in result.reason
+    assert not session.armed and session.samples == 0

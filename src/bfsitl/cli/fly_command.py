@@ -22,6 +22,9 @@ from typing import TextIO
 from bfsitl.errors import BfsitlError
 
 EXIT_OK, EXIT_FAILED, EXIT_INTERRUPTED = 0, 1, 130
+DEFAULT_RATE_HZ = 50.0
+#: Position control wants the faster loop (and gets the 1 kHz serial task with it).
+POSITION_RATE_HZ = 100.0
 #: Live-line redraws per second: readable, and cheap next to the 50 Hz control loop.
 LIVE_REFRESH_HZ = 5.0
 
@@ -50,22 +53,28 @@ def add_fly_parser(sub: argparse._SubParsersAction) -> None:  # type: ignore[typ
                     "seconds, land and disarm. Exit code 0 only if it landed.",
         epilog="Examples:\n"
                "  bfsitl fly --plot flight.png --summary flight.json\n"
+               "  bfsitl fly --firmware master --mission square.toml --wind 3 --plot sq.png\n"
                "  bfsitl fly --controller tutorial-pid --gain kp=120 --log flight.csv\n"
                "  bfsitl fly --workdir ~/.cache/bfsitl/quad   (eeprom.bin kept between flights)\n"
                "  bfsitl fly --controller cascade --list-gains",
         formatter_class=argparse.RawDescriptionHelpFormatter,
     )
     mission = fly.add_argument_group("mission")
-    mission.add_argument("--target-alt", type=float, default=2.0, metavar="M",
+    mission.add_argument("--mission", metavar="FILE.toml",
+                         help="fly a mission file: take-off altitude, [[waypoint]] tables "
+                              "(north_m, east_m, alt_m, optional hold_s and heading_deg), "
+                              "land = true (see docs/missions.md). Waypoints need a GPS "
+                              "build; they are flown at 100 Hz unless --rate says otherwise")
+    mission.add_argument("--target-alt", type=float, default=None, metavar="M",
                          help="take-off altitude above the ground, metres (default 2.0)")
-    mission.add_argument("--hold", type=float, default=10.0, metavar="S",
+    mission.add_argument("--hold", type=float, default=None, metavar="S",
                          help="seconds to hold the altitude before landing (default 10)")
     mission.add_argument("--controller", choices=sorted(CONTROLLERS),
                          default=DEFAULT_CONTROLLER,
                          help=f"altitude controller (default {DEFAULT_CONTROLLER}: barometer + "
                               "accelerometer; cascade: barometer only; tutorial-pid and "
                               "open-loop re-create the tutorial's scripts)")
-    mission.add_argument("--ground", type=float, default=MissionPlan().ground_s, metavar="S",
+    mission.add_argument("--ground", type=float, default=None, metavar="S",
                          help="seconds armed at idle before the take-off, while the FC's "
                               "altitude settles and the fused controller learns the "
                               f"barometer's zero (default {MissionPlan().ground_s:g})")
@@ -73,10 +82,11 @@ def add_fly_parser(sub: argparse._SubParsersAction) -> None:  # type: ignore[typ
                          help="override a controller gain, repeatable (see --list-gains)")
     mission.add_argument("--list-gains", action="store_true",
                          help="print the chosen controller's gains and defaults, then exit")
-    mission.add_argument("--rate", type=float, default=50.0, metavar="HZ",
-                         help="control loop rate in simulation time (default 50; above 50 "
-                              "the FC's serial task is set to 1 kHz, which costs one reboot "
-                              "in a run directory that does not hold it yet)")
+    mission.add_argument("--rate", type=float, default=None, metavar="HZ",
+                         help="control loop rate in simulation time (default 50, 100 for "
+                              "missions with waypoints; above 50 the FC's serial task is set "
+                              "to 1 kHz, which costs one reboot in a run directory that does "
+                              "not hold it yet)")
     out = fly.add_argument_group("outputs")
     out.add_argument("--log", metavar="FILE.csv", help="one row per control step, flushed")
     out.add_argument("--plot", metavar="FILE.png", help="altitude, throttle and attitude plot")
@@ -112,6 +122,9 @@ def add_fly_parser(sub: argparse._SubParsersAction) -> None:  # type: ignore[typ
     sitl.add_argument("--wind-from", type=float, default=0.0, metavar="DEG",
                       help="where the wind blows from, degrees clockwise from north "
                            "(default 0: from the north)")
+    sitl.add_argument("--gps-noise", action="store_true",
+                      help="give the GPS a typical receiver's errors (0.15 m of wander per "
+                           "axis, 3 cm noise, 5 cm/s on the velocity; default: an exact GPS)")
     sitl.add_argument("--seed", type=int, default=0, metavar="N",
                       help="seed of the sensor noise and the gusts (default 0)")
     sitl.add_argument("--physics", choices=("embedded", "gazebo"), default="embedded",
@@ -127,6 +140,25 @@ def add_fly_parser(sub: argparse._SubParsersAction) -> None:  # type: ignore[typ
     sitl.add_argument("--no-angle", action="store_true",
                       help="do not provision or switch on ANGLE (self-levelling) on AUX2")
     fly.set_defaults(func=cmd_fly)
+
+
+def _plan_from_args(args: argparse.Namespace):  # type: ignore[no-untyped-def]
+    """The mission file's plan, or the one --target-alt / --hold describe."""
+    from dataclasses import replace
+
+    from bfsitl.mission.plan import DEFAULT_HOLD_S, MissionPlan, load_mission
+
+    if args.mission:
+        given = [flag for flag, value in (("--target-alt", args.target_alt),
+                                          ("--hold", args.hold)) if value is not None]
+        if given:
+            raise BfsitlError(f"{' and '.join(given)} cannot be combined with --mission: the "
+                              f"mission file sets the take-off altitude and the holds")
+        plan = load_mission(args.mission)
+        return plan if args.ground is None else replace(plan, ground_s=args.ground)
+    plan = MissionPlan(target_alt_m=2.0 if args.target_alt is None else args.target_alt,
+                       hold_s=DEFAULT_HOLD_S if args.hold is None else args.hold)
+    return plan if args.ground is None else replace(plan, ground_s=args.ground)
 
 
 def parse_gains(items: list[str]) -> dict[str, float]:
@@ -215,7 +247,7 @@ def cmd_fly(args: argparse.Namespace) -> int:
     from bfsitl.fc.provisioning import ARM_ON_AUX1, Profile
     from bfsitl.mission import FLY_PROFILE, FlightSession, SessionConfig
     from bfsitl.mission.flight_log import CsvFlightLog
-    from bfsitl.mission.runner import MissionPlan, Outcome, run_mission
+    from bfsitl.mission.runner import Outcome, run_mission
     from bfsitl.mission.session import FAST_SERIAL_ABOVE_HZ, fly_sensors, with_fast_serial
 
     if args.list_gains:
@@ -223,7 +255,9 @@ def cmd_fly(args: argparse.Namespace) -> int:
             print(f"{name} = {default:g}")
         return EXIT_OK
     controller = make_controller(args.controller, parse_gains(args.gain))
-    plan = MissionPlan(target_alt_m=args.target_alt, hold_s=args.hold, ground_s=args.ground)
+    plan = _plan_from_args(args)
+    if args.rate is None:
+        args.rate = POSITION_RATE_HZ if plan.needs_position else DEFAULT_RATE_HZ
     if args.no_provision:
         profile = None
     else:
@@ -234,6 +268,8 @@ def cmd_fly(args: argparse.Namespace) -> int:
             profile = with_fast_serial(profile)
     sensors = fly_sensors(baro_noise_std_pa=args.baro_noise_pa,
                           accel_noise_std_m_s2=args.accel_noise)
+    if args.gps_noise:
+        sensors = sensors.with_typical_gps()
     wind = None
     if args.wind or args.gusts:
         from bfsitl.sim.params import Wind
@@ -275,7 +311,8 @@ def cmd_fly(args: argparse.Namespace) -> int:
         from bfsitl.mission.plot import write_flight_plot
 
         write_flight_plot(result.rows, args.plot,
-                          title=f"bfsitl fly: {result.controller}, {result.outcome.value}")
+                          title=f"bfsitl fly: {result.controller}, {result.outcome.value}",
+                          waypoints=[(w.north_m, w.east_m) for w in plan.waypoints])
         written.append(f"plot {args.plot}")
     if args.summary:
         path = Path(args.summary)
@@ -321,6 +358,18 @@ def render_summary(summary: dict) -> str:
                      f"{attitude['pitch_rms_error_deg']:.2f} deg, max "
                      f"{attitude['max_abs_error_deg']:.2f} deg (true tilt up to "
                      f"{attitude['max_true_tilt_deg']:.1f} deg)")
+    for leg in summary.get("waypoints") or ():
+        lines.append(f"waypoint {leg['waypoint']:<5} reached after {leg['took_s']:.1f} s, "
+                     f"{leg['arrival_error_m'] * 100:.0f} cm off (height "
+                     f"{leg['arrival_alt_error_m'] * 100:+.0f} cm), cross-track RMS "
+                     f"{leg['cross_track_rms_m'] * 100:.0f} cm, max "
+                     f"{leg['cross_track_max_m'] * 100:.0f} cm")
+    if summary.get("cross_track_rms_m") is not None:
+        lines.append(f"cross-track    RMS {summary['cross_track_rms_m'] * 100:.0f} cm over all "
+                     f"legs (simulated truth vs the straight lines)")
+    if summary.get("landed_from_start_m") is not None:
+        lines.append(f"landed         {summary['landed_from_start_m'] * 100:.0f} cm from the "
+                     f"take-off point")
     firmware = summary.get("firmware")
     if firmware:
         lines.append(f"firmware       {firmware['version']} (MSP API {firmware['api']}, "

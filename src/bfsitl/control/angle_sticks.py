@@ -47,13 +47,37 @@ class ActualRates:
         return self.setpoint(deflection) / full if full > 0 else 0.0
 
 
+    def deflection_for(self, rate_deg_s: float) -> float:
+        """The stick deflection -1..1 that asks for ``rate_deg_s`` (clamped to the curve)."""
+        full = self.setpoint(1.0)
+        if full <= 0:
+            return 0.0
+        wanted = max(-1.0, min(1.0, rate_deg_s / full))
+        sign = 1.0 if wanted >= 0 else -1.0
+        wanted = abs(wanted)
+        low, high = 0.0, 1.0
+        for _ in range(_BISECTION_STEPS):  # share() rises monotonically with the deflection
+            mid = 0.5 * (low + high)
+            if self.share(mid) < wanted:
+                low = mid
+            else:
+                high = mid
+        return sign * 0.5 * (low + high)
+
+
+#: Yaw rates of a map built by hand (:meth:`AngleStickMap.linear`): a straight line.
+_LINEAR_YAW = ActualRates(rc_rate=67, rate=67, expo=0)
+
+
 @dataclass(frozen=True, slots=True)
 class AngleStickMap:
-    """Stick <-> angle for roll and pitch in ANGLE mode."""
+    """Stick <-> angle for roll and pitch in ANGLE mode, stick <-> rate for yaw (ANGLE mode
+    levels roll and pitch only; yaw stays a rate command)."""
 
     roll: ActualRates
     pitch: ActualRates
     angle_limit_deg: float
+    yaw: ActualRates = _LINEAR_YAW
 
     @classmethod
     def linear(cls, angle_limit_deg: float = 60.0) -> AngleStickMap:
@@ -70,7 +94,8 @@ class AngleStickMap:
                 f"the rates again) for autonomous flight")
         return cls(ActualRates(tuning.roll_rc_rate, tuning.roll_rate, tuning.roll_expo),
                    ActualRates(tuning.pitch_rc_rate, tuning.pitch_rate, tuning.pitch_expo),
-                   float(advanced.angle_limit_deg))
+                   float(advanced.angle_limit_deg),
+                   ActualRates(tuning.yaw_rc_rate, tuning.yaw_rate, tuning.yaw_expo))
 
     def angle_deg(self, axis: str, stick_us: float) -> float:
         """The angle the FC holds for ``stick_us`` on ``axis`` ("roll" or "pitch")."""
@@ -81,13 +106,12 @@ class AngleStickMap:
         """The stick that makes the FC hold ``angle_deg`` (clamped to the angle limit)."""
         rates = self.roll if axis == "roll" else self.pitch
         wanted = max(-1.0, min(1.0, angle_deg / self.angle_limit_deg))
-        sign = 1.0 if wanted >= 0 else -1.0
-        wanted = abs(wanted)
-        low, high = 0.0, 1.0
-        for _ in range(_BISECTION_STEPS):  # share() rises monotonically with the deflection
-            mid = 0.5 * (low + high)
-            if rates.share(mid) < wanted:
-                low = mid
-            else:
-                high = mid
-        return RC_MID_US + sign * 0.5 * (low + high) * RC_HALF_RANGE_US
+        # share(x) = setpoint(x) / setpoint(1): the deflection for a share is the one for
+        # that fraction of the full-stick rate.
+        deflection = rates.deflection_for(wanted * rates.setpoint(1.0))
+        return RC_MID_US + deflection * RC_HALF_RANGE_US
+
+    def yaw_stick_us(self, rate_deg_s: float) -> float:
+        """The yaw stick that asks for ``rate_deg_s`` (positive: nose right, clockwise seen
+        from above, the heading growing)."""
+        return RC_MID_US + self.yaw.deflection_for(rate_deg_s) * RC_HALF_RANGE_US

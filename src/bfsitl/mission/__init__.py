@@ -10,10 +10,11 @@
 """
 
 from bfsitl.mission.flight_log import CsvFlightLog, FlightRow
+from bfsitl.mission.legs import LegStats
+from bfsitl.mission.plan import MissionPlan, Waypoint, load_mission
 from bfsitl.mission.runner import (
     HoldStats,
     Mission,
-    MissionPlan,
     MissionResult,
     Outcome,
     run_mission,
@@ -22,5 +23,6 @@ from bfsitl.mission.session import FLY_PROFILE, FlightSample, FlightSession, Ses
 
 __all__ = [
     "FLY_PROFILE", "CsvFlightLog", "FlightRow", "FlightSample", "FlightSession", "HoldStats",
-    "Mission", "MissionPlan", "MissionResult", "Outcome", "SessionConfig", "run_mission",
+    "LegStats", "Mission", "MissionPlan", "MissionResult", "Outcome", "SessionConfig",
+    "Waypoint", "load_mission", "run_mission",
 ]

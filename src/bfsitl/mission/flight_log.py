@@ -54,6 +54,8 @@ class FlightRow:
     fc_east_m: float = math.nan
     target_north_m: float = math.nan   # the position target, during position control
     target_east_m: float = math.nan
+    target_heading_deg: float = math.nan  # the heading held or turned to (position control)
+    waypoint: int = 0                  # the mission waypoint being flown to or held, 1-based
 
 
 COLUMNS: tuple[str, ...] = tuple(f.name for f in dataclasses.fields(FlightRow))

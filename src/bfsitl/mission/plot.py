@@ -1,4 +1,6 @@
-"""The flight plot: altitude against target, throttle, attitude, on one time axis.
+"""The flight plot: altitude against target, throttle, attitude, on one time axis; and, for a
+flight that used position control, a top-down track (east across, north up) with the
+waypoints.
 
 matplotlib is imported here only, with the non-interactive Agg backend, so a headless machine
 (CI, SSH) can write PNGs and nothing else in bfsitl pays for the import.
@@ -6,6 +8,7 @@ matplotlib is imported here only, with the non-interactive Agg backend, so a hea
 
 from __future__ import annotations
 
+import math
 from collections.abc import Sequence
 from pathlib import Path
 
@@ -27,14 +30,26 @@ def _pyplot():  # type: ignore[no-untyped-def]
     return plt
 
 
-def write_flight_plot(rows: Sequence[FlightRow], path: str | Path, *, title: str = "") -> Path:
-    """Three stacked panels; phases shaded so take-off, hold and landing are easy to find."""
+def write_flight_plot(rows: Sequence[FlightRow], path: str | Path, *, title: str = "",
+                      waypoints: Sequence[tuple[float, float]] = ()) -> Path:
+    """Three stacked panels; phases shaded so take-off, hold and landing are easy to find.
+    A flight with position control gets the top-down track on the right; ``waypoints``
+    (north, east) are marked on it."""
     if not rows:
         raise BfsitlError("nothing to plot: the flight has no rows (it never armed)")
     plt = _pyplot()
     t0 = rows[0].time_s
     time_s = [r.time_s - t0 for r in rows]
-    figure, (alt_ax, thr_ax, att_ax) = plt.subplots(3, 1, sharex=True, figsize=(10, 8))
+    horizontal = any(math.isfinite(r.target_north_m) for r in rows)
+    if horizontal:
+        figure = plt.figure(figsize=(16, 8))
+        grid = figure.add_gridspec(3, 2, width_ratios=(1.6, 1.0))
+        alt_ax = figure.add_subplot(grid[0, 0])
+        thr_ax = figure.add_subplot(grid[1, 0], sharex=alt_ax)
+        att_ax = figure.add_subplot(grid[2, 0], sharex=alt_ax)
+        _plot_track(figure.add_subplot(grid[:, 1]), rows, waypoints)
+    else:
+        figure, (alt_ax, thr_ax, att_ax) = plt.subplots(3, 1, sharex=True, figsize=(10, 8))
     alt_ax.plot(time_s, [r.target_alt_m for r in rows], "k--", label="target")
     alt_ax.plot(time_s, [r.sim_alt_m for r in rows], label="simulated (truth)")
     alt_ax.plot(time_s, [r.fc_alt_m for r in rows], alpha=0.7, label="FC (MSP_ALTITUDE)")
@@ -68,7 +83,35 @@ def write_flight_plot(rows: Sequence[FlightRow], path: str | Path, *, title: str
     return out
 
 
-_PHASE_COLOURS = {"takeoff": "tab:green", "goto": "tab:blue", "land": "tab:red"}
+def _plot_track(axis, rows: Sequence[FlightRow],  # type: ignore[no-untyped-def]
+                waypoints: Sequence[tuple[float, float]]) -> None:
+    """Top-down: the truth's track, the FC's GPS, the waypoints numbered, the start."""
+    flown = [r for r in rows if math.isfinite(r.sim_north_m)]
+    if flown:
+        axis.plot([r.sim_east_m for r in flown], [r.sim_north_m for r in flown],
+                  label="simulated (truth)")
+    gps = [r for r in rows if math.isfinite(r.fc_north_m)]
+    if gps:
+        axis.plot([r.fc_east_m for r in gps], [r.fc_north_m for r in gps], alpha=0.7,
+                  label="FC (GPS)")
+    if waypoints:
+        axis.plot([0.0] + [e for _n, e in waypoints], [0.0] + [n for n, _e in waypoints], "k--",
+                  alpha=0.5, label="planned track")
+        for number, (north, east) in enumerate(waypoints, start=1):
+            axis.plot(east, north, "ks", markersize=6)
+            axis.annotate(str(number), (east, north), textcoords="offset points",
+                          xytext=(6, 6))
+    axis.plot(0.0, 0.0, "g^", markersize=9, label="take-off point")
+    axis.set_xlabel("east (m)")
+    axis.set_ylabel("north (m)")
+    axis.set_aspect("equal", adjustable="datalim")
+    axis.grid(True, alpha=0.3)
+    axis.legend(loc="best")
+    axis.set_title("track, seen from above")
+
+
+_PHASE_COLOURS = {"takeoff": "tab:green", "goto": "tab:blue", "yaw": "tab:purple",
+                  "land": "tab:red"}
 
 
 def _shade_phases(time_s: list[float], rows: Sequence[FlightRow], axes: tuple) -> None:

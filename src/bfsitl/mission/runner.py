@@ -26,6 +26,7 @@ from bfsitl.control.base import (
     AltitudeInput,
     EstimatesAltitude,
 )
+from bfsitl.control.heading import HeadingController, heading_error_deg
 from bfsitl.control.position import PositionController, PositionInput
 from bfsitl.errors import (
     ArmingBlockedError,
@@ -39,7 +40,15 @@ from bfsitl.errors import (
 from bfsitl.fc.rc_link import RC_MID_US, RC_MIN_US
 from bfsitl.mission.climb_rate import ClimbRateEstimator
 from bfsitl.mission.flight_log import CsvFlightLog, FlightRow
-from bfsitl.mission.session import SWITCH_OFF_US, FlightSample, FlightSession, GpsPosition
+from bfsitl.mission.legs import LegPoint, LegReference, LegStats, leg_stats
+from bfsitl.mission.plan import MissionPlan, Waypoint
+from bfsitl.mission.session import (
+    SWITCH_OFF_US,
+    SWITCH_ON_US,
+    FlightSample,
+    FlightSession,
+    GpsPosition,
+)
 from bfsitl.protocol import msp_messages as msg
 
 DEFAULT_RATE_HZ = 50.0
@@ -50,6 +59,8 @@ REACHED_HOLD_S = 0.5
 #: After this long trying, "reached" takes twice the band and the climb rate: in gusts the
 #: height wanders by more than 5 cm, and a take-off that is there must not time out for it.
 REACHED_PATIENCE_S = 8.0
+#: The take-off's step response is judged over this much hold after it (metrics.py).
+STEP_STEADY_WINDOW_S = 5.0
 #: Tilt beyond which the vehicle is taken as crashed (ANGLE mode limits it to about 55 deg).
 CRASH_TILT_DEG = 70.0
 #: Hitting the ground faster than this is a crash, not a landing.
@@ -58,6 +69,7 @@ CRASH_TOUCHDOWN_M_S = 2.5
 
 class Outcome(enum.Enum):
     LANDED = "landed"
+    COMPLETED = "completed"       # a plan with land = false: ended in the air
     ARMING_BLOCKED = "arming-blocked"
     SITL_EXITED = "sitl-exited"
     TIMEOUT = "timeout"
@@ -67,28 +79,7 @@ class Outcome(enum.Enum):
 
     @property
     def succeeded(self) -> bool:
-        return self is Outcome.LANDED
-
-
-@dataclass(frozen=True, slots=True)
-class MissionPlan:
-    """The default mission: take off to ``target_alt_m``, hold ``hold_s``, land, disarm."""
-
-    target_alt_m: float = 2.0
-    hold_s: float = 10.0
-    #: Simulation seconds allowed for the climb to be reached and settled.
-    takeoff_timeout_s: float = 20.0
-    land_timeout_s: float = 30.0
-    #: Armed at idle before the take-off (:meth:`Mission.wait_on_ground`), seconds.
-    ground_s: float = 2.0
-
-    def __post_init__(self) -> None:
-        if not (math.isfinite(self.target_alt_m) and 0.3 <= self.target_alt_m <= 100.0):
-            raise MissionError(f"target altitude {self.target_alt_m} m is outside 0.3..100 m")
-        if not (math.isfinite(self.hold_s) and 0.0 <= self.hold_s <= 3600.0):
-            raise MissionError(f"hold time {self.hold_s} s is outside 0..3600 s")
-        if not (math.isfinite(self.ground_s) and 0.0 <= self.ground_s <= 60.0):
-            raise MissionError(f"ground time {self.ground_s} s is outside 0..60 s")
+        return self in (Outcome.LANDED, Outcome.COMPLETED)
 
 
 @dataclass(frozen=True, slots=True)
@@ -113,6 +104,7 @@ class MissionResult:
     hold: HoldStats | None = None
     attitude: AttitudeTracking | None = None  # FC roll/pitch vs the truth in the air
     metrics: Any = None  # bfsitl.control.metrics.StepMetrics of the take-off step
+    legs: list[LegStats] = field(default_factory=list)  # one per waypoint reached
     extra: dict[str, Any] = field(default_factory=dict)
 
     @property
@@ -145,6 +137,9 @@ class MissionResult:
             "hold": plain(self.hold),
             "attitude": plain(self.attitude),
             "step_response": plain(self.metrics),
+            "waypoints": plain(self.legs),
+            "cross_track_rms_m": plain(cross_track_rms(self.legs)),
+            "landed_from_start_m": plain(landed_from_start_m(self.rows)),
             "rows": len(self.rows),
             "flight_time_s": plain(self.rows[-1].time_s - self.rows[0].time_s)
             if self.rows else None,
@@ -153,6 +148,8 @@ class MissionResult:
 
 
 RowCallback = Callable[[FlightRow, FlightSample], None]
+#: Time since the manoeuvre began -> where the position and altitude targets are.
+PositionTarget = Callable[[float], LegPoint]
 EventCallback = Callable[[str], None]
 
 
@@ -199,6 +196,14 @@ class Mission:
         #: The FC's GPS and the target of the step being recorded (position control only).
         self._position_columns: dict[str, float] = {}
         self.last_gps: GpsPosition | None = None
+        self.heading = HeadingController()
+        #: The heading held during position control and turned to by :meth:`yaw_to`.
+        self.target_heading_deg: float | None = None
+        #: The last position target (north, east): where the next leg starts.
+        self._target_ne: tuple[float, float] | None = None
+        #: One entry per leg flown by :meth:`fly_to`.
+        self.legs: list[LegStats] = []
+        self._waypoint = 0  # the waypoint being flown to or held (a log column)
 
     # -- manoeuvres ------------------------------------------------------------------------
     def arm(self) -> None:
@@ -206,6 +211,7 @@ class Mission:
         self._on_event("arming: waiting for the FC's blockers to clear")
         self.session.arm()
         self._climb.reset()
+        self.position.reset(self.session.time_s)  # nothing learnt of the wind yet
         self.controller.reset(self.session.time_s)
         self._on_event(f"armed {self.session.armed_after_s:.1f} s after start")
 
@@ -222,10 +228,24 @@ class Mission:
             # (a PID would otherwise integrate the whole wait in its first step).
             self.controller.reset(self.session.time_s)
 
-    def takeoff(self, altitude_m: float, *, timeout_s: float = 20.0) -> float:
-        """Climb to ``altitude_m`` above the take-off point; returns the sim time it took."""
-        self._on_event(f"take-off to {altitude_m:.2f} m")
-        return self._reach("takeoff", altitude_m, timeout_s)
+    def takeoff(self, altitude_m: float, *, timeout_s: float = 20.0,
+                hold_position: bool = False) -> float:
+        """Climb to ``altitude_m`` above the take-off point; returns the sim time it took.
+
+        ``hold_position`` (GPS builds) holds the take-off point on the way up: without it,
+        wind carries the vehicle off while it climbs."""
+        self._on_event(f"take-off to {altitude_m:.2f} m"
+                       + (", holding the take-off point" if hold_position else ""))
+        if not hold_position:
+            return self._reach("takeoff", altitude_m, timeout_s)
+        here = self._position_target(0.0, 0.0)
+        self._target_ne = here
+        steer = self._position_steer(self._fixed(here, alt_m=altitude_m), 0)
+        self.position.resume(self.session.time_s)
+        try:
+            return self._reach("takeoff", altitude_m, timeout_s, steer=steer)
+        finally:
+            self._end_position_control()
 
     def goto(self, altitude_m: float, *, timeout_s: float = 20.0) -> float:
         self._on_event(f"go to {altitude_m:.2f} m")
@@ -255,34 +275,107 @@ class Mission:
                 self.session.set_rc(replace(self.session.rc_command, roll_us=RC_MID_US,
                                             pitch_us=RC_MID_US, yaw_us=RC_MID_US))
 
-    # -- position (GPS builds) ---------------------------------------------------------------
+    # -- position and heading ----------------------------------------------------------------
     def hold_position(self, seconds: float, north_m: float | None = None,
-                      east_m: float | None = None) -> None:
-        """Hold the altitude and a position (metres from the take-off point; default: where
-        the FC's GPS is now) for ``seconds``, steering through ANGLE mode."""
-        here = self._gps()
-        target = (here.north_m if north_m is None else north_m,
-                  here.east_m if east_m is None else east_m)
+                      east_m: float | None = None, *, waypoint: int = 0) -> None:
+        """Hold the altitude and a position (metres from the take-off point; default: the
+        last position target, else where the FC's GPS is now) for ``seconds``, steering
+        through ANGLE mode and holding the heading."""
+        target = self._position_target(north_m, east_m)
         self._on_event(f"hold {target[0]:+.1f} m N {target[1]:+.1f} m E, "
                        f"{self.target_alt_m:.2f} m up, for {seconds:g} s")
         end_s = self.session.time_s + seconds
-        self._fly_position("hold", target, lambda s: s.time_s >= end_s, seconds + 5)
+        self._fly_position("hold", self._fixed(target), lambda s: s.time_s >= end_s,
+                           seconds + 5, waypoint=waypoint)
 
-    def fly_to(self, north_m: float, east_m: float, *, tolerance_m: float = 0.3,
-               timeout_s: float = 60.0) -> float:
-        """Fly to a position at the held altitude; returns once the FC's GPS puts the vehicle
-        within ``tolerance_m`` of it and slower than 0.3 m/s (the simulation time it took)."""
-        self._on_event(f"fly to {north_m:+.1f} m N {east_m:+.1f} m E")
+    def fly_to(self, north_m: float, east_m: float, alt_m: float | None = None, *,
+               speed_m_s: float | None = None, tolerance_m: float = 0.15,
+               timeout_s: float | None = None, waypoint: int = 0) -> float:
+        """Fly a straight leg to a position (metres from the take-off point) and altitude
+        (default: the one held), at ``speed_m_s`` (default: the position gains' top speed).
+
+        The leg starts at the last position target (where the previous leg ended) or, before
+        any, where the FC's GPS is.  It is reached once the travelling reference has stopped
+        at the end and the FC's GPS puts the vehicle within ``tolerance_m`` of it, slower than
+        0.3 m/s (tight, because the GPS's own error adds to it).  Returns the simulation time
+        it took; the leg's figures (arrival error and cross-track, from the truth) are
+        appended to :attr:`legs`.
+        """
+        start = self._position_target(None, None)
+        start_alt_m = self.target_alt_m
+        end = (north_m, east_m, start_alt_m if alt_m is None else alt_m)
+        speed = self.position.gains.max_speed_m_s if speed_m_s is None else speed_m_s
+        reference = LegReference((start[0], start[1], start_alt_m), end, speed)
+        if timeout_s is None:
+            timeout_s = 20.0 + 3.0 * reference.duration_s
+        label = f"waypoint {waypoint}: " if waypoint else ""
+        self._on_event(f"{label}fly to {north_m:+.1f} m N {east_m:+.1f} m E, {end[2]:.2f} m "
+                       f"up ({reference.length_m:.1f} m at {speed:g} m/s)")
         started_s = self.session.time_s
+        first_row = len(self.rows)
+        finished = [False]
+
+        def target(elapsed_s: float) -> LegPoint:
+            point = reference.at(elapsed_s)
+            finished[0] = point.finished
+            return point
 
         def arrived(_sample: FlightSample) -> bool:
             gps = self.last_gps
-            return gps is not None and math.hypot(gps.north_m - north_m,
-                                                  gps.east_m - east_m) <= tolerance_m \
+            return finished[0] and gps is not None and math.hypot(
+                gps.north_m - north_m, gps.east_m - east_m) <= tolerance_m \
                 and math.hypot(gps.v_north_m_s, gps.v_east_m_s) < 0.3
 
-        self._fly_position("goto", (north_m, east_m), arrived, timeout_s)
+        self._fly_position("goto", target, arrived, timeout_s, waypoint=waypoint)
+        self._target_ne = (north_m, east_m)
+        took_s = self.session.time_s - started_s
+        self.legs.append(leg_stats(waypoint or len(self.legs) + 1, start, end,
+                                   [_judged_position(r) for r in self.rows[first_row:]], took_s))
+        return took_s
+
+    def yaw_to(self, heading_deg: float, *, tolerance_deg: float = 2.0,
+               timeout_s: float = 30.0) -> float:
+        """Turn to ``heading_deg`` (clockwise from north), holding the altitude, and the
+        position on a GPS build; reached when the FC's heading stays within ``tolerance_deg``
+        for half a second.  Returns the simulation time it took."""
+        target_deg = heading_deg % 360.0
+        self._on_event(f"turn to heading {target_deg:.0f} deg")
+        self.target_heading_deg = target_deg
+        started_s = self.session.time_s
+        within_since: list[float] = []
+
+        def turned(sample: FlightSample) -> bool:
+            if abs(heading_error_deg(target_deg, sample.yaw_deg)) > tolerance_deg:
+                within_since.clear()
+                return False
+            if not within_since:
+                within_since.append(sample.time_s)
+            return sample.time_s - within_since[0] >= REACHED_HOLD_S
+
+        if self.session.has_gps:
+            here = self._position_target(None, None)
+            self._fly_position("yaw", self._fixed(here), turned, timeout_s)
+        else:
+            self._fly("yaw", self.target_alt_m, turned, timeout_s=timeout_s,
+                      steer=self._steer_heading)
+            self._set_sticks(yaw_us=RC_MID_US)
         return self.session.time_s - started_s
+
+    def _fixed(self, north_east: tuple[float, float], *, alt_m: float | None = None
+               ) -> PositionTarget:
+        """A position target that stays put, at ``alt_m`` (default: the altitude held)."""
+        point = LegPoint(north_east[0], north_east[1],
+                         self.target_alt_m if alt_m is None else alt_m, 0.0, 0.0, 0.0, 0.0, True)
+        return lambda _elapsed_s: point
+
+    def _position_target(self, north_m: float | None, east_m: float | None
+                         ) -> tuple[float, float]:
+        """The given coordinates, else the last target, else where the FC's GPS is now."""
+        if self._target_ne is None:
+            gps = self._gps()
+            self._target_ne = (gps.north_m, gps.east_m)
+        return (self._target_ne[0] if north_m is None else north_m,
+                self._target_ne[1] if east_m is None else east_m)
 
     def _gps(self) -> GpsPosition:
         try:
@@ -298,33 +391,93 @@ class Mission:
         self.last_gps = gps
         return gps
 
-    def _fly_position(self, phase: str, target: tuple[float, float],
-                      done: Callable[[FlightSample], bool], timeout_s: float) -> None:
+    def _stick_map(self) -> AngleStickMap:
         if self.sticks is None:
             client = self.session.client
             self.sticks = AngleStickMap.from_replies(client.get(msg.RcTuning),
                                                      client.get(msg.PidAdvanced))
-        sticks = self.sticks
+        return self.sticks
 
-        def steer(sample: FlightSample) -> None:
+    def _set_sticks(self, *, roll_us: float | None = None, pitch_us: float | None = None,
+                    yaw_us: float | None = None) -> None:
+        rc = self.session.rc_command
+        self.session.set_rc(replace(
+            rc, roll_us=rc.roll_us if roll_us is None else roll_us,
+            pitch_us=rc.pitch_us if pitch_us is None else pitch_us,
+            yaw_us=rc.yaw_us if yaw_us is None else yaw_us))
+
+    def _steer_heading(self, sample: FlightSample) -> None:
+        """Yaw towards :attr:`target_heading_deg` (set to the heading now if there is none)."""
+        if self.target_heading_deg is None:
+            self.target_heading_deg = sample.yaw_deg % 360.0
+        rate = self.heading.rate_deg_s(sample.yaw_deg, self.target_heading_deg)
+        self._set_sticks(yaw_us=self._stick_map().yaw_stick_us(rate))
+        self._position_columns["target_heading_deg"] = self.target_heading_deg
+
+    def _fly_position(self, phase: str, target: PositionTarget,
+                      done: Callable[[FlightSample], bool], timeout_s: float, *,
+                      waypoint: int = 0, controller: AltitudeController | None = None) -> None:
+        steer = self._position_steer(target, waypoint)
+        self.position.resume(self.session.time_s)
+        try:
+            self._fly(phase, target(0.0).alt_m, done, timeout_s=timeout_s, steer=steer,
+                      controller=controller)
+        finally:
+            self._end_position_control()
+
+    def _position_steer(self, target: PositionTarget, waypoint: int
+                        ) -> Callable[[FlightSample], float | None]:
+        """One step of position and heading control towards ``target``: sets the roll,
+        pitch and yaw sticks, returns the altitude target."""
+        sticks = self._stick_map()
+        started_s = self.session.time_s
+
+        def steer(sample: FlightSample) -> float | None:
             gps = self._gps()
+            point = target(sample.time_s - started_s)
+            north, east = point.north_m, point.east_m
             tilt = self.position.update(PositionInput(
                 sample.time_s, gps.north_m, gps.east_m, gps.v_north_m_s, gps.v_east_m_s,
-                sample.yaw_deg, target[0], target[1]))
-            self.session.set_rc(replace(self.session.rc_command,
-                                        roll_us=sticks.stick_us("roll", tilt.roll_deg),
-                                        pitch_us=sticks.stick_us("pitch", tilt.pitch_deg)))
+                sample.yaw_deg, north, east, point.v_north_m_s, point.v_east_m_s,
+                point.a_north_m_s2, point.a_east_m_s2))
+            self._set_sticks(roll_us=sticks.stick_us("roll", tilt.roll_deg),
+                             pitch_us=sticks.stick_us("pitch", tilt.pitch_deg))
             self._position_columns = {
                 "fc_north_m": gps.north_m, "fc_east_m": gps.east_m,
-                "target_north_m": target[0], "target_east_m": target[1]}
+                "target_north_m": north, "target_east_m": east}
+            self._waypoint = waypoint
+            self._steer_heading(sample)
+            return point.alt_m
 
-        self.position.reset(self.session.time_s)
+        return steer
+
+    def _end_position_control(self) -> None:
+        self._position_columns, self._waypoint = {}, 0
+        self._set_sticks(roll_us=RC_MID_US, pitch_us=RC_MID_US, yaw_us=RC_MID_US)
+
+    def hand_over(self, seconds: float, *, switches: tuple[int, ...], throttle_us: float,
+                  phase: str = "fc-mode") -> None:
+        """Give the flight to the firmware's own modes for ``seconds``: the AUX channels
+        ``switches`` (0-based: 2 is AUX3) on, roll, pitch and yaw centred, the throttle held
+        at ``throttle_us`` (ALTHOLD reads it as a climb-rate stick around its hover value).
+        Rows are recorded as usual; the switches go off again at the end.  For comparing
+        bfsitl's control with the firmware's ALTHOLD / POSHOLD on the same vehicle."""
+        self._on_event(f"handing over to the FC's modes (AUX "
+                       f"{', '.join(str(i + 1) for i in switches)}) for {seconds:g} s")
+        self._set_sticks(roll_us=RC_MID_US, pitch_us=RC_MID_US, yaw_us=RC_MID_US)
+        command = self.session.rc_command
+        for index in switches:
+            command = command.with_aux(index, SWITCH_ON_US)
+        self.session.set_rc(command)
+        end_s = self.session.time_s + seconds
         try:
-            self._fly(phase, self.target_alt_m, done, timeout_s=timeout_s, steer=steer)
+            self._fly(phase, self.target_alt_m, lambda s: s.time_s >= end_s,
+                      timeout_s=seconds + 5, controller=_FixedThrottle(throttle_us))
         finally:
-            self._position_columns = {}
-            self.session.set_rc(replace(self.session.rc_command, roll_us=RC_MID_US,
-                                        pitch_us=RC_MID_US))
+            command = self.session.rc_command
+            for index in switches:
+                command = command.with_aux(index, SWITCH_OFF_US)
+            self.session.set_rc(command)
 
     def land(self, *, timeout_s: float = 30.0) -> None:
         """Descend, touch down, cut the throttle, disarm."""
@@ -336,8 +489,14 @@ class Mission:
         if hover_us is not None and hasattr(self.landing, "set_hover_estimate"):
             self.landing.set_hover_estimate(hover_us)
         self.landing.reset(self.session.time_s)
-        self._fly("land", 0.0, lambda _s: bool(self.landing.touched_down),  # type: ignore
-                  timeout_s=timeout_s, controller=self.landing)
+        touched_down = lambda _s: bool(self.landing.touched_down)  # type: ignore  # noqa: E731
+        if self._target_ne is not None:
+            # After position control the descent holds the position too: wind would
+            # otherwise carry the vehicle off while it sinks.
+            self._fly_position("land", self._fixed(self._target_ne, alt_m=0.0), touched_down,
+                               timeout_s, controller=self.landing)
+        else:
+            self._fly("land", 0.0, touched_down, timeout_s=timeout_s, controller=self.landing)
         self._on_event("touched down; disarming")
         self.phase = "landed"
         if not self.session.disarm():
@@ -347,7 +506,8 @@ class Mission:
         self._on_event("disarmed")
 
     # -- the loop --------------------------------------------------------------------------
-    def _reach(self, phase: str, altitude_m: float, timeout_s: float) -> float:
+    def _reach(self, phase: str, altitude_m: float, timeout_s: float, *,
+               steer: Callable[[FlightSample], float | None] | None = None) -> float:
         start_s = self.session.time_s
         settled_since: list[float] = []
 
@@ -369,7 +529,7 @@ class Mission:
                 settled_since.append(sample.time_s)
             return sample.time_s - settled_since[0] >= REACHED_HOLD_S
 
-        self._fly(phase, altitude_m, reached, timeout_s=timeout_s)
+        self._fly(phase, altitude_m, reached, timeout_s=timeout_s, steer=steer)
         took_s = self.session.time_s - start_s
         self._on_event(f"reached {altitude_m:.2f} m after {took_s:.1f} s")
         return took_s
@@ -377,7 +537,7 @@ class Mission:
     def _fly(
         self, phase: str, target_alt_m: float, done: Callable[[FlightSample], bool], *,
         timeout_s: float, controller: AltitudeController | None = None,
-        steer: Callable[[FlightSample], None] | None = None,
+        steer: Callable[[FlightSample], float | None] | None = None,
     ) -> None:
         controller = controller or self.controller
         self.phase, self.target_alt_m = phase, target_alt_m
@@ -389,6 +549,10 @@ class Mission:
             sample = self.session.sample()
             climb_m_s = self._climb.update(sample.time_s, sample.fc_alt_m)
             self._check(sample)
+            if steer is not None:
+                moved_alt_m = steer(sample)  # sticks, and a moving altitude target on legs
+                if moved_alt_m is not None:
+                    target_alt_m = self.target_alt_m = moved_alt_m
             throttle_us = controller.update(
                 AltitudeInput(sample.time_s, sample.fc_alt_m, climb_m_s, target_alt_m,
                               accel_up_m_s2=sample.fc_accel_up_m_s2))
@@ -396,8 +560,6 @@ class Mission:
                 raise MissionError(f"controller {getattr(controller, 'name', controller)} "
                                    f"returned throttle {throttle_us}")
             self.session.set_throttle(throttle_us)
-            if steer is not None:
-                steer(sample)
             self._record(phase, target_alt_m, sample, climb_m_s)
             if done(sample):
                 return
@@ -443,7 +605,7 @@ class Mission:
             motor4=sample.motors[3], armed=sample.armed,
             wall_s=sample.wall_s - self._started_wall_s,
             sim_north_m=sample.sim_north_m, sim_east_m=sample.sim_east_m,
-            **self._position_columns,
+            waypoint=self._waypoint, **self._position_columns,
         )
         self.rows.append(row)
         self.last_sample = sample
@@ -482,7 +644,7 @@ def attitude_tracking(rows: list[FlightRow]) -> AttitudeTracking | None:
     MSP_ATTITUDE comes from the same round trip as the rest of the sample and the truth is
     read right after it, so the comparison carries at most one exchange of delay.
     """
-    flown = [r for r in rows if r.armed and r.phase in {"takeoff", "hold", "goto", "land"}
+    flown = [r for r in rows if r.armed and r.phase in {"takeoff", "hold", "goto", "yaw", "land"}
              and math.isfinite(r.sim_roll_deg) and r.sim_alt_m > 0.2]
     if not flown:
         return None
@@ -495,6 +657,29 @@ def attitude_tracking(rows: list[FlightRow]) -> AttitudeTracking | None:
     return AttitudeTracking(len(flown), rms(roll), rms(pitch),
                             max(max(map(abs, roll)), max(map(abs, pitch))),
                             max(r.sim_tilt_deg for r in flown))
+
+
+def _judged_position(row: FlightRow) -> tuple[float, float, float]:
+    """North, east, height: the truth, or the FC's view when the physics is external."""
+    if math.isfinite(row.sim_north_m):
+        return row.sim_north_m, row.sim_east_m, judged_alt_m(row)
+    return row.fc_north_m, row.fc_east_m, judged_alt_m(row)
+
+
+def cross_track_rms(legs: list[LegStats]) -> float | None:
+    """The cross-track RMS over all legs, each step weighted alike."""
+    samples = sum(leg.samples for leg in legs)
+    if not samples:
+        return None
+    return math.sqrt(sum(leg.cross_track_rms_m ** 2 * leg.samples for leg in legs) / samples)
+
+
+def landed_from_start_m(rows: list[FlightRow]) -> float | None:
+    """How far from the take-off point (horizontally) the flight ended, if it landed."""
+    if not rows or rows[-1].phase != "landed":
+        return None
+    north, east, _alt = _judged_position(rows[-1])
+    return math.hypot(north, east) if math.isfinite(north) else None
 
 
 def judged_alt_m(row: FlightRow) -> float:
@@ -516,13 +701,32 @@ def takeoff_metrics(rows: list[FlightRow], target_alt_m: float) -> Any:
     """Step-response figures of the take-off and hold, from the simulated truth."""
     from bfsitl.control.metrics import step_response
 
-    flown = [r for r in rows if r.phase in ("takeoff", "hold")]
+    flown = []
+    for row in rows:  # the take-off and the hold after it, up to whatever comes next
+        if row.phase in ("takeoff", "hold"):
+            flown.append(row)
+        elif flown:
+            break
     if len(flown) < 10:
         return None
     return step_response(
         [r.time_s for r in flown], [judged_alt_m(r) for r in flown], target_m=target_alt_m,
         start_m=0.0, roll_deg=[r.roll_deg for r in flown],
         pitch_deg=[r.pitch_deg for r in flown])
+
+
+class _FixedThrottle:
+    """One throttle, whatever the altitude: the stick a firmware mode reads."""
+
+    def __init__(self, throttle_us: float) -> None:
+        self.name = "fixed throttle"
+        self.throttle_us = throttle_us
+
+    def reset(self, time_s: float) -> None:
+        pass
+
+    def update(self, sample: AltitudeInput) -> float:
+        return self.throttle_us
 
 
 class _GroundObserver:
@@ -540,6 +744,35 @@ class _GroundObserver:
         if self._observe is not None:
             self._observe(sample)
         return THROTTLE_MIN_US
+
+
+def fly_plan(mission: Mission, plan: MissionPlan) -> None:
+    """Arm, take off, hold, fly the waypoints, land: ``plan`` on ``mission``, raising on
+    trouble (:func:`run_mission` turns that into an outcome)."""
+    mission.arm()
+    if plan.ground_s > 0:
+        mission.wait_on_ground(plan.ground_s)
+    mission.takeoff(plan.target_alt_m, timeout_s=plan.takeoff_timeout_s,
+                    hold_position=plan.needs_position)
+    if plan.hold_s > 0:
+        if plan.needs_position:
+            mission.hold_position(plan.hold_s)
+        else:
+            mission.hold(plan.hold_s)
+    for number, waypoint in enumerate(plan.waypoints, start=1):
+        fly_waypoint(mission, waypoint, number, plan.speed_m_s)
+    if plan.land:
+        mission.land(timeout_s=plan.land_timeout_s)
+
+
+def fly_waypoint(mission: Mission, waypoint: Waypoint, number: int, speed_m_s: float) -> None:
+    """The leg to ``waypoint``, the turn to its heading, its hold."""
+    mission.fly_to(waypoint.north_m, waypoint.east_m, waypoint.alt_m, speed_m_s=speed_m_s,
+                   waypoint=number)
+    if waypoint.heading_deg is not None:
+        mission.yaw_to(waypoint.heading_deg)
+    if waypoint.hold_s > 0:
+        mission.hold_position(waypoint.hold_s, waypoint=number)
 
 
 def run_mission(
@@ -564,12 +797,14 @@ def run_mission(
     outcome, reason = Outcome.LANDED, "landed and disarmed"
     blockers: tuple[str, ...] = ()
     try:
-        mission.arm()
-        if plan.ground_s > 0:
-            mission.wait_on_ground(plan.ground_s)
-        mission.takeoff(plan.target_alt_m, timeout_s=plan.takeoff_timeout_s)
-        mission.hold(plan.hold_s)
-        mission.land(timeout_s=plan.land_timeout_s)
+        if plan.needs_position and not session.has_gps:
+            raise MissionError(
+                "this mission has waypoints, flown from the FC's GPS, and this firmware has "
+                "no GPS: fly a GPS build (`bfsitl firmware build --gps`, add --lockstep for "
+                "lockstep; master always has it)")
+        fly_plan(mission, plan)
+        if not plan.land:
+            outcome, reason = Outcome.COMPLETED, "mission completed in the air (land = false)"
     except KeyboardInterrupt:
         outcome, reason = Outcome.INTERRUPTED, "interrupted (Ctrl-C)"
     except ArmingBlockedError as exc:
@@ -592,13 +827,16 @@ def run_mission(
     result = MissionResult(outcome, reason.splitlines()[0] if reason else "", name, plan,
                            mission.rows, blockers, session.armed_after_s)
     result.hold = hold_stats(mission.rows)
+    result.legs = list(mission.legs)
     result.attitude = attitude_tracking(mission.rows)
     if session.sitl is not None:
         profile = session.sitl.profile
         result.extra["firmware"] = {
             "version": profile.firmware_version, "api": profile.api_version,
             "conventions": profile.generation.value, "gps": profile.has_gps}
-    result.metrics = takeoff_metrics(mission.rows, plan.target_alt_m)
+    if not plan.waypoints or plan.hold_s >= STEP_STEADY_WINDOW_S:
+        # A step response needs the hold after it: straight into a leg, there is none.
+        result.metrics = takeoff_metrics(mission.rows, plan.target_alt_m)
     rc_stats, bridge_stats = session.rc_stats(), session.bridge_stats()
     if rc_stats is not None:
         result.extra["rc_link"] = rc_stats

@@ -180,7 +180,7 @@ class FlightSample:
                                 # gravity removed
     roll_deg: float             # MSP_ATTITUDE
     pitch_deg: float            # positive nose down (Betaflight's convention)
-    yaw_deg: float
+    yaw_deg: float              # MSP_ATTITUDE's whole degree + 0.5 (it truncates)
     sim_alt_m: float            # true height above the take-off point
     sim_climb_m_s: float        # true vertical speed, up positive
     sim_tilt_deg: float         # true angle between the body z axis and the vertical
@@ -422,13 +422,33 @@ class FlightSession:
             bridge.resume()
             wait_for_replies(bridge)
 
+    def on_close(self, callback: Callable[[], object]) -> None:
+        """Call ``callback`` when the session closes (before the RC link, bridge and SITL
+        stop): an autopilot's log is closed with the vehicle it records."""
+        self._stack.callback(callback)
+
     # -- parts -------------------------------------------------------------------------------
+    @property
+    def fc(self) -> MspClient:
+        """The flight controller's MSP client (the vehicle's name for :attr:`client`)."""
+        return self.client
+
+    @property
+    def truth(self) -> Simulator | None:
+        """The simulated vehicle (its state is the truth), or None with external physics."""
+        return self.simulator
+
     @property
     def client(self) -> MspClient:
         """The FC's MSP client; in lockstep its waits step the simulation."""
         if self.sitl is None or self.sitl.client is None:
             raise SitlError("the session is not started")
         return self.sitl.client
+
+    @property
+    def has_gps(self) -> bool:
+        """The firmware has a GPS (position control needs it)."""
+        return self.sitl is not None and self.sitl.profile.has_gps
 
     @property
     def lockstep(self) -> bool:
@@ -593,7 +613,9 @@ class FlightSession:
             fc_accel_up_m_s2=telemetry.accel_up_m_s2(
                 offset_lsb=msg.SITL_ACC_TRUNCATION_LSB),
             roll_deg=telemetry.attitude.roll_deg, pitch_deg=telemetry.attitude.pitch_deg,
-            yaw_deg=float(telemetry.attitude.yaw_deg),
+            # MSP_ATTITUDE truncates the heading to whole degrees: the middle of the degree
+            # is the unbiased reading.
+            yaw_deg=float(telemetry.attitude.yaw_deg) + 0.5,
             sim_alt_m=truth.altitude_m - self._ground_alt_m, sim_climb_m_s=truth.climb_m_s,
             sim_tilt_deg=truth.tilt_deg, sim_roll_deg=truth.attitude_deg[0],
             sim_pitch_deg=truth.attitude_deg[1], sim_yaw_deg=truth.attitude_deg[2],
@@ -604,13 +626,18 @@ class FlightSession:
         )
 
     def _flight_profile(self, profile: Profile) -> Profile:
-        """``profile``, plus the GPS set-up of a GPS build whose GPS is not on yet.
+        """``profile``, plus the compass set-up the firmware needs (master: trust its virtual
+        magnetometer) and the GPS set-up of a GPS build whose GPS is not on yet.
 
         A 4.6.0 ``--gps`` build boots with FEATURE_GPS off and needs a serial port carrying
         the GPS function (the profile's ``gps_setup_cli``), applied at boot only: a reboot.
         Its GPS answers MSP_RAW_GPS with no satellites until then.
         """
         assert self.sitl is not None
+        compass = tuple(line for line in self.sitl.profile.compass_cli
+                        if line not in profile.cli_lines)
+        if compass:
+            profile = dataclasses.replace(profile, cli_lines=(*profile.cli_lines, *compass))
         lines = self.sitl.profile.gps_setup_cli
         if not lines:
             return profile

@@ -138,6 +138,12 @@ class FirmwareProfile:
     #: boot unless a serial port carries the GPS function, even for the VIRTUAL provider, which
     #: never opens it; so UART2 gets the function. Master enables GPS by default.
     gps_setup_cli: tuple[str, ...] = ()
+    #: CLI lines that give the FC a compass heading.  Master's SITL feeds its virtual
+    #: magnetometer from the fdm attitude (sitl.c, a synthetic field with 2 deg of
+    #: declination) but its estimator trusts a magnetometer only with ``trust_mag`` (imu.c,
+    #: off by default): without it the heading comes from the GPS course and drifts by
+    #: 6-17 deg in a windy square, and POSHOLD will not engage.  4.6.0 copies the attitude.
+    compass_cli: tuple[str, ...] = ()
 
     @property
     def name(self) -> str:
@@ -260,6 +266,7 @@ def profile_for(
         rc=RcBehaviour(rxloss_after_silence_s=0.15, msp_rc_empty_before_rc=True),
         cli=CliDifferences(serial_read_only=True, msp_cli_command=True),
         gyro_rate_hz=1000, has_gps=True if has_gps is None else has_gps, tested=tested,
+        compass_cli=() if build.attitude_direct else ("set trust_mag = ON",),
     )
 
 

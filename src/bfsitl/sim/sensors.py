@@ -38,13 +38,28 @@ class SensorConfig:
     accel_bias_m_s2: Vec3 = (0.0, 0.0, 0.0)
     baro_noise_std_pa: float = 0.0
     baro_bias_pa: float = 0.0
+    #: GPS horizontal error per axis: a slow wander (first-order Gauss-Markov, standard
+    #: deviation ``gps_drift_std_m``, correlation time ``gps_drift_time_s``: what a receiver
+    #: without corrections shows over a minute) plus white noise per reading; and white
+    #: noise on its horizontal velocity.  The vertical is left alone (the barometer and the
+    #: master build's altitude come from the same field).
+    gps_drift_std_m: float = 0.0
+    gps_drift_time_s: float = 30.0
+    gps_noise_std_m: float = 0.0
+    gps_velocity_noise_std_m_s: float = 0.0
 
     def __post_init__(self) -> None:
         stds = {
             "gyro_noise_std_rad_s": self.gyro_noise_std_rad_s,
             "accel_noise_std_m_s2": self.accel_noise_std_m_s2,
             "baro_noise_std_pa": self.baro_noise_std_pa,
+            "gps_drift_std_m": self.gps_drift_std_m,
+            "gps_noise_std_m": self.gps_noise_std_m,
+            "gps_velocity_noise_std_m_s": self.gps_velocity_noise_std_m_s,
         }
+        if not (math.isfinite(self.gps_drift_time_s) and self.gps_drift_time_s > 0):
+            raise SimInputError(f"SensorConfig: gps_drift_time_s must be > 0, "
+                                f"got {self.gps_drift_time_s}")
         for name, value in stds.items():
             if not (math.isfinite(value) and value >= 0):
                 raise SimInputError(f"SensorConfig: {name} must be >= 0, got {value}")
@@ -64,7 +79,23 @@ class SensorConfig:
             self.gyro_noise_std_rad_s == 0.0 and self.accel_noise_std_m_s2 == 0.0
             and self.baro_noise_std_pa == 0.0 and self.baro_bias_pa == 0.0
             and not any(self.gyro_bias_rad_s) and not any(self.accel_bias_m_s2)
+            and not self.has_gps_error
         )
+
+    @property
+    def has_gps_error(self) -> bool:
+        return (self.gps_drift_std_m > 0.0 or self.gps_noise_std_m > 0.0
+                or self.gps_velocity_noise_std_m_s > 0.0)
+
+    def with_typical_gps(self) -> SensorConfig:
+        """These errors plus a GPS receiver's without corrections in open sky: 0.15 m of
+        wander per axis over 30 s, 3 cm of noise per reading, 5 cm/s on the velocity
+        (orders of magnitude from u-blox M8/M10 class modules; a benchmark's "realistic GPS
+        noise")."""
+        from dataclasses import replace
+
+        return replace(self, gps_drift_std_m=0.15, gps_drift_time_s=30.0, gps_noise_std_m=0.03,
+                       gps_velocity_noise_std_m_s=0.05)
 
     @classmethod
     def typical_mems(cls, sample_rate_hz: float = 1000.0) -> SensorConfig:
@@ -105,12 +136,36 @@ class SensorModel:
     :mod:`random`, so the sequence does not depend on ``PYTHONHASHSEED``).
     """
 
-    __slots__ = ("config", "_ideal", "_rng")
+    __slots__ = ("config", "_ideal", "_rng", "_gps_rng", "_gps_drift", "_gps_time_s")
 
     def __init__(self, config: SensorConfig, seed: int) -> None:
         self.config = config
         self._ideal = config.is_ideal
         self._rng = random.Random(f"bfsitl.sim.sensors:{seed}")
+        # Its own generator: switching the GPS error on leaves the IMU's noise as it was.
+        self._gps_rng = random.Random(f"bfsitl.sim.sensors.gps:{seed}")
+        self._gps_drift = (0.0, 0.0)
+        self._gps_time_s: float | None = None
+
+    def gps_error(self, time_s: float) -> tuple[float, float, float, float]:
+        """(north m, east m, north m/s, east m/s) to add to the GPS at ``time_s``."""
+        c = self.config
+        if not c.has_gps_error:
+            return (0.0, 0.0, 0.0, 0.0)
+        gauss = self._gps_rng.gauss
+        if self._gps_time_s is None:
+            # Start anywhere in the wander's spread, as a receiver that has been on a while.
+            self._gps_drift = (gauss(0.0, c.gps_drift_std_m), gauss(0.0, c.gps_drift_std_m))
+        elif time_s > self._gps_time_s:
+            keep = math.exp(-(time_s - self._gps_time_s) / c.gps_drift_time_s)
+            kick = c.gps_drift_std_m * math.sqrt(1.0 - keep * keep)
+            self._gps_drift = (keep * self._gps_drift[0] + kick * gauss(0.0, 1.0),
+                               keep * self._gps_drift[1] + kick * gauss(0.0, 1.0))
+        self._gps_time_s = time_s
+        pn, vn = c.gps_noise_std_m, c.gps_velocity_noise_std_m_s
+        return (self._gps_drift[0] + (gauss(0.0, pn) if pn else 0.0),
+                self._gps_drift[1] + (gauss(0.0, pn) if pn else 0.0),
+                gauss(0.0, vn) if vn else 0.0, gauss(0.0, vn) if vn else 0.0)
 
     def corrupt(self, gyro: Vec3, specific_force: Vec3, pressure_pa: float
                 ) -> tuple[Vec3, Vec3, float]:

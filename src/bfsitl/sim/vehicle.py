@@ -683,8 +683,12 @@ class Simulator:
         f = _rotate_inverse(q, self._sf_world)
         pressure = isa_pressure_pa(self.home.alt_m - p[2])
         gyro, f, pressure = self._sensors.corrupt(self._w, f, pressure)
+        # The GPS's error moves only its own fields: the truth (position_ned_m) stays true.
+        dn, de, dvn, dve = self._sensors.gps_error(self._t)
         reading = SensorReading(
-            self._t, gyro, f, q, pressure, p, v, self._geo.lon_lat_alt(p), (v[1], v[0], -v[2]),
+            self._t, gyro, f, q, pressure, p, v,
+            self._geo.lon_lat_alt((p[0] + dn, p[1] + de, p[2])),
+            (v[1] + dve, v[0] + dvn, -v[2]),
         )
         self._reading = reading
         return reading

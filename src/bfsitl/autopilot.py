@@ -1,0 +1,158 @@
+"""The scriptable front: launch a simulated vehicle, fly it with an autopilot.
+
+    from bfsitl import Autopilot, launch_sitl
+
+    with launch_sitl(firmware="master-lockstep") as vehicle:
+        pilot = Autopilot(vehicle)
+        pilot.takeoff(2.0)
+        pilot.goto(10.0, 0.0, 2.0)
+        pilot.yaw_to(90.0)
+        pilot.land()
+
+:func:`launch_sitl` starts a SITL with the embedded physics, provisioned for autonomous flight
+(ARM and ANGLE switches, the 1 kHz serial task a 100 Hz loop needs) and returns the started
+:class:`~bfsitl.mission.session.FlightSession`: the vehicle, with ``fc`` (its MSP client),
+``rc`` (the RC sender), ``clock`` (simulation time) and ``truth`` (the simulator).  Leaving
+the ``with`` block disarms and stops everything, on an exception or Ctrl-C too.
+
+:class:`Autopilot` owns the sticks: one altitude controller, the position and heading loops
+(on a GPS build), every manoeuvre a closed loop in simulation time.  It is a thin layer over
+:class:`~bfsitl.mission.runner.Mission`, which holds the loops and the record.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable
+from pathlib import Path
+
+from bfsitl.control import DEFAULT_CONTROLLER, make_controller
+from bfsitl.control.base import AltitudeController
+from bfsitl.errors import MissionError
+from bfsitl.mission.flight_log import CsvFlightLog, FlightRow
+from bfsitl.mission.legs import LegStats
+from bfsitl.mission.plan import MissionPlan
+from bfsitl.mission.runner import Mission, MissionResult, run_mission
+from bfsitl.mission.session import (
+    FLY_PROFILE,
+    FlightSession,
+    SessionConfig,
+    fly_sensors,
+    with_fast_serial,
+)
+from bfsitl.sim.params import Wind
+
+#: The autopilot's loop rate in simulation time: position control wants 100 Hz.
+AUTOPILOT_RATE_HZ = 100.0
+#: Armed at idle before the first take-off: the FC's altitude settles, and the fused
+#: controller learns the barometer's zero from the vehicle at rest.
+GROUND_WAIT_S = 2.0
+
+
+def launch_sitl(firmware: str | Path | None = None, *, physics: str = "embedded",
+                wind: Wind | None = None, speed: float | None = None, seed: int = 0,
+                gps_noise: bool = False, workdir: str | Path | None = None,
+                progress: Callable[[str], None] | None = None) -> FlightSession:
+    """Start a SITL with its physics, provisioned for an :class:`Autopilot`; the started
+    vehicle is returned (use it in a ``with`` block, or call ``close()``).
+
+    ``firmware``: a binary or a cached build's name (default: the usual search); ``speed``:
+    x real time (default: real time on a stock build, as fast as possible on a lockstep one);
+    ``gps_noise``: a typical receiver's errors on the GPS.
+    """
+    sensors = fly_sensors()
+    if gps_noise:
+        sensors = sensors.with_typical_gps()
+    config = SessionConfig(firmware=firmware, physics=physics, wind=wind, speed=speed,
+                           seed=seed, sensors=sensors, workdir=workdir,
+                           profile=with_fast_serial(FLY_PROFILE))
+    return FlightSession(config, progress=progress).start()
+
+
+class Autopilot:
+    """Flies a started vehicle: take-off, legs to positions, heading, holds, landing.
+
+    Positions are metres north and east of the take-off point, altitudes metres above it.
+    Position manoeuvres need a GPS build (`bfsitl firmware build --gps`, master has one);
+    without one ``goto`` raises :class:`~bfsitl.errors.MissionError` and ``hold`` holds the
+    altitude only.  Every method raises on trouble (a crash, a timeout, a disarm); the
+    record so far stays in :attr:`rows` and the log.
+    """
+
+    def __init__(self, vehicle: FlightSession, controller: str | AltitudeController =
+                 DEFAULT_CONTROLLER, *, rate_hz: float = AUTOPILOT_RATE_HZ,
+                 log: str | Path | None = None,
+                 on_event: Callable[[str], None] | None = None) -> None:
+        self.vehicle = vehicle
+        self.controller = make_controller(controller) if isinstance(controller, str) \
+            else controller
+        self._log = CsvFlightLog(log) if log is not None else None
+        if self._log is not None:
+            vehicle.on_close(self._log.close)
+        self.mission = Mission(vehicle, self.controller, rate_hz=rate_hz, log=self._log,
+                               on_event=on_event)
+
+    # -- the record ---------------------------------------------------------------------------
+    @property
+    def rows(self) -> list[FlightRow]:
+        return self.mission.rows
+
+    @property
+    def legs(self) -> list[LegStats]:
+        """One entry per :meth:`goto`: arrival error and cross-track, from the truth."""
+        return self.mission.legs
+
+    @property
+    def armed(self) -> bool:
+        return self.mission.phase not in ("arming", "landed")
+
+    # -- manoeuvres ---------------------------------------------------------------------------
+    def takeoff(self, height_m: float, *, timeout_s: float = 20.0) -> float:
+        """Arm (if needed, with a short wait on the ground), climb to ``height_m``; on a GPS
+        build the take-off point is held on the way up.  Returns the climb's seconds."""
+        if not self.armed:
+            self.mission.arm()
+            self.mission.wait_on_ground(GROUND_WAIT_S)
+        return self.mission.takeoff(height_m, timeout_s=timeout_s,
+                                    hold_position=self.vehicle.has_gps)
+
+    def goto(self, north_m: float, east_m: float, alt_m: float | None = None, *,
+             speed_m_s: float | None = None, timeout_s: float | None = None) -> LegStats:
+        """A straight leg to a position and altitude (default: the altitude held); returns
+        how the leg went."""
+        self._require_airborne("goto")
+        self.mission.fly_to(north_m, east_m, alt_m, speed_m_s=speed_m_s, timeout_s=timeout_s,
+                            waypoint=len(self.mission.legs) + 1)
+        return self.mission.legs[-1]
+
+    def hold(self, duration_s: float) -> None:
+        """Hold the position (GPS builds) and the altitude for ``duration_s``."""
+        self._require_airborne("hold")
+        if self.vehicle.has_gps:
+            self.mission.hold_position(duration_s)
+        else:
+            self.mission.hold(duration_s)
+
+    def yaw_to(self, heading_deg: float, *, tolerance_deg: float = 2.0) -> float:
+        """Turn to ``heading_deg`` (clockwise from north) where the vehicle is."""
+        self._require_airborne("yaw_to")
+        if not math.isfinite(heading_deg):
+            raise MissionError(f"heading {heading_deg} is not a number")
+        return self.mission.yaw_to(heading_deg, tolerance_deg=tolerance_deg)
+
+    def land(self, *, timeout_s: float = 30.0) -> None:
+        """Descend (holding the position after position control), touch down, disarm."""
+        self._require_airborne("land")
+        self.mission.land(timeout_s=timeout_s)
+
+    def fly(self, plan: MissionPlan) -> MissionResult:
+        """A whole plan from the ground, every ending turned into an outcome (never raises
+        for a failed flight): the same as ``bfsitl fly --mission``."""
+        if self.armed:
+            raise MissionError("fly(plan) starts from the ground: land first")
+        return run_mission(self.vehicle, plan, self.controller, rate_hz=self.mission.rate_hz,
+                           log=self._log)
+
+    def _require_airborne(self, what: str) -> None:
+        if not self.armed:
+            raise MissionError(f"{what}: the vehicle is on the ground, disarmed; take off first")

@@ -37,6 +37,9 @@ _EXPORTS: dict[str, str] = {
     "load_mission": "bfsitl.mission.plan",
     "Autopilot": "bfsitl.autopilot",
     "launch_sitl": "bfsitl.autopilot",
+    "connect": "bfsitl.autopilot",
+    "Vehicle": "bfsitl.mission.vehicle",
+    "BoardVehicle": "bfsitl.mission.board",
     "make_controller": "bfsitl.control",
     # the SITL and its firmware
     "SitlProcess": "bfsitl.sitl.process",
@@ -56,11 +59,11 @@ _EXPORTS: dict[str, str] = {
 }
 
 __all__ = [
-    "Autopilot", "BfsitlError", "CliSession", "FLY_PROFILE", "FirmwareBinary", "FlightSession",
-    "GeoPoint", "Mission", "MissionPlan", "MissionResult", "MspClient", "Outcome", "Profile",
-    "SensorConfig", "SessionConfig", "Simulator", "SitlProcess", "Waypoint", "Wind",
-    "__version__", "find_firmware", "launch_sitl", "load_mission", "make_controller",
-    "open_link", "provision", "run_mission",
+    "Autopilot", "BfsitlError", "BoardVehicle", "CliSession", "FLY_PROFILE", "FirmwareBinary",
+    "FlightSession", "GeoPoint", "Mission", "MissionPlan", "MissionResult", "MspClient",
+    "Outcome", "Profile", "SensorConfig", "SessionConfig", "Simulator", "SitlProcess",
+    "Vehicle", "Waypoint", "Wind", "__version__", "connect", "find_firmware", "launch_sitl",
+    "load_mission", "make_controller", "open_link", "provision", "run_mission",
 ]
 
 
@@ -78,15 +81,17 @@ def __dir__() -> list[str]:
 
 
 if TYPE_CHECKING:  # what type checkers and IDEs see; nothing is imported at run time
-    from bfsitl.autopilot import Autopilot, launch_sitl
+    from bfsitl.autopilot import Autopilot, connect, launch_sitl
     from bfsitl.control import make_controller
     from bfsitl.fc.cli_session import CliSession
     from bfsitl.fc.msp_client import MspClient
     from bfsitl.fc.provisioning import Profile, provision
     from bfsitl.link import open_link
+    from bfsitl.mission.board import BoardVehicle
     from bfsitl.mission.plan import Waypoint, load_mission
     from bfsitl.mission.runner import Mission, MissionPlan, MissionResult, Outcome, run_mission
     from bfsitl.mission.session import FLY_PROFILE, FlightSession, SessionConfig
+    from bfsitl.mission.vehicle import Vehicle
     from bfsitl.sim import GeoPoint, SensorConfig, Simulator
     from bfsitl.sim.params import Wind
     from bfsitl.sitl.firmware import FirmwareBinary, find_firmware

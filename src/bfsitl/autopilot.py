@@ -16,8 +16,10 @@
 the ``with`` block disarms and stops everything, on an exception or Ctrl-C too.
 
 :class:`Autopilot` owns the sticks: one altitude controller, the position and heading loops
-(on a GPS build), every manoeuvre a closed loop in simulation time.  It is a thin layer over
-:class:`~bfsitl.mission.runner.Mission`, which holds the loops and the record.
+(on a GPS build), every manoeuvre a closed loop on the vehicle's clock.  :func:`connect`
+gives the same autopilot a flight controller on a serial port (RC by MSP, wall time).  It
+is a thin layer over :class:`~bfsitl.mission.runner.Mission`, which holds the loops and the
+record.
 """
 
 from __future__ import annotations
@@ -29,6 +31,7 @@ from pathlib import Path
 from bfsitl.control import DEFAULT_CONTROLLER, make_controller
 from bfsitl.control.base import AltitudeController
 from bfsitl.errors import MissionError
+from bfsitl.mission.board import BoardVehicle
 from bfsitl.mission.flight_log import CsvFlightLog, FlightRow
 from bfsitl.mission.legs import LegStats
 from bfsitl.mission.plan import MissionPlan
@@ -40,10 +43,9 @@ from bfsitl.mission.session import (
     fly_sensors,
     with_fast_serial,
 )
+from bfsitl.mission.vehicle import Vehicle
 from bfsitl.sim.params import Wind
 
-#: The autopilot's loop rate in simulation time: position control wants 100 Hz.
-AUTOPILOT_RATE_HZ = 100.0
 #: Armed at idle before the first take-off: the FC's altitude settles, and the fused
 #: controller learns the barometer's zero from the vehicle at rest.
 GROUND_WAIT_S = 2.0
@@ -69,6 +71,19 @@ def launch_sitl(firmware: str | Path | None = None, *, physics: str = "embedded"
     return FlightSession(config, progress=progress).start()
 
 
+def connect(uri: str, *, provision: bool = True, rc_rate_hz: float = 25.0,
+            progress: Callable[[str], None] | None = None) -> BoardVehicle:
+    """A flight controller on a serial port (``serial:///dev/ttyACM0?baud=115200``), started
+    as a vehicle: identified, checked for an MSP receiver, provisioned with ARM on AUX1 and
+    ANGLE on AUX2 (``provision=False`` flies with what it holds), RC by MSP at ``rc_rate_hz``.
+    Its clock is wall time and it has no truth.  **Propellers off** until you trust it: see
+    docs/real-board.md.
+    """
+    vehicle = BoardVehicle(uri, profile=FLY_PROFILE if provision else None,
+                           rc_rate_hz=rc_rate_hz, progress=progress)
+    return vehicle.start()
+
+
 class Autopilot:
     """Flies a started vehicle: take-off, legs to positions, heading, holds, landing.
 
@@ -79,8 +94,8 @@ class Autopilot:
     record so far stays in :attr:`rows` and the log.
     """
 
-    def __init__(self, vehicle: FlightSession, controller: str | AltitudeController =
-                 DEFAULT_CONTROLLER, *, rate_hz: float = AUTOPILOT_RATE_HZ,
+    def __init__(self, vehicle: Vehicle, controller: str | AltitudeController =
+                 DEFAULT_CONTROLLER, *, rate_hz: float | None = None,
                  log: str | Path | None = None,
                  on_event: Callable[[str], None] | None = None) -> None:
         self.vehicle = vehicle
@@ -89,6 +104,8 @@ class Autopilot:
         self._log = CsvFlightLog(log) if log is not None else None
         if self._log is not None:
             vehicle.on_close(self._log.close)
+        if rate_hz is None:
+            rate_hz = vehicle.control_rate_hz
         self.mission = Mission(vehicle, self.controller, rate_hz=rate_hz, log=self._log,
                                on_event=on_event)
 

@@ -26,6 +26,7 @@ Messages are written for the person at the terminal: what went wrong, then what 
     ├── CliError                       the CLI session failed
     │   └── CliCommandError            a command answered ``###ERROR``
     ├── ProvisioningError              the FC's configuration could not be applied or verified
+    │   └── BoardSetupError            a board is not ready for an autopilot (receiver, reboot)
     ├── SimInputError                  (also ValueError) a value the simulator cannot use
     ├── ControllerConfigError          (also ValueError) an unknown controller or gain, a bad value
     ├── MetricsInputError              (also ValueError) series that are no step response
@@ -149,6 +150,11 @@ class CliCommandError(CliError):
 
 class ProvisioningError(BfsitlError):
     """The FC's configuration could not be applied or did not read back as written."""
+
+
+class BoardSetupError(ProvisioningError):
+    """A flight controller on a serial port is not ready for an autopilot: its receiver is
+    not MSP, or a setting it needs takes a reboot first (the message says what to do)."""
 
 
 class SimInputError(BfsitlError, ValueError):

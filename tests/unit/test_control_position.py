@@ -115,3 +115,13 @@ def test_bad_gains_are_refused_with_the_name():
         PositionGains(kp_pos_per_s=0.0)
     with pytest.raises(ControllerConfigError, match="max_tilt_deg"):
         PositionGains(max_tilt_deg=50.0)
+
+
+def test_slow_loops_get_the_gentler_gains():
+    from bfsitl.control.position import STIFF_GAINS_MIN_RATE_HZ
+
+    assert PositionGains.for_loop_rate(100.0) == PositionGains()
+    gentle = PositionGains.for_loop_rate(25.0)
+    assert gentle.kp_vel_per_s < PositionGains().kp_vel_per_s
+    assert gentle.ki_vel_per_s2 < PositionGains().ki_vel_per_s2
+    assert PositionGains.for_loop_rate(STIFF_GAINS_MIN_RATE_HZ) == PositionGains()

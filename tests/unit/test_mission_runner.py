@@ -16,6 +16,7 @@ from bfsitl.fc.rc_link import RcCommand, RcLinkStats
 from bfsitl.mission.flight_log import CsvFlightLog, read_flight_log
 from bfsitl.mission.runner import Mission, MissionPlan, Outcome, hold_stats, run_mission
 from bfsitl.mission.session import SWITCH_ON_US, FlightSample
+from bfsitl.mission.vehicle import Vehicle
 
 HOVER_US = 1500.0
 
@@ -39,11 +40,19 @@ class FakeClock:
         self.slept_s += seconds
 
 
-class FakeSession:
-    """Time advances 20 ms per sample; climb rate = (throttle - hover) / 200 m/s."""
+class FakeSession(Vehicle):
+    """Time advances 20 ms per sample; climb rate = (throttle - hover) / 200 m/s.
+
+    A :class:`Vehicle` whose FC is this point mass: what the base class does over MSP
+    (arming, sampling) is replaced here."""
+
+    # Plain attributes where the base class has properties: the fake sets them.
+    time_s: float = 0.0  # type: ignore[assignment]
+    has_gps: bool = False  # type: ignore[assignment]
 
     def __init__(self, *, tilt_deg: float = 0.0, arm_error: Exception | None = None,
                  fail_after: int | None = None, failure: BaseException | None = None) -> None:
+        super().__init__()
         self.config = _Config(speed=50.0)
         self.clock = FakeClock(self)  # the runner waits on it, never on the wall clock
         self.time_s = 0.0
@@ -495,7 +504,7 @@ def test_waypoints_on_a_firmware_without_gps_end_before_arming_with_the_fix():
     from bfsitl.mission.plan import Waypoint
 
     session = FakeSession()
-    session.has_gps = False  # type: ignore[attr-defined]
+    session.has_gps = False
     result = run_mission(session, MissionPlan(waypoints=(Waypoint(5, 0, 2),)),  # type: ignore[arg-type]
                          PController())  # type: ignore[arg-type]
     assert result.outcome is Outcome.ERROR

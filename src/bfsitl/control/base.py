@@ -74,6 +74,37 @@ class EstimatesAltitude(Protocol):
         ...
 
 
+@runtime_checkable
+class ObservesGround(Protocol):
+    """A controller that learns from the armed vehicle at rest before the take-off (the
+    fused one learns the barometer's zero error there); the mission feeds it every sample
+    of the ground phase instead of asking it for throttle."""
+
+    def observe_ground(self, sample: AltitudeInput) -> None: ...
+
+
+@runtime_checkable
+class KnowsHover(Protocol):
+    """A controller that estimates the hover throttle (us): the landing starts from it."""
+
+    hover_throttle_us: float
+
+
+@runtime_checkable
+class TakesHoverEstimate(Protocol):
+    """A controller (the landing one) that can start from another's hover estimate."""
+
+    def set_hover_estimate(self, hover_us: float) -> None: ...
+
+
+@runtime_checkable
+class DetectsTouchdown(Protocol):
+    """A landing controller: it says when the vehicle is down, and the mission disarms."""
+
+    @property
+    def touched_down(self) -> bool: ...
+
+
 def clamp(value: float, low: float, high: float) -> float:
     """``value`` limited to ``[low, high]`` (``low`` wins if the bounds cross)."""
     return low if value < low else (high if value > high else value)

@@ -29,6 +29,9 @@ from dataclasses import dataclass
 from bfsitl.errors import ControllerConfigError
 from bfsitl.sim.params import STANDARD_GRAVITY_M_S2
 
+#: Loops at least this fast get the stiff default gains (:meth:`PositionGains.for_loop_rate`).
+STIFF_GAINS_MIN_RATE_HZ = 80.0
+
 
 @dataclass(frozen=True, slots=True)
 class PositionGains:
@@ -41,6 +44,15 @@ class PositionGains:
     ki_vel_per_s2: float = 2.0
     max_tilt_deg: float = 25.0
     lead_s: float = 0.1
+
+    @classmethod
+    def for_loop_rate(cls, rate_hz: float) -> PositionGains:
+        """The gains for a control loop at ``rate_hz``: the stiff defaults need 100 Hz; a
+        slower loop (a board at its default serial rate runs about 25 Hz) gets the gentler
+        first set, which the stiff one made oscillate by 30 deg at 25 Hz."""
+        if rate_hz >= STIFF_GAINS_MIN_RATE_HZ:
+            return cls()
+        return cls(kp_pos_per_s=0.9, kp_vel_per_s=1.6, ki_vel_per_s2=0.5)
 
     def __post_init__(self) -> None:
         for name in ("kp_pos_per_s", "max_speed_m_s", "kp_vel_per_s", "max_tilt_deg"):

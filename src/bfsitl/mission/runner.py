@@ -24,10 +24,14 @@ from bfsitl.control.base import (
     THROTTLE_MIN_US,
     AltitudeController,
     AltitudeInput,
+    DetectsTouchdown,
     EstimatesAltitude,
+    KnowsHover,
+    ObservesGround,
+    TakesHoverEstimate,
 )
 from bfsitl.control.heading import HeadingController, heading_error_deg
-from bfsitl.control.position import PositionController, PositionInput
+from bfsitl.control.position import PositionController, PositionGains, PositionInput
 from bfsitl.errors import (
     ArmingBlockedError,
     BfsitlError,
@@ -42,12 +46,12 @@ from bfsitl.mission.climb_rate import ClimbRateEstimator
 from bfsitl.mission.flight_log import CsvFlightLog, FlightRow
 from bfsitl.mission.legs import LegPoint, LegReference, LegStats, leg_stats
 from bfsitl.mission.plan import MissionPlan, Waypoint
-from bfsitl.mission.session import (
+from bfsitl.mission.vehicle import (
     SWITCH_OFF_US,
     SWITCH_ON_US,
     FlightSample,
-    FlightSession,
     GpsPosition,
+    Vehicle,
 )
 from bfsitl.protocol import msp_messages as msg
 
@@ -154,7 +158,8 @@ EventCallback = Callable[[str], None]
 
 
 class Mission:
-    """Closed-loop manoeuvres on a started :class:`FlightSession`.
+    """Closed-loop manoeuvres on a started vehicle: a simulated :class:`FlightSession` or a
+    board (:class:`~bfsitl.mission.board.BoardVehicle`).
 
     >>> mission = Mission(session, CascadedAltitudeController())   # doctest: +SKIP
     >>> mission.arm(); mission.takeoff(2.0); mission.hold(10); mission.land()
@@ -162,7 +167,7 @@ class Mission:
 
     def __init__(
         self,
-        session: FlightSession,
+        session: Vehicle,
         controller: AltitudeController,
         *,
         landing: AltitudeController | None = None,
@@ -190,7 +195,7 @@ class Mission:
         self._on_event = on_event or (lambda _message: None)
         self._climb = ClimbRateEstimator()
         self._started_wall_s = time.monotonic()
-        self.position = PositionController()
+        self.position = PositionController(PositionGains.for_loop_rate(rate_hz))
         #: The FC's ANGLE-mode stick curve, read from it at the first position manoeuvre.
         self.sticks: AngleStickMap | None = None
         #: The FC's GPS and the target of the step being recorded (position control only).
@@ -223,7 +228,7 @@ class Mission:
         end_s = self.session.time_s + seconds
         self._fly("ground", 0.0, lambda s: s.time_s >= end_s, timeout_s=seconds + 5,
                   controller=_GroundObserver(self.controller))
-        if not hasattr(self.controller, "observe_ground"):
+        if not isinstance(self.controller, ObservesGround):
             # It saw nothing of the wait: start its clock now, as if it had just been armed
             # (a PID would otherwise integrate the whole wait in its first step).
             self.controller.reset(self.session.time_s)
@@ -482,14 +487,18 @@ class Mission:
     def land(self, *, timeout_s: float = 30.0) -> None:
         """Descend, touch down, cut the throttle, disarm."""
         self._on_event("landing")
-        if not hasattr(self.landing, "touched_down"):
-            raise MissionError("the landing controller has no touched_down property")
+        landing = self.landing
+        if not isinstance(landing, DetectsTouchdown):
+            raise MissionError("the landing controller has no touched_down property "
+                               "(bfsitl.control.base.DetectsTouchdown)")
         # Start the descent from the flying controller's hover estimate, not a guess.
-        hover_us = getattr(self.controller, "hover_throttle_us", None)
-        if hover_us is not None and hasattr(self.landing, "set_hover_estimate"):
-            self.landing.set_hover_estimate(hover_us)
-        self.landing.reset(self.session.time_s)
-        touched_down = lambda _s: bool(self.landing.touched_down)  # type: ignore  # noqa: E731
+        if isinstance(self.controller, KnowsHover) and isinstance(landing, TakesHoverEstimate):
+            landing.set_hover_estimate(self.controller.hover_throttle_us)
+        landing.reset(self.session.time_s)
+
+        def touched_down(_sample: FlightSample) -> bool:
+            return bool(landing.touched_down)
+
         if self._target_ne is not None:
             # After position control the descent holds the position too: wind would
             # otherwise carry the vehicle off while it sinks.
@@ -735,7 +744,8 @@ class _GroundObserver:
 
     def __init__(self, controller: AltitudeController) -> None:
         self.name = getattr(controller, "name", "controller")
-        self._observe = getattr(controller, "observe_ground", None)
+        self._observe = controller.observe_ground if isinstance(controller, ObservesGround) \
+            else None
 
     def reset(self, time_s: float) -> None:
         pass
@@ -776,7 +786,7 @@ def fly_waypoint(mission: Mission, waypoint: Waypoint, number: int, speed_m_s: f
 
 
 def run_mission(
-    session: FlightSession,
+    session: Vehicle,
     plan: MissionPlan,
     controller: AltitudeController,
     *,
@@ -822,15 +832,15 @@ def run_mission(
             mission.abort(outcome.value)
         except (BfsitlError, OSError):
             pass  # the session's close still sends disarm through the RC link
-    if outcome is Outcome.ERROR and session.sitl is not None and session.sitl.poll() is not None:
+    if outcome is Outcome.ERROR and session.has_exited():
         outcome = Outcome.SITL_EXITED
     result = MissionResult(outcome, reason.splitlines()[0] if reason else "", name, plan,
                            mission.rows, blockers, session.armed_after_s)
     result.hold = hold_stats(mission.rows)
     result.legs = list(mission.legs)
     result.attitude = attitude_tracking(mission.rows)
-    if session.sitl is not None:
-        profile = session.sitl.profile
+    profile = session.firmware
+    if profile is not None:
         result.extra["firmware"] = {
             "version": profile.firmware_version, "api": profile.api_version,
             "conventions": profile.generation.value, "gps": profile.has_gps}

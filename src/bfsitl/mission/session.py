@@ -27,23 +27,17 @@ from __future__ import annotations
 import dataclasses
 import math
 import time
-from collections.abc import Callable
-from contextlib import ExitStack
-from dataclasses import dataclass, field, replace
+from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Protocol
 
 from bfsitl.errors import (
-    ArmingBlockedError,
     BfsitlError,
-    LinkError,
-    MspError,
     MspErrorReply,
     SitlError,
     SitlExitedError,
 )
 from bfsitl.fc.firmware_detect import profile_of_binary
-from bfsitl.fc.msp_client import MspClient, Telemetry
+from bfsitl.fc.msp_client import MspClient
 from bfsitl.fc.provisioning import (
     ANGLE_ON_AUX2,
     ARM_ON_AUX1,
@@ -51,9 +45,24 @@ from bfsitl.fc.provisioning import (
     ProvisionResult,
     provision,
 )
-from bfsitl.fc.rc_link import RC_MIN_US, RcCommand, RcLinkStats, UdpRcLink
+from bfsitl.fc.rc_link import UdpRcLink
+
+# The vehicle's parts, importable from here as before the split.
+from bfsitl.mission.vehicle import (  # noqa: F401
+    DEFAULT_ARM_TIMEOUT_S,
+    METRES_PER_DEGREE,
+    SWITCH_OFF_US,
+    SWITCH_ON_US,
+    FlightSample,
+    GpsPosition,
+    Progress,
+    SessionClock,
+    Truth,
+    Vehicle,
+    WallClock,
+)
 from bfsitl.protocol import msp_messages as msg
-from bfsitl.protocol.boxes import BoxId
+from bfsitl.protocol.firmware_profile import FirmwareProfile
 from bfsitl.sim import Simulator
 from bfsitl.sim.bridge import BridgeStats, SitlBridge, bridged_sitl, wait_for_replies
 from bfsitl.sim.frames import betaflight_attitude_deg
@@ -79,12 +88,8 @@ def with_fast_serial(profile: Profile) -> Profile:
     if FAST_SERIAL_LINE in profile.cli_lines:
         return profile
     return dataclasses.replace(profile, cli_lines=(*profile.cli_lines, FAST_SERIAL_LINE))
-#: Switch positions sent for "on": inside the 1700-2100 us ranges above, with margin.
-SWITCH_ON_US = 1800
-SWITCH_OFF_US = RC_MIN_US
-#: The FC's boot grace is 5 s of FC time; calibration and the first fdm packets add a little.
-DEFAULT_ARM_TIMEOUT_S = 15.0
-_POLL_INTERVAL_S = 0.05
+
+
 #: See SessionConfig.sensors; measured: FC altitude within 1-2 cm of the truth on average.
 DEFAULT_BARO_NOISE_PA = 0.5
 #: Accelerometer noise by default, m/s^2 per physics step.  sitl.c truncates the fdm's
@@ -103,8 +108,6 @@ def fly_sensors(*, baro_noise_std_pa: float | None = None,
                            else baro_noise_std_pa),
         accel_noise_std_m_s2=(DEFAULT_ACCEL_NOISE_M_S2 if accel_noise_std_m_s2 is None
                               else accel_noise_std_m_s2))
-
-Progress = Callable[[str], None]
 
 
 @dataclass(frozen=True, slots=True)
@@ -142,14 +145,10 @@ class SessionConfig:
     wind: Wind | None = None
     #: Seeds the sensor noise and the gusts: the same seed gives the same disturbances.
     seed: int = 0
-
-
-class SessionClock(Protocol):
-    """The mission clock (simulation time) and how to let some of it pass."""
-
-    def now_s(self) -> float: ...
-
-    def sleep_s(self, seconds: float) -> None: ...
+    #: Send RC over UDP (the SITL's usual receiver).  False leaves RC to someone else: a
+    #: :class:`~bfsitl.mission.board.BoardVehicle` sending MSP_SET_RAW_RC through the serial
+    #: bridge, as to a real board (real time only: a lockstep SITL takes RC in its fdm).
+    rc_link: bool = True
 
 
 class RealTimeClock:
@@ -168,66 +167,7 @@ class RealTimeClock:
             time.sleep(seconds / speed)
 
 
-@dataclass(frozen=True, slots=True)
-class FlightSample:
-    """One look at the flight: what the FC reports next to the simulated truth."""
-
-    time_s: float               # simulation time: the mission clock
-    wall_s: float               # time.monotonic() when the sample was taken
-    fc_alt_m: float             # MSP_ALTITUDE, up positive, zeroed by the FC at arming
-    fc_climb_m_s: float         # MSP_ALTITUDE vario, up positive
-    fc_accel_up_m_s2: float     # MSP_RAW_IMU z and MSP_ATTITUDE: vertical acceleration,
-                                # gravity removed
-    roll_deg: float             # MSP_ATTITUDE
-    pitch_deg: float            # positive nose down (Betaflight's convention)
-    yaw_deg: float              # MSP_ATTITUDE's whole degree + 0.5 (it truncates)
-    sim_alt_m: float            # true height above the take-off point
-    sim_climb_m_s: float        # true vertical speed, up positive
-    sim_tilt_deg: float         # true angle between the body z axis and the vertical
-    sim_roll_deg: float         # true attitude in Betaflight's convention (as MSP_ATTITUDE)
-    sim_pitch_deg: float
-    sim_yaw_deg: float
-    on_ground: bool             # the simulated skids touch the ground
-    armed: bool
-    arming_blockers: tuple[str, ...]
-    flight_modes: tuple[str, ...]
-    motors: tuple[float, float, float, float]  # applied motor commands 0..1, Betaflight M1..M4
-    rc: RcCommand               # what the RC link is sending
-    sim_north_m: float = math.nan  # true position from the start point, NED metres
-    sim_east_m: float = math.nan
-
-
-@dataclass(frozen=True, slots=True)
-class GpsPosition:
-    """The FC's GPS (MSP_RAW_GPS) made local: metres from where it was at the first reading."""
-
-    north_m: float
-    east_m: float
-    v_north_m_s: float       # ground speed along the ground course
-    v_east_m_s: float
-    has_fix: bool
-    satellites: int
-
-
-@dataclass(frozen=True, slots=True)
-class _Truth:
-    time_s: float
-    altitude_m: float
-    climb_m_s: float
-    tilt_deg: float
-    attitude_deg: tuple[float, float, float]  # Betaflight's roll, pitch, yaw
-    on_ground: bool
-    motors: tuple[float, float, float, float]
-    north_m: float = math.nan
-    east_m: float = math.nan
-
-
-#: Metres per degree of latitude (and of longitude at the equator): the FC's own figure
-#: (``EARTH_RADIUS`` based, gps.c), which is what makes its GPS local.
-METRES_PER_DEGREE = 111_319.5
-
-
-class FlightSession:
+class FlightSession(Vehicle):
     """Start, provision, arm and feed one simulated flight; stop all of it on the way out.
 
     >>> with FlightSession() as session:                    # doctest: +SKIP
@@ -236,32 +176,31 @@ class FlightSession:
     ...     print(session.sample().sim_alt_m)
     """
 
+    #: With the serial task at 1 kHz (``with_fast_serial``, what launch_sitl provisions).
+    control_rate_hz = 100.0
+
     def __init__(self, config: SessionConfig | None = None, *,
                  progress: Progress | None = None) -> None:
-        self.config = config or SessionConfig()
+        config = config or SessionConfig()
+        super().__init__(progress=progress, arm_timeout_s=config.arm_timeout_s,
+                         angle_mode=config.angle_mode)
+        self.config = config
         speed = self.config.speed
         if speed is not None and not (speed > 0 and not math.isnan(speed)):
             raise BfsitlError(f"speed {speed} must be a positive number")
-        self._progress = progress or (lambda _message: None)
-        self.created_at_s = time.monotonic()
         self.sitl: SitlProcess | None = None
         self.simulator: Simulator | None = None
         self.bridge: SitlBridge | LockstepBridge | None = None
-        self.rc: UdpRcLink | LockstepRc | None = None
         #: The mission clock: simulation time, and how to let some of it pass.
-        self.clock: SessionClock = RealTimeClock(self)
+        self.clock = RealTimeClock(self)
         self.provisioned: ProvisionResult | None = None
-        #: Wall seconds from the session's creation to the FC reporting armed.
-        self.armed_after_s: float | None = None
-        self._stack = ExitStack()
-        self._ground_alt_m = 0.0
-        #: Where the vehicle stood at arming (NED, the truth) and its GPS then (1e-7 deg).
-        self._start_ned: tuple[float, float] = (0.0, 0.0)
-        self._gps_origin_e7: tuple[int, int] | None = None
-        self._base = RcCommand(aux_us=(SWITCH_OFF_US, SWITCH_OFF_US))
 
     # -- lifecycle ---------------------------------------------------------------------------
     def start(self) -> FlightSession:
+        """Start everything (see the module docstring); a started session is returned as it
+        is (``with launch_sitl(...) as vehicle`` enters a started one)."""
+        if self.sitl is not None:
+            return self
         config = self.config
         try:
             if config.physics == "gazebo":
@@ -290,12 +229,14 @@ class FlightSession:
                 self._progress("provisioned: " + (
                     "written and saved" + (", rebooted" if self.provisioned.rebooted else "")
                     if self.provisioned.changed else "already configured, nothing written"))
-            # Only now: an RC packet during boot leaves 4.6.0 in RXLOSS for good.
-            assert self.sitl.network is not None
-            self.rc = UdpRcLink(self.sitl.network)
-            self.rc.set(self._base)
-            self.rc.start()
-            self._stack.callback(self.rc.close)  # closes first: disarm goes out before the rest
+            if config.rc_link:
+                # Only now: an RC packet during boot leaves 4.6.0 in RXLOSS for good.
+                assert self.sitl.network is not None
+                rc = UdpRcLink(self.sitl.network)
+                rc.set(self._base)
+                rc.start()
+                self.rc = rc
+                self._stack.callback(rc.close)  # closes first: disarm goes out before the rest
         except BaseException:
             self.close()
             raise
@@ -324,6 +265,10 @@ class FlightSession:
     def _start_lockstep(self) -> None:
         """The SITL locked to the physics from its first pass (see the module doc)."""
         config, sitl, simulator = self.config, self.sitl, self.simulator
+        if not config.rc_link:
+            raise BfsitlError("rc_link=False (RC from elsewhere, e.g. MSP through the serial "
+                              "bridge) needs a real-time SITL: a lockstep build takes its RC "
+                              "in the fdm packets bfsitl steps it with; use a stock build")
         assert sitl is not None and simulator is not None
         speed = None if config.speed is None or math.isinf(config.speed) else config.speed
         bridge = LockstepBridge(simulator, sitl.prepare_network(), speed=speed,
@@ -422,28 +367,25 @@ class FlightSession:
             bridge.resume()
             wait_for_replies(bridge)
 
-    def on_close(self, callback: Callable[[], object]) -> None:
-        """Call ``callback`` when the session closes (before the RC link, bridge and SITL
-        stop): an autopilot's log is closed with the vehicle it records."""
-        self._stack.callback(callback)
-
     # -- parts -------------------------------------------------------------------------------
-    @property
-    def fc(self) -> MspClient:
-        """The flight controller's MSP client (the vehicle's name for :attr:`client`)."""
-        return self.client
-
-    @property
-    def truth(self) -> Simulator | None:
-        """The simulated vehicle (its state is the truth), or None with external physics."""
-        return self.simulator
-
     @property
     def client(self) -> MspClient:
         """The FC's MSP client; in lockstep its waits step the simulation."""
         if self.sitl is None or self.sitl.client is None:
             raise SitlError("the session is not started")
         return self.sitl.client
+
+    @property
+    def firmware(self) -> FirmwareProfile | None:
+        return self.sitl.profile if self.sitl is not None else None
+
+    def has_exited(self) -> bool:
+        return self.sitl is not None and self.sitl.poll() is not None
+
+    @property
+    def truth(self) -> Simulator | None:
+        """The simulated vehicle (its state is the truth), or None with external physics."""
+        return self.simulator
 
     @property
     def has_gps(self) -> bool:
@@ -474,119 +416,19 @@ class FlightSession:
         if self.bridge is not None and self.bridge.error is not None:
             raise SitlError(f"the physics bridge failed: {self.bridge.error!r}")
 
-    # -- RC ----------------------------------------------------------------------------------
-    @property
-    def rc_command(self) -> RcCommand:
-        return self.rc.command if self.rc is not None else self._base
-
-    def set_rc(self, command: RcCommand) -> None:
-        if self.rc is None:
-            raise SitlError("the session is not started")
-        self.rc.set(command)
-
-    def set_throttle(self, throttle_us: float) -> None:
-        """Throttle only; the switches stay as :meth:`arm` / :meth:`disarm` left them."""
-        self.set_rc(replace(self.rc_command, throttle_us=throttle_us))
-
-    # -- arming ------------------------------------------------------------------------------
-    def arm(self, timeout_s: float | None = None) -> None:
-        """Wait until nothing blocks arming, raise the ARM switch, wait for ARMED.
-
-        Raises :class:`ArmingBlockedError` naming the blockers if it does not arm in time,
-        and at once if no ARM mode range would react to the switch (a case the firmware has
-        no flag for: it simply never arms).
-        """
-        timeout_s = self.config.arm_timeout_s if timeout_s is None else timeout_s
-        client = self.client
-        arm_ranges = [r for r in client.mode_ranges().ranges
-                      if r.is_used and r.box_id == BoxId.ARM]
-        if not any(r.aux_channel_index == 0 and r.start_us <= SWITCH_ON_US < r.end_us
-                   for r in arm_ranges):
-            found = ", ".join(f"AUX{r.aux_channel_index + 1} {r.start_us}-{r.end_us} us"
-                              for r in arm_ranges) or "none"
-            raise ArmingBlockedError(
-                f"no ARM mode range on AUX1 covers {SWITCH_ON_US} us (ARM ranges: {found}); "
-                f"provision with the default profile or add `aux 0 0 0 1700 2100 0 0`",
-                ("NO_ARM_RANGE",))
-        clock = self.clock
-        deadline = clock.now_s() + timeout_s
-        blockers = self._wait_unblocked(deadline)
-        if blockers:
-            raise self._blocked_error(blockers, timeout_s)
-        aux2 = SWITCH_ON_US if self.config.angle_mode else SWITCH_OFF_US
-        self.set_rc(replace(self.rc_command, throttle_us=RC_MIN_US,
-                            aux_us=(SWITCH_ON_US, aux2)))
-        while clock.now_s() < deadline:
-            self.check_alive()
-            status = client.status()
-            if status.armed:
-                self.armed_after_s = time.monotonic() - self.created_at_s
-                truth = self._truth()
-                self._ground_alt_m = truth.altitude_m if math.isfinite(truth.altitude_m) else 0.0
-                if math.isfinite(truth.north_m):
-                    # Positions count from the take-off point, like altitudes.
-                    self._start_ned = (self._start_ned[0] + truth.north_m,
-                                       self._start_ned[1] + truth.east_m)
-                if self.sitl is not None and self.sitl.profile.has_gps:
-                    self._gps_origin_e7 = None
-                    self.gps_position()  # the FC's GPS here is the origin from now on
-                return
-            clock.sleep_s(_POLL_INTERVAL_S)
-        self.set_rc(replace(self.rc_command, aux_us=(SWITCH_OFF_US, SWITCH_OFF_US)))
-        names = tuple(b.cli_name for b in client.status().arming_blockers)
-        raise self._blocked_error(names or ("UNKNOWN",), timeout_s)
-
-    def _wait_unblocked(self, deadline_s: float) -> tuple[str, ...]:
-        """Blockers left at the deadline (empty when it may arm); reports each change."""
-        seen: tuple[str, ...] | None = None
-        while True:
-            self.check_alive()
-            names = tuple(b.cli_name for b in self.client.status().arming_blockers)
-            if names != seen:
-                if names:
-                    self._progress("waiting for the FC: " + ", ".join(names))
-                seen = names
-            if not names or self.clock.now_s() >= deadline_s:
-                return names
-            self.clock.sleep_s(_POLL_INTERVAL_S)
-
-    @staticmethod
-    def _blocked_error(names: tuple[str, ...], timeout_s: float) -> ArmingBlockedError:
-        from bfsitl.protocol.arming import all_arming_flags
-
-        fixes = {info.cli_name: info.fix for info in all_arming_flags()}
-        explained = "; ".join(f"{name}: {fixes.get(name, 'see `bfsitl doctor`')}"
-                              for name in names)
-        return ArmingBlockedError(f"the FC did not arm within {timeout_s:.0f} s, blocked by "
-                                  f"{explained}", names)
-
-    def disarm(self, timeout_s: float = 3.0) -> bool:
-        """Throttle low, both switches off; True once the FC reports disarmed."""
-        self.set_rc(replace(self.rc_command, throttle_us=RC_MIN_US,
-                            aux_us=(SWITCH_OFF_US, SWITCH_OFF_US)))
-        deadline = self.clock.now_s() + timeout_s
-        while self.clock.now_s() < deadline:
-            self.check_alive()
-            if not self.client.status().armed:
-                return True
-            self.clock.sleep_s(_POLL_INTERVAL_S)
-        return False
-
     # -- observation -------------------------------------------------------------------------
-    def _truth(self) -> _Truth:
+    def _truth(self) -> Truth:
         if self.bridge is None or self.simulator is None:  # external physics: truth unknown
-            nan = math.nan
-            return _Truth(self.time_s, nan, nan, nan, (nan, nan, nan), False,
-                          (nan, nan, nan, nan))
+            return super()._truth()
         simulator, bridge = self.simulator, self.bridge
 
-        def read() -> _Truth:
+        def read() -> Truth:
             state = simulator.state
             w, x, y, z = state.quaternion_wxyz
             # Body z in world NED has z component 1 - 2(x^2 + y^2): cos(tilt).
             cos_tilt = max(-1.0, min(1.0, 1.0 - 2.0 * (x * x + y * y)))
             north, east, _down = state.position_ned_m
-            return _Truth(state.time_s, simulator.altitude_m, -state.velocity_ned_m_s[2],
+            return Truth(state.time_s, simulator.altitude_m, -state.velocity_ned_m_s[2],
                           math.degrees(math.acos(cos_tilt)),
                           betaflight_attitude_deg(state.quaternion_wxyz), simulator.on_ground,
                           tuple(bridge.motors),  # type: ignore[arg-type]
@@ -594,36 +436,6 @@ class FlightSession:
 
         # On the bridge thread, between two steps: one consistent state.
         return bridge.between_steps(read)
-
-    def telemetry(self) -> Telemetry:
-        try:
-            return self.client.telemetry()
-        except (LinkError, MspError):
-            self.check_alive()  # a dead SITL explains itself better than a lost reply
-            raise
-
-    def sample(self) -> FlightSample:
-        """The FC's view (one MSP round trip) and the simulated truth."""
-        self.check_alive()
-        telemetry = self.telemetry()
-        truth = self._truth()
-        return FlightSample(
-            time_s=truth.time_s, wall_s=time.monotonic(),
-            fc_alt_m=telemetry.altitude.altitude_m, fc_climb_m_s=telemetry.altitude.vario_m_s,
-            fc_accel_up_m_s2=telemetry.accel_up_m_s2(
-                offset_lsb=msg.SITL_ACC_TRUNCATION_LSB),
-            roll_deg=telemetry.attitude.roll_deg, pitch_deg=telemetry.attitude.pitch_deg,
-            # MSP_ATTITUDE truncates the heading to whole degrees: the middle of the degree
-            # is the unbiased reading.
-            yaw_deg=float(telemetry.attitude.yaw_deg) + 0.5,
-            sim_alt_m=truth.altitude_m - self._ground_alt_m, sim_climb_m_s=truth.climb_m_s,
-            sim_tilt_deg=truth.tilt_deg, sim_roll_deg=truth.attitude_deg[0],
-            sim_pitch_deg=truth.attitude_deg[1], sim_yaw_deg=truth.attitude_deg[2],
-            on_ground=truth.on_ground,
-            armed=telemetry.armed, arming_blockers=telemetry.arming_blockers,
-            flight_modes=telemetry.flight_modes, motors=truth.motors, rc=self.rc_command,
-            sim_north_m=truth.north_m, sim_east_m=truth.east_m,
-        )
 
     def _flight_profile(self, profile: Profile) -> Profile:
         """``profile``, plus the compass set-up the firmware needs (master: trust its virtual
@@ -649,29 +461,6 @@ class FlightSession:
         self._progress("switching the GPS build's virtual GPS on (needs a reboot)")
         return dataclasses.replace(profile, cli_lines=(*profile.cli_lines, *lines),
                                    reboot_when_changed=True)
-
-    def gps_position(self) -> GpsPosition:
-        """The FC's GPS, local to its first reading in this session (one MSP round trip).
-
-        Only GPS builds answer (``bfsitl firmware build --gps`` for 4.6.0; master has it):
-        others raise :class:`MspErrorReply`.  The conversion is the FC's flat-earth one, good
-        to centimetres over a flying field.
-        """
-        gps = self.client.get(msg.RawGps)
-        if self._gps_origin_e7 is None and gps.has_fix:
-            self._gps_origin_e7 = (gps.lat_e7, gps.lon_e7)
-        lat0, lon0 = self._gps_origin_e7 or (gps.lat_e7, gps.lon_e7)
-        cos_lat = math.cos(math.radians(lat0 * 1e-7))
-        course = math.radians(gps.course_decideg / 10.0)
-        speed = gps.ground_speed_m_s
-        return GpsPosition(
-            north_m=(gps.lat_e7 - lat0) * 1e-7 * METRES_PER_DEGREE,
-            east_m=(gps.lon_e7 - lon0) * 1e-7 * METRES_PER_DEGREE * cos_lat,
-            v_north_m_s=speed * math.cos(course), v_east_m_s=speed * math.sin(course),
-            has_fix=gps.has_fix, satellites=gps.satellites)
-
-    def rc_stats(self) -> RcLinkStats | None:
-        return self.rc.stats() if self.rc is not None else None
 
     def bridge_stats(self) -> BridgeStats | None:
         return self.bridge.stats() if self.bridge is not None else None

@@ -1,0 +1,392 @@
+"""A vehicle: what an autopilot flies, simulated or real.
+
+:class:`Vehicle` holds what does not depend on where the flight controller is: arming (wait
+for the FC's blockers, raise the ARM switch), disarming, the RC command, one look at the
+flight (:class:`FlightSample`: the FC's view over MSP, next to the truth when it is known),
+the FC's GPS made local, a clock.  :class:`~bfsitl.mission.session.FlightSession` is the
+simulated one (SITL, physics, UDP or lockstep RC, simulation time, the truth);
+:class:`~bfsitl.mission.board.BoardVehicle` a flight controller on a serial port (RC by MSP,
+wall time, no truth).  A :class:`~bfsitl.mission.runner.Mission` flies either.
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from collections.abc import Callable
+from contextlib import ExitStack
+from dataclasses import dataclass, replace
+from typing import TYPE_CHECKING, Protocol
+
+from bfsitl.errors import ArmingBlockedError, LinkError, MspError, SitlError
+from bfsitl.fc.msp_client import MspClient, Telemetry
+from bfsitl.fc.rc_link import RC_MIN_US, RcCommand, RcLinkStats
+from bfsitl.protocol import msp_messages as msg
+from bfsitl.protocol.boxes import BoxId
+
+if TYPE_CHECKING:
+    from bfsitl.protocol.firmware_profile import FirmwareProfile
+    from bfsitl.sim import Simulator
+    from bfsitl.sim.bridge import BridgeStats
+
+#: Switch positions sent for "on": inside the 1700-2100 us mode ranges, with margin.
+SWITCH_ON_US = 1800
+SWITCH_OFF_US = RC_MIN_US
+#: The FC's boot grace is 5 s of FC time; calibration and the first fdm packets add a little.
+DEFAULT_ARM_TIMEOUT_S = 15.0
+_POLL_INTERVAL_S = 0.05
+#: Metres per degree of latitude (and of longitude at the equator): the FC's own figure
+#: (``EARTH_RADIUS`` based, gps.c), which is what makes its GPS local.
+METRES_PER_DEGREE = 111_319.5
+
+Progress = Callable[[str], None]
+
+
+class RcSender(Protocol):
+    """What sends the RC command (a UDP, lockstep or MSP link): the latest is repeated."""
+
+    @property
+    def command(self) -> RcCommand: ...
+
+    def set(self, command: RcCommand) -> None: ...
+
+    def stats(self) -> RcLinkStats: ...
+
+    def close(self) -> None: ...
+
+
+class SessionClock(Protocol):
+    """The mission clock (simulation time) and how to let some of it pass."""
+
+    def now_s(self) -> float: ...
+
+    def sleep_s(self, seconds: float) -> None: ...
+
+
+class WallClock:
+    """Wall time since the vehicle was created: the clock of a real board (and of Gazebo)."""
+
+    def __init__(self, vehicle: Vehicle) -> None:
+        self.vehicle = vehicle
+
+    def now_s(self) -> float:
+        return self.vehicle.time_s
+
+    def sleep_s(self, seconds: float) -> None:
+        if seconds > 0:
+            time.sleep(seconds)
+
+
+@dataclass(frozen=True, slots=True)
+class FlightSample:
+    """One look at the flight: what the FC reports next to the simulated truth."""
+
+    time_s: float               # simulation time: the mission clock
+    wall_s: float               # time.monotonic() when the sample was taken
+    fc_alt_m: float             # MSP_ALTITUDE, up positive, zeroed by the FC at arming
+    fc_climb_m_s: float         # MSP_ALTITUDE vario, up positive
+    fc_accel_up_m_s2: float     # MSP_RAW_IMU z and MSP_ATTITUDE: vertical acceleration,
+                                # gravity removed
+    roll_deg: float             # MSP_ATTITUDE
+    pitch_deg: float            # positive nose down (Betaflight's convention)
+    yaw_deg: float              # MSP_ATTITUDE's whole degree + 0.5 (it truncates)
+    sim_alt_m: float            # true height above the take-off point
+    sim_climb_m_s: float        # true vertical speed, up positive
+    sim_tilt_deg: float         # true angle between the body z axis and the vertical
+    sim_roll_deg: float         # true attitude in Betaflight's convention (as MSP_ATTITUDE)
+    sim_pitch_deg: float
+    sim_yaw_deg: float
+    on_ground: bool             # the simulated skids touch the ground
+    armed: bool
+    arming_blockers: tuple[str, ...]
+    flight_modes: tuple[str, ...]
+    motors: tuple[float, float, float, float]  # applied motor commands 0..1, Betaflight M1..M4
+    rc: RcCommand               # what the RC link is sending
+    sim_north_m: float = math.nan  # true position from the start point, NED metres
+    sim_east_m: float = math.nan
+
+
+@dataclass(frozen=True, slots=True)
+class GpsPosition:
+    """The FC's GPS (MSP_RAW_GPS) made local: metres from where it was at the first reading."""
+
+    north_m: float
+    east_m: float
+    v_north_m_s: float       # ground speed along the ground course
+    v_east_m_s: float
+    has_fix: bool
+    satellites: int
+
+
+@dataclass(frozen=True, slots=True)
+class Truth:
+    """The simulated state at one instant (NaN everywhere when the physics is external)."""
+
+    time_s: float
+    altitude_m: float
+    climb_m_s: float
+    tilt_deg: float
+    attitude_deg: tuple[float, float, float]  # Betaflight's roll, pitch, yaw
+    on_ground: bool
+    motors: tuple[float, float, float, float]
+    north_m: float = math.nan
+    east_m: float = math.nan
+
+
+#: Metres per degree of latitude (and of longitude at the equator): the FC's own figure
+#: (``EARTH_RADIUS`` based, gps.c), which is what makes its GPS local.
+METRES_PER_DEGREE = 111_319.5
+
+
+class Vehicle:
+    """The parts of a flight that only need the FC: see the module docstring.
+
+    Subclasses start the FC side (:meth:`start`), set :attr:`rc` once RC flows, and say what
+    the truth is (:meth:`_truth`) and whether the FC has a GPS (:attr:`has_gps`).
+    """
+
+    def __init__(self, *, progress: Progress | None = None,
+                 arm_timeout_s: float = DEFAULT_ARM_TIMEOUT_S, angle_mode: bool = True) -> None:
+        self._progress = progress or (lambda _message: None)
+        self.arm_timeout_s = arm_timeout_s
+        #: Hold AUX2 on while armed (ANGLE, when the profile puts ANGLE there).
+        self.angle_mode = angle_mode
+        self.created_at_s = time.monotonic()
+        self.rc: RcSender | None = None
+        #: The mission clock, and how to let some of it pass.
+        self.clock: SessionClock = WallClock(self)
+        #: Wall seconds from the vehicle's creation to the FC reporting armed.
+        self.armed_after_s: float | None = None
+        self._stack = ExitStack()
+        self._ground_alt_m = 0.0
+        #: Where the vehicle stood at arming (NED, the truth) and its GPS then (1e-7 deg).
+        self._start_ned: tuple[float, float] = (0.0, 0.0)
+        self._gps_origin_e7: tuple[int, int] | None = None
+        self._base = RcCommand(aux_us=(SWITCH_OFF_US, SWITCH_OFF_US))
+
+    #: The control loop rate an autopilot asks for by default: what the vehicle's MSP
+    #: budget sustains (a SITL with the fast serial task: 100; a board at the default
+    #: serial rate: less).
+    control_rate_hz: float = 50.0
+
+    # -- to be given by the kind of vehicle -----------------------------------------------------
+    def start(self) -> Vehicle:
+        return self
+
+    @property
+    def client(self) -> MspClient:
+        raise SitlError("the vehicle is not started")
+
+    @property
+    def has_gps(self) -> bool:
+        """The firmware has a GPS (position control needs it)."""
+        return False
+
+    @property
+    def time_s(self) -> float:
+        """The mission clock: wall time since the vehicle was created, unless simulated."""
+        return time.monotonic() - self.created_at_s
+
+    def check_alive(self) -> None:
+        """Raise if the FC side has gone (a SITL that exited); a board says so by I/O errors."""
+
+    def _truth(self) -> Truth:
+        nan = math.nan
+        return Truth(self.time_s, nan, nan, nan, (nan, nan, nan), False, (nan, nan, nan, nan))
+
+    def bridge_stats(self) -> BridgeStats | None:
+        return None
+
+    @property
+    def firmware(self) -> FirmwareProfile | None:
+        """Who the FC is (version, conventions, GPS), once known."""
+        return None
+
+    @property
+    def lockstep(self) -> bool:
+        return False
+
+    def has_exited(self) -> bool:
+        """True when the FC side has ended (a SITL process that exited)."""
+        return False
+
+    # -- lifecycle --------------------------------------------------------------------------------
+    def close(self) -> None:
+        """Stop in reverse order of starting (the RC link first: disarm goes out).  Safe to
+        call twice."""
+        self._stack.close()
+
+    def __enter__(self) -> Vehicle:
+        return self.start()
+
+    def __exit__(self, *exc_info: object) -> None:
+        self.close()
+
+    def on_close(self, callback: Callable[[], object]) -> None:
+        """Call ``callback`` when the session closes (before the RC link, bridge and SITL
+        stop): an autopilot's log is closed with the vehicle it records."""
+        self._stack.callback(callback)
+
+    # -- parts ------------------------------------------------------------------------
+    @property
+    def fc(self) -> MspClient:
+        """The flight controller's MSP client (the vehicle's name for :attr:`client`)."""
+        return self.client
+
+    @property
+    def truth(self) -> Simulator | None:
+        """The simulated vehicle (its state is the truth), or None: a board, or Gazebo."""
+        return None
+
+    # -- RC ----------------------------------------------------------------------------------
+    @property
+    def rc_command(self) -> RcCommand:
+        return self.rc.command if self.rc is not None else self._base
+
+    def set_rc(self, command: RcCommand) -> None:
+        if self.rc is None:
+            raise SitlError("the session is not started")
+        self.rc.set(command)
+
+    def set_throttle(self, throttle_us: float) -> None:
+        """Throttle only; the switches stay as :meth:`arm` / :meth:`disarm` left them."""
+        self.set_rc(replace(self.rc_command, throttle_us=throttle_us))
+
+    # -- arming ------------------------------------------------------------------------------
+    def arm(self, timeout_s: float | None = None) -> None:
+        """Wait until nothing blocks arming, raise the ARM switch, wait for ARMED.
+
+        Raises :class:`ArmingBlockedError` naming the blockers if it does not arm in time,
+        and at once if no ARM mode range would react to the switch (a case the firmware has
+        no flag for: it simply never arms).
+        """
+        timeout_s = self.arm_timeout_s if timeout_s is None else timeout_s
+        client = self.client
+        arm_ranges = [r for r in client.mode_ranges().ranges
+                      if r.is_used and r.box_id == BoxId.ARM]
+        if not any(r.aux_channel_index == 0 and r.start_us <= SWITCH_ON_US < r.end_us
+                   for r in arm_ranges):
+            found = ", ".join(f"AUX{r.aux_channel_index + 1} {r.start_us}-{r.end_us} us"
+                              for r in arm_ranges) or "none"
+            raise ArmingBlockedError(
+                f"no ARM mode range on AUX1 covers {SWITCH_ON_US} us (ARM ranges: {found}); "
+                f"provision with the default profile or add `aux 0 0 0 1700 2100 0 0`",
+                ("NO_ARM_RANGE",))
+        clock = self.clock
+        deadline = clock.now_s() + timeout_s
+        blockers = self._wait_unblocked(deadline)
+        if blockers:
+            raise self._blocked_error(blockers, timeout_s)
+        aux2 = SWITCH_ON_US if self.angle_mode else SWITCH_OFF_US
+        self.set_rc(replace(self.rc_command, throttle_us=RC_MIN_US,
+                            aux_us=(SWITCH_ON_US, aux2)))
+        while clock.now_s() < deadline:
+            self.check_alive()
+            status = client.status()
+            if status.armed:
+                self.armed_after_s = time.monotonic() - self.created_at_s
+                truth = self._truth()
+                self._ground_alt_m = truth.altitude_m if math.isfinite(truth.altitude_m) else 0.0
+                if math.isfinite(truth.north_m):
+                    # Positions count from the take-off point, like altitudes.
+                    self._start_ned = (self._start_ned[0] + truth.north_m,
+                                       self._start_ned[1] + truth.east_m)
+                if self.has_gps:
+                    self._gps_origin_e7 = None
+                    self.gps_position()  # the FC's GPS here is the origin from now on
+                return
+            clock.sleep_s(_POLL_INTERVAL_S)
+        self.set_rc(replace(self.rc_command, aux_us=(SWITCH_OFF_US, SWITCH_OFF_US)))
+        names = tuple(b.cli_name for b in client.status().arming_blockers)
+        raise self._blocked_error(names or ("UNKNOWN",), timeout_s)
+
+    def _wait_unblocked(self, deadline_s: float) -> tuple[str, ...]:
+        """Blockers left at the deadline (empty when it may arm); reports each change."""
+        seen: tuple[str, ...] | None = None
+        while True:
+            self.check_alive()
+            names = tuple(b.cli_name for b in self.client.status().arming_blockers)
+            if names != seen:
+                if names:
+                    self._progress("waiting for the FC: " + ", ".join(names))
+                seen = names
+            if not names or self.clock.now_s() >= deadline_s:
+                return names
+            self.clock.sleep_s(_POLL_INTERVAL_S)
+
+    @staticmethod
+    def _blocked_error(names: tuple[str, ...], timeout_s: float) -> ArmingBlockedError:
+        from bfsitl.protocol.arming import all_arming_flags
+
+        fixes = {info.cli_name: info.fix for info in all_arming_flags()}
+        explained = "; ".join(f"{name}: {fixes.get(name, 'see `bfsitl doctor`')}"
+                              for name in names)
+        return ArmingBlockedError(f"the FC did not arm within {timeout_s:.0f} s, blocked by "
+                                  f"{explained}", names)
+
+    def disarm(self, timeout_s: float = 3.0) -> bool:
+        """Throttle low, both switches off; True once the FC reports disarmed."""
+        self.set_rc(replace(self.rc_command, throttle_us=RC_MIN_US,
+                            aux_us=(SWITCH_OFF_US, SWITCH_OFF_US)))
+        deadline = self.clock.now_s() + timeout_s
+        while self.clock.now_s() < deadline:
+            self.check_alive()
+            if not self.client.status().armed:
+                return True
+            self.clock.sleep_s(_POLL_INTERVAL_S)
+        return False
+
+    # -- observation -------------------------------------------------------------------------
+    def telemetry(self) -> Telemetry:
+        try:
+            return self.client.telemetry()
+        except (LinkError, MspError):
+            self.check_alive()  # a dead SITL explains itself better than a lost reply
+            raise
+
+    def sample(self) -> FlightSample:
+        """The FC's view (one MSP round trip) and the simulated truth."""
+        self.check_alive()
+        telemetry = self.telemetry()
+        truth = self._truth()
+        return FlightSample(
+            time_s=truth.time_s, wall_s=time.monotonic(),
+            fc_alt_m=telemetry.altitude.altitude_m, fc_climb_m_s=telemetry.altitude.vario_m_s,
+            fc_accel_up_m_s2=telemetry.accel_up_m_s2(
+                offset_lsb=msg.SITL_ACC_TRUNCATION_LSB),
+            roll_deg=telemetry.attitude.roll_deg, pitch_deg=telemetry.attitude.pitch_deg,
+            # MSP_ATTITUDE truncates the heading to whole degrees: the middle of the degree
+            # is the unbiased reading.
+            yaw_deg=float(telemetry.attitude.yaw_deg) + 0.5,
+            sim_alt_m=truth.altitude_m - self._ground_alt_m, sim_climb_m_s=truth.climb_m_s,
+            sim_tilt_deg=truth.tilt_deg, sim_roll_deg=truth.attitude_deg[0],
+            sim_pitch_deg=truth.attitude_deg[1], sim_yaw_deg=truth.attitude_deg[2],
+            on_ground=truth.on_ground,
+            armed=telemetry.armed, arming_blockers=telemetry.arming_blockers,
+            flight_modes=telemetry.flight_modes, motors=truth.motors, rc=self.rc_command,
+            sim_north_m=truth.north_m, sim_east_m=truth.east_m,
+        )
+
+    def gps_position(self) -> GpsPosition:
+        """The FC's GPS, local to its first reading in this session (one MSP round trip).
+
+        Only GPS builds answer (``bfsitl firmware build --gps`` for 4.6.0; master has it):
+        others raise :class:`MspErrorReply`.  The conversion is the FC's flat-earth one, good
+        to centimetres over a flying field.
+        """
+        gps = self.client.get(msg.RawGps)
+        if self._gps_origin_e7 is None and gps.has_fix:
+            self._gps_origin_e7 = (gps.lat_e7, gps.lon_e7)
+        lat0, lon0 = self._gps_origin_e7 or (gps.lat_e7, gps.lon_e7)
+        cos_lat = math.cos(math.radians(lat0 * 1e-7))
+        course = math.radians(gps.course_decideg / 10.0)
+        speed = gps.ground_speed_m_s
+        return GpsPosition(
+            north_m=(gps.lat_e7 - lat0) * 1e-7 * METRES_PER_DEGREE,
+            east_m=(gps.lon_e7 - lon0) * 1e-7 * METRES_PER_DEGREE * cos_lat,
+            v_north_m_s=speed * math.cos(course), v_east_m_s=speed * math.sin(course),
+            has_fix=gps.has_fix, satellites=gps.satellites)
+
+    def rc_stats(self) -> RcLinkStats | None:
+        return self.rc.stats() if self.rc is not None else None
+

@@ -1,0 +1,85 @@
+"""The autopilot flying a "board": a flight controller reached only through a serial port.
+
+The board is the real 4.6.0 GPS SITL with the embedded physics, in real time, whose UART1 is
+offered as a pseudo-terminal by the serial bridge (``bfsitl serial-bridge``'s relay).  No UDP
+RC is sent to it: the autopilot's RC reaches it by MSP_SET_RAW_RC over that pty, as on a real
+board with an MSP receiver.  The simulated truth, which the board vehicle cannot see, judges
+the flight.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Iterator
+
+import pytest
+
+from bfsitl import Autopilot, FlightSession, SessionConfig, connect
+from bfsitl.bridges.pty_relay import PtyEndpoint, PtyRelay
+from bfsitl.cli.bridge_commands import sitl_upstream
+from bfsitl.errors import BoardSetupError
+from bfsitl.mission.session import FLY_PROFILE, with_fast_serial
+from bfsitl.protocol import msp_messages as msg
+
+pytestmark = pytest.mark.sitl
+
+#: Real time: the board vehicle's clock is the wall clock, as on a real board, so the
+#: simulated board must keep to it (at 0.5x the controllers' timing is off by a factor of 2).
+SPEED = 1.0
+
+
+@pytest.fixture
+def board(gps_firmware, tmp_path) -> Iterator[tuple[FlightSession, PtyEndpoint]]:
+    config = SessionConfig(firmware=gps_firmware, workdir=tmp_path / "run", rc_link=False,
+                           speed=SPEED, profile=with_fast_serial(FLY_PROFILE), seed=5)
+    with FlightSession(config) as simulated:
+        assert simulated.sitl is not None and simulated.sitl.client is not None
+        # UART1 serves one client: the bridge takes it from here on.
+        simulated.sitl.client.close()
+        relay = PtyRelay(sitl_upstream(simulated.sitl), link_path=tmp_path / "ttyBF")
+        with relay.running() as endpoint:
+            yield simulated, endpoint
+
+
+def test_the_autopilot_flies_a_board_over_serial_with_rc_by_msp(board, tmp_path):
+    simulated, _endpoint = board
+    events: list[str] = []
+    with connect(f"serial://{tmp_path / 'ttyBF'}?baud=115200",
+                 progress=events.append) as vehicle:
+        assert vehicle.truth is None and vehicle.has_gps
+        assert vehicle.firmware is not None and vehicle.firmware.firmware_version == "4.6.0"
+        pilot = Autopilot(vehicle, log=tmp_path / "board.csv")
+        pilot.takeoff(1.5)
+        climbed_m = simulated.simulator.altitude_m  # type: ignore[union-attr]
+        leg = pilot.goto(3.0, 0.0)
+        state = simulated.simulator.state  # type: ignore[union-attr]
+        pilot.land()
+        rc = vehicle.rc_stats()
+        assert not vehicle.client.status().armed
+    assert any("connected to serial://" in e for e in events)
+    # The truth: it climbed, went 3 m north (not east, not south), came down.
+    assert 1.2 < climbed_m < 1.9
+    assert state.position_ned_m[0] == pytest.approx(3.0, abs=0.6)
+    assert abs(state.position_ned_m[1]) < 0.6
+    assert leg.arrival_error_m < 1.0 or math.isnan(leg.arrival_error_m)
+    assert simulated.simulator.on_ground  # type: ignore[union-attr]
+    assert rc is not None and rc.packets > 50 and rc.send_errors == 0
+    rows = pilot.rows
+    assert rows[-1].phase == "landed"
+    assert all(math.isnan(r.sim_alt_m) for r in rows)  # a board has no truth to log
+    # At the board's 25 Hz the position loop must not ring: the gains tuned for 100 Hz
+    # swung the pitch by +-30 deg in the landing here and once tipped it over.
+    assert max(abs(r.pitch_deg) for r in rows if r.phase == "land") < 15.0
+
+
+def test_a_board_without_an_msp_receiver_is_refused_with_the_fix(board, tmp_path):
+    """Switch the board's receiver from MSP to serial: connecting says what to do."""
+    from bfsitl.fc.msp_client import MspClient
+    from bfsitl.link import open_link
+
+    uri = f"serial://{tmp_path / 'ttyBF'}?baud=115200"
+    with MspClient(open_link(uri, timeout_s=1.0), timeout_s=1.0) as client:
+        mask = client.get(msg.FeatureConfig).feature_mask
+        client.send(msg.SetFeatureConfig((mask & ~(1 << 14)) | (1 << 3)))  # RX_SERIAL
+    with pytest.raises(BoardSetupError, match="receiver is not MSP.*real-board.md"):
+        connect(uri)

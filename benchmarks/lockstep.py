@@ -34,15 +34,15 @@ import time
 from dataclasses import dataclass
 from pathlib import Path
 
-from bfsitl.build import BuildProgress, FirmwareBuildOptions, FirmwareCache, build_firmware
+from firmware_cache import MASTER_TARBALL, cached_firmware
+
+from bfsitl.build import FirmwareBuildOptions
 from bfsitl.control import make_controller
 from bfsitl.errors import BfsitlError
 from bfsitl.mission import FlightSession, MissionPlan, SessionConfig, run_mission
 from bfsitl.sim.health import HealthMonitor
 from bfsitl.sitl.firmware import find_firmware
 
-MASTER_TARBALL = (Path(__file__).resolve().parents[2] / "shared" / "firmware" /
-                  "betaflight-2026.12.0-alpha-301d01a-sitl-src.tar.xz")
 BUILDS = {  # name: (source, lockstep)
     "master": (MASTER_TARBALL, False),
     "4.6.0-lockstep": (None, True),
@@ -73,18 +73,8 @@ class Flight:
 def firmware_path(name: str, build_missing: bool) -> str:
     if name == "4.6.0":
         return str(find_firmware(None).path)
-    cache = FirmwareCache()
-    entry = cache.resolve(name)
-    if entry is not None:
-        return str(entry.binary_path)
-    if not build_missing:
-        sys.exit(f"no cached build named {name!r}: run with --build (or `bfsitl firmware "
-                 f"build ... --name {name}`)")
     source, lockstep = BUILDS[name]
-    print(f"building {name} ...", file=sys.stderr)
-    result = build_firmware(source, FirmwareBuildOptions(lockstep=lockstep), name=name,
-                            cache=cache, progress=BuildProgress(live=False))
-    return str(result.binary_path)
+    return cached_firmware(name, source, FirmwareBuildOptions(lockstep=lockstep), build_missing)
 
 
 def sitl_cpu_s(pid: int | None) -> float | None:

@@ -35,9 +35,10 @@ import statistics
 import sys
 import time
 from dataclasses import dataclass, field
-from pathlib import Path
 
-from bfsitl.build import BuildProgress, FirmwareBuildOptions, FirmwareCache, build_firmware
+from firmware_cache import MASTER_TARBALL, cached_firmware
+
+from bfsitl.build import FirmwareBuildOptions
 from bfsitl.control import make_controller
 from bfsitl.fc.provisioning import ANGLE_ON_AUX2, ARM_ON_AUX1, Profile
 from bfsitl.mission import FlightSession, Mission, SessionConfig
@@ -48,8 +49,6 @@ from bfsitl.protocol import msp_messages as msg
 from bfsitl.protocol.boxes import BoxId
 from bfsitl.sim.params import Wind
 
-MASTER_TARBALL = (Path(__file__).resolve().parents[2] / "shared" / "firmware" /
-                  "betaflight-2026.12.0-alpha-301d01a-sitl-src.tar.xz")
 BUILDS = {  # name: (source, options)
     "4.6.0-gps-lockstep": (None, FirmwareBuildOptions(gps=True, lockstep=True)),
     "master-lockstep": (MASTER_TARBALL, FirmwareBuildOptions(lockstep=True)),
@@ -71,18 +70,8 @@ class Result:
 
 
 def firmware_path(name: str, build_missing: bool) -> str:
-    cache = FirmwareCache()
-    entry = cache.resolve(name)
-    if entry is not None:
-        return str(entry.binary_path)
-    if not build_missing:
-        sys.exit(f"no cached build named {name!r}: run with --build (or `bfsitl firmware "
-                 f"build ... --name {name}`)")
     source, options = BUILDS[name]
-    print(f"building {name} ...", file=sys.stderr)
-    result = build_firmware(source, options, name=name, cache=cache,
-                            progress=BuildProgress(live=False))
-    return str(result.binary_path)
+    return cached_firmware(name, source, options, build_missing)
 
 
 ALTHOLD_ON_AUX3 = msg.ModeRange.from_us(BoxId.ALTHOLD, 2, 1700, 2100)

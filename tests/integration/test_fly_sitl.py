@@ -39,6 +39,21 @@ def read_rows(path: Path) -> list[dict[str, str]]:
         return list(reader)
 
 
+def read_until_line(process: subprocess.Popen[str], needle: str,
+                    timeout_s: float = 60.0) -> list[str]:
+    """The process's stderr lines up to the first holding ``needle`` (asserted to come)."""
+    assert process.stderr is not None
+    deadline = time.monotonic() + timeout_s
+    seen = []
+    while time.monotonic() < deadline:
+        line = process.stderr.readline()
+        seen.append(line)
+        if needle in line or not line:
+            break
+    assert any(needle in line for line in seen), "".join(seen)
+    return seen
+
+
 def processes_in(directory: Path) -> list[str]:
     """Processes whose working directory is inside ``directory`` (a SITL, its agent)."""
     found = []
@@ -122,15 +137,7 @@ def test_interrupt_leaves_no_process_a_complete_log_and_rc_at_disarm(lockstep_46
          "--firmware", str(lockstep_46_firmware)],
         stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, cwd=tmp_path)
     try:
-        assert process.stderr is not None
-        deadline = time.monotonic() + 60
-        seen = []
-        while time.monotonic() < deadline:
-            line = process.stderr.readline()
-            seen.append(line)
-            if "hold" in line or not line:
-                break
-        assert any("hold" in line for line in seen), "".join(seen)
+        seen = read_until_line(process, "hold")
         time.sleep(0.5)
         process.send_signal(signal.SIGINT)
         stdout, stderr = process.communicate(timeout=30)

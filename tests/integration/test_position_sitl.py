@@ -173,7 +173,7 @@ def test_ctrl_c_mid_mission_leaves_the_sticks_at_disarm_and_a_complete_log(
     import subprocess
     import time
 
-    from test_fly_sitl import BFSITL, processes_in, read_rows
+    from test_fly_sitl import BFSITL, processes_in, read_rows, read_until_line
 
     mission = tmp_path / "square.toml"
     mission.write_text(SQUARE_TOML)
@@ -183,15 +183,7 @@ def test_ctrl_c_mid_mission_leaves_the_sticks_at_disarm_and_a_complete_log(
          "--speed", "1", "--log", str(log), "--firmware", str(lockstep_master_firmware)],
         stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, cwd=tmp_path)
     try:
-        assert process.stderr is not None
-        deadline = time.monotonic() + 60
-        seen = []
-        while time.monotonic() < deadline:
-            line = process.stderr.readline()
-            seen.append(line)
-            if "waypoint 2" in line or not line:
-                break
-        assert any("waypoint 2" in line for line in seen), "".join(seen)
+        read_until_line(process, "waypoint 2")
         time.sleep(1.0)  # a second into the second leg, tilted and moving
         process.send_signal(signal.SIGINT)
         _stdout, stderr = process.communicate(timeout=30)

@@ -187,3 +187,10 @@ def test_the_gps_error_moves_the_gps_fields_only():
     assert a.geodetic[:2] != b.geodetic[:2] and a.geodetic[2] == b.geodetic[2]
     with pytest.raises(Exception, match="gps_drift_time_s"):
         SensorConfig(gps_drift_time_s=0.0)
+
+
+def test_hold_position_is_a_flag_of_the_file():
+    assert plan_from_dict({"takeoff_alt_m": 2}).hold_position is True
+    assert plan_from_dict({"takeoff_alt_m": 2, "hold_position": False}).hold_position is False
+    with pytest.raises(MissionError, match="hold_position must be true or false"):
+        plan_from_dict({"takeoff_alt_m": 2, "hold_position": "yes"})

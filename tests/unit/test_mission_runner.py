@@ -510,3 +510,18 @@ def test_waypoints_on_a_firmware_without_gps_end_before_arming_with_the_fix():
     assert result.outcome is Outcome.ERROR
     assert "GPS build" in result.reason and "--gps" in result.reason
     assert not session.armed and session.samples == 0
+
+
+@pytest.mark.parametrize(("hold_position", "stays"), [(True, True), (False, False)])
+def test_the_default_plan_on_a_gps_vehicle_holds_its_take_off_point(hold_position, stays):
+    """No waypoints: with a GPS the take-off, hold and landing hold the take-off point
+    against the fake's wind; ``hold_position=False`` drifts (the control)."""
+    from bfsitl.mission.runner import fly_plan, landed_from_start_m
+
+    session = PlanarSession()
+    mission = planar_mission(session)
+    fly_plan(mission, MissionPlan(target_alt_m=1.0, hold_s=4.0, ground_s=0.0,
+                                  hold_position=hold_position))
+    landed_m = landed_from_start_m(mission.rows)
+    assert landed_m is not None
+    assert (landed_m < 0.3) == stays, landed_m

@@ -65,6 +65,9 @@ def add_fly_parser(sub: argparse._SubParsersAction) -> None:  # type: ignore[typ
                               "(north_m, east_m, alt_m, optional hold_s and heading_deg), "
                               "land = true (see docs/missions.md). Waypoints need a GPS "
                               "build; they are flown at 100 Hz unless --rate says otherwise")
+    mission.add_argument("--no-position-hold", action="store_true",
+                         help="on a GPS build, fly the altitude only (by default the take-off "
+                              "point is held in the take-off, the hold and the landing)")
     mission.add_argument("--target-alt", type=float, default=None, metavar="M",
                          help="take-off altitude above the ground, metres (default 2.0)")
     mission.add_argument("--hold", type=float, default=None, metavar="S",
@@ -155,10 +158,14 @@ def _plan_from_args(args: argparse.Namespace):  # type: ignore[no-untyped-def]
             raise BfsitlError(f"{' and '.join(given)} cannot be combined with --mission: the "
                               f"mission file sets the take-off altitude and the holds")
         plan = load_mission(args.mission)
-        return plan if args.ground is None else replace(plan, ground_s=args.ground)
-    plan = MissionPlan(target_alt_m=2.0 if args.target_alt is None else args.target_alt,
-                       hold_s=DEFAULT_HOLD_S if args.hold is None else args.hold)
-    return plan if args.ground is None else replace(plan, ground_s=args.ground)
+    else:
+        plan = MissionPlan(target_alt_m=2.0 if args.target_alt is None else args.target_alt,
+                           hold_s=DEFAULT_HOLD_S if args.hold is None else args.hold)
+    if args.ground is not None:
+        plan = replace(plan, ground_s=args.ground)
+    if args.no_position_hold:
+        plan = replace(plan, hold_position=False)
+    return plan
 
 
 def parse_gains(items: list[str]) -> dict[str, float]:

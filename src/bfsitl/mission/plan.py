@@ -76,6 +76,10 @@ class MissionPlan:
     #: Land and disarm at the end; False ends the mission in the air (the session's close
     #: then disarms: in a simulation the vehicle falls).
     land: bool = True
+    #: On a firmware with GPS, hold the take-off point during the take-off, the hold and the
+    #: landing even without waypoints (wind would carry the vehicle off); False flies the
+    #: altitude alone, sticks centred.
+    hold_position: bool = True
 
     def __post_init__(self) -> None:
         _check_range("target altitude", self.target_alt_m, 0.3, 100.0, "m")
@@ -94,7 +98,8 @@ class MissionPlan:
 
 #: The file's top-level keys and the plan's fields they fill.
 _TOP_KEYS = {"takeoff_alt_m": "target_alt_m", "hold_s": "hold_s", "ground_s": "ground_s",
-             "speed_m_s": "speed_m_s", "land": "land", "takeoff_timeout_s": "takeoff_timeout_s",
+             "speed_m_s": "speed_m_s", "land": "land", "hold_position": "hold_position",
+             "takeoff_timeout_s": "takeoff_timeout_s",
              "land_timeout_s": "land_timeout_s"}
 _WAYPOINT_KEYS = {f.name for f in fields(Waypoint)}
 
@@ -130,9 +135,10 @@ def plan_from_dict(data: dict[str, Any], *, source: str = "the mission") -> Miss
         except MissionError as exc:
             raise MissionError(f"{where}: {exc}") from None
     values = {field: data[key] for key, field in _TOP_KEYS.items() if key in data}
-    _check_types(source, {k: v for k, v in values.items() if k != "land"})
-    if "land" in values and not isinstance(values["land"], bool):
-        raise MissionError(f"{source}: land must be true or false, got {values['land']!r}")
+    _check_types(source, {k: v for k, v in values.items() if k not in ("land", "hold_position")})
+    for flag in ("land", "hold_position"):
+        if flag in values and not isinstance(values[flag], bool):
+            raise MissionError(f"{source}: {flag} must be true or false, got {values[flag]!r}")
     # A file's hold means "after the take-off"; with waypoints it defaults to none.
     values.setdefault("hold_s", 0.0 if waypoints else DEFAULT_HOLD_S)
     try:

@@ -762,10 +762,11 @@ def fly_plan(mission: Mission, plan: MissionPlan) -> None:
     mission.arm()
     if plan.ground_s > 0:
         mission.wait_on_ground(plan.ground_s)
+    position = plan.needs_position or (plan.hold_position and mission.session.has_gps)
     mission.takeoff(plan.target_alt_m, timeout_s=plan.takeoff_timeout_s,
-                    hold_position=plan.needs_position)
+                    hold_position=position)
     if plan.hold_s > 0:
-        if plan.needs_position:
+        if position:
             mission.hold_position(plan.hold_s)
         else:
             mission.hold(plan.hold_s)

@@ -26,10 +26,13 @@ from __future__ import annotations
 
 import math
 from collections.abc import Callable
+from dataclasses import replace
 from pathlib import Path
 
 from bfsitl.control import DEFAULT_CONTROLLER, make_controller
 from bfsitl.control.base import AltitudeController
+from bfsitl.control.horizontal_estimator import HorizontalEstimator
+from bfsitl.control.position import PositionController
 from bfsitl.errors import MissionError
 from bfsitl.mission.board import BoardVehicle
 from bfsitl.mission.flight_log import CsvFlightLog, FlightRow
@@ -96,7 +99,7 @@ class Autopilot:
 
     def __init__(self, vehicle: Vehicle, controller: str | AltitudeController =
                  DEFAULT_CONTROLLER, *, rate_hz: float | None = None,
-                 log: str | Path | None = None,
+                 log: str | Path | None = None, fuse_accelerometer: bool = False,
                  on_event: Callable[[str], None] | None = None) -> None:
         self.vehicle = vehicle
         self.controller = make_controller(controller) if isinstance(controller, str) \
@@ -108,6 +111,13 @@ class Autopilot:
             rate_hz = vehicle.control_rate_hz
         self.mission = Mission(vehicle, self.controller, rate_hz=rate_hz, log=self._log,
                                on_event=on_event)
+        if fuse_accelerometer:
+            # The GPS fused with the FC's accelerometer for the position loop: as good as the
+            # GPS alone in SITL, where the fix is fresh; better with a slow, late receiver
+            # (control/horizontal_estimator.py).
+            self.mission.horizontal = HorizontalEstimator()
+            self.mission.position = PositionController(replace(
+                self.mission.position.gains, lead_s=0.0))
 
     # -- the record ---------------------------------------------------------------------------
     @property

@@ -31,6 +31,10 @@ from bfsitl.control.base import (
     TakesHoverEstimate,
 )
 from bfsitl.control.heading import HeadingController, heading_error_deg
+from bfsitl.control.horizontal_estimator import (
+    HorizontalEstimator,
+    specific_force_north_east,
+)
 from bfsitl.control.position import PositionController, PositionGains, PositionInput
 from bfsitl.errors import (
     ArmingBlockedError,
@@ -196,6 +200,9 @@ class Mission:
         self._climb = ClimbRateEstimator()
         self._started_wall_s = time.monotonic()
         self.position = PositionController(PositionGains.for_loop_rate(rate_hz))
+        #: Fuses the FC's accelerometer with its GPS for the position loop (None: the GPS
+        #: alone, extrapolated by the gains' lead).
+        self.horizontal: HorizontalEstimator | None = None
         #: The FC's ANGLE-mode stick curve, read from it at the first position manoeuvre.
         self.sticks: AngleStickMap | None = None
         #: The FC's GPS and the target of the step being recorded (position control only).
@@ -217,6 +224,8 @@ class Mission:
         self.session.arm()
         self._climb.reset()
         self.position.reset(self.session.time_s)  # nothing learnt of the wind yet
+        if self.horizontal is not None:
+            self.horizontal.started = False
         self.controller.reset(self.session.time_s)
         self._on_event(f"armed {self.session.armed_after_s:.1f} s after start")
 
@@ -441,10 +450,17 @@ class Mission:
             gps = self._gps()
             point = target(sample.time_s - started_s)
             north, east = point.north_m, point.east_m
+            here = (gps.north_m, gps.east_m, gps.v_north_m_s, gps.v_east_m_s)
+            if self.horizontal is not None and all(map(math.isfinite,
+                                                       sample.fc_accel_flu_m_s2)):
+                a_north, a_east = specific_force_north_east(
+                    sample.fc_accel_flu_m_s2, sample.roll_deg, sample.pitch_deg,
+                    sample.yaw_deg)
+                fused = self.horizontal.update(sample.time_s, a_north, a_east, here)
+                here = (fused.north_m, fused.east_m, fused.v_north_m_s, fused.v_east_m_s)
             tilt = self.position.update(PositionInput(
-                sample.time_s, gps.north_m, gps.east_m, gps.v_north_m_s, gps.v_east_m_s,
-                sample.yaw_deg, north, east, point.v_north_m_s, point.v_east_m_s,
-                point.a_north_m_s2, point.a_east_m_s2))
+                sample.time_s, *here, sample.yaw_deg, north, east, point.v_north_m_s,
+                point.v_east_m_s, point.a_north_m_s2, point.a_east_m_s2))
             self._set_sticks(roll_us=sticks.stick_us("roll", tilt.roll_deg),
                              pitch_us=sticks.stick_us("pitch", tilt.pitch_deg))
             self._position_columns = {

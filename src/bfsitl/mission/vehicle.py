@@ -23,6 +23,7 @@ from bfsitl.fc.msp_client import MspClient, Telemetry
 from bfsitl.fc.rc_link import RC_MIN_US, RcCommand, RcLinkStats
 from bfsitl.protocol import msp_messages as msg
 from bfsitl.protocol.boxes import BoxId
+from bfsitl.sim.params import STANDARD_GRAVITY_M_S2
 
 if TYPE_CHECKING:
     from bfsitl.protocol.firmware_profile import FirmwareProfile
@@ -61,6 +62,14 @@ class SessionClock(Protocol):
     def now_s(self) -> float: ...
 
     def sleep_s(self, seconds: float) -> None: ...
+
+
+def _accel_flu_m_s2(telemetry: Telemetry) -> tuple[float, float, float]:
+    """MSP_RAW_IMU's accelerometer in m/s^2 (the SITL's 256 LSB per g; z's truncation bias
+    added back, as for the vertical)."""
+    scale = STANDARD_GRAVITY_M_S2 / msg.SITL_ACC_1G_LSB
+    ax, ay, az = telemetry.imu.acc_raw
+    return (ax * scale, ay * scale, (az + msg.SITL_ACC_TRUNCATION_LSB) * scale)
 
 
 class WallClock:
@@ -104,6 +113,8 @@ class FlightSample:
     rc: RcCommand               # what the RC link is sending
     sim_north_m: float = math.nan  # true position from the start point, NED metres
     sim_east_m: float = math.nan
+    #: MSP_RAW_IMU's accelerometer in m/s^2, Betaflight's FLU body axes (specific force).
+    fc_accel_flu_m_s2: tuple[float, float, float] = (math.nan, math.nan, math.nan)
 
 
 @dataclass(frozen=True, slots=True)
@@ -354,6 +365,7 @@ class Vehicle:
             fc_alt_m=telemetry.altitude.altitude_m, fc_climb_m_s=telemetry.altitude.vario_m_s,
             fc_accel_up_m_s2=telemetry.accel_up_m_s2(
                 offset_lsb=msg.SITL_ACC_TRUNCATION_LSB),
+            fc_accel_flu_m_s2=_accel_flu_m_s2(telemetry),
             roll_deg=telemetry.attitude.roll_deg, pitch_deg=telemetry.attitude.pitch_deg,
             # MSP_ATTITUDE truncates the heading to whole degrees: the middle of the degree
             # is the unbiased reading.

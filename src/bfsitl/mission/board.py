@@ -86,11 +86,7 @@ class BoardVehicle(Vehicle):
                 self._progress("provisioned: " + ("written and saved" if
                                                   self.provisioned.changed
                                                   else "already configured, nothing written"))
-            rc = MspRcLink(client, rate_hz=self.rc_rate_hz)
-            rc.set(self._base)
-            rc.start()
-            self.rc = rc
-            self._stack.callback(rc.close)  # closes first: disarm goes out before the link
+            self._start_rc(MspRcLink(client, rate_hz=self.rc_rate_hz))
         except BaseException:
             self.close()
             raise

@@ -232,11 +232,7 @@ class FlightSession(Vehicle):
             if config.rc_link:
                 # Only now: an RC packet during boot leaves 4.6.0 in RXLOSS for good.
                 assert self.sitl.network is not None
-                rc = UdpRcLink(self.sitl.network)
-                rc.set(self._base)
-                rc.start()
-                self.rc = rc
-                self._stack.callback(rc.close)  # closes first: disarm goes out before the rest
+                self._start_rc(UdpRcLink(self.sitl.network))
         except BaseException:
             self.close()
             raise

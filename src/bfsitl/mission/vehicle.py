@@ -20,7 +20,7 @@ from typing import TYPE_CHECKING, Protocol
 
 from bfsitl.errors import ArmingBlockedError, LinkError, MspError, SitlError
 from bfsitl.fc.msp_client import MspClient, Telemetry
-from bfsitl.fc.rc_link import RC_MIN_US, RcCommand, RcLinkStats
+from bfsitl.fc.rc_link import RC_MIN_US, MspRcLink, RcCommand, RcLinkStats, UdpRcLink
 from bfsitl.protocol import msp_messages as msg
 from bfsitl.protocol.boxes import BoxId
 from bfsitl.sim.params import STANDARD_GRAVITY_M_S2
@@ -220,6 +220,14 @@ class Vehicle:
     def has_exited(self) -> bool:
         """True when the FC side has ended (a SITL process that exited)."""
         return False
+
+    def _start_rc(self, rc: UdpRcLink | MspRcLink) -> None:
+        """Send the sticks at disarm on ``rc`` from now on; it closes first on the way out,
+        so its disarm goes out before anything else stops."""
+        rc.set(self._base)
+        rc.start()
+        self.rc = rc
+        self._stack.callback(rc.close)
 
     # -- lifecycle --------------------------------------------------------------------------------
     def close(self) -> None:

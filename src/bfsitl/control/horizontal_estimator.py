@@ -125,16 +125,17 @@ class HorizontalEstimator:
         # filter's bandwidth does not depend on how often fixes come.
         span = min(self._time_s - self._fix_time_s, 0.5)
         self._fix_time_s = self._time_s
+        dp, dv = [0.0, 0.0], [0.0, 0.0]
         for axis in (0, 1):
             e_p = fix[axis] - then[axis]
             e_v = fix[2 + axis] - then[2 + axis]
-            dp = 2.0 * w * e_p * span
-            dv = 2.0 * w * e_v * span
-            self._p[axis] += dp
-            self._v[axis] += dv
+            dp[axis] = 2.0 * w * e_p * span
+            dv[axis] = 2.0 * w * e_v * span
+            self._p[axis] += dp[axis]
+            self._v[axis] += dv[axis]
             bias = self._b[axis] - 0.5 * w * w * e_v * span
             self._b[axis] = max(-self.max_bias_m_s2, min(self.max_bias_m_s2, bias))
-            self._shift_history(axis, dp, dv)
+        self._shift_history(dp, dv)
 
     def _remember(self) -> None:
         self._history.append((self._time_s, self._p[0], self._p[1], self._v[0], self._v[1]))
@@ -151,13 +152,8 @@ class HorizontalEstimator:
                 break
         return best[1], best[2], best[3], best[4]
 
-    def _shift_history(self, axis: int, dp: float, dv: float) -> None:
+    def _shift_history(self, dp: list[float], dv: list[float]) -> None:
         """A correction says where the vehicle *was* too: move the remembered states."""
-        def moved(entry: tuple[float, float, float, float, float]
-                  ) -> tuple[float, float, float, float, float]:
-            values = list(entry)
-            values[1 + axis] += dp
-            values[3 + axis] += dv
-            return (values[0], values[1], values[2], values[3], values[4])
-
-        self._history = deque(moved(entry) for entry in self._history)
+        self._history = deque(
+            (t, north + dp[0], east + dp[1], v_north + dv[0], v_east + dv[1])
+            for t, north, east, v_north, v_east in self._history)

@@ -26,6 +26,8 @@ last sticks, unlike a SITL on UDP).
 
 from __future__ import annotations
 
+from typing import Self
+
 from bfsitl.errors import BoardSetupError, MspErrorReply
 from bfsitl.fc.firmware_detect import detect_profile
 from bfsitl.fc.msp_client import MspClient
@@ -63,7 +65,7 @@ class BoardVehicle(Vehicle):
         self._firmware: FirmwareProfile | None = None
         self._has_gps = False
 
-    def start(self) -> BoardVehicle:
+    def start(self) -> Self:
         """Connect, check, provision, start RC; a started vehicle is returned as it is."""
         if self._client is not None:
             return self
@@ -91,9 +93,6 @@ class BoardVehicle(Vehicle):
             self.close()
             raise
         return self
-
-    def __enter__(self) -> BoardVehicle:
-        return self.start()
 
     @staticmethod
     def _check_receiver(client: MspClient) -> None:

@@ -29,6 +29,7 @@ import math
 import time
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import Self
 
 from bfsitl.errors import (
     BfsitlError,
@@ -196,7 +197,7 @@ class FlightSession(Vehicle):
         self.provisioned: ProvisionResult | None = None
 
     # -- lifecycle ---------------------------------------------------------------------------
-    def start(self) -> FlightSession:
+    def start(self) -> Self:
         """Start everything (see the module docstring); a started session is returned as it
         is (``with launch_sitl(...) as vehicle`` enters a started one)."""
         if self.sitl is not None:
@@ -333,16 +334,6 @@ class FlightSession(Vehicle):
         self._stack.callback(stop_gazebo, gazebo)
         wait_for_plugin(network, gazebo)
         sitl.start()
-
-    def close(self) -> None:
-        """RC link (disarm sent), bridge, SITL: stopped in that order.  Safe to call twice."""
-        self._stack.close()
-
-    def __enter__(self) -> FlightSession:
-        return self.start()
-
-    def __exit__(self, *exc_info: object) -> None:
-        self.close()
 
     def _reboot(self) -> None:
         """A CLI line needed a reboot: in SITL the process ends, so start it again."""

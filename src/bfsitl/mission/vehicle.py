@@ -16,7 +16,7 @@ import time
 from collections.abc import Callable
 from contextlib import ExitStack
 from dataclasses import dataclass, replace
-from typing import TYPE_CHECKING, Protocol
+from typing import TYPE_CHECKING, Protocol, Self
 
 from bfsitl.errors import ArmingBlockedError, LinkError, MspError, SitlError
 from bfsitl.fc.msp_client import MspClient, Telemetry
@@ -181,7 +181,7 @@ class Vehicle:
     control_rate_hz: float = 50.0
 
     # -- to be given by the kind of vehicle -----------------------------------------------------
-    def start(self) -> Vehicle:
+    def start(self) -> Self:
         return self
 
     @property
@@ -235,7 +235,7 @@ class Vehicle:
         call twice."""
         self._stack.close()
 
-    def __enter__(self) -> Vehicle:
+    def __enter__(self) -> Self:
         return self.start()
 
     def __exit__(self, *exc_info: object) -> None:

@@ -116,12 +116,20 @@ def test_websocket_client_reaches_the_namespaced_sitl(generation_relay):
 
 def test_reboot_ends_the_client_and_the_started_sitl_comes_back(sitl, relay_url):
     """A Configurator's "save and reboot" ends a SITL process; the bridge restarts it."""
+    ended_pid = sitl.pid
+    assert ended_pid is not None
     with connect(relay_url, subprotocols=["wsSerial"]) as ws:
         ws.send(encode_request(MspCommand.REBOOT))
         with pytest.raises(ConnectionClosed):
             while True:
                 ws.recv(timeout=10.0)
         assert ws.close_code == CLOSE_UPSTREAM_GONE
+    # The ended process is reaped by the namespace agent on its own, not left a zombie until
+    # the next client comes.
+    deadline = time.monotonic() + 3.0
+    while Path(f"/proc/{ended_pid}").exists() and time.monotonic() < deadline:
+        time.sleep(0.05)
+    assert not Path(f"/proc/{ended_pid}").exists(), f"pid {ended_pid} left as a zombie"
     with connect(relay_url, subprotocols=["wsSerial"], open_timeout=15) as ws:
         # The relay restarts the SITL once this client is connected, so the first reply waits
         # for a whole start: ~1 s, or ~3 s when a launch lost a race at boot and was retried

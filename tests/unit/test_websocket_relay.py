@@ -15,6 +15,7 @@ from websockets.exceptions import ConnectionClosed, InvalidStatus
 from websockets.sync.client import connect
 
 from bfsitl.bridges import ListenAddressInUseError, Upstream
+from bfsitl.bridges.origin_policy import CLOSE_POLICY_VIOLATION, OriginPolicy
 from bfsitl.bridges.websocket_relay import (
     CLOSE_BUSY,
     CLOSE_UPSTREAM_ERROR,
@@ -63,7 +64,7 @@ def test_msp_round_trip_with_each_subprotocol(fake_sitl, subprotocol):
 
 def test_text_frames_are_relayed_as_utf8_bytes(fake_sitl):
     relay = relay_for(fake_sitl)
-    with relay.running() as url, connect(url, subprotocols=["wsSerial"]) as ws:
+    with relay.running() as url, connect(url, subprotocols=["binary"]) as ws:
         ws.send("#")
         wait_until(lambda: fake_sitl.received == b"#")
 
@@ -72,16 +73,16 @@ def test_second_client_is_refused_while_one_is_connected(fake_sitl):
     events: list[str] = []
     relay = relay_for(fake_sitl, events)
     with relay.running() as url:
-        with connect(url, subprotocols=["wsSerial"]) as first:
+        with connect(url, subprotocols=["binary"]) as first:
             first.send(REQUEST)
             first.recv(timeout=3.0)
-            with connect(url, subprotocols=["wsSerial"]) as second:
+            with connect(url, subprotocols=["binary"]) as second:
                 code, reason = closed_code(second)
             assert code == CLOSE_BUSY and "another client" in reason
             first.send(REQUEST)  # the first client is not disturbed
             assert first.recv(timeout=3.0)
         wait_until(lambda: fake_sitl.closed_connections == 1)  # the SITL's slot is free again
-        with connect(url, subprotocols=["wsSerial"]) as third:
+        with connect(url, subprotocols=["binary"]) as third:
             third.send(REQUEST)
             assert third.recv(timeout=3.0)
     assert relay.refused_clients == 1
@@ -100,12 +101,50 @@ def test_client_without_subprotocol_is_served_and_foreign_one_refused(fake_sitl)
         assert refused.value.response.status_code == 400
 
 
-def test_pick_subprotocol_follows_the_client_order():
-    assert pick_subprotocol(["binary", "wsSerial"]) == "binary"
-    assert pick_subprotocol(["chat", "wsSerial"]) == "wsSerial"
+def test_pick_subprotocol_prefers_the_current_configurators_binary():
+    assert pick_subprotocol(["binary"]) == "binary"  # Configurator 2026.6.1 and later
+    assert pick_subprotocol(["wsSerial", "binary"]) == "binary"
+    assert pick_subprotocol(["chat", "wsSerial"]) == "wsSerial"  # older builds
     assert pick_subprotocol([]) is None
-    with pytest.raises(ValueError, match="wsSerial or binary"):
+    with pytest.raises(ValueError, match="binary or wsSerial"):
         pick_subprotocol(["chat"])
+
+
+@pytest.mark.parametrize("origin", ["https://evil.example", "http://127.0.0.1.evil.example",
+                                    "https://app.betaflight.com.evil.example", "null"])
+def test_a_foreign_page_is_refused_before_a_byte_reaches_the_fc(fake_sitl, origin):
+    """Cross-site WebSocket hijacking: a page in another tab must not drive the FC."""
+    events: list[str] = []
+    relay = relay_for(fake_sitl, events)
+    with relay.running() as url, connect(url, subprotocols=["binary"], origin=origin) as ws:
+        with contextlib.suppress(ConnectionClosed):
+            ws.send(REQUEST)
+        code, reason = closed_code(ws)
+    assert code == CLOSE_POLICY_VIOLATION and "--allow-origin" in reason
+    assert fake_sitl.connections == 0 and fake_sitl.received == b""
+    assert relay.refused_origins == 1
+    assert any(origin in e and "--allow-origin" in e for e in events)
+
+
+@pytest.mark.parametrize("origin", [None, "http://127.0.0.1:8000", "http://localhost:5173",
+                                    "https://app.betaflight.com", "tauri://localhost"])
+def test_the_configurators_own_origins_and_scripts_are_served(fake_sitl, origin):
+    relay = relay_for(fake_sitl)
+    with relay.running() as url, connect(url, subprotocols=["binary"], origin=origin) as ws:
+        ws.send(REQUEST)
+        assert ws.recv(timeout=3.0)
+    assert relay.refused_origins == 0
+
+
+def test_allow_origin_adds_a_page(fake_sitl):
+    relay = WebSocketRelay(fake_sitl.upstream, port=0,
+                           origins=OriginPolicy.with_extra(["https://My.Example:8443/"]))
+    with relay.running() as url:
+        with connect(url, subprotocols=["binary"], origin="https://my.example:8443") as ws:
+            ws.send(REQUEST)
+            assert ws.recv(timeout=3.0)
+        with connect(url, subprotocols=["binary"], origin="https://my.example:9000") as ws:
+            assert closed_code(ws)[0] == CLOSE_POLICY_VIOLATION
 
 
 def test_taken_port_names_its_holder(fake_sitl):
@@ -122,7 +161,7 @@ def test_unreachable_sitl_closes_the_client_with_the_reason():
         port = placeholder.getsockname()[1]
     events: list[str] = []
     relay = WebSocketRelay(Upstream("127.0.0.1", port), port=0, on_event=events.append)
-    with relay.running() as url, connect(url, subprotocols=["wsSerial"]) as ws:
+    with relay.running() as url, connect(url, subprotocols=["binary"]) as ws:
         code, reason = closed_code(ws)
     assert code == CLOSE_UPSTREAM_ERROR and "connection refused" in reason
     assert any("Is the SITL running" in e for e in events)
@@ -131,7 +170,7 @@ def test_unreachable_sitl_closes_the_client_with_the_reason():
 def test_busy_sitl_closes_the_client_with_the_reason(fake_sitl):
     fake_sitl.other_client_present = True
     relay = relay_for(fake_sitl)
-    with relay.running() as url, connect(url, subprotocols=["wsSerial"]) as ws:
+    with relay.running() as url, connect(url, subprotocols=["binary"]) as ws:
         code, reason = closed_code(ws)
     assert code == CLOSE_UPSTREAM_ERROR and "closed our connection" in reason
 
@@ -139,13 +178,13 @@ def test_busy_sitl_closes_the_client_with_the_reason(fake_sitl):
 def test_sitl_closing_ends_the_client_and_the_next_one_reconnects(fake_sitl):
     relay = relay_for(fake_sitl)
     with relay.running() as url:
-        with connect(url, subprotocols=["wsSerial"]) as ws:
+        with connect(url, subprotocols=["binary"]) as ws:
             ws.send(REQUEST)
             ws.recv(timeout=3.0)
             fake_sitl.drop_client()  # as when the SITL reboots
             code, reason = closed_code(ws)
         assert code == CLOSE_UPSTREAM_GONE and "reboot" in reason
-        with connect(url, subprotocols=["wsSerial"]) as ws:
+        with connect(url, subprotocols=["binary"]) as ws:
             ws.send(REQUEST)
             assert ws.recv(timeout=3.0)
     assert relay.sessions[0].end_reason == "the SITL closed the connection"
@@ -155,7 +194,7 @@ def test_client_leaving_mid_frame_is_reported(fake_sitl):
     events: list[str] = []
     relay = relay_for(fake_sitl, events)
     with relay.running() as url:
-        with connect(url, subprotocols=["wsSerial"]) as ws:
+        with connect(url, subprotocols=["binary"]) as ws:
             ws.send(b"$M<\x0a\x65\x01")
             wait_until(lambda: fake_sitl.received == b"$M<\x0a\x65\x01")
         wait_until(lambda: len(relay.sessions) == 1)
@@ -168,7 +207,7 @@ def test_stop_closes_connected_clients_cleanly(fake_sitl):
     relay = relay_for(fake_sitl)
     with contextlib.ExitStack() as stack:
         with relay.running() as url:
-            ws = stack.enter_context(connect(url, subprotocols=["wsSerial"]))
+            ws = stack.enter_context(connect(url, subprotocols=["binary"]))
             ws.send(REQUEST)
             ws.recv(timeout=3.0)
         code, _reason = closed_code(ws)  # the client outlives the server

@@ -1,9 +1,10 @@
 """WebSocket to SITL TCP relay, for the web Betaflight Configurator's manual connection.
 
-The web Configurator cannot open TCP sockets; it offers WebSocket with the subprotocol
-``wsSerial`` (tools in the websockify family offer ``binary``).  This server accepts either,
-carries the bytes of binary (or text) messages unchanged to the SITL's UART1 on TCP 5761, and
-sends what the SITL answers back as binary messages.
+The web Configurator cannot open TCP sockets.  Since its 2026.6.1 release the browser opens the
+WebSocket with the single subprotocol ``binary`` (as the websockify family does); older builds
+offered ``wsSerial``, which is still accepted.  This server carries the bytes of binary (or
+text) messages unchanged to a SITL UART serving MSP (UART1 on TCP 5761, or the second MSP port
+on 5762 during a flight) and sends what the SITL answers back as binary messages.
 
 Why it is built this way:
 
@@ -16,6 +17,10 @@ Why it is built this way:
 * The WebSocket server listens on the host while the TCP connection may be made inside an
   isolated SITL's network namespace (:attr:`Upstream.socket_factory`), so a browser on the
   host reaches a SITL that nothing else on the host can see.
+* Any web page can open a WebSocket to 127.0.0.1, so without a check a page in another tab
+  could send CLI commands and ``save`` them (cross-site WebSocket hijacking).  Browsers always
+  send the page's ``Origin``: clients from an origin :class:`OriginPolicy` does not accept are
+  closed at once with code 1008, before a byte reaches the FC.
 * asyncio from the maintained ``websockets`` library: one thread, no hand-written handshake,
   and Ctrl-C (cancellation) closes every connection with a proper close frame.
 """
@@ -41,6 +46,7 @@ from bfsitl.bridges import (
     connect_upstream,
     describe_listener,
 )
+from bfsitl.bridges.origin_policy import CLOSE_POLICY_VIOLATION, OriginPolicy
 from bfsitl.errors import BfsitlError, ExtraMissingError
 
 if TYPE_CHECKING:
@@ -49,8 +55,9 @@ if TYPE_CHECKING:
 #: The port the Configurator examples use; any free port works.
 DEFAULT_PORT = 6761
 LISTEN_HOST = "127.0.0.1"
-#: Subprotocols accepted, in the order of preference when a client offers several.
-SUBPROTOCOLS: tuple[str, ...] = ("wsSerial", "binary")
+#: Subprotocols accepted, in the order of preference when a client offers several: the
+#: Configurator's current one first, then what builds before 2026.6.1 offered.
+SUBPROTOCOLS: tuple[str, ...] = ("binary", "wsSerial")
 #: No FC exchange comes near this; a larger message is a client bug, not MSP.
 MAX_MESSAGE_BYTES = 64 * 1024
 _READ_CHUNK_BYTES = 4096
@@ -82,14 +89,23 @@ def _import_websockets():  # type: ignore[no-untyped-def]
     return server, ConnectionClosed, NegotiationError
 
 
+def connect_hint(url: str) -> str:
+    """What to do in the Configurator (2026.12) to reach ``url``."""
+    if url == f"ws://{LISTEN_HOST}:{DEFAULT_PORT}":
+        return ('in the Configurator: Connect menu > "Betaflight SITL" (this URL), then '
+                'Connect')
+    return ('in the Configurator: Options > Expert Mode on; Connect menu > "Manual '
+            'Selection", this URL in the Port field, then Connect')
+
+
 def pick_subprotocol(offered: Sequence[str]) -> str | None:
     """The subprotocol to answer: the first one we accept in the client's order of preference.
 
     A client that offers none (``websocat``, a quick script) is served without one; a client
     that offers only others is refused, since it expects a protocol we do not speak.
     """
-    for name in offered:
-        if name in SUBPROTOCOLS:
+    for name in SUBPROTOCOLS:
+        if name in offered:
             return name
     if offered:
         raise ValueError(
@@ -103,6 +119,7 @@ class WebSocketRelay:
     """A WebSocket server on ``LISTEN_HOST:port`` relaying each client to the SITL's UART.
 
     ``port=0`` picks a free port (tests); :attr:`url` is known once the server listens.
+    ``origins`` decides which web pages may connect (default: the Configurator's own).
     ``on_event`` receives one line per noteworthy event (client in and out, refusals,
     warnings); :attr:`sessions` keeps the statistics of every finished client.
     """
@@ -113,14 +130,17 @@ class WebSocketRelay:
         *,
         port: int = DEFAULT_PORT,
         host: str = LISTEN_HOST,
+        origins: OriginPolicy | None = None,
         on_event: Callable[[str], None] | None = None,
     ) -> None:
         _import_websockets()  # fail now, with the install hint, not at the first client
         self.upstream = upstream
+        self.origins = origins or OriginPolicy()
         self.host = host
         self.port = port
         self.sessions: list[SessionStats] = []
         self.refused_clients = 0
+        self.refused_origins = 0
         self._on_event = on_event or (lambda _line: None)
         self._active: SessionStats | None = None
         self._stop: asyncio.Event | None = None
@@ -213,9 +233,19 @@ class WebSocketRelay:
     async def _handle(self, connection: ServerConnection) -> None:
         host, port = connection.remote_address[:2]
         request = connection.request  # set once the handshake is done, as it is here
-        origin = (request.headers.get("Origin", "no Origin header") if request is not None
-                  else "no Origin header")
+        origin_header = request.headers.get("Origin") if request is not None else None
+        origin = origin_header or "no Origin header"
         client = f"{host}:{port}"
+        refusal = self.origins.refusal(origin_header)
+        if refusal is not None:
+            # Checked before the one-client rule: a foreign page must not even learn whether
+            # the FC is busy, nor take the slot from the Configurator.
+            self.refused_origins += 1
+            self._on_event(f"refused {client}: the page at {origin} is not allowed to drive "
+                           f"the FC (cross-site WebSocket); if it is yours, restart with "
+                           f"--allow-origin {origin}")
+            await connection.close(CLOSE_POLICY_VIOLATION, refusal)
+            return
         # A client that reconnects at once (a page reload) can arrive before the relay has
         # finished with its previous connection: give that one a moment to end.
         waited_s = 0.0

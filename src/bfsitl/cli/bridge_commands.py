@@ -35,12 +35,16 @@ def add_configurator_parser(sub: argparse._SubParsersAction) -> None:  # type: i
     parser = sub.add_parser(
         "configurator", help="WebSocket bridge for the web Betaflight Configurator",
         description="Serve a WebSocket on 127.0.0.1 that relays bytes to the SITL's UART1 "
-                    "(subprotocols wsSerial and binary), one client at a time. Enter the "
-                    "printed ws:// URL in the Configurator's manual connection. Stop with "
+                    "(subprotocol binary; wsSerial for Configurators before 2026.6.1), one "
+                    "client at a time. In the Configurator's Connect menu pick \"Betaflight "
+                    "SITL\" (ws://127.0.0.1:6761, the default port) or, with Expert Mode on "
+                    "(Options), \"Manual Selection\" and the printed URL. Only the "
+                    "Configurator's own pages may connect (see --allow-origin). Stop with "
                     "Ctrl-C.",
     )
     parser.add_argument("--port", type=_tcp_port, default=DEFAULT_PORT,
                         help=f"WebSocket port on 127.0.0.1 (default {DEFAULT_PORT})")
+    add_allow_origin_argument(parser)
     add_target_arguments(parser)
     parser.set_defaults(func=cmd_configurator)
 
@@ -61,15 +65,26 @@ def add_serial_bridge_parser(sub: argparse._SubParsersAction) -> None:  # type: 
 
 # --- commands ------------------------------------------------------------------------------
 
-def cmd_configurator(args: argparse.Namespace) -> int:
-    from bfsitl.bridges.websocket_relay import WebSocketRelay
+def add_allow_origin_argument(parser: argparse.ArgumentParser) -> None:
+    """``--allow-origin``, shared by every command that serves a WebSocket."""
+    parser.add_argument("--allow-origin", action="append", default=[], metavar="ORIGIN",
+                        help="also accept WebSocket clients from this web page origin "
+                             "(scheme://host[:port], repeatable; '*' for any). By default only "
+                             "the Configurator's and Foxglove's apps, pages on localhost or "
+                             "127.0.0.1, and clients that send no Origin (scripts) are served")
 
+
+def cmd_configurator(args: argparse.Namespace) -> int:
+    from bfsitl.bridges.origin_policy import OriginPolicy
+    from bfsitl.bridges.websocket_relay import WebSocketRelay, connect_hint
+
+    origins = OriginPolicy.with_extra(args.allow_origin)
     with _upstream(args) as upstream:
-        relay = WebSocketRelay(upstream, port=args.port, on_event=progress)
+        relay = WebSocketRelay(upstream, port=args.port, origins=origins, on_event=progress)
 
         def listening(url: str) -> None:
             progress(f"relaying WebSocket clients to {upstream.uri}; Ctrl-C stops")
-            progress("in the Configurator: Options > enable manual connection, port: this URL")
+            progress(connect_hint(url))
             print(url, flush=True)
 
         async def serve() -> None:

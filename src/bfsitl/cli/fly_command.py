@@ -27,6 +27,9 @@ DEFAULT_RATE_HZ = 50.0
 POSITION_RATE_HZ = 100.0
 #: Live-line redraws per second: readable, and cheap next to the 50 Hz control loop.
 LIVE_REFRESH_HZ = 5.0
+#: The Configurator's built-in "Betaflight SITL" connection and Foxglove's default port.
+CONFIGURATOR_PORT = 6761
+FOXGLOVE_PORT = 8765
 
 
 
@@ -95,6 +98,30 @@ def add_fly_parser(sub: argparse._SubParsersAction) -> None:  # type: ignore[typ
     out.add_argument("--plot", metavar="FILE.png", help="altitude, throttle and attitude plot")
     out.add_argument("--summary", metavar="FILE.json", help="outcome and metrics as JSON")
     out.add_argument("--json", action="store_true", help="print the summary as JSON")
+    out.add_argument("--mcap", metavar="FILE.mcap",
+                     help="record the flight for Foxglove: poses as transforms (3D panel), "
+                          "altitude, position, RC, motors, FC state, events; simulation time "
+                          "(needs the foxglove extra)")
+    watch = fly.add_argument_group("watching the flight")
+    watch.add_argument("--configurator", action="store_true",
+                       help="let the Betaflight Configurator watch the flight: MSP on UART2 "
+                            "(TCP 5762) too, relayed to a WebSocket on 127.0.0.1 "
+                            f"(--configurator-port, default {CONFIGURATOR_PORT}); a lockstep "
+                            "build then flies at 1x real time unless --speed says otherwise")
+    watch.add_argument("--configurator-port", type=int, default=CONFIGURATOR_PORT,
+                       metavar="PORT", help=f"its WebSocket port (default {CONFIGURATOR_PORT}: "
+                                            "the Configurator's \"Betaflight SITL\" entry)")
+    watch.add_argument("--foxglove", action="store_true",
+                       help="serve the flight live to Foxglove (its SDK's WebSocket server on "
+                            f"127.0.0.1, --foxglove-port, default {FOXGLOVE_PORT}); lockstep "
+                            "flies at 1x real time unless --speed says otherwise")
+    watch.add_argument("--foxglove-port", type=int, default=FOXGLOVE_PORT, metavar="PORT",
+                       help=f"the Foxglove server's port (default {FOXGLOVE_PORT})")
+    watch.add_argument("--allow-origin", action="append", default=[], metavar="ORIGIN",
+                       help="also accept WebSocket clients from this web page origin "
+                            "(scheme://host[:port], repeatable; '*' for any). By default only "
+                            "the Configurator's and Foxglove's apps, pages on localhost or "
+                            "127.0.0.1, and clients without an Origin (scripts) are served")
     sitl = fly.add_argument_group("SITL and physics")
     sitl.add_argument("--firmware", default=None,
                       help="SITL binary or cached build name (`bfsitl firmware list`; default: "
@@ -253,7 +280,7 @@ def cmd_fly(args: argparse.Namespace) -> int:
     from bfsitl.control import gain_names, make_controller
     from bfsitl.fc.provisioning import ARM_ON_AUX1, Profile
     from bfsitl.mission import FLY_PROFILE, FlightSession, SessionConfig
-    from bfsitl.mission.flight_log import CsvFlightLog
+    from bfsitl.mission.outputs import FlightOutputs, OutputOptions, plan_waypoints
     from bfsitl.mission.runner import Outcome, run_mission
     from bfsitl.mission.session import FAST_SERIAL_ABOVE_HZ, fly_sensors, with_fast_serial
 
@@ -282,28 +309,48 @@ def cmd_fly(args: argparse.Namespace) -> int:
         from bfsitl.sim.params import Wind
 
         wind = Wind.from_direction(args.wind, args.wind_from, args.gusts)
+    live = LiveProgress()
+    speed = args.speed
+    if speed is None and (args.configurator or args.foxglove):
+        speed = 1.0  # someone watches: a lockstep build would otherwise fly at full speed
     config = SessionConfig(sensors=sensors, firmware=args.firmware, workdir=args.workdir,
-                           isolate=not args.no_isolate, speed=args.speed, profile=profile,
+                           isolate=not args.no_isolate, speed=speed, profile=profile,
                            lockstep=args.lockstep,
                            angle_mode=not args.no_angle, physics=args.physics,
-                           gz_plugin_dir=args.gz_plugin_dir, wind=wind, seed=args.seed)
-    live = LiveProgress()
-    log = CsvFlightLog(args.log) if args.log else None
+                           gz_plugin_dir=args.gz_plugin_dir, wind=wind, seed=args.seed,
+                           configurator_port=args.configurator_port if args.configurator
+                           else None, allow_origins=tuple(args.allow_origin))
+    outputs = FlightOutputs(OutputOptions(
+        csv_path=args.log, plot_path=args.plot, summary_path=args.summary,
+        mcap_path=args.mcap, foxglove_port=args.foxglove_port if args.foxglove else None,
+        allow_origins=tuple(args.allow_origin), waypoints=plan_waypoints(plan),
+    ), progress=live.event)
+
+    def on_row(row, sample) -> None:  # type: ignore[no-untyped-def]
+        outputs.on_row(row, sample)
+        live.row(row, sample)
+
+    def on_event(text: str) -> None:
+        outputs.on_event(text)
+        live.event(text)
+
     startup_s = process_age_s()  # the command's own start-up, before the session's clock
     session = FlightSession(config, progress=live.event)
     try:
         with _sigterm_as_interrupt():
             try:
+                outputs.start()
                 session.start()
-                result = run_mission(session, plan, controller, log=log, on_row=live.row,
-                                     on_event=live.event, rate_hz=args.rate)
+                result = run_mission(session, plan, controller, on_row=on_row,
+                                     on_event=on_event, rate_hz=args.rate)
             except KeyboardInterrupt:
                 result = None
     finally:
         with _no_interrupts():
-            session.close()
-            if log is not None:
-                log.close()
+            try:
+                session.close()
+            finally:
+                outputs.close()
     if result is None:
         live.event("interrupted before the flight started; everything stopped")
         return EXIT_INTERRUPTED
@@ -311,21 +358,7 @@ def cmd_fly(args: argparse.Namespace) -> int:
         result.extra["command_to_armed_s"] = startup_s + result.armed_after_s
     live.event(f"outcome: {result.outcome.value} ({result.reason})")
     summary = result.summary()
-    written = []
-    if args.log:
-        written.append(f"log {args.log} ({len(result.rows)} rows)")
-    if args.plot and result.rows:
-        from bfsitl.mission.plot import write_flight_plot
-
-        write_flight_plot(result.rows, args.plot,
-                          title=f"bfsitl fly: {result.controller}, {result.outcome.value}",
-                          waypoints=[(w.north_m, w.east_m) for w in plan.waypoints])
-        written.append(f"plot {args.plot}")
-    if args.summary:
-        path = Path(args.summary)
-        path.parent.mkdir(parents=True, exist_ok=True)
-        path.write_text(json.dumps(summary, indent=2) + "\n")
-        written.append(f"summary {args.summary}")
+    written = outputs.finish(result, summary)
     if args.json:
         print(json.dumps(summary))
     else:

@@ -8,6 +8,7 @@ import json
 import time
 from collections.abc import Iterator
 
+from bfsitl.cli.bridge_commands import add_allow_origin_argument
 from bfsitl.cli.target import add_target_arguments, progress
 from bfsitl.fc.msp_client import MspClient
 from bfsitl.link import DEFAULT_SITL_URI, open_link
@@ -45,6 +46,14 @@ def add_sim_parser(sub: argparse._SubParsersAction) -> None:  # type: ignore[typ
                      help="fdm timestamps: 'frozen' keeps the firmware clock at sim time "
                           "(default); 'sim' sends sim time like Gazebo (the clock drifts)")
     sim.add_argument("--json", action="store_true", help="one JSON object per second")
+    sim.add_argument("--configurator", action="store_true",
+                     help="let the Betaflight Configurator watch: MSP on UART2 (TCP 5762) too "
+                          "(one reboot the first time), relayed to a WebSocket on 127.0.0.1 at "
+                          "--configurator-port (default 6761); not with --attach")
+    sim.add_argument("--configurator-port", type=int, default=6761, metavar="PORT",
+                     help="its WebSocket port (default 6761: the Configurator's \"Betaflight "
+                          "SITL\" entry)")
+    add_allow_origin_argument(sim)
     sim.set_defaults(func=cmd_sim)
 
 
@@ -72,9 +81,42 @@ def _sitl_and_bridge(args: argparse.Namespace) -> Iterator[tuple[SitlBridge, Msp
     sitl = SitlProcess(args.firmware, workdir=args.workdir, isolate=not args.no_isolate,
                        progress=progress)
     with bridged_sitl(sitl, simulator, speed=args.speed, step_s=step_s,
-                      timestamps=args.timestamps) as bridge:
+                      timestamps=args.timestamps) as bridge, contextlib.ExitStack() as stack:
+        if args.configurator:
+            _serve_configurator(sitl, bridge, args, stack)
         assert sitl.client is not None
         yield bridge, sitl.client
+
+
+def _serve_configurator(sitl: SitlProcess, bridge: SitlBridge, args: argparse.Namespace,
+                        stack: contextlib.ExitStack) -> None:
+    """MSP on UART2 as well (a reboot the first time), and the WebSocket bridge to it."""
+    from bfsitl.bridges import Upstream
+    from bfsitl.bridges.origin_policy import OriginPolicy
+    from bfsitl.bridges.websocket_relay import WebSocketRelay, connect_hint
+    from bfsitl.fc.provisioning import Profile, provision
+    from bfsitl.mission.session import SECOND_MSP_PORT
+    from bfsitl.sitl.process import SITL_HOST
+
+    def reboot() -> None:
+        assert sitl.client is not None
+        progress("MSP on UART2 needs a reboot; restarting the SITL")
+        bridge.pause()
+        sitl.client.reboot()
+        sitl.restart_after_reboot()
+        bridge.resume()
+        wait_for_replies(bridge)
+
+    assert sitl.client is not None and sitl.network is not None
+    provision(sitl.client, Profile(mode_ranges=(), cli_lines=sitl.profile.second_msp_cli,
+                                   reboot_when_changed=True), reboot=reboot)
+    relay = WebSocketRelay(
+        Upstream(SITL_HOST, SECOND_MSP_PORT, socket_factory=sitl.network.socket),
+        port=args.configurator_port, origins=OriginPolicy.with_extra(args.allow_origin),
+        on_event=lambda line: progress(f"configurator: {line}"))
+    url = stack.enter_context(relay.running())
+    progress(f"the Configurator can watch at {url} (MSP on UART2, TCP {SECOND_MSP_PORT}); "
+             f"{connect_hint(url)}")
 
 
 def _human_line(sample: HealthSample, bridge: SitlBridge) -> str:

@@ -8,7 +8,9 @@ through the non-interactive (STX) mode, a few at a time (that mode ends 2 s afte
 
 Mode ranges are read back after writing and compared; a persisted configuration that already
 matches is left alone (nothing written, nothing saved).  ``set`` lines are compared the same
-way (``get`` first, in the same non-interactive mode); other CLI lines always run.
+way (``get`` first, in the same non-interactive mode), and so are 4.6's ``serial UARTn ...``
+lines (against the ``serial`` listing, which prints that very form); other CLI lines always
+run.
 
 Some settings are read only at boot (:data:`BOOT_ONLY_SETTINGS`): saving one does not raise
 the firmware's reboot-required flag, yet nothing changes until a reboot, so changing one
@@ -171,8 +173,17 @@ def _set_value(line: str) -> str:
     return line.split("=", 1)[1].strip()
 
 
+def _serial_line(line: str) -> str | None:
+    """A ``serial UARTn ...`` line with single spaces (lower case), else None."""
+    words = line.lower().split()
+    if len(words) >= 3 and words[0] == "serial" and words[1].startswith("uart"):
+        return " ".join(words)
+    return None
+
+
 def _lines_to_run(cli: CliSession, lines: tuple[str, ...]) -> list[str]:
-    """``lines`` without the ``set`` lines whose setting already holds that value.
+    """``lines`` without the ``set`` lines whose setting already holds that value, nor the
+    ``serial`` lines the port already has.
 
     The current values come from one ``get`` per setting, in non-interactive batches (which
     leave no CLI arming flag); ``get NAME`` prints ``NAME = VALUE`` (4.6.0 and master
@@ -187,5 +198,10 @@ def _lines_to_run(cli: CliSession, lines: tuple[str, ...]) -> list[str]:
             name, sep, value = raw.partition(" = ")
             if sep and name.strip().lower() in batch:
                 current[name.strip().lower()] = value.strip()
+    held_ports: set[str] = set()
+    if any(_serial_line(line) for line in lines):
+        listing = cli.batch(["serial"], check=False)
+        held_ports = {form for raw in listing.splitlines() if (form := _serial_line(raw))}
     return [line for line in lines
-            if (setting := _set_name(line)) is None or current.get(setting) != _set_value(line)]
+            if ((setting := _set_name(line)) is None or current.get(setting) != _set_value(line))
+            and _serial_line(line) not in held_ports]

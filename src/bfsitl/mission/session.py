@@ -71,7 +71,10 @@ from bfsitl.sim.health import HealthMonitor, lock_clock
 from bfsitl.sim.lockstep import LockstepBridge, LockstepClock, LockstepRc, SteppedLink
 from bfsitl.sim.params import Wind
 from bfsitl.sim.sensors import SensorConfig
-from bfsitl.sitl.process import SitlProcess
+from bfsitl.sitl.process import SITL_HOST, SitlProcess
+
+#: UART2's TCP port (the SITL serves UARTn on 5760 + n).
+SECOND_MSP_PORT = 5762
 
 #: What ``bfsitl fly`` provisions: ARM on AUX1 and self-levelling (ANGLE) on AUX2.
 FLY_PROFILE = Profile(mode_ranges=(ARM_ON_AUX1, ANGLE_ON_AUX2))
@@ -150,6 +153,12 @@ class SessionConfig:
     #: :class:`~bfsitl.mission.board.BoardVehicle` sending MSP_SET_RAW_RC through the serial
     #: bridge, as to a real board (real time only: a lockstep SITL takes RC in its fdm).
     rc_link: bool = True
+    #: Serve the Configurator during the flight: provisioning puts MSP on UART2 (TCP 5762)
+    #: as well, and a WebSocket bridge on 127.0.0.1 at this port relays to it, while bfsitl
+    #: keeps UART1.  None: no bridge.  0: any free port (:attr:`FlightSession.configurator_url`).
+    configurator_port: int | None = None
+    #: Web page origins the Configurator bridge accepts beyond the Configurator's own.
+    allow_origins: tuple[str, ...] = ()
 
 
 class RealTimeClock:
@@ -195,6 +204,11 @@ class FlightSession(Vehicle):
         #: The mission clock: simulation time, and how to let some of it pass.
         self.clock = RealTimeClock(self)
         self.provisioned: ProvisionResult | None = None
+        #: The Configurator bridge's ws:// URL while one serves (``configurator_port``).
+        self.configurator_url: str | None = None
+        if config.configurator_port is not None and config.profile is None:
+            raise BfsitlError("the Configurator bridge needs provisioning (it puts MSP on "
+                              "UART2 as well): drop --no-provision, or leave out --configurator")
 
     # -- lifecycle ---------------------------------------------------------------------------
     def start(self) -> Self:
@@ -224,12 +238,7 @@ class FlightSession(Vehicle):
             if self.real_time_speed != 1.0 and isinstance(self.bridge, SitlBridge):
                 self._progress(f"locking the firmware clock to {self.real_time_speed:g}x")
                 lock_clock(HealthMonitor(self.bridge, self.client))
-            if config.profile is not None:
-                self.provisioned = provision(self.client, self._flight_profile(config.profile),
-                                             reboot=self._reboot)
-                self._progress("provisioned: " + (
-                    "written and saved" + (", rebooted" if self.provisioned.rebooted else "")
-                    if self.provisioned.changed else "already configured, nothing written"))
+            self._provision()
             if config.rc_link:
                 # Only now: an RC packet during boot leaves 4.6.0 in RXLOSS for good.
                 assert self.sitl.network is not None
@@ -283,12 +292,7 @@ class FlightSession(Vehicle):
         bridge.set_profile(sitl.profile)
         pace = "as fast as it goes" if speed is None else f"paced to {speed:g}x real time"
         self._progress(f"lockstep: the FC's clock follows the physics, {pace}")
-        if config.profile is not None:
-            self.provisioned = provision(self.client, self._flight_profile(config.profile),
-                                         reboot=self._reboot)
-            self._progress("provisioned: " + (
-                "written and saved" + (", rebooted" if self.provisioned.rebooted else "")
-                if self.provisioned.changed else "already configured, nothing written"))
+        self._provision()
         self.rc = LockstepRc(bridge)
         self.rc.set(self._base)
         self._stack.callback(self.rc.close)  # closes first: disarm is stepped in before the rest
@@ -424,6 +428,36 @@ class FlightSession(Vehicle):
         # On the bridge thread, between two steps: one consistent state.
         return bridge.between_steps(read)
 
+    def _provision(self) -> None:
+        """Apply the configured profile; then serve the Configurator if asked."""
+        config = self.config
+        if config.profile is None:
+            return
+        self.provisioned = provision(self.client, self._flight_profile(config.profile),
+                                     reboot=self._reboot)
+        self._progress("provisioned: " + (
+            "written and saved" + (", rebooted" if self.provisioned.rebooted else "")
+            if self.provisioned.changed else "already configured, nothing written"))
+        if config.configurator_port is not None:
+            self._serve_configurator(config.configurator_port)
+
+    def _serve_configurator(self, port: int) -> None:
+        """The WebSocket bridge to UART2 (TCP 5762), in the SITL's network, until close."""
+        from bfsitl.bridges import Upstream
+        from bfsitl.bridges.origin_policy import OriginPolicy
+        from bfsitl.bridges.websocket_relay import WebSocketRelay, connect_hint
+
+        assert self.sitl is not None and self.sitl.network is not None
+        upstream = Upstream(SITL_HOST, SECOND_MSP_PORT, socket_factory=self.sitl.network.socket)
+        relay = WebSocketRelay(upstream, port=port,
+                               origins=OriginPolicy.with_extra(self.config.allow_origins),
+                               on_event=lambda line: self._progress(f"configurator: {line}"))
+        self.configurator_url = self._stack.enter_context(relay.running())
+        url = self.configurator_url
+        self._progress(f"the Configurator can watch this flight at {url} (MSP on UART2, TCP "
+                       f"{SECOND_MSP_PORT}); {connect_hint(url)}. Leaving its CLI tab or "
+                       f"saving reboots the FC and ends the flight")
+
     def _flight_profile(self, profile: Profile) -> Profile:
         """``profile``, plus the compass set-up the firmware needs (master: trust its virtual
         magnetometer) and the GPS set-up of a GPS build whose GPS is not on yet.
@@ -437,6 +471,12 @@ class FlightSession(Vehicle):
                         if line not in profile.cli_lines)
         if compass:
             profile = dataclasses.replace(profile, cli_lines=(*profile.cli_lines, *compass))
+        if self.config.configurator_port is not None:
+            # Read at boot only; provisioning compares them, so this reboots once per run
+            # directory.
+            profile = dataclasses.replace(
+                profile, cli_lines=(*profile.cli_lines, *self.sitl.profile.second_msp_cli),
+                reboot_when_changed=True)
         lines = self.sitl.profile.gps_setup_cli
         if not lines:
             return profile

@@ -136,8 +136,15 @@ class FirmwareProfile:
     #: CLI lines that switch the virtual GPS on (then ``save``). 4.6: FEATURE_GPS is off by
     #: default, and ``validateAndFixConfig`` (config/config.c:223-235) switches it off again at
     #: boot unless a serial port carries the GPS function, even for the VIRTUAL provider, which
-    #: never opens it; so UART2 gets the function. Master enables GPS by default.
+    #: never opens it; so UART3 gets the function (UART2 is kept for a second MSP client).
+    #: Master enables GPS by default.
     gps_setup_cli: tuple[str, ...] = ()
+    #: CLI lines that serve MSP on UART2 (TCP 5762) as well as UART1, so a second client (the
+    #: Configurator) can watch a flight while bfsitl flies on UART1; applied at boot only.
+    #: 4.6: the ``serial`` command (GPS and MSP may not share a port, io/serial.c
+    #: ``isSerialConfigValid``, hence the GPS on UART3); master: ``msp_uart_2`` (``serial``
+    #: is read-only there; msp/msp_serial.c reads ``msp_uart[]`` at boot).
+    second_msp_cli: tuple[str, ...] = ()
     #: CLI lines that give the FC a compass heading.  Master's SITL feeds its virtual
     #: magnetometer from the fdm attitude (sitl.c, a synthetic field with 2 deg of
     #: declination) but its estimator trusts a magnetometer only with ``trust_mag`` (imu.c,
@@ -156,6 +163,12 @@ class FirmwareProfile:
         """The PID loop period the firmware should report in MSP_STATUS."""
         return 1e6 / self.gyro_rate_hz
 
+
+#: 4.6's ``serial`` lines as the command prints them (``serial`` lists ``serial UARTn FUNCTIONS
+#: MSP_BAUD GPS_BAUD TELEMETRY_BAUD BLACKBOX_BAUD``, and takes the same form): function 1 is
+#: MSP, 2 GPS (io/serial.h ``serialPortFunction_e``).
+MSP_SERIAL_4_6 = "serial UART2 1 115200 57600 0 115200"
+GPS_SERIAL_4_6 = "serial UART3 2 115200 57600 0 115200"
 
 TESTED_VERSIONS: dict[Generation, tuple[str, ...]] = {
     Generation.V4_6: ("4.6.0",),
@@ -249,8 +262,11 @@ def profile_for(
             rc=RcBehaviour(rxloss_after_silence_s=None, msp_rc_empty_before_rc=False),
             cli=CliDifferences(serial_read_only=False, msp_cli_command=False),
             gyro_rate_hz=8000, has_gps=gps, tested=tested,
-            gps_setup_cli=("feature GPS", "serial 1 2 115200 57600 0 115200",
-                           "set gps_provider = VIRTUAL") if gps else (),
+            gps_setup_cli=("feature GPS", GPS_SERIAL_4_6, "set gps_provider = VIRTUAL")
+            if gps else (),
+            # On a GPS build the GPS line is repeated: a run directory made before the GPS
+            # moved to UART3 would otherwise lose its GPS to the MSP line.
+            second_msp_cli=(MSP_SERIAL_4_6, GPS_SERIAL_4_6) if gps else (MSP_SERIAL_4_6,),
         )
     if build.gazebo_bridge is False:
         raise UnsupportedFirmwareError(
@@ -267,6 +283,7 @@ def profile_for(
         cli=CliDifferences(serial_read_only=True, msp_cli_command=True),
         gyro_rate_hz=1000, has_gps=True if has_gps is None else has_gps, tested=tested,
         compass_cli=() if build.attitude_direct else ("set trust_mag = ON",),
+        second_msp_cli=("set msp_uart_2 = UART2",),
     )
 
 

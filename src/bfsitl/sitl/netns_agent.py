@@ -19,6 +19,7 @@ import argparse
 import fcntl
 import json
 import os
+import select
 import signal
 import socket
 import struct
@@ -32,6 +33,9 @@ _SIOCGIFFLAGS = 0x8913
 _SIOCSIFFLAGS = 0x8914
 _IFF_UP = 0x1
 _MAX_MESSAGE = 65536
+#: How often an idle agent reaps children that exited: a SITL ends itself on every reboot, and
+#: until someone waits for it, it lingers as a zombie under the agent.
+REAP_INTERVAL_S = 0.2
 
 
 def bring_loopback_up() -> None:
@@ -49,6 +53,10 @@ class Agent:
 
     def serve(self) -> None:
         while True:
+            readable, _, _ = select.select([self.control], [], [], REAP_INTERVAL_S)
+            if not readable:
+                self.reap()
+                continue
             try:
                 data = self.control.recv(_MAX_MESSAGE)
             except ConnectionResetError:
@@ -113,6 +121,11 @@ class Agent:
                     pass
             return {"ok": True, "returncode": child.poll()}
         return {"ok": False, "error": f"unknown op {op!r}"}
+
+    def reap(self) -> None:
+        """Collect children that have exited; Popen keeps their exit codes for ``poll``."""
+        for child in self.children.values():
+            child.poll()
 
     def shutdown(self) -> None:
         for child in self.children.values():

@@ -1,26 +1,22 @@
 """The bridges against the real SITL, each SITL in its own network namespace.
 
 The WebSocket server listens on the host's 127.0.0.1 and reaches the namespaced SITL through
-the namespace's socket factory, so a browser on the host (headless Chromium here) talks to a
-SITL that nothing else on the host can see.
+the namespace's socket factory, so a browser on the host talks to a SITL that nothing else on
+the host can see.  The real Configurator in headless Chromium is driven against it in
+test_configurator_app.py (and during a flight in test_watch_flight_sitl.py).
 """
 
 from __future__ import annotations
 
 import contextlib
-import http.server
 import os
-import shutil
 import signal
 import socket
 import subprocess
 import sys
-import tempfile
-import threading
 import time
 from collections.abc import Iterator
 from pathlib import Path
-from urllib.parse import parse_qs, urlencode, urlsplit
 
 import pytest
 import serial  # type: ignore[import-untyped]
@@ -136,150 +132,6 @@ def test_reboot_ends_the_client_and_the_started_sitl_comes_back(sitl, relay_url)
         # (that made a 3 s wait fail on a loaded CI machine).
         assert api_over_websocket(ws, timeout_s=15.0).api == (1, 47)
     assert sitl.starts == 2
-
-
-# --- the browser ---------------------------------------------------------------------------
-
-BROWSER_PAGE = """<!doctype html>
-<html><head><title>waiting</title></head><body><script>
-// Opens the bridge as the web Configurator's WebSocket transport does (it offers the
-// subprotocols "binary" and "wsSerial" and reads each message as a Blob), sends the request
-// given in the query string, and reports the raw bytes of the answer to the test's server.
-const params = new URLSearchParams(location.search);
-function report(fields) {
-  document.title = JSON.stringify(fields);
-  fetch("/report?" + new URLSearchParams(fields));
-}
-const received = [];
-let reported = false;
-let inOrder = Promise.resolve();  // Blob reads are asynchronous; keep the bytes in order
-try {
-  const ws = new WebSocket(params.get("ws"), params.get("protocols").split(","));
-  ws.onopen = () => ws.send(new Uint8Array(params.get("request").match(/../g)
-                                           .map((h) => parseInt(h, 16))));
-  ws.onmessage = (event) => {
-    inOrder = inOrder.then(async () => {
-      received.push(...new Uint8Array(await event.data.arrayBuffer()));
-      if (received.length >= 9 && !reported) {  // $ M > size cmd payload(3) checksum
-        reported = true;
-        report({hex: received.map((b) => b.toString(16).padStart(2, "0")).join(""),
-                protocol: ws.protocol});
-        ws.close();
-      }
-    });
-  };
-  ws.onclose = (event) => {
-    if (!reported) { reported = true; report({closed: event.code, reason: event.reason}); }
-  };
-} catch (error) {
-  report({exception: String(error)});
-}
-</script></body></html>
-"""
-
-
-@pytest.fixture
-def chromium() -> str:
-    """The browser binary; skips without one, unless BFSITL_REQUIRE_BROWSER=1 (CI)."""
-    path = shutil.which("chromium") or shutil.which("chromium-browser")
-    if path is None:
-        if os.environ.get("BFSITL_REQUIRE_BROWSER") == "1":
-            pytest.fail("BFSITL_REQUIRE_BROWSER=1 but chromium is not installed "
-                        "(apt-get install chromium)")
-        pytest.skip("chromium is not installed (apt-get install chromium)")
-    return path
-
-
-class _ReportServer:
-    """Serves the test page and receives the page's report (one GET /report?...)."""
-
-    def __init__(self, page_dir: Path) -> None:
-        self.reports: list[dict[str, str]] = []
-        self.arrived = threading.Event()
-        outer = self
-
-        class Handler(http.server.SimpleHTTPRequestHandler):
-            def __init__(self, *args, **kwargs) -> None:
-                super().__init__(*args, directory=str(page_dir), **kwargs)
-
-            def do_GET(self) -> None:  # noqa: N802 - http.server's name
-                parts = urlsplit(self.path)
-                if parts.path == "/report":
-                    fields = {k: v[0] for k, v in parse_qs(parts.query).items()}
-                    outer.reports.append(fields)
-                    outer.arrived.set()
-                    self.send_response(204)
-                    self.end_headers()
-                    return
-                super().do_GET()
-
-            def log_message(self, *args: object) -> None:
-                pass
-
-        self._server = http.server.ThreadingHTTPServer(("127.0.0.1", 0), Handler)
-        self.port = self._server.server_address[1]
-        self._thread = threading.Thread(target=self._server.serve_forever, daemon=True)
-
-    def __enter__(self) -> _ReportServer:
-        self._thread.start()
-        return self
-
-    def __exit__(self, *exc_info: object) -> None:
-        self._server.shutdown()
-        self._server.server_close()
-
-
-@contextlib.contextmanager
-def headless_chromium(binary: str, url: str) -> Iterator[subprocess.Popen[bytes]]:
-    with tempfile.TemporaryDirectory(prefix="bfsitl-chromium-") as profile:
-        process = subprocess.Popen(
-            [binary, "--headless", "--no-sandbox", "--disable-gpu", "--no-first-run",
-             "--no-default-browser-check", "--disable-extensions",
-             "--disable-background-networking", "--disable-component-update",
-             "--disable-dev-shm-usage", f"--user-data-dir={profile}", url],
-            stdin=subprocess.DEVNULL, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE,
-            start_new_session=True,
-        )
-        try:
-            yield process
-        finally:
-            _stop_group(process)
-
-
-def _stop_group(process: subprocess.Popen[bytes]) -> None:
-    """Chromium runs a process tree; end the whole group we started, then reap it."""
-    for signum in (signal.SIGTERM, signal.SIGKILL):
-        with contextlib.suppress(ProcessLookupError):
-            os.killpg(process.pid, signum)
-        try:
-            process.wait(timeout=5.0)
-            break
-        except subprocess.TimeoutExpired:
-            continue
-    if process.stderr is not None:
-        process.stderr.close()
-
-
-def test_headless_chromium_reads_the_api_version(chromium, generation_relay, tmp_path):
-    relay_url, api = generation_relay
-    (tmp_path / "page").mkdir()
-    (tmp_path / "page" / "index.html").write_text(BROWSER_PAGE)
-    with _ReportServer(tmp_path / "page") as reports:
-        query = urlencode({"ws": relay_url, "protocols": "binary,wsSerial",
-                           "request": API_VERSION_REQUEST.hex()})
-        page = f"http://127.0.0.1:{reports.port}/index.html?{query}"
-        with headless_chromium(chromium, page) as browser:
-            if not reports.arrived.wait(timeout=30.0):
-                code = browser.poll()
-                pytest.fail(f"the page reported nothing within 30 s (chromium exit code "
-                            f"{code})")
-    report = reports.reports[0]
-    assert "hex" in report, f"the browser's WebSocket failed: {report}"
-    assert report["protocol"] == "binary"  # the first the page offered
-    frames = [e for e in MspParser().feed(bytes.fromhex(report["hex"]))
-              if isinstance(e, MspFrame)]
-    assert frames and frames[0].command == MspCommand.API_VERSION
-    assert msg.ApiVersion.decode(frames[0].payload).api == api
 
 
 # --- the commands, end to end ---------------------------------------------------------------

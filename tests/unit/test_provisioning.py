@@ -135,3 +135,46 @@ def test_set_name_reads_both_spellings_and_nothing_else():
     assert _set_name("set small_angle=30") == "small_angle"
     assert _set_name("feature GPS") is None
     assert _set_name("set small_angle") is None  # no value: not a comparable set
+
+
+class SerialListingCli:
+    """CliSession.batch answering ``serial`` as 4.6.0's cli.c lists the ports."""
+
+    def __init__(self, functions: dict[int, int]) -> None:
+        self.functions = functions
+        self.batches: list[list[str]] = []
+
+    def batch(self, commands: list[str], *, check: bool = True) -> str:
+        self.batches.append(list(commands))
+        assert commands == ["serial"]
+        return "".join(f"serial UART{n}  {self.functions.get(n, 0)} 115200 57600 0 115200\r\n"
+                       for n in range(1, 9))
+
+
+def test_serial_lines_a_port_already_has_are_skipped():
+    """A run directory that keeps MSP on UART2 is not rebooted again on every flight."""
+    from bfsitl.fc.provisioning import _lines_to_run
+    from bfsitl.protocol.firmware_profile import GPS_SERIAL_4_6, MSP_SERIAL_4_6
+
+    held = SerialListingCli({1: 1, 2: 1, 3: 2})
+    assert _lines_to_run(held, (MSP_SERIAL_4_6, GPS_SERIAL_4_6)) == []  # type: ignore[arg-type]
+    # An older run directory with the GPS on UART2: both lines run (MSP there, GPS to UART3).
+    older = SerialListingCli({1: 1, 2: 2})
+    assert _lines_to_run(older, (MSP_SERIAL_4_6, GPS_SERIAL_4_6)) == [  # type: ignore[arg-type]
+        MSP_SERIAL_4_6, GPS_SERIAL_4_6]
+    # No serial line: the port listing is not asked for at all.
+    untouched = SerialListingCli({})
+    assert _lines_to_run(untouched, ("feature GPS",)) == ["feature GPS"]  # type: ignore[arg-type]
+    assert untouched.batches == []
+
+
+def test_each_generation_serves_a_second_msp_port_its_own_way():
+    from bfsitl.protocol.firmware_profile import BuildOptions, profile_for
+
+    plain, gps = profile_for("1.47", "4.6.0"), profile_for("1.47", "4.6.0", BuildOptions(gps=True))
+    master = profile_for("1.49", "2026.12.0-alpha")
+    assert plain.second_msp_cli == ("serial UART2 1 115200 57600 0 115200",)
+    # GPS and MSP may not share a port (4.6 isSerialConfigValid): the GPS is on UART3.
+    assert "serial UART3 2 115200 57600 0 115200" in gps.gps_setup_cli
+    assert gps.second_msp_cli[-1] == "serial UART3 2 115200 57600 0 115200"
+    assert master.second_msp_cli == ("set msp_uart_2 = UART2",)  # `serial` is read-only there

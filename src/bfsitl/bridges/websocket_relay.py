@@ -90,10 +90,11 @@ def _import_websockets():  # type: ignore[no-untyped-def]
 
 
 def connect_hint(url: str) -> str:
-    """What to do in the Configurator (2026.12) to reach ``url``."""
+    """What to do in the Configurator (2026.12) to reach ``url``: its manual entries, the
+    built-in "Betaflight SITL" one included, appear only with Expert Mode on."""
     if url == f"ws://{LISTEN_HOST}:{DEFAULT_PORT}":
-        return ('in the Configurator: Connect menu > "Betaflight SITL" (this URL), then '
-                'Connect')
+        return ('in the Configurator: Options > Expert Mode on; Connect menu > "Betaflight '
+                'SITL" (this URL; it connects at once)')
     return ('in the Configurator: Options > Expert Mode on; Connect menu > "Manual '
             'Selection", this URL in the Port field, then Connect')
 

@@ -88,7 +88,7 @@ class FlightOutputs:
             if options.csv_path:
                 self.sinks.append(_CsvSink(options.csv_path))
             if options.mcap_path or options.foxglove_port is not None:
-                from bfsitl.recording import FoxgloveRecorder
+                from bfsitl.flight_record import FoxgloveRecorder
 
                 self.recorder = FoxgloveRecorder(
                     mcap_path=Path(options.mcap_path) if options.mcap_path else None,

@@ -224,3 +224,13 @@ def test_plain_http_request_is_explained(fake_sitl):
         refused.value.close()
     assert refused.value.code == 426
     assert any("not in the address bar" in e for e in events)
+
+
+def test_a_taken_port_is_found_before_anything_starts_and_names_the_option():
+    from bfsitl.bridges import check_listen_port
+
+    with socket.create_server(("127.0.0.1", 0)) as holder:
+        port = holder.getsockname()[1]
+        with pytest.raises(ListenAddressInUseError, match="--configurator-port"):
+            check_listen_port("127.0.0.1", port, "--configurator-port")
+    check_listen_port("127.0.0.1", port, "--configurator-port")  # free again: no error

@@ -47,6 +47,7 @@ __all__ = [
     "Upstream",
     "UpstreamBusyError",
     "UpstreamUnreachableError",
+    "check_listen_port",
     "connect_upstream",
     "describe_listener",
 ]
@@ -215,3 +216,22 @@ class RequestWatch:
     def torn_frame_bytes(self) -> int:
         """Bytes of an unfinished frame at the end of what was sent so far."""
         return self._parser.pending_bytes
+
+
+def check_listen_port(host: str, port: int, option: str) -> None:
+    """Fail before a slow start, not after it, when a port a server will listen on is taken.
+
+    Raises :class:`ListenAddressInUseError` naming the holder and ``option`` (the
+    command-line option that moves the port).
+    """
+    import errno
+
+    with socket.socket() as probe:
+        try:
+            probe.bind((host, port))
+        except OSError as exc:
+            if exc.errno != errno.EADDRINUSE:
+                raise
+            raise ListenAddressInUseError(
+                f"cannot listen on {host}:{port}: {describe_listener(port)}. Stop it, or "
+                f"pick another port with {option}.") from exc

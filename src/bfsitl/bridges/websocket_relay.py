@@ -133,10 +133,13 @@ class WebSocketRelay:
         host: str = LISTEN_HOST,
         origins: OriginPolicy | None = None,
         on_event: Callable[[str], None] | None = None,
+        port_option: str = "--port",
     ) -> None:
         _import_websockets()  # fail now, with the install hint, not at the first client
         self.upstream = upstream
         self.origins = origins or OriginPolicy()
+        #: The command-line option that moves the port, named when the port is taken.
+        self.port_option = port_option
         self.host = host
         self.port = port
         self.sessions: list[SessionStats] = []
@@ -187,7 +190,7 @@ class WebSocketRelay:
             if exc.errno == errno.EADDRINUSE:
                 raise ListenAddressInUseError(
                     f"cannot listen on {self.host}:{self.port}: {describe_listener(self.port)}. "
-                    f"Stop it, or pick another port with --port."
+                    f"Stop it, or pick another port with {self.port_option}."
                 ) from exc
             raise BridgeError(f"cannot listen on {self.host}:{self.port}: {exc}") from exc
         async with server:

@@ -113,7 +113,8 @@ def _serve_configurator(sitl: SitlProcess, bridge: SitlBridge, args: argparse.Na
     relay = WebSocketRelay(
         Upstream(SITL_HOST, SECOND_MSP_PORT, socket_factory=sitl.network.socket),
         port=args.configurator_port, origins=OriginPolicy.with_extra(args.allow_origin),
-        on_event=lambda line: progress(f"configurator: {line}"))
+        on_event=lambda line: progress(f"configurator: {line}"),
+        port_option="--configurator-port")
     url = stack.enter_context(relay.running())
     progress(f"the Configurator can watch at {url} (MSP on UART2, TCP {SECOND_MSP_PORT}); "
              f"{connect_hint(url)}")

@@ -217,6 +217,10 @@ class FlightSession(Vehicle):
         if self.sitl is not None:
             return self
         config = self.config
+        if config.configurator_port:
+            from bfsitl.bridges import check_listen_port
+
+            check_listen_port(SITL_HOST, config.configurator_port, "--configurator-port")
         try:
             if config.physics == "gazebo":
                 self._start_with_gazebo()
@@ -451,7 +455,8 @@ class FlightSession(Vehicle):
         upstream = Upstream(SITL_HOST, SECOND_MSP_PORT, socket_factory=self.sitl.network.socket)
         relay = WebSocketRelay(upstream, port=port,
                                origins=OriginPolicy.with_extra(self.config.allow_origins),
-                               on_event=lambda line: self._progress(f"configurator: {line}"))
+                               on_event=lambda line: self._progress(f"configurator: {line}"),
+                               port_option="--configurator-port")
         self.configurator_url = self._stack.enter_context(relay.running())
         url = self.configurator_url
         self._progress(f"the Configurator can watch this flight at {url} (MSP on UART2, TCP "

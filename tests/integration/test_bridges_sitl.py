@@ -20,6 +20,7 @@ from pathlib import Path
 
 import pytest
 import serial  # type: ignore[import-untyped]
+from process_checks import process_alive
 from websockets.exceptions import ConnectionClosed
 from websockets.sync.client import connect
 
@@ -161,14 +162,6 @@ def _sitl_pid(stderr: str) -> int:
     return int(line.split("(pid ")[1].split(")")[0])
 
 
-def _alive(pid: int) -> bool:
-    try:
-        with open(f"/proc/{pid}/stat") as stat:
-            return stat.read().split(")")[-1].split()[0] != "Z"
-    except (FileNotFoundError, ProcessLookupError):
-        return False
-
-
 def test_serial_bridge_command_start_and_ctrl_c(firmware, tmp_path):
     link = tmp_path / "ttyBF"
     with run_bridge("serial-bridge", "--start", "--link", str(link)) as (process, printed):
@@ -185,7 +178,7 @@ def test_serial_bridge_command_start_and_ctrl_c(firmware, tmp_path):
         stderr = process.stderr.read() if process.stderr else ""
     assert not link.exists() and not link.is_symlink()
     assert "SITL stopped" in stderr
-    assert not _alive(_sitl_pid(stderr))
+    assert not process_alive(_sitl_pid(stderr))
 
 
 def test_configurator_command_start_and_ctrl_c(firmware):
@@ -199,7 +192,7 @@ def test_configurator_command_start_and_ctrl_c(firmware):
         assert process.wait(timeout=15) == 0
         stderr = process.stderr.read() if process.stderr else ""
     assert "SITL stopped" in stderr
-    assert not _alive(_sitl_pid(stderr))
+    assert not process_alive(_sitl_pid(stderr))
 
 
 def test_configurator_command_errors_are_one_clear_line(tmp_path):

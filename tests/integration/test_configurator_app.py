@@ -43,6 +43,7 @@ from configurator_app import (  # noqa: F401  (pytest fixtures, and the app's dr
     configurator_dist,
     open_configurator,
 )
+from process_checks import process_alive
 
 if TYPE_CHECKING:
     from playwright.sync_api import Browser
@@ -146,14 +147,6 @@ def _port_free(port: int) -> bool:
         return True
 
 
-def _alive(pid: int) -> bool:
-    try:
-        with open(f"/proc/{pid}/stat") as stat:
-            return stat.read().split(")")[-1].split()[0] != "Z"
-    except (FileNotFoundError, ProcessLookupError):
-        return False
-
-
 def _start_bridge(firmware, workdir: Path, port: int | None = None) -> RunningBridge:
     """With ``port`` None a free one, given with --port; with DEFAULT_PORT, no --port."""
     port = port or _free_port()
@@ -231,9 +224,9 @@ def test_cli_answers_and_after_leaving_it_connect_reaches_the_restarted_sitl(app
     app.leave_cli()  # the app sends `exit`: the SITL reboots, which ends its process
     assert app.connect_label() == bridge.url()
     deadline = time.monotonic() + 5.0
-    while _alive(ended) and time.monotonic() < deadline:
+    while process_alive(ended) and time.monotonic() < deadline:
         time.sleep(0.05)
-    assert not _alive(ended), f"the SITL (pid {ended}) did not end on `exit`"
+    assert not process_alive(ended), f"the SITL (pid {ended}) did not end on `exit`"
 
     app.reconnect()  # Connect, as the user would: the bridge starts a new SITL
     assert app.firmware_text() == "BTFL 4.6.0"
@@ -275,7 +268,7 @@ def test_ctrl_c_stops_the_bridge_cleanly_while_the_app_is_connected(site, firmwa
             bridge.stop()
         assert "SITL stopped" in bridge.stderr()
         assert "Traceback" not in bridge.stderr()
-        assert not _alive(sitl)
+        assert not process_alive(sitl)
         app.wait_disconnected()  # the app saw its link go
         assert app.connect_label() == bridge.url()
 

@@ -17,14 +17,11 @@ from __future__ import annotations
 
 import asyncio
 import contextlib
-import errno
-import threading
-from collections.abc import Callable, Iterator, Sequence
+from collections.abc import Callable, Sequence
 from typing import Any
 
-from bfsitl.bridges import describe_listener
+from bfsitl.bridges.background import listen_error, serving_in_thread
 from bfsitl.bridges.origin_policy import CLOSE_POLICY_VIOLATION, OriginPolicy
-from bfsitl.errors import BridgeError, ListenAddressInUseError
 
 LISTEN_HOST = "127.0.0.1"
 #: What a closing handshake may take before the connection is dropped.
@@ -72,13 +69,7 @@ class OriginGuard:
                                  compression=None,
                                  max_size=None, close_timeout=CLOSE_TIMEOUT_S)
         except OSError as exc:
-            if exc.errno == errno.EADDRINUSE:
-                raise ListenAddressInUseError(
-                    f"cannot listen on {LISTEN_HOST}:{self.port}: "
-                    f"{describe_listener(self.port)}. Stop it, or pick another port with "
-                    f"{self.port_option}."
-                ) from exc
-            raise BridgeError(f"cannot listen on {LISTEN_HOST}:{self.port}: {exc}") from exc
+            raise listen_error(LISTEN_HOST, self.port, self.port_option, exc) from exc
         async with server:
             self.port = server.sockets[0].getsockname()[1]
             if started is not None:
@@ -89,32 +80,10 @@ class OriginGuard:
         if self._loop is not None and self._stop is not None:
             self._loop.call_soon_threadsafe(self._stop.set)
 
-    @contextlib.contextmanager
-    def running(self, start_timeout_s: float = 10.0) -> Iterator[str]:
+    def running(self, start_timeout_s: float = 10.0) -> contextlib.AbstractContextManager[str]:
         """Serve from a background thread while the block runs; yields :attr:`url`."""
-        listening = threading.Event()
-        failure: list[BaseException] = []
-
-        def run() -> None:
-            try:
-                asyncio.run(self.serve(started=lambda _url: listening.set()))
-            except BaseException as exc:  # noqa: BLE001 - re-raised in the caller's thread
-                failure.append(exc)
-                listening.set()
-
-        thread = threading.Thread(target=run, name="bfsitl-origin-guard", daemon=True)
-        thread.start()
-        listening.wait(start_timeout_s)
-        if failure:
-            thread.join()
-            raise failure[0]
-        if not listening.is_set():
-            raise BridgeError(f"the WebSocket server did not start within {start_timeout_s} s")
-        try:
-            yield self.url
-        finally:
-            self.stop()
-            thread.join(timeout=10.0)
+        return serving_in_thread(self.serve, self.stop, name="bfsitl-origin-guard",
+                                 start_timeout_s=start_timeout_s)
 
     async def _handle(self, connection: Any) -> None:
         from websockets.asyncio.client import connect

@@ -29,23 +29,19 @@ from __future__ import annotations
 
 import asyncio
 import contextlib
-import errno
-import threading
 import time
-from collections.abc import Callable, Iterator, Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from typing import TYPE_CHECKING
 
 from bfsitl.bridges import (
-    BridgeError,
-    ListenAddressInUseError,
     RequestWatch,
     SessionStats,
     Upstream,
     UpstreamBusyError,
     connect_upstream,
-    describe_listener,
 )
+from bfsitl.bridges.background import listen_error, serving_in_thread
 from bfsitl.bridges.origin_policy import CLOSE_POLICY_VIOLATION, OriginPolicy
 from bfsitl.errors import BfsitlError, ExtraMissingError
 
@@ -187,12 +183,7 @@ class WebSocketRelay:
                 close_timeout=CLOSE_TIMEOUT_S,
             )
         except OSError as exc:
-            if exc.errno == errno.EADDRINUSE:
-                raise ListenAddressInUseError(
-                    f"cannot listen on {self.host}:{self.port}: {describe_listener(self.port)}. "
-                    f"Stop it, or pick another port with {self.port_option}."
-                ) from exc
-            raise BridgeError(f"cannot listen on {self.host}:{self.port}: {exc}") from exc
+            raise listen_error(self.host, self.port, self.port_option, exc) from exc
         async with server:
             self.port = server.sockets[0].getsockname()[1]
             if started is not None:
@@ -204,34 +195,10 @@ class WebSocketRelay:
         if self._loop is not None and self._stop is not None:
             self._loop.call_soon_threadsafe(self._stop.set)
 
-    @contextlib.contextmanager
-    def running(self, start_timeout_s: float = 10.0) -> Iterator[str]:
+    def running(self, start_timeout_s: float = 10.0) -> contextlib.AbstractContextManager[str]:
         """Serve from a background thread while the block runs; yields :attr:`url`."""
-        listening = threading.Event()
-        failure: list[BaseException] = []
-
-        def run() -> None:
-            try:
-                asyncio.run(self.serve(started=lambda _url: listening.set()))
-            except BaseException as exc:  # noqa: BLE001 - handed to the caller's thread
-                failure.append(exc)
-                listening.set()
-
-        thread = threading.Thread(target=run, name="bfsitl-ws-relay", daemon=True)
-        thread.start()
-        listening.wait(start_timeout_s)
-        if failure:
-            thread.join()
-            raise failure[0]
-        if not listening.is_set():
-            raise BridgeError(f"the WebSocket server did not start within {start_timeout_s} s")
-        try:
-            yield self.url
-        finally:
-            self.stop()
-            thread.join(timeout=15.0)
-        if failure:  # the server failed while the block ran (reached only if the block did not)
-            raise failure[0]
+        return serving_in_thread(self.serve, self.stop, name="bfsitl-ws-relay",
+                                 start_timeout_s=start_timeout_s)
 
     # -- one client ------------------------------------------------------------------------
     async def _handle(self, connection: ServerConnection) -> None:

@@ -1,0 +1,65 @@
+"""What bfsitl's asyncio WebSocket servers share: serving from a thread, and a clear error
+when their port is taken."""
+
+from __future__ import annotations
+
+import asyncio
+import contextlib
+import errno
+import threading
+from collections.abc import Callable, Coroutine, Iterator
+from typing import Any
+
+from bfsitl.bridges import describe_listener
+from bfsitl.errors import BridgeError, ListenAddressInUseError
+
+#: ``serve(started)``: a coroutine that listens, calls ``started(url)``, and serves until told.
+Serve = Callable[[Callable[[str], None]], Coroutine[Any, Any, None]]
+
+
+def listen_error(host: str, port: int, option: str, exc: OSError) -> BridgeError:
+    """The error for a server that could not listen: a taken port names its holder and the
+    option that moves it."""
+    if exc.errno == errno.EADDRINUSE:
+        return ListenAddressInUseError(
+            f"cannot listen on {host}:{port}: {describe_listener(port)}. Stop it, or pick "
+            f"another port with {option}.")
+    return BridgeError(f"cannot listen on {host}:{port}: {exc}")
+
+
+@contextlib.contextmanager
+def serving_in_thread(serve: Serve, stop: Callable[[], None], *, name: str,
+                      start_timeout_s: float = 10.0) -> Iterator[str]:
+    """Run ``serve`` on its own event loop in a daemon thread while the block runs; yields
+    the URL it listens on.  A failure to start (a taken port) is raised here, in the caller's
+    thread; on the way out ``stop()`` is called and the thread joined."""
+    listening = threading.Event()
+    urls: list[str] = []
+    failure: list[BaseException] = []
+
+    def started(url: str) -> None:
+        urls.append(url)
+        listening.set()
+
+    def run() -> None:
+        try:
+            asyncio.run(serve(started))
+        except BaseException as exc:  # noqa: BLE001 - handed to the caller's thread
+            failure.append(exc)
+            listening.set()
+
+    thread = threading.Thread(target=run, name=name, daemon=True)
+    thread.start()
+    listening.wait(start_timeout_s)
+    if failure:
+        thread.join()
+        raise failure[0]
+    if not urls:
+        raise BridgeError(f"the WebSocket server did not start within {start_timeout_s} s")
+    try:
+        yield urls[0]
+    finally:
+        stop()
+        thread.join(timeout=15.0)
+    if failure:  # it failed while the block ran (reached only if the block did not raise)
+        raise failure[0]

@@ -415,3 +415,23 @@ def test_batch_refuses_rebooting_commands(link: FakeCliLink) -> None:
     with pytest.raises(CliError):
         CliSession(link, timeout_s=0.3).batch(["set small_angle = 40", "save"])
     assert link.raw_written == b""
+
+
+def test_a_byte_changed_in_the_markers_echo_still_ends_the_output(
+        session: CliSession, link: FakeCliLink, monkeypatch: pytest.MonkeyPatch) -> None:
+    """Seen once on CI: the SITL echoed '#bfsync-...' as '#ifsync-...'; waiting for the whole
+    token timed out after 10 s. The tail (pid and counter) ends the output just as well."""
+    original = link._interactive_char
+    changed = []
+
+    def corrupt(byte: int) -> None:
+        if byte == ord("b") and link._line == bytearray(b"#") and not changed:
+            changed.append(byte)
+            byte = ord("i")
+        original(byte)
+
+    monkeypatch.setattr(link, "_interactive_char", corrupt)
+    output = session.run("get small_angle")
+    assert changed, "the fake did not see the marker"
+    assert output.splitlines() == ["small_angle = 25", "Allowed range: 0 - 180"]
+    assert session.run("get small_angle").startswith("small_angle = 25")  # still in step

@@ -202,17 +202,19 @@ class CliSession:
         """Send a comment marker and return everything the FC printed before its echo."""
         token = f"bfsync-{os.getpid()}-{next(self._sync_ids)}".encode()
         self.link.write(b"#" + token + b"\r")
-        marker = token + b"\r\n"
+        # Matched on its tail only: a loaded CI machine once saw the echo's first byte change
+        # on the SITL's TCP path ("#ifsync-..."); pid and counter keep the tail unique.
+        marker = token[2:] + b"\r\n"
         data = self._read_until(marker, timeout_s or self.timeout_s)
+        at = data.rfind(marker)
         # Wait for the prompt that follows the marker's own (empty) command.
-        tail = data[data.rfind(marker) + len(marker):]
+        tail = data[at + len(marker):]
         if PROMPT not in tail:
             self._read_until(PROMPT, timeout_s or self.timeout_s, initial=tail)
-        body = data[: data.rfind(marker)]
-        # The marker was typed after the prompt; drop that prompt and the marker's '#'.
-        if body.endswith(b"#"):
-            body = body[:-1]
-        return body
+        # The marker was typed after the prompt: keep the prompt, drop from the echoed '#'.
+        line_start = data.rfind(b"\n", 0, at) + 1
+        echoed_hash = data.rfind(b"#", line_start, at)
+        return data[:echoed_hash] if echoed_hash >= 0 else data[:line_start]
 
     def _read_until(self, needle: bytes, timeout_s: float, initial: bytes = b"") -> bytes:
         deadline = time.monotonic() + timeout_s

@@ -38,6 +38,11 @@ Messages are written for the person at the terminal: what went wrong, then what 
     │   ├── ArmingBlockedError         the FC refused to arm; ``blockers`` names why
     │   ├── CrashDetectedError         the vehicle tipped over or hit the ground too fast
     │   └── MissionTimeoutError        (also TimeoutError) a phase did not finish in time
+    ├── ScenarioError                  a scenario file or suite that cannot be run as written
+    │   ├── FaultNotSupportedError     a fault this firmware cannot express (says which can)
+    │   ├── ScenarioFailedError        a scenario run as a pytest item did not pass
+    │   └── SticksTakenError           (inside a run) a fault took the autopilot's sticks
+    ├── BlackboxError                  a blackbox log that cannot be read
     └── SitlError                      the SITL process
         ├── FirmwareNotFoundError      no SITL binary anywhere we looked
         ├── FirmwareBuildError         `bfsitl firmware build` could not make a SITL binary
@@ -209,6 +214,29 @@ class CrashDetectedError(MissionError):
 
 class MissionTimeoutError(MissionError, TimeoutError):
     """A mission phase did not finish within its time limit."""
+
+
+class ScenarioError(BfsitlError):
+    """A scenario file (or a suite of them) cannot be run as written: the message names the
+    file, the table and the key."""
+
+
+class FaultNotSupportedError(ScenarioError):
+    """The firmware cannot express this fault (4.6.0 holds the last sticks through RC
+    silence, and its virtual GPS never loses its fix); the message says what it can do."""
+
+
+class ScenarioFailedError(ScenarioError):
+    """A scenario run as a pytest item failed its expectations or could not be flown."""
+
+
+class SticksTakenError(ScenarioError):
+    """Raised inside a scenario run to end the autopilot's flight once a fault has taken
+    its sticks away (RC lost); the runner catches it and watches.  Never escapes a run."""
+
+
+class BlackboxError(BfsitlError):
+    """A blackbox log that cannot be found or decoded."""
 
 
 class SitlError(BfsitlError):

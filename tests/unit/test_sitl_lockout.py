@@ -74,6 +74,7 @@ def startable(clients: list[StubClient], monkeypatch, tmp_path) -> SitlProcess:
     sitl.network = StubNetwork()  # type: ignore[assignment]
     sitl.firmware = SimpleNamespace(command=lambda: ["sitl"], path=SimpleNamespace(name="sitl"))
     sitl.workdir, sitl.log_path, sitl.timer_slack_ns = tmp_path, tmp_path / "sitl.log", None
+    sitl.env = None
     sitl.ready_timeout_s, sitl.starts, sitl.launches = 1.0, 0, 0
     sitl.said = []  # type: ignore[attr-defined]
     sitl._progress = sitl.said.append  # type: ignore[attr-defined]

@@ -19,6 +19,7 @@ from bfsitl.cli.bridge_commands import add_configurator_parser, add_serial_bridg
 from bfsitl.cli.doctor import add_doctor_parser
 from bfsitl.cli.firmware_command import add_firmware_parser
 from bfsitl.cli.fly_command import add_fly_parser
+from bfsitl.cli.scenario_command import add_scenario_parser
 from bfsitl.cli.sim_command import add_sim_parser
 from bfsitl.cli.target import add_target_arguments, open_target, progress
 from bfsitl.cli.top_command import add_top_parser
@@ -145,6 +146,7 @@ def build_parser() -> argparse.ArgumentParser:
                "  bfsitl cli get small_angle\n"
                "  bfsitl backup my-quad.txt --uri serial:///dev/ttyACM0\n"
                "  bfsitl sim --duration 10 --json  physics against a SITL, health once a second\n"
+               "  bfsitl scenario run scenarios/ --firmware master-lockstep --junit r.xml\n"
                "  bfsitl doctor                    firmware, ports, a live probe, blockers\n"
                "  bfsitl top --start               live dashboard: attitude, motors, RC, "
                "blockers, link\n"
@@ -194,6 +196,7 @@ def build_parser() -> argparse.ArgumentParser:
 
     add_fly_parser(sub)
     add_sim_parser(sub)
+    add_scenario_parser(sub)
     add_doctor_parser(sub)
     add_top_parser(sub)
     add_configurator_parser(sub)

@@ -17,10 +17,12 @@ Facts that shape it (``shared/FIRMWARE_FACTS.md``):
 from __future__ import annotations
 
 import math
+import random
 import socket
 import statistics
 import threading
 import time
+from collections import deque
 from dataclasses import dataclass, field, replace
 from typing import Protocol
 
@@ -75,6 +77,80 @@ SAFE_COMMAND = RcCommand()
 
 
 @dataclass(frozen=True, slots=True)
+class RcFault:
+    """An injected RC fault: what a link sends instead of its command while it lasts.
+
+    * ``silent``: nothing at all (master's UDP receiver raises RXLOSS 150 ms later; 4.6.0
+      holds the last channels forever, so this is no fault there);
+    * ``pulses_us``: (channel index, pulse) pairs sent as they are, unclamped: a pulse below
+      ``rx_min_usec`` (885) or above ``rx_max_usec`` (2115) is what a receiver reports for a
+      lost channel, and the firmware's failsafe takes a flight channel (AETR) invalid for
+      300 ms as a lost link on every generation (rx/rx.c);
+    * ``delay_s`` (plus up to ``jitter_s`` more, uniformly, per packet): the command that was
+      set that long ago, as a slow radio link delivers it.
+    """
+
+    silent: bool = False
+    pulses_us: tuple[tuple[int, int], ...] = ()
+    delay_s: float = 0.0
+    jitter_s: float = 0.0
+
+    def __post_init__(self) -> None:
+        for index, pulse in self.pulses_us:
+            if not (0 <= index < 16 and 0 <= pulse <= 0xFFFF):
+                raise BfsitlError(f"RC fault: channel {index + 1} = {pulse} us is not a "
+                                  f"pulse the rc_packet can carry (16 channels, 0-65535)")
+        if not (self.delay_s >= 0 and self.jitter_s >= 0):
+            raise BfsitlError(f"RC fault: delay {self.delay_s} s and jitter {self.jitter_s} s "
+                              f"must be >= 0")
+
+
+class RcFaultState:
+    """Applies an :class:`RcFault` to the commands a link sends; the link's one helper for
+    it, on its own time base (wall time for a UDP link, simulation time in lockstep)."""
+
+    #: How much command history a delay may reach back into.
+    HISTORY_S = 5.0
+
+    def __init__(self, seed: int = 0) -> None:
+        self.fault: RcFault | None = None
+        self._history: deque[tuple[float, RcCommand]] = deque()
+        self._rng = random.Random(f"bfsitl.rc.jitter:{seed}")
+
+    def note(self, time_s: float, command: RcCommand) -> None:
+        """Remember what was commanded when (only needed while a delay is in force)."""
+        if self.fault is None or self.fault.delay_s + self.fault.jitter_s <= 0:
+            self._history.clear()
+        if not self._history or self._history[-1][1] is not command:
+            self._history.append((time_s, command))
+        while len(self._history) > 1 and self._history[1][0] < time_s - self.HISTORY_S:
+            self._history.popleft()
+
+    def channels(self, time_s: float, command: RcCommand) -> tuple[int, ...] | None:
+        """The channels to send at ``time_s`` for ``command`` (None: send nothing)."""
+        fault = self.fault
+        if fault is None:
+            return command.channels_aetr()
+        if fault.silent:
+            return None
+        late_s = fault.delay_s + (self._rng.uniform(0.0, fault.jitter_s)
+                                  if fault.jitter_s > 0 else 0.0)
+        if late_s > 0:
+            self.note(time_s, command)
+            for stamp_s, past in reversed(self._history):
+                if stamp_s <= time_s - late_s:
+                    command = past
+                    break
+            else:
+                command = self._history[0][1]
+        channels = list(command.channels_aetr())
+        for index, pulse in fault.pulses_us:
+            channels.extend([RC_MIN_US] * (index + 1 - len(channels)))
+            channels[index] = pulse
+        return tuple(channels)
+
+
+@dataclass(frozen=True, slots=True)
 class RcLinkStats:
     """Send timing of the link's thread: how steady the stream is."""
 
@@ -103,6 +179,7 @@ class _RcLinkBase:
         self._packets = 0
         self._send_errors = 0
         self.closed = False
+        self._fault = RcFaultState()
 
     # -- the command -----------------------------------------------------------------------
     @property
@@ -113,6 +190,15 @@ class _RcLinkBase:
         """The command the next packet carries (validated now, so errors surface here)."""
         command.channels_aetr()
         self._command = command
+
+    @property
+    def fault(self) -> RcFault | None:
+        return self._fault.fault
+
+    @fault.setter
+    def fault(self, fault: RcFault | None) -> None:
+        """Inject ``fault`` from the next packet on (None ends it)."""
+        self._fault.fault = fault
 
     # -- lifecycle -------------------------------------------------------------------------
     def start(self) -> _RcLinkBase:
@@ -130,8 +216,9 @@ class _RcLinkBase:
         if self._thread is not None:
             self._thread.join(timeout=2.0)
         self._command = self._command.disarmed()
+        self._fault.fault = None  # the farewell goes out whatever was injected
         for _ in range(_FAREWELL_PACKETS):
-            self._send_safely(self._command)
+            self._send_safely(self._command.channels_aetr())
         self.closed = True
         self._release()
 
@@ -162,7 +249,9 @@ class _RcLinkBase:
         next_s = time.perf_counter()
         last_s: float | None = None
         while not self._stop.is_set():
-            self._send_safely(self._command)
+            channels = self._fault.channels(time.monotonic(), self._command)
+            if channels is not None:
+                self._send_safely(channels)
             now_s = time.perf_counter()
             if last_s is not None:
                 self._periods_s.append(now_s - last_s)
@@ -173,14 +262,14 @@ class _RcLinkBase:
                 next_s = now_s
             self._stop.wait(next_s - now_s)
 
-    def _send_safely(self, command: RcCommand) -> None:
+    def _send_safely(self, channels: tuple[int, ...]) -> None:
         try:
-            self._send(command)
+            self._send(channels)
             self._packets += 1
         except (OSError, BfsitlError):
             self._send_errors += 1  # a restarting SITL refuses for a moment; keep going
 
-    def _send(self, command: RcCommand) -> None:
+    def _send(self, channels: tuple[int, ...]) -> None:
         raise NotImplementedError
 
     def _release(self) -> None:
@@ -209,8 +298,8 @@ class UdpRcLink(_RcLinkBase):
             self._sock = network.socket(socket.AF_INET, socket.SOCK_DGRAM)
         self._started_s = time.monotonic()
 
-    def _send(self, command: RcCommand) -> None:
-        packet = RcPacket(time.monotonic() - self._started_s, command.channels_aetr())
+    def _send(self, channels: tuple[int, ...]) -> None:
+        packet = RcPacket(time.monotonic() - self._started_s, channels)
         self._sock.sendto(packet.pack(), self._address)
 
     def _release(self) -> None:
@@ -229,5 +318,5 @@ class MspRcLink(_RcLinkBase):
         super().__init__(rate_hz)
         self.client = client
 
-    def _send(self, command: RcCommand) -> None:
-        self.client.send(msg.SetRawRc(command.channels_aetr()))
+    def _send(self, channels: tuple[int, ...]) -> None:
+        self.client.send(msg.SetRawRc(channels))

@@ -16,7 +16,7 @@ from bfsitl.errors import BfsitlError, ExtraMissingError
 from bfsitl.mission.flight_log import FlightRow
 
 
-def _pyplot():  # type: ignore[no-untyped-def]
+def load_pyplot():  # type: ignore[no-untyped-def]
     try:
         import matplotlib
     except ImportError as exc:
@@ -37,7 +37,7 @@ def write_flight_plot(rows: Sequence[FlightRow], path: str | Path, *, title: str
     (north, east) are marked on it."""
     if not rows:
         raise BfsitlError("nothing to plot: the flight has no rows (it never armed)")
-    plt = _pyplot()
+    plt = load_pyplot()
     t0 = rows[0].time_s
     time_s = [r.time_s - t0 for r in rows]
     horizontal = any(math.isfinite(r.target_north_m) for r in rows)

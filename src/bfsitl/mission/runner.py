@@ -500,6 +500,30 @@ class Mission:
                 command = command.with_aux(index, SWITCH_OFF_US)
             self.session.set_rc(command)
 
+    def observe(self, done: Callable[[FlightSample], bool], *, timeout_s: float,
+                phase: str = "observe") -> None:
+        """Record rows without flying: the sticks stay as they are, because something else
+        has the vehicle (an injected RC fault, the FC's failsafe).  Nothing is judged here (a
+        disarm or a crash is what a scenario watches for); ends when ``done`` says so or
+        after ``timeout_s`` of simulation time."""
+        self.phase = phase
+        clock = self.session.clock
+        period_s = 1.0 / self.rate_hz
+        deadline_s = self.session.time_s + timeout_s
+        next_s = clock.now_s()
+        while True:
+            sample = self.session.sample()
+            climb_m_s = self._climb.update(sample.time_s, sample.fc_alt_m)
+            self._record(phase, self.target_alt_m, sample, climb_m_s)
+            if done(sample) or sample.time_s >= deadline_s:
+                return
+            next_s += period_s
+            delay_s = next_s - clock.now_s()
+            if delay_s > 0:
+                clock.sleep_s(delay_s)
+            else:
+                next_s = clock.now_s()
+
     def land(self, *, timeout_s: float = 30.0) -> None:
         """Descend, touch down, cut the throttle, disarm."""
         self._on_event("landing")

@@ -68,7 +68,14 @@ from bfsitl.sim import Simulator
 from bfsitl.sim.bridge import BridgeStats, SitlBridge, bridged_sitl, wait_for_replies
 from bfsitl.sim.frames import betaflight_attitude_deg
 from bfsitl.sim.health import HealthMonitor, lock_clock
-from bfsitl.sim.lockstep import LockstepBridge, LockstepClock, LockstepRc, SteppedLink
+from bfsitl.sim.lockstep import (
+    REPLY_SPIN_S,
+    SITL_SPIN_ENV,
+    LockstepBridge,
+    LockstepClock,
+    LockstepRc,
+    SteppedLink,
+)
 from bfsitl.sim.params import Wind
 from bfsitl.sim.sensors import SensorConfig
 from bfsitl.sitl.process import SITL_HOST, SitlProcess
@@ -159,6 +166,10 @@ class SessionConfig:
     configurator_port: int | None = None
     #: Web page origins the Configurator bridge accepts beyond the Configurator's own.
     allow_origins: tuple[str, ...] = ()
+    #: Lockstep: busy-wait for each other's packets (bfsitl and the SITL) instead of
+    #: sleeping: fastest when the run has cores to itself; off when runs share the cores
+    #: (``bfsitl scenario run --jobs 2`` on two cores), where spinning steals time slices.
+    lockstep_spin: bool = True
 
 
 class RealTimeClock:
@@ -225,8 +236,10 @@ class FlightSession(Vehicle):
             if config.physics == "gazebo":
                 self._start_with_gazebo()
             elif config.physics == "embedded":
-                self.sitl = SitlProcess(config.firmware, workdir=config.workdir,
-                                        isolate=config.isolate, progress=self._progress)
+                self.sitl = SitlProcess(
+                    config.firmware, workdir=config.workdir, isolate=config.isolate,
+                    progress=self._progress,
+                    env=None if config.lockstep_spin else {SITL_SPIN_ENV: "0"})
                 self.simulator = Simulator(sensors=config.sensors, wind=config.wind,
                                            seed=config.seed)
                 if self._wants_lockstep():
@@ -282,7 +295,8 @@ class FlightSession(Vehicle):
         assert sitl is not None and simulator is not None
         speed = None if config.speed is None or math.isinf(config.speed) else config.speed
         bridge = LockstepBridge(simulator, sitl.prepare_network(), speed=speed,
-                                profile=profile_of_binary(sitl.firmware.path))
+                                profile=profile_of_binary(sitl.firmware.path),
+                                spin_s=REPLY_SPIN_S if config.lockstep_spin else 0.0)
         self.bridge = bridge
         bridge.bind()
         self._stack.callback(bridge.close)

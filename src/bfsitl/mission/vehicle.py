@@ -20,7 +20,14 @@ from typing import TYPE_CHECKING, Protocol, Self
 
 from bfsitl.errors import ArmingBlockedError, LinkError, MspError, SitlError
 from bfsitl.fc.msp_client import MspClient, Telemetry
-from bfsitl.fc.rc_link import RC_MIN_US, MspRcLink, RcCommand, RcLinkStats, UdpRcLink
+from bfsitl.fc.rc_link import (
+    RC_MIN_US,
+    MspRcLink,
+    RcCommand,
+    RcFault,
+    RcLinkStats,
+    UdpRcLink,
+)
 from bfsitl.protocol import msp_messages as msg
 from bfsitl.protocol.boxes import BoxId
 from bfsitl.sim.params import STANDARD_GRAVITY_M_S2
@@ -54,6 +61,9 @@ class RcSender(Protocol):
     def stats(self) -> RcLinkStats: ...
 
     def close(self) -> None: ...
+
+    #: An injected RC fault (scenarios), None when the link is healthy.
+    fault: RcFault | None
 
 
 class SessionClock(Protocol):

@@ -121,6 +121,9 @@ BOX_NAMES: dict[int, str] = {
     BoxId.LAPTIMERRESET: "LAP TIMER RESET",
     BoxId.CHIRP: "CHIRP",
 }
+#: Boxes 4.6 does not have (the enum above is 4.6's, checked against its source): master's
+#: AUTOPILOT (msp/msp_box.c), a flight-plan mission, which is how master flies GPS Rescue.
+LATER_BOX_NAMES: dict[int, str] = {56: "AUTOPILOT"}
 
 #: Permanent ids in internal ``boxId_e`` order (fc/rc_modes.h:30-86): the order of the BOXNAMES
 #: and BOXIDS lists (and so of the STATUS mode bits) once inactive boxes are left out.
@@ -144,7 +147,8 @@ SITL_DEFAULT_BOX_IDS: tuple[int, ...] = (
 
 def box_name(permanent_id: int) -> str:
     """Display name of a permanent box id; ids unknown to 4.6 become ``UNKNOWN_<id>``."""
-    return BOX_NAMES.get(permanent_id, f"UNKNOWN_{permanent_id}")
+    return BOX_NAMES.get(permanent_id) or LATER_BOX_NAMES.get(permanent_id,
+                                                              f"UNKNOWN_{permanent_id}")
 
 
 def decode_flight_modes(flight_mode_flags: int, box_ids: Sequence[int]) -> tuple[str, ...]:

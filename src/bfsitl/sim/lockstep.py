@@ -35,7 +35,7 @@ from dataclasses import dataclass
 from typing import Protocol, TypeVar
 
 from bfsitl.errors import PacketError, SitlError, SitlExitedError
-from bfsitl.fc.rc_link import SAFE_COMMAND, RcCommand, RcLinkStats
+from bfsitl.fc.rc_link import SAFE_COMMAND, RcCommand, RcFault, RcFaultState, RcLinkStats
 from bfsitl.link.base import Link
 from bfsitl.protocol.firmware_profile import DEFAULT_PROFILE, FirmwareProfile
 from bfsitl.protocol.sitl_packets import RcPacket, ServoPacket
@@ -53,8 +53,12 @@ from bfsitl.sim.frames import GeoPoint
 T = TypeVar("T")
 
 #: Busy-poll the reply this long before sleeping in select(): a reply usually comes within
-#: tens of microseconds, and waking a sleeping thread costs about as much again.
+#: tens of microseconds, and waking a sleeping thread costs about as much again.  Only when
+#: the run has cores to itself: two runs spinning on two cores steal each other's time slices
+#: (measured: two scenario runs side by side took 2.4x as long as one after the other).
 REPLY_SPIN_S = 0.0005
+#: The SITL side's spin, set through its environment (sitl_lockstep.c).
+SITL_SPIN_ENV = "BFSITL_LOCKSTEP_SPIN_US"
 #: No reply this long (wall time) means the FC is gone or not a lockstep build.
 REPLY_TIMEOUT_S = 2.0
 #: Resend the same packet (the FC answers a repeat without applying it) this often first.
@@ -113,6 +117,7 @@ class LockstepBridge:
         alive: Callable[[], None] | None = None,
         wall_clock: Callable[[], float] = time.perf_counter,
         sleep: Callable[[float], None] = time.sleep,
+        spin_s: float = REPLY_SPIN_S,
     ) -> None:
         if not 0.0001 <= step_s <= 0.01:
             raise ValueError(f"step_s {step_s} outside 0.1..10 ms")
@@ -123,6 +128,8 @@ class LockstepBridge:
         self.speed = speed
         self.step_s = step_s
         self.on_step = on_step
+        #: Busy-poll for a reply this long before sleeping (0 when runs share the cores).
+        self.spin_s = spin_s
         #: Called when a reply is overdue; raises if the SITL has died (set by the session).
         self.alive = alive
         self._wall = wall_clock
@@ -130,6 +137,8 @@ class LockstepBridge:
         self.encoder = FdmEncoder(profile, getattr(simulator, "home", GeoPoint(0.0, 0.0)))
         self.motors: Motors = (0.0, 0.0, 0.0, 0.0)
         self.rc_command: RcCommand = SAFE_COMMAND
+        #: An injected RC fault (:class:`~bfsitl.fc.rc_link.RcFault`), on simulation time.
+        self.rc_fault = RcFaultState()
         self.error: BaseException | None = None
         self._sock: socket.socket | None = None
         self._started = False
@@ -227,6 +236,11 @@ class LockstepBridge:
         # The firmware ignores the RC packet's timestamp; the channels change at the control
         # rate, not every step, so their packing is kept.
         command = self.rc_command
+        if self.rc_fault.fault is not None:
+            # An injected fault: no RC trailer at all (silence), or channels as it says.
+            channels = self.rc_fault.channels(now_s, command)
+            self._rc_packed_for = None
+            return b"" if channels is None else RcPacket(now_s, channels).pack()
         if command is not self._rc_packed_for:
             self._rc_packed = RcPacket(now_s, command.channels_aetr()).pack()
             self._rc_packed_for = command
@@ -307,7 +321,7 @@ class LockstepBridge:
                     ) -> Motors | None:
         assert self._sock is not None
         start_s = self._wall()
-        spin_until_s = start_s + (REPLY_SPIN_S if spin else 0.0)
+        spin_until_s = start_s + (self.spin_s if spin else 0.0)
         while True:
             reply = self._receive(stamp_s)
             if reply is not None:
@@ -362,6 +376,15 @@ class LockstepRc:
     def start(self) -> LockstepRc:
         return self
 
+    @property
+    def fault(self) -> RcFault | None:
+        return self.bridge.rc_fault.fault
+
+    @fault.setter
+    def fault(self, fault: RcFault | None) -> None:
+        """Inject ``fault`` from the next fdm packet on (None ends it)."""
+        self.bridge.rc_fault.fault = fault
+
     def stats(self) -> RcLinkStats:
         steps = self.bridge.lockstep_stats().steps
         period_ms = self.bridge.step_s * 1000
@@ -371,6 +394,7 @@ class LockstepRc:
         if self.closed:
             return
         self.closed = True
+        self.bridge.rc_fault.fault = None  # the farewell goes out whatever was injected
         self.bridge.rc_command = self.bridge.rc_command.disarmed()
         try:
             self.bridge.run_for(self.FAREWELL_S)

@@ -47,6 +47,12 @@ class SensorConfig:
     gps_drift_time_s: float = 30.0
     gps_noise_std_m: float = 0.0
     gps_velocity_noise_std_m_s: float = 0.0
+    #: The barometer's bias grows by this much per second from when the configuration takes
+    #: effect (a drifting sensor warming up; negative pascals read as climbing).
+    baro_drift_pa_s: float = 0.0
+    #: A fixed error on the GPS position, metres north and east (a glitch: a jump when it is
+    #: switched on mid-flight).
+    gps_offset_ne_m: tuple[float, float] = (0.0, 0.0)
 
     def __post_init__(self) -> None:
         stds = {
@@ -68,9 +74,14 @@ class SensorConfig:
             if len(vector) != 3 or not all(math.isfinite(v) for v in vector):
                 raise SimInputError(f"SensorConfig: {name} must be 3 finite numbers, "
                                     f"got {vector!r}")
-        if not math.isfinite(self.baro_bias_pa):
-            raise SimInputError(f"SensorConfig: baro_bias_pa must be finite, "
-                                f"got {self.baro_bias_pa}")
+        for name, number in (("baro_bias_pa", self.baro_bias_pa),
+                             ("baro_drift_pa_s", self.baro_drift_pa_s)):
+            if not math.isfinite(number):
+                raise SimInputError(f"SensorConfig: {name} must be finite, got {number}")
+        if len(self.gps_offset_ne_m) != 2 or not all(math.isfinite(v)
+                                                     for v in self.gps_offset_ne_m):
+            raise SimInputError(f"SensorConfig: gps_offset_ne_m must be 2 finite numbers, "
+                                f"got {self.gps_offset_ne_m!r}")
 
     @property
     def is_ideal(self) -> bool:
@@ -78,6 +89,7 @@ class SensorConfig:
         return (
             self.gyro_noise_std_rad_s == 0.0 and self.accel_noise_std_m_s2 == 0.0
             and self.baro_noise_std_pa == 0.0 and self.baro_bias_pa == 0.0
+            and self.baro_drift_pa_s == 0.0
             and not any(self.gyro_bias_rad_s) and not any(self.accel_bias_m_s2)
             and not self.has_gps_error
         )
@@ -85,7 +97,7 @@ class SensorConfig:
     @property
     def has_gps_error(self) -> bool:
         return (self.gps_drift_std_m > 0.0 or self.gps_noise_std_m > 0.0
-                or self.gps_velocity_noise_std_m_s > 0.0)
+                or self.gps_velocity_noise_std_m_s > 0.0 or any(self.gps_offset_ne_m))
 
     def with_typical_gps(self) -> SensorConfig:
         """These errors plus a GPS receiver's without corrections in open sky: 0.15 m of
@@ -136,7 +148,8 @@ class SensorModel:
     :mod:`random`, so the sequence does not depend on ``PYTHONHASHSEED``).
     """
 
-    __slots__ = ("config", "_ideal", "_rng", "_gps_rng", "_gps_drift", "_gps_time_s")
+    __slots__ = ("config", "_ideal", "_rng", "_gps_rng", "_gps_drift", "_gps_time_s",
+                 "_drift_origin_s")
 
     def __init__(self, config: SensorConfig, seed: int) -> None:
         self.config = config
@@ -146,6 +159,14 @@ class SensorModel:
         self._gps_rng = random.Random(f"bfsitl.sim.sensors.gps:{seed}")
         self._gps_drift = (0.0, 0.0)
         self._gps_time_s: float | None = None
+        self._drift_origin_s: float | None = None
+
+    def reconfigure(self, config: SensorConfig, time_s: float) -> None:
+        """New errors from ``time_s`` on (a fault injected mid-flight); the generators go on
+        where they were, so a run stays repeatable, and a drift starts from zero then."""
+        self.config = config
+        self._ideal = config.is_ideal
+        self._drift_origin_s = time_s
 
     def gps_error(self, time_s: float) -> tuple[float, float, float, float]:
         """(north m, east m, north m/s, east m/s) to add to the GPS at ``time_s``."""
@@ -153,7 +174,9 @@ class SensorModel:
         if not c.has_gps_error:
             return (0.0, 0.0, 0.0, 0.0)
         gauss = self._gps_rng.gauss
-        if self._gps_time_s is None:
+        if c.gps_drift_std_m == 0.0:
+            self._gps_drift = (0.0, 0.0)
+        elif self._gps_time_s is None:
             # Start anywhere in the wander's spread, as a receiver that has been on a while.
             self._gps_drift = (gauss(0.0, c.gps_drift_std_m), gauss(0.0, c.gps_drift_std_m))
         elif time_s > self._gps_time_s:
@@ -163,16 +186,21 @@ class SensorModel:
                                keep * self._gps_drift[1] + kick * gauss(0.0, 1.0))
         self._gps_time_s = time_s
         pn, vn = c.gps_noise_std_m, c.gps_velocity_noise_std_m_s
-        return (self._gps_drift[0] + (gauss(0.0, pn) if pn else 0.0),
-                self._gps_drift[1] + (gauss(0.0, pn) if pn else 0.0),
+        on, oe = c.gps_offset_ne_m
+        return (self._gps_drift[0] + on + (gauss(0.0, pn) if pn else 0.0),
+                self._gps_drift[1] + oe + (gauss(0.0, pn) if pn else 0.0),
                 gauss(0.0, vn) if vn else 0.0, gauss(0.0, vn) if vn else 0.0)
 
-    def corrupt(self, gyro: Vec3, specific_force: Vec3, pressure_pa: float
-                ) -> tuple[Vec3, Vec3, float]:
-        """Measured (gyro, specific force, pressure) from true ones."""
+    def corrupt(self, gyro: Vec3, specific_force: Vec3, pressure_pa: float,
+                time_s: float = 0.0) -> tuple[Vec3, Vec3, float]:
+        """Measured (gyro, specific force, pressure) from true ones at ``time_s``."""
         if self._ideal:
             return gyro, specific_force, pressure_pa
         c = self.config
+        if c.baro_drift_pa_s:
+            if self._drift_origin_s is None:
+                self._drift_origin_s = time_s
+            pressure_pa += c.baro_drift_pa_s * (time_s - self._drift_origin_s)
         gauss = self._rng.gauss
         gs, acs, ps = c.gyro_noise_std_rad_s, c.accel_noise_std_m_s2, c.baro_noise_std_pa
         gb, ab = c.gyro_bias_rad_s, c.accel_bias_m_s2

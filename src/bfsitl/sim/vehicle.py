@@ -151,7 +151,7 @@ class Simulator:
     """
 
     __slots__ = (
-        "params", "sensor_config", "wind", "home",
+        "params", "sensor_config", "wind", "home", "_seed", "_thrust_scale",
         # state
         "_t", "_t_err", "_p", "_v", "_q", "_w", "_om", "_om_dot",
         "_resting", "_held", "_touching", "_on_skids", "_sf_world", "_reading",
@@ -182,8 +182,11 @@ class Simulator:
         self.sensor_config = sensors if sensors is not None else SensorConfig()
         self.wind = wind
         self.home = home if home is not None else GeoPoint(0.0, 0.0, 0.0)
+        self._seed = seed
         self._sensors = SensorModel(self.sensor_config, seed)
         self._wind = _WindField(wind, seed) if wind is not None else None
+        #: Each rotor's thrust and drag torque as a fraction of a healthy one's.
+        self._thrust_scale = (1.0, 1.0, 1.0, 1.0)
         self._geo = GeodeticProjection(self.home)
         self._cache_constants(params)
         self._dt = -1.0
@@ -481,6 +484,7 @@ class Simulator:
         thrust = mx = my = mz = 0.0
         inflow, inflow_inv_m, stall = self._inflow, self._inflow_inv_m, self._stall_ratio
         om, om_dot = self._om, self._om_dot
+        scale = self._thrust_scale
         for i in range(4):
             rx, ry, s = self._rotors[i]
             o = om[i]
@@ -492,10 +496,12 @@ class Simulator:
                 t = 0.0 if t < 0.0 else (cap if t > cap else t)
             else:
                 t = kf * o * o
+            k = scale[i]
+            t *= k
             thrust += t
             mx -= ry * t
             my += rx * t
-            mz += s * (kq * o * o + ir * om_dot[i])
+            mz += s * (k * kq * o * o + ir * om_dot[i])
         # (The rotors' gyroscopic torque is not here: Euler's equations in _substep carry the
         # rotors' spin momentum in the body's angular momentum.)
         lin, quad = self._lin, self._quad
@@ -674,6 +680,36 @@ class Simulator:
 
     # ---- sensors ------------------------------------------------------------------------------
 
+    # ---- faults (scenarios change these mid-flight, between two steps) -------------------
+
+    @property
+    def motor_thrust(self) -> tuple[float, float, float, float]:
+        """Each rotor's thrust as a fraction of a healthy one's (Betaflight order M1..M4)."""
+        a, b, c, d = self._thrust_scale
+        return (a, b, c, d)
+
+    def set_motor_thrust(self, motor: int, fraction: float) -> None:
+        """Motor ``motor`` (1..4, Betaflight's numbering) gives ``fraction`` of its thrust and
+        drag torque at any speed: a damaged propeller or a weak motor."""
+        if motor not in (1, 2, 3, 4):
+            raise SimInputError(f"motor {motor} does not exist: a quad has motors 1 to 4")
+        if not (math.isfinite(fraction) and 0.0 <= fraction <= 1.0):
+            raise SimInputError(f"motor {motor}: thrust fraction {fraction} is outside 0..1")
+        scale = list(self._thrust_scale)
+        scale[motor - 1] = float(fraction)
+        self._thrust_scale = (scale[0], scale[1], scale[2], scale[3])
+
+    def set_wind(self, wind: Wind | None) -> None:
+        """The wind from now on (None: still air); gusts continue from the run's seed."""
+        self.wind = wind
+        self._wind = _WindField(wind, self._seed) if wind is not None else None
+
+    def set_sensors(self, config: SensorConfig) -> None:
+        """The sensor errors from now on (the noise generators go on where they were)."""
+        self.sensor_config = config
+        self._sensors.reconfigure(config, self._t)
+        self._reading = None
+
     def read_sensors(self) -> SensorReading:
         """What the IMU and barometer report now (the same object until the next step)."""
         reading = self._reading
@@ -682,7 +718,7 @@ class Simulator:
         q, p, v = self._q, self._p, self._v
         f = _rotate_inverse(q, self._sf_world)
         pressure = isa_pressure_pa(self.home.alt_m - p[2])
-        gyro, f, pressure = self._sensors.corrupt(self._w, f, pressure)
+        gyro, f, pressure = self._sensors.corrupt(self._w, f, pressure, self._t)
         # The GPS's error moves only its own fields: the truth (position_ned_m) stays true.
         dn, de, dvn, dve = self._sensors.gps_error(self._t)
         reading = SensorReading(

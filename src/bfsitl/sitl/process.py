@@ -22,7 +22,7 @@ import shutil
 import signal
 import tempfile
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Mapping
 from pathlib import Path
 
 from bfsitl.errors import (
@@ -95,6 +95,7 @@ class SitlProcess:
         ready_timeout_s: float = DEFAULT_READY_TIMEOUT_S,
         progress: Callable[[str], None] | None = None,
         timer_slack_ns: int | None = SITL_TIMER_SLACK_NS,
+        env: Mapping[str, str] | None = None,
     ) -> None:
         self.firmware = (
             firmware if isinstance(firmware, FirmwareBinary) else find_firmware(firmware)
@@ -108,6 +109,8 @@ class SitlProcess:
         self.ready_timeout_s = ready_timeout_s
         #: None leaves the OS default (50 us), which starves the SITL's scheduler.
         self.timer_slack_ns = timer_slack_ns
+        #: Variables added to the firmware's environment (None: it inherits bfsitl's).
+        self.env = dict(env) if env is not None else None
         self._progress = progress or (lambda _message: None)
         self._owns_network = network is None
         self._isolate = isolate
@@ -186,8 +189,9 @@ class SitlProcess:
         for attempt in range(1, _START_ATTEMPTS + 1):
             server_check = TcpServerCheck(log_path=self.log_path, log_offset=self._log_size(),
                                           netns_pid=self.network.netns_pid, port=SITL_MSP_PORT)
-            self._process = self.network.spawn(argv, self.workdir, self.log_path,
-                                               timer_slack_ns=self.timer_slack_ns)
+            self._process = self.network.spawn(
+                argv, self.workdir, self.log_path, timer_slack_ns=self.timer_slack_ns,
+                env={**os.environ, **self.env} if self.env is not None else None)
             self.launches += 1
             try:
                 if self.on_spawn is not None:

@@ -109,6 +109,10 @@ static uint64_t lockstepPaceOriginClockUs;
 static uint64_t lockstepPaceOriginWallUs;
 static uint64_t lockstepPacketsTaken;
 static double lockstepLastStampS;
+// Busy-poll time of each wait (LOCKSTEP_SPIN_US unless BFSITL_LOCKSTEP_SPIN_US says): a spin
+// is fastest when the run has cores to itself, and steals them from its neighbours when
+// several runs share the cores (bfsitl sets 0 there).
+static uint32_t lockstepSpinUs = LOCKSTEP_SPIN_US;
 
 static void lockstepInit(void)
 {
@@ -116,7 +120,12 @@ static void lockstepInit(void)
     dyad_init();
     dyad_setTickInterval(0.2f);
     dyad_setUpdateTimeout(0.0f);
-    printf("[LOCKSTEP] bfsitl lockstep build: FC time follows fdm packets (RC inside them)\n");
+    const char *spin = getenv("BFSITL_LOCKSTEP_SPIN_US");
+    if (spin != NULL && spin[0] != '\0') {
+        lockstepSpinUs = (uint32_t)strtoul(spin, NULL, 10);
+    }
+    printf("[LOCKSTEP] bfsitl lockstep build: FC time follows fdm packets (RC inside them), "
+           "spin %u us\n", (unsigned)lockstepSpinUs);
 }
 
 static uint64_t lockstepNowUs(void)
@@ -259,7 +268,7 @@ static void lockstepLoopEnd(void)
         if (lockstepClockUs >= lockstepTargetUs) {
             lockstepReply(lockstepLastStampS);
             // A stepping simulator answers within microseconds: poll briefly before sleeping.
-            while (!lockstepTake(LOCKSTEP_WAIT_POLL_US, LOCKSTEP_SPIN_US)) {
+            while (!lockstepTake(LOCKSTEP_WAIT_POLL_US, lockstepSpinUs)) {
                 // The simulator is silent: FC time stands still, and TCP waits for it too.
             }
         }

@@ -1,0 +1,138 @@
+"""``bfsitl scenario``: run scenario files as a regression suite, list them, list the faults."""
+
+from __future__ import annotations
+
+import argparse
+import sys
+import time
+from pathlib import Path
+
+from bfsitl.cli.target import progress
+
+EXIT_OK = 0
+EXIT_FAILED = 1
+EXIT_INTERRUPTED = 130
+DEFAULT_OUT = "scenario-runs"
+
+_MARK = {"passed": "PASS", "failed": "FAIL", "error": "ERROR", "skipped": "SKIP"}
+
+
+def add_scenario_parser(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]
+    scenario = sub.add_parser(
+        "scenario", help="run failsafe / fault scenarios as a regression suite",
+        description="Scenarios: a flight, faults at given times (RC loss, GPS loss, a weak "
+                    "motor, sensor errors, wind) and expectations checked on the simulated "
+                    "truth, the FC's telemetry and its own blackbox. See docs/scenarios.md.")
+    actions = scenario.add_subparsers(dest="scenario_action", metavar="ACTION", required=True)
+
+    run = actions.add_parser(
+        "run", help="fly scenario files and judge them",
+        description="Fly each scenario on each firmware, each in its own SITL and network "
+                    "namespace. Exit 0 when every run passed (or was skipped: a fault the "
+                    "firmware cannot express, a GPS scenario on a build without GPS), 1 "
+                    "otherwise.",
+        epilog="Example:\n  bfsitl scenario run scenarios/ --firmware master-lockstep "
+               "--firmware 4.6.0-gps-lockstep --jobs 2 --junit results.xml --report report/",
+        formatter_class=argparse.RawDescriptionHelpFormatter)
+    run.add_argument("paths", nargs="+", metavar="FILE_OR_DIR",
+                     help="scenario files (.toml), or directories of them")
+    run.add_argument("--firmware", action="append", default=[], metavar="NAME",
+                     help="a cached build's name or a SITL binary; repeat for several "
+                          "(default: the builds each file names)")
+    run.add_argument("--jobs", type=int, default=1, metavar="N",
+                     help="runs side by side, each in its own process (default 1; about one "
+                          "per core: a SITL wants most of one)")
+    run.add_argument("--ray", metavar="ADDRESS", dest="ray_address",
+                     help="run on a Ray cluster instead (e.g. 127.0.0.1:6379 from `ray start "
+                          "--head`; 'auto' finds a local one): one task per run, one CPU "
+                          "each; needs the ray extra")
+    run.add_argument("--junit", type=Path, metavar="FILE",
+                     help="write the results as JUnit XML (one suite per firmware)")
+    run.add_argument("--report", type=Path, metavar="DIR",
+                     help="write an HTML report (index.html, with the plots) into DIR")
+    run.add_argument("--out", type=Path, default=Path(DEFAULT_OUT), metavar="DIR",
+                     help=f"where each run's files go, DIR/FIRMWARE/SCENARIO/ (default "
+                          f"{DEFAULT_OUT}/): CSV, plot, result.json, blackbox, the SITL's "
+                          f"log and run directory")
+    run.add_argument("--speed", type=float, default=None, metavar="X",
+                     help="x real time (default: as fast as it goes on a lockstep build, real "
+                          "time on a stock one)")
+    run.add_argument("--no-plot", action="store_true", help="skip the plots (faster)")
+    run.set_defaults(func=cmd_scenario_run)
+
+    show = actions.add_parser("list", help="check scenario files and show what they do",
+                              description="Read and check scenario files without flying.")
+    show.add_argument("paths", nargs="+", metavar="FILE_OR_DIR")
+    show.set_defaults(func=cmd_scenario_list)
+
+    faults = actions.add_parser("faults", help="the fault catalog, and where each works",
+                                description="Print the fault kinds and their parameters.")
+    faults.set_defaults(func=cmd_scenario_faults)
+
+
+def cmd_scenario_run(args: argparse.Namespace) -> int:
+    from bfsitl.scenario.spec import find_scenarios
+    from bfsitl.scenario.suite import plan_runs, run_suite
+
+    scenarios = find_scenarios(args.paths)
+    runs = plan_runs(scenarios, args.firmware, args.out)
+    progress(f"{len(runs)} runs of {len(scenarios)} scenarios; files in {args.out}/")
+    started = time.monotonic()
+
+    def finished(result) -> None:  # type: ignore[no-untyped-def]
+        mark = _MARK[result.verdict.value]
+        print(f"{mark:5} {result.test_id}  {result.sim_time_s:6.1f} s simulated in "
+              f"{result.wall_time_s:5.1f} s  {result.reason}", flush=True)
+
+    suite = run_suite(runs, jobs=args.jobs, speed=args.speed, plot=not args.no_plot,
+                      progress=progress if args.jobs == 1 or args.ray_address else None,
+                      on_result=finished, ray_address=args.ray_address)
+    results, interrupted = suite.results, suite.interrupted
+    wall_s = time.monotonic() - started
+    _write_outputs(args, results)
+    counts = {v: sum(1 for r in results if r.verdict.value == v)
+              for v in ("passed", "failed", "error", "skipped")}
+    simulated = sum(r.sim_time_s for r in results)
+    print(f"{counts['passed']} passed, {counts['failed']} failed, {counts['error']} errors, "
+          f"{counts['skipped']} skipped; {simulated:.0f} s simulated in {wall_s:.0f} s "
+          f"({simulated / wall_s if wall_s > 0 else 0:.1f}x real time)")
+    if interrupted:
+        return EXIT_INTERRUPTED
+    return EXIT_OK if counts["failed"] == counts["error"] == 0 else EXIT_FAILED
+
+
+def _write_outputs(args: argparse.Namespace, results: list) -> None:  # type: ignore[type-arg]
+    if args.junit is not None:
+        from bfsitl.scenario.junit import write_junit
+
+        progress(f"JUnit XML: {write_junit(results, args.junit)}")
+    if args.report is not None:
+        from bfsitl.scenario.report import write_report
+
+        progress(f"report: {write_report(results, args.report)}")
+
+
+def cmd_scenario_list(args: argparse.Namespace) -> int:
+    from bfsitl.scenario.spec import find_scenarios
+
+    for scenario in find_scenarios(args.paths):
+        firmware = ", ".join(scenario.firmware) or "(give --firmware)"
+        print(f"{scenario.name}  [{scenario.where}]  {scenario.duration_s:g} s on {firmware}")
+        if scenario.description:
+            print("    " + " ".join(scenario.description.split()))
+        for spec in scenario.faults:
+            params = ", ".join(f"{k}={v!r}" for k, v in spec.params)
+            lasts = f" for {spec.duration_s:g} s" if spec.duration_s is not None else ""
+            print(f"    fault at {spec.at_s:g} s{lasts}: {spec.kind}"
+                  + (f" ({params})" if params else ""))
+        for key, value in scenario.expect:
+            print(f"    expect {key} = {value!r}")
+    return EXIT_OK
+
+
+def cmd_scenario_faults(_args: argparse.Namespace) -> int:
+    from bfsitl.scenario import faults
+
+    doc = faults.__doc__ or ""
+    print(doc.strip(), file=sys.stdout)
+    return EXIT_OK

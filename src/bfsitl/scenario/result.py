@@ -1,0 +1,84 @@
+"""What a scenario run produced: a verdict, the checks behind it, its files.
+
+These are plain records: the runner (:mod:`bfsitl.scenario.run`) fills them, the JUnit
+writer (:mod:`bfsitl.scenario.junit`) and the report page (:mod:`bfsitl.scenario.report`)
+read them, and they cross process boundaries (``--jobs``, Ray) by pickling.
+"""
+
+from __future__ import annotations
+
+import enum
+from dataclasses import dataclass, field
+from pathlib import Path
+
+
+class Verdict(enum.Enum):
+    """How a scenario ended."""
+
+    #: Flown to its end, every expectation met.
+    PASSED = "passed"
+    #: Flown to its end, at least one expectation not met.
+    FAILED = "failed"
+    #: It could not be flown as written (the SITL exited, a fault the firmware cannot take,
+    #: arming blocked, a bfsitl error): nothing was judged.
+    ERROR = "error"
+    #: Not run (the firmware asked for is not the one given, or a fault it cannot express).
+    SKIPPED = "skipped"
+
+
+@dataclass(frozen=True, slots=True)
+class CheckResult:
+    """One expectation, judged."""
+
+    #: The expectation as the scenario file wrote it, e.g. ``landed_within_m = 3.0``.
+    expectation: str
+    passed: bool
+    #: One line a person reads: what was expected, what was measured, and when.
+    message: str
+    #: The measured value (a number, a mode name, a phase name), None when nothing was seen.
+    measured: float | str | None = None
+    #: Simulation time of the measurement, seconds from the start of the run.
+    at_time_s: float | None = None
+
+
+@dataclass(frozen=True, slots=True)
+class TimedEvent:
+    """Something that happened during the run (a fault injected, a mode seen, a disarm)."""
+
+    time_s: float
+    text: str
+
+
+@dataclass(slots=True)
+class ScenarioResult:
+    """One scenario on one firmware."""
+
+    #: The scenario's name (its file's stem unless it names itself).
+    name: str
+    #: The firmware as asked for (a cached build's name or a path).
+    firmware: str
+    verdict: Verdict
+    #: One line: the first failed check, the error, or "all N expectations met".
+    reason: str
+    #: The scenario file, when it came from one.
+    source: Path | None = None
+    #: As the FC reported it (MSP_FC_VERSION); "" when it never answered.
+    firmware_version: str = ""
+    description: str = ""
+    checks: list[CheckResult] = field(default_factory=list)
+    events: list[TimedEvent] = field(default_factory=list)
+    #: Simulation seconds flown and wall seconds it took.
+    sim_time_s: float = 0.0
+    wall_time_s: float = 0.0
+    #: Files the run wrote, by kind: "log" (CSV), "plot" (PNG), "blackbox" (the FC's own
+    #: log), "sitl_log" (the firmware's stdout), "summary" (JSON).
+    artifacts: dict[str, Path] = field(default_factory=dict)
+
+    @property
+    def passed(self) -> bool:
+        return self.verdict is Verdict.PASSED
+
+    @property
+    def test_id(self) -> str:
+        """``name[firmware]``: unique within a run of several firmwares."""
+        return f"{self.name}[{self.firmware}]"

@@ -1,0 +1,347 @@
+"""Fly one scenario on one firmware: provision, fly, inject, watch, judge.
+
+The order of a run:
+
+1. the firmware is found and its profile read from the binary: a fault it cannot express,
+   or a GPS scenario on a build without GPS, is *skipped* with the reason before anything
+   starts;
+2. a session starts in its own run directory with the scenario's CLI lines, the FC's
+   blackbox on (``blackbox_device = VIRTUAL``) and ``debug_mode = FAILSAFE`` (the failsafe
+   phase is read live from MSP_DEBUG), plus the FAILSAFE switch on AUX3 if a fault uses it;
+3. bfsitl's autopilot flies the ``[flight]`` table; each control step the faults due are
+   injected (and those that ended undone) and a trace row is taken;
+4. once a fault takes the sticks away (RC lost), or the autopilot's flight ends (landed,
+   disarmed by the FC, crashed), the runner only watches, until ``duration_s`` or until the
+   FC is disarmed and the vehicle at rest for ``settle_s``;
+5. the session closes (the FC's blackbox file is complete), the blackbox is copied out and
+   decoded, the expectations are judged, and the plot and a JSON summary are written.
+
+Every way a run can end becomes a :class:`~bfsitl.scenario.result.ScenarioResult`; only
+Ctrl-C propagates (after the session has stopped).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import json
+import math
+import time
+from collections.abc import Callable
+from dataclasses import dataclass
+from pathlib import Path
+
+from bfsitl.control import DEFAULT_CONTROLLER, make_controller
+from bfsitl.errors import (
+    ArmingBlockedError,
+    BfsitlError,
+    CrashDetectedError,
+    FaultNotSupportedError,
+    MissionError,
+    MissionTimeoutError,
+    SticksTakenError,
+)
+from bfsitl.fc.firmware_detect import profile_of_binary
+from bfsitl.fc.provisioning import Profile
+from bfsitl.mission.flight_log import CsvFlightLog, FlightRow
+from bfsitl.mission.runner import Mission, fly_waypoint
+from bfsitl.mission.session import (
+    FLY_PROFILE,
+    FlightSession,
+    SessionConfig,
+    fly_sensors,
+    with_fast_serial,
+)
+from bfsitl.mission.vehicle import FlightSample
+from bfsitl.protocol import msp_messages as msg
+from bfsitl.protocol.boxes import BoxId
+from bfsitl.protocol.firmware_profile import FirmwareProfile, Generation
+from bfsitl.scenario.expectations import judge
+from bfsitl.scenario.faults import FAILSAFE_SWITCH_AUX_INDEX, Fault, make_faults
+from bfsitl.scenario.result import ScenarioResult, TimedEvent, Verdict
+from bfsitl.scenario.spec import Scenario
+from bfsitl.scenario.trace import Trace, TraceRow, phase_name
+from bfsitl.sitl.firmware import find_firmware
+
+#: debug[] index of the failsafe phase with ``debug_mode = FAILSAFE`` (flight/failsafe.c).
+FAILSAFE_PHASE_DEBUG_INDEX = 3
+#: The simulated quad's hover throttle, as a pilot sets it for theirs: the firmware's own
+#: altitude hold (a failsafe landing, GPS Rescue, ALTHOLD) starts from it.  Its default,
+#: 1275 us, is a light racer's; bfsitl's quad hovers at 1545 us (measured: the autopilot's
+#: mean throttle in a hold, 4.6.0 and master alike), and with the default the FC's failsafe
+#: landing fell 4 m at nearly free fall.
+HOVER_THROTTLE_LINE = "set ap_hover_throttle = 1545"
+#: A vehicle at rest: slower than this vertically.
+AT_REST_M_S = 0.05
+
+Progress = Callable[[str], None]
+
+
+def blackbox_cli(profile: FirmwareProfile) -> tuple[str, ...]:
+    """The FC's own log to a file in its run directory, one per armed flight.  4.6.0 runs its
+    PID loop at 8 kHz and master at 1 kHz: 1/16 and 1/4 give both a few hundred frames a
+    second, plenty to time a failsafe, and small files."""
+    rate = "1/16" if profile.generation is Generation.V4_6 else "1/4"
+    return ("set blackbox_device = VIRTUAL", "set blackbox_mode = NORMAL",
+            f"set blackbox_sample_rate = {rate}", "set debug_mode = FAILSAFE")
+
+
+def scenario_profile(scenario: Scenario, profile: FirmwareProfile,
+                     faults: tuple[Fault, ...]) -> Profile:
+    """What a run provisions: bfsitl's flight profile, the blackbox, the simulated quad's
+    hover throttle, the scenario's lines (last, so they win), and the failsafe switch when a
+    fault uses it."""
+    base = with_fast_serial(FLY_PROFILE)
+    ranges = base.mode_ranges
+    if any(fault.needs_failsafe_switch for fault in faults):
+        ranges = (*ranges, msg.ModeRange.from_us(BoxId.FAILSAFE, FAILSAFE_SWITCH_AUX_INDEX,
+                                                 1700, 2100))
+    return dataclasses.replace(base, mode_ranges=ranges, cli_lines=(
+        *base.cli_lines, *blackbox_cli(profile), HOVER_THROTTLE_LINE, *scenario.cli))
+
+
+@dataclass(frozen=True, slots=True)
+class RunOptions:
+    """How to run (not what: that is the scenario)."""
+
+    #: This run's directory: its CSV, plot, summary, blackbox and the SITL's run directory.
+    out_dir: Path
+    #: x real time; None: as fast as it goes on a lockstep build, real time otherwise.
+    speed: float | None = None
+    plot: bool = True
+    #: Other runs share this machine's cores: no busy-waiting in lockstep (see
+    #: SessionConfig.lockstep_spin).
+    shares_cores: bool = False
+
+
+class _Injector:
+    """Injects each fault when it is due and undoes it when it ends; keeps the trace."""
+
+    def __init__(self, session: FlightSession, faults: tuple[Fault, ...], trace: Trace,
+                 events: list[TimedEvent], progress: Progress) -> None:
+        self.session = session
+        self.pending = sorted(faults, key=lambda f: f.spec.at_s)
+        self.active: list[tuple[float, Fault, Callable[[FlightSession], None]]] = []
+        self.trace = trace
+        self.events = events
+        self.progress = progress
+        self.armed_at_s: float | None = None
+        self.sticks_taken = False
+        self.watching = False
+
+    def note(self, time_s: float, text: str) -> None:
+        self.events.append(TimedEvent(round(time_s, 3), text))
+        self.progress(f"t={time_s:6.2f} s  {text}")
+
+    def since_arming(self, sample: FlightSample) -> float:
+        return sample.time_s - (self.armed_at_s or 0.0)
+
+    def on_row(self, _row: FlightRow, sample: FlightSample) -> None:
+        if self.armed_at_s is None:
+            return
+        t = self.since_arming(sample)
+        for end_s, fault, undo in list(self.active):
+            if t >= end_s:
+                undo(self.session)
+                self.active.remove((end_s, fault, undo))
+                self.note(t, f"{fault.title}: over")
+        while self.pending and t >= self.pending[0].spec.at_s:
+            fault = self.pending.pop(0)
+            undo = fault.apply(self.session)
+            lasts = fault.spec.duration_s
+            self.active.append((t + lasts if lasts is not None else math.inf, fault, undo))
+            self.trace.fault_times_s.append(round(t, 4))
+            self.note(t, f"{fault.title}" + (f" for {lasts:g} s" if lasts is not None else ""))
+            if fault.takes_sticks:
+                self.sticks_taken = True
+        self.trace.rows.append(self._row(t, sample))
+        if self.sticks_taken and not self.watching:
+            raise SticksTakenError("a fault took the sticks")
+
+    def _row(self, t: float, sample: FlightSample) -> TraceRow:
+        try:
+            debug = self.session.client.get(msg.Debug).values
+            phase: int | None = debug[FAILSAFE_PHASE_DEBUG_INDEX] \
+                if len(debug) > FAILSAFE_PHASE_DEBUG_INDEX else None
+        except BfsitlError:
+            phase = None
+        rows = self.trace.rows
+        if phase is not None and (not rows or rows[-1].failsafe_phase != phase) and rows:
+            self.note(t, f"failsafe phase {phase_name(phase)}")
+        if rows and rows[-1].armed and not sample.armed:
+            self.note(t, "the FC disarmed" + (f" ({', '.join(sample.arming_blockers)})"
+                                              if sample.arming_blockers else ""))
+        if rows:
+            new_modes = set(sample.flight_modes) - set(rows[-1].modes)
+            if new_modes:
+                self.note(t, f"flight mode {', '.join(sorted(new_modes))} on")
+        return TraceRow(round(t, 4), sample.sim_alt_m, sample.sim_north_m, sample.sim_east_m,
+                        sample.sim_climb_m_s, sample.sim_tilt_deg, sample.on_ground,
+                        sample.armed, sample.flight_modes, sample.arming_blockers, phase)
+
+
+def run_scenario(scenario: Scenario, firmware: str, options: RunOptions, *,
+                 progress: Progress | None = None) -> ScenarioResult:
+    """Fly ``scenario`` on ``firmware`` (a cached build's name or a path); never raises for
+    a failed flight (only for Ctrl-C)."""
+    say = progress or (lambda _line: None)
+    started = time.monotonic()
+    result = ScenarioResult(scenario.name, firmware, Verdict.ERROR, "", source=scenario.source,
+                            description=scenario.description)
+    out = options.out_dir
+    try:
+        out.mkdir(parents=True, exist_ok=True)
+        binary = find_firmware(firmware)
+        profile = profile_of_binary(binary.path)
+        result.firmware_version = profile.firmware_version
+        if scenario.requires_gps and not profile.has_gps:
+            result.verdict = Verdict.SKIPPED
+            result.reason = (f"needs a firmware with GPS; {firmware} has none (`bfsitl "
+                             f"firmware build --gps`)")
+            return result
+        faults = make_faults(scenario, profile)
+        _fly(scenario, binary.path, profile, faults, options, result, say)
+    except FaultNotSupportedError as exc:
+        result.verdict, result.reason = Verdict.SKIPPED, str(exc)
+    except BfsitlError as exc:
+        result.verdict, result.reason = Verdict.ERROR, str(exc).splitlines()[0]
+    finally:
+        result.wall_time_s = round(time.monotonic() - started, 3)
+        _write_summary(result, out)
+    return result
+
+
+def _fly(scenario: Scenario, binary: Path, profile: FirmwareProfile, faults: tuple[Fault, ...],
+         options: RunOptions, result: ScenarioResult, say: Progress) -> None:
+    out = options.out_dir
+    trace = Trace()
+    config = SessionConfig(firmware=binary, workdir=out / "sitl",
+                           profile=scenario_profile(scenario, profile, faults), wind=scenario.wind,
+                           seed=scenario.seed, sensors=fly_sensors(), speed=options.speed,
+                           lockstep_spin=not options.shares_cores)
+    log = CsvFlightLog(out / "flight.csv")
+    result.artifacts["log"] = out / "flight.csv"
+    session = FlightSession(config, progress=lambda line: say(f"[sitl] {line}"))
+    injector = _Injector(session, faults, trace, result.events, say)
+    try:
+        with session:
+            result.firmware_version = (session.firmware.firmware_version
+                                       if session.firmware else result.firmware_version)
+            if session.sitl is not None:
+                result.artifacts["sitl_log"] = session.sitl.log_path
+            mission = Mission(session, make_controller(DEFAULT_CONTROLLER),
+                              rate_hz=session.control_rate_hz, log=log,
+                              on_row=injector.on_row)
+            try:
+                mission.arm()
+            except ArmingBlockedError as exc:
+                result.verdict, result.reason = Verdict.ERROR, str(exc)
+                return
+            injector.armed_at_s = session.time_s
+            injector.note(0.0, "armed")
+            _autopilot_flight(scenario, mission, injector, trace)
+            injector.watching = True
+            _watch(scenario, mission, injector)
+    finally:
+        log.close()
+    result.sim_time_s = round(trace.end_s, 3)
+    _collect_blackbox(out, trace, result)
+    checks = judge(scenario, trace, profile.generation.value)
+    result.checks = checks
+    failed = [c for c in checks if not c.passed]
+    result.verdict = Verdict.FAILED if failed else Verdict.PASSED
+    result.reason = failed[0].message if failed else f"all {len(checks)} expectations met"
+    if options.plot and trace.rows:
+        from bfsitl.scenario.plot import write_scenario_plot
+
+        result.artifacts["plot"] = write_scenario_plot(
+            trace, out / "plot.png", title=f"{scenario.name} on {result.firmware}")
+
+
+def _autopilot_flight(scenario: Scenario, mission: Mission, injector: _Injector,
+                      trace: Trace) -> None:
+    """The ``[flight]`` table flown until it ends, a fault takes the sticks, or it fails."""
+    plan = scenario.plan
+    session = mission.session
+    t = lambda: session.time_s - (injector.armed_at_s or 0.0)  # noqa: E731
+    try:
+        if plan.ground_s > 0:
+            mission.wait_on_ground(plan.ground_s)
+        position = plan.needs_position or (plan.hold_position and session.has_gps)
+        mission.takeoff(plan.target_alt_m, timeout_s=plan.takeoff_timeout_s,
+                        hold_position=position)
+        trace.takeoff_done_s = round(t(), 3)
+        if plan.hold_s > 0:
+            remaining = min(plan.hold_s, max(0.0, scenario.duration_s - t()))
+            if position:
+                mission.hold_position(remaining)
+            else:
+                mission.hold(remaining)
+        for number, waypoint in enumerate(plan.waypoints, start=1):
+            fly_waypoint(mission, waypoint, number, plan.speed_m_s)
+        if plan.land:
+            mission.land(timeout_s=plan.land_timeout_s)
+            injector.note(t(), "the autopilot landed")
+    except SticksTakenError:
+        injector.note(t(), "the sticks are the FC's now: watching")
+    except CrashDetectedError as exc:
+        trace.crash = (round(t(), 3), str(exc))
+        injector.note(t(), f"crash: {exc}")
+    except MissionTimeoutError as exc:
+        injector.note(t(), f"the autopilot gave up: {exc}")
+    except MissionError as exc:
+        injector.note(t(), f"the autopilot stopped: {exc}")
+
+
+def _watch(scenario: Scenario, mission: Mission, injector: _Injector) -> None:
+    """Record until ``duration_s``, or until disarmed and at rest for ``settle_s``."""
+    session = mission.session
+    resting_since: list[float] = []
+
+    def done(sample: FlightSample) -> bool:
+        t = injector.since_arming(sample)
+        if t >= scenario.duration_s:
+            return True
+        if sample.armed or not sample.on_ground or abs(sample.sim_climb_m_s) > AT_REST_M_S:
+            resting_since.clear()
+            return False
+        if not resting_since:
+            resting_since.append(t)
+        return t - resting_since[0] >= scenario.settle_s
+
+    left_s = scenario.duration_s - (session.time_s - (injector.armed_at_s or 0.0))
+    if left_s > 0:
+        mission.observe(done, timeout_s=left_s + 1.0, phase="watch")
+
+
+def _collect_blackbox(out: Path, trace: Trace, result: ScenarioResult) -> None:
+    """The FC's own log(s) copied out of the SITL's run directory and decoded; a log that
+    cannot be read is an event, not a failed run (an expectation on it says so)."""
+    from bfsitl.blackbox import collect_blackbox, decode_blackbox
+
+    copies = collect_blackbox(out / "sitl", out / "blackbox")
+    for index, path in enumerate(copies):
+        result.artifacts["blackbox" if index == 0 else f"blackbox{index + 1}"] = path
+        try:
+            trace.blackbox.extend(decode_blackbox(path))
+        except BfsitlError as exc:
+            result.events.append(TimedEvent(trace.end_s, f"blackbox {path.name}: {exc}"))
+
+
+def _write_summary(result: ScenarioResult, out: Path) -> None:
+    if not out.is_dir():
+        return
+    data = {
+        "name": result.name, "firmware": result.firmware,
+        "firmware_version": result.firmware_version, "verdict": result.verdict.value,
+        "reason": result.reason, "sim_time_s": result.sim_time_s,
+        "wall_time_s": result.wall_time_s,
+        "checks": [{"expectation": c.expectation, "passed": c.passed, "message": c.message,
+                    "measured": c.measured, "at_time_s": c.at_time_s} for c in result.checks],
+        "events": [{"time_s": e.time_s, "text": e.text} for e in result.events],
+        "artifacts": {k: str(v) for k, v in result.artifacts.items()},
+    }
+    path = out / "result.json"
+    temporary = path.with_suffix(".json.tmp")
+    temporary.write_text(json.dumps(data, indent=2) + "\n")
+    temporary.replace(path)
+    result.artifacts["summary"] = path

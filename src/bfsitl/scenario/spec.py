@@ -1,0 +1,239 @@
+"""A scenario file: what to provision, how to fly, which faults when, what must hold.
+
+    description = "RC lost in a hover: DROP disarms after failsafe_delay"
+    firmware = ["master-lockstep", "4.6.0-gps-lockstep"]   # default builds to run on
+    duration_s = 20          # simulation seconds from arming; the run ends then at the latest
+    seed = 1                 # disturbances (gusts, sensor noise) repeat with the seed
+    cli = ["set failsafe_procedure = DROP"]   # provisioned before the flight
+
+    [wind]                   # optional: north/east m/s (the air's motion), gusts
+    north_m_s = 2.0
+    gust_std_m_s = 0.5
+
+    [flight]                 # what bfsitl's autopilot flies: a mission table (docs/missions.md)
+    takeoff_alt_m = 3.0
+    hold_s = 30.0
+    land = false
+
+    [[fault]]                # at_s after arming; see bfsitl.scenario.faults for the kinds
+    at_s = 8.0
+    kind = "rc_loss"
+
+    [expect]                 # see bfsitl.scenario.expectations for the keys
+    disarmed_within_s = 2.5
+    failsafe_phase = "LANDED"
+
+Everything is checked when the file is read, so a typo fails before any SITL starts, with
+the file, the table and the key in the message.
+"""
+
+from __future__ import annotations
+
+import math
+import tomllib
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+from bfsitl.errors import MissionError, ScenarioError
+from bfsitl.mission.plan import MissionPlan, plan_from_dict
+from bfsitl.sim.params import Wind
+
+#: A scenario's file name pattern inside a directory.
+SCENARIO_GLOB = "*.toml"
+MAX_DURATION_S = 3600.0
+DEFAULT_SETTLE_S = 2.0
+
+_TOP_KEYS = {"name", "description", "firmware", "requires_gps", "duration_s", "settle_s",
+             "seed", "cli", "wind", "flight", "fault", "expect"}
+_WIND_KEYS = {"north_m_s", "east_m_s", "down_m_s", "gust_std_m_s", "gust_time_constant_s"}
+
+
+@dataclass(frozen=True, slots=True)
+class FaultSpec:
+    """One ``[[fault]]`` table: its kind, when, for how long, and its own parameters (checked
+    by the fault catalog, :func:`bfsitl.scenario.faults.make_fault`)."""
+
+    kind: str
+    at_s: float
+    #: None: it lasts to the end of the run.
+    duration_s: float | None
+    params: tuple[tuple[str, Any], ...]
+    #: "fault 2" in messages.
+    label: str
+
+    def param(self, key: str, default: Any = None) -> Any:
+        return dict(self.params).get(key, default)
+
+
+@dataclass(frozen=True, slots=True)
+class Scenario:
+    """A scenario as read from its file (or built in Python)."""
+
+    name: str
+    plan: MissionPlan
+    duration_s: float
+    faults: tuple[FaultSpec, ...] = ()
+    #: ``[expect]`` as written: key -> value (checked by :mod:`bfsitl.scenario.expectations`).
+    expect: tuple[tuple[str, Any], ...] = ()
+    description: str = ""
+    cli: tuple[str, ...] = ()
+    wind: Wind | None = None
+    seed: int = 0
+    #: Builds to run on when the command line names none.
+    firmware: tuple[str, ...] = ()
+    #: Only firmware with a GPS can fly it (a GPS Rescue); others skip it.
+    requires_gps: bool = False
+    #: The run ends early once the FC is disarmed and the vehicle at rest this long.
+    settle_s: float = DEFAULT_SETTLE_S
+    source: Path | None = None
+
+    @property
+    def where(self) -> str:
+        return str(self.source) if self.source is not None else f"scenario {self.name}"
+
+
+def _number(where: str, key: str, value: Any, low: float, high: float) -> float:
+    if isinstance(value, bool) or not isinstance(value, (int, float)) \
+            or not math.isfinite(value) or not low <= value <= high:
+        raise ScenarioError(f"{where}: {key} = {value!r} must be a number in {low:g}..{high:g}")
+    return float(value)
+
+
+def _strings(where: str, key: str, value: Any) -> tuple[str, ...]:
+    if isinstance(value, str):
+        value = [value]
+    if not isinstance(value, list) or not all(isinstance(v, str) for v in value):
+        raise ScenarioError(f"{where}: {key} must be a string or a list of strings, "
+                            f"got {value!r}")
+    return tuple(value)
+
+
+def _wind(where: str, raw: Any) -> Wind:
+    if not isinstance(raw, dict):
+        raise ScenarioError(f"{where}: [wind] must be a table")
+    unknown = set(raw) - _WIND_KEYS
+    if unknown:
+        raise ScenarioError(f"{where}: [wind] has unknown key(s) {', '.join(sorted(unknown))}; "
+                            f"known: {', '.join(sorted(_WIND_KEYS))}")
+    values = {k: _number(where, f"wind.{k}", v, -50.0, 50.0) for k, v in raw.items()}
+    if values.get("gust_std_m_s", 0.0) < 0:
+        raise ScenarioError(f"{where}: wind.gust_std_m_s must be >= 0")
+    return Wind((values.get("north_m_s", 0.0), values.get("east_m_s", 0.0),
+                 values.get("down_m_s", 0.0)), values.get("gust_std_m_s", 0.0),
+                values.get("gust_time_constant_s", 2.0))
+
+
+def _fault(where: str, number: int, raw: Any, duration_s: float) -> FaultSpec:
+    label = f"fault {number}"
+    if not isinstance(raw, dict):
+        raise ScenarioError(f"{where}, {label}: faults are written as [[fault]] tables")
+    for key in ("kind", "at_s"):
+        if key not in raw:
+            raise ScenarioError(f"{where}, {label}: {key} is missing")
+    kind = raw["kind"]
+    if not isinstance(kind, str):
+        raise ScenarioError(f"{where}, {label}: kind must be a string, got {kind!r}")
+    at_s = _number(where, f"{label} at_s", raw["at_s"], 0.0, duration_s)
+    lasts = raw.get("duration_s")
+    if lasts is not None:
+        lasts = _number(where, f"{label} duration_s", lasts, 0.0, MAX_DURATION_S)
+    params = tuple(sorted((k, v) for k, v in raw.items()
+                          if k not in ("kind", "at_s", "duration_s")))
+    return FaultSpec(kind, at_s, lasts, params, label)
+
+
+def scenario_from_dict(data: dict[str, Any], *, name: str, source: Path | None = None
+                       ) -> Scenario:
+    """A scenario from a file's tables; ``name`` is used unless the file names itself."""
+    where = str(source) if source is not None else f"scenario {name}"
+    unknown = set(data) - _TOP_KEYS
+    if unknown:
+        raise ScenarioError(f"{where}: unknown key(s) {', '.join(sorted(unknown))}; known: "
+                            f"{', '.join(sorted(_TOP_KEYS))}")
+    for key in ("duration_s", "flight"):
+        if key not in data:
+            raise ScenarioError(f"{where}: {key} is missing"
+                                + (" (simulation seconds from arming)" if key == "duration_s"
+                                   else " ([flight] says what the autopilot flies)"))
+    duration_s = _number(where, "duration_s", data["duration_s"], 1.0, MAX_DURATION_S)
+    if not isinstance(data["flight"], dict):
+        raise ScenarioError(f"{where}: [flight] must be a table")
+    try:
+        plan = plan_from_dict(data["flight"], source=f"{where}, [flight]")
+    except MissionError as exc:
+        raise ScenarioError(str(exc)) from None
+    raw_faults = data.get("fault", [])
+    if not isinstance(raw_faults, list):
+        raise ScenarioError(f"{where}: faults are written as [[fault]] tables")
+    faults = tuple(_fault(where, n, raw, duration_s) for n, raw in enumerate(raw_faults, 1))
+    expect = data.get("expect", {})
+    if not isinstance(expect, dict) or not expect:
+        raise ScenarioError(f"{where}: [expect] is missing or empty: a scenario must say what "
+                            f"has to hold (see docs/scenarios.md)")
+    own_name = data.get("name", name)
+    if not isinstance(own_name, str) or not own_name.strip():
+        raise ScenarioError(f"{where}: name must be a non-empty string")
+    description = data.get("description", "")
+    if not isinstance(description, str):
+        raise ScenarioError(f"{where}: description must be a string")
+    seed = data.get("seed", 0)
+    if isinstance(seed, bool) or not isinstance(seed, int):
+        raise ScenarioError(f"{where}: seed must be an integer, got {seed!r}")
+    requires_gps = data.get("requires_gps", plan.needs_position)
+    if not isinstance(requires_gps, bool):
+        raise ScenarioError(f"{where}: requires_gps must be true or false")
+    return Scenario(
+        name=own_name.strip(), plan=plan, duration_s=duration_s, faults=faults,
+        expect=tuple(expect.items()), description=description,
+        cli=_strings(where, "cli", data.get("cli", [])),
+        wind=_wind(where, data["wind"]) if "wind" in data else None, seed=seed,
+        firmware=_strings(where, "firmware", data.get("firmware", [])),
+        requires_gps=requires_gps,
+        settle_s=_number(where, "settle_s", data.get("settle_s", DEFAULT_SETTLE_S), 0.0, 60.0),
+        source=source)
+
+
+def load_scenario(path: str | Path) -> Scenario:
+    """Read one scenario file, checked, faults and expectations included."""
+    from bfsitl.scenario.expectations import check_expectations
+    from bfsitl.scenario.faults import check_faults
+
+    path = Path(path)
+    try:
+        text = path.read_text()
+    except OSError as exc:
+        raise ScenarioError(f"cannot read the scenario file {path}: {exc.strerror or exc}") \
+            from exc
+    try:
+        data = tomllib.loads(text)
+    except tomllib.TOMLDecodeError as exc:
+        raise ScenarioError(f"{path} is not valid TOML: {exc}") from exc
+    scenario = scenario_from_dict(data, name=path.stem, source=path)
+    check_faults(scenario)
+    check_expectations(scenario)
+    return scenario
+
+
+def find_scenarios(paths: list[str | Path]) -> list[Scenario]:
+    """Every scenario named: files as they are, directories by their ``*.toml`` files (sorted;
+    not recursive).  Two scenarios with one name are refused (their reports would clash)."""
+    scenarios: list[Scenario] = []
+    for given in paths:
+        path = Path(given)
+        if path.is_dir():
+            files = sorted(path.glob(SCENARIO_GLOB))
+            if not files:
+                raise ScenarioError(f"{path} holds no scenario files ({SCENARIO_GLOB})")
+        elif path.is_file():
+            files = [path]
+        else:
+            raise ScenarioError(f"{path}: no such scenario file or directory")
+        scenarios.extend(load_scenario(f) for f in files)
+    seen: dict[str, Scenario] = {}
+    for scenario in scenarios:
+        if scenario.name in seen:
+            raise ScenarioError(f"two scenarios are named {scenario.name!r}: "
+                                f"{seen[scenario.name].where} and {scenario.where}")
+        seen[scenario.name] = scenario
+    return scenarios

@@ -1,0 +1,75 @@
+"""What a scenario run saw, step by step: the truth next to what the FC reported.
+
+One :class:`TraceRow` per control step (and per observation step once a fault has taken the
+sticks), times in simulation seconds from arming.  Expectations are judged on it.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+from typing import TYPE_CHECKING
+
+if TYPE_CHECKING:
+    from bfsitl.blackbox import BlackboxLog
+
+#: Betaflight's failsafe phases (``failsafePhase_e``, flight/failsafe.h); 7 is master's.
+FAILSAFE_PHASES = ("IDLE", "RX_LOSS_DETECTED", "LANDING", "LANDED", "RX_LOSS_MONITORING",
+                   "RX_LOSS_RECOVERED", "GPS_RESCUE", "AUTOPILOT")
+
+
+def phase_name(phase: int | None) -> str:
+    if phase is None:
+        return "unknown"
+    return FAILSAFE_PHASES[phase] if 0 <= phase < len(FAILSAFE_PHASES) else f"phase {phase}"
+
+
+@dataclass(frozen=True, slots=True)
+class TraceRow:
+    """One look at the run."""
+
+    time_s: float               # simulation seconds from arming
+    alt_m: float                # true height above the take-off point
+    north_m: float              # true position from the take-off point
+    east_m: float
+    climb_m_s: float            # true vertical speed, up positive
+    tilt_deg: float             # true angle from level
+    on_ground: bool
+    armed: bool                 # as the FC reports it
+    modes: tuple[str, ...]      # the FC's flight modes (MSP_STATUS_EX)
+    blockers: tuple[str, ...]   # its arming-disable flags (RXLOSS, FAILSAFE, ...)
+    #: debug[3] with ``debug_mode = FAILSAFE`` (the runner provisions it); None if unread.
+    failsafe_phase: int | None = None
+
+    @property
+    def distance_m(self) -> float:
+        """Horizontal distance from the take-off point."""
+        return math.hypot(self.north_m, self.east_m)
+
+
+@dataclass(slots=True)
+class Trace:
+    """A run's rows, and the moments that give them meaning."""
+
+    rows: list[TraceRow] = field(default_factory=list)
+    #: When each fault was injected (seconds from arming), in order.
+    fault_times_s: list[float] = field(default_factory=list)
+    #: When the autopilot reached the take-off altitude (None: never).
+    takeoff_done_s: float | None = None
+    #: Why bfsitl's own crash detection fired, and when (None: it did not).
+    crash: tuple[float, str] | None = None
+    #: The FC's own logs of the flight (empty when none was written or decoded).
+    blackbox: list[BlackboxLog] = field(default_factory=list)
+
+    @property
+    def first_fault_s(self) -> float | None:
+        return self.fault_times_s[0] if self.fault_times_s else None
+
+    @property
+    def end_s(self) -> float:
+        return self.rows[-1].time_s if self.rows else 0.0
+
+    def window(self, from_s: float | None, until_s: float | None) -> list[TraceRow]:
+        low = -math.inf if from_s is None else from_s
+        high = math.inf if until_s is None else until_s
+        return [row for row in self.rows if low <= row.time_s <= high]

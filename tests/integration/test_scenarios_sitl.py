@@ -1,0 +1,198 @@
+"""Scenarios against the real firmware: the shipped library on both generations, a wrong
+expectation through the pytest plugin, and faults reaching the FC where they should.
+
+The library run is the product's own path: ``bfsitl scenario run`` with two jobs, its JUnit
+XML read back by ``junitparser`` (a parser from the registry, not ours), its report page and
+each run's blackbox.  Speed is ``benchmarks/scenarios.py``'s business.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import os
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+from junitparser import Failure, JUnitXml, Skipped
+
+from bfsitl.autopilot import Autopilot
+from bfsitl.build import FirmwareCache
+from bfsitl.fc.rc_link import RcFault
+from bfsitl.mission.session import FLY_PROFILE, FlightSession, SessionConfig, with_fast_serial
+from bfsitl.scenario.spec import find_scenarios
+
+pytestmark = pytest.mark.sitl
+
+REPO = Path(__file__).resolve().parents[2]
+LIBRARY = REPO / "scenarios"
+WRONG = REPO / "tests" / "data" / "scenarios" / "wrong-expectation.toml"
+BUILDS = ("master-lockstep", "4.6.0-gps-lockstep")
+
+
+def env_for(cache: FirmwareCache) -> dict[str, str]:
+    env = {**os.environ, "BFSITL_CACHE_DIR": str(cache.root)}
+    env.pop("BFSITL_FIRMWARE", None)
+    return env
+
+
+@pytest.mark.timeout(1500)
+def test_the_shipped_library_passes_on_both_firmwares(
+        lockstep_master_firmware: Path, lockstep_gps_46_firmware: Path,
+        firmware_build_cache: FirmwareCache, tmp_path: Path) -> None:
+    junit, report, out = tmp_path / "results.xml", tmp_path / "report", tmp_path / "runs"
+    run = subprocess.run(
+        [sys.executable, "-m", "bfsitl.cli.main", "scenario", "run", str(LIBRARY),
+         "--jobs", "2", "--junit", str(junit), "--report", str(report), "--out", str(out)],
+        capture_output=True, text=True, timeout=1400, cwd=tmp_path,
+        env=env_for(firmware_build_cache))
+    assert run.returncode == 0, run.stdout + run.stderr[-3000:]
+    names = {s.name for s in find_scenarios([LIBRARY])}
+
+    xml = JUnitXml.fromfile(str(junit))
+    suites = {suite.name: suite for suite in xml}
+    assert len(suites) == 2
+    skipped: list[str] = []
+    for build in BUILDS:
+        suite = next(s for name, s in suites.items() if build in name)
+        cases = list(suite)
+        assert {case.name for case in cases} == names
+        assert suite.failures == 0 and suite.errors == 0
+        for case in cases:
+            assert not any(isinstance(r, Failure) for r in case.result)
+            if any(isinstance(r, Skipped) for r in case.result):
+                skipped.append(f"{case.name}[{build}]")
+    # Only what the firmware cannot express is skipped: GPS loss on 4.6.0.
+    assert skipped == ["gps-loss-during-rescue[4.6.0-gps-lockstep]"]
+
+    index = (report / "index.html").read_text()
+    assert all(name in index for name in names)
+    # The FC's own log: written, collected and decoded for every flown run; a drop's
+    # disarm reason read from it.
+    for build in BUILDS:
+        for name in names - {"gps-loss-during-rescue"} if build.startswith("4.6") else names:
+            logs = list((out / build / name / "blackbox").glob("LOG*"))
+            assert logs, f"no blackbox for {name}[{build}]"
+    assert "blackbox_disarm_reason = 'FAILSAFE'" in (
+        out / "master-lockstep" / "rc-loss-hover-drop" / "result.json").read_text()
+
+
+@pytest.mark.timeout(300)
+def test_a_wrong_expectation_fails_naming_the_value_and_the_time_and_python_tests_fly(
+        lockstep_master_firmware: Path, firmware_build_cache: FirmwareCache,
+        tmp_path: Path) -> None:
+    (tmp_path / "test_weak_motor.py").write_text(
+        "from bfsitl import Autopilot\n"
+        "def test_a_weak_motor_holds(bfsitl_vehicle):\n"
+        "    pilot = Autopilot(bfsitl_vehicle)\n"
+        "    pilot.takeoff(2.0)\n"
+        "    bfsitl_vehicle.truth.set_motor_thrust(3, 0.8)\n"
+        "    pilot.hold(3.0)\n"
+        "    assert abs(bfsitl_vehicle.sample().sim_alt_m - 2.0) < 0.5\n")
+    (tmp_path / "wrong-expectation.toml").write_text(WRONG.read_text())
+    run = subprocess.run(
+        [sys.executable, "-m", "pytest", "-p", "bfsitl.pytest_plugin", "-p", "no:cacheprovider",
+         "--bfsitl-firmware", "master-lockstep", "--bfsitl-out", str(tmp_path / "runs"),
+         "-q", "--rootdir", str(tmp_path), str(tmp_path)],
+        capture_output=True, text=True, timeout=280, cwd=tmp_path,
+        env=env_for(firmware_build_cache))
+    output = run.stdout
+    assert run.returncode == 1, output + run.stderr
+    assert "1 failed, 1 passed" in output
+    assert "PASS disarmed = true" in output
+    line = next(x for x in output.splitlines() if "FAIL disarmed_within_s = 0.2" in x)
+    # The expectation, the measured value, the time.
+    assert "disarmed 0.5" in line and "after the fault (expected within 0.2 s) at t=6.5" in line
+
+
+@pytest.mark.parametrize("build", BUILDS)
+@pytest.mark.timeout(240)
+def test_faults_reach_the_fc_where_they_should(
+        build: str, lockstep_master_firmware: Path, lockstep_gps_46_firmware: Path,
+        tmp_path: Path) -> None:
+    """A weak motor is made up for by that motor (right motor order under a fault); a GPS
+    glitch moves the FC's GPS and not the truth (right axis and sign); RC silence is a lost
+    link on master and nothing on 4.6.0."""
+    firmware = lockstep_master_firmware if build.startswith("master") \
+        else lockstep_gps_46_firmware
+    config = SessionConfig(firmware=firmware, workdir=tmp_path / "sitl",
+                           profile=with_fast_serial(FLY_PROFILE))
+    with FlightSession(config) as vehicle:
+        pilot = Autopilot(vehicle)
+        pilot.takeoff(3.0)
+        pilot.hold(2.0)
+        before = vehicle.sample().motors
+        vehicle.truth.set_motor_thrust(3, 0.7)   # rear left
+        pilot.hold(3.0)
+        after = vehicle.sample()
+        # The FC commands motor 3 up to make up its lost thrust: the others stay near hover.
+        assert after.motors[2] > max(after.motors[0], after.motors[1], after.motors[3]) + 0.05
+        assert after.motors[2] > before[2] + 0.05
+        assert abs(after.sim_alt_m - 3.0) < 0.5 and after.sim_tilt_deg < 15
+
+        vehicle.truth.set_motor_thrust(3, 1.0)
+        gps_before, truth_before = vehicle.gps_position(), vehicle.sample()
+        sensors = vehicle.truth.sensor_config
+        vehicle.truth.set_sensors(dataclasses.replace(sensors, gps_offset_ne_m=(6.0, -4.0)))
+        vehicle.clock.sleep_s(0.5)
+        gps_after, truth_after = vehicle.gps_position(), vehicle.sample()
+        moved = (gps_after.north_m - gps_before.north_m) - (truth_after.sim_north_m
+                                                             - truth_before.sim_north_m)
+        moved_east = (gps_after.east_m - gps_before.east_m) - (truth_after.sim_east_m
+                                                               - truth_before.sim_east_m)
+        assert moved == pytest.approx(6.0, abs=0.5) and moved_east == pytest.approx(-4.0,
+                                                                                     abs=0.5)
+        vehicle.truth.set_sensors(sensors)
+
+        assert vehicle.rc is not None
+        vehicle.rc.fault = RcFault(silent=True)
+        vehicle.clock.sleep_s(0.3)
+        blockers = {b.cli_name for b in vehicle.client.status().arming_blockers}
+        if build.startswith("master"):
+            assert "RXLOSS" in blockers
+        else:
+            assert "RXLOSS" not in blockers  # 4.6.0 holds the last sticks
+            assert vehicle.client.status().armed
+        vehicle.rc.fault = None
+
+
+@pytest.fixture
+def ray_cluster(tmp_path: Path):  # type: ignore[no-untyped-def]
+    """A local Ray head (2 CPUs, a small object store) for one test; stopped afterwards."""
+    pytest.importorskip("ray")
+    ray_cli = [sys.executable, "-m", "ray.scripts.scripts"]
+    started = subprocess.run(
+        [*ray_cli, "start", "--head", "--port=0", "--num-cpus=2", "--include-dashboard=false",
+         "--disable-usage-stats", "--object-store-memory=100000000"],
+        capture_output=True, text=True, timeout=120, cwd=tmp_path)
+    output = started.stdout + started.stderr
+    assert started.returncode == 0, output
+    address = next(line.split("--address=")[1].strip().strip("'\"")
+                   for line in output.splitlines() if "--address=" in line)
+    try:
+        yield address
+    finally:
+        subprocess.run([*ray_cli, "stop", "--force"], capture_output=True, timeout=120)
+
+
+@pytest.mark.timeout(600)
+def test_runs_go_to_a_local_ray_cluster_and_come_back_as_one_junit_file(
+        lockstep_master_firmware: Path, lockstep_gps_46_firmware: Path,
+        firmware_build_cache: FirmwareCache, ray_cluster: str, tmp_path: Path) -> None:
+    junit = tmp_path / "ray.xml"
+    run = subprocess.run(
+        [sys.executable, "-m", "bfsitl.cli.main", "scenario", "run",
+         str(LIBRARY / "rc-loss-hover-drop.toml"), str(WRONG), "--firmware", BUILDS[0],
+         "--firmware", BUILDS[1], "--ray", ray_cluster, "--junit", str(junit),
+         "--out", str(tmp_path / "runs")],
+        capture_output=True, text=True, timeout=500, cwd=tmp_path,
+        env=env_for(firmware_build_cache))
+    assert run.returncode == 1, run.stdout + run.stderr[-3000:]  # the wrong one fails
+    assert "4 runs on the Ray cluster" in run.stderr
+    xml = JUnitXml.fromfile(str(junit))
+    cases = {(suite.name, case.name): case for suite in xml for case in suite}
+    assert len(cases) == 4
+    for (suite, name), case in cases.items():
+        failed = any(isinstance(r, Failure) for r in case.result)
+        assert failed == (name == "wrong-expectation"), (suite, name)

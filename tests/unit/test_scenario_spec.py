@@ -1,0 +1,159 @@
+"""Scenario files (checked before anything flies) and expectations judged on traces."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import pytest
+
+from bfsitl.errors import ScenarioError
+from bfsitl.scenario.expectations import crash_of, judge
+from bfsitl.scenario.spec import find_scenarios, load_scenario, scenario_from_dict
+from bfsitl.scenario.trace import Trace, TraceRow
+
+LIBRARY = Path(__file__).resolve().parents[2] / "scenarios"
+
+MINIMAL = """
+duration_s = 20
+[flight]
+takeoff_alt_m = 3.0
+[[fault]]
+at_s = 8.0
+kind = "rc_loss"
+[expect]
+disarmed = true
+"""
+
+
+def write(tmp_path: Path, text: str, name: str = "s.toml") -> Path:
+    path = tmp_path / name
+    path.write_text(text)
+    return path
+
+
+def test_the_shipped_library_reads_and_runs_on_both_generations() -> None:
+    scenarios = find_scenarios([LIBRARY])
+    assert len(scenarios) >= 6
+    for scenario in scenarios:
+        assert scenario.description and scenario.faults and scenario.expect
+        assert set(scenario.firmware) == {"master-lockstep", "4.6.0-gps-lockstep"}
+
+
+def test_a_minimal_file_gets_its_name_and_defaults(tmp_path: Path) -> None:
+    scenario = load_scenario(write(tmp_path, MINIMAL, "rc-loss.toml"))
+    assert scenario.name == "rc-loss" and scenario.duration_s == 20.0
+    assert scenario.plan.target_alt_m == 3.0 and scenario.faults[0].kind == "rc_loss"
+    assert scenario.wind is None and scenario.settle_s == 2.0 and not scenario.requires_gps
+
+
+@pytest.mark.parametrize(("change", "message"), [
+    (("duration_s = 20", "duration = 20"), r"unknown key\(s\) duration"),
+    (("duration_s = 20", ""), "duration_s is missing"),
+    (('kind = "rc_loss"', 'kind = "rc_loss"\nmotor = 3'), "fault 1: rc_loss has no parameter"),
+    (("at_s = 8.0", "at_s = 80.0"), r"fault 1 at_s = 80.0 must be a number in 0..20"),
+    (("disarmed = true", "disarmd = true"), "unknown key 'disarmd'"),
+    (("disarmed = true", "disarmed = 1"), "disarmed must be true or false"),
+    (("disarmed = true", 'failsafe_phase = "LANDIT"'), "unknown phase"),
+    (("disarmed = true", "failsafe_within_s = 1.0"), "needs failsafe_phase"),
+    (("disarmed = true", 'min_alt_m = { value = 1, after_s = 2 }'), "takes a number or"),
+    (("[expect]\ndisarmed = true", ""), r"\[expect\] is missing"),
+    (("takeoff_alt_m = 3.0", "takeoff_alt_m = 300.0"), r"\[flight\]: target altitude"),
+])
+def test_mistakes_fail_before_flying_naming_file_and_key(tmp_path: Path, change: tuple,
+                                                         message: str) -> None:
+    path = write(tmp_path, MINIMAL.replace(*change))
+    with pytest.raises(ScenarioError, match=message) as caught:
+        load_scenario(path)
+    assert str(path) in str(caught.value)
+
+
+def test_directories_twins_and_missing_paths(tmp_path: Path) -> None:
+    write(tmp_path, MINIMAL, "a.toml")
+    (tmp_path / "b").mkdir()
+    write(tmp_path / "b", MINIMAL, "a.toml")
+    assert [s.name for s in find_scenarios([tmp_path])] == ["a"]
+    with pytest.raises(ScenarioError, match="two scenarios are named 'a'"):
+        find_scenarios([tmp_path, tmp_path / "b"])
+    with pytest.raises(ScenarioError, match="no such scenario file"):
+        find_scenarios([tmp_path / "nope.toml"])
+    (tmp_path / "empty").mkdir()
+    with pytest.raises(ScenarioError, match="holds no scenario files"):
+        find_scenarios([tmp_path / "empty"])
+    with pytest.raises(ScenarioError, match="not valid TOML"):
+        load_scenario(write(tmp_path, "duration_s = ", "broken.toml"))
+
+
+# -- expectations on traces ---------------------------------------------------------------------
+def row(t: float, alt: float = 3.0, *, armed: bool = True, ground: bool = False,
+        climb: float = 0.0, phase: int | None = 0, modes: tuple[str, ...] = ("ANGLE",),
+        north: float = 0.0, tilt: float = 2.0) -> TraceRow:
+    return TraceRow(t, alt, north, 0.0, climb, tilt, ground, armed, modes, (), phase)
+
+
+def drop_trace() -> Trace:
+    """Hover at 3 m, RC lost at 8 s, DROP at 8.5 s: falls, hits the ground at 7 m/s at 9.3 s."""
+    trace = Trace(fault_times_s=[8.0], takeoff_done_s=4.0)
+    trace.rows = [row(t / 10) for t in range(40, 85)]
+    trace.rows += [row(8.5 + k / 10, 3.0 - 0.4 * k, armed=False, phase=4, climb=-1.0 * k,
+                       modes=("ANGLE", "FAILSAFE")) for k in range(1, 8)]
+    trace.rows += [row(9.3, 0.0, armed=False, ground=True, climb=-7.0, phase=4),
+                   row(10.0, 0.0, armed=False, ground=True, phase=4, north=1.5)]
+    return trace
+
+
+def scenario_expecting(**expect: object):
+    data = {"duration_s": 20, "flight": {"takeoff_alt_m": 3.0},
+            "fault": [{"at_s": 8.0, "kind": "rc_loss"}], "expect": expect}
+    return scenario_from_dict(data, name="drop")
+
+
+def test_a_drop_meets_what_a_drop_does() -> None:
+    checks = judge(scenario_expecting(
+        disarmed=True, disarmed_within_s=1.0, failsafe_phase="RX_LOSS_MONITORING",
+        failsafe_within_s=1.0, mode_seen="FAILSAFE", crashed=True, landed_within_m=2.0,
+        min_alt_m=2.5), drop_trace())
+    assert len(checks) == 7  # failsafe_within_s is judged with failsafe_phase
+    assert [c.passed for c in checks] == [True] * 7, [c.message for c in checks if not c.passed]
+
+
+def test_a_wrong_expectation_names_itself_the_measured_value_and_the_time() -> None:
+    checks = judge(scenario_expecting(disarmed_within_s=0.2, landed_within_m=1.0,
+                                      max_touchdown_m_s=2.0), drop_trace())
+    disarm, landed, touchdown = checks
+    assert not disarm.passed and disarm.measured == 0.6 and disarm.at_time_s == 8.6
+    assert disarm.message == ("disarmed_within_s = 0.2: disarmed 0.60 s after the fault "
+                              "(expected within 0.2 s) at t=8.60 s")
+    assert not landed.passed and landed.measured == 1.5
+    assert "landed 1.50 m from the take-off point" in landed.message
+    assert not touchdown.passed and touchdown.measured == 7.0 and touchdown.at_time_s == 9.3
+
+
+def test_phases_must_come_in_order_and_within_time() -> None:
+    trace = drop_trace()
+    wrong_order = judge(scenario_expecting(
+        failsafe_phase=["RX_LOSS_MONITORING", "LANDING"]), trace)[0]
+    assert not wrong_order.passed and "never reached LANDING" in wrong_order.message
+    late = judge(scenario_expecting(failsafe_phase="RX_LOSS_MONITORING",
+                                    failsafe_within_s=0.3), trace)[0]
+    assert not late.passed and late.measured == 0.6
+
+
+def test_limits_take_a_window_and_default_to_the_airborne_part() -> None:
+    trace = drop_trace()
+    # Default: from the end of the take-off to the fault; the fall is not judged.
+    assert judge(scenario_expecting(min_alt_m=2.9), trace)[0].passed
+    over_the_fall = judge(scenario_expecting(min_alt_m={"value": 2.9, "from_s": 8.0}), trace)[0]
+    assert not over_the_fall.passed and over_the_fall.measured == 0.0
+    assert "down to 0.00 m (expected at least 2.9 m)" in over_the_fall.message
+
+
+def test_crash_is_judged_on_the_truth_once_nobody_flies() -> None:
+    assert crash_of(drop_trace()) == (9.3, "hit the ground at 7.0 m/s")
+    calm = drop_trace()
+    calm.rows = [r for r in calm.rows if r.time_s < 8.0]
+    assert crash_of(calm) is None
+
+
+def test_blackbox_expectations_fail_clearly_without_a_log() -> None:
+    check = judge(scenario_expecting(blackbox_phase="LANDED"), drop_trace())[0]
+    assert not check.passed and "no blackbox log" in check.message

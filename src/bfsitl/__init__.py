@@ -41,6 +41,14 @@ _EXPORTS: dict[str, str] = {
     "Vehicle": "bfsitl.mission.vehicle",
     "BoardVehicle": "bfsitl.mission.board",
     "make_controller": "bfsitl.control",
+    # scenarios: faults and expectations, the FC's blackbox
+    "Scenario": "bfsitl.scenario.spec",
+    "load_scenario": "bfsitl.scenario.spec",
+    "run_scenario": "bfsitl.scenario.run",
+    "RunOptions": "bfsitl.scenario.run",
+    "ScenarioResult": "bfsitl.scenario.result",
+    "RcFault": "bfsitl.fc.rc_link",
+    "decode_blackbox": "bfsitl.blackbox",
     # the SITL and its firmware
     "SitlProcess": "bfsitl.sitl.process",
     "FirmwareBinary": "bfsitl.sitl.firmware",
@@ -61,9 +69,11 @@ _EXPORTS: dict[str, str] = {
 __all__ = [
     "Autopilot", "BfsitlError", "BoardVehicle", "CliSession", "FLY_PROFILE", "FirmwareBinary",
     "FlightSession", "GeoPoint", "Mission", "MissionPlan", "MissionResult", "MspClient",
-    "Outcome", "Profile", "SensorConfig", "SessionConfig", "Simulator", "SitlProcess",
-    "Vehicle", "Waypoint", "Wind", "__version__", "connect", "find_firmware", "launch_sitl",
-    "load_mission", "make_controller", "open_link", "provision", "run_mission",
+    "Outcome", "Profile", "RcFault", "RunOptions", "Scenario", "ScenarioResult",
+    "SensorConfig", "SessionConfig", "Simulator", "SitlProcess", "Vehicle", "Waypoint", "Wind",
+    "__version__", "connect", "decode_blackbox", "find_firmware", "launch_sitl",
+    "load_mission", "load_scenario", "make_controller", "open_link", "provision",
+    "run_mission", "run_scenario",
 ]
 
 
@@ -82,16 +92,21 @@ def __dir__() -> list[str]:
 
 if TYPE_CHECKING:  # what type checkers and IDEs see; nothing is imported at run time
     from bfsitl.autopilot import Autopilot, connect, launch_sitl
+    from bfsitl.blackbox import decode_blackbox
     from bfsitl.control import make_controller
     from bfsitl.fc.cli_session import CliSession
     from bfsitl.fc.msp_client import MspClient
     from bfsitl.fc.provisioning import Profile, provision
+    from bfsitl.fc.rc_link import RcFault
     from bfsitl.link import open_link
     from bfsitl.mission.board import BoardVehicle
     from bfsitl.mission.plan import Waypoint, load_mission
     from bfsitl.mission.runner import Mission, MissionPlan, MissionResult, Outcome, run_mission
     from bfsitl.mission.session import FLY_PROFILE, FlightSession, SessionConfig
     from bfsitl.mission.vehicle import Vehicle
+    from bfsitl.scenario.result import ScenarioResult
+    from bfsitl.scenario.run import RunOptions, run_scenario
+    from bfsitl.scenario.spec import Scenario, load_scenario
     from bfsitl.sim import GeoPoint, SensorConfig, Simulator
     from bfsitl.sim.params import Wind
     from bfsitl.sitl.firmware import FirmwareBinary, find_firmware

@@ -91,6 +91,9 @@ def test_a_wrong_expectation_fails_naming_the_value_and_the_time_and_python_test
         "    pilot.hold(3.0)\n"
         "    assert abs(bfsitl_vehicle.sample().sim_alt_m - 2.0) < 0.5\n")
     (tmp_path / "wrong-expectation.toml").write_text(WRONG.read_text())
+    # A file of the shipped library runs through the plugin too.
+    (tmp_path / "rc-loss-hover-drop.toml").write_text(
+        (LIBRARY / "rc-loss-hover-drop.toml").read_text())
     run = subprocess.run(
         [sys.executable, "-m", "pytest", "-p", "bfsitl.pytest_plugin", "-p", "no:cacheprovider",
          "--bfsitl-firmware", "master-lockstep", "--bfsitl-out", str(tmp_path / "runs"),
@@ -99,7 +102,7 @@ def test_a_wrong_expectation_fails_naming_the_value_and_the_time_and_python_test
         env=env_for(firmware_build_cache))
     output = run.stdout
     assert run.returncode == 1, output + run.stderr
-    assert "1 failed, 1 passed" in output
+    assert "1 failed, 2 passed" in output
     assert "PASS disarmed = true" in output
     line = next(x for x in output.splitlines() if "FAIL disarmed_within_s = 0.2" in x)
     # The expectation, the measured value, the time.

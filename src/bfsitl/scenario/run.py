@@ -245,6 +245,12 @@ def _fly(scenario: Scenario, binary: Path, profile: FirmwareProfile, faults: tup
         log.close()
     result.sim_time_s = round(trace.end_s, 3)
     _collect_blackbox(out, trace, result)
+    if options.plot and trace.blackbox and trace.blackbox[0].frames:
+        from bfsitl.blackbox.plot import write_blackbox_plot
+
+        result.artifacts["blackbox_plot"] = write_blackbox_plot(
+            trace.blackbox[0], out / "blackbox.png",
+            title=f"{scenario.name} on {result.firmware}")
     checks = judge(scenario, trace, profile.generation.value)
     result.checks = checks
     failed = [c for c in checks if not c.passed]

@@ -16,6 +16,7 @@ from pathlib import Path
 
 import pytest
 from junitparser import Failure, JUnitXml, Skipped
+from mcap.reader import make_reader
 
 from bfsitl.autopilot import Autopilot
 from bfsitl.build import FirmwareCache
@@ -188,7 +189,7 @@ def test_runs_go_to_a_local_ray_cluster_and_come_back_as_one_junit_file(
         [sys.executable, "-m", "bfsitl.cli.main", "scenario", "run",
          str(LIBRARY / "rc-loss-hover-drop.toml"), str(WRONG), "--firmware", BUILDS[0],
          "--firmware", BUILDS[1], "--ray", ray_cluster, "--junit", str(junit),
-         "--out", str(tmp_path / "runs")],
+         "--out", str(tmp_path / "runs"), "--mcap"],
         capture_output=True, text=True, timeout=500, cwd=tmp_path,
         env=env_for(firmware_build_cache))
     assert run.returncode == 1, run.stdout + run.stderr[-3000:]  # the wrong one fails
@@ -199,3 +200,14 @@ def test_runs_go_to_a_local_ray_cluster_and_come_back_as_one_junit_file(
     for (suite, name), case in cases.items():
         failed = any(isinstance(r, Failure) for r in case.result)
         assert failed == (name == "wrong-expectation"), (suite, name)
+    # --mcap: each run's flight as MCAP too, one message per CSV row, the events with it.
+    run_dir = tmp_path / "runs" / BUILDS[0] / "rc-loss-hover-drop"
+    with (run_dir / "flight.csv").open() as file:
+        rows = len(file.readlines()) - 1
+    with (run_dir / "flight.mcap").open("rb") as file:
+        summary = make_reader(file).get_summary()
+    assert summary is not None and summary.statistics is not None
+    counts = {c.topic: summary.statistics.channel_message_counts.get(c.id, 0)
+              for c in summary.channels.values()}
+    assert counts["/flight/altitude"] == rows > 100
+    assert counts["/events"] >= 4  # armed, RC lost, the FC disarmed, its failsafe phase

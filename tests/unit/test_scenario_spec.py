@@ -157,3 +157,20 @@ def test_crash_is_judged_on_the_truth_once_nobody_flies() -> None:
 def test_blackbox_expectations_fail_clearly_without_a_log() -> None:
     check = judge(scenario_expecting(blackbox_phase="LANDED"), drop_trace())[0]
     assert not check.passed and "no blackbox log" in check.message
+
+
+def test_a_vehicle_table_makes_the_quad_and_its_hover_throttle(tmp_path: Path) -> None:
+    from bfsitl.scenario.run import hover_throttle_line
+    from bfsitl.sim import IRIS
+
+    default = load_scenario(write(tmp_path, MINIMAL, "a.toml"))
+    heavy = load_scenario(write(tmp_path, MINIMAL + '[vehicle]\nmodel = "iris"\n'
+                                "mass_kg = 2.2\n", "b.toml"))
+    assert default.quad is IRIS and heavy.quad.mass_kg == 2.2
+    assert hover_throttle_line(IRIS) == "set ap_hover_throttle = 1545"  # measured
+    heavier_us = int(hover_throttle_line(heavy.quad).split("= ")[1])
+    assert 1545 < heavier_us < 1700
+    with pytest.raises(ScenarioError, match="model 'x500' is not one of iris"):
+        load_scenario(write(tmp_path, MINIMAL + '[vehicle]\nmodel = "x500"\n', "c.toml"))
+    with pytest.raises(ScenarioError, match="cannot hover"):
+        load_scenario(write(tmp_path, MINIMAL + "[vehicle]\nmass_kg = 19.0\n", "d.toml"))

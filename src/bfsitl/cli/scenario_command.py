@@ -58,6 +58,9 @@ def add_scenario_parser(sub: argparse._SubParsersAction) -> None:  # type: ignor
                      help="x real time (default: as fast as it goes on a lockstep build, real "
                           "time on a stock one)")
     run.add_argument("--no-plot", action="store_true", help="skip the plots (faster)")
+    run.add_argument("--mcap", action="store_true",
+                     help="write each run's flight as MCAP too (flight.mcap, Foxglove's "
+                          "schemas; the foxglove extra)")
     run.set_defaults(func=cmd_scenario_run)
 
     show = actions.add_parser("list", help="check scenario files and show what they do",
@@ -71,11 +74,22 @@ def add_scenario_parser(sub: argparse._SubParsersAction) -> None:  # type: ignor
 
 
 def cmd_scenario_run(args: argparse.Namespace) -> int:
+    from bfsitl.errors import FirmwareNotFoundError
     from bfsitl.scenario.spec import find_scenarios
     from bfsitl.scenario.suite import plan_runs, run_suite
+    from bfsitl.sitl.firmware import find_firmware
 
     scenarios = find_scenarios(args.paths)
     runs = plan_runs(scenarios, args.firmware, args.out)
+    for run in {run.firmware: run for run in runs}.values():
+        try:  # a missing build stops everything here, saying how to make it
+            find_firmware(run.firmware)
+        except FirmwareNotFoundError as exc:
+            origin = "--firmware" if args.firmware else f"named by {run.scenario.where}"
+            raise FirmwareNotFoundError(f"the build {run.firmware!r} ({origin}) is not there: "
+                                        f"`bfsitl firmware list` shows the builds, `bfsitl "
+                                        f"firmware build --lockstep [--gps]` makes one. "
+                                        f"{exc}") from exc
     progress(f"{len(runs)} runs of {len(scenarios)} scenarios; files in {args.out}/")
     started = time.monotonic()
 
@@ -86,7 +100,7 @@ def cmd_scenario_run(args: argparse.Namespace) -> int:
 
     suite = run_suite(runs, jobs=args.jobs, speed=args.speed, plot=not args.no_plot,
                       progress=progress if args.jobs == 1 or args.ray_address else None,
-                      on_result=finished, ray_address=args.ray_address)
+                      on_result=finished, ray_address=args.ray_address, mcap=args.mcap)
     results, interrupted = suite.results, suite.interrupted
     wall_s = time.monotonic() - started
     _write_outputs(args, results)

@@ -19,12 +19,12 @@ the file, the waypoint and the key in the message.
 from __future__ import annotations
 
 import math
-import tomllib
 from dataclasses import dataclass, fields
 from pathlib import Path
 from typing import Any
 
 from bfsitl.errors import MissionError
+from bfsitl.toml_file import read_toml_file
 
 #: How far from the take-off point a waypoint may be: a flying field, not a cross-country.
 MAX_WAYPOINT_DISTANCE_M = 10_000.0
@@ -158,13 +158,5 @@ def _check_types(where: str, values: dict[str, Any]) -> None:
 def load_mission(path: str | Path) -> MissionPlan:
     """Read a mission TOML file (see the module docstring)."""
     path = Path(path)
-    try:
-        text = path.read_text()
-    except OSError as exc:
-        raise MissionError(f"cannot read the mission file {path}: {exc.strerror or exc}") \
-            from exc
-    try:
-        data = tomllib.loads(text)
-    except tomllib.TOMLDecodeError as exc:
-        raise MissionError(f"{path} is not valid TOML: {exc}") from exc
+    data = read_toml_file(path, "mission", MissionError)
     return plan_from_dict(data, source=str(path))

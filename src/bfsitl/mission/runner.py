@@ -55,6 +55,7 @@ from bfsitl.mission.vehicle import (
     SWITCH_ON_US,
     FlightSample,
     GpsPosition,
+    SessionClock,
     Vehicle,
 )
 from bfsitl.protocol import msp_messages as msg
@@ -517,12 +518,7 @@ class Mission:
             self._record(phase, self.target_alt_m, sample, climb_m_s)
             if done(sample) or sample.time_s >= deadline_s:
                 return
-            next_s += period_s
-            delay_s = next_s - clock.now_s()
-            if delay_s > 0:
-                clock.sleep_s(delay_s)
-            else:
-                next_s = clock.now_s()
+            next_s = _next_step(clock, next_s, period_s)
 
     def land(self, *, timeout_s: float = 30.0) -> None:
         """Descend, touch down, cut the throttle, disarm."""
@@ -616,12 +612,7 @@ class Mission:
                 raise MissionTimeoutError(
                     f"{phase} did not finish within {timeout_s:.0f} s of simulation time "
                     f"(FC altitude {sample.fc_alt_m:.2f} m, target {target_alt_m:.2f} m)")
-            next_s += period_s
-            delay_s = next_s - clock.now_s()
-            if delay_s > 0:
-                clock.sleep_s(delay_s)
-            else:
-                next_s = clock.now_s()  # late: do not try to catch up in a burst
+            next_s = _next_step(clock, next_s, period_s)
 
     def _check(self, sample: FlightSample) -> None:
         # The truth when the physics is ours; the FC's attitude otherwise (Gazebo).
@@ -674,6 +665,17 @@ class Mission:
         session.set_rc(safe)
         if self.last_sample is not None:
             self._record(ending, self.target_alt_m, self.last_sample, self._climb.rate_m_s)
+
+
+def _next_step(clock: SessionClock, next_s: float, period_s: float) -> float:
+    """Let simulation time pass to the next control step; its time.  A late step is taken at
+    once and the schedule restarts from it: no burst of steps to catch up."""
+    next_s += period_s
+    delay_s = next_s - clock.now_s()
+    if delay_s > 0:
+        clock.sleep_s(delay_s)
+        return next_s
+    return clock.now_s()
 
 
 @dataclass(frozen=True, slots=True)

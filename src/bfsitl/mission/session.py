@@ -76,7 +76,7 @@ from bfsitl.sim.lockstep import (
     LockstepRc,
     SteppedLink,
 )
-from bfsitl.sim.params import Wind
+from bfsitl.sim.params import IRIS, QuadParams, Wind
 from bfsitl.sim.sensors import SensorConfig
 from bfsitl.sitl.process import SITL_HOST, SitlProcess
 
@@ -154,6 +154,8 @@ class SessionConfig:
     gz_plugin_dir: str | Path | None = None
     #: Wind and gusts of the embedded physics (None: still air).
     wind: Wind | None = None
+    #: The simulated quad (the embedded physics): Gazebo's IRIS unless told otherwise.
+    quad: QuadParams = IRIS
     #: Seeds the sensor noise and the gusts: the same seed gives the same disturbances.
     seed: int = 0
     #: Send RC over UDP (the SITL's usual receiver).  False leaves RC to someone else: a
@@ -240,7 +242,8 @@ class FlightSession(Vehicle):
                     config.firmware, workdir=config.workdir, isolate=config.isolate,
                     progress=self._progress,
                     env=None if config.lockstep_spin else {SITL_SPIN_ENV: "0"})
-                self.simulator = Simulator(sensors=config.sensors, wind=config.wind,
+                self.simulator = Simulator(config.quad, sensors=config.sensors,
+                                           wind=config.wind,
                                            seed=config.seed)
                 if self._wants_lockstep():
                     self._start_lockstep()

@@ -48,7 +48,7 @@ from typing import TYPE_CHECKING, Any
 
 from bfsitl.errors import FaultNotSupportedError, ScenarioError
 from bfsitl.fc.rc_link import RcFault
-from bfsitl.mission.vehicle import SWITCH_ON_US
+from bfsitl.mission.vehicle import SWITCH_OFF_US, SWITCH_ON_US
 from bfsitl.protocol.firmware_profile import FirmwareProfile
 from bfsitl.sim.params import Wind
 
@@ -108,7 +108,7 @@ def _rc_loss(spec: FaultSpec, profile: FirmwareProfile, where: str) -> Fault:
                                                        SWITCH_ON_US))
 
             def undo(s: FlightSession) -> None:
-                s.set_rc(s.rc_command.with_aux(FAILSAFE_SWITCH_AUX_INDEX, 1000))
+                s.set_rc(s.rc_command.with_aux(FAILSAFE_SWITCH_AUX_INDEX, SWITCH_OFF_US))
             return undo
         return Fault(spec, "RC lost (failsafe switch on AUX3)", True, apply_switch,
                      needs_failsafe_switch=True)
@@ -156,13 +156,12 @@ def _gps_loss(spec: FaultSpec, profile: FirmwareProfile, where: str) -> Fault:
     return Fault(spec, "GPS lost", False, apply)
 
 
-def _sensor_fault(title: str, change: Callable[[Any], dict[str, Any]]
+def _sensor_fault(fields: dict[str, Any]
                   ) -> Callable[[FlightSession], Callable[[FlightSession], None]]:
-    """A fault that changes sensor fields; undoing restores what they were."""
+    """A fault that sets sensor error ``fields``; undoing restores what they were."""
     def apply(session: FlightSession) -> Callable[[FlightSession], None]:
         simulator = _simulator(session)
         before = simulator.sensor_config
-        fields = change(before)
         simulator.set_sensors(replace(before, **fields))
 
         def undo(s: FlightSession) -> None:
@@ -178,7 +177,7 @@ def _gps_glitch(spec: FaultSpec, profile: FirmwareProfile, where: str) -> Fault:
     north = _param_number(spec, where, "north_m", -1000.0, 1000.0, default=0.0)
     east = _param_number(spec, where, "east_m", -1000.0, 1000.0, default=0.0)
     return Fault(spec, f"GPS off by {north:g} m north, {east:g} m east", False,
-                 _sensor_fault("gps", lambda _c: {"gps_offset_ne_m": (north, east)}))
+                 _sensor_fault({"gps_offset_ne_m": (north, east)}))
 
 
 def _motor_thrust(spec: FaultSpec, profile: FirmwareProfile, where: str) -> Fault:
@@ -199,7 +198,7 @@ def _motor_thrust(spec: FaultSpec, profile: FirmwareProfile, where: str) -> Faul
 def _gyro_noise(spec: FaultSpec, profile: FirmwareProfile, where: str) -> Fault:
     std = math.radians(_param_number(spec, where, "std_deg_s", 0.0, 1000.0))
     return Fault(spec, f"gyro noise {math.degrees(std):g} deg/s", False,
-                 _sensor_fault("gyro", lambda _c: {"gyro_noise_std_rad_s": std}))
+                 _sensor_fault({"gyro_noise_std_rad_s": std}))
 
 
 def _gyro_bias(spec: FaultSpec, profile: FirmwareProfile, where: str) -> Fault:
@@ -207,26 +206,26 @@ def _gyro_bias(spec: FaultSpec, profile: FirmwareProfile, where: str) -> Fault:
                                             default=0.0)) for axis in "xyz")
     shown = ", ".join(f"{math.degrees(b):g}" for b in bias)
     return Fault(spec, f"gyro bias ({shown}) deg/s", False,
-                 _sensor_fault("gyro", lambda _c: {"gyro_bias_rad_s": bias}))
+                 _sensor_fault({"gyro_bias_rad_s": bias}))
 
 
 def _accel_noise(spec: FaultSpec, profile: FirmwareProfile, where: str) -> Fault:
     std = _param_number(spec, where, "std_m_s2", 0.0, 100.0)
     return Fault(spec, f"accelerometer noise {std:g} m/s^2", False,
-                 _sensor_fault("accel", lambda _c: {"accel_noise_std_m_s2": std}))
+                 _sensor_fault({"accel_noise_std_m_s2": std}))
 
 
 def _accel_bias(spec: FaultSpec, profile: FirmwareProfile, where: str) -> Fault:
     bias = tuple(_param_number(spec, where, f"{axis}_m_s2", -50.0, 50.0, default=0.0)
                  for axis in "xyz")
     return Fault(spec, f"accelerometer bias {bias} m/s^2", False,
-                 _sensor_fault("accel", lambda _c: {"accel_bias_m_s2": bias}))
+                 _sensor_fault({"accel_bias_m_s2": bias}))
 
 
 def _baro_drift(spec: FaultSpec, profile: FirmwareProfile, where: str) -> Fault:
     rate_m_s = _param_number(spec, where, "rate_m_s", -10.0, 10.0)
     return Fault(spec, f"barometer drifting {rate_m_s:+g} m/s", False,
-                 _sensor_fault("baro", lambda _c: {"baro_drift_pa_s": -rate_m_s * PA_PER_M}))
+                 _sensor_fault({"baro_drift_pa_s": -rate_m_s * PA_PER_M}))
 
 
 def _wind(spec: FaultSpec, profile: FirmwareProfile, where: str) -> Fault:

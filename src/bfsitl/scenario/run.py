@@ -42,7 +42,8 @@ from bfsitl.errors import (
 )
 from bfsitl.fc.firmware_detect import profile_of_binary
 from bfsitl.fc.provisioning import Profile
-from bfsitl.mission.flight_log import CsvFlightLog, FlightRow
+from bfsitl.mission.flight_log import FlightRow
+from bfsitl.mission.outputs import FlightOutputs, OutputOptions
 from bfsitl.mission.runner import Mission, fly_waypoint
 from bfsitl.mission.session import (
     FLY_PROFILE,
@@ -60,16 +61,25 @@ from bfsitl.scenario.faults import FAILSAFE_SWITCH_AUX_INDEX, Fault, make_faults
 from bfsitl.scenario.result import ScenarioResult, TimedEvent, Verdict
 from bfsitl.scenario.spec import Scenario
 from bfsitl.scenario.trace import Trace, TraceRow, phase_name
+from bfsitl.sim.params import IRIS, QuadParams
 from bfsitl.sitl.firmware import find_firmware
 
 #: debug[] index of the failsafe phase with ``debug_mode = FAILSAFE`` (flight/failsafe.c).
 FAILSAFE_PHASE_DEBUG_INDEX = 3
-#: The simulated quad's hover throttle, as a pilot sets it for theirs: the firmware's own
-#: altitude hold (a failsafe landing, GPS Rescue, ALTHOLD) starts from it.  Its default,
-#: 1275 us, is a light racer's; bfsitl's quad hovers at 1545 us (measured: the autopilot's
-#: mean throttle in a hold, 4.6.0 and master alike), and with the default the FC's failsafe
-#: landing fell 4 m at nearly free fall.
-HOVER_THROTTLE_LINE = "set ap_hover_throttle = 1545"
+#: IRIS's hover throttle, measured: the autopilot's mean throttle in a hold, 4.6.0 and
+#: master alike.
+IRIS_HOVER_THROTTLE_US = 1545
+
+
+def hover_throttle_line(quad: QuadParams) -> str:
+    """The simulated quad's hover throttle, as a pilot sets it for theirs: the firmware's own
+    altitude hold (a failsafe landing, GPS Rescue, ALTHOLD) starts from it.  Its default,
+    1275 us, is a light racer's; with it the FC's failsafe landing fell 4 m at nearly free
+    fall.  Another quad's is IRIS's measured one scaled by the physics' hover command."""
+    scale = quad.hover_command / IRIS.hover_command
+    return f"set ap_hover_throttle = {round(1000 + (IRIS_HOVER_THROTTLE_US - 1000) * scale)}"
+
+
 #: A vehicle at rest: slower than this vertically.
 AT_REST_M_S = 0.05
 
@@ -96,7 +106,8 @@ def scenario_profile(scenario: Scenario, profile: FirmwareProfile,
         ranges = (*ranges, msg.ModeRange.from_us(BoxId.FAILSAFE, FAILSAFE_SWITCH_AUX_INDEX,
                                                  1700, 2100))
     return dataclasses.replace(base, mode_ranges=ranges, cli_lines=(
-        *base.cli_lines, *blackbox_cli(profile), HOVER_THROTTLE_LINE, *scenario.cli))
+        *base.cli_lines, *blackbox_cli(profile), hover_throttle_line(scenario.quad),
+        *scenario.cli))
 
 
 @dataclass(frozen=True, slots=True)
@@ -108,6 +119,8 @@ class RunOptions:
     #: x real time; None: as fast as it goes on a lockstep build, real time otherwise.
     speed: float | None = None
     plot: bool = True
+    #: Write the flight as MCAP too (Foxglove's schemas, ``flight.mcap``; the foxglove extra).
+    mcap: bool = False
     #: Other runs share this machine's cores: no busy-waiting in lockstep (see
     #: SessionConfig.lockstep_spin).
     shares_cores: bool = False
@@ -117,8 +130,10 @@ class _Injector:
     """Injects each fault when it is due and undoes it when it ends; keeps the trace."""
 
     def __init__(self, session: FlightSession, faults: tuple[Fault, ...], trace: Trace,
-                 events: list[TimedEvent], progress: Progress) -> None:
+                 events: list[TimedEvent], progress: Progress, record: Progress) -> None:
         self.session = session
+        #: Events go to the flight's outputs as well (the MCAP file's /events log).
+        self.record = record
         self.pending = sorted(faults, key=lambda f: f.spec.at_s)
         self.active: list[tuple[float, Fault, Callable[[FlightSession], None]]] = []
         self.trace = trace
@@ -131,6 +146,7 @@ class _Injector:
     def note(self, time_s: float, text: str) -> None:
         self.events.append(TimedEvent(round(time_s, 3), text))
         self.progress(f"t={time_s:6.2f} s  {text}")
+        self.record(text)
 
     def since_arming(self, sample: FlightSample) -> float:
         return sample.time_s - (self.armed_at_s or 0.0)
@@ -164,14 +180,14 @@ class _Injector:
                 if len(debug) > FAILSAFE_PHASE_DEBUG_INDEX else None
         except BfsitlError:
             phase = None
-        rows = self.trace.rows
-        if phase is not None and (not rows or rows[-1].failsafe_phase != phase) and rows:
-            self.note(t, f"failsafe phase {phase_name(phase)}")
-        if rows and rows[-1].armed and not sample.armed:
-            self.note(t, "the FC disarmed" + (f" ({', '.join(sample.arming_blockers)})"
-                                              if sample.arming_blockers else ""))
-        if rows:
-            new_modes = set(sample.flight_modes) - set(rows[-1].modes)
+        if self.trace.rows:  # what changed since the last row
+            last = self.trace.rows[-1]
+            if phase is not None and phase != last.failsafe_phase:
+                self.note(t, f"failsafe phase {phase_name(phase)}")
+            if last.armed and not sample.armed:
+                self.note(t, "the FC disarmed" + (f" ({', '.join(sample.arming_blockers)})"
+                                                  if sample.arming_blockers else ""))
+            new_modes = set(sample.flight_modes) - set(last.modes)
             if new_modes:
                 self.note(t, f"flight mode {', '.join(sorted(new_modes))} on")
         return TraceRow(round(t, 4), sample.sim_alt_m, sample.sim_north_m, sample.sim_east_m,
@@ -215,13 +231,23 @@ def _fly(scenario: Scenario, binary: Path, profile: FirmwareProfile, faults: tup
     out = options.out_dir
     trace = Trace()
     config = SessionConfig(firmware=binary, workdir=out / "sitl",
-                           profile=scenario_profile(scenario, profile, faults), wind=scenario.wind,
-                           seed=scenario.seed, sensors=fly_sensors(), speed=options.speed,
+                           profile=scenario_profile(scenario, profile, faults),
+                           quad=scenario.quad, wind=scenario.wind, seed=scenario.seed,
+                           sensors=fly_sensors(), speed=options.speed,
                            lockstep_spin=not options.shares_cores)
-    log = CsvFlightLog(out / "flight.csv")
+    outputs = FlightOutputs(OutputOptions(
+        csv_path=out / "flight.csv", mcap_path=out / "flight.mcap" if options.mcap else None))
+    outputs.start()
     result.artifacts["log"] = out / "flight.csv"
+    if options.mcap:
+        result.artifacts["mcap"] = out / "flight.mcap"
     session = FlightSession(config, progress=lambda line: say(f"[sitl] {line}"))
-    injector = _Injector(session, faults, trace, result.events, say)
+    injector = _Injector(session, faults, trace, result.events, say, outputs.on_event)
+
+    def on_row(row: FlightRow, sample: FlightSample) -> None:
+        outputs.on_row(row, sample)   # recorded first: the injector may end the flight
+        injector.on_row(row, sample)
+
     try:
         with session:
             result.firmware_version = (session.firmware.firmware_version
@@ -229,8 +255,7 @@ def _fly(scenario: Scenario, binary: Path, profile: FirmwareProfile, faults: tup
             if session.sitl is not None:
                 result.artifacts["sitl_log"] = session.sitl.log_path
             mission = Mission(session, make_controller(DEFAULT_CONTROLLER),
-                              rate_hz=session.control_rate_hz, log=log,
-                              on_row=injector.on_row)
+                              rate_hz=session.control_rate_hz, on_row=on_row)
             try:
                 mission.arm()
             except ArmingBlockedError as exc:
@@ -242,7 +267,7 @@ def _fly(scenario: Scenario, binary: Path, profile: FirmwareProfile, faults: tup
             injector.watching = True
             _watch(scenario, mission, injector)
     finally:
-        log.close()
+        outputs.close()
     result.sim_time_s = round(trace.end_s, 3)
     _collect_blackbox(out, trace, result)
     if options.plot and trace.blackbox and trace.blackbox[0].frames:
@@ -268,7 +293,10 @@ def _autopilot_flight(scenario: Scenario, mission: Mission, injector: _Injector,
     """The ``[flight]`` table flown until it ends, a fault takes the sticks, or it fails."""
     plan = scenario.plan
     session = mission.session
-    t = lambda: session.time_s - (injector.armed_at_s or 0.0)  # noqa: E731
+
+    def t() -> float:
+        return session.time_s - (injector.armed_at_s or 0.0)
+
     try:
         if plan.ground_s > 0:
             mission.wait_on_ground(plan.ground_s)

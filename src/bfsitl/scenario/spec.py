@@ -6,6 +6,10 @@
     seed = 1                 # disturbances (gusts, sensor noise) repeat with the seed
     cli = ["set failsafe_procedure = DROP"]   # provisioned before the flight
 
+    [vehicle]                # optional: the simulated quad (default Gazebo's IRIS)
+    model = "iris"
+    mass_kg = 1.9            # heavier: a payload
+
     [wind]                   # optional: north/east m/s (the air's motion), gusts
     north_m_s = 2.0
     gust_std_m_s = 0.5
@@ -30,14 +34,14 @@ the file, the table and the key in the message.
 from __future__ import annotations
 
 import math
-import tomllib
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import Any
 
-from bfsitl.errors import MissionError, ScenarioError
+from bfsitl.errors import MissionError, ScenarioError, SimInputError
 from bfsitl.mission.plan import MissionPlan, plan_from_dict
-from bfsitl.sim.params import Wind
+from bfsitl.sim.params import IRIS, QuadParams, Wind
+from bfsitl.toml_file import read_toml_file
 
 #: A scenario's file name pattern inside a directory.
 SCENARIO_GLOB = "*.toml"
@@ -45,7 +49,9 @@ MAX_DURATION_S = 3600.0
 DEFAULT_SETTLE_S = 2.0
 
 _TOP_KEYS = {"name", "description", "firmware", "requires_gps", "duration_s", "settle_s",
-             "seed", "cli", "wind", "flight", "fault", "expect"}
+             "seed", "cli", "vehicle", "wind", "flight", "fault", "expect"}
+#: ``[vehicle] model``: the quads the embedded physics knows.
+VEHICLE_MODELS = {"iris": IRIS}
 _WIND_KEYS = {"north_m_s", "east_m_s", "down_m_s", "gust_std_m_s", "gust_time_constant_s"}
 
 
@@ -79,6 +85,8 @@ class Scenario:
     description: str = ""
     cli: tuple[str, ...] = ()
     wind: Wind | None = None
+    #: The simulated quad (``[vehicle]``).
+    quad: QuadParams = IRIS
     seed: int = 0
     #: Builds to run on when the command line names none.
     firmware: tuple[str, ...] = ()
@@ -122,6 +130,29 @@ def _wind(where: str, raw: Any) -> Wind:
     return Wind((values.get("north_m_s", 0.0), values.get("east_m_s", 0.0),
                  values.get("down_m_s", 0.0)), values.get("gust_std_m_s", 0.0),
                 values.get("gust_time_constant_s", 2.0))
+
+
+def _vehicle(where: str, raw: Any) -> QuadParams:
+    """``[vehicle]``: a known model, optionally heavier or lighter (payload, battery)."""
+    if not isinstance(raw, dict):
+        raise ScenarioError(f"{where}: [vehicle] must be a table")
+    unknown = set(raw) - {"model", "mass_kg"}
+    if unknown:
+        raise ScenarioError(f"{where}: [vehicle] has unknown key(s) "
+                            f"{', '.join(sorted(unknown))}; known: mass_kg, model")
+    model = raw.get("model", "iris")
+    if model not in VEHICLE_MODELS:
+        raise ScenarioError(f"{where}: [vehicle] model {model!r} is not one of "
+                            f"{', '.join(VEHICLE_MODELS)}")
+    quad = VEHICLE_MODELS[model]
+    if "mass_kg" in raw:
+        mass_kg = _number(where, "vehicle.mass_kg", raw["mass_kg"], 0.2, 20.0)
+        quad = replace(quad, name=f"{quad.name}, {mass_kg:g} kg", mass_kg=mass_kg)
+        try:
+            quad.hover_command  # noqa: B018 - raises when its motors cannot lift it
+        except SimInputError as exc:
+            raise ScenarioError(f"{where}: [vehicle] {exc}") from None
+    return quad
 
 
 def _fault(where: str, number: int, raw: Any, duration_s: float) -> FaultSpec:
@@ -188,6 +219,7 @@ def scenario_from_dict(data: dict[str, Any], *, name: str, source: Path | None =
         expect=tuple(expect.items()), description=description,
         cli=_strings(where, "cli", data.get("cli", [])),
         wind=_wind(where, data["wind"]) if "wind" in data else None, seed=seed,
+        quad=_vehicle(where, data["vehicle"]) if "vehicle" in data else IRIS,
         firmware=_strings(where, "firmware", data.get("firmware", [])),
         requires_gps=requires_gps,
         settle_s=_number(where, "settle_s", data.get("settle_s", DEFAULT_SETTLE_S), 0.0, 60.0),
@@ -200,15 +232,7 @@ def load_scenario(path: str | Path) -> Scenario:
     from bfsitl.scenario.faults import check_faults
 
     path = Path(path)
-    try:
-        text = path.read_text()
-    except OSError as exc:
-        raise ScenarioError(f"cannot read the scenario file {path}: {exc.strerror or exc}") \
-            from exc
-    try:
-        data = tomllib.loads(text)
-    except tomllib.TOMLDecodeError as exc:
-        raise ScenarioError(f"{path} is not valid TOML: {exc}") from exc
+    data = read_toml_file(path, "scenario", ScenarioError)
     scenario = scenario_from_dict(data, name=path.stem, source=path)
     check_faults(scenario)
     check_expectations(scenario)

@@ -17,16 +17,19 @@ file and the report keep them.
 from __future__ import annotations
 
 import multiprocessing
+import os
 import re
 from collections.abc import Callable, Sequence
 from concurrent.futures import FIRST_COMPLETED, Future, ProcessPoolExecutor, wait
 from dataclasses import dataclass
 from pathlib import Path
 
+from bfsitl.build.cache import CACHE_ENV_VAR
 from bfsitl.errors import ScenarioError
 from bfsitl.scenario.result import ScenarioResult, Verdict
 from bfsitl.scenario.run import RunOptions, run_scenario
 from bfsitl.scenario.spec import Scenario
+from bfsitl.sitl.firmware import ENV_VAR as FIRMWARE_ENV_VAR
 
 Progress = Callable[[str], None]
 #: Called with each finished run, in the order they finish.
@@ -77,22 +80,23 @@ def plan_runs(scenarios: Sequence[Scenario], firmwares: Sequence[str], out_dir: 
     return runs
 
 
-def _run_one(run: PlannedRun, speed: float | None, plot: bool) -> ScenarioResult:
+def _run_one(run: PlannedRun, speed: float | None, plot: bool, mcap: bool
+             ) -> ScenarioResult:
     """A worker's job: the run's progress goes to a file in its directory (several runs'
     lines interleaved on one terminal would be unreadable).  Workers share the machine's
     cores, so a lockstep run does not busy-wait (SessionConfig.lockstep_spin)."""
     run.out_dir.mkdir(parents=True, exist_ok=True)
     with open(run.out_dir / "progress.log", "w", buffering=1) as log:
         return run_scenario(run.scenario, run.firmware,
-                            RunOptions(run.out_dir, speed=speed, plot=plot,
+                            RunOptions(run.out_dir, speed=speed, plot=plot, mcap=mcap,
                                        shares_cores=True),
                             progress=lambda line: print(line, file=log))
 
 
 def run_suite(runs: Sequence[PlannedRun], *, jobs: int = 1, speed: float | None = None,
               plot: bool = True, progress: Progress | None = None,
-              on_result: OnResult | None = None, ray_address: str | None = None
-              ) -> SuiteResult:
+              on_result: OnResult | None = None, ray_address: str | None = None,
+              mcap: bool = False) -> SuiteResult:
     """Every planned run, ``jobs`` at a time; results in plan order.  With ``jobs = 1`` the
     runs happen in this process and their events go to ``progress`` as they happen; with a
     ``ray_address`` they are Ray tasks on that cluster (one CPU each).  Ctrl-C ends it with
@@ -104,18 +108,19 @@ def run_suite(runs: Sequence[PlannedRun], *, jobs: int = 1, speed: float | None 
     results: dict[int, ScenarioResult] = {}
     try:
         if ray_address is not None:
-            _run_on_ray(runs, ray_address, speed, plot, results, done, say)
+            _run_on_ray(runs, ray_address, speed, plot, mcap, results, done, say)
         elif jobs == 1:
             for index, run in enumerate(runs):
                 say(f"{run.test_id}: starting")
                 run.out_dir.mkdir(parents=True, exist_ok=True)
                 result = run_scenario(run.scenario, run.firmware,
-                                      RunOptions(run.out_dir, speed=speed, plot=plot),
+                                      RunOptions(run.out_dir, speed=speed, plot=plot,
+                                                 mcap=mcap),
                                       progress=_prefixed(say, run.test_id))
                 results[index] = result
                 done(result)
         else:
-            _run_parallel(runs, jobs, speed, plot, results, done, say)
+            _run_parallel(runs, jobs, speed, plot, mcap, results, done, say)
     except KeyboardInterrupt:
         say(f"interrupted: {len(results)} of {len(runs)} runs finished")
         results.update({i: _interrupted(run) for i, run in enumerate(runs)
@@ -129,13 +134,14 @@ def _prefixed(say: Progress, prefix: str) -> Progress:
 
 
 def _run_parallel(runs: Sequence[PlannedRun], jobs: int, speed: float | None, plot: bool,
-                  results: dict[int, ScenarioResult], done: OnResult, say: Progress) -> None:
+                  mcap: bool, results: dict[int, ScenarioResult], done: OnResult,
+                  say: Progress) -> None:
     # spawn: a fresh interpreter per worker, nothing inherited from this one's threads.
     context = multiprocessing.get_context("spawn")
     with ProcessPoolExecutor(max_workers=jobs, mp_context=context) as pool:
         futures: dict[Future[ScenarioResult], int] = {}
         for index, run in enumerate(runs):
-            futures[pool.submit(_run_one, run, speed, plot)] = index
+            futures[pool.submit(_run_one, run, speed, plot, mcap)] = index
         say(f"{len(runs)} runs, {jobs} at a time")
         pending = set(futures)
         while pending:
@@ -154,22 +160,29 @@ def _run_parallel(runs: Sequence[PlannedRun], jobs: int, speed: float | None, pl
 
 
 def _run_on_ray(runs: Sequence[PlannedRun], address: str, speed: float | None, plot: bool,
-                results: dict[int, ScenarioResult], done: OnResult, say: Progress) -> None:
-    """The same runs as Ray tasks.  Each task flies one run on whichever node Ray picks, with
-    that node's firmware cache and namespaces; its files land under ``out_dir`` on that node
+                mcap: bool, results: dict[int, ScenarioResult], done: OnResult,
+                say: Progress) -> None:
+    """The same runs as Ray tasks.  Each task flies one run on whichever node Ray picks, in
+    that node's namespaces, with the firmware builds where this process finds them (the
+    cache path must hold them on every node); its files land under ``out_dir`` on that node
     (one machine, or a shared filesystem, keeps them together)."""
     try:
         import ray
     except ImportError as exc:
         raise ScenarioError("--ray needs Ray: pip install 'bfsitl[ray]'") from exc
+    # The tasks find firmware builds as this process does: its cache and firmware settings
+    # go with them (a Ray worker has the environment of the node's raylet, not ours).
+    env_vars = {name: os.environ[name] for name in (CACHE_ENV_VAR, FIRMWARE_ENV_VAR,
+                                                   "XDG_CACHE_HOME") if name in os.environ}
     try:
-        ray.init(address=address, log_to_driver=False, ignore_reinit_error=True)
+        ray.init(address=address, log_to_driver=False, ignore_reinit_error=True,
+                 runtime_env={"env_vars": env_vars})
     except (ConnectionError, RuntimeError, ValueError) as exc:
         raise ScenarioError(f"cannot reach the Ray cluster at {address}: {exc} (start one "
                             f"with `ray start --head`, then pass the address it prints)") \
             from exc
     remote = ray.remote(num_cpus=1, max_retries=0)(_run_one)
-    refs = {remote.remote(run, speed, plot): index for index, run in enumerate(runs)}
+    refs = {remote.remote(run, speed, plot, mcap): index for index, run in enumerate(runs)}
     say(f"{len(runs)} runs on the Ray cluster at {address} "
         f"({ray.cluster_resources().get('CPU', 0):g} CPUs)")
     pending = list(refs)

@@ -700,7 +700,8 @@ class Simulator:
         self._thrust_scale = (scale[0], scale[1], scale[2], scale[3])
 
     def set_wind(self, wind: Wind | None) -> None:
-        """The wind from now on (None: still air); gusts continue from the run's seed."""
+        """The wind from now on (None: still air); its gusts are drawn afresh from the run's
+        seed, so a run stays repeatable."""
         self.wind = wind
         self._wind = _WindField(wind, self._seed) if wind is not None else None
 

@@ -22,6 +22,7 @@ from bfsitl.autopilot import Autopilot
 from bfsitl.build import FirmwareCache
 from bfsitl.fc.rc_link import RcFault
 from bfsitl.mission.session import FLY_PROFILE, FlightSession, SessionConfig, with_fast_serial
+from bfsitl.protocol import msp_messages as msg
 from bfsitl.scenario.spec import find_scenarios
 
 pytestmark = pytest.mark.sitl
@@ -116,8 +117,8 @@ def test_faults_reach_the_fc_where_they_should(
         build: str, lockstep_master_firmware: Path, lockstep_gps_46_firmware: Path,
         tmp_path: Path) -> None:
     """A weak motor is made up for by that motor (right motor order under a fault); a GPS
-    glitch moves the FC's GPS and not the truth (right axis and sign); RC silence is a lost
-    link on master and nothing on 4.6.0."""
+    glitch moves the FC's GPS and not the truth (right axis and sign); a delayed RC command
+    arrives that much later; RC silence is a lost link on master and nothing on 4.6.0."""
     firmware = lockstep_master_firmware if build.startswith("master") \
         else lockstep_gps_46_firmware
     config = SessionConfig(firmware=firmware, workdir=tmp_path / "sitl",
@@ -150,6 +151,14 @@ def test_faults_reach_the_fc_where_they_should(
         vehicle.truth.set_sensors(sensors)
 
         assert vehicle.rc is not None
+        # RC latency: AUX4 (no mode on it) raised under a 0.2 s delay reaches the FC 0.2 s
+        # later (MSP_RC: roll, pitch, yaw, throttle, AUX1.., so AUX4 is channel 8).
+        vehicle.rc.fault = RcFault(delay_s=0.2)
+        vehicle.set_rc(vehicle.rc_command.with_aux(3, 1900))
+        vehicle.clock.sleep_s(0.1)
+        assert vehicle.client.get(msg.Rc).channels_us[7] != 1900
+        vehicle.clock.sleep_s(0.2)
+        assert vehicle.client.get(msg.Rc).channels_us[7] == 1900
         vehicle.rc.fault = RcFault(silent=True)
         vehicle.clock.sleep_s(0.3)
         blockers = {b.cli_name for b in vehicle.client.status().arming_blockers}

@@ -46,6 +46,18 @@ def test_a_delay_sends_the_command_of_that_long_ago() -> None:
     assert state.channels(0.151, late)[2] == 1700  # the new one set at 0.05 s, 0.1 s later
 
 
+def test_a_command_set_just_after_a_delay_begins_waits_too() -> None:
+    state = RcFaultState()
+    before, after = RcCommand(throttle_us=1200), RcCommand(throttle_us=1700)
+    assert state.channels(0.00, before)[2] == 1200   # healthy: what goes out
+    state.inject(RcFault(delay_s=0.2), before)
+    assert state.channels(0.01, after)[2] == 1200    # set after the delay began
+    assert state.channels(0.20, after)[2] == 1200
+    assert state.channels(0.22, after)[2] == 1700
+    state.inject(None, after)
+    assert state.channels(0.23, before)[2] == 1200   # over: at once again
+
+
 def test_jitter_is_repeatable_with_its_seed_and_within_its_bound() -> None:
     def run(seed: int) -> list[int]:
         state = RcFaultState(seed)

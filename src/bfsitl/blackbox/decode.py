@@ -1,18 +1,23 @@
-"""Decode a blackbox file into typed frames with ``orangebox`` (the registry's decoder).
+"""Decode a blackbox file into typed frames and events with ``orangebox`` (the registry's
+decoder) plus bfsitl's reading of the events (:mod:`bfsitl.blackbox.events`).
 
 Why orangebox 0.4.0 (see docs/scenarios.md): pure Python with no dependencies, GPL-3.0 like
 bfsitl, driven by the log's own header (so 4.6.0's and master's logs both decode), and it
 appends the latest slow frame (failsafe phase, receiver state, switch mask) to every main
 frame, so each frame carries them with its FC time.  0.5.0 cannot be installed by pip.
 
-Two things 0.4.0 does not give, read here from the log's bytes instead:
+What a decoded log can be trusted for, measured on real SITL logs (tests/data/blackbox):
 
-* events: its parser appends them to a copy of its list, so none survive; bfsitl needs only
-  the last two, which the firmware writes in a fixed order when it disarms
-  (``fc/core.c``: the DISARM event, then ``blackboxFinish`` writes LOG_END):
-  ``'E' 0x0F <reason as an unsigned varint> 'E' 0xFF "End of log" 0x00``;
-* a log cut short (a SITL killed while armed): the frames before the cut are kept and the log
-  is marked ``truncated``.
+* the slow frame is written only when a value changed, at a logged iteration
+  (``[4.6] src/main/blackbox/blackbox.c:1018-1042``), and the disarm closes the log in the
+  same pass: a failsafe that ends in LANDED (DROP, or the end of an AUTO-LAND) disarms inside
+  one ``failsafeUpdateState`` call (``[4.6] src/main/flight/failsafe.c:311-395``), so with
+  ``blackbox_mode = NORMAL`` RX_LOSS_DETECTED and LANDED never reach the log; a phase that
+  lasts does (LANDING, measured).  The DISARM event's reason is the evidence of how it ended;
+* a log cut short (a SITL killed while armed, a file cut mid-frame) keeps the frames before
+  the cut and is marked ``truncated``; 0.4.0 ends such a log with a TypeError or IndexError
+  once the data runs out, and never yields the last complete frame before the cut (it peeks
+  at the byte after a frame before yielding it).
 """
 
 from __future__ import annotations
@@ -20,23 +25,29 @@ from __future__ import annotations
 import enum
 import logging
 import math
+from collections.abc import Iterator
+from contextlib import contextmanager
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import Any
 
+from orangebox.errors import InvalidHeaderException
+from orangebox.reader import Reader
+
+from bfsitl.blackbox.events import DISARM_REASONS, EventKeepingParser, disarm_reason_name
 from bfsitl.errors import BlackboxError
 
-#: Disarm reasons (``flightLogDisarmReason_e``, fc/core.h; 10 is master's).
-DISARM_REASONS = {0: "ARMING_DISABLED", 1: "FAILSAFE", 2: "THROTTLE_TIMEOUT", 3: "STICKS",
-                  4: "SWITCH", 5: "CRASH_PROTECTION", 6: "RUNAWAY_TAKEOFF", 7: "GPS_RESCUE",
-                  8: "SERIAL_COMMAND", 9: "LANDING", 10: "CRASHFLIP"}
-_LOG_END = b"E\xffEnd of log\x00"
-_DISARM = b"E\x0f"
-#: How far before LOG_END the DISARM event may start (its varint is 1-5 bytes).
-_DISARM_WINDOW = 8
+__all__ = ["DISARM_REASONS", "BlackboxEvent", "BlackboxFrame", "BlackboxLog", "FailsafePhase",
+           "decode_blackbox", "frames_to_rows"]
+
+#: Every log starts with this header line (``[4.6] src/main/blackbox/blackbox.c:131``);
+#: orangebox splits a file into logs where it repeats.
+_FIRST_HEADER = b"H Product:"
 
 
 class FailsafePhase(enum.IntEnum):
-    """``failsafePhase_e`` (flight/failsafe.h); AUTOPILOT is master's."""
+    """``failsafePhase_e`` (``[4.6] src/main/flight/failsafe.h:47-55``); AUTOPILOT is
+    master's (``[M] src/main/flight/failsafe.h:55``)."""
 
     IDLE = 0
     RX_LOSS_DETECTED = 1
@@ -50,20 +61,34 @@ class FailsafePhase(enum.IntEnum):
 
 @dataclass(frozen=True, slots=True)
 class BlackboxFrame:
-    """One main frame, with the slow frame in force at its time."""
+    """One main frame, with the slow frame in force at its time
+    (``loadSlowState``, ``[4.6] src/main/blackbox/blackbox.c:1003-1010``)."""
 
-    time_s: float                      # FC time (µs since boot in the log), seconds
+    time_s: float                      # FC time (the log's µs since boot), seconds
     failsafe_phase: int | None         # None before the first slow frame
     rx_signal_received: bool | None
     rx_flight_channels_valid: bool | None
-    #: ``flightModeFlags``: the mode *switches* on, by internal box id (not active modes).
+    #: ``flightModeFlags``: rcModeActivationMask, the mode *switches* on by internal box id
+    #: (``boxId_e``), not the active flight modes; 0 before the first slow frame.
     mode_switch_mask: int
     state_flags: int                   # bit 0 GPS_FIX_HOME, bit 1 GPS_FIX
-    motors: tuple[int, ...]
-    rc_command: tuple[int, ...]
-    setpoint: tuple[int, ...]
-    gyro_adc: tuple[int, ...]
-    debug: tuple[int, ...]
+    motors: tuple[int, ...]            # motor[0..], as logged
+    rc_command: tuple[int, ...]        # rcCommand[0..3]
+    setpoint: tuple[int, ...]          # setpoint[0..3] (deg/s, throttle)
+    gyro_adc: tuple[int, ...]          # gyroADC[0..2], as logged
+    debug: tuple[int, ...]             # debug[0..7] (what debug_mode puts there)
+
+
+@dataclass(frozen=True, slots=True)
+class BlackboxEvent:
+    """An event frame: ``kind`` is the firmware's name without FLIGHT_LOG_EVENT_ (DISARM,
+    FLIGHTMODE, SYNC_BEEP, LOGGING_RESUME, INFLIGHT_ADJUSTMENT, LOG_END)."""
+
+    #: FC time of the last main frame before it (events carry no time of their own); None
+    #: when none came before.
+    time_s: float | None
+    kind: str
+    data: dict[str, Any]
 
 
 @dataclass(frozen=True, slots=True)
@@ -73,24 +98,21 @@ class BlackboxLog:
     path: Path
     index: int                         # 1-based, as the file holds them
     firmware_revision: str
-    headers: dict[str, object] = field(repr=False)
+    #: The ``H name:value`` lines as written (field definitions included).
+    headers: dict[str, str] = field(repr=False)
     frames: tuple[BlackboxFrame, ...] = field(repr=False)
-    disarm_reason: int | None
-    #: The log ends without LOG_END (the SITL stopped while logging) or mid-frame.
+    events: tuple[BlackboxEvent, ...] = field(repr=False)
+    disarm_reason: int | None          # the DISARM event's; None without one
+    disarm_reason_name: str | None     # FAILSAFE, SWITCH, ... (``DISARM_REASONS``)
+    #: The log ends without LOG_END: the SITL stopped while logging, or the file was cut.
     truncated: bool
-
-    @property
-    def disarm_reason_name(self) -> str | None:
-        if self.disarm_reason is None:
-            return None
-        return DISARM_REASONS.get(self.disarm_reason, f"reason {self.disarm_reason}")
 
     @property
     def duration_s(self) -> float:
         return self.frames[-1].time_s - self.frames[0].time_s if self.frames else 0.0
 
     def phase_changes(self) -> list[tuple[float, FailsafePhase]]:
-        """(FC time, phase) at the first frame and at each change of the failsafe phase."""
+        """(FC time, phase) at the first frame that has one and at each change."""
         changes: list[tuple[float, FailsafePhase]] = []
         for frame in self.frames:
             if frame.failsafe_phase is None:
@@ -98,10 +120,87 @@ class BlackboxLog:
             try:
                 phase = FailsafePhase(frame.failsafe_phase)
             except ValueError:
-                continue
+                continue  # a phase a newer firmware added: not a change this enum can name
             if not changes or changes[-1][1] is not phase:
                 changes.append((frame.time_s, phase))
         return changes
+
+
+def decode_blackbox(path: str | Path) -> list[BlackboxLog]:
+    """Every log in the file at ``path``, decoded.
+
+    Raises :class:`BlackboxError` for a file that cannot be read or does not start like a
+    blackbox log; damage further in ends that log early (``truncated``), never the call."""
+    path = Path(path)
+    try:
+        data = path.read_bytes()
+    except OSError as exc:
+        raise BlackboxError(f"cannot read the blackbox file {path}: {exc.strerror or exc}"
+                            ) from exc
+    if not data.startswith(_FIRST_HEADER):
+        what = "is empty" if not data else "does not start with an 'H Product:' header"
+        raise BlackboxError(f"{path} is not a blackbox log (it {what}); pass a LOG*.BFL or "
+                            f"LOG*.BF file the FC wrote (blackbox_device = VIRTUAL)")
+    with _orangebox_quiet():
+        try:
+            starts = Reader(str(path)).log_pointers
+        except (OSError, ValueError, RuntimeError, InvalidHeaderException) as exc:
+            raise BlackboxError(f"{path}: orangebox cannot read the file: {exc}") from exc
+        ends = [*starts[1:], len(data)]
+        return [_decode_one(path, index, data[start:end])
+                for index, (start, end) in enumerate(zip(starts, ends, strict=True), 1)]
+
+
+@contextmanager
+def _orangebox_quiet() -> Iterator[None]:
+    """orangebox warns about every optional header a SITL log lacks (minthrottle, vbatref) and
+    every event it does not know: noise for a log bfsitl decodes anyway."""
+    logger = logging.getLogger("orangebox")
+    level = logger.level
+    logger.setLevel(logging.ERROR)
+    try:
+        yield
+    finally:
+        logger.setLevel(level)
+
+
+def _decode_one(path: Path, index: int, segment: bytes) -> BlackboxLog:
+    headers = _raw_headers(segment)
+    frames: list[BlackboxFrame] = []
+    parser: EventKeepingParser | None = None
+    cut = False
+    try:
+        parser = EventKeepingParser(Reader(str(path), log_index=index))
+        names = parser.field_names
+        for frame in parser.frames():
+            frames.append(_frame(dict(zip(names, frame.data, strict=False))))
+    except (TypeError, IndexError, ValueError, KeyError, RuntimeError, ZeroDivisionError,
+            InvalidHeaderException):
+        # 0.4.0 reads past the end of a cut log as None (TypeError) or peeks past it
+        # (IndexError); a header cut short fails while building its field definitions.
+        # Whatever came before the damage is kept.
+        cut = True
+    kept = parser.kept if parser is not None else []
+    events = tuple(BlackboxEvent(frames[before - 1].time_s if before else None, kind, data)
+                   for before, kind, data in kept)
+    reason = next((e.data["reason"] for e in reversed(events) if e.kind == "DISARM"), None)
+    return BlackboxLog(
+        path=path, index=index, firmware_revision=headers.get("Firmware revision", ""),
+        headers=headers, frames=tuple(frames), events=events, disarm_reason=reason,
+        disarm_reason_name=None if reason is None else disarm_reason_name(reason),
+        truncated=cut or parser is None or not parser.saw_log_end)
+
+
+def _raw_headers(segment: bytes) -> dict[str, str]:
+    """The ``H name:value`` lines at the start of a log, as text.  orangebox's own headers
+    are converted (numbers, lists) and leave out the field definitions."""
+    headers: dict[str, str] = {}
+    for line in segment.split(b"\n"):
+        if not line.startswith(b"H "):
+            break  # the first frame follows the last header line
+        name, _, value = line[2:].decode("ascii", "replace").partition(":")
+        headers[name.strip()] = value.strip()
+    return headers
 
 
 def _int(value: object) -> int | None:
@@ -111,10 +210,11 @@ def _int(value: object) -> int | None:
         return value
     if isinstance(value, float) and math.isfinite(value):
         return int(value)
-    return None  # '' before the first slow frame
+    return None  # orangebox fills slow fields with '' before the first slow frame
 
 
 def _group(row: dict[str, object], name: str, count: int) -> tuple[int, ...]:
+    """``name[0]``, ``name[1]``, ... for as many as the log has (up to ``count``)."""
     values = []
     for index in range(count):
         value = _int(row.get(f"{name}[{index}]"))
@@ -124,14 +224,17 @@ def _group(row: dict[str, object], name: str, count: int) -> tuple[int, ...]:
     return tuple(values)
 
 
+def _flag(row: dict[str, object], name: str) -> bool | None:
+    value = _int(row.get(name))
+    return None if value is None else bool(value)
+
+
 def _frame(row: dict[str, object]) -> BlackboxFrame:
-    phase = _int(row.get("failsafePhase"))
-    signal = _int(row.get("rxSignalReceived"))
-    channels = _int(row.get("rxFlightChannelsValid"))
     return BlackboxFrame(
-        time_s=(_int(row.get("time")) or 0) / 1e6, failsafe_phase=phase,
-        rx_signal_received=None if signal is None else bool(signal),
-        rx_flight_channels_valid=None if channels is None else bool(channels),
+        time_s=(_int(row.get("time")) or 0) / 1e6,
+        failsafe_phase=_int(row.get("failsafePhase")),
+        rx_signal_received=_flag(row, "rxSignalReceived"),
+        rx_flight_channels_valid=_flag(row, "rxFlightChannelsValid"),
         mode_switch_mask=_int(row.get("flightModeFlags")) or 0,
         state_flags=_int(row.get("stateFlags")) or 0,
         motors=_group(row, "motor", 8), rc_command=_group(row, "rcCommand", 4),
@@ -139,77 +242,21 @@ def _frame(row: dict[str, object]) -> BlackboxFrame:
         debug=_group(row, "debug", 8))
 
 
-def _unsigned_varint(data: bytes, start: int) -> int | None:
-    value = shift = 0
-    for offset in range(start, min(start + 5, len(data))):
-        byte = data[offset]
-        value |= (byte & 0x7F) << shift
-        if byte < 0x80:
-            return value
-        shift += 7
-    return None
-
-
-def _tail_events(segment: bytes) -> tuple[int | None, bool]:
-    """(disarm reason, whether LOG_END is there) from a log's last bytes."""
-    end = segment.rfind(_LOG_END)
-    if end < 0:
-        return None, False
-    window = segment[max(0, end - _DISARM_WINDOW):end]
-    at = window.rfind(_DISARM)
-    if at < 0:
-        return None, True
-    start = max(0, end - _DISARM_WINDOW) + at + len(_DISARM)
-    reason = _unsigned_varint(segment, start)
-    return (reason if reason is not None and reason < 256 else None), True
-
-
-def decode_blackbox(path: str | Path) -> list[BlackboxLog]:
-    """Every log in the file at ``path``, decoded; raises :class:`BlackboxError` for a file
-    that is missing or holds no blackbox log."""
-    from orangebox import Parser
-
-    path = Path(path)
-    try:
-        data = path.read_bytes()
-    except OSError as exc:
-        raise BlackboxError(f"cannot read the blackbox file {path}: {exc.strerror or exc}") \
-            from exc
-    if not data.startswith(b"H Product:"):
-        raise BlackboxError(f"{path} is not a blackbox log (no 'H Product:' header); is it "
-                            f"a LOG*.BFL file the FC wrote?")
-    # orangebox logs every missing optional header and unknown event at WARNING: noise here.
-    quiet = logging.getLogger("orangebox")
-    level = quiet.level
-    quiet.setLevel(logging.ERROR)
-    try:
-        parser = Parser.load(str(path))
-        pointers = [*parser.reader.log_pointers, len(data)]
-        logs = []
-        for index in range(1, parser.reader.log_count + 1):
-            if index > 1:
-                parser.set_log_index(index)
-            logs.append(_decode_one(parser, path, index,
-                                    data[pointers[index - 1]:pointers[index]]))
-    except (RuntimeError, ValueError, IndexError, KeyError) as exc:
-        raise BlackboxError(f"{path}: the blackbox log cannot be decoded: {exc!r}") from exc
-    finally:
-        quiet.setLevel(level)
-    return logs
-
-
-def _decode_one(parser: object, path: Path, index: int, segment: bytes) -> BlackboxLog:
-    names = parser.field_names  # type: ignore[attr-defined]
-    frames: list[BlackboxFrame] = []
-    cut = False
-    try:
-        for frame in parser.frames():  # type: ignore[attr-defined]
-            frames.append(_frame(dict(zip(names, frame.data, strict=False))))
-    except (TypeError, ValueError, IndexError, RuntimeError, StopIteration):
-        cut = True  # 0.4.0 ends a file cut mid-frame with an error: keep what came before
-    reason, ended = _tail_events(segment)
-    headers = parser.headers  # type: ignore[attr-defined]
-    return BlackboxLog(path=path, index=index,
-                       firmware_revision=str(headers.get("Firmware revision", "")),
-                       headers=headers, frames=tuple(frames), disarm_reason=reason,
-                       truncated=cut or not ended)
+def frames_to_rows(log: BlackboxLog) -> list[dict[str, float | int | bool | None]]:
+    """One flat dict per frame (``motor0``, ``gyro_adc2``, ...), e.g. for ``csv.DictWriter``
+    or a DataFrame; ``time_from_start_s`` counts from the log's first frame."""
+    start = log.frames[0].time_s if log.frames else 0.0
+    rows: list[dict[str, float | int | bool | None]] = []
+    for frame in log.frames:
+        row: dict[str, float | int | bool | None] = {
+            "time_s": frame.time_s, "time_from_start_s": round(frame.time_s - start, 6),
+            "failsafe_phase": frame.failsafe_phase,
+            "rx_signal_received": frame.rx_signal_received,
+            "rx_flight_channels_valid": frame.rx_flight_channels_valid,
+            "mode_switch_mask": frame.mode_switch_mask, "state_flags": frame.state_flags}
+        for name in ("motors", "rc_command", "setpoint", "gyro_adc", "debug"):
+            prefix = "motor" if name == "motors" else name
+            for index, value in enumerate(getattr(frame, name)):
+                row[f"{prefix}{index}"] = value
+        rows.append(row)
+    return rows

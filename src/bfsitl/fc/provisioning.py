@@ -39,8 +39,11 @@ _BATCH_LINES = 8
 _AUX_ARGUMENTS = 7
 #: Settings the firmware applies only at boot, without flagging a reboot when they change:
 #: ``serial_update_rate_hz`` is the serial task's rate, set once in ``tasksInit()`` (4.6.0
-#: and master fc/tasks.c ``rescheduleTask(TASK_SERIAL, ...)``).
-BOOT_ONLY_SETTINGS = frozenset({"serial_update_rate_hz"})
+#: and master fc/tasks.c ``rescheduleTask(TASK_SERIAL, ...)``); the blackbox's device and
+#: sample rate are read once in ``blackboxInit()`` (blackbox/blackbox.c: a device of NONE at
+#: boot leaves the blackbox DISABLED; measured: set without a reboot, no log was written).
+BOOT_ONLY_SETTINGS = frozenset({"serial_update_rate_hz", "blackbox_device",
+                                "blackbox_sample_rate"})
 
 
 @dataclass(frozen=True, slots=True)

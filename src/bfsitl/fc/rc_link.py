@@ -115,12 +115,22 @@ class RcFaultState:
     def __init__(self, seed: int = 0) -> None:
         self.fault: RcFault | None = None
         self._history: deque[tuple[float, RcCommand]] = deque()
+        #: What went out when the fault began: where a delay starts from.
+        self._last_sent: tuple[float, RcCommand] | None = None
         self._rng = random.Random(f"bfsitl.rc.jitter:{seed}")
 
+    def inject(self, fault: RcFault | None, current: RcCommand) -> None:
+        """``fault`` from now on (None ends it); ``current`` is what the link was sending, so
+        a delay holds it until newer commands are old enough."""
+        self.fault = fault
+        self._history.clear()
+        self._last_sent = (-math.inf, current)
+
     def note(self, time_s: float, command: RcCommand) -> None:
-        """Remember what was commanded when (only needed while a delay is in force)."""
-        if self.fault is None or self.fault.delay_s + self.fault.jitter_s <= 0:
-            self._history.clear()
+        """Remember what was commanded when (while a delay is in force); the history starts
+        with what went out before the delay, so a command set just after it waits too."""
+        if not self._history and self._last_sent is not None:
+            self._history.append(self._last_sent)
         if not self._history or self._history[-1][1] is not command:
             self._history.append((time_s, command))
         while len(self._history) > 1 and self._history[1][0] < time_s - self.HISTORY_S:
@@ -198,7 +208,7 @@ class _RcLinkBase:
     @fault.setter
     def fault(self, fault: RcFault | None) -> None:
         """Inject ``fault`` from the next packet on (None ends it)."""
-        self._fault.fault = fault
+        self._fault.inject(fault, self._command)
 
     # -- lifecycle -------------------------------------------------------------------------
     def start(self) -> _RcLinkBase:

@@ -383,7 +383,7 @@ class LockstepRc:
     @fault.setter
     def fault(self, fault: RcFault | None) -> None:
         """Inject ``fault`` from the next fdm packet on (None ends it)."""
-        self.bridge.rc_fault.fault = fault
+        self.bridge.rc_fault.inject(fault, self.bridge.rc_command)
 
     def stats(self) -> RcLinkStats:
         steps = self.bridge.lockstep_stats().steps

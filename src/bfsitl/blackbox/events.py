@@ -1,0 +1,148 @@
+"""The blackbox's event frames, which orangebox 0.4.0 reads but does not keep.
+
+Why this module exists: in 0.4.0 ``Parser._parse_event_frame`` appends each event to
+``self.events``, a property that returns a *copy* of its list, so ``parser.events`` is always
+empty; and it has no parser for DISARM (15): it logs "Unknown event type: 15", counts the frame
+invalid and resynchronises past the reason byte, so the disarm reason is lost.  The DISARM
+event is the FC's own word on why a flight ended (a failsafe, the switch, a crash...), so
+:class:`EventKeepingParser` takes over event frames and reads every payload the firmware
+writes.  The override is of a private method, which is why the dependency is pinned to 0.4.0;
+the tests fail loudly if a new version stops calling it.
+
+Event payloads, the same in both trees (``[4.6] src/main/blackbox/blackbox.c:1888-1931``,
+``[M] src/main/blackbox/blackbox.c:1882-1925``): after ``'E'`` and the event code,
+
+=======================  ====  ==========================================================
+event                    code  payload
+=======================  ====  ==========================================================
+SYNC_BEEP                0     unsigned varint: arming beep time, µs
+INFLIGHT_ADJUSTMENT      13    one byte function (bit 7: float follows), then a signed
+                               varint, or a float as 4 bytes little-endian
+LOGGING_RESUME           14    unsigned varints: log iteration, FC time in µs
+DISARM                   15    unsigned varint: ``flightLogDisarmReason_e``
+FLIGHTMODE               30    unsigned varints: new and old switch mask (rcModeActivationMask)
+LOG_END                  255   ``"End of log"`` and a NUL
+=======================  ====  ==========================================================
+
+The disarm path writes DISARM and then LOG_END when it closes the log
+(``[4.6] src/main/fc/core.c:486-493``, ``[M] src/main/fc/core.c:531-538``).
+"""
+
+from __future__ import annotations
+
+import struct
+from collections.abc import Iterator
+from typing import Any
+
+from orangebox import Parser
+
+from bfsitl.errors import BlackboxError
+
+#: ``flightLogDisarmReason_e``: ``[4.6] src/main/fc/core.h:49-58``; master adds CRASHFLIP
+#: (``[M] src/main/fc/core.h:49-59``).  255 (SYSTEM) exists only in the firmware's unit tests.
+DISARM_REASONS = {0: "ARMING_DISABLED", 1: "FAILSAFE", 2: "THROTTLE_TIMEOUT", 3: "STICKS",
+                  4: "SWITCH", 5: "CRASH_PROTECTION", 6: "RUNAWAY_TAKEOFF", 7: "GPS_RESCUE",
+                  8: "SERIAL_COMMAND", 9: "LANDING", 10: "CRASHFLIP"}
+
+#: ``FlightLogEvent`` codes the firmware writes (``[4.6] src/main/blackbox/blackbox.h:50-60``;
+#: 10-12 are declared UNUSED there and never written).
+EVENT_KINDS = {0: "SYNC_BEEP", 13: "INFLIGHT_ADJUSTMENT", 14: "LOGGING_RESUME", 15: "DISARM",
+               30: "FLIGHTMODE", 255: "LOG_END"}
+
+_LOG_END_TEXT = b"End of log\x00"
+#: ``FLIGHT_LOG_EVENT_INFLIGHT_ADJUSTMENT_FUNCTION_FLOAT_VALUE_FLAG``
+#: (``[4.6] src/main/blackbox/blackbox_fielddefs.h:184``).
+_FLOAT_FLAG = 0x80
+
+
+def _byte(stream: Iterator[int | None]) -> int:
+    # orangebox's Reader yields None at the end of the data instead of stopping.
+    value = next(stream, None)
+    if value is None:
+        raise BlackboxError("an event's payload runs past the end of the log")
+    return value
+
+
+def _unsigned(stream: Iterator[int | None]) -> int:
+    """The firmware's unsigned varint: 7 bits a byte, low first, at most 5 bytes for 32."""
+    value = 0
+    for shift in range(0, 35, 7):
+        byte = _byte(stream)
+        value |= (byte & 0x7F) << shift
+        if byte < 0x80:
+            return value
+    raise BlackboxError("an event's payload runs past the end of the log")
+
+
+def _signed(stream: Iterator[int | None]) -> int:
+    raw = _unsigned(stream)
+    return (raw >> 1) ^ -(raw & 1)  # zig-zag
+
+
+def read_event(code: int, stream: Iterator[int | None]) -> tuple[str, dict[str, Any]] | None:
+    """(kind, data) of the event with ``code`` whose payload ``stream`` holds; None for a code
+    the firmware does not write or a payload cut short (the caller then resynchronises)."""
+    kind = EVENT_KINDS.get(code)
+    if kind is None:
+        return None
+    try:
+        if kind == "SYNC_BEEP":
+            return kind, {"time_us": _unsigned(stream)}
+        if kind == "INFLIGHT_ADJUSTMENT":
+            function = _byte(stream)
+            if function & _FLOAT_FLAG:
+                raw = bytes(_byte(stream) for _ in range(4))
+                value: float = struct.unpack("<f", raw)[0]
+                return kind, {"function": function & ~_FLOAT_FLAG, "value": value}
+            return kind, {"function": function, "value": _signed(stream)}
+        if kind == "LOGGING_RESUME":
+            return kind, {"log_iteration": _unsigned(stream), "time_us": _unsigned(stream)}
+        if kind == "DISARM":
+            reason = _unsigned(stream)
+            return kind, {"reason": reason, "reason_name": disarm_reason_name(reason)}
+        if kind == "FLIGHTMODE":
+            return kind, {"mode_switch_mask": _unsigned(stream),
+                          "previous_mode_switch_mask": _unsigned(stream)}
+        # LOG_END: only with its text, else it is an 0xFF after an 'E' in damaged data.
+        text = bytes(_byte(stream) for _ in range(len(_LOG_END_TEXT)))
+        return (kind, {}) if text == _LOG_END_TEXT else None
+    except BlackboxError:  # cut short: the caller resynchronises
+        return None
+
+
+def disarm_reason_name(reason: int) -> str:
+    return DISARM_REASONS.get(reason, f"REASON_{reason}")
+
+
+class EventKeepingParser(Parser):
+    """orangebox's parser, keeping every event with the number of main frames before it."""
+
+    def __init__(self, *args: Any, **kwargs: Any) -> None:
+        #: (main frames yielded before it, kind, data), in the order of the log.
+        self.kept: list[tuple[int, str, dict[str, Any]]] = []
+        self.saw_log_end = False
+        self._yielded = 0
+        super().__init__(*args, **kwargs)
+
+    def frames(self) -> Iterator[Any]:
+        # orangebox parses the event after frame N while the consumer holds frame N (it
+        # yields a frame before reading on), so the count below is the frames before it.
+        for frame in super().frames():
+            self._yielded += 1
+            yield frame
+
+    def _parse_event_frame(self, reader: Any) -> bool:
+        code = next(reader)
+        if code is None:
+            return False  # 'E' was the last byte: the caller ends on the missing data
+        after_code = reader.tell()
+        event = read_event(code, reader)
+        if event is None:
+            # Unknown or damaged: back to where 0.4.0 itself would be, and let it resync.
+            reader.seek(after_code)
+            return False
+        self.kept.append((self._yielded, *event))
+        if event[0] == "LOG_END":
+            self.saw_log_end = True
+            self._end_of_log = True  # what 0.4.0's own LOG_END handling sets to stop
+        return True

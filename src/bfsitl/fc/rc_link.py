@@ -84,8 +84,9 @@ class RcFault:
       holds the last channels forever, so this is no fault there);
     * ``pulses_us``: (channel index, pulse) pairs sent as they are, unclamped: a pulse below
       ``rx_min_usec`` (885) or above ``rx_max_usec`` (2115) is what a receiver reports for a
-      lost channel, and the firmware's failsafe takes a flight channel (AETR) invalid for
-      300 ms as a lost link on every generation (rx/rx.c);
+      lost channel: a flight channel (AETR) invalid for 300 ms starts the failsafe on every
+      generation, but in stage 2 the firmware counts the frames as valid again and recovers
+      (rx/rx.c), so the loss comes and goes (measured on both);
     * ``delay_s`` (plus up to ``jitter_s`` more, uniformly, per packet): the command that was
       set that long ago, as a slow radio link delivers it.
     """

@@ -94,7 +94,7 @@ def _rc_loss(spec: FaultSpec, profile: FirmwareProfile, where: str) -> Fault:
         # Where silence is not detected, invalid pulses are no steady loss either: the SITL
         # receiver still reports whole frames, so in stage 2 the firmware counts them as
         # valid data and recovers after failsafe_recovery_delay, then loses the link again
-        # (4.6.0 measured: LANDING and IDLE alternate every 0.5 s).  The FAILSAFE switch in
+        # (measured on both generations: LANDING and IDLE alternate).  The FAILSAFE switch in
         # its default STAGE1 mode is the firmware's own "link lost" input, and holds.
         method = "silence" if silence_detected else "switch"
     if method == "silence" and not silence_detected:

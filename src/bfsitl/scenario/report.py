@@ -1,117 +1,175 @@
 """A run's results as one HTML page a person opens from disk: the summary, a table of every
-run with links to its files, and per run its checks, its timeline and its plot.
+run with links to its files, and per run its checks, its timeline and its plots.
 
 Self-contained (inline style, no script, nothing fetched); links and images are relative to
 the page's directory, so the directory can be zipped or published as a CI artifact together
-with the runs.  Every text from a scenario file or a run is escaped.
+with the runs.  Every text from a scenario file or a run is escaped: scenario names,
+descriptions and messages are user input.
 """
 
 from __future__ import annotations
 
 import os
+import secrets
 from collections.abc import Sequence
 from datetime import UTC, datetime
 from html import escape
 from pathlib import Path
+from urllib.parse import quote
 
-from bfsitl.scenario.result import ScenarioResult, Verdict
+from bfsitl.scenario.result import CheckResult, ScenarioResult, Verdict
 
-_COLOURS = {Verdict.PASSED: "#1a7f37", Verdict.FAILED: "#cf222e", Verdict.ERROR: "#9a6700",
-            Verdict.SKIPPED: "#6e7781"}
+#: Files shown as images in a run's section (when they exist), by their suffix.
+_IMAGE_SUFFIXES = (".png", ".svg", ".jpg", ".jpeg")
+
 _STYLE = """
-body { font: 14px/1.45 system-ui, sans-serif; margin: 2em auto; max-width: 70em; color: #1f2328; }
+body { font: 14px/1.45 system-ui, sans-serif; margin: 2em auto; max-width: 72em;
+       padding: 0 1em; color: #1f2328; }
 table { border-collapse: collapse; width: 100%; margin: 1em 0; }
 th, td { border-bottom: 1px solid #d0d7de; padding: .3em .5em; text-align: left;
          vertical-align: top; }
 th { background: #f6f8fa; }
-.verdict { font-weight: 600; }
 .num { text-align: right; font-variant-numeric: tabular-nums; }
+.verdict { font-weight: 600; }
+.passed { color: #1a7f37; } .failed { color: #cf222e; }
+.error { color: #9a6700; } .skipped { color: #6e7781; }
+.missing { color: #6e7781; text-decoration: line-through; }
 section { border-top: 2px solid #d0d7de; margin-top: 2em; }
 pre { background: #f6f8fa; padding: .6em; overflow-x: auto; font-size: 12px; }
-img { max-width: 100%; border: 1px solid #d0d7de; }
-.pass { color: #1a7f37; } .fail { color: #cf222e; }
+img { max-width: 100%; border: 1px solid #d0d7de; margin: .5em 0; }
 """
 
 
-def _href(target: Path, directory: Path) -> str:
+def write_atomically(path: Path, data: bytes) -> None:
+    """Write ``data`` to a temporary file beside ``path``, then rename it over ``path``: an
+    interrupted run leaves the old file or none, never half of one.  The temporary name is
+    unique (two writers never share it) and the file is created with the usual permissions
+    (``mkstemp`` would make a page others cannot read)."""
+    path.parent.mkdir(parents=True, exist_ok=True)
+    temporary = path.with_name(f".{path.name}.{os.getpid()}.{secrets.token_hex(4)}.tmp")
     try:
-        relative = os.path.relpath(Path(target).resolve(), directory.resolve())
-    except ValueError:
-        relative = str(target)
-    return escape(Path(relative).as_posix(), quote=True)
+        with temporary.open("xb") as handle:
+            handle.write(data)
+        os.replace(temporary, path)
+    except BaseException:
+        temporary.unlink(missing_ok=True)
+        raise
 
 
-def _anchor(result: ScenarioResult) -> str:
-    return escape(f"run-{result.firmware}-{result.name}".replace(" ", "-"), quote=True)
+def _href(target: Path, directory: Path) -> str:
+    """``target`` relative to the page's directory, URL-quoted (a space or ``#`` in a file name
+    must not break the link) and escaped for an attribute."""
+    try:
+        relative = Path(os.path.relpath(Path(target).resolve(), directory.resolve())).as_posix()
+    except ValueError:  # another drive on Windows: no relative path exists
+        return escape(Path(target).resolve().as_uri(), quote=True)
+    return escape(quote(relative), quote=True)
 
 
-def _verdict(result: ScenarioResult) -> str:
-    colour = _COLOURS[result.verdict]
-    return (f'<span class="verdict" style="color:{colour}">'
-            f"{escape(result.verdict.value.upper())}</span>")
+def _verdict(verdict: Verdict) -> str:
+    return (f'<span class="verdict {verdict.value}">'
+            f"{escape(verdict.value.upper())}</span>")
 
 
 def _summary(results: Sequence[ScenarioResult]) -> str:
-    counts = {v: sum(1 for r in results if r.verdict is v) for v in Verdict}
+    """Counts per verdict and how fast the runs flew; the wall time is summed over runs, so
+    with ``--jobs`` the ratio is per run, not the batch's."""
+    counts = ", ".join(f"{sum(1 for r in results if r.verdict is v)} {v.value}" for v in Verdict)
     simulated = sum(r.sim_time_s for r in results)
     wall = sum(r.wall_time_s for r in results)
-    ratio = f"{simulated / wall:.1f}x" if wall > 0 else "n/a"
-    parts = ", ".join(f"{counts[v]} {v.value}" for v in Verdict)
-    return (f"<p><b>{len(results)} runs</b>: {escape(parts)}. {simulated:.0f} s simulated in "
-            f"{wall:.0f} s of run time ({ratio} real time, summed over runs).</p>")
+    ratio = f"{simulated / wall:.1f}x real time" if wall > 0 else "no run time measured"
+    return (f'<p class="summary"><b>{len(results)} runs</b>: {escape(counts)}. '
+            f"{simulated:.1f} s simulated in {wall:.1f} s of run time ({ratio}, summed over "
+            "runs).</p>")
+
+
+def _links(result: ScenarioResult, directory: Path) -> str:
+    """A link per file the run wrote; a file named but absent is shown struck through rather
+    than as a link that goes nowhere."""
+    parts = []
+    for kind, path in result.artifacts.items():
+        if Path(path).exists():
+            parts.append(f'<a href="{_href(path, directory)}">{escape(kind)}</a>')
+        else:
+            parts.append(f'<span class="missing" title="not written">{escape(kind)}</span>')
+    return " ".join(parts)
 
 
 def _table(results: Sequence[ScenarioResult], directory: Path) -> str:
-    rows = []
-    for result in results:
-        links = " ".join(f'<a href="{_href(path, directory)}">{escape(kind)}</a>'
-                         for kind, path in result.artifacts.items())
-        rows.append(
-            f"<tr><td><a href=\"#{_anchor(result)}\">{escape(result.name)}</a></td>"
-            f"<td>{escape(result.firmware)}</td><td>{_verdict(result)}</td>"
-            f"<td>{escape(result.reason)}</td><td class=\"num\">{result.sim_time_s:.1f}</td>"
-            f"<td class=\"num\">{result.wall_time_s:.1f}</td><td>{links}</td></tr>")
+    rows = [
+        f'<tr><td><a href="#run-{index}">{escape(result.name)}</a></td>'
+        f"<td>{escape(result.firmware)}</td><td>{_verdict(result.verdict)}</td>"
+        f"<td>{escape(result.reason)}</td><td class=\"num\">{result.sim_time_s:.1f}</td>"
+        f"<td class=\"num\">{result.wall_time_s:.1f}</td><td>{_links(result, directory)}</td>"
+        "</tr>"
+        for index, result in enumerate(results)]
     return ("<table><tr><th>scenario</th><th>firmware</th><th>verdict</th><th>reason</th>"
-            "<th>sim s</th><th>wall s</th><th>files</th></tr>" + "".join(rows) + "</table>")
+            '<th class="num">sim s</th><th class="num">wall s</th><th>files</th></tr>'
+            + "".join(rows) + "</table>")
 
 
-def _section(result: ScenarioResult, directory: Path) -> str:
-    parts = [f'<section id="{_anchor(result)}"><h2>{escape(result.name)} on '
-             f"{escape(result.firmware)} {_verdict(result)}</h2>"]
+def _check_row(check: CheckResult) -> str:
+    verdict = Verdict.PASSED if check.passed else Verdict.FAILED
+    label = "PASS" if check.passed else "FAIL"
+    at = "" if check.at_time_s is None else f"{check.at_time_s:.2f}"
+    return (f'<tr><td class="verdict {verdict.value}">{label}</td>'
+            f"<td>{escape(check.message)}</td><td class=\"num\">{at}</td></tr>")
+
+
+def _checks(result: ScenarioResult) -> str:
+    """The checks as a table; a run with none (an error, a skip) shows its reason instead."""
+    if not result.checks:
+        return f"<p>{escape(result.reason)}</p>" if result.reason else ""
+    return ("<table><tr><th></th><th>check</th><th class=\"num\">at s</th></tr>"
+            + "".join(_check_row(c) for c in result.checks) + "</table>")
+
+
+def _timeline(result: ScenarioResult) -> str:
+    if not result.events:
+        return ""
+    lines = "\n".join(f"t={event.time_s:8.2f} s  {event.text}" for event in result.events)
+    return f"<h3>events</h3><pre>{escape(lines)}</pre>"
+
+
+def _images(result: ScenarioResult, directory: Path) -> str:
+    """The run's plots that exist on disk, the scenario plot first."""
+    kinds = sorted(result.artifacts, key=lambda kind: kind != "plot")
+    images = []
+    for kind in kinds:
+        path = Path(result.artifacts[kind])
+        if path.suffix.lower() in _IMAGE_SUFFIXES and path.exists():
+            images.append(f'<img src="{_href(path, directory)}" '
+                          f'alt="{escape(kind, quote=True)} of {escape(result.name, quote=True)}">')
+    return "".join(images)
+
+
+def _section(index: int, result: ScenarioResult, directory: Path) -> str:
+    parts = [f'<section id="run-{index}"><h2>{escape(result.name)} on '
+             f"{escape(result.firmware)}: {_verdict(result.verdict)}</h2>"]
     if result.firmware_version:
         parts.append(f"<p>Betaflight {escape(result.firmware_version)}</p>")
     if result.description:
         parts.append(f"<p>{escape(' '.join(result.description.split()))}</p>")
-    if result.checks:
-        parts.append("<ul>" + "".join(
-            f'<li class="{"pass" if c.passed else "fail"}">{"PASS" if c.passed else "FAIL"} '
-            f"{escape(c.message)}</li>" for c in result.checks) + "</ul>")
-    elif result.reason:
-        parts.append(f"<p>{escape(result.reason)}</p>")
-    if result.events:
-        parts.append("<pre>" + escape("\n".join(f"t={e.time_s:8.2f} s  {e.text}"
-                                                for e in result.events)) + "</pre>")
-    plot = result.artifacts.get("plot")
-    if plot is not None and Path(plot).exists():
-        parts.append(f'<img src="{_href(plot, directory)}" alt="plot of '
-                     f'{escape(result.name, quote=True)}">')
-    parts.append("</section>")
+    parts.extend((_checks(result), _timeline(result), _images(result, directory), "</section>"))
     return "".join(parts)
+
+
+def render_report(results: Sequence[ScenarioResult], directory: Path, *,
+                  title: str = "bfsitl scenarios") -> str:
+    """The page as text; ``directory`` is where it will live (links are relative to it)."""
+    stamp = datetime.now(UTC).strftime("%Y-%m-%d %H:%M UTC")
+    sections = "".join(_section(i, r, directory) for i, r in enumerate(results))
+    return ('<!DOCTYPE html>\n<html lang="en"><head><meta charset="utf-8">'
+            f"<title>{escape(title)}</title><style>{_STYLE}</style></head><body>"
+            f"<h1>{escape(title)}</h1><p>written {stamp}</p>{_summary(results)}"
+            f"{_table(results, directory)}{sections}</body></html>\n")
 
 
 def write_report(results: Sequence[ScenarioResult], directory: str | Path, *,
                  title: str = "bfsitl scenarios") -> Path:
-    """Write ``directory/index.html`` (atomically); returns its path."""
+    """Write ``directory/index.html`` (atomically, see :func:`write_atomically`); returns its
+    path."""
     directory = Path(directory)
-    directory.mkdir(parents=True, exist_ok=True)
-    stamp = datetime.now(UTC).strftime("%Y-%m-%d %H:%M UTC")
-    page = (f"<!DOCTYPE html><html lang=\"en\"><head><meta charset=\"utf-8\">"
-            f"<title>{escape(title)}</title><style>{_STYLE}</style></head><body>"
-            f"<h1>{escape(title)}</h1><p>{stamp}</p>{_summary(results)}"
-            f"{_table(results, directory)}"
-            + "".join(_section(r, directory) for r in results) + "</body></html>\n")
     path = directory / "index.html"
-    temporary = path.with_name("index.html.tmp")
-    temporary.write_text(page, encoding="utf-8")
-    temporary.replace(path)
+    write_atomically(path, render_report(results, directory, title=title).encode("utf-8"))
     return path

@@ -18,7 +18,7 @@ from pathlib import Path
 
 from junitparser import Attr, Error, Failure, JUnitXml, Skipped, TestCase, TestSuite
 
-from bfsitl.scenario.report import write_atomically
+from bfsitl.atomic_file import write_atomically
 from bfsitl.scenario.result import ScenarioResult, Verdict
 
 # Characters XML 1.0 cannot carry at all, not even escaped (a SITL's stdout may hold ANSI

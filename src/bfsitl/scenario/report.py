@@ -10,13 +10,13 @@ descriptions and messages are user input.
 from __future__ import annotations
 
 import os
-import secrets
 from collections.abc import Sequence
 from datetime import UTC, datetime
 from html import escape
 from pathlib import Path
 from urllib.parse import quote
 
+from bfsitl.atomic_file import write_atomically
 from bfsitl.scenario.result import CheckResult, ScenarioResult, Verdict
 
 #: Files shown as images in a run's section (when they exist), by their suffix.
@@ -38,22 +38,6 @@ section { border-top: 2px solid #d0d7de; margin-top: 2em; }
 pre { background: #f6f8fa; padding: .6em; overflow-x: auto; font-size: 12px; }
 img { max-width: 100%; border: 1px solid #d0d7de; margin: .5em 0; }
 """
-
-
-def write_atomically(path: Path, data: bytes) -> None:
-    """Write ``data`` to a temporary file beside ``path``, then rename it over ``path``: an
-    interrupted run leaves the old file or none, never half of one.  The temporary name is
-    unique (two writers never share it) and the file is created with the usual permissions
-    (``mkstemp`` would make a page others cannot read)."""
-    path.parent.mkdir(parents=True, exist_ok=True)
-    temporary = path.with_name(f".{path.name}.{os.getpid()}.{secrets.token_hex(4)}.tmp")
-    try:
-        with temporary.open("xb") as handle:
-            handle.write(data)
-        os.replace(temporary, path)
-    except BaseException:
-        temporary.unlink(missing_ok=True)
-        raise
 
 
 def _href(target: Path, directory: Path) -> str:

@@ -30,6 +30,7 @@ from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
 
+from bfsitl.atomic_file import write_atomically
 from bfsitl.control import DEFAULT_CONTROLLER, make_controller
 from bfsitl.errors import (
     ArmingBlockedError,
@@ -375,7 +376,5 @@ def _write_summary(result: ScenarioResult, out: Path) -> None:
         "artifacts": {k: str(v) for k, v in result.artifacts.items()},
     }
     path = out / "result.json"
-    temporary = path.with_suffix(".json.tmp")
-    temporary.write_text(json.dumps(data, indent=2) + "\n")
-    temporary.replace(path)
+    write_atomically(path, (json.dumps(data, indent=2) + "\n").encode("utf-8"))
     result.artifacts["summary"] = path

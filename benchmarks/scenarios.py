@@ -22,11 +22,11 @@ import tempfile
 import time
 from pathlib import Path
 
+from bfsitl.library import scenarios_dir
 from bfsitl.scenario.result import Verdict
 from bfsitl.scenario.spec import find_scenarios
 from bfsitl.scenario.suite import plan_runs, run_suite
 
-REPO = Path(__file__).resolve().parents[1]
 DEFAULT_BUILDS = ["master-lockstep", "4.6.0-gps-lockstep"]
 
 
@@ -62,7 +62,7 @@ def stop_ray() -> None:
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("paths", nargs="*", default=[str(REPO / "scenarios")])
+    parser.add_argument("paths", nargs="*", default=[str(scenarios_dir())])
     parser.add_argument("--firmware", action="append", default=[])
     parser.add_argument("--no-ray", action="store_true")
     args = parser.parse_args()

@@ -1,7 +1,10 @@
 """The real Betaflight Configurator (web build) in headless Chromium, driven as a user drives it.
 
-The web build is the tarball ``shared/configurator/betaflight-configurator-*-web.tar.xz`` beside
-the repository (or an extracted ``dist/`` named by ``BFSITL_CONFIGURATOR_DIST``).  It is served
+The web build is the user's own: a built ``dist/`` of betaflight-configurator (``npm run build``
+in a clone of it, or an extracted release archive) named by ``BFSITL_CONFIGURATOR_DIST``.  The
+project carries no Configurator; without that variable the app's tests are skipped with one line
+that says what to set, whatever ``BFSITL_REQUIRE_BROWSER`` says.  (What the bridge must do for
+the app is tested without it, by a client that speaks like it from recorded frames.)  It is served
 from 127.0.0.1 by a static HTTP server in a thread, opened in Debian's Chromium through the
 ``playwright`` package (no browser download: ``executable_path`` is the system's chromium), and
 operated with :class:`ConfiguratorPage`: Expert Mode on, Connect menu, Setup tab, CLI tab...
@@ -26,8 +29,8 @@ ruff)::
 * ``configurator_browser`` (module): one headless Chromium (a Playwright ``Browser``); open a
   page per test with :func:`open_configurator`, which gives each its own browser context.
 
-Without the tarball, chromium or the ``playwright`` package they skip, unless
-``BFSITL_REQUIRE_BROWSER=1`` (CI), where they fail.
+Given the build, without chromium or the ``playwright`` package they skip, unless
+``BFSITL_REQUIRE_BROWSER=1``, where they fail.
 
 Selectors, chosen to survive restyling (the app is Vue + Nuxt UI; its utility classes change
 often, its ids, roles, i18n texts and component class names rarely):
@@ -79,7 +82,6 @@ import http.server
 import os
 import re
 import shutil
-import tarfile
 import threading
 import time
 from collections import deque
@@ -93,12 +95,11 @@ import pytest
 if TYPE_CHECKING:  # playwright is imported lazily: without it, the fixtures skip
     from playwright.sync_api import Browser, Locator, Page, WebSocket
 
-#: ``shared/`` beside the repository (the repo is /work/main, shared is /work/shared).
-SHARED_DIR = Path(__file__).resolve().parents[3] / "shared"
-CONFIGURATOR_DIR = SHARED_DIR / "configurator"
-TARBALL_GLOB = "betaflight-configurator-*-web.tar.xz"
-#: An extracted ``dist/`` (the directory holding index.html) to use instead of the tarball.
+#: A built ``dist/`` (the directory holding index.html), or the directory above it.
 DIST_ENV_VAR = "BFSITL_CONFIGURATOR_DIST"
+#: The one line every app test is skipped with when no build is given.
+DIST_SKIP_REASON = (f"Configurator not given: set {DIST_ENV_VAR} to a built "
+                    f"betaflight-configurator dist/ to run the app tests")
 REQUIRE_ENV_VAR = "BFSITL_REQUIRE_BROWSER"
 
 #: The Connect menu's built-in "Betaflight SITL" entry.
@@ -131,32 +132,18 @@ def _unavailable(reason: str) -> None:
     pytest.skip(reason)
 
 
-def find_tarball(directory: Path = CONFIGURATOR_DIR) -> Path | None:
-    """The web build's tarball (the last by name if there are several), or None."""
-    found = sorted(directory.glob(TARBALL_GLOB)) if directory.is_dir() else []
-    return found[-1] if found else None
-
-
-def extract_dist(tarball: Path, destination: Path) -> Path:
-    """Extract the tarball into ``destination``; return its ``dist/`` (holds index.html)."""
-    with tarfile.open(tarball) as archive:
-        archive.extractall(destination, filter="data")
-    dist = destination / "dist"
-    if not (dist / "index.html").is_file():
-        raise FileNotFoundError(f"{tarball.name} holds no dist/index.html")
-    return dist
-
-
-def _dist_from_env() -> Path | None:
-    configured = os.environ.get(DIST_ENV_VAR)
+def _dist_from_env() -> Path:
+    """The build named by ``BFSITL_CONFIGURATOR_DIST``; skips when none is named (the project
+    has none of its own) and fails when the named one is not a build (the user's mistake)."""
+    configured = os.environ.get(DIST_ENV_VAR, "").strip()
     if not configured:
-        return None
-    path = Path(configured)
+        pytest.skip(DIST_SKIP_REASON)
+    path = Path(configured).expanduser()
     for candidate in (path, path / "dist"):
         if (candidate / "index.html").is_file():
-            return candidate
-    _unavailable(f"{DIST_ENV_VAR}={configured} holds no index.html")
-    return None  # not reached
+            return candidate.resolve()
+    pytest.fail(f"{DIST_ENV_VAR}={configured} holds no index.html (nor dist/index.html): "
+                f"point it at the Configurator's built dist/")
 
 
 class _QuietHandler(http.server.SimpleHTTPRequestHandler):
@@ -225,18 +212,9 @@ def launch_chromium(executable: str | None = None) -> Iterator[Browser]:
 # --- fixtures -------------------------------------------------------------------------------
 
 @pytest.fixture(scope="session")
-def configurator_dist(tmp_path_factory: pytest.TempPathFactory) -> Path:
-    """The web build's ``dist/``: ``$BFSITL_CONFIGURATOR_DIST``, else the tarball, extracted
-    once per session (about 1.5 s, 46 MB)."""
-    configured = _dist_from_env()
-    if configured is not None:
-        return configured
-    tarball = find_tarball()
-    if tarball is None:
-        _unavailable(f"no Configurator web build: neither {DIST_ENV_VAR} nor "
-                     f"{CONFIGURATOR_DIR / TARBALL_GLOB}")
-    assert tarball is not None
-    return extract_dist(tarball, tmp_path_factory.mktemp("configurator"))
+def configurator_dist() -> Path:
+    """The web build's ``dist/``, from ``$BFSITL_CONFIGURATOR_DIST``."""
+    return _dist_from_env()
 
 
 @pytest.fixture(scope="session")
@@ -829,8 +807,7 @@ def watch_flight(ws_url: str, *, browser: Browser | None = None, app_url: str | 
     ``browser=request.getfixturevalue("configurator_browser")`` and
     ``app_url=request.getfixturevalue("configurator_app_url")`` - a second ``sync_playwright``
     cannot start while the fixture's runs.  Without them it launches its own Chromium and
-    serves ``dist`` (default: ``$BFSITL_CONFIGURATOR_DIST``, else the tarball, extracted to a
-    temporary directory; +2 s).
+    serves ``dist`` (default: ``$BFSITL_CONFIGURATOR_DIST``).
 
     Not the Motors tab: this build shows live motor outputs there only in motor test mode (see
     :meth:`ConfiguratorPage.motor_values`).  What the app sends: at connect MSP_SET_RTC and
@@ -843,13 +820,6 @@ def watch_flight(ws_url: str, *, browser: Browser | None = None, app_url: str | 
         if app_url is None:
             if dist is None:
                 dist = _dist_from_env()
-            if dist is None:
-                tarball = find_tarball()
-                if tarball is None:
-                    raise FileNotFoundError(f"no {TARBALL_GLOB} in {CONFIGURATOR_DIR}")
-                temporary = Path(stack.enter_context(
-                    _temporary_directory("bfsitl-configurator-")))
-                dist = extract_dist(tarball, temporary)
             app_url = stack.enter_context(StaticServer(dist)).url
         app = stack.enter_context(open_configurator(browser, app_url, timeout_s=timeout_s))
         app.enable_expert_mode()
@@ -863,14 +833,6 @@ def watch_flight(ws_url: str, *, browser: Browser | None = None, app_url: str | 
 
 
 # --- small helpers --------------------------------------------------------------------------
-
-@contextlib.contextmanager
-def _temporary_directory(prefix: str) -> Iterator[str]:
-    import tempfile
-
-    with tempfile.TemporaryDirectory(prefix=prefix) as path:
-        yield path
-
 
 def _playwright_timeout() -> type[Exception]:
     from playwright.sync_api import TimeoutError as PlaywrightTimeoutError

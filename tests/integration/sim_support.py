@@ -66,7 +66,7 @@ def simulated_sitl(firmware, workdir, attempts: int = 2) -> Iterator[Flight]:
     """A SITL with the physics bridge running and answering.
 
     Under load, 4.6.0 SITL can lock its gyro/PID tasks out entirely and then never answers an
-    fdm packet (shared/research/physics-and-timing.md §2.5).  That is the firmware, not the
+    fdm packet (docs/firmware-findings.md).  That is the firmware, not the
     code under test, so a fresh SITL is tried once more, and the retry is reported.
     """
     for attempt in range(1, attempts + 1):

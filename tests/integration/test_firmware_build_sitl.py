@@ -1,4 +1,5 @@
-"""`bfsitl firmware` against real builds: master from the shared tarball, 4.6.0 with GPS.
+"""`bfsitl firmware` against real builds: 4.6.0 with GPS, and master from the user's source
+(``BFSITL_MASTER_SOURCE``; skipped without it).
 
 The builds themselves come from the session fixtures in firmware_builds.py (each built once);
 here the `bfsitl` command runs as a user would run it, in a subprocess pointed at their cache.

@@ -11,9 +11,11 @@ tests disturb the vehicle instead and compare what the FC reports with the simul
 * a flight in wind and gusts: it still lands, and the FC's attitude follows the truth;
 * the GPS builds: a 3D fix at the simulated position.
 
-Each runs on 4.6.0 (PyPI) and on master built by ``bfsitl firmware build`` from
-``shared/firmware/`` (fixture ``generation_firmware``); the flights use their ``--lockstep`` builds
-(fixture ``lockstep_firmware``).
+Each runs on 4.6.0 (PyPI) and on master built by ``bfsitl firmware build`` from the source
+named by ``BFSITL_MASTER_SOURCE`` (fixture ``generation_firmware``; without it the master cases
+are skipped, and tests/unit/test_master_recordings.py checks master's conventions against a
+recording of a real master SITL); the flights use their ``--lockstep`` builds (fixture
+``lockstep_firmware``).
 """
 
 from __future__ import annotations

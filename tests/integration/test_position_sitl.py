@@ -173,7 +173,7 @@ def test_the_autopilot_turns_to_a_heading_from_python(gps_lockstep_firmware):
 
 
 def test_ctrl_c_mid_mission_leaves_the_sticks_at_disarm_and_a_complete_log(
-        lockstep_master_firmware, tmp_path):
+        lockstep_gps_46_firmware, tmp_path):
     import signal
     import subprocess
     import time
@@ -185,7 +185,7 @@ def test_ctrl_c_mid_mission_leaves_the_sticks_at_disarm_and_a_complete_log(
     log = tmp_path / "flight.csv"
     process = subprocess.Popen(
         [*BFSITL, "fly", "--mission", str(mission), "--workdir", str(tmp_path / "run"),
-         "--speed", "1", "--log", str(log), "--firmware", str(lockstep_master_firmware)],
+         "--speed", "1", "--log", str(log), "--firmware", str(lockstep_gps_46_firmware)],
         stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, cwd=tmp_path)
     try:
         read_until_line(process, "waypoint 2")

@@ -15,12 +15,14 @@ import sys
 from pathlib import Path
 
 import pytest
+from firmware_builds import master_source_given
 from junitparser import Failure, JUnitXml, Skipped
 from mcap.reader import make_reader
 
 from bfsitl.autopilot import Autopilot
 from bfsitl.build import FirmwareCache
 from bfsitl.fc.rc_link import RcFault
+from bfsitl.library import scenarios_dir
 from bfsitl.mission.session import FLY_PROFILE, FlightSession, SessionConfig, with_fast_serial
 from bfsitl.protocol import msp_messages as msg
 from bfsitl.scenario.spec import find_scenarios
@@ -28,9 +30,26 @@ from bfsitl.scenario.spec import find_scenarios
 pytestmark = pytest.mark.sitl
 
 REPO = Path(__file__).resolve().parents[2]
-LIBRARY = REPO / "scenarios"
+LIBRARY = scenarios_dir()
 WRONG = REPO / "tests" / "data" / "scenarios" / "wrong-expectation.toml"
 BUILDS = ("master-lockstep", "4.6.0-gps-lockstep")
+#: The build every run here uses when no master source is given (CI has none).
+ALWAYS = "4.6.0-gps-lockstep"
+FIXTURE_OF = {"master-lockstep": "lockstep_master_firmware",
+              "4.6.0-gps-lockstep": "lockstep_gps_46_firmware"}
+
+
+def available_builds(request: pytest.FixtureRequest) -> tuple[str, ...]:
+    """4.6.0-gps-lockstep, and master-lockstep too when ``BFSITL_MASTER_SOURCE`` names one;
+    each built (or found in the session's cache) before it is returned."""
+    builds = BUILDS if master_source_given() else (ALWAYS,)
+    for build in builds:
+        request.getfixturevalue(FIXTURE_OF[build])
+    return builds
+
+
+def firmware_args(builds: tuple[str, ...]) -> list[str]:
+    return [arg for build in builds for arg in ("--firmware", build)]
 
 
 def env_for(cache: FirmwareCache) -> dict[str, str]:
@@ -40,12 +59,15 @@ def env_for(cache: FirmwareCache) -> dict[str, str]:
 
 
 @pytest.mark.timeout(1500)
-def test_the_shipped_library_passes_on_both_firmwares(
-        lockstep_master_firmware: Path, lockstep_gps_46_firmware: Path,
-        firmware_build_cache: FirmwareCache, tmp_path: Path) -> None:
+def test_the_shipped_library_passes_on_every_firmware(
+        request: pytest.FixtureRequest, firmware_build_cache: FirmwareCache,
+        tmp_path: Path) -> None:
+    """The whole library on 4.6.0-gps-lockstep, and on master-lockstep when one is given."""
+    builds = available_builds(request)
     junit, report, out = tmp_path / "results.xml", tmp_path / "report", tmp_path / "runs"
     run = subprocess.run(
         [sys.executable, "-m", "bfsitl.cli.main", "scenario", "run", str(LIBRARY),
+         *firmware_args(builds),
          "--jobs", "2", "--junit", str(junit), "--report", str(report), "--out", str(out)],
         capture_output=True, text=True, timeout=1400, cwd=tmp_path,
         env=env_for(firmware_build_cache))
@@ -54,9 +76,9 @@ def test_the_shipped_library_passes_on_both_firmwares(
 
     xml = JUnitXml.fromfile(str(junit))
     suites = {suite.name: suite for suite in xml}
-    assert len(suites) == 2
+    assert len(suites) == len(builds)
     skipped: list[str] = []
-    for build in BUILDS:
+    for build in builds:
         suite = next(s for name, s in suites.items() if build in name)
         cases = list(suite)
         assert {case.name for case in cases} == names
@@ -72,18 +94,19 @@ def test_the_shipped_library_passes_on_both_firmwares(
     assert all(name in index for name in names)
     # The FC's own log: written, collected and decoded for every flown run; a drop's
     # disarm reason read from it.
-    for build in BUILDS:
+    for build in builds:
         for name in names - {"gps-loss-during-rescue"} if build.startswith("4.6") else names:
             logs = list((out / build / name / "blackbox").glob("LOG*"))
             assert logs, f"no blackbox for {name}[{build}]"
-    assert "blackbox_disarm_reason = 'FAILSAFE'" in (
-        out / "master-lockstep" / "rc-loss-hover-drop" / "result.json").read_text()
+        assert "blackbox_disarm_reason = 'FAILSAFE'" in (
+            out / build / "rc-loss-hover-drop" / "result.json").read_text()
 
 
 @pytest.mark.timeout(300)
 def test_a_wrong_expectation_fails_naming_the_value_and_the_time_and_python_tests_fly(
-        lockstep_master_firmware: Path, firmware_build_cache: FirmwareCache,
+        request: pytest.FixtureRequest, firmware_build_cache: FirmwareCache,
         tmp_path: Path) -> None:
+    build = available_builds(request)[0]  # master when given, else 4.6.0
     (tmp_path / "test_weak_motor.py").write_text(
         "from bfsitl import Autopilot\n"
         "def test_a_weak_motor_holds(bfsitl_vehicle):\n"
@@ -98,7 +121,7 @@ def test_a_wrong_expectation_fails_naming_the_value_and_the_time_and_python_test
         (LIBRARY / "rc-loss-hover-drop.toml").read_text())
     run = subprocess.run(
         [sys.executable, "-m", "pytest", "-p", "bfsitl.pytest_plugin", "-p", "no:cacheprovider",
-         "--bfsitl-firmware", "master-lockstep", "--bfsitl-out", str(tmp_path / "runs"),
+         "--bfsitl-firmware", build, "--bfsitl-out", str(tmp_path / "runs"),
          "-q", "--rootdir", str(tmp_path), str(tmp_path)],
         capture_output=True, text=True, timeout=280, cwd=tmp_path,
         env=env_for(firmware_build_cache))
@@ -114,13 +137,11 @@ def test_a_wrong_expectation_fails_naming_the_value_and_the_time_and_python_test
 @pytest.mark.parametrize("build", BUILDS)
 @pytest.mark.timeout(240)
 def test_faults_reach_the_fc_where_they_should(
-        build: str, lockstep_master_firmware: Path, lockstep_gps_46_firmware: Path,
-        tmp_path: Path) -> None:
+        build: str, request: pytest.FixtureRequest, tmp_path: Path) -> None:
     """A weak motor is made up for by that motor (right motor order under a fault); a GPS
     glitch moves the FC's GPS and not the truth (right axis and sign); a delayed RC command
     arrives that much later; RC silence is a lost link on master and nothing on 4.6.0."""
-    firmware = lockstep_master_firmware if build.startswith("master") \
-        else lockstep_gps_46_firmware
+    firmware = request.getfixturevalue(FIXTURE_OF[build])
     config = SessionConfig(firmware=firmware, workdir=tmp_path / "sitl",
                            profile=with_fast_serial(FLY_PROFILE))
     with FlightSession(config) as vehicle:
@@ -191,26 +212,27 @@ def ray_cluster(tmp_path: Path):  # type: ignore[no-untyped-def]
 
 @pytest.mark.timeout(600)
 def test_runs_go_to_a_local_ray_cluster_and_come_back_as_one_junit_file(
-        lockstep_master_firmware: Path, lockstep_gps_46_firmware: Path,
-        firmware_build_cache: FirmwareCache, ray_cluster: str, tmp_path: Path) -> None:
+        request: pytest.FixtureRequest, firmware_build_cache: FirmwareCache, ray_cluster: str,
+        tmp_path: Path) -> None:
+    builds = available_builds(request)
     junit = tmp_path / "ray.xml"
     run = subprocess.run(
         [sys.executable, "-m", "bfsitl.cli.main", "scenario", "run",
-         str(LIBRARY / "rc-loss-hover-drop.toml"), str(WRONG), "--firmware", BUILDS[0],
-         "--firmware", BUILDS[1], "--ray", ray_cluster, "--junit", str(junit),
+         str(LIBRARY / "rc-loss-hover-drop.toml"), str(WRONG), *firmware_args(builds),
+         "--ray", ray_cluster, "--junit", str(junit),
          "--out", str(tmp_path / "runs"), "--mcap"],
         capture_output=True, text=True, timeout=500, cwd=tmp_path,
         env=env_for(firmware_build_cache))
     assert run.returncode == 1, run.stdout + run.stderr[-3000:]  # the wrong one fails
-    assert "4 runs on the Ray cluster" in run.stderr
+    assert f"{2 * len(builds)} runs on the Ray cluster" in run.stderr
     xml = JUnitXml.fromfile(str(junit))
     cases = {(suite.name, case.name): case for suite in xml for case in suite}
-    assert len(cases) == 4
+    assert len(cases) == 2 * len(builds)
     for (suite, name), case in cases.items():
         failed = any(isinstance(r, Failure) for r in case.result)
         assert failed == (name == "wrong-expectation"), (suite, name)
     # --mcap: each run's flight as MCAP too, one message per CSV row, the events with it.
-    run_dir = tmp_path / "runs" / BUILDS[0] / "rc-loss-hover-drop"
+    run_dir = tmp_path / "runs" / builds[0] / "rc-loss-hover-drop"
     with (run_dir / "flight.csv").open() as file:
         rows = len(file.readlines()) - 1
     with (run_dir / "flight.mcap").open("rb") as file:

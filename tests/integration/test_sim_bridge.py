@@ -2,7 +2,7 @@
 
 Every sign and magnitude the firmware reports is compared with what the simulated vehicle
 does; the expected values come from the research's measured convention table
-(shared/research/physics-and-timing.md §1.7) and Betaflight's quad-X layout.
+(docs/firmware-findings.md) and Betaflight's quad-X layout.
 """
 
 from __future__ import annotations

@@ -47,9 +47,11 @@ def test_a_mission_file_becomes_a_plan(tmp_path):
 
 
 def test_the_shipped_example_mission_loads():
-    from pathlib import Path
+    from bfsitl.library import find_mission
 
-    plan = load_mission(Path(__file__).resolve().parents[2] / "examples" / "square.toml")
+    square = find_mission("square")
+    assert square is not None
+    plan = load_mission(square)
     assert len(plan.waypoints) == 4 and plan.waypoints[-1].north_m == 0.0
 
 

@@ -7,11 +7,12 @@ from pathlib import Path
 import pytest
 
 from bfsitl.errors import ScenarioError
+from bfsitl.library import scenarios_dir
 from bfsitl.scenario.expectations import crash_of, judge
 from bfsitl.scenario.spec import find_scenarios, load_scenario, scenario_from_dict
 from bfsitl.scenario.trace import Trace, TraceRow
 
-LIBRARY = Path(__file__).resolve().parents[2] / "scenarios"
+LIBRARY = scenarios_dir()
 
 MINIMAL = """
 duration_s = 20

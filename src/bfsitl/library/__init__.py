@@ -1,0 +1,48 @@
+"""What ships inside the wheel beside the code: the scenario library and example missions.
+
+``bfsitl scenario list`` and ``bfsitl scenario run`` with no path use :func:`scenarios_dir`;
+``bfsitl fly --mission square`` finds a shipped mission by its name (:func:`find_mission`).
+The files are package data, so an installed wheel has them with no checkout anywhere.
+"""
+
+from __future__ import annotations
+
+from importlib import resources
+from pathlib import Path
+
+__all__ = ["find_mission", "mission_files", "missions_dir", "scenario_files", "scenarios_dir"]
+
+
+def _package_dir(name: str) -> Path:
+    # The package is installed as plain files (setuptools wheels and editable installs both),
+    # so the traversable is a real directory the TOML readers can open by path.
+    return Path(str(resources.files(__package__).joinpath(name)))
+
+
+def scenarios_dir() -> Path:
+    """The shipped scenario library (one ``.toml`` file per scenario)."""
+    return _package_dir("scenarios")
+
+
+def missions_dir() -> Path:
+    """The shipped example missions (``square.toml``...)."""
+    return _package_dir("missions")
+
+
+def scenario_files() -> list[Path]:
+    """Every shipped scenario file, sorted by name."""
+    return sorted(scenarios_dir().glob("*.toml"))
+
+
+def mission_files() -> list[Path]:
+    """Every shipped mission file, sorted by name."""
+    return sorted(missions_dir().glob("*.toml"))
+
+
+def find_mission(name: str) -> Path | None:
+    """A shipped mission by its name, with or without ``.toml`` (``square``), or None."""
+    stem = name[:-5] if name.endswith(".toml") else name
+    if not stem or "/" in stem or "\\" in stem:
+        return None
+    path = missions_dir() / f"{stem}.toml"
+    return path if path.is_file() else None

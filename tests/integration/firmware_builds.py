@@ -93,7 +93,7 @@ def master_source_given() -> bool:
     return bool(os.environ.get(MASTER_SOURCE_ENV_VAR, "").strip())
 
 
-def _master_source(cache: FirmwareCache) -> Path:
+def master_source(cache: FirmwareCache) -> Path:
     """The master tree or tarball named by ``BFSITL_MASTER_SOURCE``; a git URL is cloned first
     (shallow, cached by commit).  Skips (never fails) when the variable is not set: the
     project has no master of its own, so its absence is not a broken machine."""
@@ -128,15 +128,10 @@ def _has_ref(given: str) -> bool:
 
 
 @pytest.fixture(scope="session")
-def master_source(firmware_build_cache: FirmwareCache) -> Path:
-    """The master source tree or tarball the user gave (skips without one)."""
-    return _master_source(firmware_build_cache)
-
-
-@pytest.fixture(scope="session")
-def master_firmware(firmware_build_cache: FirmwareCache, master_source: Path) -> Path:
+def master_firmware(firmware_build_cache: FirmwareCache) -> Path:
     """Master's SITL, built from ``BFSITL_MASTER_SOURCE`` (named ``master``)."""
-    return _build(firmware_build_cache, master_source, FirmwareBuildOptions(), MASTER_NAME)
+    source = master_source(firmware_build_cache)
+    return _build(firmware_build_cache, source, FirmwareBuildOptions(), MASTER_NAME)
 
 
 @pytest.fixture(scope="session")
@@ -169,9 +164,10 @@ def lockstep_gps_46_firmware(firmware_build_cache: FirmwareCache) -> Path:
 
 
 @pytest.fixture(scope="session")
-def lockstep_master_firmware(firmware_build_cache: FirmwareCache, master_source: Path) -> Path:
+def lockstep_master_firmware(firmware_build_cache: FirmwareCache) -> Path:
     """Master from ``BFSITL_MASTER_SOURCE`` with ``--lockstep`` (named ``master-lockstep``)."""
-    return _build(firmware_build_cache, master_source, FirmwareBuildOptions(lockstep=True),
+    source = master_source(firmware_build_cache)
+    return _build(firmware_build_cache, source, FirmwareBuildOptions(lockstep=True),
                   LOCKSTEP_MASTER_NAME)
 
 

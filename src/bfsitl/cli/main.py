@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import os
 import sys
 import time
 from collections.abc import Sequence
@@ -146,7 +147,7 @@ def build_parser() -> argparse.ArgumentParser:
                "  bfsitl cli get small_angle\n"
                "  bfsitl backup my-quad.txt --uri serial:///dev/ttyACM0\n"
                "  bfsitl sim --duration 10 --json  physics against a SITL, health once a second\n"
-               "  bfsitl scenario run scenarios/ --firmware master-lockstep --junit r.xml\n"
+               "  bfsitl scenario run --junit r.xml   the shipped failsafe/fault library\n"
                "  bfsitl doctor                    firmware, ports, a live probe, blockers\n"
                "  bfsitl top --start               live dashboard: attitude, motors, RC, "
                "blockers, link\n"
@@ -229,6 +230,11 @@ def main(argv: Sequence[str] | None = None) -> int:
         print(file=sys.stderr)
         progress("interrupted")
         return EXIT_INTERRUPTED
+    except BrokenPipeError:
+        # `bfsitl scenario list | head`: the reader has all it wants; stop quietly, and keep
+        # Python from complaining again when it flushes stdout at exit.
+        os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
+        return EXIT_OK
     except BfsitlError as exc:
         # The first line is the reason; details (log tails) follow on the next lines.
         print(f"bfsitl: error: {exc}", file=sys.stderr)

@@ -31,14 +31,18 @@ def add_scenario_parser(sub: argparse._SubParsersAction) -> None:  # type: ignor
                     "namespace. Exit 0 when every run passed (or was skipped: a fault the "
                     "firmware cannot express, a GPS scenario on a build without GPS), 1 "
                     "otherwise.",
-        epilog="Example:\n  bfsitl scenario run scenarios/ --firmware master-lockstep "
-               "--firmware 4.6.0-gps-lockstep --jobs 2 --junit results.xml --report report/",
+        epilog="Examples:\n  bfsitl scenario run                       the shipped library, on the "
+               "builds it names that you have\n"
+               "  bfsitl scenario run my-scenarios/ --firmware 4.6.0-gps-lockstep --jobs 2 "
+               "--junit results.xml --report report/",
         formatter_class=argparse.RawDescriptionHelpFormatter)
-    run.add_argument("paths", nargs="+", metavar="FILE_OR_DIR",
-                     help="scenario files (.toml), or directories of them")
+    run.add_argument("paths", nargs="*", metavar="FILE_OR_DIR",
+                     help="scenario files (.toml), or directories of them (default: the "
+                          "library shipped with bfsitl; `bfsitl scenario list` shows it)")
     run.add_argument("--firmware", action="append", default=[], metavar="NAME",
                      help="a cached build's name or a SITL binary; repeat for several "
-                          "(default: the builds each file names)")
+                          "(default: the builds each file names that are built; the others "
+                          "are named, with the command that builds them)")
     run.add_argument("--jobs", type=int, default=1, metavar="N",
                      help="runs side by side, each in its own process (default 1; about one "
                           "per core: a SITL wants most of one)")
@@ -65,7 +69,8 @@ def add_scenario_parser(sub: argparse._SubParsersAction) -> None:  # type: ignor
 
     show = actions.add_parser("list", help="check scenario files and show what they do",
                               description="Read and check scenario files without flying.")
-    show.add_argument("paths", nargs="+", metavar="FILE_OR_DIR")
+    show.add_argument("paths", nargs="*", metavar="FILE_OR_DIR",
+                      help="scenario files or directories (default: the shipped library)")
     show.set_defaults(func=cmd_scenario_list)
 
     faults = actions.add_parser("faults", help="the fault catalog, and where each works",
@@ -79,8 +84,10 @@ def cmd_scenario_run(args: argparse.Namespace) -> int:
     from bfsitl.scenario.suite import plan_runs, run_suite
     from bfsitl.sitl.firmware import find_firmware
 
-    scenarios = find_scenarios(args.paths)
+    scenarios = find_scenarios(_paths_or_library(args.paths))
     runs = plan_runs(scenarios, args.firmware, args.out)
+    if not args.firmware:
+        runs = _runs_on_made_builds(runs)
     for run in {run.firmware: run for run in runs}.values():
         try:  # a missing build stops everything here, saying how to make it
             find_firmware(run.firmware)
@@ -126,10 +133,56 @@ def _write_outputs(args: argparse.Namespace, results: list) -> None:  # type: ig
         progress(f"report: {write_report(results, args.report)}")
 
 
+def _paths_or_library(paths: list[str]) -> list[str | Path]:
+    """The paths given, or the scenario library that ships inside the package."""
+    if paths:
+        return list(paths)
+    from bfsitl.library import scenarios_dir
+
+    return [scenarios_dir()]
+
+
+#: How each build a shipped scenario names is made (master comes from the user's clone).
+_HOW_TO_BUILD = {
+    "master-lockstep": "bfsitl firmware build --git https://github.com/betaflight/betaflight "
+                       "--ref master --lockstep --name master-lockstep",
+    "4.6.0-gps-lockstep": "bfsitl firmware build --gps --lockstep",
+    "4.6.0-lockstep": "bfsitl firmware build --lockstep",
+}
+
+
+def _runs_on_made_builds(runs: list) -> list:  # type: ignore[type-arg]
+    """The runs on builds the files name that exist; one line for each one that does not.
+
+    None made at all is an error that says how to make one."""
+    from bfsitl.errors import FirmwareNotFoundError, ScenarioError
+    from bfsitl.scenario.suite import split_by_build
+    from bfsitl.sitl.firmware import find_firmware
+
+    def is_built(name: str) -> bool:
+        try:
+            find_firmware(name)
+        except FirmwareNotFoundError:
+            return False
+        return True
+
+    kept, missing = split_by_build(runs, is_built)
+    for name in missing:
+        how = _HOW_TO_BUILD.get(name, "bfsitl firmware build ... --name " + name)
+        progress(f"not running on {name}: not built (`{how}` makes it)")
+    if not kept:
+        wanted = ", ".join(missing)
+        raise ScenarioError(f"none of the builds the scenarios name ({wanted}) is built: "
+                            f"`{_HOW_TO_BUILD['4.6.0-gps-lockstep']}` makes the 4.6.0 one, "
+                            f"or give --firmware NAME (`bfsitl firmware list` shows the "
+                            f"builds)")
+    return kept
+
+
 def cmd_scenario_list(args: argparse.Namespace) -> int:
     from bfsitl.scenario.spec import find_scenarios
 
-    for scenario in find_scenarios(args.paths):
+    for scenario in find_scenarios(_paths_or_library(args.paths)):
         firmware = ", ".join(scenario.firmware) or "(give --firmware)"
         print(f"{scenario.name}  [{scenario.where}]  {scenario.duration_s:g} s on {firmware}")
         if scenario.description:

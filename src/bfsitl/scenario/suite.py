@@ -80,6 +80,23 @@ def plan_runs(scenarios: Sequence[Scenario], firmwares: Sequence[str], out_dir: 
     return runs
 
 
+def split_by_build(runs: Sequence[PlannedRun], is_built: Callable[[str], bool]
+                   ) -> tuple[list[PlannedRun], list[str]]:
+    """(the runs whose firmware is built, the names of the builds that are not).
+
+    For the builds the scenario files name themselves: a user who built only 4.6.0 runs the
+    library on 4.6.0 and is told what master would add, rather than stopped.  Builds given
+    with ``--firmware`` are not passed through here: a missing one is a mistake to report."""
+    built: dict[str, bool] = {}
+    kept = []
+    for run in runs:
+        if run.firmware not in built:
+            built[run.firmware] = is_built(run.firmware)
+        if built[run.firmware]:
+            kept.append(run)
+    return kept, [name for name, there in built.items() if not there]
+
+
 def _run_one(run: PlannedRun, speed: float | None, plot: bool, mcap: bool
              ) -> ScenarioResult:
     """A worker's job: the run's progress goes to a file in its directory (several runs'

@@ -39,7 +39,9 @@ from pathlib import Path
 import pytest
 
 from bfsitl.build import BuildProgress, FirmwareBuildOptions, FirmwareCache, build_firmware
+from bfsitl.build.git_source import fetch_git_source, is_git_url
 from bfsitl.build.source_tree import package_source_dir
+from bfsitl.cli.firmware_command import GIT_SOURCES_DIR
 from bfsitl.errors import FirmwareBuildError
 
 MASTER_SOURCE_ENV_VAR = "BFSITL_MASTER_SOURCE"
@@ -100,7 +102,7 @@ def master_source(cache: FirmwareCache) -> Path:
     given = os.environ.get(MASTER_SOURCE_ENV_VAR, "").strip()
     if not given:
         pytest.skip(MASTER_SKIP_REASON)
-    if _is_git_url(given):
+    if is_git_url(given):
         url, _, ref = given.rpartition("@") if _has_ref(given) else (given, "", "")
         try:
             return _clone(url, ref or None, cache)
@@ -112,12 +114,10 @@ def master_source(cache: FirmwareCache) -> Path:
     return path.resolve()
 
 
-def _is_git_url(given: str) -> bool:
-    return "://" in given or given.startswith("git@")
-
-
 def _clone(url: str, ref: str | None, cache: FirmwareCache) -> Path:
-    raise NotImplementedError("git URL")  # wired to bfsitl.build.git_source below
+    """A shallow clone of ``ref`` at ``url`` in the session's cache, as ``--git`` makes."""
+    progress = BuildProgress(live=False)
+    return fetch_git_source(url, ref, cache.root / GIT_SOURCES_DIR, note=progress.note).tree
 
 
 def _has_ref(given: str) -> bool:

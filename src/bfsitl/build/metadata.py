@@ -58,6 +58,8 @@ class BuildMetadata:
     #: Master's ``--ip ADDR`` form rather than 4.6.0's bare address (from the binary's bytes).
     takes_ip_flag: bool
     bfsitl_version: str
+    #: The git URL the tree was cloned from (``bfsitl firmware build --git``), else None.
+    source_url: str | None = None
     schema: int = SCHEMA_VERSION
     #: Where the record was read from; not stored (the cache may move).
     directory: Path | None = None

@@ -24,6 +24,8 @@ from bfsitl.errors import BfsitlError, FirmwareBuildError, MspErrorReply
 from bfsitl.sitl.firmware import FirmwareBinary, find_firmware
 
 EXIT_OK = 0
+#: Clones made by ``--git``, one directory per commit, inside the firmware cache.
+GIT_SOURCES_DIR = "git-sources"
 
 
 def add_firmware_parser(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]
@@ -35,7 +37,9 @@ def add_firmware_parser(sub: argparse._SubParsersAction) -> None:  # type: ignor
         epilog="Examples:\n"
                "  bfsitl firmware build --gps          4.6.0 with GPS, GPS Rescue, altitude "
                "and position hold\n"
-               "  bfsitl firmware build --source betaflight-master.tar.xz\n"
+               "  bfsitl firmware build --git https://github.com/betaflight/betaflight --ref "
+               "master\n"
+               "  bfsitl firmware build --source ~/src/betaflight --lockstep\n"
                "  FW=$(bfsitl firmware build --gps | tail -1)\n"
                "  bfsitl firmware list\n"
                "  bfsitl firmware build --lockstep     4.6.0 in lockstep (bfsitl fly runs "
@@ -51,9 +55,18 @@ def add_firmware_parser(sub: argparse._SubParsersAction) -> None:  # type: ignor
         description="Compile a SITL (make TARGET=SITL) in a copy of the source, keep the binary "
                     "and its build.json in the cache and print its path (the last line on "
                     "stdout). The same source and options again: instant, from the cache.")
-    build.add_argument("--source", default=None, metavar="DIR_OR_TARBALL",
-                       help="a Betaflight tree (checkout, extracted tarball) or a .tar.xz/.tar.gz "
-                            "(default: the 4.6.0 tree of the installed betaflight package)")
+    origin = build.add_mutually_exclusive_group()
+    origin.add_argument("--source", default=None, metavar="DIR_OR_TARBALL",
+                        help="a Betaflight tree (checkout, extracted tarball) or a "
+                             ".tar.xz/.tar.gz (default: the 4.6.0 tree of the installed "
+                             "betaflight package)")
+    origin.add_argument("--git", default=None, metavar="URL",
+                        help="clone this git repository (shallow, no submodules; cached by "
+                             "commit) and build it, e.g. "
+                             "https://github.com/betaflight/betaflight")
+    build.add_argument("--ref", default=None, metavar="REF",
+                       help="with --git: a branch, tag or full commit hash (default: the "
+                            "repository's default branch)")
     build.add_argument("--gps", action="store_true",
                        help="with GPS (virtual), GPS Rescue, altitude and position hold, "
                             "wherever the tree has the code (master's SITL has them anyway)")
@@ -117,11 +130,23 @@ def cmd_build(args: argparse.Namespace) -> int:
     from bfsitl.build.options import FirmwareBuildOptions
     from bfsitl.build.progress import BuildProgress
 
+    if args.ref is not None and args.git is None:
+        raise FirmwareBuildError("--ref goes with --git URL (a local tree is built as it is "
+                                 "checked out)")
     options = FirmwareBuildOptions(defines=tuple(args.define), gps=args.gps,
                                    lockstep=args.lockstep)
+    report = BuildProgress()
     with _sigterm_interrupts():
-        result = build_firmware(args.source, options, name=args.name, jobs=args.jobs,
-                                force=args.force, progress=BuildProgress())
+        source, url = args.source, None
+        if args.git is not None:
+            from bfsitl.build.git_source import fetch_git_source
+
+            cache = FirmwareCache()
+            cloned = fetch_git_source(args.git, args.ref, cache.root / GIT_SOURCES_DIR,
+                                      note=report.note)
+            source, url = cloned.tree, cloned.url
+        result = build_firmware(source, options, name=args.name, jobs=args.jobs,
+                                force=args.force, progress=report, source_url=url)
     metadata = result.metadata
     if result.cached:
         progress(f"cached: {result.name} (built {metadata.built_at}, key {result.entry.key})")
@@ -174,6 +199,7 @@ def cmd_list(args: argparse.Namespace) -> int:
             "takes_ip_flag": meta.takes_ip_flag,
             "built_at": meta.built_at,
             "source": "cache",
+            "source_url": meta.source_url,
             "path": str(entry.binary_path),
         })
     package_row = _package_row()
@@ -282,6 +308,8 @@ def _info_text(
             f"source        {metadata.source_path} ({metadata.source_kind}, fingerprint "
             f"{metadata.source_fingerprint[:12]})",
         ]
+        if metadata.source_url:
+            lines.append(f"cloned from   {metadata.source_url}")
     else:
         lines.append("build         not built by bfsitl (no build.json beside it)")
     features = ", ".join(report["binary"]["features"]) or "no GPS, altitude or position hold"

@@ -90,13 +90,16 @@ class BuildMetadata:
         data = json.loads((directory / METADATA_NAME).read_text())
         if not isinstance(data, dict) or data.get("schema") != SCHEMA_VERSION:
             raise ValueError(f"{directory / METADATA_NAME}: unknown schema")
-        known = {f.name for f in fields(cls)}
         values: dict[str, Any] = {}
-        for name in known:
-            if name == "directory" or name not in data:
+        for field in fields(cls):
+            if field.name == "directory" or field.name not in data:
                 continue
-            value = data[name]
-            values[name] = tuple(value) if isinstance(value, list) else value
+            value = data[field.name]
+            if not _has_type(value, str(field.type)):
+                # A record edited by hand or cut short by a full disk: not one of ours.
+                raise ValueError(f"{directory / METADATA_NAME}: {field.name} is not "
+                                 f"{field.type}: {value!r}")
+            values[field.name] = tuple(value) if isinstance(value, list) else value
         try:
             return cls(**values, directory=directory.absolute())
         except TypeError as exc:  # a required field is missing
@@ -108,6 +111,25 @@ class BuildMetadata:
         parts = (["gps"] if self.gps_requested else []) + list(self.defines)
         parts += [k if v is True else f"{k}={v}" for k, v in self.options.items() if v]
         return ", ".join(parts) or "default"
+
+
+def _has_type(value: Any, annotation: str) -> bool:
+    """Whether a JSON value fits a field's annotation (the few kinds the record uses)."""
+    if annotation.endswith(" | None"):
+        return value is None or _has_type(value, annotation.removesuffix(" | None"))
+    if annotation == "str":
+        return isinstance(value, str)
+    if annotation == "bool":
+        return isinstance(value, bool)
+    if annotation == "int":
+        return isinstance(value, int) and not isinstance(value, bool)
+    if annotation == "float":
+        return isinstance(value, (int, float)) and not isinstance(value, bool)
+    if annotation == "tuple[str, ...]":
+        return isinstance(value, list) and all(isinstance(item, str) for item in value)
+    if annotation == "dict[str, Any]":
+        return isinstance(value, dict)
+    return True
 
 
 def metadata_for_binary(path: str | os.PathLike[str]) -> BuildMetadata | None:

@@ -19,6 +19,7 @@ from contextlib import contextmanager
 from pathlib import Path
 from typing import TextIO
 
+from bfsitl.cli.arg_types import number_in, port_number
 from bfsitl.errors import BfsitlError
 
 EXIT_OK, EXIT_FAILED, EXIT_INTERRUPTED = 0, 1, 130
@@ -30,6 +31,11 @@ LIVE_REFRESH_HZ = 5.0
 #: The Configurator's built-in "Betaflight SITL" connection and Foxglove's default port.
 CONFIGURATOR_PORT = 6761
 FOXGLOVE_PORT = 8765
+#: Checked when the command line is read (the mission runner's own limits for the rate).
+RATE_HZ = number_in(1, 200, "Hz")
+ALTITUDE_M = number_in(0, 500, "m", above_low=True)
+DURATION_S = number_in(0, 24 * 3600, "s")
+SPEED_M_S = number_in(0, 50, "m/s")
 
 
 
@@ -56,14 +62,14 @@ def add_fly_parser(sub: argparse._SubParsersAction) -> None:  # type: ignore[typ
                     "seconds, land and disarm. Exit code 0 only if it landed.",
         epilog="Examples:\n"
                "  bfsitl fly --plot flight.png --summary flight.json\n"
-               "  bfsitl fly --firmware master --mission square.toml --wind 3 --plot sq.png\n"
+               "  bfsitl fly --firmware 4.6.0-gps-lockstep --mission square --wind 3\n"
                "  bfsitl fly --controller tutorial-pid --gain kp=120 --log flight.csv\n"
                "  bfsitl fly --workdir ~/.cache/bfsitl/quad   (eeprom.bin kept between flights)\n"
                "  bfsitl fly --controller cascade --list-gains",
         formatter_class=argparse.RawDescriptionHelpFormatter,
     )
     mission = fly.add_argument_group("mission")
-    mission.add_argument("--mission", metavar="FILE.toml",
+    mission.add_argument("--mission", metavar="FILE.toml|NAME",
                          help="fly a mission file: take-off altitude, [[waypoint]] tables "
                               "(north_m, east_m, alt_m, optional hold_s and heading_deg), "
                               "land = true (see docs/missions.md). Waypoints need a GPS "
@@ -71,16 +77,16 @@ def add_fly_parser(sub: argparse._SubParsersAction) -> None:  # type: ignore[typ
     mission.add_argument("--no-position-hold", action="store_true",
                          help="on a GPS build, fly the altitude only (by default the take-off "
                               "point is held in the take-off, the hold and the landing)")
-    mission.add_argument("--target-alt", type=float, default=None, metavar="M",
+    mission.add_argument("--target-alt", type=ALTITUDE_M, default=None, metavar="M",
                          help="take-off altitude above the ground, metres (default 2.0)")
-    mission.add_argument("--hold", type=float, default=None, metavar="S",
+    mission.add_argument("--hold", type=DURATION_S, default=None, metavar="S",
                          help="seconds to hold the altitude before landing (default 10)")
     mission.add_argument("--controller", choices=sorted(CONTROLLERS),
                          default=DEFAULT_CONTROLLER,
                          help=f"altitude controller (default {DEFAULT_CONTROLLER}: barometer + "
                               "accelerometer; cascade: barometer only; tutorial-pid and "
                               "open-loop re-create the tutorial's scripts)")
-    mission.add_argument("--ground", type=float, default=None, metavar="S",
+    mission.add_argument("--ground", type=DURATION_S, default=None, metavar="S",
                          help="seconds armed at idle before the take-off, while the FC's "
                               "altitude settles and the fused controller learns the "
                               f"barometer's zero (default {MissionPlan().ground_s:g})")
@@ -88,7 +94,7 @@ def add_fly_parser(sub: argparse._SubParsersAction) -> None:  # type: ignore[typ
                          help="override a controller gain, repeatable (see --list-gains)")
     mission.add_argument("--list-gains", action="store_true",
                          help="print the chosen controller's gains and defaults, then exit")
-    mission.add_argument("--rate", type=float, default=None, metavar="HZ",
+    mission.add_argument("--rate", type=RATE_HZ, default=None, metavar="HZ",
                          help="control loop rate in simulation time (default 50, 100 for "
                               "missions with waypoints; above 50 the FC's serial task is set "
                               "to 1 kHz, which costs one reboot in a run directory that does "
@@ -108,14 +114,14 @@ def add_fly_parser(sub: argparse._SubParsersAction) -> None:  # type: ignore[typ
                             "(TCP 5762) too, relayed to a WebSocket on 127.0.0.1 "
                             f"(--configurator-port, default {CONFIGURATOR_PORT}); a lockstep "
                             "build then flies at 1x real time unless --speed says otherwise")
-    watch.add_argument("--configurator-port", type=int, default=CONFIGURATOR_PORT,
+    watch.add_argument("--configurator-port", type=port_number, default=CONFIGURATOR_PORT,
                        metavar="PORT", help=f"its WebSocket port (default {CONFIGURATOR_PORT}: "
                                             "the Configurator's \"Betaflight SITL\" entry)")
     watch.add_argument("--foxglove", action="store_true",
                        help="serve the flight live to Foxglove (its SDK's WebSocket server on "
                             f"127.0.0.1, --foxglove-port, default {FOXGLOVE_PORT}); lockstep "
                             "flies at 1x real time unless --speed says otherwise")
-    watch.add_argument("--foxglove-port", type=int, default=FOXGLOVE_PORT, metavar="PORT",
+    watch.add_argument("--foxglove-port", type=port_number, default=FOXGLOVE_PORT, metavar="PORT",
                        help=f"the Foxglove server's port (default {FOXGLOVE_PORT})")
     watch.add_argument("--allow-origin", action="append", default=[], metavar="ORIGIN",
                        help="also accept WebSocket clients from this web page origin "
@@ -138,18 +144,19 @@ def add_fly_parser(sub: argparse._SubParsersAction) -> None:  # type: ignore[typ
     sitl.add_argument("--lockstep", action=argparse.BooleanOptionalAction, default=None,
                       help="step the FC with the physics (default: when the firmware is a "
                            "lockstep build; --no-lockstep flies one on the wall clock)")
-    sitl.add_argument("--baro-noise-pa", type=float, default=None, metavar="PA",
+    sitl.add_argument("--baro-noise-pa", type=number_in(0, None, "Pa"), default=None, metavar="PA",
                       help="barometer noise std of the embedded physics (default 0.5: dithers "
                            "the SITL's whole-pascal pressure; 0 for a noiseless barometer)")
-    sitl.add_argument("--accel-noise", type=float, default=None, metavar="M_S2",
+    sitl.add_argument("--accel-noise", type=number_in(0, None, "m/s^2"), default=None,
+                      metavar="M_S2",
                       help="accelerometer noise std, m/s^2 (default 0.05: dithers the SITL's "
                            "truncated acceleration; 0 for a noiseless accelerometer)")
-    sitl.add_argument("--wind", type=float, default=0.0, metavar="M_S",
+    sitl.add_argument("--wind", type=SPEED_M_S, default=0.0, metavar="M_S",
                       help="steady horizontal wind of the embedded physics, m/s (default 0)")
-    sitl.add_argument("--gusts", type=float, default=0.0, metavar="M_S",
+    sitl.add_argument("--gusts", type=SPEED_M_S, default=0.0, metavar="M_S",
                       help="gust standard deviation per axis, m/s (default 0; correlated over "
                            "about 2 s)")
-    sitl.add_argument("--wind-from", type=float, default=0.0, metavar="DEG",
+    sitl.add_argument("--wind-from", type=number_in(None, None, "deg"), default=0.0, metavar="DEG",
                       help="where the wind blows from, degrees clockwise from north "
                            "(default 0: from the north)")
     sitl.add_argument("--gps-noise", action="store_true",
@@ -184,7 +191,7 @@ def _plan_from_args(args: argparse.Namespace):  # type: ignore[no-untyped-def]
         if given:
             raise BfsitlError(f"{' and '.join(given)} cannot be combined with --mission: the "
                               f"mission file sets the take-off altitude and the holds")
-        plan = load_mission(args.mission)
+        plan = load_mission(mission_path(args.mission))
     else:
         plan = MissionPlan(target_alt_m=2.0 if args.target_alt is None else args.target_alt,
                            hold_s=DEFAULT_HOLD_S if args.hold is None else args.hold)
@@ -193,6 +200,18 @@ def _plan_from_args(args: argparse.Namespace):  # type: ignore[no-untyped-def]
     if args.no_position_hold:
         plan = replace(plan, hold_position=False)
     return plan
+
+
+def mission_path(given: str) -> Path:
+    """``--mission``: a file, or the name of a mission shipped with bfsitl (``square``)."""
+    path = Path(given)
+    if not path.exists():
+        from bfsitl.library import find_mission
+
+        shipped = find_mission(given)
+        if shipped is not None:
+            return shipped
+    return path
 
 
 def parse_gains(items: list[str]) -> dict[str, float]:

@@ -24,10 +24,11 @@ from bfsitl.cli.scenario_command import add_scenario_parser
 from bfsitl.cli.sim_command import add_sim_parser
 from bfsitl.cli.target import add_target_arguments, open_target, progress
 from bfsitl.cli.top_command import add_top_parser
-from bfsitl.errors import BfsitlError
+from bfsitl.errors import BfsitlError, CliError
 from bfsitl.fc.cli_session import CliSession
 from bfsitl.fc.identity import read_identity
 from bfsitl.fc.telemetry_poller import TelemetryPoller
+from bfsitl.toml_file import read_text_file
 
 EXIT_OK = 0
 EXIT_ERROR = 1
@@ -100,7 +101,7 @@ def cmd_telemetry(args: argparse.Namespace) -> int:
 
 def cmd_cli(args: argparse.Namespace) -> int:
     if args.file:
-        commands = Path(args.file).read_text().splitlines()
+        commands = read_text_file(Path(args.file), "command", CliError).splitlines()
     else:
         commands = [" ".join(args.command)] if args.command else ["status"]
     with open_target(args) as target:

@@ -7,6 +7,8 @@ import sys
 import time
 from pathlib import Path
 
+from bfsitl.cli.arg_types import whole_number_at_least
+from bfsitl.cli.fly_command import parse_speed
 from bfsitl.cli.target import progress
 
 EXIT_OK = 0
@@ -43,7 +45,7 @@ def add_scenario_parser(sub: argparse._SubParsersAction) -> None:  # type: ignor
                      help="a cached build's name or a SITL binary; repeat for several "
                           "(default: the builds each file names that are built; the others "
                           "are named, with the command that builds them)")
-    run.add_argument("--jobs", type=int, default=1, metavar="N",
+    run.add_argument("--jobs", type=whole_number_at_least(1), default=1, metavar="N",
                      help="runs side by side, each in its own process (default 1; about one "
                           "per core: a SITL wants most of one)")
     run.add_argument("--ray", metavar="ADDRESS", dest="ray_address",
@@ -58,7 +60,7 @@ def add_scenario_parser(sub: argparse._SubParsersAction) -> None:  # type: ignor
                      help=f"where each run's files go, DIR/FIRMWARE/SCENARIO/ (default "
                           f"{DEFAULT_OUT}/): CSV, plot, result.json, blackbox, the SITL's "
                           f"log and run directory")
-    run.add_argument("--speed", type=float, default=None, metavar="X",
+    run.add_argument("--speed", type=parse_speed, default=None, metavar="X",
                      help="x real time (default: as fast as it goes on a lockstep build, real "
                           "time on a stock one)")
     run.add_argument("--no-plot", action="store_true", help="skip the plots (faster)")

@@ -8,6 +8,7 @@ import json
 import time
 from collections.abc import Iterator
 
+from bfsitl.cli.arg_types import number_in, port_number
 from bfsitl.cli.bridge_commands import add_allow_origin_argument
 from bfsitl.cli.target import add_target_arguments, progress
 from bfsitl.fc.msp_client import MspClient
@@ -34,13 +35,15 @@ def add_sim_parser(sub: argparse._SubParsersAction) -> None:  # type: ignore[typ
     sim.add_argument("--attach", action="store_true",
                      help="use a SITL already running in the host network (at --uri) instead "
                           "of starting one")
-    sim.add_argument("--speed", type=float, default=1.0, metavar="S",
+    sim.add_argument("--speed", type=number_in(0.01, 100, "x real time"), default=1.0, metavar="S",
                      help="simulated seconds per wall second (default 1.0, real time; "
                           "below 1 for slow machines; benchmarks/physics.py finds the fastest "
                           "faithful speed)")
-    sim.add_argument("--duration", type=float, default=None, metavar="S",
+    sim.add_argument("--duration", type=number_in(0, None, "s", above_low=True), default=None,
+                     metavar="S",
                      help="stop after S simulated seconds (default: until Ctrl-C)")
-    sim.add_argument("--step-ms", type=float, default=DEFAULT_STEP_S * 1000, metavar="MS",
+    sim.add_argument("--step-ms", type=number_in(0.1, 20, "ms"), default=DEFAULT_STEP_S * 1000,
+                     metavar="MS",
                      help="physics step and fdm packet interval (default 1 ms, as Gazebo)")
     sim.add_argument("--timestamps", choices=("frozen", "sim"), default="frozen",
                      help="fdm timestamps: 'frozen' keeps the firmware clock at sim time "
@@ -50,7 +53,7 @@ def add_sim_parser(sub: argparse._SubParsersAction) -> None:  # type: ignore[typ
                      help="let the Betaflight Configurator watch: MSP on UART2 (TCP 5762) too "
                           "(one reboot the first time), relayed to a WebSocket on 127.0.0.1 at "
                           "--configurator-port (default 6761); not with --attach")
-    sim.add_argument("--configurator-port", type=int, default=6761, metavar="PORT",
+    sim.add_argument("--configurator-port", type=port_number, default=6761, metavar="PORT",
                      help="its WebSocket port (default 6761: the Configurator's \"Betaflight "
                           "SITL\" entry)")
     add_allow_origin_argument(sim)

@@ -63,12 +63,19 @@ class Profile:
     @classmethod
     def from_file(cls, path: str | Path,
                   mode_ranges: tuple[msg.ModeRange, ...] = (ARM_ON_AUX1,)) -> Profile:
-        """CLI lines from a file (``#`` comments and blank lines skipped)."""
+        """CLI lines from a file (``#`` comments and blank lines skipped); a file that cannot
+        be read, is not text or holds a line the FC must not get is one error naming it."""
+        from bfsitl.toml_file import read_text_file
+
+        text = read_text_file(Path(path), "profile", ProvisioningError)
         lines = []
-        for raw in Path(path).read_text().splitlines():
+        for number, raw in enumerate(text.splitlines(), start=1):
             line = raw.strip()
             if line and not line.startswith("#"):
-                lines.append(line)
+                try:
+                    lines.append(validate_cli_line(line))
+                except ProvisioningError as exc:
+                    raise ProvisioningError(f"{path}, line {number}: {exc}") from None
         return cls(mode_ranges, tuple(lines))
 
 
@@ -85,6 +92,11 @@ def validate_cli_line(line: str) -> str:
     words = line.split()
     if not words:
         raise ProvisioningError("empty CLI line in the profile")
+    control = next((c for c in line if ord(c) < 0x20 or ord(c) == 0x7F), None)
+    if control is not None:
+        # 0x02 and 0x03 switch the port in and out of the non-interactive CLI; any control
+        # byte in a line is a mistake the FC would act on.
+        raise ProvisioningError(f"{line!r}: holds the control character 0x{ord(control):02x}")
     command = words[0].lower()
     if command == "aux" and len(words) - 1 != _AUX_ARGUMENTS:
         raise ProvisioningError(

@@ -1,0 +1,73 @@
+"""Argument types that check a value when the command line is read, before anything starts.
+
+A value out of range is an argparse error (``bfsitl fly: error: argument --rate: 0 is out of
+range: 1..200 Hz``, exit code 2) within milliseconds, instead of a failure after a SITL has
+been started and provisioned.
+"""
+
+from __future__ import annotations
+
+import argparse
+import math
+from collections.abc import Callable
+
+
+def number_in(low: float | None, high: float | None, unit: str, *,
+              above_low: bool = False) -> Callable[[str], float]:
+    """A finite number within ``low``..``high`` (either may be None: unbounded); with
+    ``above_low`` the low end itself is refused (``> 0`` rather than ``>= 0``)."""
+
+    def parse(text: str) -> float:
+        try:
+            value = float(text)
+        except ValueError:
+            raise argparse.ArgumentTypeError(f"{text!r} is not a number") from None
+        if not math.isfinite(value):
+            raise argparse.ArgumentTypeError(f"{text!r} must be a finite number")
+        too_low = low is not None and (value <= low if above_low else value < low)
+        too_high = high is not None and value > high
+        if too_low or too_high:
+            allowed = _range(low, high, unit, above_low)
+            raise argparse.ArgumentTypeError(f"{text} is out of range: {allowed}")
+        return value
+
+    parse.__name__ = "number"  # argparse names the type in some messages
+    return parse
+
+
+def _range(low: float | None, high: float | None, unit: str, above_low: bool) -> str:
+    if low is not None and high is not None and not above_low:
+        return f"{low:g}..{high:g} {unit}"
+    parts = []
+    if low is not None:
+        parts.append(f"{'>' if above_low else '>='} {low:g} {unit}")
+    if high is not None:
+        parts.append(f"<= {high:g} {unit}")
+    return " and ".join(parts)
+
+
+def port_number(text: str) -> int:
+    """A TCP/UDP port, 0 (any free port) to 65535."""
+    try:
+        value = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"{text!r} is not a port number") from None
+    if not 0 <= value <= 65535:
+        raise argparse.ArgumentTypeError(f"{text} is out of range: 0..65535 (0: any free port)")
+    return value
+
+
+def whole_number_at_least(low: int) -> Callable[[str], int]:
+    """A whole number >= ``low``."""
+
+    def parse(text: str) -> int:
+        try:
+            value = int(text)
+        except ValueError:
+            raise argparse.ArgumentTypeError(f"{text!r} is not a whole number") from None
+        if value < low:
+            raise argparse.ArgumentTypeError(f"{text} is out of range: at least {low}")
+        return value
+
+    parse.__name__ = "whole number"
+    return parse

@@ -40,6 +40,7 @@ from bfsitl.build.plan import RECIPE_VERSION, BuildPlan, plan_build
 from bfsitl.build.progress import BuildProgress
 from bfsitl.build.source_facts import SKIPPED_WHEN_COPYING, identify_source, unpack
 from bfsitl.build.source_tree import SourceSpec, remove_tree, resolve_source
+from bfsitl.build.submodules import stamp_missing_submodules
 from bfsitl.errors import FirmwareBuildError
 
 BINARY_GLOB = "betaflight_*_SITL"
@@ -167,6 +168,7 @@ def _build_into(
     """Copy, prepare, make; returns ``work/entry`` holding the binary and build.json."""
     started_s = time.monotonic()
     tree = _tree_copy(plan, work, report, cache_root)
+    stamp_missing_submodules(tree, report.note)
     for hook in plan.tree_hooks:
         report.note(hook.description)
         hook(tree)

@@ -15,8 +15,10 @@ Steps, each one clear line when it fails:
    which is renamed into place only when the checkout is complete: Ctrl-C, a full disk or a
    dropped connection leave no half-made entry behind.
 
-No submodule is fetched: Betaflight's two (``src/config``, the boards' configuration, and
-``lib/main/pico-sdk``, the RP2350 SDK) are not compiled for ``TARGET=SITL``.
+No submodule is fetched: ``make TARGET=SITL`` compiles none of them.  Master's Makefile would
+fetch two by itself (``src/config``, the boards' configurations, and libcanard); the build
+copy gets stand-in stamps for those instead (:mod:`bfsitl.build.submodules`), so the build
+works offline and from any snapshot of the tree.
 
 git runs with ``GIT_TERMINAL_PROMPT=0`` (a private or misspelt URL fails instead of waiting
 for a password nobody will type) and its progress lines are relayed to the build's progress.

@@ -5,7 +5,7 @@ speaks WebSocket) and :mod:`bfsitl.bridges.pty_relay` (tools that only open seri
 Both carry bytes unchanged to the SITL's TCP port; this module holds what they share: the
 upstream address, connecting to it, and watching the client's bytes for trouble.
 
-Facts that shape it (``shared/FIRMWARE_FACTS.md``, ``drivers/serial_tcp.c``):
+Facts that shape it (``docs/firmware-findings.md``, ``drivers/serial_tcp.c``):
 
 * The SITL serves one TCP client per UART, but it does not refuse a second one at connect
   time: the kernel completes the handshake, then the SITL's I/O thread (``dyad``, polling every

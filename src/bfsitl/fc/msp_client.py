@@ -1,6 +1,6 @@
 """Synchronous MSP client: requests matched to replies in order, over any :class:`Link`.
 
-Why it is built this way (facts in ``shared/FIRMWARE_FACTS.md``):
+Why it is built this way (facts in ``docs/firmware-findings.md``):
 
 * MSP has no sequence numbers and the FC answers strictly in request order, so outstanding
   requests sit in a FIFO and a reply resolves the oldest entry with the same command.  A reply

@@ -1,6 +1,6 @@
 """Configure a flight controller for autonomous flight: mode ranges, then a user's CLI lines.
 
-Facts (``shared/FIRMWARE_FACTS.md``): arming needs an ARM mode range on an AUX channel (stick
+Facts (``docs/firmware-findings.md``): arming needs an ARM mode range on an AUX channel (stick
 arming is off in 4.6); the CLI form ``aux 0 0 0 1700 2100`` with 5 arguments crashes 4.6.0 SITL,
 so only the 7-argument form is accepted; MSP_EEPROM_WRITE saves without rebooting (a reboot
 ends a SITL process); an interactive CLI session blocks arming until reboot, so CLI lines go

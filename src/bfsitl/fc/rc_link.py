@@ -1,6 +1,6 @@
 """RC input for the flight controller: UDP rc_packets for a SITL, MSP_SET_RAW_RC for a board.
 
-Facts that shape it (``shared/FIRMWARE_FACTS.md``):
+Facts that shape it (``docs/firmware-findings.md``):
 
 * The first UDP rc_packet permanently replaces MSP as the SITL's RC source, and from then on
   the SITL holds the last channels forever when packets stop: no RXLOSS, no failsafe.  So a

@@ -1,6 +1,6 @@
 """A flight session: one SITL, the embedded physics, a provisioned FC and an RC link.
 
-The order of things is what makes a SITL flight reliable (``shared/FIRMWARE_FACTS.md``):
+The order of things is what makes a SITL flight reliable (``docs/firmware-findings.md``):
 
 1. the physics bridge binds its motor port, then the SITL starts in its own network namespace
    and is *probed* until it answers MSP (never a fixed sleep);

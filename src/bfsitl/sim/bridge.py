@@ -1,6 +1,6 @@
 """The physics bridge: exchanges fdm and servo packets with the SITL, paced in wall time.
 
-Per step k (``shared/research/physics-and-timing.md`` §2.9, "paced lockstep"):
+Per step k (``docs/lockstep.md``, "paced lockstep"):
 
 1. apply any servo packet that arrived late (a newer command than the one held);
 2. send the fdm packet for the state at t_k, timestamped by :mod:`bfsitl.sim.clock_lock`;

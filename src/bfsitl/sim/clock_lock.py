@@ -6,7 +6,7 @@ Stock 4.6.0 SITL never reads the fdm timestamp as a time.  It estimates a clock 
 ``updateState``).  Arrival jitter biases that estimate upward: with Gazebo-style timestamps
 (timestamp = sim time) the firmware clock was measured 2.9x to 8.8x faster than sim time.
 
-The rate-frozen scheme (``shared/research/physics-and-timing.md`` §2.9):
+The rate-frozen scheme (``docs/lockstep.md``):
 
 1. primers: a few packets with timestamps 0.0625 s apart.  The first packet after boot (or
    after a 500 ms gap) takes the SITL's timeout branch, which does not record its arrival;

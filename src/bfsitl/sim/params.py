@@ -5,8 +5,8 @@ flies (``osrf/vehicle_gateway`` ``betaflight_sim/models/iris_with_standoffs/mode
 ``worlds/empty_betaflight_world.sdf``), so PID tunes and behaviours carry over between the two.
 Gazebo has no motor model plugin for it: thrust and rotor torque come from ``LiftDrag`` blade
 elements and the motors are joint-velocity P controllers.  The equivalent lumped numbers below
-were derived from those SDF values in ``shared/research/physics-and-timing.md`` sections
-3.5 and 3.6, and re-checked here (see each field's comment).
+were derived from those SDF values (blade-element lift and drag of the rotors, the joint
+controllers' limits) and re-checked here (see each field's comment).
 
 Frames: body FRD (x forward, y right, z down) with its origin at the centre of mass; world NED.
 Motor order everywhere in :mod:`bfsitl.sim` is Betaflight's: M1 rear-right, M2 front-right,

@@ -1,6 +1,6 @@
 """Supervise one Betaflight SITL process: start, probe until ready, restart, tear down.
 
-Facts that shape it (``shared/FIRMWARE_FACTS.md``):
+Facts that shape it (``docs/firmware-findings.md``):
 
 * The SITL writes ``eeprom.bin`` into its working directory, so the run directory *is* the
   configuration.  A fresh temporary one by default; a given one persists between runs.

@@ -43,6 +43,17 @@ def firmware() -> FirmwareBinary:
 
 
 @pytest.fixture
+def relay_url(sitl: SitlProcess) -> Iterator[str]:
+    """A Configurator bridge (WebSocket on 127.0.0.1) to ``sitl``, restarting it after a
+    reboot as ``bfsitl configurator --start`` does."""
+    from bfsitl.bridges.websocket_relay import WebSocketRelay
+    from bfsitl.cli.bridge_commands import sitl_upstream
+
+    with WebSocketRelay(sitl_upstream(sitl), port=0).running() as url:
+        yield url
+
+
+@pytest.fixture
 def sitl(firmware: FirmwareBinary, tmp_path) -> Iterator[SitlProcess]:
     """A freshly booted SITL in a private namespace and a persisted run directory."""
     process = SitlProcess(firmware, workdir=tmp_path / "run", isolate=True)

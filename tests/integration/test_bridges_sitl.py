@@ -54,22 +54,6 @@ _BRIDGE_MAIN = (
 )
 
 
-@pytest.fixture
-def sitl(firmware, tmp_path) -> Iterator[SitlProcess]:
-    process = SitlProcess(firmware, workdir=tmp_path / "run", isolate=True)
-    process.start()
-    try:
-        yield process
-    finally:
-        process.stop()
-
-
-@pytest.fixture
-def relay_url(sitl) -> Iterator[str]:
-    with WebSocketRelay(sitl_upstream(sitl), port=0).running() as url:
-        yield url
-
-
 #: MSP API of each generation (4.6.0 msp.c; master 301d01a msp_protocol.h).
 API_OF_GENERATION = {"4.6.0": (1, 47), "master": (1, 49)}
 

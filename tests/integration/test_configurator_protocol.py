@@ -6,37 +6,17 @@ of the app (``BFSITL_CONFIGURATOR_DIST``) test_configurator_app.py drives the re
 
 from __future__ import annotations
 
-from collections.abc import Iterator
-
 import pytest
 from configurator_client import ConfiguratorLikeClient, frames
 
-from bfsitl.bridges.websocket_relay import CLOSE_UPSTREAM_GONE, WebSocketRelay
-from bfsitl.cli.bridge_commands import sitl_upstream
+from bfsitl.bridges.websocket_relay import CLOSE_UPSTREAM_GONE
 from bfsitl.protocol import msp_messages as msg
-from bfsitl.sitl.process import SitlProcess
 
 pytestmark = pytest.mark.sitl
 
 
-@pytest.fixture
-def sitl(firmware, tmp_path) -> Iterator[SitlProcess]:
-    process = SitlProcess(firmware, workdir=tmp_path / "run", isolate=True)
-    process.start()
-    try:
-        yield process
-    finally:
-        process.stop()
-
-
-@pytest.fixture
-def bridge_url(sitl) -> Iterator[str]:
-    with WebSocketRelay(sitl_upstream(sitl), port=0).running() as url:
-        yield url
-
-
-def test_the_apps_connect_sequence_gets_what_the_app_needs(bridge_url) -> None:
-    with ConfiguratorLikeClient(bridge_url) as app:
+def test_the_apps_connect_sequence_gets_what_the_app_needs(relay_url) -> None:
+    with ConfiguratorLikeClient(relay_url) as app:
         replies = app.connect_sequence()
         # The app aborts unless each of these is right (serial_backend.js).
         assert msg.ApiVersion.decode(replies["MSP_API_VERSION"].payload).api == (1, 47)
@@ -54,10 +34,10 @@ def test_the_apps_connect_sequence_gets_what_the_app_needs(bridge_url) -> None:
 
 
 def test_the_cli_round_trips_and_leaving_it_reconnects_to_the_restarted_sitl(
-        sitl, bridge_url) -> None:
+        sitl, relay_url) -> None:
     cli = frames()["cli"]
     first_pid = sitl.pid
-    with ConfiguratorLikeClient(bridge_url) as app:
+    with ConfiguratorLikeClient(relay_url) as app:
         assert "# " in app.cli_text(cli["enter"], until=b"\r\n# ")
         answer = app.cli_text(cli["command"], until=b"small_angle = ")
         assert "get small_angle" in answer
@@ -67,7 +47,7 @@ def test_the_cli_round_trips_and_leaving_it_reconnects_to_the_restarted_sitl(
         assert app.wait_closed(timeout_s=15.0) == CLOSE_UPSTREAM_GONE
     # The app reconnects; the bridge starts the SITL again for it (a whole boot: up to 15 s on
     # a loaded machine) and the connect sequence is answered by the new process.
-    with ConfiguratorLikeClient(bridge_url, open_timeout_s=20.0) as app:
+    with ConfiguratorLikeClient(relay_url, open_timeout_s=20.0) as app:
         api = frames()["connect"][0]
         assert msg.ApiVersion.decode(app.request(api["hex"], api["command"],
                                                  timeout_s=15.0).payload).api == (1, 47)

@@ -22,6 +22,7 @@ from collections.abc import Callable, Iterator
 from urllib.parse import urlsplit
 
 from bfsitl.bridges import BridgeError, Upstream, UpstreamBusyError, connect_upstream
+from bfsitl.cli.arg_types import port_number
 from bfsitl.cli.target import add_target_arguments, progress
 from bfsitl.link import DEFAULT_SITL_URI
 from bfsitl.sitl.process import SITL_HOST, SITL_MSP_PORT, SitlProcess
@@ -42,7 +43,7 @@ def add_configurator_parser(sub: argparse._SubParsersAction) -> None:  # type: i
                     "Configurator's own pages may connect (see --allow-origin). Stop with "
                     "Ctrl-C.",
     )
-    parser.add_argument("--port", type=_tcp_port, default=DEFAULT_PORT,
+    parser.add_argument("--port", type=port_number, default=DEFAULT_PORT,
                         help=f"WebSocket port on 127.0.0.1 (default {DEFAULT_PORT})")
     add_allow_origin_argument(parser)
     add_target_arguments(parser)
@@ -197,13 +198,3 @@ def _on_sigterm(stop: Callable[[], None]) -> Iterator[None]:
         yield
     finally:
         signal.signal(signal.SIGTERM, previous)
-
-
-def _tcp_port(text: str) -> int:
-    try:
-        value = int(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"{text!r} is not a port number") from None
-    if not 0 <= value <= 65535:
-        raise argparse.ArgumentTypeError(f"port {value} outside 0..65535")
-    return value

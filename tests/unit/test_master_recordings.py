@@ -252,3 +252,16 @@ def test_the_cli_transcript_names_only_flags_master_has() -> None:
     assert set(line.split(":", 1)[1].split()) <= known
     assert "MSP API: 1.49" in text and "gps_provider = VIRTUAL" in text
     assert "###ERROR IN input: UNKNOWN COMMAND" in text
+
+
+def test_master_read_the_sticks_bfsitl_sent_on_the_right_channels() -> None:
+    """RC rides in the lockstep datagram as AETR + AUX; MSP_RC answers in the FC's internal
+    order (roll, pitch, yaw, throttle, AUX...): each stick landed where it belongs."""
+    moved = set()
+    for snap in snapshots():
+        roll, pitch, throttle, yaw, *aux = snap["rc_aetr"]
+        channels = msg.Rc.decode(bytes.fromhex(snap["replies"]["RC"])).channels_us
+        assert channels[:4] == (roll, pitch, yaw, throttle), snap["label"]
+        assert list(channels[4:4 + len(aux)]) == aux, snap["label"]
+        moved |= {i for i, value in enumerate((roll, pitch, yaw)) if value != 1500}
+    assert moved == {0, 1, 2}  # each stick step is in the recording

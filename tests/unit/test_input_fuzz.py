@@ -252,6 +252,8 @@ def test_the_commands_say_a_binary_file_in_one_line(argv: list[str], names: str,
     (["sim", "--step-ms", "0"], "argument --step-ms: 0 is out of range"),
     (["scenario", "run", "--jobs", "0"], "argument --jobs: 0 is out of range: at least 1"),
     (["scenario", "run", "--speed", "-2"], "argument --speed: '-2' must be a positive"),
+    (["status", "--start", "--timeout", "0"], "argument --timeout: 0 is out of range"),
+    (["telemetry", "--start", "--duration", "-1"], "argument --duration: -1 is out of range"),
 ])
 def test_options_are_checked_before_anything_starts(argv: list[str], says: str,
                                                     tmp_path: Path) -> None:

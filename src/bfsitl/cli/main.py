@@ -16,6 +16,7 @@ from pathlib import Path
 
 from bfsitl import __version__
 from bfsitl.cli import render
+from bfsitl.cli.arg_types import number_in
 from bfsitl.cli.bridge_commands import add_configurator_parser, add_serial_bridge_parser
 from bfsitl.cli.doctor import add_doctor_parser
 from bfsitl.cli.firmware_command import add_firmware_parser
@@ -174,7 +175,8 @@ def build_parser() -> argparse.ArgumentParser:
     add_target_arguments(telemetry)
     telemetry.add_argument("--rate", type=_rate, default=10.0, metavar="HZ",
                            help="updates per second, or 'max' (default 10)")
-    telemetry.add_argument("--duration", type=float, default=None, metavar="S",
+    telemetry.add_argument("--duration", type=number_in(0, None, "s", above_low=True),
+                           default=None, metavar="S",
                            help="stop after S seconds (default: until Ctrl-C)")
     telemetry.add_argument("--json", action="store_true", help="JSON lines even on a terminal")
     telemetry.set_defaults(func=cmd_telemetry)

@@ -8,6 +8,7 @@ import sys
 from collections.abc import Iterator
 from dataclasses import dataclass
 
+from bfsitl.cli.arg_types import number_in
 from bfsitl.fc.msp_client import MspClient
 from bfsitl.link import DEFAULT_SITL_URI, open_link
 from bfsitl.sitl.process import SitlProcess
@@ -40,7 +41,7 @@ def add_target_arguments(
         group.add_argument("--no-isolate", action="store_true",
                            help="run a started SITL in the host network instead of a private "
                                 "namespace (needed for tools that connect to it from outside)")
-    group.add_argument("--timeout", type=float, default=0.5, metavar="S",
+    group.add_argument("--timeout", type=number_in(0.01, 60, "s"), default=0.5, metavar="S",
                        help="MSP reply timeout in seconds (default 0.5)")
 
 

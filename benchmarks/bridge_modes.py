@@ -19,7 +19,7 @@ import sys
 import time
 from dataclasses import dataclass
 
-from bfsitl.sim import Simulator
+from bfsitl.physics import Simulator
 from bfsitl.sim.bridge import bridged_sitl
 from bfsitl.sim.health import HealthMonitor, lock_clock, meets_targets
 from bfsitl.sitl.process import SitlProcess

@@ -30,7 +30,7 @@ import statistics
 import sys
 import time
 
-from bfsitl.sim import IRIS, Simulator
+from bfsitl.physics import IRIS, Simulator
 
 SCENARIOS = ("airborne", "airborne + fdm", "parked", "contact")
 TARGET_REAL_TIME_FACTOR = 25.0

@@ -45,9 +45,9 @@ from bfsitl.mission import FlightSession, Mission, SessionConfig
 from bfsitl.mission.plan import MissionPlan, Waypoint
 from bfsitl.mission.runner import cross_track_rms, fly_plan, landed_from_start_m
 from bfsitl.mission.session import FAST_SERIAL_LINE, FLY_PROFILE, fly_sensors, with_fast_serial
+from bfsitl.physics.wind import Wind
 from bfsitl.protocol import msp_messages as msg
 from bfsitl.protocol.boxes import BoxId
-from bfsitl.sim.params import Wind
 
 BUILDS = {  # name: (source, options)
     "4.6.0-gps-lockstep": (None, FirmwareBuildOptions(gps=True, lockstep=True)),

@@ -60,10 +60,10 @@ _EXPORTS: dict[str, str] = {
     "provision": "bfsitl.fc.provisioning",
     "open_link": "bfsitl.link",
     # the embedded physics
-    "Simulator": "bfsitl.sim",
-    "Wind": "bfsitl.sim.params",
-    "SensorConfig": "bfsitl.sim",
-    "GeoPoint": "bfsitl.sim",
+    "Simulator": "bfsitl.physics",
+    "Wind": "bfsitl.physics.wind",
+    "SensorConfig": "bfsitl.physics",
+    "GeoPoint": "bfsitl.physics",
 }
 
 __all__ = [
@@ -104,10 +104,10 @@ if TYPE_CHECKING:  # what type checkers and IDEs see; nothing is imported at run
     from bfsitl.mission.runner import Mission, MissionPlan, MissionResult, Outcome, run_mission
     from bfsitl.mission.session import FLY_PROFILE, FlightSession, SessionConfig
     from bfsitl.mission.vehicle import Vehicle
+    from bfsitl.physics import GeoPoint, SensorConfig, Simulator
+    from bfsitl.physics.wind import Wind
     from bfsitl.scenario.result import ScenarioResult
     from bfsitl.scenario.run import RunOptions, run_scenario
     from bfsitl.scenario.spec import Scenario, load_scenario
-    from bfsitl.sim import GeoPoint, SensorConfig, Simulator
-    from bfsitl.sim.params import Wind
     from bfsitl.sitl.firmware import FirmwareBinary, find_firmware
     from bfsitl.sitl.process import SitlProcess

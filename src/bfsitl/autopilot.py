@@ -47,7 +47,7 @@ from bfsitl.mission.session import (
     with_fast_serial,
 )
 from bfsitl.mission.vehicle import Vehicle
-from bfsitl.sim.params import Wind
+from bfsitl.physics.wind import Wind
 
 #: Armed at idle before the first take-off: the FC's altitude settles, and the fused
 #: controller learns the barometer's zero from the vehicle at rest.

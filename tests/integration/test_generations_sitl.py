@@ -32,11 +32,11 @@ import pytest
 from bfsitl.control import make_controller
 from bfsitl.fc.cli_session import CliSession
 from bfsitl.mission import FlightSession, Mission, SessionConfig
+from bfsitl.physics import GeoPoint, Simulator
+from bfsitl.physics.frames import betaflight_attitude_deg, quat_from_euler_deg
 from bfsitl.protocol import msp_messages as msg
 from bfsitl.protocol.firmware_profile import Generation
-from bfsitl.sim import GeoPoint, Simulator
 from bfsitl.sim.bridge import SitlBridge, wait_for_replies
-from bfsitl.sim.frames import betaflight_attitude_deg, quat_from_euler_deg
 from bfsitl.sitl.process import SitlProcess
 
 pytestmark = pytest.mark.sitl

@@ -26,7 +26,7 @@ from bfsitl.fc.provisioning import Profile
 from bfsitl.fc.rc_link import RC_MID_US
 from bfsitl.mission.runner import Mission
 from bfsitl.mission.session import FLY_PROFILE, FlightSession, SessionConfig, with_fast_serial
-from bfsitl.sim.params import Wind
+from bfsitl.physics.wind import Wind
 from bfsitl.sitl.process import SitlProcess
 
 pytestmark = pytest.mark.sitl

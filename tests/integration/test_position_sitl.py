@@ -16,7 +16,7 @@ import pytest
 from bfsitl import FlightSession, Mission, SessionConfig, make_controller
 from bfsitl.errors import MissionError
 from bfsitl.mission.session import FLY_PROFILE, with_fast_serial
-from bfsitl.sim.params import Wind
+from bfsitl.physics.wind import Wind
 
 pytestmark = pytest.mark.sitl
 

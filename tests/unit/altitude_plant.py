@@ -34,7 +34,7 @@ from dataclasses import dataclass, field
 
 from bfsitl.control.base import AltitudeController, AltitudeInput
 from bfsitl.mission.climb_rate import ClimbRateEstimator
-from bfsitl.sim import GeoPoint, SensorConfig, Simulator
+from bfsitl.physics import GeoPoint, SensorConfig, Simulator
 
 #: Betaflight's pt2FilterGain shifts the cut-off so two PT1 stages give -3 dB there.
 _PT2_CUTOFF_CORRECTION = 1.553773974

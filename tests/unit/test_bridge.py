@@ -16,10 +16,10 @@ from collections.abc import Iterator
 import pytest
 
 from bfsitl.errors import PortInUseError
+from bfsitl.physics.sensors import SensorReading
 from bfsitl.protocol.sitl_packets import FdmPacket, ServoPacket
 from bfsitl.sim.bridge import FDM_PORT, SERVO_PORT, SitlBridge
 from bfsitl.sim.clock_lock import ESTIMATOR_WINDOW_S, FROZEN_STEP_S
-from bfsitl.sim.sensors import SensorReading
 from bfsitl.sitl.network import IsolatedNetwork, unshare_available
 
 pytestmark = pytest.mark.skipif(not unshare_available(), reason="needs unshare")

@@ -73,3 +73,13 @@ def test_the_docs_site_builds_strictly(tmp_path: Path) -> None:
     api = (tmp_path / "site" / "api" / "index.html").read_text()
     # The API reference is generated from the docstrings, not written by hand.
     assert "launch_sitl" in api and "fetch_git_source" in api
+
+
+def test_the_sites_home_page_is_the_readme() -> None:
+    """docs/index.md is the README with its links made relative to docs/: one text, two
+    doors (regenerate it from the README when this fails)."""
+    readme = (REPO / "README.md").read_text()
+    expected = readme.replace("](docs/", "](").replace(
+        "The docs site builds from `docs/` with `mkdocs build --strict` "
+        "(`pip install -e '.[docs]'`):", "Pages of this site:")
+    assert (REPO / "docs" / "index.md").read_text() == expected

@@ -12,6 +12,11 @@ import math
 import pytest
 
 from bfsitl.errors import UnsupportedFirmwareError
+from bfsitl.physics import GeoPoint, Simulator
+from bfsitl.physics.frames import (
+    betaflight_attitude_deg,
+    quat_from_euler_deg,
+)
 from bfsitl.protocol.arming import arming_flags_text, decode_arming_flags
 from bfsitl.protocol.firmware_profile import (
     DEFAULT_PROFILE,
@@ -20,12 +25,7 @@ from bfsitl.protocol.firmware_profile import (
     profile_for,
 )
 from bfsitl.protocol.sitl_packets import FdmPacket, ServoPacket
-from bfsitl.sim import GeoPoint, Simulator
 from bfsitl.sim.fdm_encoding import GPS_LOST_LON_LAT, FdmEncoder, gazebo_quaternion
-from bfsitl.sim.frames import (
-    betaflight_attitude_deg,
-    quat_from_euler_deg,
-)
 
 HOME = GeoPoint(47.3977, 8.5456, 488.0)
 V46 = profile_for("1.47", "4.6.0", has_gps=False)
@@ -232,7 +232,8 @@ def test_the_flag_count_picks_the_arming_table():
 
 
 def test_wind_from_the_north_moves_the_air_south_and_from_the_east_west():
-    from bfsitl.sim.params import SimInputError, Wind
+    from bfsitl.physics.params import SimInputError
+    from bfsitl.physics.wind import Wind
 
     assert Wind.from_direction(3.0, 0.0).velocity_ned_m_s == pytest.approx((-3.0, 0.0, 0.0))
     assert Wind.from_direction(3.0, 90.0).velocity_ned_m_s == pytest.approx((0.0, -3.0, 0.0))

@@ -24,9 +24,9 @@ from bfsitl.gazebo.world import (
     world_for_profile,
     world_path,
 )
+from bfsitl.physics.params import IRIS
 from bfsitl.protocol.firmware_profile import DEFAULT_PROFILE, FirmwareProfile, profile_for
 from bfsitl.protocol.sitl_packets import ServoPacket
-from bfsitl.sim.params import IRIS
 
 #: channel -> (rotor, multiplier): CCW (+838) front-right and rear-left, CW (-838) the others.
 EXPECTED_CONTROLS = {0: ("rotor_0", 838.0), 1: ("rotor_1", 838.0),

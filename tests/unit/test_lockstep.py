@@ -108,7 +108,7 @@ class FakeSimulator:
         self.time_s = round(self.time_s + dt_s, 9)
 
     def read_sensors(self):  # noqa: ANN201 - a SensorReading
-        from bfsitl.sim.sensors import SensorReading
+        from bfsitl.physics.sensors import SensorReading
 
         zero = (0.0, 0.0, 0.0)
         return SensorReading(time_s=self.time_s, gyro_frd_rad_s=zero,

@@ -25,15 +25,15 @@ from typing import Any
 
 import pytest
 
+from bfsitl.physics.frames import GeoPoint
+from bfsitl.physics.params import IRIS
+from bfsitl.physics.sensors import SensorReading
 from bfsitl.protocol import msp_messages as msg
 from bfsitl.protocol.arming import decode_arming_flags
 from bfsitl.protocol.firmware_profile import FirmwareProfile, Generation, profile_for
 from bfsitl.protocol.sitl_packets import FdmPacket, ServoPacket
 from bfsitl.sim.fdm_encoding import FdmEncoder
-from bfsitl.sim.frames import GeoPoint
 from bfsitl.sim.lockstep import decode_reply
-from bfsitl.sim.params import IRIS
-from bfsitl.sim.sensors import SensorReading
 
 DATA = Path(__file__).resolve().parents[1] / "data" / "master"
 #: Betaflight's quad-X: M1 rear right, M2 front right, M3 rear left, M4 front left.

@@ -13,7 +13,7 @@ from bfsitl.control.heading import HeadingController, heading_error_deg
 from bfsitl.errors import BfsitlError, MissionError
 from bfsitl.mission.legs import LegReference, cross_track_m, leg_stats
 from bfsitl.mission.plan import MissionPlan, Waypoint, load_mission, plan_from_dict
-from bfsitl.sim.sensors import SensorConfig, SensorModel
+from bfsitl.physics.sensors import SensorConfig, SensorModel
 
 SQUARE = """
 takeoff_alt_m = 2.0
@@ -180,7 +180,7 @@ def test_an_exact_gps_has_no_error_and_the_typical_one_wanders_within_its_spread
 
 
 def test_the_gps_error_moves_the_gps_fields_only():
-    from bfsitl.sim import Simulator
+    from bfsitl.physics import Simulator
 
     exact = Simulator(seed=3)
     noisy = Simulator(sensors=SensorConfig().with_typical_gps(), seed=3)

@@ -412,7 +412,7 @@ class PlanarSession(FakeSession):
         sample = super().sample()
         dt = 0.02
         if self.armed and self.altitude_m > 0.05:
-            from bfsitl.sim.params import STANDARD_GRAVITY_M_S2 as g
+            from bfsitl.physics.constants import STANDARD_GRAVITY_M_S2 as g
 
             roll = math.radians(self.sticks.angle_deg("roll", self.command.roll_us))
             pitch = math.radians(self.sticks.angle_deg("pitch", self.command.pitch_us))

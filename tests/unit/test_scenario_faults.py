@@ -10,10 +10,10 @@ import pytest
 from bfsitl.errors import BfsitlError, FaultNotSupportedError, ScenarioError, SimInputError
 from bfsitl.fc.firmware_detect import MASTER_API_VERSION
 from bfsitl.fc.rc_link import RcCommand, RcFault, RcFaultState
+from bfsitl.physics import IRIS, SensorConfig, Simulator, Wind
 from bfsitl.protocol.firmware_profile import profile_for
 from bfsitl.scenario.faults import LOST_PULSE_US, make_fault
 from bfsitl.scenario.spec import FaultSpec
-from bfsitl.sim import IRIS, SensorConfig, Simulator, Wind
 
 V46 = profile_for("1.47", "4.6.0")
 V46_GPS = profile_for("1.47", "4.6.0", has_gps=True)

@@ -161,8 +161,8 @@ def test_blackbox_expectations_fail_clearly_without_a_log() -> None:
 
 
 def test_a_vehicle_table_makes_the_quad_and_its_hover_throttle(tmp_path: Path) -> None:
+    from bfsitl.physics import IRIS
     from bfsitl.scenario.run import hover_throttle_line
-    from bfsitl.sim import IRIS
 
     default = load_scenario(write(tmp_path, MINIMAL, "a.toml"))
     heavy = load_scenario(write(tmp_path, MINIMAL + '[vehicle]\nmodel = "iris"\n'

@@ -7,10 +7,8 @@ import math
 
 import pytest
 
-from bfsitl.protocol.firmware_profile import DEFAULT_PROFILE
-from bfsitl.sim import IRIS, GeoPoint, SimInputError, Simulator, isa_pressure_pa
-from bfsitl.sim.fdm_encoding import FdmEncoder
-from bfsitl.sim.frames import (
+from bfsitl.physics import IRIS, GeoPoint, SimInputError, Simulator, isa_pressure_pa
+from bfsitl.physics.frames import (
     EARTH_RADIUS_M,
     betaflight_acc_raw,
     betaflight_attitude_deg,
@@ -32,6 +30,8 @@ from bfsitl.sim.frames import (
     rotation_matrix,
     world_to_body,
 )
+from bfsitl.protocol.firmware_profile import DEFAULT_PROFILE
+from bfsitl.sim.fdm_encoding import FdmEncoder
 
 G = 9.80665
 

@@ -8,8 +8,8 @@ import math
 import pytest
 
 from bfsitl.errors import BfsitlError
-from bfsitl.sim import IRIS, QuadParams, SimInputError, Simulator, Wind
-from bfsitl.sim.frames import betaflight_attitude_deg, body_to_world, euler_from_quat_rad
+from bfsitl.physics import IRIS, QuadParams, SimInputError, Simulator, Wind
+from bfsitl.physics.frames import betaflight_attitude_deg, body_to_world, euler_from_quat_rad
 
 G = 9.80665
 DT = 0.001
@@ -331,9 +331,9 @@ def test_a_slide_never_tips_a_box_wider_than_mu_times_its_height():
 
 def test_ground_spring_alone_settles_exactly_without_the_rest_freeze(monkeypatch):
     # With the rest freeze disabled, the contact springs themselves must hold still too.
-    import bfsitl.sim.vehicle as vehicle
+    import bfsitl.physics.contact as contact
 
-    monkeypatch.setattr(vehicle, "REST_VERTICAL_SPEED_M_S", 0.0)
+    monkeypatch.setattr(contact, "REST_VERTICAL_SPEED_M_S", 0.0)
     sim = Simulator()
     sim.reset((0.0, 0.0, -0.5))
     run(sim, OFF, 3.0)

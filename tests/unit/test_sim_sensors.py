@@ -7,7 +7,7 @@ import statistics
 
 import pytest
 
-from bfsitl.sim import (
+from bfsitl.physics import (
     IRIS,
     GeoPoint,
     SensorConfig,
@@ -17,8 +17,8 @@ from bfsitl.sim import (
     betaflight_altitude_m,
     isa_pressure_pa,
 )
-from bfsitl.sim.atmosphere import firmware_pressure_pa
-from bfsitl.sim.frames import EARTH_RADIUS_M
+from bfsitl.physics.atmosphere import firmware_pressure_pa
+from bfsitl.physics.frames import EARTH_RADIUS_M
 
 G = 9.80665
 HOME = GeoPoint(47.3977, 8.5456, 488.0)

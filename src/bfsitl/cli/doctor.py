@@ -106,7 +106,7 @@ def live_probe(firmware: str | None, report: Callable[[str], None]) -> list[Find
     """Start an isolated SITL with physics, provision it, feed RC, explain blockers, arm."""
     from bfsitl.fc.provisioning import provision
     from bfsitl.fc.rc_link import RcCommand, UdpRcLink
-    from bfsitl.sim import Simulator
+    from bfsitl.physics import Simulator
     from bfsitl.sim.bridge import bridged_sitl
     from bfsitl.sim.health import HealthMonitor
     from bfsitl.sitl.process import SitlProcess

@@ -325,7 +325,7 @@ def cmd_fly(args: argparse.Namespace) -> int:
         sensors = sensors.with_typical_gps()
     wind = None
     if args.wind or args.gusts:
-        from bfsitl.sim.params import Wind
+        from bfsitl.physics.wind import Wind
 
         wind = Wind.from_direction(args.wind, args.wind_from, args.gusts)
     live = LiveProgress()

@@ -62,7 +62,7 @@ def add_sim_parser(sub: argparse._SubParsersAction) -> None:  # type: ignore[typ
 
 @contextlib.contextmanager
 def _sitl_and_bridge(args: argparse.Namespace) -> Iterator[tuple[SitlBridge, MspClient]]:
-    from bfsitl.sim import Simulator  # the physics loads only for this command
+    from bfsitl.physics import Simulator  # the physics loads only for this command
 
     simulator = Simulator()
     step_s = args.step_ms / 1000.0

@@ -23,7 +23,7 @@ import math
 from collections import deque
 from dataclasses import dataclass
 
-from bfsitl.sim.params import STANDARD_GRAVITY_M_S2
+from bfsitl.physics.constants import STANDARD_GRAVITY_M_S2
 
 #: A gap this long between updates (no position control meanwhile) restarts from the GPS.
 RESTART_AFTER_S = 1.0

@@ -27,7 +27,7 @@ import math
 from dataclasses import dataclass
 
 from bfsitl.errors import ControllerConfigError
-from bfsitl.sim.params import STANDARD_GRAVITY_M_S2
+from bfsitl.physics.constants import STANDARD_GRAVITY_M_S2
 
 #: Loops at least this fast get the stiff default gains (:meth:`PositionGains.for_loop_rate`).
 STIFF_GAINS_MIN_RATE_HZ = 80.0

@@ -35,6 +35,7 @@ from bfsitl.errors import LinkClosedError, MspDecodeError, MspErrorReply, MspTim
 from bfsitl.link.base import Link
 from bfsitl.link.serial_link import SerialLink
 from bfsitl.link.tcp_link import TcpLink
+from bfsitl.physics.constants import STANDARD_GRAVITY_M_S2
 from bfsitl.protocol import msp_messages as msg
 from bfsitl.protocol.msp_codes import MspCommand
 from bfsitl.protocol.msp_frame import (
@@ -73,7 +74,6 @@ TELEMETRY_COMMANDS: tuple[int, ...] = (
 )
 
 #: Standard gravity, m/s^2: what the accelerometer reads at rest, in the units of ``acc_1G``.
-STANDARD_GRAVITY_M_S2 = 9.80665
 
 T = TypeVar("T")
 

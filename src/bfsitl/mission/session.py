@@ -62,11 +62,14 @@ from bfsitl.mission.vehicle import (  # noqa: F401
     Vehicle,
     WallClock,
 )
+from bfsitl.physics import Simulator
+from bfsitl.physics.frames import betaflight_attitude_deg
+from bfsitl.physics.params import IRIS, QuadParams
+from bfsitl.physics.sensors import SensorConfig
+from bfsitl.physics.wind import Wind
 from bfsitl.protocol import msp_messages as msg
 from bfsitl.protocol.firmware_profile import FirmwareProfile
-from bfsitl.sim import Simulator
 from bfsitl.sim.bridge import BridgeStats, SitlBridge, bridged_sitl, wait_for_replies
-from bfsitl.sim.frames import betaflight_attitude_deg
 from bfsitl.sim.health import HealthMonitor, lock_clock
 from bfsitl.sim.lockstep import (
     REPLY_SPIN_S,
@@ -76,8 +79,6 @@ from bfsitl.sim.lockstep import (
     LockstepRc,
     SteppedLink,
 )
-from bfsitl.sim.params import IRIS, QuadParams, Wind
-from bfsitl.sim.sensors import SensorConfig
 from bfsitl.sitl.process import SITL_HOST, SitlProcess
 
 #: UART2's TCP port (the SITL serves UARTn on 5760 + n).

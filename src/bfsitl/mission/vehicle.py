@@ -28,13 +28,13 @@ from bfsitl.fc.rc_link import (
     RcLinkStats,
     UdpRcLink,
 )
+from bfsitl.physics.constants import STANDARD_GRAVITY_M_S2
 from bfsitl.protocol import msp_messages as msg
 from bfsitl.protocol.boxes import BoxId
-from bfsitl.sim.params import STANDARD_GRAVITY_M_S2
 
 if TYPE_CHECKING:
+    from bfsitl.physics import Simulator
     from bfsitl.protocol.firmware_profile import FirmwareProfile
-    from bfsitl.sim import Simulator
     from bfsitl.sim.bridge import BridgeStats
 
 #: Switch positions sent for "on": inside the 1700-2100 us mode ranges, with margin.

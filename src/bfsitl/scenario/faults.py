@@ -49,8 +49,8 @@ from typing import TYPE_CHECKING, Any
 from bfsitl.errors import FaultNotSupportedError, ScenarioError
 from bfsitl.fc.rc_link import RcFault
 from bfsitl.mission.vehicle import SWITCH_OFF_US, SWITCH_ON_US
+from bfsitl.physics.wind import Wind
 from bfsitl.protocol.firmware_profile import FirmwareProfile
-from bfsitl.sim.params import Wind
 
 if TYPE_CHECKING:
     from bfsitl.mission.session import FlightSession

@@ -54,6 +54,7 @@ from bfsitl.mission.session import (
     with_fast_serial,
 )
 from bfsitl.mission.vehicle import FlightSample
+from bfsitl.physics.params import IRIS, QuadParams
 from bfsitl.protocol import msp_messages as msg
 from bfsitl.protocol.boxes import BoxId
 from bfsitl.protocol.firmware_profile import FirmwareProfile, Generation
@@ -62,7 +63,6 @@ from bfsitl.scenario.faults import FAILSAFE_SWITCH_AUX_INDEX, Fault, make_faults
 from bfsitl.scenario.result import ScenarioResult, TimedEvent, Verdict
 from bfsitl.scenario.spec import Scenario
 from bfsitl.scenario.trace import Trace, TraceRow, phase_name
-from bfsitl.sim.params import IRIS, QuadParams
 from bfsitl.sitl.firmware import find_firmware
 
 #: debug[] index of the failsafe phase with ``debug_mode = FAILSAFE`` (flight/failsafe.c).

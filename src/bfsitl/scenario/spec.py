@@ -40,7 +40,8 @@ from typing import Any
 
 from bfsitl.errors import MissionError, ScenarioError, SimInputError
 from bfsitl.mission.plan import MissionPlan, plan_from_dict
-from bfsitl.sim.params import IRIS, QuadParams, Wind
+from bfsitl.physics.params import IRIS, QuadParams
+from bfsitl.physics.wind import Wind
 from bfsitl.toml_file import read_toml_file
 
 #: A scenario's file name pattern inside a directory.

@@ -1,6 +1,6 @@
 """Turn a sensor reading (physics frames) into the fdm_packet one firmware generation expects.
 
-The physics speaks one language (body FRD, world NED, :mod:`bfsitl.sim.frames`); each SITL
+The physics speaks one language (body FRD, world NED, :mod:`bfsitl.physics.frames`); each SITL
 generation reads the fdm packet its own way (``FdmConvention`` in
 :mod:`bfsitl.protocol.firmware_profile`).
 This module is the only place where the two meet. Whatever the generation, the firmware must
@@ -24,6 +24,10 @@ from __future__ import annotations
 
 import math
 
+from bfsitl.physics.constants import SEA_LEVEL_PRESSURE_PA
+from bfsitl.physics.frames import GeoPoint, quat_multiply
+from bfsitl.physics.params import Quat, Vec3
+from bfsitl.physics.sensors import SensorReading
 from bfsitl.protocol.firmware_profile import (
     AltitudeSource,
     FdmConvention,
@@ -31,10 +35,6 @@ from bfsitl.protocol.firmware_profile import (
     QuaternionConvention,
 )
 from bfsitl.protocol.sitl_packets import FdmPacket
-from bfsitl.sim.atmosphere import SEA_LEVEL_PRESSURE_PA
-from bfsitl.sim.frames import GeoPoint, quat_multiply
-from bfsitl.sim.params import Quat, Vec3
-from bfsitl.sim.sensors import SensorReading
 
 #: Betaflight's body rates from FRD rates: FLU (the 4.6 SITL makes exactly this of FRD).
 BETAFLIGHT_GYRO_FROM_FRD = (1, -1, -1)

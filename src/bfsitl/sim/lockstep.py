@@ -37,6 +37,7 @@ from typing import Protocol, TypeVar
 from bfsitl.errors import PacketError, SitlError, SitlExitedError
 from bfsitl.fc.rc_link import SAFE_COMMAND, RcCommand, RcFault, RcFaultState, RcLinkStats
 from bfsitl.link.base import Link
+from bfsitl.physics.frames import GeoPoint
 from bfsitl.protocol.firmware_profile import DEFAULT_PROFILE, FirmwareProfile
 from bfsitl.protocol.sitl_packets import RcPacket, ServoPacket
 from bfsitl.sim.bridge import (
@@ -48,7 +49,6 @@ from bfsitl.sim.bridge import (
     bind_motor_port,
 )
 from bfsitl.sim.fdm_encoding import FdmEncoder
-from bfsitl.sim.frames import GeoPoint
 
 T = TypeVar("T")
 

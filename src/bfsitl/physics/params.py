@@ -22,6 +22,7 @@ from dataclasses import dataclass
 from bfsitl.errors import (
     SimInputError,  # noqa: F401 - defined in errors.py, importable here too
 )
+from bfsitl.physics.constants import STANDARD_GRAVITY_M_S2
 
 Vec3 = tuple[float, float, float]
 Quat = tuple[float, float, float, float]
@@ -29,7 +30,6 @@ Motors = tuple[float, float, float, float]
 
 #: Standard gravity (m/s^2), the value Betaflight's SITL scales the accelerometer with
 #: (``sitl.c``: ``256 / 9.80665`` LSB per m/s^2) and the ISA uses.
-STANDARD_GRAVITY_M_S2 = 9.80665
 #: Air density at sea level (kg/m^3), as the Gazebo LiftDrag elements of IRIS use it.
 AIR_DENSITY_KG_M3 = 1.2041
 
@@ -279,43 +279,3 @@ IRIS = QuadParams(
     # Research 4.5: mu = 1 (model.sdf's ODE mu 1e5 means "never slips"; 1 is enough for that).
     friction_coefficient=1.0,
 )
-
-
-@dataclass(frozen=True, slots=True)
-class Wind:
-    """Air velocity in the world: a constant part plus a gust (first-order Gauss-Markov).
-
-    The gust of each NED axis is an exponentially correlated random process with standard
-    deviation ``gust_std_m_s`` and correlation time ``gust_time_constant_s``, drawn from the
-    simulator's seed, so a run is repeatable.  Wind acts through body drag and rotor inflow.
-    """
-
-    velocity_ned_m_s: Vec3 = (0.0, 0.0, 0.0)
-    gust_std_m_s: float = 0.0
-    gust_time_constant_s: float = 2.0
-
-    def __post_init__(self) -> None:
-        if len(self.velocity_ned_m_s) != 3 or not all(
-            math.isfinite(v) for v in self.velocity_ned_m_s
-        ):
-            raise SimInputError(f"Wind: velocity_ned_m_s must be 3 finite numbers, "
-                                f"got {self.velocity_ned_m_s!r}")
-        if not (math.isfinite(self.gust_std_m_s) and self.gust_std_m_s >= 0):
-            raise SimInputError(f"Wind: gust_std_m_s must be >= 0, got {self.gust_std_m_s}")
-        if not (math.isfinite(self.gust_time_constant_s) and self.gust_time_constant_s > 0):
-            raise SimInputError(
-                f"Wind: gust_time_constant_s must be > 0, got {self.gust_time_constant_s}"
-            )
-
-    @classmethod
-    def from_direction(cls, speed_m_s: float, from_deg: float = 0.0,
-                       gust_std_m_s: float = 0.0) -> Wind:
-        """A horizontal wind of ``speed_m_s`` blowing FROM ``from_deg`` (the meteorological
-        convention: 0 = from the north, so the air moves south; 90 = from the east)."""
-        if not (math.isfinite(speed_m_s) and speed_m_s >= 0):
-            raise SimInputError(f"Wind: speed must be >= 0 m/s, got {speed_m_s}")
-        if not math.isfinite(from_deg):
-            raise SimInputError(f"Wind: direction must be finite, got {from_deg}")
-        heading = math.radians(from_deg)
-        return cls((-speed_m_s * math.cos(heading), -speed_m_s * math.sin(heading), 0.0),
-                   gust_std_m_s)

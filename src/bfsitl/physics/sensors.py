@@ -21,7 +21,7 @@ import math
 import random
 from dataclasses import dataclass
 
-from bfsitl.sim.params import Quat, SimInputError, Vec3
+from bfsitl.physics.params import Quat, SimInputError, Vec3
 
 
 @dataclass(frozen=True, slots=True)
@@ -154,6 +154,8 @@ class SensorModel:
     def __init__(self, config: SensorConfig, seed: int) -> None:
         self.config = config
         self._ideal = config.is_ideal
+        # The seed strings keep the module's first name (bfsitl.sim): a rename must not change
+        # the noise a seed gives, or no run would repeat across versions.
         self._rng = random.Random(f"bfsitl.sim.sensors:{seed}")
         # Its own generator: switching the GPS error on leaves the IMU's noise as it was.
         self._gps_rng = random.Random(f"bfsitl.sim.sensors.gps:{seed}")

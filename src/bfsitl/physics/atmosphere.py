@@ -11,10 +11,10 @@ from __future__ import annotations
 
 import math
 
-from bfsitl.sim.params import SimInputError
+from bfsitl.physics.constants import SEA_LEVEL_PRESSURE_PA
+from bfsitl.physics.params import SimInputError
 
 #: ISA sea-level pressure (Pa).
-SEA_LEVEL_PRESSURE_PA = 101325.0
 #: Troposphere lapse rate over sea-level temperature: 0.0065 K/m / 288.15 K.
 _LAPSE_OVER_T0_PER_M = 2.25577e-5
 #: g M / (R L) for the troposphere.

@@ -247,6 +247,7 @@ def test_the_commands_say_a_binary_file_in_one_line(argv: list[str], names: str,
 @pytest.mark.parametrize(("argv", "says"), [
     (["fly", "--rate", "0"], "argument --rate: 0 is out of range: 1..200 Hz"),
     (["fly", "--wind", "-1"], "argument --wind: -1 is out of range"),
+    (["fly", "--gusts", "21"], "argument --gusts: 21 is out of range: 0..20 m/s"),
     (["fly", "--target-alt", "nan"], "argument --target-alt: 'nan' must be a finite number"),
     (["fly", "--configurator-port", "70000"], "argument --configurator-port: 70000 is out"),
     (["sim", "--step-ms", "0"], "argument --step-ms: 0 is out of range"),

@@ -614,3 +614,15 @@ def test_wind_blows_a_hovering_vehicle_downwind():
     vn, ve, _ = sim.state.velocity_ned_m_s
     assert vn > 0.5 and ve < -0.3
     assert vn / -ve == pytest.approx(1.5, rel=0.05)  # along the wind
+
+
+@pytest.mark.parametrize("make", [
+    lambda: Wind((51.0, 0.0, 0.0)),
+    lambda: Wind((0.0, 0.0, 0.0), gust_std_m_s=21.0),
+    lambda: Wind((0.0, 0.0, 0.0), gust_time_constant_s=0.0),
+    lambda: Wind.from_direction(60.0),
+])
+def test_one_wind_range_for_every_way_of_giving_one(make) -> None:
+    """The CLI, a scenario's [wind] and the wind fault check against the same limits."""
+    with pytest.raises(SimInputError):
+        make()

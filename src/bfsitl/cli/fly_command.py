@@ -21,6 +21,7 @@ from typing import TextIO
 
 from bfsitl.cli.arg_types import number_in, port_number
 from bfsitl.errors import BfsitlError
+from bfsitl.physics.wind import MAX_GUST_STD_M_S, MAX_WIND_COMPONENT_M_S
 
 EXIT_OK, EXIT_FAILED, EXIT_INTERRUPTED = 0, 1, 130
 DEFAULT_RATE_HZ = 50.0
@@ -35,7 +36,8 @@ FOXGLOVE_PORT = 8765
 RATE_HZ = number_in(1, 200, "Hz")
 ALTITUDE_M = number_in(0, 500, "m", above_low=True)
 DURATION_S = number_in(0, 24 * 3600, "s")
-SPEED_M_S = number_in(0, 50, "m/s")
+WIND_M_S = number_in(0, MAX_WIND_COMPONENT_M_S, "m/s")
+GUST_STD_M_S = number_in(0, MAX_GUST_STD_M_S, "m/s")
 
 
 
@@ -151,9 +153,9 @@ def add_fly_parser(sub: argparse._SubParsersAction) -> None:  # type: ignore[typ
                       metavar="M_S2",
                       help="accelerometer noise std, m/s^2 (default 0.05: dithers the SITL's "
                            "truncated acceleration; 0 for a noiseless accelerometer)")
-    sitl.add_argument("--wind", type=SPEED_M_S, default=0.0, metavar="M_S",
+    sitl.add_argument("--wind", type=WIND_M_S, default=0.0, metavar="M_S",
                       help="steady horizontal wind of the embedded physics, m/s (default 0)")
-    sitl.add_argument("--gusts", type=SPEED_M_S, default=0.0, metavar="M_S",
+    sitl.add_argument("--gusts", type=GUST_STD_M_S, default=0.0, metavar="M_S",
                       help="gust standard deviation per axis, m/s (default 0; correlated over "
                            "about 2 s)")
     sitl.add_argument("--wind-from", type=number_in(None, None, "deg"), default=0.0, metavar="DEG",

@@ -13,6 +13,13 @@ from dataclasses import dataclass
 
 from bfsitl.physics.params import SimInputError, Vec3
 
+#: The one range every way of giving a wind accepts: ``bfsitl fly --wind/--gusts``, a scenario's
+#: ``[wind]`` table and the ``wind`` fault all check against these (through :class:`Wind`).
+MAX_WIND_COMPONENT_M_S = 50.0
+MAX_GUST_STD_M_S = 20.0
+MIN_GUST_TIME_CONSTANT_S = 0.1
+MAX_GUST_TIME_CONSTANT_S = 60.0
+
 
 @dataclass(frozen=True, slots=True)
 class Wind:
@@ -29,15 +36,19 @@ class Wind:
 
     def __post_init__(self) -> None:
         if len(self.velocity_ned_m_s) != 3 or not all(
-            math.isfinite(v) for v in self.velocity_ned_m_s
+            math.isfinite(v) and abs(v) <= MAX_WIND_COMPONENT_M_S
+            for v in self.velocity_ned_m_s
         ):
-            raise SimInputError(f"Wind: velocity_ned_m_s must be 3 finite numbers, "
-                                f"got {self.velocity_ned_m_s!r}")
-        if not (math.isfinite(self.gust_std_m_s) and self.gust_std_m_s >= 0):
-            raise SimInputError(f"Wind: gust_std_m_s must be >= 0, got {self.gust_std_m_s}")
-        if not (math.isfinite(self.gust_time_constant_s) and self.gust_time_constant_s > 0):
+            raise SimInputError(f"Wind: velocity_ned_m_s must be 3 numbers within "
+                                f"+-{MAX_WIND_COMPONENT_M_S:g} m/s, got {self.velocity_ned_m_s!r}")
+        if not (math.isfinite(self.gust_std_m_s) and 0 <= self.gust_std_m_s <= MAX_GUST_STD_M_S):
+            raise SimInputError(f"Wind: gust_std_m_s must be in 0..{MAX_GUST_STD_M_S:g} m/s, "
+                                f"got {self.gust_std_m_s}")
+        if not (math.isfinite(self.gust_time_constant_s) and MIN_GUST_TIME_CONSTANT_S
+                <= self.gust_time_constant_s <= MAX_GUST_TIME_CONSTANT_S):
             raise SimInputError(
-                f"Wind: gust_time_constant_s must be > 0, got {self.gust_time_constant_s}"
+                f"Wind: gust_time_constant_s must be in {MIN_GUST_TIME_CONSTANT_S:g}.."
+                f"{MAX_GUST_TIME_CONSTANT_S:g} s, got {self.gust_time_constant_s}"
             )
 
     @classmethod

@@ -49,7 +49,7 @@ from typing import TYPE_CHECKING, Any
 from bfsitl.errors import FaultNotSupportedError, ScenarioError
 from bfsitl.fc.rc_link import RcFault
 from bfsitl.mission.vehicle import SWITCH_OFF_US, SWITCH_ON_US
-from bfsitl.physics.wind import Wind
+from bfsitl.physics.wind import MAX_GUST_STD_M_S, MAX_WIND_COMPONENT_M_S, Wind
 from bfsitl.protocol.firmware_profile import FirmwareProfile
 
 if TYPE_CHECKING:
@@ -229,9 +229,10 @@ def _baro_drift(spec: FaultSpec, profile: FirmwareProfile, where: str) -> Fault:
 
 
 def _wind(spec: FaultSpec, profile: FirmwareProfile, where: str) -> Fault:
-    wind = Wind((_param_number(spec, where, "north_m_s", -50.0, 50.0, default=0.0),
-                 _param_number(spec, where, "east_m_s", -50.0, 50.0, default=0.0), 0.0),
-                _param_number(spec, where, "gust_std_m_s", 0.0, 20.0, default=0.0))
+    most = MAX_WIND_COMPONENT_M_S
+    wind = Wind((_param_number(spec, where, "north_m_s", -most, most, default=0.0),
+                 _param_number(spec, where, "east_m_s", -most, most, default=0.0), 0.0),
+                _param_number(spec, where, "gust_std_m_s", 0.0, MAX_GUST_STD_M_S, default=0.0))
 
     def apply(session: FlightSession) -> Callable[[FlightSession], None]:
         simulator = _simulator(session)

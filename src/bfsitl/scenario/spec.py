@@ -41,7 +41,13 @@ from typing import Any
 from bfsitl.errors import MissionError, ScenarioError, SimInputError
 from bfsitl.mission.plan import MissionPlan, plan_from_dict
 from bfsitl.physics.params import IRIS, QuadParams
-from bfsitl.physics.wind import Wind
+from bfsitl.physics.wind import (
+    MAX_GUST_STD_M_S,
+    MAX_GUST_TIME_CONSTANT_S,
+    MAX_WIND_COMPONENT_M_S,
+    MIN_GUST_TIME_CONSTANT_S,
+    Wind,
+)
 from bfsitl.toml_file import read_toml_file
 
 #: A scenario's file name pattern inside a directory.
@@ -125,9 +131,11 @@ def _wind(where: str, raw: Any) -> Wind:
     if unknown:
         raise ScenarioError(f"{where}: [wind] has unknown key(s) {', '.join(sorted(unknown))}; "
                             f"known: {', '.join(sorted(_WIND_KEYS))}")
-    values = {k: _number(where, f"wind.{k}", v, -50.0, 50.0) for k, v in raw.items()}
-    if values.get("gust_std_m_s", 0.0) < 0:
-        raise ScenarioError(f"{where}: wind.gust_std_m_s must be >= 0")
+    limits = {"gust_std_m_s": (0.0, MAX_GUST_STD_M_S),
+              "gust_time_constant_s": (MIN_GUST_TIME_CONSTANT_S, MAX_GUST_TIME_CONSTANT_S)}
+    component = (-MAX_WIND_COMPONENT_M_S, MAX_WIND_COMPONENT_M_S)
+    values = {k: _number(where, f"wind.{k}", v, *limits.get(k, component))
+              for k, v in raw.items()}
     return Wind((values.get("north_m_s", 0.0), values.get("east_m_s", 0.0),
                  values.get("down_m_s", 0.0)), values.get("gust_std_m_s", 0.0),
                 values.get("gust_time_constant_s", 2.0))

@@ -37,6 +37,7 @@ from bfsitl.errors import MissionError
 from bfsitl.mission.board import BoardVehicle
 from bfsitl.mission.flight_log import CsvFlightLog, FlightRow
 from bfsitl.mission.legs import LegStats
+from bfsitl.mission.phase import Phase
 from bfsitl.mission.plan import MissionPlan
 from bfsitl.mission.runner import Mission, MissionResult, run_mission
 from bfsitl.mission.session import (
@@ -131,7 +132,7 @@ class Autopilot:
 
     @property
     def armed(self) -> bool:
-        return self.mission.phase not in ("arming", "landed")
+        return self.mission.phase not in (Phase.ARMING, Phase.LANDED)
 
     # -- manoeuvres ---------------------------------------------------------------------------
     def takeoff(self, height_m: float, *, timeout_s: float = 20.0) -> float:

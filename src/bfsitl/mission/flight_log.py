@@ -21,7 +21,8 @@ class FlightRow:
     """One control step: the target, the truth, the FC's view, what was commanded."""
 
     time_s: float            # simulation time
-    phase: str               # arming, takeoff, hold, goto, land, landed, or how it ended
+    phase: str               # a Phase (arming, takeoff, hold, goto, land, landed, or how it
+                             # ended); a str, so a log read back compares alike
     target_alt_m: float
     sim_alt_m: float         # simulated truth above the take-off point
     fc_alt_m: float          # what the FC reports (MSP_ALTITUDE)

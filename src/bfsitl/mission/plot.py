@@ -14,6 +14,7 @@ from pathlib import Path
 
 from bfsitl.errors import BfsitlError, ExtraMissingError
 from bfsitl.mission.flight_log import FlightRow
+from bfsitl.mission.phase import Phase
 
 
 def load_pyplot():  # type: ignore[no-untyped-def]
@@ -110,8 +111,8 @@ def _plot_track(axis, rows: Sequence[FlightRow],  # type: ignore[no-untyped-def]
     axis.set_title("track, seen from above")
 
 
-_PHASE_COLOURS = {"takeoff": "tab:green", "goto": "tab:blue", "yaw": "tab:purple",
-                  "land": "tab:red"}
+_PHASE_COLOURS: dict[str, str] = {Phase.TAKEOFF: "tab:green", Phase.GOTO: "tab:blue",
+                                  Phase.YAW: "tab:purple", Phase.LAND: "tab:red"}
 
 
 def _shade_phases(time_s: list[float], rows: Sequence[FlightRow], axes: tuple) -> None:

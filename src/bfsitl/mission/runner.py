@@ -49,6 +49,7 @@ from bfsitl.fc.rc_link import RC_MID_US, RC_MIN_US
 from bfsitl.mission.climb_rate import ClimbRateEstimator
 from bfsitl.mission.flight_log import CsvFlightLog, FlightRow
 from bfsitl.mission.legs import LegPoint, LegReference, LegStats, leg_stats
+from bfsitl.mission.phase import FLOWN, Phase
 from bfsitl.mission.plan import MissionPlan, Waypoint
 from bfsitl.mission.vehicle import (
     SWITCH_OFF_US,
@@ -194,7 +195,7 @@ class Mission:
         self.log = log
         self.rows: list[FlightRow] = []
         self.target_alt_m = 0.0
-        self.phase = "arming"
+        self.phase = Phase.ARMING
         self.last_sample: FlightSample | None = None
         self._on_row = on_row
         self._on_event = on_event or (lambda _message: None)
@@ -220,7 +221,7 @@ class Mission:
 
     # -- manoeuvres ------------------------------------------------------------------------
     def arm(self) -> None:
-        self.phase = "arming"
+        self.phase = Phase.ARMING
         self._on_event("arming: waiting for the FC's blockers to clear")
         self.session.arm()
         self._climb.reset()
@@ -236,7 +237,7 @@ class Mission:
         the barometer's zero error from the vehicle at rest, where the truth is known."""
         self._on_event(f"on the ground for {seconds:g} s (the barometer settles)")
         end_s = self.session.time_s + seconds
-        self._fly("ground", 0.0, lambda s: s.time_s >= end_s, timeout_s=seconds + 5,
+        self._fly(Phase.GROUND, 0.0, lambda s: s.time_s >= end_s, timeout_s=seconds + 5,
                   controller=_GroundObserver(self.controller))
         if not isinstance(self.controller, ObservesGround):
             # It saw nothing of the wait: start its clock now, as if it had just been armed
@@ -252,19 +253,19 @@ class Mission:
         self._on_event(f"take-off to {altitude_m:.2f} m"
                        + (", holding the take-off point" if hold_position else ""))
         if not hold_position:
-            return self._reach("takeoff", altitude_m, timeout_s)
+            return self._reach(Phase.TAKEOFF, altitude_m, timeout_s)
         here = self._position_target(0.0, 0.0)
         self._target_ne = here
         steer = self._position_steer(self._fixed(here, alt_m=altitude_m), 0)
         self.position.resume(self.session.time_s)
         try:
-            return self._reach("takeoff", altitude_m, timeout_s, steer=steer)
+            return self._reach(Phase.TAKEOFF, altitude_m, timeout_s, steer=steer)
         finally:
             self._end_position_control()
 
     def goto(self, altitude_m: float, *, timeout_s: float = 20.0) -> float:
         self._on_event(f"go to {altitude_m:.2f} m")
-        return self._reach("goto", altitude_m, timeout_s)
+        return self._reach(Phase.GOTO, altitude_m, timeout_s)
 
     def hold(self, seconds: float, *, roll_us: float = RC_MID_US, pitch_us: float = RC_MID_US,
              yaw_us: float = RC_MID_US) -> None:
@@ -283,7 +284,7 @@ class Mission:
         self.session.set_rc(replace(self.session.rc_command, roll_us=roll_us,
                                     pitch_us=pitch_us, yaw_us=yaw_us))
         try:
-            self._fly("hold", self.target_alt_m, lambda s: s.time_s >= end_s,
+            self._fly(Phase.HOLD, self.target_alt_m, lambda s: s.time_s >= end_s,
                       timeout_s=seconds + 5)
         finally:
             if stepped:
@@ -300,7 +301,7 @@ class Mission:
         self._on_event(f"hold {target[0]:+.1f} m N {target[1]:+.1f} m E, "
                        f"{self.target_alt_m:.2f} m up, for {seconds:g} s")
         end_s = self.session.time_s + seconds
-        self._fly_position("hold", self._fixed(target), lambda s: s.time_s >= end_s,
+        self._fly_position(Phase.HOLD, self._fixed(target), lambda s: s.time_s >= end_s,
                            seconds + 5, waypoint=waypoint)
 
     def fly_to(self, north_m: float, east_m: float, alt_m: float | None = None, *,
@@ -341,7 +342,7 @@ class Mission:
                 gps.north_m - north_m, gps.east_m - east_m) <= tolerance_m \
                 and math.hypot(gps.v_north_m_s, gps.v_east_m_s) < 0.3
 
-        self._fly_position("goto", target, arrived, timeout_s, waypoint=waypoint)
+        self._fly_position(Phase.GOTO, target, arrived, timeout_s, waypoint=waypoint)
         self._target_ne = (north_m, east_m)
         took_s = self.session.time_s - started_s
         self.legs.append(leg_stats(waypoint or len(self.legs) + 1, start, end,
@@ -369,9 +370,9 @@ class Mission:
 
         if self.session.has_gps:
             here = self._position_target(None, None)
-            self._fly_position("yaw", self._fixed(here), turned, timeout_s)
+            self._fly_position(Phase.YAW, self._fixed(here), turned, timeout_s)
         else:
-            self._fly("yaw", self.target_alt_m, turned, timeout_s=timeout_s,
+            self._fly(Phase.YAW, self.target_alt_m, turned, timeout_s=timeout_s,
                       steer=self._steer_heading)
             self._set_sticks(yaw_us=RC_MID_US)
         return self.session.time_s - started_s
@@ -429,7 +430,7 @@ class Mission:
         self._set_sticks(yaw_us=self._stick_map().yaw_stick_us(rate))
         self._position_columns["target_heading_deg"] = self.target_heading_deg
 
-    def _fly_position(self, phase: str, target: PositionTarget,
+    def _fly_position(self, phase: Phase, target: PositionTarget,
                       done: Callable[[FlightSample], bool], timeout_s: float, *,
                       waypoint: int = 0, controller: AltitudeController | None = None) -> None:
         steer = self._position_steer(target, waypoint)
@@ -478,7 +479,7 @@ class Mission:
         self._set_sticks(roll_us=RC_MID_US, pitch_us=RC_MID_US, yaw_us=RC_MID_US)
 
     def hand_over(self, seconds: float, *, switches: tuple[int, ...], throttle_us: float,
-                  phase: str = "fc-mode") -> None:
+                  phase: Phase = Phase.FC_MODE) -> None:
         """Give the flight to the firmware's own modes for ``seconds``: the AUX channels
         ``switches`` (0-based: 2 is AUX3) on, roll, pitch and yaw centred, the throttle held
         at ``throttle_us`` (ALTHOLD reads it as a climb-rate stick around its hover value).
@@ -502,7 +503,7 @@ class Mission:
             self.session.set_rc(command)
 
     def observe(self, done: Callable[[FlightSample], bool], *, timeout_s: float,
-                phase: str = "observe") -> None:
+                phase: Phase = Phase.OBSERVE) -> None:
         """Record rows without flying: the sticks stay as they are, because something else
         has the vehicle (an injected RC fault, the FC's failsafe).  Nothing is judged here (a
         disarm or a crash is what a scenario watches for); ends when ``done`` says so or
@@ -538,20 +539,20 @@ class Mission:
         if self._target_ne is not None:
             # After position control the descent holds the position too: wind would
             # otherwise carry the vehicle off while it sinks.
-            self._fly_position("land", self._fixed(self._target_ne, alt_m=0.0), touched_down,
+            self._fly_position(Phase.LAND, self._fixed(self._target_ne, alt_m=0.0), touched_down,
                                timeout_s, controller=self.landing)
         else:
-            self._fly("land", 0.0, touched_down, timeout_s=timeout_s, controller=self.landing)
+            self._fly(Phase.LAND, 0.0, touched_down, timeout_s=timeout_s, controller=self.landing)
         self._on_event("touched down; disarming")
-        self.phase = "landed"
+        self.phase = Phase.LANDED
         if not self.session.disarm():
             raise MissionError("the FC did not disarm after touch-down")
         sample = self.session.sample()
-        self._record("landed", 0.0, sample, self._climb.update(sample.time_s, sample.fc_alt_m))
+        self._record(Phase.LANDED, 0.0, sample, self._climb.update(sample.time_s, sample.fc_alt_m))
         self._on_event("disarmed")
 
     # -- the loop --------------------------------------------------------------------------
-    def _reach(self, phase: str, altitude_m: float, timeout_s: float, *,
+    def _reach(self, phase: Phase, altitude_m: float, timeout_s: float, *,
                steer: Callable[[FlightSample], float | None] | None = None) -> float:
         start_s = self.session.time_s
         settled_since: list[float] = []
@@ -580,7 +581,7 @@ class Mission:
         return took_s
 
     def _fly(
-        self, phase: str, target_alt_m: float, done: Callable[[FlightSample], bool], *,
+        self, phase: Phase, target_alt_m: float, done: Callable[[FlightSample], bool], *,
         timeout_s: float, controller: AltitudeController | None = None,
         steer: Callable[[FlightSample], float | None] | None = None,
     ) -> None:
@@ -627,7 +628,7 @@ class Mission:
             names = ", ".join(sample.arming_blockers) or "no blocker reported"
             raise MissionError(f"the FC disarmed during {self.phase} ({names})")
 
-    def _record(self, phase: str, target_alt_m: float, sample: FlightSample,
+    def _record(self, phase: Phase, target_alt_m: float, sample: FlightSample,
                 climb_m_s: float) -> FlightRow:
         rc = self.session.rc_command  # what goes out from this step on
         aux = tuple(rc.aux_us) + (SWITCH_OFF_US, SWITCH_OFF_US)
@@ -655,7 +656,7 @@ class Mission:
             self._on_row(row, sample)
         return row
 
-    def abort(self, ending: str) -> None:
+    def abort(self, ending: Phase) -> None:
         """Sticks to disarm now (the RC link repeats it on close) and record the final row."""
         session = self.session
         if session.rc is None:
@@ -695,7 +696,7 @@ def attitude_tracking(rows: list[FlightRow]) -> AttitudeTracking | None:
     MSP_ATTITUDE comes from the same round trip as the rest of the sample and the truth is
     read right after it, so the comparison carries at most one exchange of delay.
     """
-    flown = [r for r in rows if r.armed and r.phase in {"takeoff", "hold", "goto", "yaw", "land"}
+    flown = [r for r in rows if r.armed and r.phase in FLOWN
              and math.isfinite(r.sim_roll_deg) and r.sim_alt_m > 0.2]
     if not flown:
         return None
@@ -727,7 +728,7 @@ def cross_track_rms(legs: list[LegStats]) -> float | None:
 
 def landed_from_start_m(rows: list[FlightRow]) -> float | None:
     """How far from the take-off point (horizontally) the flight ended, if it landed."""
-    if not rows or rows[-1].phase != "landed":
+    if not rows or rows[-1].phase != Phase.LANDED:
         return None
     north, east, _alt = _judged_position(rows[-1])
     return math.hypot(north, east) if math.isfinite(north) else None
@@ -739,7 +740,7 @@ def judged_alt_m(row: FlightRow) -> float:
 
 
 def hold_stats(rows: list[FlightRow]) -> HoldStats | None:
-    errors = [judged_alt_m(r) - r.target_alt_m for r in rows if r.phase == "hold"]
+    errors = [judged_alt_m(r) - r.target_alt_m for r in rows if r.phase == Phase.HOLD]
     if not errors:
         return None
     return HoldStats(
@@ -754,7 +755,7 @@ def takeoff_metrics(rows: list[FlightRow], target_alt_m: float) -> Any:
 
     flown = []
     for row in rows:  # the take-off and the hold after it, up to whatever comes next
-        if row.phase in ("takeoff", "hold"):
+        if row.phase in (Phase.TAKEOFF, Phase.HOLD):
             flown.append(row)
         elif flown:
             break
@@ -872,7 +873,7 @@ def run_mission(
         outcome, reason = Outcome.ERROR, str(exc)
     if outcome is not Outcome.LANDED:
         try:
-            mission.abort(outcome.value)
+            mission.abort(Phase(outcome.value))
         except (BfsitlError, OSError):
             pass  # the session's close still sends disarm through the RC link
     if outcome is Outcome.ERROR and session.has_exited():

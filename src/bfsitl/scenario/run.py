@@ -45,6 +45,7 @@ from bfsitl.fc.firmware_detect import profile_of_binary
 from bfsitl.fc.provisioning import Profile
 from bfsitl.mission.flight_log import FlightRow
 from bfsitl.mission.outputs import FlightOutputs, OutputOptions
+from bfsitl.mission.phase import Phase
 from bfsitl.mission.runner import Mission, fly_waypoint
 from bfsitl.mission.session import (
     FLY_PROFILE,
@@ -345,7 +346,7 @@ def _watch(scenario: Scenario, mission: Mission, injector: _Injector) -> None:
 
     left_s = scenario.duration_s - (session.time_s - (injector.armed_at_s or 0.0))
     if left_s > 0:
-        mission.observe(done, timeout_s=left_s + 1.0, phase="watch")
+        mission.observe(done, timeout_s=left_s + 1.0, phase=Phase.WATCH)
 
 
 def _collect_blackbox(out: Path, trace: Trace, result: ScenarioResult) -> None:

@@ -1,0 +1,37 @@
+"""What the flight is doing: one name per phase, written into every row of the log.
+
+A :class:`Phase` is a ``str`` (its value), so logs, CSV files and comparisons with the old
+bare strings read as before; code compares members, never spelled-out strings.
+"""
+
+from __future__ import annotations
+
+from enum import StrEnum
+
+
+class Phase(StrEnum):
+    """The mission's phase; the last rows of an ended flight carry how it ended."""
+
+    ARMING = "arming"
+    GROUND = "ground"          # armed on the ground while the barometer settles
+    TAKEOFF = "takeoff"
+    HOLD = "hold"
+    GOTO = "goto"
+    YAW = "yaw"
+    LAND = "land"
+    LANDED = "landed"
+    FC_MODE = "fc-mode"        # the firmware's own mode flies (Mission.hand_over)
+    OBSERVE = "observe"        # nobody flies; the mission only watches
+    WATCH = "watch"            # a scenario watches after a fault took the sticks
+    # How a flight that did not land ended (the outcome's value, recorded by Mission.abort).
+    COMPLETED = "completed"
+    ARMING_BLOCKED = "arming-blocked"
+    SITL_EXITED = "sitl-exited"
+    TIMEOUT = "timeout"
+    CRASHED = "crashed"
+    INTERRUPTED = "interrupted"
+    ERROR = "error"
+
+
+#: The phases in which the autopilot flies (and a hold or a leg's error means something).
+FLOWN = frozenset({Phase.TAKEOFF, Phase.HOLD, Phase.GOTO, Phase.YAW, Phase.LAND})

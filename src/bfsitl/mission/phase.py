@@ -10,7 +10,8 @@ from enum import StrEnum
 
 
 class Phase(StrEnum):
-    """The mission's phase; the last rows of an ended flight carry how it ended."""
+    """The mission's phase.  The last row of a flight that did not land carries how it ended
+    instead (an :class:`~bfsitl.mission.runner.Outcome`'s value, written by ``Mission.abort``)."""
 
     ARMING = "arming"
     GROUND = "ground"          # armed on the ground while the barometer settles
@@ -23,14 +24,6 @@ class Phase(StrEnum):
     FC_MODE = "fc-mode"        # the firmware's own mode flies (Mission.hand_over)
     OBSERVE = "observe"        # nobody flies; the mission only watches
     WATCH = "watch"            # a scenario watches after a fault took the sticks
-    # How a flight that did not land ended (the outcome's value, recorded by Mission.abort).
-    COMPLETED = "completed"
-    ARMING_BLOCKED = "arming-blocked"
-    SITL_EXITED = "sitl-exited"
-    TIMEOUT = "timeout"
-    CRASHED = "crashed"
-    INTERRUPTED = "interrupted"
-    ERROR = "error"
 
 
 #: The phases in which the autopilot flies (and a hold or a leg's error means something).

@@ -628,8 +628,10 @@ class Mission:
             names = ", ".join(sample.arming_blockers) or "no blocker reported"
             raise MissionError(f"the FC disarmed during {self.phase} ({names})")
 
-    def _record(self, phase: Phase, target_alt_m: float, sample: FlightSample,
+    def _record(self, phase: str, target_alt_m: float, sample: FlightSample,
                 climb_m_s: float) -> FlightRow:
+        """One row of the log; ``phase`` is a :class:`Phase`, or an :class:`Outcome`'s value
+        for the last row of a flight that did not land."""
         rc = self.session.rc_command  # what goes out from this step on
         aux = tuple(rc.aux_us) + (SWITCH_OFF_US, SWITCH_OFF_US)
         row = FlightRow(
@@ -656,7 +658,7 @@ class Mission:
             self._on_row(row, sample)
         return row
 
-    def abort(self, ending: Phase) -> None:
+    def abort(self, ending: Outcome) -> None:
         """Sticks to disarm now (the RC link repeats it on close) and record the final row."""
         session = self.session
         if session.rc is None:
@@ -665,7 +667,8 @@ class Mission:
                        aux_us=(SWITCH_OFF_US, SWITCH_OFF_US))
         session.set_rc(safe)
         if self.last_sample is not None:
-            self._record(ending, self.target_alt_m, self.last_sample, self._climb.rate_m_s)
+            self._record(ending.value, self.target_alt_m, self.last_sample,
+                         self._climb.rate_m_s)
 
 
 def _next_step(clock: SessionClock, next_s: float, period_s: float) -> float:
@@ -873,7 +876,7 @@ def run_mission(
         outcome, reason = Outcome.ERROR, str(exc)
     if outcome is not Outcome.LANDED:
         try:
-            mission.abort(Phase(outcome.value))
+            mission.abort(outcome)
         except (BfsitlError, OSError):
             pass  # the session's close still sends disarm through the RC link
     if outcome is Outcome.ERROR and session.has_exited():

@@ -43,7 +43,7 @@ _EXPORTS: dict[str, str] = {
     "make_controller": "bfsitl.control",
     # scenarios: faults and expectations, the FC's blackbox
     "Scenario": "bfsitl.scenario.spec",
-    "load_scenario": "bfsitl.scenario.spec",
+    "load_scenario": "bfsitl.scenario.load",
     "run_scenario": "bfsitl.scenario.run",
     "RunOptions": "bfsitl.scenario.run",
     "ScenarioResult": "bfsitl.scenario.result",
@@ -106,8 +106,9 @@ if TYPE_CHECKING:  # what type checkers and IDEs see; nothing is imported at run
     from bfsitl.mission.vehicle import Vehicle
     from bfsitl.physics import GeoPoint, SensorConfig, Simulator
     from bfsitl.physics.wind import Wind
+    from bfsitl.scenario.load import load_scenario
     from bfsitl.scenario.result import ScenarioResult
     from bfsitl.scenario.run import RunOptions, run_scenario
-    from bfsitl.scenario.spec import Scenario, load_scenario
+    from bfsitl.scenario.spec import Scenario
     from bfsitl.sitl.firmware import FirmwareBinary, find_firmware
     from bfsitl.sitl.process import SitlProcess

@@ -40,8 +40,8 @@ Messages are written for the person at the terminal: what went wrong, then what 
     │   └── MissionTimeoutError        (also TimeoutError) a phase did not finish in time
     ├── ScenarioError                  a scenario file or suite that cannot be run as written
     │   ├── FaultNotSupportedError     a fault this firmware cannot express (says which can)
-    │   ├── ScenarioFailedError        a scenario run as a pytest item did not pass
-    │   └── SticksTakenError           (inside a run) a fault took the autopilot's sticks
+    │   └── ScenarioFailedError        a scenario run as a pytest item did not pass
+    ├── DisturbanceUnavailableError    this backend cannot do that to a flight (Gazebo, a board)
     ├── BlackboxError                  a blackbox log that cannot be read
     └── SitlError                      the SITL process
         ├── FirmwareNotFoundError      no SITL binary anywhere we looked
@@ -230,9 +230,9 @@ class ScenarioFailedError(ScenarioError):
     """A scenario run as a pytest item failed its expectations or could not be flown."""
 
 
-class SticksTakenError(ScenarioError):
-    """Raised inside a scenario run to end the autopilot's flight once a fault has taken
-    its sticks away (RC lost); the runner catches it and watches.  Never escapes a run."""
+class DisturbanceUnavailableError(BfsitlError):
+    """A disturbance (a fault, a user's call) that this backend cannot apply: motors,
+    sensors, wind and GPS loss need bfsitl's own physics, RC faults its RC link."""
 
 
 class BlackboxError(BfsitlError):

@@ -33,8 +33,9 @@ from typing import Any
 import pytest
 
 from bfsitl.errors import ScenarioFailedError
+from bfsitl.scenario.load import load_scenario
 from bfsitl.scenario.result import ScenarioResult, Verdict
-from bfsitl.scenario.spec import Scenario, load_scenario
+from bfsitl.scenario.spec import Scenario
 
 FIRMWARE_OPTION = "--bfsitl-firmware"
 

@@ -8,7 +8,6 @@ each run's blackbox.  Speed is ``benchmarks/scenarios.py``'s business.
 
 from __future__ import annotations
 
-import dataclasses
 import os
 import subprocess
 import sys
@@ -25,7 +24,7 @@ from bfsitl.fc.rc_link import RcFault
 from bfsitl.library import scenarios_dir
 from bfsitl.mission.session import FLY_PROFILE, FlightSession, SessionConfig, with_fast_serial
 from bfsitl.protocol import msp_messages as msg
-from bfsitl.scenario.spec import find_scenarios
+from bfsitl.scenario.load import find_scenarios
 
 pytestmark = pytest.mark.sitl
 
@@ -112,7 +111,7 @@ def test_a_wrong_expectation_fails_naming_the_value_and_the_time_and_python_test
         "def test_a_weak_motor_holds(bfsitl_vehicle):\n"
         "    pilot = Autopilot(bfsitl_vehicle)\n"
         "    pilot.takeoff(2.0)\n"
-        "    bfsitl_vehicle.truth.set_motor_thrust(3, 0.8)\n"
+        "    bfsitl_vehicle.disturbances.set_motor_thrust(3, 0.8)\n"
         "    pilot.hold(3.0)\n"
         "    assert abs(bfsitl_vehicle.sample().sim_alt_m - 2.0) < 0.5\n")
     (tmp_path / "wrong-expectation.toml").write_text(WRONG.read_text())
@@ -149,7 +148,7 @@ def test_faults_reach_the_fc_where_they_should(
         pilot.takeoff(3.0)
         pilot.hold(2.0)
         before = vehicle.sample().motors
-        vehicle.truth.set_motor_thrust(3, 0.7)   # rear left
+        vehicle.disturbances.set_motor_thrust(3, 0.7)   # rear left
         pilot.hold(3.0)
         after = vehicle.sample()
         # The FC commands motor 3 up to make up its lost thrust: the others stay near hover.
@@ -157,10 +156,9 @@ def test_faults_reach_the_fc_where_they_should(
         assert after.motors[2] > before[2] + 0.05
         assert abs(after.sim_alt_m - 3.0) < 0.5 and after.sim_tilt_deg < 15
 
-        vehicle.truth.set_motor_thrust(3, 1.0)
+        vehicle.disturbances.set_motor_thrust(3, 1.0)
         gps_before, truth_before = vehicle.gps_position(), vehicle.sample()
-        sensors = vehicle.truth.sensor_config
-        vehicle.truth.set_sensors(dataclasses.replace(sensors, gps_offset_ne_m=(6.0, -4.0)))
+        sensors = vehicle.disturbances.change_sensors(gps_offset_ne_m=(6.0, -4.0))
         vehicle.clock.sleep_s(0.5)
         gps_after, truth_after = vehicle.gps_position(), vehicle.sample()
         moved = (gps_after.north_m - gps_before.north_m) - (truth_after.sim_north_m
@@ -169,7 +167,7 @@ def test_faults_reach_the_fc_where_they_should(
                                                                - truth_before.sim_east_m)
         assert moved == pytest.approx(6.0, abs=0.5) and moved_east == pytest.approx(-4.0,
                                                                                      abs=0.5)
-        vehicle.truth.set_sensors(sensors)
+        vehicle.disturbances.set_sensors(sensors)
 
         assert vehicle.rc is not None
         # RC latency: AUX4 (no mode on it) raised under a 0.2 s delay reaches the FC 0.2 s

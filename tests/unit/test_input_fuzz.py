@@ -27,7 +27,8 @@ from bfsitl.errors import MissionError, ProvisioningError, ScenarioError
 from bfsitl.fc.provisioning import Profile
 from bfsitl.library import mission_files, scenario_files
 from bfsitl.mission.plan import load_mission, plan_from_dict
-from bfsitl.scenario.spec import load_scenario, scenario_from_dict
+from bfsitl.scenario.load import load_scenario
+from bfsitl.scenario.spec import scenario_from_dict
 
 FUZZ = settings(max_examples=150, deadline=None,
                 suppress_health_check=[HealthCheck.function_scoped_fixture])

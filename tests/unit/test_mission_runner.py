@@ -373,7 +373,7 @@ class GustySession(FakeSession):
 
 def test_a_take_off_in_gusts_is_reached_with_a_wider_band_after_a_while(monkeypatch):
     from bfsitl.errors import MissionTimeoutError
-    from bfsitl.mission import runner
+    from bfsitl.mission import loop as runner
 
     mission = Mission(GustySession(), PController())  # type: ignore[arg-type]
     mission.arm()

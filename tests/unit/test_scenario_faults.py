@@ -12,8 +12,7 @@ from bfsitl.fc.firmware_detect import MASTER_API_VERSION
 from bfsitl.fc.rc_link import RcCommand, RcFault, RcFaultState
 from bfsitl.physics import IRIS, SensorConfig, Simulator, Wind
 from bfsitl.protocol.firmware_profile import profile_for
-from bfsitl.scenario.faults import LOST_PULSE_US, make_fault
-from bfsitl.scenario.spec import FaultSpec
+from bfsitl.scenario.faults import LOST_PULSE_US, FaultSpec, make_fault, read_fault_spec
 
 V46 = profile_for("1.47", "4.6.0")
 V46_GPS = profile_for("1.47", "4.6.0", has_gps=True)
@@ -160,7 +159,8 @@ def test_a_wind_step_takes_effect_at_once() -> None:
 
 # -- the catalog ---------------------------------------------------------------------------
 def spec(kind: str, **params: object) -> FaultSpec:
-    return FaultSpec(kind, 5.0, None, tuple(sorted(params.items())), "fault 1")
+    return read_fault_spec({"kind": kind, "at_s": 5.0, **params}, where="x.toml", number=1,
+                           run_s=60.0)
 
 
 def test_rc_loss_auto_is_silence_on_master_and_the_switch_on_46() -> None:
@@ -198,5 +198,61 @@ def test_gps_faults_follow_the_firmware() -> None:
 def test_bad_fault_tables_name_the_fault_and_the_key(kind: str, params: dict,
                                                      message: str) -> None:
     with pytest.raises(ScenarioError, match=message) as caught:
-        make_fault(spec(kind, **params), MASTER, where="x.toml")
+        spec(kind, **params)  # refused when the file is read, on any firmware
     assert str(caught.value).startswith("x.toml, fault 1: ")
+
+
+def test_a_fault_table_is_read_once_with_its_defaults_filled_in() -> None:
+    glitch = spec("gps_glitch", north_m=5)
+    assert glitch.params == (("east_m", 0.0), ("north_m", 5.0))
+    assert spec("rc_loss").param("method") == "auto"
+    assert spec("wind", east_m_s=3).param("gust_std_m_s") == 0.0
+    with pytest.raises(ScenarioError, match=r"fault 1 at_s = 80.0 must be a number in 0..60"):
+        spec("gps_loss", at_s=80.0)
+
+
+class Vehicle:
+    """What a fault touches of a vehicle: its sticks and its disturbance surface."""
+
+    def __init__(self, backend) -> None:
+        self.backend = backend
+        self.disturbances = backend.disturbances
+        self.rc_command = RcCommand()
+
+    def set_rc(self, command: RcCommand) -> None:
+        self.rc_command = command
+
+
+def embedded_vehicle() -> tuple[Vehicle, Simulator]:
+    from bfsitl.backend.embedded import RealTimeBackend
+
+    simulator = Simulator(IRIS)
+    return Vehicle(RealTimeBackend(simulator, speed=1.0, progress=print)), simulator
+
+
+def test_each_fault_acts_through_the_disturbance_surface_and_undoes_exactly() -> None:
+    vehicle, simulator = embedded_vehicle()
+    before = (simulator.motor_thrust, simulator.sensor_config, simulator.wind)
+    for kind, params in (("motor_thrust", {"motor": 3, "fraction": 0.6}),
+                         ("gps_glitch", {"north_m": 5.0}), ("gyro_bias", {"z_deg_s": 2.0}),
+                         ("baro_drift", {"rate_m_s": 0.5}), ("wind", {"north_m_s": 4.0})):
+        undo = make_fault(spec(kind, **params), MASTER).apply(vehicle)  # type: ignore[arg-type]
+        assert (simulator.motor_thrust, simulator.sensor_config, simulator.wind) != before
+        undo()
+        assert (simulator.motor_thrust, simulator.sensor_config, simulator.wind) == before
+    switch = make_fault(spec("rc_loss"), V46)
+    undo = switch.apply(vehicle)  # type: ignore[arg-type]
+    assert vehicle.rc_command.aux_us[2] == 1800
+    undo()
+    assert vehicle.rc_command.aux_us[2] == 1000
+
+
+def test_a_fault_on_a_backend_that_cannot_express_it_says_why() -> None:
+    from bfsitl.backend import Backend
+    from bfsitl.errors import DisturbanceUnavailableError
+
+    board = Vehicle(Backend())
+    with pytest.raises(DisturbanceUnavailableError, match="embedded physics"):
+        make_fault(spec("motor_thrust", motor=1, fraction=0.5), MASTER).apply(board)  # type: ignore[arg-type]
+    with pytest.raises(DisturbanceUnavailableError, match="RC link"):
+        make_fault(spec("rc_loss"), MASTER).apply(board)  # type: ignore[arg-type]

@@ -9,7 +9,7 @@ import sys
 from pathlib import Path
 
 from bfsitl.library import scenarios_dir
-from bfsitl.scenario.spec import find_scenarios
+from bfsitl.scenario.load import find_scenarios
 from bfsitl.scenario.suite import plan_runs, split_by_build
 
 

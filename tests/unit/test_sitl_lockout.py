@@ -11,7 +11,7 @@ import pytest
 import bfsitl.sitl.process as process
 from bfsitl.errors import SitlLockedOutError, SitlNotReadyError
 from bfsitl.protocol.firmware_profile import DEFAULT_PROFILE
-from bfsitl.sitl.process import SitlProcess
+from bfsitl.sitl.process import SitlHooks, SitlProcess
 
 
 class StubClient:
@@ -31,7 +31,7 @@ class StubClient:
 def bare_process() -> SitlProcess:
     sitl = SitlProcess.__new__(SitlProcess)  # no binary needed to judge the answers
     sitl._process = None  # type: ignore[attr-defined]
-    sitl.on_spawn = sitl.link_wrapper = sitl.client_clock = None
+    sitl.hooks = SitlHooks()
     return sitl
 
 

@@ -82,7 +82,7 @@ def add_scenario_parser(sub: argparse._SubParsersAction) -> None:  # type: ignor
 
 def cmd_scenario_run(args: argparse.Namespace) -> int:
     from bfsitl.errors import FirmwareNotFoundError
-    from bfsitl.scenario.spec import find_scenarios
+    from bfsitl.scenario.load import find_scenarios
     from bfsitl.scenario.suite import plan_runs, run_suite
     from bfsitl.sitl.firmware import find_firmware
 
@@ -182,7 +182,7 @@ def _runs_on_made_builds(runs: list) -> list:  # type: ignore[type-arg]
 
 
 def cmd_scenario_list(args: argparse.Namespace) -> int:
-    from bfsitl.scenario.spec import find_scenarios
+    from bfsitl.scenario.load import find_scenarios
 
     for scenario in find_scenarios(_paths_or_library(args.paths)):
         firmware = ", ".join(scenario.firmware) or "(give --firmware)"

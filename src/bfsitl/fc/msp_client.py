@@ -23,19 +23,18 @@ Why it is built this way (facts in ``docs/firmware-findings.md``):
 
 from __future__ import annotations
 
-import math
 import threading
 import time
 from collections import deque
 from collections.abc import Callable, Iterable, Iterator, Sequence
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from typing import Any, ClassVar, Literal, Protocol, TypeVar
 
 from bfsitl.errors import LinkClosedError, MspDecodeError, MspErrorReply, MspTimeoutError
+from bfsitl.fc.telemetry import TELEMETRY_COMMANDS, Telemetry, telemetry_from_payloads
 from bfsitl.link.base import Link
 from bfsitl.link.serial_link import SerialLink
 from bfsitl.link.tcp_link import TcpLink
-from bfsitl.physics.constants import STANDARD_GRAVITY_M_S2
 from bfsitl.protocol import msp_messages as msg
 from bfsitl.protocol.msp_codes import MspCommand
 from bfsitl.protocol.msp_frame import (
@@ -52,10 +51,9 @@ WAKE_BYTE = b"\x00"
 #: How often to send it: well under the SITL's 10 ms select timeout.
 DEFAULT_WAKE_INTERVAL_S = 0.001
 DEFAULT_RETRIES = 2
-#: Below the SITL's 1400-byte TCP receive ring, with room for an RC frame from another thread.
-TCP_MAX_IN_FLIGHT_BYTES = 1024
-#: Below a real UART's 256-byte receive buffer.
-SERIAL_MAX_IN_FLIGHT_BYTES = 192
+#: What a SITL's TCP port and a real UART take in flight (each link says which applies).
+TCP_MAX_IN_FLIGHT_BYTES = TcpLink.max_in_flight_bytes
+SERIAL_MAX_IN_FLIGHT_BYTES = SerialLink.max_in_flight_bytes
 
 #: Commands that change state although their name has no SET in it.
 _MUTATING_COMMANDS = frozenset({
@@ -66,14 +64,6 @@ _MUTATING_COMMANDS = frozenset({
     MspCommand.OSD_CHAR_WRITE, MspCommand.DISPLAYPORT, MspCommand.MSP2_BETAFLIGHT_BIND,
     MspCommand.MSP2_SEND_DSHOT_COMMAND, MspCommand.CAMERA_CONTROL,
 })
-
-#: What :meth:`MspClient.telemetry` asks for in one MSP_MULTIPLE_MSP round trip.
-TELEMETRY_COMMANDS: tuple[int, ...] = (
-    MspCommand.ATTITUDE, MspCommand.ALTITUDE, MspCommand.STATUS_EX, MspCommand.ANALOG,
-    MspCommand.RC, MspCommand.MOTOR, MspCommand.RAW_IMU,
-)
-
-#: Standard gravity, m/s^2: what the accelerometer reads at rest, in the units of ``acc_1G``.
 
 T = TypeVar("T")
 
@@ -136,64 +126,6 @@ class ClientStats:
     checksum_failures: int = 0
 
 
-@dataclass(frozen=True, slots=True)
-class Telemetry:
-    """One consistent snapshot of the FC's flight state, taken in one round trip."""
-
-    received_at_s: float
-    attitude: msg.Attitude
-    altitude: msg.Altitude
-    status: msg.StatusEx
-    analog: msg.Analog
-    rc: msg.Rc
-    motors: msg.Motor
-    imu: msg.RawImu
-    box_ids: tuple[int, ...] = field(default=())
-
-    @property
-    def armed(self) -> bool:
-        return self.status.armed
-
-    @property
-    def arming_blockers(self) -> tuple[str, ...]:
-        """CLI names of the flags that currently block arming (empty when it may arm)."""
-        return tuple(info.cli_name for info in self.status.arming_blockers)
-
-    @property
-    def flight_modes(self) -> tuple[str, ...]:
-        from bfsitl.protocol.boxes import decode_flight_modes
-
-        return decode_flight_modes(self.status.flight_mode_flags, self.box_ids)
-
-    def accel_up_m_s2(self, acc_1g_lsb: float = msg.SITL_ACC_1G_LSB,
-                      offset_lsb: float = 0.0) -> float:
-        """Vertical acceleration in m/s^2, up positive, gravity removed (0 at rest or hovering).
-
-        ``acc_1g_lsb``: the SITL reports 256 LSB per g; real IMUs usually 2048 (the board's
-        ``acc_1G``).  ``offset_lsb`` is added to the z reading first: a known bias of the
-        source (``msg.SITL_ACC_TRUNCATION_LSB`` for the SITL).
-        """
-        # The whole specific force projected on the vertical.  Betaflight's accelerometer is
-        # in FLU body axes (x forward, y left, z up; +1 g on z at rest), its pitch is positive
-        # nose down and its roll positive right wing down: x points up by -sin(pitch), y by
-        # sin(roll) cos(pitch), z by cos(roll) cos(pitch) (signs checked against the simulated
-        # truth).  Body z alone does in still air, but a multirotor pushed by rotor drag
-        # (holding position in wind) has x/y specific force that its tilt turns partly
-        # vertical; ignoring it biased the altitude estimate enough to lose metres of height
-        # (README, "Position").
-        roll_rad = math.radians(self.attitude.roll_deg)
-        pitch_rad = math.radians(self.attitude.pitch_deg)
-        scale = STANDARD_GRAVITY_M_S2 / acc_1g_lsb
-        ax = self.imu.acc_raw[0] * scale
-        ay = self.imu.acc_raw[1] * scale
-        az = (self.imu.acc_raw[2] + offset_lsb) * scale
-        cos_pitch = math.cos(pitch_rad)
-        specific_force_up_m_s2 = (-math.sin(pitch_rad) * ax
-                                  + math.sin(roll_rad) * cos_pitch * ay
-                                  + math.cos(roll_rad) * cos_pitch * az)
-        return specific_force_up_m_s2 - STANDARD_GRAVITY_M_S2
-
-
 class MspClient:
     """Talks MSP to one flight controller over one link.
 
@@ -211,19 +143,17 @@ class MspClient:
         wake_interval_s: float | None | Literal["auto"] = "auto",
         clock: Callable[[], float] = time.monotonic,
     ) -> None:
-        """``wake_interval_s``: see :data:`WAKE_BYTE`; "auto" wakes on TCP links (SITL) and
-        not on serial links; None never sends it."""
+        """``wake_interval_s``: see :data:`WAKE_BYTE`; "auto" wakes when the link says its
+        peer needs it (a SITL's TCP port); None never sends it.  The in-flight budget is the
+        link's too."""
         self.link = link
         if wake_interval_s == "auto":
-            wake_interval_s = DEFAULT_WAKE_INTERVAL_S if isinstance(link, TcpLink) else None
+            wake_interval_s = DEFAULT_WAKE_INTERVAL_S if link.wants_wake_bytes else None
         self.wake_interval_s: float | None = wake_interval_s
         self.timeout_s = timeout_s
         self.retries = retries
         if max_in_flight_bytes is None:
-            max_in_flight_bytes = (
-                SERIAL_MAX_IN_FLIGHT_BYTES if isinstance(link, SerialLink)
-                else TCP_MAX_IN_FLIGHT_BYTES
-            )
+            max_in_flight_bytes = link.max_in_flight_bytes
         self.max_in_flight_bytes = max_in_flight_bytes
         self.stats = ClientStats()
         self._clock = clock
@@ -343,7 +273,7 @@ class MspClient:
     def telemetry(self) -> Telemetry:
         """Attitude, altitude, status, analog, RC, motors and raw IMU in one round trip."""
         box_ids = self.box_ids()
-        return _telemetry_from_payloads(self.multiple(TELEMETRY_COMMANDS), self._clock(),
+        return telemetry_from_payloads(self.multiple(TELEMETRY_COMMANDS), self._clock(),
                                         box_ids)
 
     def telemetry_request(self) -> MspRequest:
@@ -354,7 +284,7 @@ class MspClient:
     def decode_telemetry(self, payload: bytes) -> Telemetry:
         """Decode the reply to :meth:`telemetry_request`."""
         reply = msg.MultipleMspReply.decode(payload)
-        return _telemetry_from_payloads(reply.payloads, self._clock(), self._box_ids or ())
+        return telemetry_from_payloads(reply.payloads, self._clock(), self._box_ids or ())
 
     # Small conveniences for the commonest reads.
     def api_version(self) -> msg.ApiVersion:
@@ -615,27 +545,6 @@ def _command_name(command: int) -> str:
         return f"MSP_{MspCommand(command).name} ({command})"
     except ValueError:
         return f"MSP command {command}"
-
-
-def _telemetry_from_payloads(
-    payloads: Sequence[bytes], received_at_s: float, box_ids: tuple[int, ...]
-) -> Telemetry:
-    if len(payloads) != len(TELEMETRY_COMMANDS):
-        raise MspDecodeError(
-            f"telemetry: expected {len(TELEMETRY_COMMANDS)} sub-replies, got {len(payloads)}"
-        )
-    attitude, altitude, status, analog, rc, motors, imu = payloads
-    return Telemetry(
-        received_at_s=received_at_s,
-        attitude=msg.Attitude.decode(attitude),
-        altitude=msg.Altitude.decode(altitude),
-        status=msg.StatusEx.decode(status),
-        analog=msg.Analog.decode(analog),
-        rc=msg.Rc.decode(rc),
-        motors=msg.Motor.decode(motors),
-        imu=msg.RawImu.decode(imu),
-        box_ids=box_ids,
-    )
 
 
 __all__ = [

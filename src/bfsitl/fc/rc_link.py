@@ -172,6 +172,24 @@ class RcLinkStats:
     send_errors: int
 
 
+class RcSender(Protocol):
+    """What sends the RC command (a UDP, lockstep or MSP link): the latest is repeated."""
+
+    @property
+    def command(self) -> RcCommand: ...
+
+    def set(self, command: RcCommand) -> None: ...
+
+    def start(self) -> object: ...
+
+    def stats(self) -> RcLinkStats: ...
+
+    def close(self) -> None: ...
+
+    #: An injected RC fault (scenarios), None when the link is healthy.
+    fault: RcFault | None
+
+
 class _SocketFactory(Protocol):
     def socket(self, family: int, kind: int) -> socket.socket: ...
 

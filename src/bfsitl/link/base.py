@@ -19,7 +19,18 @@ DEFAULT_TIMEOUT_S = 1.0
 
 
 class Link(abc.ABC):
-    """A bidirectional byte stream to a flight controller."""
+    """A bidirectional byte stream to a flight controller.
+
+    A link also says what the peer on its far side needs of an MSP client, so that nobody
+    guesses it from the link's type (a wrapped link would defeat the guess).
+    """
+
+    #: The peer flushes its replies only when more bytes arrive (a SITL's TCP thread): the
+    #: client sends wake bytes while it waits.
+    wants_wake_bytes: bool = False
+    #: What the peer's receive buffer takes at once: the client keeps less in flight.  The
+    #: default is below a SITL's 1400-byte TCP receive ring, with room for an RC frame.
+    max_in_flight_bytes: int = 1024
 
     def __init__(self, uri: str, timeout_s: float = DEFAULT_TIMEOUT_S) -> None:
         self.uri = uri

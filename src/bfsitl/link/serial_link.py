@@ -23,6 +23,9 @@ def _import_pyserial() -> Any:
 class SerialLink(Link):
     """A serial port (``/dev/ttyACM0``, a pty from ``bfsitl serial-bridge``, ...)."""
 
+    #: Below a real UART's 256-byte receive buffer.
+    max_in_flight_bytes = 192
+
     def __init__(
         self, device: str, baud: int = DEFAULT_BAUD, timeout_s: float = DEFAULT_TIMEOUT_S
     ) -> None:

@@ -58,6 +58,9 @@ def connect_tcp(
 class TcpLink(Link):
     """A TCP connection to a SITL UART (or any MSP-over-TCP bridge)."""
 
+    #: The SITL's TCP thread flushes replies when it reads (see ``bfsitl.fc.msp_client``).
+    wants_wake_bytes = True
+
     def __init__(
         self,
         host: str = "127.0.0.1",

@@ -9,9 +9,10 @@ simulator, reached over ``serial://`` (or ``tcp://``) instead.  On start it
 2. checks that the receiver is MSP (feature ``RX_MSP``): otherwise MSP_SET_RAW_RC is
    acknowledged and ignored, and the autopilot would fly nothing (docs/real-board.md says how
    to switch it, which takes a reboot);
-3. provisions the autopilot's mode ranges (ARM on AUX1, ANGLE on AUX2) when they differ,
+3. measures its accelerometer's scale at rest (:mod:`bfsitl.backend.board`);
+4. provisions the autopilot's mode ranges (ARM on AUX1, ANGLE on AUX2) when they differ,
    saved without a reboot;
-4. starts :class:`~bfsitl.fc.rc_link.MspRcLink` (25 Hz by default) with the sticks at disarm.
+5. starts :class:`~bfsitl.fc.rc_link.MspRcLink` (25 Hz by default) with the sticks at disarm.
 
 The FC's own serial budget is the limit here (``docs/real-board.md``, section 4): every
 control step costs one MSP_MULTIPLE_MSP round trip and, in position control, one MSP_RAW_GPS,
@@ -28,6 +29,7 @@ from __future__ import annotations
 
 from typing import Self
 
+from bfsitl.backend.board import BoardBackend
 from bfsitl.errors import BoardSetupError, MspErrorReply
 from bfsitl.fc.firmware_detect import detect_profile
 from bfsitl.fc.msp_client import MspClient
@@ -80,8 +82,12 @@ class BoardVehicle(Vehicle):
                 self._has_gps = True
             except MspErrorReply:
                 self._has_gps = False
+            # Measured before arming, while the board stands still.
+            self.backend = BoardBackend.measured(lambda: client.get(msg.RawImu).acc_raw)
+            self.clock = self.backend.clock
             self._progress(f"connected to {self.uri}: {self._firmware.name}"
-                           + ("" if self._has_gps else ", no GPS (altitude only)"))
+                           + ("" if self._has_gps else ", no GPS (altitude only)")
+                           + f", accelerometer {self.backend.imu.acc_1g_lsb:g} LSB per g")
             self._check_receiver(client)
             if self.profile is not None:
                 self.provisioned = provision(client, self.profile, reboot=self._no_reboot)

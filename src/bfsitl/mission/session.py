@@ -25,19 +25,13 @@ That happens on success, on any exception and on Ctrl-C alike.
 from __future__ import annotations
 
 import dataclasses
-import math
-import time
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Self
 
-from bfsitl.errors import (
-    BfsitlError,
-    MspErrorReply,
-    SitlError,
-    SitlExitedError,
-)
-from bfsitl.fc.firmware_detect import profile_of_binary
+from bfsitl.backend.base import SitlBackend
+from bfsitl.backend.factory import check_speed, make_backend
+from bfsitl.errors import BfsitlError, MspErrorReply, SitlError, SitlExitedError
 from bfsitl.fc.msp_client import MspClient
 from bfsitl.fc.provisioning import (
     ANGLE_ON_AUX2,
@@ -46,7 +40,6 @@ from bfsitl.fc.provisioning import (
     ProvisionResult,
     provision,
 )
-from bfsitl.fc.rc_link import UdpRcLink
 
 # The vehicle's parts, importable from here as before the split.
 from bfsitl.mission.vehicle import (  # noqa: F401
@@ -63,22 +56,14 @@ from bfsitl.mission.vehicle import (  # noqa: F401
     WallClock,
 )
 from bfsitl.physics import Simulator
-from bfsitl.physics.frames import betaflight_attitude_deg
 from bfsitl.physics.params import IRIS, QuadParams
 from bfsitl.physics.sensors import SensorConfig
 from bfsitl.physics.wind import Wind
 from bfsitl.protocol import msp_messages as msg
 from bfsitl.protocol.firmware_profile import FirmwareProfile
-from bfsitl.sim.bridge import BridgeStats, SitlBridge, bridged_sitl, wait_for_replies
-from bfsitl.sim.health import HealthMonitor, lock_clock
-from bfsitl.sim.lockstep import (
-    REPLY_SPIN_S,
-    SITL_SPIN_ENV,
-    LockstepBridge,
-    LockstepClock,
-    LockstepRc,
-    SteppedLink,
-)
+from bfsitl.sim.bridge import SitlBridge
+from bfsitl.sim.lockstep import LockstepBridge
+from bfsitl.sitl.firmware import find_firmware
 from bfsitl.sitl.process import SITL_HOST, SitlProcess
 
 #: UART2's TCP port (the SITL serves UARTn on 5760 + n).
@@ -175,22 +160,6 @@ class SessionConfig:
     lockstep_spin: bool = True
 
 
-class RealTimeClock:
-    """A real-time session's clock: the physics runs on its own thread at ``speed`` x wall
-    time, so letting simulation time pass is a wall-clock sleep."""
-
-    def __init__(self, session: FlightSession) -> None:
-        self.session = session
-
-    def now_s(self) -> float:
-        return self.session.time_s
-
-    def sleep_s(self, seconds: float) -> None:
-        if seconds > 0:
-            speed = self.session.real_time_speed if self.session.simulator is not None else 1.0
-            time.sleep(seconds / speed)
-
-
 class FlightSession(Vehicle):
     """Start, provision, arm and feed one simulated flight; stop all of it on the way out.
 
@@ -209,14 +178,10 @@ class FlightSession(Vehicle):
         super().__init__(progress=progress, arm_timeout_s=config.arm_timeout_s,
                          angle_mode=config.angle_mode)
         self.config = config
-        speed = self.config.speed
-        if speed is not None and not (speed > 0 and not math.isnan(speed)):
-            raise BfsitlError(f"speed {speed} must be a positive number")
+        check_speed(config.speed)
         self.sitl: SitlProcess | None = None
-        self.simulator: Simulator | None = None
-        self.bridge: SitlBridge | LockstepBridge | None = None
-        #: The mission clock: simulation time, and how to let some of it pass.
-        self.clock = RealTimeClock(self)
+        #: Chosen at start, from the firmware's build record (bfsitl.backend.factory).
+        self.sitl_backend: SitlBackend | None = None
         self.provisioned: ProvisionResult | None = None
         #: The Configurator bridge's ws:// URL while one serves (``configurator_port``).
         self.configurator_url: str | None = None
@@ -236,149 +201,29 @@ class FlightSession(Vehicle):
 
             check_listen_port(SITL_HOST, config.configurator_port, "--configurator-port")
         try:
-            if config.physics == "gazebo":
-                self._start_with_gazebo()
-            elif config.physics == "embedded":
-                self.sitl = SitlProcess(
-                    config.firmware, workdir=config.workdir, isolate=config.isolate,
-                    progress=self._progress,
-                    env=None if config.lockstep_spin else {SITL_SPIN_ENV: "0"})
-                self.simulator = Simulator(config.quad, sensors=config.sensors,
-                                           wind=config.wind,
-                                           seed=config.seed)
-                if self._wants_lockstep():
-                    self._start_lockstep()
-                    return self
-                speed = self.real_time_speed
-                self.bridge = self._stack.enter_context(
-                    bridged_sitl(self.sitl, self.simulator, speed=speed))
-                self._progress(f"physics running at {speed:g}x real time")
-            else:
-                raise BfsitlError(f"unknown physics {config.physics!r}: embedded or gazebo")
-            assert self.sitl is not None
-            if self.real_time_speed != 1.0 and isinstance(self.bridge, SitlBridge):
-                self._progress(f"locking the firmware clock to {self.real_time_speed:g}x")
-                lock_clock(HealthMonitor(self.bridge, self.client))
+            firmware = find_firmware(config.firmware)
+            backend = make_backend(config, firmware, progress=self._progress,
+                                   alive=self.check_alive)
+            self.backend = self.sitl_backend = backend
+            self.sitl = SitlProcess(firmware, workdir=config.workdir, isolate=config.isolate,
+                                    progress=self._progress, env=backend.sitl_env,
+                                    hooks=backend.hooks)
+            backend.start(self.sitl, self._stack)
+            self.clock = backend.clock
             self._provision()
             if config.rc_link:
                 # Only now: an RC packet during boot leaves 4.6.0 in RXLOSS for good.
-                assert self.sitl.network is not None
-                self._start_rc(UdpRcLink(self.sitl.network))
+                self._start_rc(backend.rc_sender(self.sitl))
         except BaseException:
             self.close()
             raise
         return self
 
-    @property
-    def real_time_speed(self) -> float:
-        """The speed of a real-time (not lockstep) session, checked against its range."""
-        speed = 1.0 if self.config.speed is None else self.config.speed
-        if not 0.05 <= speed <= 4.0:
-            raise BfsitlError(
-                f"speed {speed:g} is outside 0.05..4 for a stock SITL, which runs on the wall "
-                f"clock; faster (or --speed max) needs a lockstep build: `bfsitl firmware "
-                f"build --lockstep`, then --firmware with its name")
-        return speed
-
-    def _wants_lockstep(self) -> bool:
-        assert self.sitl is not None
-        is_lockstep = self.sitl.firmware.lockstep
-        if self.config.lockstep and not is_lockstep:
-            raise BfsitlError(
-                f"lockstep asked for, but {self.sitl.firmware.path} is not a lockstep build: "
-                f"build one with `bfsitl firmware build --lockstep` and pass its name")
-        return is_lockstep if self.config.lockstep is None else self.config.lockstep
-
-    def _start_lockstep(self) -> None:
-        """The SITL locked to the physics from its first pass (see the module doc)."""
-        config, sitl, simulator = self.config, self.sitl, self.simulator
-        if not config.rc_link:
-            raise BfsitlError("rc_link=False (RC from elsewhere, e.g. MSP through the serial "
-                              "bridge) needs a real-time SITL: a lockstep build takes its RC "
-                              "in the fdm packets bfsitl steps it with; use a stock build")
-        assert sitl is not None and simulator is not None
-        speed = None if config.speed is None or math.isinf(config.speed) else config.speed
-        bridge = LockstepBridge(simulator, sitl.prepare_network(), speed=speed,
-                                profile=profile_of_binary(sitl.firmware.path),
-                                spin_s=REPLY_SPIN_S if config.lockstep_spin else 0.0)
-        self.bridge = bridge
-        bridge.bind()
-        self._stack.callback(bridge.close)
-        bridge.alive = self.check_alive  # a wait that runs long asks whether the SITL ended
-        sitl.on_spawn = bridge.lock
-        sitl.link_wrapper = lambda link: SteppedLink(link, bridge)
-        sitl.client_clock = lambda: bridge.sim_time_s
-        self.clock = LockstepClock(bridge)
-        self._stack.callback(sitl.stop)
-        sitl.start()
-        bridge.set_profile(sitl.profile)
-        pace = "as fast as it goes" if speed is None else f"paced to {speed:g}x real time"
-        self._progress(f"lockstep: the FC's clock follows the physics, {pace}")
-        self._provision()
-        self.rc = LockstepRc(bridge)
-        self.rc.set(self._base)
-        self._stack.callback(self.rc.close)  # closes first: disarm is stepped in before the rest
-
-    def _start_with_gazebo(self) -> None:
-        """``gz sim`` with the BetaflightPlugin in the SITL's network, then the SITL.
-
-        Gazebo starts first and must have bound UDP 9002 before the SITL boots, as in the
-        tutorial; both live in the same namespace because both ends use fixed loopback ports.
-        """
-        from bfsitl.gazebo import (
-            check_gazebo,
-            check_plugin_port_free,
-            plan_gazebo_launch,
-            stop_gazebo,
-            wait_for_plugin,
-        )
-        from bfsitl.gazebo.world import world_for_profile
-
-        config = self.config
-        if config.speed not in (None, 1.0):
-            raise BfsitlError("--speed applies to the embedded physics only; Gazebo sets its "
-                              "own pace")
-        install = check_gazebo(config.gz_plugin_dir)  # fails early, with the fix, first
-        self.sitl = SitlProcess(config.firmware, workdir=config.workdir,
-                                isolate=config.isolate, progress=self._progress)
-        sitl = self.sitl
-        self._stack.callback(sitl.stop)  # runs last: after Gazebo has stopped
-        if sitl.firmware.lockstep:
-            raise BfsitlError(
-                f"{sitl.firmware.path} is a lockstep build: its clock follows bfsitl's "
-                f"own physics, and Gazebo's plugin reads only stock motor packets. Use a "
-                f"stock build with --physics gazebo")
-        # Gazebo starts before the SITL can say who it is: the binary's profile (its build
-        # record, else its bytes) picks the world's frame transform and motor channels.
-        world = world_for_profile(profile_of_binary(sitl.firmware.path), sitl.workdir)
-        launch = plan_gazebo_launch(world, install=install)
-        network = sitl.prepare_network()
-        check_plugin_port_free(network)
-        self._progress(f"starting Gazebo: {launch.command_line()}")
-        gazebo = network.spawn(launch.argv, sitl.workdir, sitl.workdir / "gazebo.log",
-                               env=launch.env_dict())
-        self._stack.callback(stop_gazebo, gazebo)
-        wait_for_plugin(network, gazebo)
-        sitl.start()
-
     def _reboot(self) -> None:
         """A CLI line needed a reboot: in SITL the process ends, so start it again."""
-        assert self.sitl is not None
+        assert self.sitl is not None and self.sitl_backend is not None
         self._progress("the configuration needs a reboot; restarting the SITL")
-        bridge = self.bridge if isinstance(self.bridge, SitlBridge) else None
-        if bridge is not None:
-            bridge.pause()
-        self.client.reboot()
-        if self.lockstep:
-            # The FC acts on the reboot in a later pass: step until the process has ended.
-            try:
-                self.clock.sleep_s(10.0)
-            except SitlExitedError:
-                pass
-        self.sitl.restart_after_reboot()
-        if bridge is not None:
-            bridge.resume()
-            wait_for_replies(bridge)
+        self.sitl_backend.reboot(self.sitl, self.client)
 
     # -- parts -------------------------------------------------------------------------------
     @property
@@ -396,25 +241,19 @@ class FlightSession(Vehicle):
         return self.sitl is not None and self.sitl.poll() is not None
 
     @property
-    def truth(self) -> Simulator | None:
-        """The simulated vehicle (its state is the truth), or None with external physics."""
-        return self.simulator
+    def simulator(self) -> Simulator | None:
+        """bfsitl's simulated vehicle, once started with the embedded physics."""
+        return self.backend.simulator
+
+    @property
+    def bridge(self) -> SitlBridge | LockstepBridge | None:
+        """The exchange with the firmware, once started with the embedded physics."""
+        return self.sitl_backend.bridge if self.sitl_backend is not None else None
 
     @property
     def has_gps(self) -> bool:
         """The firmware has a GPS (position control needs it)."""
         return self.sitl is not None and self.sitl.profile.has_gps
-
-    @property
-    def lockstep(self) -> bool:
-        return isinstance(self.clock, LockstepClock)
-
-    @property
-    def time_s(self) -> float:
-        """The mission clock: simulation time (wall time since start with Gazebo)."""
-        if self.simulator is not None:
-            return self.simulator.time_s
-        return time.monotonic() - self.created_at_s
 
     def check_alive(self) -> None:
         """Raise :class:`SitlExitedError` (with the log tail) if the SITL or bridge has died."""
@@ -426,29 +265,9 @@ class FlightSession(Vehicle):
                 f"the SITL exited with code {code} during the flight; its log "
                 f"({self.sitl.log_path}) ends with:\n{self.sitl.log_tail()}",
                 code, self.sitl.log_tail())
-        if self.bridge is not None and self.bridge.error is not None:
-            raise SitlError(f"the physics bridge failed: {self.bridge.error!r}")
-
-    # -- observation -------------------------------------------------------------------------
-    def _truth(self) -> Truth:
-        if self.bridge is None or self.simulator is None:  # external physics: truth unknown
-            return super()._truth()
-        simulator, bridge = self.simulator, self.bridge
-
-        def read() -> Truth:
-            state = simulator.state
-            w, x, y, z = state.quaternion_wxyz
-            # Body z in world NED has z component 1 - 2(x^2 + y^2): cos(tilt).
-            cos_tilt = max(-1.0, min(1.0, 1.0 - 2.0 * (x * x + y * y)))
-            north, east, _down = state.position_ned_m
-            return Truth(state.time_s, simulator.altitude_m, -state.velocity_ned_m_s[2],
-                          math.degrees(math.acos(cos_tilt)),
-                          betaflight_attitude_deg(state.quaternion_wxyz), simulator.on_ground,
-                          tuple(bridge.motors),  # type: ignore[arg-type]
-                          north - self._start_ned[0], east - self._start_ned[1])
-
-        # On the bridge thread, between two steps: one consistent state.
-        return bridge.between_steps(read)
+        failure = self.backend.failure()
+        if failure is not None:
+            raise SitlError(failure)
 
     def _provision(self) -> None:
         """Apply the configured profile; then serve the Configurator if asked."""
@@ -512,6 +331,4 @@ class FlightSession(Vehicle):
         return dataclasses.replace(profile, cli_lines=(*profile.cli_lines, *lines),
                                    reboot_when_changed=True)
 
-    def bridge_stats(self) -> BridgeStats | None:
-        return self.bridge.stats() if self.bridge is not None else None
 

@@ -16,18 +16,20 @@ import time
 from collections.abc import Callable
 from contextlib import ExitStack
 from dataclasses import dataclass, replace
-from typing import TYPE_CHECKING, Protocol, Self
+from typing import TYPE_CHECKING, Self
 
+from bfsitl.backend.base import (  # noqa: F401 - the vehicle's parts, importable from here
+    Backend,
+    ImuScale,
+    RcSender,
+    SessionClock,
+    Truth,
+    WallClock,
+)
+from bfsitl.backend.disturbances import Disturbances
 from bfsitl.errors import ArmingBlockedError, LinkError, MspError, SitlError
 from bfsitl.fc.msp_client import MspClient, Telemetry
-from bfsitl.fc.rc_link import (
-    RC_MIN_US,
-    MspRcLink,
-    RcCommand,
-    RcFault,
-    RcLinkStats,
-    UdpRcLink,
-)
+from bfsitl.fc.rc_link import RC_MIN_US, RcCommand, RcLinkStats
 from bfsitl.physics.constants import STANDARD_GRAVITY_M_S2
 from bfsitl.protocol import msp_messages as msg
 from bfsitl.protocol.boxes import BoxId
@@ -50,50 +52,12 @@ METRES_PER_DEGREE = 111_319.5
 Progress = Callable[[str], None]
 
 
-class RcSender(Protocol):
-    """What sends the RC command (a UDP, lockstep or MSP link): the latest is repeated."""
-
-    @property
-    def command(self) -> RcCommand: ...
-
-    def set(self, command: RcCommand) -> None: ...
-
-    def stats(self) -> RcLinkStats: ...
-
-    def close(self) -> None: ...
-
-    #: An injected RC fault (scenarios), None when the link is healthy.
-    fault: RcFault | None
-
-
-class SessionClock(Protocol):
-    """The mission clock (simulation time) and how to let some of it pass."""
-
-    def now_s(self) -> float: ...
-
-    def sleep_s(self, seconds: float) -> None: ...
-
-
-def _accel_flu_m_s2(telemetry: Telemetry) -> tuple[float, float, float]:
-    """MSP_RAW_IMU's accelerometer in m/s^2 (the SITL's 256 LSB per g; z's truncation bias
+def _accel_flu_m_s2(telemetry: Telemetry, imu: ImuScale) -> tuple[float, float, float]:
+    """MSP_RAW_IMU's accelerometer in m/s^2 (the FC's own scale; the SITL's z truncation
     added back, as for the vertical)."""
-    scale = STANDARD_GRAVITY_M_S2 / msg.SITL_ACC_1G_LSB
+    scale = STANDARD_GRAVITY_M_S2 / imu.acc_1g_lsb
     ax, ay, az = telemetry.imu.acc_raw
-    return (ax * scale, ay * scale, (az + msg.SITL_ACC_TRUNCATION_LSB) * scale)
-
-
-class WallClock:
-    """Wall time since the vehicle was created: the clock of a real board (and of Gazebo)."""
-
-    def __init__(self, vehicle: Vehicle) -> None:
-        self.vehicle = vehicle
-
-    def now_s(self) -> float:
-        return self.vehicle.time_s
-
-    def sleep_s(self, seconds: float) -> None:
-        if seconds > 0:
-            time.sleep(seconds)
+    return (ax * scale, ay * scale, (az + imu.acc_truncation_lsb) * scale)
 
 
 @dataclass(frozen=True, slots=True)
@@ -139,43 +103,27 @@ class GpsPosition:
     satellites: int
 
 
-@dataclass(frozen=True, slots=True)
-class Truth:
-    """The simulated state at one instant (NaN everywhere when the physics is external)."""
-
-    time_s: float
-    altitude_m: float
-    climb_m_s: float
-    tilt_deg: float
-    attitude_deg: tuple[float, float, float]  # Betaflight's roll, pitch, yaw
-    on_ground: bool
-    motors: tuple[float, float, float, float]
-    north_m: float = math.nan
-    east_m: float = math.nan
-
-
-#: Metres per degree of latitude (and of longitude at the equator): the FC's own figure
-#: (``EARTH_RADIUS`` based, gps.c), which is what makes its GPS local.
-METRES_PER_DEGREE = 111_319.5
-
-
 class Vehicle:
     """The parts of a flight that only need the FC: see the module docstring.
 
-    Subclasses start the FC side (:meth:`start`), set :attr:`rc` once RC flows, and say what
-    the truth is (:meth:`_truth`) and whether the FC has a GPS (:attr:`has_gps`).
+    What is under the FC is the vehicle's :attr:`backend`: the clock, the truth, the
+    disturbances and the accelerometer's scale come from it.  Subclasses start the FC side
+    (:meth:`start`), set :attr:`rc` once RC flows, and say whether the FC has a GPS
+    (:attr:`has_gps`).
     """
 
-    def __init__(self, *, progress: Progress | None = None,
+    def __init__(self, *, backend: Backend | None = None, progress: Progress | None = None,
                  arm_timeout_s: float = DEFAULT_ARM_TIMEOUT_S, angle_mode: bool = True) -> None:
         self._progress = progress or (lambda _message: None)
         self.arm_timeout_s = arm_timeout_s
         #: Hold AUX2 on while armed (ANGLE, when the profile puts ANGLE there).
         self.angle_mode = angle_mode
         self.created_at_s = time.monotonic()
+        #: What is under the FC (a board by default: wall time, no truth, nothing to disturb).
+        self.backend: Backend = backend or Backend()
         self.rc: RcSender | None = None
-        #: The mission clock, and how to let some of it pass.
-        self.clock: SessionClock = WallClock(self)
+        #: The mission clock, and how to let some of it pass (the backend's).
+        self.clock: SessionClock = self.backend.clock
         #: Wall seconds from the vehicle's creation to the FC reporting armed.
         self.armed_after_s: float | None = None
         self._stack = ExitStack()
@@ -203,35 +151,51 @@ class Vehicle:
         """The firmware has a GPS (position control needs it)."""
         return False
 
-    @property
-    def time_s(self) -> float:
-        """The mission clock: wall time since the vehicle was created, unless simulated."""
-        return time.monotonic() - self.created_at_s
-
     def check_alive(self) -> None:
         """Raise if the FC side has gone (a SITL that exited); a board says so by I/O errors."""
-
-    def _truth(self) -> Truth:
-        nan = math.nan
-        return Truth(self.time_s, nan, nan, nan, (nan, nan, nan), False, (nan, nan, nan, nan))
-
-    def bridge_stats(self) -> BridgeStats | None:
-        return None
 
     @property
     def firmware(self) -> FirmwareProfile | None:
         """Who the FC is (version, conventions, GPS), once known."""
         return None
 
-    @property
-    def lockstep(self) -> bool:
-        return False
-
     def has_exited(self) -> bool:
         """True when the FC side has ended (a SITL process that exited)."""
         return False
 
-    def _start_rc(self, rc: UdpRcLink | MspRcLink) -> None:
+    # -- what the backend gives ----------------------------------------------------------------
+    @property
+    def time_s(self) -> float:
+        """The mission clock: simulation time, or wall time where nothing is simulated."""
+        return self.backend.time_s()
+
+    @property
+    def lockstep(self) -> bool:
+        return self.backend.lockstep
+
+    @property
+    def truth(self) -> Simulator | None:
+        """The simulated vehicle, to read its state; None on a board or with Gazebo.  To
+        change the flight (motors, sensors, wind, RC, GPS) use :attr:`disturbances`."""
+        return self.backend.simulator
+
+    @property
+    def disturbances(self) -> Disturbances:
+        """What can be done to this flight from outside the FC (faults, tests)."""
+        return self.backend.disturbances
+
+    def bridge_stats(self) -> BridgeStats | None:
+        return self.backend.stats()
+
+    def _truth(self) -> Truth:
+        """The truth now, positions from where the vehicle stood at arming (NaN: unknown)."""
+        truth = self.backend.truth()
+        if truth is None:
+            return Truth.unknown(self.time_s)
+        return replace(truth, north_m=truth.north_m - self._start_ned[0],
+                       east_m=truth.east_m - self._start_ned[1])
+
+    def _start_rc(self, rc: RcSender) -> None:
         """Send the sticks at disarm on ``rc`` from now on; it closes first on the way out,
         so its disarm goes out before anything else stops."""
         rc.set(self._base)
@@ -261,11 +225,6 @@ class Vehicle:
     def fc(self) -> MspClient:
         """The flight controller's MSP client (the vehicle's name for :attr:`client`)."""
         return self.client
-
-    @property
-    def truth(self) -> Simulator | None:
-        """The simulated vehicle (its state is the truth), or None: a board, or Gazebo."""
-        return None
 
     # -- RC ----------------------------------------------------------------------------------
     @property
@@ -378,12 +337,13 @@ class Vehicle:
         self.check_alive()
         telemetry = self.telemetry()
         truth = self._truth()
+        imu = self.backend.imu
         return FlightSample(
             time_s=truth.time_s, wall_s=time.monotonic(),
             fc_alt_m=telemetry.altitude.altitude_m, fc_climb_m_s=telemetry.altitude.vario_m_s,
             fc_accel_up_m_s2=telemetry.accel_up_m_s2(
-                offset_lsb=msg.SITL_ACC_TRUNCATION_LSB),
-            fc_accel_flu_m_s2=_accel_flu_m_s2(telemetry),
+                imu.acc_1g_lsb, offset_lsb=imu.acc_truncation_lsb),
+            fc_accel_flu_m_s2=_accel_flu_m_s2(telemetry, imu),
             roll_deg=telemetry.attitude.roll_deg, pitch_deg=telemetry.attitude.pitch_deg,
             # MSP_ATTITUDE truncates the heading to whole degrees: the middle of the degree
             # is the unbiased reading.

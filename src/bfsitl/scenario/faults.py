@@ -42,8 +42,8 @@ before the flight (:class:`~bfsitl.errors.FaultNotSupportedError`), never silent
 from __future__ import annotations
 
 import math
-from collections.abc import Callable
-from dataclasses import dataclass, replace
+from collections.abc import Callable, Mapping
+from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any
 
 from bfsitl.errors import FaultNotSupportedError, ScenarioError
@@ -53,8 +53,7 @@ from bfsitl.physics.wind import MAX_GUST_STD_M_S, MAX_WIND_COMPONENT_M_S, Wind
 from bfsitl.protocol.firmware_profile import FirmwareProfile
 
 if TYPE_CHECKING:
-    from bfsitl.mission.session import FlightSession
-    from bfsitl.scenario.spec import FaultSpec, Scenario
+    from bfsitl.mission.vehicle import Vehicle
 
 #: What invalid_pulses sends on roll, pitch, throttle and yaw: no pulse at all, as a receiver
 #: reports a lost channel; anything below rx_min_usec (885 us) is invalid to the firmware.
@@ -66,29 +65,49 @@ PA_PER_M = 12.01
 RC_LOSS_METHODS = ("auto", "silence", "invalid_pulses", "switch")
 
 
+#: Undoes an injected fault.
+Undo = Callable[[], None]
+#: Injects a fault into a started vehicle, through its disturbance surface or its sticks.
+Inject = Callable[["Vehicle"], Undo]
+
+
+@dataclass(frozen=True, slots=True)
+class FaultSpec:
+    """One ``[[fault]]`` table, checked when the file is read (:func:`read_fault_spec`): its
+    kind, when, for how long, and its own parameters with their defaults filled in."""
+
+    kind: str
+    at_s: float
+    #: None: it lasts to the end of the run.
+    duration_s: float | None
+    params: tuple[tuple[str, Any], ...]
+    #: "fault 2" in messages.
+    label: str
+
+    def param(self, key: str, default: Any = None) -> Any:
+        return dict(self.params).get(key, default)
+
+
 @dataclass(frozen=True, slots=True)
 class Fault:
-    """One fault of a scenario, ready to be injected into a started session."""
+    """One fault of a scenario, made for one firmware, ready to be injected."""
 
     spec: FaultSpec
     #: What it is, for events and reports ("RC lost (invalid pulses)").
     title: str
     #: The autopilot's sticks no longer reach the FC: the runner stops flying and watches.
     takes_sticks: bool
-    _apply: Callable[[FlightSession], Callable[[FlightSession], None]]
+    _inject: Inject
     #: It works through the FAILSAFE mode's switch (AUX3), which must be provisioned.
     needs_failsafe_switch: bool = False
 
-    def apply(self, session: FlightSession) -> Callable[[FlightSession], None]:
+    def apply(self, vehicle: Vehicle) -> Undo:
         """Inject it; returns what undoes it."""
-        return self._apply(session)
+        return self._inject(vehicle)
 
 
 def _rc_loss(spec: FaultSpec, profile: FirmwareProfile, where: str) -> Fault:
-    method = spec.param("method", "auto")
-    if method not in RC_LOSS_METHODS:
-        raise ScenarioError(f"{where}: rc_loss method {method!r} is not one of "
-                            f"{', '.join(RC_LOSS_METHODS)}")
+    method = spec.param("method")
     silence_detected = profile.rc.rxloss_after_silence_s is not None
     if method == "auto":
         # Where silence is not detected, invalid pulses are no steady loss either: the SITL
@@ -103,39 +122,32 @@ def _rc_loss(spec: FaultSpec, profile: FirmwareProfile, where: str) -> Fault:
             f"sticks forever when RC stops (its SITL receiver never times out). Use method = "
             f"\"switch\" or \"invalid_pulses\" (\"auto\" picks the switch there)")
     if method == "switch":
-        def apply_switch(session: FlightSession) -> Callable[[FlightSession], None]:
-            session.set_rc(session.rc_command.with_aux(FAILSAFE_SWITCH_AUX_INDEX,
+        # The pilot's own failsafe switch: the vehicle's sticks, not a disturbance.
+        def apply_switch(vehicle: Vehicle) -> Undo:
+            vehicle.set_rc(vehicle.rc_command.with_aux(FAILSAFE_SWITCH_AUX_INDEX,
                                                        SWITCH_ON_US))
-
-            def undo(s: FlightSession) -> None:
-                s.set_rc(s.rc_command.with_aux(FAILSAFE_SWITCH_AUX_INDEX, SWITCH_OFF_US))
-            return undo
+            return lambda: vehicle.set_rc(
+                vehicle.rc_command.with_aux(FAILSAFE_SWITCH_AUX_INDEX, SWITCH_OFF_US))
         return Fault(spec, "RC lost (failsafe switch on AUX3)", True, apply_switch,
                      needs_failsafe_switch=True)
     rc_fault = RcFault(silent=True) if method == "silence" else RcFault(
         pulses_us=tuple((channel, LOST_PULSE_US) for channel in range(4)))
     title = "RC lost (silence)" if method == "silence" else "RC lost (invalid pulses)"
-    return Fault(spec, title, True, lambda session: _set_rc_fault(session, rc_fault))
+    return Fault(spec, title, True, _rc_fault_injector(rc_fault))
 
 
-def _set_rc_fault(session: FlightSession, fault: RcFault) -> Callable[[FlightSession], None]:
-    rc = session.rc
-    if rc is None:
-        raise ScenarioError("an RC fault needs bfsitl's RC link (the session has none)")
-    rc.fault = fault
-
-    def undo(s: FlightSession) -> None:
-        if s.rc is not None:
-            s.rc.fault = None
-    return undo
+def _rc_fault_injector(fault: RcFault) -> Inject:
+    def inject(vehicle: Vehicle) -> Undo:
+        disturbances = vehicle.disturbances
+        disturbances.set_rc_fault(fault)
+        return lambda: disturbances.set_rc_fault(None)
+    return inject
 
 
 def _rc_latency(spec: FaultSpec, profile: FirmwareProfile, where: str) -> Fault:
-    delay_s = _param_number(spec, where, "delay_s", 0.0, 2.0)
-    jitter_s = _param_number(spec, where, "jitter_s", 0.0, 2.0, default=0.0)
-    rc_fault = RcFault(delay_s=delay_s, jitter_s=jitter_s)
+    delay_s, jitter_s = spec.param("delay_s"), spec.param("jitter_s")
     return Fault(spec, f"RC {delay_s * 1000:.0f} ms late (+{jitter_s * 1000:.0f} ms jitter)",
-                 False, lambda session: _set_rc_fault(session, rc_fault))
+                 False, _rc_fault_injector(RcFault(delay_s=delay_s, jitter_s=jitter_s)))
 
 
 def _gps_loss(spec: FaultSpec, profile: FirmwareProfile, where: str) -> Fault:
@@ -146,102 +158,86 @@ def _gps_loss(spec: FaultSpec, profile: FirmwareProfile, where: str) -> Fault:
             f"12-satellite fix whatever the simulator sends (no loss sentinel in its sitl.c). "
             f"gps_glitch works there; GPS loss runs on master")
 
-    def apply(session: FlightSession) -> Callable[[FlightSession], None]:
-        bridge = _bridge(session)
-        bridge.encoder.gps_lost = True
+    def inject(vehicle: Vehicle) -> Undo:
+        disturbances = vehicle.disturbances
+        disturbances.set_gps_lost(True)
+        return lambda: disturbances.set_gps_lost(False)
+    return Fault(spec, "GPS lost", False, inject)
 
-        def undo(s: FlightSession) -> None:
-            _bridge(s).encoder.gps_lost = False
+
+def _sensor_injector(fields: dict[str, Any]) -> Inject:
+    """Sets sensor error ``fields``; undoing restores what they were (and only them)."""
+    def inject(vehicle: Vehicle) -> Undo:
+        disturbances = vehicle.disturbances
+        before = disturbances.change_sensors(**fields)
+
+        def undo() -> None:
+            disturbances.change_sensors(**{key: getattr(before, key) for key in fields})
         return undo
-    return Fault(spec, "GPS lost", False, apply)
-
-
-def _sensor_fault(fields: dict[str, Any]
-                  ) -> Callable[[FlightSession], Callable[[FlightSession], None]]:
-    """A fault that sets sensor error ``fields``; undoing restores what they were."""
-    def apply(session: FlightSession) -> Callable[[FlightSession], None]:
-        simulator = _simulator(session)
-        before = simulator.sensor_config
-        simulator.set_sensors(replace(before, **fields))
-
-        def undo(s: FlightSession) -> None:
-            sim = _simulator(s)
-            sim.set_sensors(replace(sim.sensor_config,
-                                    **{k: getattr(before, k) for k in fields}))
-        return undo
-    return apply
+    return inject
 
 
 def _gps_glitch(spec: FaultSpec, profile: FirmwareProfile, where: str) -> Fault:
     _need_gps(profile, where, "gps_glitch")
-    north = _param_number(spec, where, "north_m", -1000.0, 1000.0, default=0.0)
-    east = _param_number(spec, where, "east_m", -1000.0, 1000.0, default=0.0)
+    north, east = spec.param("north_m"), spec.param("east_m")
     return Fault(spec, f"GPS off by {north:g} m north, {east:g} m east", False,
-                 _sensor_fault({"gps_offset_ne_m": (north, east)}))
+                 _sensor_injector({"gps_offset_ne_m": (north, east)}))
 
 
 def _motor_thrust(spec: FaultSpec, profile: FirmwareProfile, where: str) -> Fault:
-    motor = spec.param("motor")
-    if motor not in (1, 2, 3, 4) or isinstance(motor, bool):
-        raise ScenarioError(f"{where}: motor_thrust needs motor = 1..4 (Betaflight's "
-                            f"numbering), got {motor!r}")
-    fraction = _param_number(spec, where, "fraction", 0.0, 1.0)
+    motor, fraction = spec.param("motor"), spec.param("fraction")
 
-    def apply(session: FlightSession) -> Callable[[FlightSession], None]:
-        simulator = _simulator(session)
-        before = simulator.motor_thrust[motor - 1]
-        simulator.set_motor_thrust(motor, fraction)
-        return lambda s: _simulator(s).set_motor_thrust(motor, before)
-    return Fault(spec, f"motor {motor} at {fraction * 100:.0f} % thrust", False, apply)
+    def inject(vehicle: Vehicle) -> Undo:
+        disturbances = vehicle.disturbances
+        before = disturbances.motor_thrust[motor - 1]
+        disturbances.set_motor_thrust(motor, fraction)
+        return lambda: disturbances.set_motor_thrust(motor, before)
+    return Fault(spec, f"motor {motor} at {fraction * 100:.0f} % thrust", False, inject)
 
 
 def _gyro_noise(spec: FaultSpec, profile: FirmwareProfile, where: str) -> Fault:
-    std = math.radians(_param_number(spec, where, "std_deg_s", 0.0, 1000.0))
+    std = math.radians(spec.param("std_deg_s"))
     return Fault(spec, f"gyro noise {math.degrees(std):g} deg/s", False,
-                 _sensor_fault({"gyro_noise_std_rad_s": std}))
+                 _sensor_injector({"gyro_noise_std_rad_s": std}))
 
 
 def _gyro_bias(spec: FaultSpec, profile: FirmwareProfile, where: str) -> Fault:
-    bias = tuple(math.radians(_param_number(spec, where, f"{axis}_deg_s", -1000.0, 1000.0,
-                                            default=0.0)) for axis in "xyz")
+    bias = tuple(math.radians(spec.param(f"{axis}_deg_s")) for axis in "xyz")
     shown = ", ".join(f"{math.degrees(b):g}" for b in bias)
     return Fault(spec, f"gyro bias ({shown}) deg/s", False,
-                 _sensor_fault({"gyro_bias_rad_s": bias}))
+                 _sensor_injector({"gyro_bias_rad_s": bias}))
 
 
 def _accel_noise(spec: FaultSpec, profile: FirmwareProfile, where: str) -> Fault:
-    std = _param_number(spec, where, "std_m_s2", 0.0, 100.0)
+    std = spec.param("std_m_s2")
     return Fault(spec, f"accelerometer noise {std:g} m/s^2", False,
-                 _sensor_fault({"accel_noise_std_m_s2": std}))
+                 _sensor_injector({"accel_noise_std_m_s2": std}))
 
 
 def _accel_bias(spec: FaultSpec, profile: FirmwareProfile, where: str) -> Fault:
-    bias = tuple(_param_number(spec, where, f"{axis}_m_s2", -50.0, 50.0, default=0.0)
-                 for axis in "xyz")
+    bias = tuple(spec.param(f"{axis}_m_s2") for axis in "xyz")
     return Fault(spec, f"accelerometer bias {bias} m/s^2", False,
-                 _sensor_fault({"accel_bias_m_s2": bias}))
+                 _sensor_injector({"accel_bias_m_s2": bias}))
 
 
 def _baro_drift(spec: FaultSpec, profile: FirmwareProfile, where: str) -> Fault:
-    rate_m_s = _param_number(spec, where, "rate_m_s", -10.0, 10.0)
+    rate_m_s = spec.param("rate_m_s")
     return Fault(spec, f"barometer drifting {rate_m_s:+g} m/s", False,
-                 _sensor_fault({"baro_drift_pa_s": -rate_m_s * PA_PER_M}))
+                 _sensor_injector({"baro_drift_pa_s": -rate_m_s * PA_PER_M}))
 
 
 def _wind(spec: FaultSpec, profile: FirmwareProfile, where: str) -> Fault:
-    most = MAX_WIND_COMPONENT_M_S
-    wind = Wind((_param_number(spec, where, "north_m_s", -most, most, default=0.0),
-                 _param_number(spec, where, "east_m_s", -most, most, default=0.0), 0.0),
-                _param_number(spec, where, "gust_std_m_s", 0.0, MAX_GUST_STD_M_S, default=0.0))
+    wind = Wind((spec.param("north_m_s"), spec.param("east_m_s"), 0.0),
+                spec.param("gust_std_m_s"))
 
-    def apply(session: FlightSession) -> Callable[[FlightSession], None]:
-        simulator = _simulator(session)
-        before = simulator.wind
-        simulator.set_wind(wind)
-        return lambda s: _simulator(s).set_wind(before)
+    def inject(vehicle: Vehicle) -> Undo:
+        disturbances = vehicle.disturbances
+        before = disturbances.wind
+        disturbances.set_wind(wind)
+        return lambda: disturbances.set_wind(before)
     north, east, _ = wind.velocity_ned_m_s
     return Fault(spec, f"wind to {north:g} m/s north, {east:g} m/s east "
-                       f"(gusts {wind.gust_std_m_s:g} m/s)", False, apply)
+                       f"(gusts {wind.gust_std_m_s:g} m/s)", False, inject)
 
 
 _KINDS: dict[str, Callable[[FaultSpec, FirmwareProfile, str], Fault]] = {
@@ -250,51 +246,102 @@ _KINDS: dict[str, Callable[[FaultSpec, FirmwareProfile, str], Fault]] = {
     "gyro_bias": _gyro_bias, "accel_noise": _accel_noise, "accel_bias": _accel_bias,
     "baro_drift": _baro_drift, "wind": _wind,
 }
-#: Each kind's own parameters (beyond kind, at_s, duration_s).
-_PARAMS: dict[str, set[str]] = {
-    "rc_loss": {"method"}, "rc_latency": {"delay_s", "jitter_s"}, "gps_loss": set(),
-    "gps_glitch": {"north_m", "east_m"}, "motor_thrust": {"motor", "fraction"},
-    "gyro_noise": {"std_deg_s"}, "gyro_bias": {"x_deg_s", "y_deg_s", "z_deg_s"},
-    "accel_noise": {"std_m_s2"}, "accel_bias": {"x_m_s2", "y_m_s2", "z_m_s2"},
-    "baro_drift": {"rate_m_s"}, "wind": {"north_m_s", "east_m_s", "gust_std_m_s"},
+
+
+@dataclass(frozen=True, slots=True)
+class _Number:
+    """A number parameter in ``low..high``; without a default it must be given."""
+
+    low: float
+    high: float
+    default: float | None = None
+
+
+_WIND = MAX_WIND_COMPONENT_M_S
+#: Each kind's own parameters (beyond kind, at_s, duration_s), checked when the file is read.
+_PARAMS: dict[str, Mapping[str, _Number | tuple[str, ...] | type[int]]] = {
+    "rc_loss": {"method": RC_LOSS_METHODS},
+    "rc_latency": {"delay_s": _Number(0.0, 2.0), "jitter_s": _Number(0.0, 2.0, 0.0)},
+    "gps_loss": {},
+    "gps_glitch": {"north_m": _Number(-1000.0, 1000.0, 0.0),
+                   "east_m": _Number(-1000.0, 1000.0, 0.0)},
+    "motor_thrust": {"motor": int, "fraction": _Number(0.0, 1.0)},
+    "gyro_noise": {"std_deg_s": _Number(0.0, 1000.0)},
+    "gyro_bias": {f"{axis}_deg_s": _Number(-1000.0, 1000.0, 0.0) for axis in "xyz"},
+    "accel_noise": {"std_m_s2": _Number(0.0, 100.0)},
+    "accel_bias": {f"{axis}_m_s2": _Number(-50.0, 50.0, 0.0) for axis in "xyz"},
+    "baro_drift": {"rate_m_s": _Number(-10.0, 10.0)},
+    "wind": {"north_m_s": _Number(-_WIND, _WIND, 0.0), "east_m_s": _Number(-_WIND, _WIND, 0.0),
+             "gust_std_m_s": _Number(0.0, MAX_GUST_STD_M_S, 0.0)},
 }
 FAULT_KINDS = tuple(sorted(_KINDS))
+#: Keys every fault table has besides its kind's own.
+_COMMON_KEYS = ("kind", "at_s", "duration_s")
+MAX_FAULT_DURATION_S = 3600.0
+
+
+def read_fault_spec(raw: Any, *, where: str, number: int, run_s: float) -> FaultSpec:
+    """One ``[[fault]]`` table, checked once, when the file is read: its kind, its times
+    (``at_s`` within the run of ``run_s``) and its parameters, defaults filled in."""
+    label = f"fault {number}"
+    here = f"{where}, {label}"
+    if not isinstance(raw, dict):
+        raise ScenarioError(f"{here}: faults are written as [[fault]] tables")
+    for key in ("kind", "at_s"):
+        if key not in raw:
+            raise ScenarioError(f"{here}: {key} is missing")
+    kind = raw["kind"]
+    if not isinstance(kind, str):
+        raise ScenarioError(f"{here}: kind must be a string, got {kind!r}")
+    if kind not in _KINDS:
+        raise ScenarioError(f"{here}: unknown fault kind {kind!r}; known: "
+                            f"{', '.join(FAULT_KINDS)}")
+    at_s = _number(where, f"{label} at_s", raw["at_s"], 0.0, run_s)
+    lasts = raw.get("duration_s")
+    if lasts is not None:
+        lasts = _number(where, f"{label} duration_s", lasts, 0.0, MAX_FAULT_DURATION_S)
+    given = {key: value for key, value in raw.items() if key not in _COMMON_KEYS}
+    schema = _PARAMS[kind]
+    unknown = set(given) - set(schema)
+    if unknown:
+        raise ScenarioError(f"{here}: {kind} has no parameter(s) "
+                            f"{', '.join(sorted(unknown))}; it takes "
+                            f"{', '.join(sorted(schema)) or 'none'}")
+    params = {key: _param(here, kind, key, rule, given.get(key))
+              for key, rule in schema.items()}
+    return FaultSpec(kind, at_s, lasts, tuple(sorted(params.items())), label)
+
+
+def _param(here: str, kind: str, key: str, rule: _Number | tuple[str, ...] | type[int],
+           value: Any) -> Any:
+    if isinstance(rule, tuple):  # one of some words; the first is the default
+        value = rule[0] if value is None else value
+        if value not in rule:
+            raise ScenarioError(f"{here}: {kind} {key} {value!r} is not one of "
+                                f"{', '.join(rule)}")
+        return value
+    if rule is int:  # a motor number, Betaflight's numbering
+        if value not in (1, 2, 3, 4) or isinstance(value, bool):
+            raise ScenarioError(f"{here}: {kind} needs {key} = 1..4 (Betaflight's "
+                                f"numbering), got {value!r}")
+        return value
+    assert isinstance(rule, _Number)
+    if value is None:
+        if rule.default is None:
+            raise ScenarioError(f"{here}: {kind} needs {key}")
+        return rule.default
+    return _number(here, f"{kind} {key}", value, rule.low, rule.high)
 
 
 def make_fault(spec: FaultSpec, profile: FirmwareProfile, *, where: str = "scenario") -> Fault:
-    """The fault ``spec`` describes, for a firmware of ``profile``; raises
-    :class:`FaultNotSupportedError` when that firmware cannot express it."""
-    here = f"{where}, {spec.label}"
-    builder = _KINDS.get(spec.kind)
-    if builder is None:
-        raise ScenarioError(f"{here}: unknown fault kind {spec.kind!r}; known: "
-                            f"{', '.join(FAULT_KINDS)}")
-    unknown = {key for key, _ in spec.params} - _PARAMS[spec.kind]
-    if unknown:
-        raise ScenarioError(f"{here}: {spec.kind} has no parameter(s) "
-                            f"{', '.join(sorted(unknown))}; it takes "
-                            f"{', '.join(sorted(_PARAMS[spec.kind])) or 'none'}")
-    return builder(spec, profile, here)
+    """The fault ``spec`` describes, made for a firmware of ``profile`` (once per run);
+    raises :class:`FaultNotSupportedError` when that firmware cannot express it."""
+    return _KINDS[spec.kind](spec, profile, f"{where}, {spec.label}")
 
 
-def make_faults(scenario: Scenario, profile: FirmwareProfile) -> tuple[Fault, ...]:
-    return tuple(make_fault(spec, profile, where=scenario.where) for spec in scenario.faults)
-
-
-def check_faults(scenario: Scenario) -> None:
-    """Refuse unknown kinds and bad parameters when the file is read (against master's
-    profile, which can express every fault: what a firmware cannot do is found per run)."""
-    from bfsitl.fc.firmware_detect import MASTER_API_VERSION
-    from bfsitl.protocol.firmware_profile import profile_for
-
-    master = profile_for(MASTER_API_VERSION)
-    for spec in scenario.faults:
-        try:
-            make_fault(spec, master, where=scenario.where)
-        except FaultNotSupportedError:
-            pass
-
-
+def make_faults(specs: tuple[FaultSpec, ...], profile: FirmwareProfile, *,
+                where: str = "scenario") -> tuple[Fault, ...]:
+    return tuple(make_fault(spec, profile, where=where) for spec in specs)
 
 
 # -- helpers -------------------------------------------------------------------------------------
@@ -308,25 +355,8 @@ def _need_gps(profile: FirmwareProfile, where: str, kind: str) -> None:
                                      f"firmware build --gps`; master has it)")
 
 
-def _param_number(spec: FaultSpec, where: str, key: str, low: float, high: float,
-                  default: float | None = None) -> float:
-    value = spec.param(key, default)
-    if value is None:
-        raise ScenarioError(f"{where}: {spec.kind} needs {key}")
+def _number(where: str, key: str, value: Any, low: float, high: float) -> float:
     if isinstance(value, bool) or not isinstance(value, (int, float)) \
             or not math.isfinite(value) or not low <= value <= high:
-        raise ScenarioError(f"{where}: {spec.kind} {key} = {value!r} must be a number in "
-                            f"{low:g}..{high:g}")
+        raise ScenarioError(f"{where}: {key} = {value!r} must be a number in {low:g}..{high:g}")
     return float(value)
-
-
-def _simulator(session: FlightSession) -> Any:
-    if session.simulator is None:
-        raise ScenarioError("this fault acts in bfsitl's embedded physics (physics = embedded)")
-    return session.simulator
-
-
-def _bridge(session: FlightSession) -> Any:
-    if session.bridge is None:
-        raise ScenarioError("this fault acts in bfsitl's embedded physics (physics = embedded)")
-    return session.bridge

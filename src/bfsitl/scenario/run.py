@@ -39,14 +39,15 @@ from bfsitl.errors import (
     FaultNotSupportedError,
     MissionError,
     MissionTimeoutError,
-    SticksTakenError,
 )
 from bfsitl.fc.firmware_detect import profile_of_binary
 from bfsitl.fc.provisioning import Profile
 from bfsitl.mission.flight_log import FlightRow
+from bfsitl.mission.hooks import FlightHooks
+from bfsitl.mission.loop import Mission
 from bfsitl.mission.outputs import FlightOutputs, OutputOptions
 from bfsitl.mission.phase import Phase
-from bfsitl.mission.runner import Mission, fly_waypoint
+from bfsitl.mission.plan_driver import fly_plan
 from bfsitl.mission.session import (
     FLY_PROFILE,
     FlightSession,
@@ -60,7 +61,7 @@ from bfsitl.protocol import msp_messages as msg
 from bfsitl.protocol.boxes import BoxId
 from bfsitl.protocol.firmware_profile import FirmwareProfile, Generation
 from bfsitl.scenario.expectations import judge
-from bfsitl.scenario.faults import FAILSAFE_SWITCH_AUX_INDEX, Fault, make_faults
+from bfsitl.scenario.faults import FAILSAFE_SWITCH_AUX_INDEX, Fault, Undo, make_faults
 from bfsitl.scenario.result import ScenarioResult, TimedEvent, Verdict
 from bfsitl.scenario.spec import Scenario
 from bfsitl.scenario.trace import Trace, TraceRow, phase_name
@@ -137,13 +138,12 @@ class _Injector:
         #: Events go to the flight's outputs as well (the MCAP file's /events log).
         self.record = record
         self.pending = sorted(faults, key=lambda f: f.spec.at_s)
-        self.active: list[tuple[float, Fault, Callable[[FlightSession], None]]] = []
+        self.active: list[tuple[float, Fault, Undo]] = []
         self.trace = trace
         self.events = events
         self.progress = progress
         self.armed_at_s: float | None = None
         self.sticks_taken = False
-        self.watching = False
 
     def note(self, time_s: float, text: str) -> None:
         self.events.append(TimedEvent(round(time_s, 3), text))
@@ -159,7 +159,7 @@ class _Injector:
         t = self.since_arming(sample)
         for end_s, fault, undo in list(self.active):
             if t >= end_s:
-                undo(self.session)
+                undo()
                 self.active.remove((end_s, fault, undo))
                 self.note(t, f"{fault.title}: over")
         while self.pending and t >= self.pending[0].spec.at_s:
@@ -172,8 +172,10 @@ class _Injector:
             if fault.takes_sticks:
                 self.sticks_taken = True
         self.trace.rows.append(self._row(t, sample))
-        if self.sticks_taken and not self.watching:
-            raise SticksTakenError("a fault took the sticks")
+
+    def stop(self, _sample: FlightSample) -> str | None:
+        """The autopilot stops flying once a fault has taken its sticks (then it watches)."""
+        return "a fault took the sticks" if self.sticks_taken else None
 
     def _row(self, t: float, sample: FlightSample) -> TraceRow:
         try:
@@ -216,7 +218,7 @@ def run_scenario(scenario: Scenario, firmware: str, options: RunOptions, *,
             result.reason = (f"needs a firmware with GPS; {firmware} has none (`bfsitl "
                              f"firmware build --gps`)")
             return result
-        faults = make_faults(scenario, profile)
+        faults = make_faults(scenario.faults, profile, where=scenario.where)
         _fly(scenario, binary.path, profile, faults, options, result, say)
     except FaultNotSupportedError as exc:
         result.verdict, result.reason = Verdict.SKIPPED, str(exc)
@@ -257,7 +259,8 @@ def _fly(scenario: Scenario, binary: Path, profile: FirmwareProfile, faults: tup
             if session.sitl is not None:
                 result.artifacts["sitl_log"] = session.sitl.log_path
             mission = Mission(session, make_controller(DEFAULT_CONTROLLER),
-                              rate_hz=session.control_rate_hz, on_row=on_row)
+                              rate_hz=session.control_rate_hz,
+                              hooks=FlightHooks(on_step=on_row, stop=injector.stop))
             try:
                 mission.arm()
             except ArmingBlockedError as exc:
@@ -266,7 +269,6 @@ def _fly(scenario: Scenario, binary: Path, profile: FirmwareProfile, faults: tup
             injector.armed_at_s = session.time_s
             injector.note(0.0, "armed")
             _autopilot_flight(scenario, mission, injector, trace)
-            injector.watching = True
             _watch(scenario, mission, injector)
     finally:
         outputs.close()
@@ -292,33 +294,24 @@ def _fly(scenario: Scenario, binary: Path, profile: FirmwareProfile, faults: tup
 
 def _autopilot_flight(scenario: Scenario, mission: Mission, injector: _Injector,
                       trace: Trace) -> None:
-    """The ``[flight]`` table flown until it ends, a fault takes the sticks, or it fails."""
-    plan = scenario.plan
-    session = mission.session
+    """The ``[flight]`` table flown (the session is armed) until it ends, a fault takes the
+    sticks (the mission's stop condition), or it fails."""
+    armed_at_s = injector.armed_at_s or 0.0
 
     def t() -> float:
-        return session.time_s - (injector.armed_at_s or 0.0)
+        return mission.session.time_s - armed_at_s
+
+    def step_done(step: Phase) -> None:
+        if step is Phase.TAKEOFF:
+            trace.takeoff_done_s = round(t(), 3)
+        elif step is Phase.LANDED:
+            injector.note(t(), "the autopilot landed")
 
     try:
-        if plan.ground_s > 0:
-            mission.wait_on_ground(plan.ground_s)
-        position = plan.needs_position or (plan.hold_position and session.has_gps)
-        mission.takeoff(plan.target_alt_m, timeout_s=plan.takeoff_timeout_s,
-                        hold_position=position)
-        trace.takeoff_done_s = round(t(), 3)
-        if plan.hold_s > 0:
-            remaining = min(plan.hold_s, max(0.0, scenario.duration_s - t()))
-            if position:
-                mission.hold_position(remaining)
-            else:
-                mission.hold(remaining)
-        for number, waypoint in enumerate(plan.waypoints, start=1):
-            fly_waypoint(mission, waypoint, number, plan.speed_m_s)
-        if plan.land:
-            mission.land(timeout_s=plan.land_timeout_s)
-            injector.note(t(), "the autopilot landed")
-    except SticksTakenError:
-        injector.note(t(), "the sticks are the FC's now: watching")
+        fly_plan(mission, scenario.plan, arm=False,
+                 time_left_s=lambda: scenario.duration_s - t(), after_step=step_done)
+        if mission.stopped:
+            injector.note(t(), "the sticks are the FC's now: watching")
     except CrashDetectedError as exc:
         trace.crash = (round(t(), 3), str(exc))
         injector.note(t(), f"crash: {exc}")

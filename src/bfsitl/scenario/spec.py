@@ -48,7 +48,7 @@ from bfsitl.physics.wind import (
     MIN_GUST_TIME_CONSTANT_S,
     Wind,
 )
-from bfsitl.toml_file import read_toml_file
+from bfsitl.scenario.faults import FaultSpec, read_fault_spec  # noqa: F401 - FaultSpec re-exported
 
 #: A scenario's file name pattern inside a directory.
 SCENARIO_GLOB = "*.toml"
@@ -60,23 +60,6 @@ _TOP_KEYS = {"name", "description", "firmware", "requires_gps", "duration_s", "s
 #: ``[vehicle] model``: the quads the embedded physics knows.
 VEHICLE_MODELS = {"iris": IRIS}
 _WIND_KEYS = {"north_m_s", "east_m_s", "down_m_s", "gust_std_m_s", "gust_time_constant_s"}
-
-
-@dataclass(frozen=True, slots=True)
-class FaultSpec:
-    """One ``[[fault]]`` table: its kind, when, for how long, and its own parameters (checked
-    by the fault catalog, :func:`bfsitl.scenario.faults.make_fault`)."""
-
-    kind: str
-    at_s: float
-    #: None: it lasts to the end of the run.
-    duration_s: float | None
-    params: tuple[tuple[str, Any], ...]
-    #: "fault 2" in messages.
-    label: str
-
-    def param(self, key: str, default: Any = None) -> Any:
-        return dict(self.params).get(key, default)
 
 
 @dataclass(frozen=True, slots=True)
@@ -164,25 +147,6 @@ def _vehicle(where: str, raw: Any) -> QuadParams:
     return quad
 
 
-def _fault(where: str, number: int, raw: Any, duration_s: float) -> FaultSpec:
-    label = f"fault {number}"
-    if not isinstance(raw, dict):
-        raise ScenarioError(f"{where}, {label}: faults are written as [[fault]] tables")
-    for key in ("kind", "at_s"):
-        if key not in raw:
-            raise ScenarioError(f"{where}, {label}: {key} is missing")
-    kind = raw["kind"]
-    if not isinstance(kind, str):
-        raise ScenarioError(f"{where}, {label}: kind must be a string, got {kind!r}")
-    at_s = _number(where, f"{label} at_s", raw["at_s"], 0.0, duration_s)
-    lasts = raw.get("duration_s")
-    if lasts is not None:
-        lasts = _number(where, f"{label} duration_s", lasts, 0.0, MAX_DURATION_S)
-    params = tuple(sorted((k, v) for k, v in raw.items()
-                          if k not in ("kind", "at_s", "duration_s")))
-    return FaultSpec(kind, at_s, lasts, params, label)
-
-
 def scenario_from_dict(data: dict[str, Any], *, name: str, source: Path | None = None
                        ) -> Scenario:
     """A scenario from a file's tables; ``name`` is used unless the file names itself."""
@@ -206,7 +170,8 @@ def scenario_from_dict(data: dict[str, Any], *, name: str, source: Path | None =
     raw_faults = data.get("fault", [])
     if not isinstance(raw_faults, list):
         raise ScenarioError(f"{where}: faults are written as [[fault]] tables")
-    faults = tuple(_fault(where, n, raw, duration_s) for n, raw in enumerate(raw_faults, 1))
+    faults = tuple(read_fault_spec(raw, where=where, number=n, run_s=duration_s)
+                   for n, raw in enumerate(raw_faults, 1))
     expect = data.get("expect", {})
     if not isinstance(expect, dict) or not expect:
         raise ScenarioError(f"{where}: [expect] is missing or empty: a scenario must say what "
@@ -233,40 +198,3 @@ def scenario_from_dict(data: dict[str, Any], *, name: str, source: Path | None =
         requires_gps=requires_gps,
         settle_s=_number(where, "settle_s", data.get("settle_s", DEFAULT_SETTLE_S), 0.0, 60.0),
         source=source)
-
-
-def load_scenario(path: str | Path) -> Scenario:
-    """Read one scenario file, checked, faults and expectations included."""
-    from bfsitl.scenario.expectations import check_expectations
-    from bfsitl.scenario.faults import check_faults
-
-    path = Path(path)
-    data = read_toml_file(path, "scenario", ScenarioError)
-    scenario = scenario_from_dict(data, name=path.stem, source=path)
-    check_faults(scenario)
-    check_expectations(scenario)
-    return scenario
-
-
-def find_scenarios(paths: list[str | Path]) -> list[Scenario]:
-    """Every scenario named: files as they are, directories by their ``*.toml`` files (sorted;
-    not recursive).  Two scenarios with one name are refused (their reports would clash)."""
-    scenarios: list[Scenario] = []
-    for given in paths:
-        path = Path(given)
-        if path.is_dir():
-            files = sorted(path.glob(SCENARIO_GLOB))
-            if not files:
-                raise ScenarioError(f"{path} holds no scenario files ({SCENARIO_GLOB})")
-        elif path.is_file():
-            files = [path]
-        else:
-            raise ScenarioError(f"{path}: no such scenario file or directory")
-        scenarios.extend(load_scenario(f) for f in files)
-    seen: dict[str, Scenario] = {}
-    for scenario in scenarios:
-        if scenario.name in seen:
-            raise ScenarioError(f"two scenarios are named {scenario.name!r}: "
-                                f"{seen[scenario.name].where} and {scenario.where}")
-        seen[scenario.name] = scenario
-    return scenarios

@@ -180,6 +180,10 @@ class SitlBridge:
             raise SitlError("the firmware profile must be set before the bridge starts")
         self._use_profile(profile, self.encoder.home)
 
+    def set_gps_lost(self, lost: bool) -> None:
+        """Send the GPS loss sentinel from the next packet on (firmware that has one)."""
+        self.encoder.gps_lost = lost
+
     def _use_profile(self, profile: FirmwareProfile, home: GeoPoint) -> None:
         self.encoder = FdmEncoder(profile, home)
         self._motor_slots = profile.motor_slot_of_betaflight_motor

@@ -158,6 +158,10 @@ class LockstepBridge:
     def set_profile(self, profile: FirmwareProfile) -> None:
         self.encoder = FdmEncoder(profile, self.encoder.home)
 
+    def set_gps_lost(self, lost: bool) -> None:
+        """Send the GPS loss sentinel from the next packet on (firmware that has one)."""
+        self.encoder.gps_lost = lost
+
     @property
     def sim_time_s(self) -> float:
         return self.simulator.time_s
@@ -409,8 +413,12 @@ class SteppedLink(Link):
     taken until the timeout, counted in *simulation* seconds, has passed.
     """
 
+    #: The FC reads its TCP port at every step: waiting steps it, no wake bytes needed.
+    wants_wake_bytes = False
+
     def __init__(self, inner: Link, bridge: LockstepBridge) -> None:
         super().__init__(inner.uri, inner.timeout_s)
+        self.max_in_flight_bytes = inner.max_in_flight_bytes
         self.inner = inner
         self.bridge = bridge
 

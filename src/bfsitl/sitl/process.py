@@ -23,6 +23,7 @@ import signal
 import tempfile
 import time
 from collections.abc import Callable, Mapping
+from dataclasses import dataclass
 from pathlib import Path
 
 from bfsitl.errors import (
@@ -78,6 +79,20 @@ def _load_average() -> str:
         return "load average unknown"
 
 
+@dataclass(frozen=True, slots=True)
+class SitlHooks:
+    """What a backend does to a SITL process, given when the process is made."""
+
+    #: Called right after each launch, before the SITL is probed (a lockstep bridge locks
+    #: the booting FC to the simulator's clock here).
+    on_spawn: Callable[[], None] | None = None
+    #: Wraps every MSP link this process opens (lockstep: a link whose waits step the
+    #: simulation).
+    link_wrapper: Callable[[Link], Link] | None = None
+    #: The clock its MSP clients time out on (lockstep: simulation time).
+    client_clock: Callable[[], float] | None = None
+
+
 class SitlProcess:
     """One SITL process in a run directory, optionally in its own network namespace.
 
@@ -96,6 +111,7 @@ class SitlProcess:
         progress: Callable[[str], None] | None = None,
         timer_slack_ns: int | None = SITL_TIMER_SLACK_NS,
         env: Mapping[str, str] | None = None,
+        hooks: SitlHooks | None = None,
     ) -> None:
         self.firmware = (
             firmware if isinstance(firmware, FirmwareBinary) else find_firmware(firmware)
@@ -125,13 +141,8 @@ class SitlProcess:
         self.launches = 0
         #: The readiness probe's MSP_API_VERSION reply, for the profile's detection.
         self._ready_api: ApiVersion | None = None
-        #: Called right after each launch, before the SITL is probed (a lockstep bridge locks
-        #: the booting FC to the simulator's clock here).
-        self.on_spawn: Callable[[], None] | None = None
-        #: Wraps every MSP link this process opens, with the clock its clients time out on
-        #: (lockstep: a link whose waits step the simulation, and simulation time).
-        self.link_wrapper: Callable[[Link], Link] | None = None
-        self.client_clock: Callable[[], float] | None = None
+        #: What a backend does at each launch and to each MSP link (:class:`SitlHooks`).
+        self.hooks = hooks or SitlHooks()
 
     # -- state -----------------------------------------------------------------------------
     @property
@@ -194,8 +205,8 @@ class SitlProcess:
                 env={**os.environ, **self.env} if self.env is not None else None)
             self.launches += 1
             try:
-                if self.on_spawn is not None:
-                    self.on_spawn()
+                if self.hooks.on_spawn is not None:
+                    self.hooks.on_spawn()
                 self._ready_api = None
                 self.client = self._wait_ready(self.ready_timeout_s, server_check)
                 self._check_pid_loop(self.client)
@@ -303,11 +314,11 @@ class SitlProcess:
             raise SitlError("SITL not started")
         link: Link = TcpLink(SITL_HOST, SITL_MSP_PORT, timeout_s=timeout_s,
                              socket_factory=self.network.socket)
-        if self.link_wrapper is None:
-            return MspClient(link, timeout_s=timeout_s, retries=retries)
-        # Stepped: the FC reads TCP at every packet, so no wake bytes; time is simulated.
-        return MspClient(self.link_wrapper(link), timeout_s=timeout_s, retries=retries,
-                         wake_interval_s=None, clock=self.client_clock or time.monotonic)
+        hooks = self.hooks
+        if hooks.link_wrapper is not None:
+            link = hooks.link_wrapper(link)  # the link brings its own wake policy
+        return MspClient(link, timeout_s=timeout_s, retries=retries,
+                         clock=hooks.client_clock or time.monotonic)
 
     def wait_exit(self, timeout_s: float) -> int | None:
         """Wait for the process to end by itself (after a reboot); its exit code or None."""

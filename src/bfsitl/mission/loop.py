@@ -1,0 +1,534 @@
+"""The flight loop: :class:`Mission`, closed-loop manoeuvres over a started vehicle.
+
+The loop (``rate_hz`` in simulation time): sample the FC and the truth, estimate the climb
+rate from the FC's altitude, ask the controller for a throttle (and, in position control, the
+position loop for the sticks), send it, record a row, call the hooks
+(:class:`~bfsitl.mission.hooks.FlightHooks`).  The controllers see only what a real board
+would report (FC altitude, not the simulated truth); the truth is recorded next to it to
+judge them.  Manoeuvres raise on trouble (a crash, a disarm, a timeout);
+:func:`~bfsitl.mission.plan_driver.run_mission` turns that into an outcome.
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from collections.abc import Callable
+from dataclasses import replace
+
+from bfsitl.control.base import (
+    AltitudeController,
+    AltitudeInput,
+    DetectsTouchdown,
+    EstimatesAltitude,
+    KnowsHover,
+    ObservesGround,
+    TakesHoverEstimate,
+)
+from bfsitl.control.heading import heading_error_deg
+from bfsitl.errors import (
+    CrashDetectedError,
+    MissionError,
+    MissionTimeoutError,
+)
+from bfsitl.fc.rc_link import RC_MID_US, RC_MIN_US
+from bfsitl.mission.climb_rate import ClimbRateEstimator
+from bfsitl.mission.flight_log import CsvFlightLog, FlightRow
+from bfsitl.mission.flight_metrics import judged_position
+from bfsitl.mission.hooks import EventCallback, FlightHooks, RowCallback
+from bfsitl.mission.legs import LegPoint, LegReference, LegStats, leg_stats
+from bfsitl.mission.phase import Phase
+from bfsitl.mission.position_steering import PositionSteering, PositionTarget
+from bfsitl.mission.results import Outcome
+from bfsitl.mission.throttle_sources import FixedThrottle, GroundObserver
+from bfsitl.mission.vehicle import (
+    SWITCH_OFF_US,
+    SWITCH_ON_US,
+    FlightSample,
+    SessionClock,
+    Vehicle,
+)
+
+DEFAULT_RATE_HZ = 50.0
+#: "Reached" means within this band of the target, nearly still, for REACHED_HOLD_S.
+REACHED_BAND_M = 0.05
+REACHED_CLIMB_M_S = 0.10
+REACHED_HOLD_S = 0.5
+#: After this long trying, "reached" takes twice the band and the climb rate: in gusts the
+#: height wanders by more than 5 cm, and a take-off that is there must not time out for it.
+REACHED_PATIENCE_S = 8.0
+#: Tilt beyond which the vehicle is taken as crashed (ANGLE mode limits it to about 55 deg).
+CRASH_TILT_DEG = 70.0
+#: Hitting the ground faster than this is a crash, not a landing.
+CRASH_TOUCHDOWN_M_S = 2.5
+
+
+class Mission(PositionSteering):
+    """Closed-loop manoeuvres on a started vehicle: a simulated :class:`FlightSession` or a
+    board (:class:`~bfsitl.mission.board.BoardVehicle`).
+
+    >>> mission = Mission(session, CascadedAltitudeController())   # doctest: +SKIP
+    >>> mission.arm(); mission.takeoff(2.0); mission.hold(10); mission.land()
+    """
+
+    def __init__(
+        self,
+        session: Vehicle,
+        controller: AltitudeController,
+        *,
+        landing: AltitudeController | None = None,
+        rate_hz: float = DEFAULT_RATE_HZ,
+        log: CsvFlightLog | None = None,
+        on_row: RowCallback | None = None,
+        on_event: EventCallback | None = None,
+        hooks: FlightHooks | None = None,
+    ) -> None:
+        """``hooks`` (or, for short, ``on_row`` and ``on_event``): see
+        :class:`~bfsitl.mission.hooks.FlightHooks`."""
+        if not 1.0 <= rate_hz <= 200.0:
+            raise MissionError(f"control rate {rate_hz} Hz is outside 1..200 Hz")
+        self.session = session
+        self.controller = controller
+        if landing is None:
+            from bfsitl.control.landing import LandingController
+
+            landing = LandingController()
+        self.landing = landing
+        self.rate_hz = rate_hz
+        self.log = log
+        self.rows: list[FlightRow] = []
+        hooks = hooks or FlightHooks()
+        self.hooks = replace(hooks, on_step=hooks.on_step or on_row,
+                             on_event=hooks.on_event or on_event)
+        self.target_alt_m = 0.0
+        self._phase = Phase.ARMING
+        #: Why the stop condition ended the flying (None while it flies on).
+        self.stopped: str | None = None
+        self.last_sample: FlightSample | None = None
+        self._on_row = self.hooks.on_step
+        self._on_event = self.hooks.on_event or (lambda _message: None)
+        self._climb = ClimbRateEstimator()
+        self._started_wall_s = time.monotonic()
+        self._init_steering(session, rate_hz)
+        #: One entry per leg flown by :meth:`fly_to`.
+        self.legs: list[LegStats] = []
+
+    @property
+    def phase(self) -> Phase:
+        """What the flight is doing now."""
+        return self._phase
+
+    @phase.setter
+    def phase(self, phase: Phase) -> None:
+        if phase != self._phase and self.hooks.on_phase is not None:
+            self.hooks.on_phase(phase)
+        self._phase = phase
+
+    # -- manoeuvres ------------------------------------------------------------------------
+    def arm(self) -> None:
+        self.phase = Phase.ARMING
+        self._on_event("arming: waiting for the FC's blockers to clear")
+        self.session.arm()
+        self._climb.reset()
+        self.position.reset(self.session.time_s)  # nothing learnt of the wind yet
+        if self.horizontal is not None:
+            self.horizontal.started = False
+        self.controller.reset(self.session.time_s)
+        self._on_event(f"armed {self.session.armed_after_s:.1f} s after start")
+
+    def wait_on_ground(self, seconds: float) -> None:
+        """Stay armed at idle for ``seconds``: the FC's altitude filter, which restarts from
+        zero at arming, settles, and a controller with ``observe_ground`` (the fused one) learns
+        the barometer's zero error from the vehicle at rest, where the truth is known."""
+        if self.stopped:
+            return
+        self._on_event(f"on the ground for {seconds:g} s (the barometer settles)")
+        end_s = self.session.time_s + seconds
+        self._fly(Phase.GROUND, 0.0, lambda s: s.time_s >= end_s, timeout_s=seconds + 5,
+                  controller=GroundObserver(self.controller))
+        if not isinstance(self.controller, ObservesGround):
+            # It saw nothing of the wait: start its clock now, as if it had just been armed
+            # (a PID would otherwise integrate the whole wait in its first step).
+            self.controller.reset(self.session.time_s)
+
+    def takeoff(self, altitude_m: float, *, timeout_s: float = 20.0,
+                hold_position: bool = False) -> float:
+        """Climb to ``altitude_m`` above the take-off point; returns the sim time it took.
+
+        ``hold_position`` (GPS builds) holds the take-off point on the way up: without it,
+        wind carries the vehicle off while it climbs."""
+        if self.stopped:
+            return 0.0
+        self._on_event(f"take-off to {altitude_m:.2f} m"
+                       + (", holding the take-off point" if hold_position else ""))
+        if not hold_position:
+            return self._reach(Phase.TAKEOFF, altitude_m, timeout_s)
+        here = self._position_target(0.0, 0.0)
+        self._target_ne = here
+        steer = self._position_steer(self._fixed(here, alt_m=altitude_m), 0)
+        self.position.resume(self.session.time_s)
+        try:
+            return self._reach(Phase.TAKEOFF, altitude_m, timeout_s, steer=steer)
+        finally:
+            self._end_position_control()
+
+    def goto(self, altitude_m: float, *, timeout_s: float = 20.0) -> float:
+        if self.stopped:
+            return 0.0
+        self._on_event(f"go to {altitude_m:.2f} m")
+        return self._reach(Phase.GOTO, altitude_m, timeout_s)
+
+    def hold(self, seconds: float, *, roll_us: float = RC_MID_US, pitch_us: float = RC_MID_US,
+             yaw_us: float = RC_MID_US) -> None:
+        """Hold the altitude for ``seconds`` of simulation time.
+
+        Off-centre ``roll_us`` / ``pitch_us`` / ``yaw_us`` are held for the whole time (a stick
+        step: in ANGLE mode roll and pitch set an angle, yaw a rate) and centred again at the
+        end; the altitude controller keeps working throughout.
+        """
+        if self.stopped:
+            return
+        sticks = (roll_us, pitch_us, yaw_us)
+        stepped = any(value != RC_MID_US for value in sticks)
+        what = (f" with sticks roll {roll_us:.0f}, pitch {pitch_us:.0f}, yaw {yaw_us:.0f} us"
+                if stepped else "")
+        self._on_event(f"hold {self.target_alt_m:.2f} m for {seconds:g} s{what}")
+        end_s = self.session.time_s + seconds
+        self.session.set_rc(replace(self.session.rc_command, roll_us=roll_us,
+                                    pitch_us=pitch_us, yaw_us=yaw_us))
+        try:
+            self._fly(Phase.HOLD, self.target_alt_m, lambda s: s.time_s >= end_s,
+                      timeout_s=seconds + 5)
+        finally:
+            if stepped:
+                self.session.set_rc(replace(self.session.rc_command, roll_us=RC_MID_US,
+                                            pitch_us=RC_MID_US, yaw_us=RC_MID_US))
+
+    # -- position and heading ----------------------------------------------------------------
+    def hold_position(self, seconds: float, north_m: float | None = None,
+                      east_m: float | None = None, *, waypoint: int = 0) -> None:
+        """Hold the altitude and a position (metres from the take-off point; default: the
+        last position target, else where the FC's GPS is now) for ``seconds``, steering
+        through ANGLE mode and holding the heading."""
+        if self.stopped:
+            return
+        target = self._position_target(north_m, east_m)
+        self._on_event(f"hold {target[0]:+.1f} m N {target[1]:+.1f} m E, "
+                       f"{self.target_alt_m:.2f} m up, for {seconds:g} s")
+        end_s = self.session.time_s + seconds
+        self._fly_position(Phase.HOLD, self._fixed(target), lambda s: s.time_s >= end_s,
+                           seconds + 5, waypoint=waypoint)
+
+    def fly_to(self, north_m: float, east_m: float, alt_m: float | None = None, *,
+               speed_m_s: float | None = None, tolerance_m: float = 0.15,
+               timeout_s: float | None = None, waypoint: int = 0) -> float:
+        """Fly a straight leg to a position (metres from the take-off point) and altitude
+        (default: the one held), at ``speed_m_s`` (default: the position gains' top speed).
+
+        The leg starts at the last position target (where the previous leg ended) or, before
+        any, where the FC's GPS is.  It is reached once the travelling reference has stopped
+        at the end and the FC's GPS puts the vehicle within ``tolerance_m`` of it, slower than
+        0.3 m/s (tight, because the GPS's own error adds to it).  Returns the simulation time
+        it took; the leg's figures (arrival error and cross-track, from the truth) are
+        appended to :attr:`legs`.
+        """
+        if self.stopped:
+            return 0.0
+        start = self._position_target(None, None)
+        start_alt_m = self.target_alt_m
+        end = (north_m, east_m, start_alt_m if alt_m is None else alt_m)
+        speed = self.position.gains.max_speed_m_s if speed_m_s is None else speed_m_s
+        reference = LegReference((start[0], start[1], start_alt_m), end, speed)
+        if timeout_s is None:
+            timeout_s = 20.0 + 3.0 * reference.duration_s
+        label = f"waypoint {waypoint}: " if waypoint else ""
+        self._on_event(f"{label}fly to {north_m:+.1f} m N {east_m:+.1f} m E, {end[2]:.2f} m "
+                       f"up ({reference.length_m:.1f} m at {speed:g} m/s)")
+        started_s = self.session.time_s
+        first_row = len(self.rows)
+        finished = [False]
+
+        def target(elapsed_s: float) -> LegPoint:
+            point = reference.at(elapsed_s)
+            finished[0] = point.finished
+            return point
+
+        def arrived(_sample: FlightSample) -> bool:
+            gps = self.last_gps
+            return finished[0] and gps is not None and math.hypot(
+                gps.north_m - north_m, gps.east_m - east_m) <= tolerance_m \
+                and math.hypot(gps.v_north_m_s, gps.v_east_m_s) < 0.3
+
+        self._fly_position(Phase.GOTO, target, arrived, timeout_s, waypoint=waypoint)
+        if self.stopped:
+            return self.session.time_s - started_s  # not arrived: no leg to judge
+        self._target_ne = (north_m, east_m)
+        took_s = self.session.time_s - started_s
+        self.legs.append(leg_stats(waypoint or len(self.legs) + 1, start, end,
+                                   [judged_position(r) for r in self.rows[first_row:]], took_s))
+        return took_s
+
+    def yaw_to(self, heading_deg: float, *, tolerance_deg: float = 2.0,
+               timeout_s: float = 30.0) -> float:
+        """Turn to ``heading_deg`` (clockwise from north), holding the altitude, and the
+        position on a GPS build; reached when the FC's heading stays within ``tolerance_deg``
+        for half a second.  Returns the simulation time it took."""
+        if self.stopped:
+            return 0.0
+        target_deg = heading_deg % 360.0
+        self._on_event(f"turn to heading {target_deg:.0f} deg")
+        self.target_heading_deg = target_deg
+        started_s = self.session.time_s
+        within_since: list[float] = []
+
+        def turned(sample: FlightSample) -> bool:
+            if abs(heading_error_deg(target_deg, sample.yaw_deg)) > tolerance_deg:
+                within_since.clear()
+                return False
+            if not within_since:
+                within_since.append(sample.time_s)
+            return sample.time_s - within_since[0] >= REACHED_HOLD_S
+
+        if self.session.has_gps:
+            here = self._position_target(None, None)
+            self._fly_position(Phase.YAW, self._fixed(here), turned, timeout_s)
+        else:
+            self._fly(Phase.YAW, self.target_alt_m, turned, timeout_s=timeout_s,
+                      steer=self._steer_heading)
+            self._set_sticks(yaw_us=RC_MID_US)
+        return self.session.time_s - started_s
+
+    def _fly_position(self, phase: Phase, target: PositionTarget,
+                      done: Callable[[FlightSample], bool], timeout_s: float, *,
+                      waypoint: int = 0, controller: AltitudeController | None = None) -> None:
+        steer = self._position_steer(target, waypoint)
+        self.position.resume(self.session.time_s)
+        try:
+            self._fly(phase, target(0.0).alt_m, done, timeout_s=timeout_s, steer=steer,
+                      controller=controller)
+        finally:
+            self._end_position_control()
+
+    def hand_over(self, seconds: float, *, switches: tuple[int, ...], throttle_us: float,
+                  phase: Phase = Phase.FC_MODE) -> None:
+        """Give the flight to the firmware's own modes for ``seconds``: the AUX channels
+        ``switches`` (0-based: 2 is AUX3) on, roll, pitch and yaw centred, the throttle held
+        at ``throttle_us`` (ALTHOLD reads it as a climb-rate stick around its hover value).
+        Rows are recorded as usual; the switches go off again at the end.  For comparing
+        bfsitl's control with the firmware's ALTHOLD / POSHOLD on the same vehicle."""
+        if self.stopped:
+            return
+        self._on_event(f"handing over to the FC's modes (AUX "
+                       f"{', '.join(str(i + 1) for i in switches)}) for {seconds:g} s")
+        self._set_sticks(roll_us=RC_MID_US, pitch_us=RC_MID_US, yaw_us=RC_MID_US)
+        command = self.session.rc_command
+        for index in switches:
+            command = command.with_aux(index, SWITCH_ON_US)
+        self.session.set_rc(command)
+        end_s = self.session.time_s + seconds
+        try:
+            self._fly(phase, self.target_alt_m, lambda s: s.time_s >= end_s,
+                      timeout_s=seconds + 5, controller=FixedThrottle(throttle_us))
+        finally:
+            command = self.session.rc_command
+            for index in switches:
+                command = command.with_aux(index, SWITCH_OFF_US)
+            self.session.set_rc(command)
+
+    def observe(self, done: Callable[[FlightSample], bool], *, timeout_s: float,
+                phase: Phase = Phase.OBSERVE) -> None:
+        """Record rows without flying: the sticks stay as they are, because something else
+        has the vehicle (an injected RC fault, the FC's failsafe).  Nothing is judged here (a
+        disarm or a crash is what a scenario watches for); ends when ``done`` says so or
+        after ``timeout_s`` of simulation time."""
+        self.phase = phase
+        clock = self.session.clock
+        period_s = 1.0 / self.rate_hz
+        deadline_s = self.session.time_s + timeout_s
+        next_s = clock.now_s()
+        while True:
+            sample = self.session.sample()
+            climb_m_s = self._climb.update(sample.time_s, sample.fc_alt_m)
+            self._record(phase, self.target_alt_m, sample, climb_m_s)
+            if done(sample) or sample.time_s >= deadline_s:
+                return
+            next_s = next_step(clock, next_s, period_s)
+
+    def land(self, *, timeout_s: float = 30.0) -> None:
+        """Descend, touch down, cut the throttle, disarm."""
+        if self.stopped:
+            return
+        self._on_event("landing")
+        landing = self.landing
+        if not isinstance(landing, DetectsTouchdown):
+            raise MissionError("the landing controller has no touched_down property "
+                               "(bfsitl.control.base.DetectsTouchdown)")
+        # Start the descent from the flying controller's hover estimate, not a guess.
+        if isinstance(self.controller, KnowsHover) and isinstance(landing, TakesHoverEstimate):
+            landing.set_hover_estimate(self.controller.hover_throttle_us)
+        landing.reset(self.session.time_s)
+
+        def touched_down(_sample: FlightSample) -> bool:
+            return bool(landing.touched_down)
+
+        if self._target_ne is not None:
+            # After position control the descent holds the position too: wind would
+            # otherwise carry the vehicle off while it sinks.
+            self._fly_position(Phase.LAND, self._fixed(self._target_ne, alt_m=0.0), touched_down,
+                               timeout_s, controller=self.landing)
+        else:
+            self._fly(Phase.LAND, 0.0, touched_down, timeout_s=timeout_s, controller=self.landing)
+        if self.stopped:
+            return  # the sticks are not ours to disarm with
+        self._on_event("touched down; disarming")
+        self.phase = Phase.LANDED
+        if not self.session.disarm():
+            raise MissionError("the FC did not disarm after touch-down")
+        sample = self.session.sample()
+        self._record(Phase.LANDED, 0.0, sample, self._climb.update(sample.time_s, sample.fc_alt_m))
+        self._on_event("disarmed")
+
+    # -- the loop --------------------------------------------------------------------------
+    def _reach(self, phase: Phase, altitude_m: float, timeout_s: float, *,
+               steer: Callable[[FlightSample], float | None] | None = None) -> float:
+        start_s = self.session.time_s
+        settled_since: list[float] = []
+
+        def reached(sample: FlightSample) -> bool:
+            # The FC's reading, or the controller's own estimate when it keeps one (it knows
+            # the FC's zero error, which on master can exceed the band).
+            estimate = self.controller.altitude_estimate_m \
+                if isinstance(self.controller, EstimatesAltitude) else None
+            widen = 2.0 if sample.time_s - start_s >= REACHED_PATIENCE_S else 1.0
+            band_m = REACHED_BAND_M * widen
+            within = abs(sample.fc_alt_m - altitude_m) <= band_m or (
+                estimate is not None and abs(estimate - altitude_m) <= band_m)
+            near = within and \
+                abs(self._climb.rate_m_s) <= REACHED_CLIMB_M_S * widen
+            if not near:
+                settled_since.clear()
+                return False
+            if not settled_since:
+                settled_since.append(sample.time_s)
+            return sample.time_s - settled_since[0] >= REACHED_HOLD_S
+
+        self._fly(phase, altitude_m, reached, timeout_s=timeout_s, steer=steer)
+        took_s = self.session.time_s - start_s
+        if self.stopped:
+            return took_s
+        self._on_event(f"reached {altitude_m:.2f} m after {took_s:.1f} s")
+        return took_s
+
+    def _fly(
+        self, phase: Phase, target_alt_m: float, done: Callable[[FlightSample], bool], *,
+        timeout_s: float, controller: AltitudeController | None = None,
+        steer: Callable[[FlightSample], float | None] | None = None,
+    ) -> None:
+        if self.stopped:
+            return
+        controller = controller or self.controller
+        self.phase, self.target_alt_m = phase, target_alt_m
+        clock = self.session.clock
+        period_s = 1.0 / self.rate_hz  # in simulation time, whatever the pace
+        deadline_s = self.session.time_s + timeout_s
+        next_s = clock.now_s()
+        while True:
+            sample = self.session.sample()
+            climb_m_s = self._climb.update(sample.time_s, sample.fc_alt_m)
+            self._check(sample)
+            if steer is not None:
+                moved_alt_m = steer(sample)  # sticks, and a moving altitude target on legs
+                if moved_alt_m is not None:
+                    target_alt_m = self.target_alt_m = moved_alt_m
+            throttle_us = controller.update(
+                AltitudeInput(sample.time_s, sample.fc_alt_m, climb_m_s, target_alt_m,
+                              accel_up_m_s2=sample.fc_accel_up_m_s2))
+            if not math.isfinite(throttle_us):
+                raise MissionError(f"controller {getattr(controller, 'name', controller)} "
+                                   f"returned throttle {throttle_us}")
+            self.session.set_throttle(throttle_us)
+            self._record(phase, target_alt_m, sample, climb_m_s)
+            if self._stop_asked(sample) or done(sample):
+                return
+            if sample.time_s >= deadline_s:
+                raise MissionTimeoutError(
+                    f"{phase} did not finish within {timeout_s:.0f} s of simulation time "
+                    f"(FC altitude {sample.fc_alt_m:.2f} m, target {target_alt_m:.2f} m)")
+            next_s = next_step(clock, next_s, period_s)
+
+    def _stop_asked(self, sample: FlightSample) -> bool:
+        """Whether the stop condition ends the flying here (the reason is kept)."""
+        if self.hooks.stop is None:
+            return False
+        reason = self.hooks.stop(sample)
+        if reason is None:
+            return False
+        self.stopped = reason
+        self._on_event(f"stopped flying: {reason}")
+        return True
+
+    def _check(self, sample: FlightSample) -> None:
+        # The truth when the physics is ours; the FC's attitude otherwise (Gazebo).
+        tilt_deg = sample.sim_tilt_deg if math.isfinite(sample.sim_tilt_deg) else \
+            max(abs(sample.roll_deg), abs(sample.pitch_deg))
+        if tilt_deg > CRASH_TILT_DEG:
+            raise CrashDetectedError(f"the vehicle tipped over ({tilt_deg:.0f} deg "
+                                     f"from level at t={sample.time_s:.1f} s)")
+        if sample.on_ground and sample.sim_climb_m_s < -CRASH_TOUCHDOWN_M_S:
+            raise CrashDetectedError(f"hit the ground at {-sample.sim_climb_m_s:.1f} m/s")
+        if not sample.armed:
+            names = ", ".join(sample.arming_blockers) or "no blocker reported"
+            raise MissionError(f"the FC disarmed during {self.phase} ({names})")
+
+    def _record(self, phase: str, target_alt_m: float, sample: FlightSample,
+                climb_m_s: float) -> FlightRow:
+        """One row of the log; ``phase`` is a :class:`Phase`, or an :class:`Outcome`'s value
+        for the last row of a flight that did not land."""
+        rc = self.session.rc_command  # what goes out from this step on
+        aux = tuple(rc.aux_us) + (SWITCH_OFF_US, SWITCH_OFF_US)
+        row = FlightRow(
+            time_s=sample.time_s, phase=phase, target_alt_m=target_alt_m,
+            sim_alt_m=sample.sim_alt_m, fc_alt_m=sample.fc_alt_m, climb_m_s=climb_m_s,
+            sim_climb_m_s=sample.sim_climb_m_s, fc_accel_up_m_s2=sample.fc_accel_up_m_s2,
+            roll_deg=sample.roll_deg, pitch_deg=sample.pitch_deg, yaw_deg=sample.yaw_deg,
+            sim_tilt_deg=sample.sim_tilt_deg, sim_roll_deg=sample.sim_roll_deg,
+            sim_pitch_deg=sample.sim_pitch_deg, sim_yaw_deg=sample.sim_yaw_deg,
+            rc_roll_us=round(rc.roll_us), rc_pitch_us=round(rc.pitch_us),
+            rc_throttle_us=round(rc.throttle_us), rc_yaw_us=round(rc.yaw_us),
+            rc_aux1_us=round(aux[0]), rc_aux2_us=round(aux[1]),
+            motor1=sample.motors[0], motor2=sample.motors[1], motor3=sample.motors[2],
+            motor4=sample.motors[3], armed=sample.armed,
+            wall_s=sample.wall_s - self._started_wall_s,
+            sim_north_m=sample.sim_north_m, sim_east_m=sample.sim_east_m,
+            waypoint=self._waypoint, **self._position_columns,
+        )
+        self.rows.append(row)
+        self.last_sample = sample
+        if self.log is not None:
+            self.log.write(row)
+        if self._on_row is not None:
+            self._on_row(row, sample)
+        return row
+
+    def abort(self, ending: Outcome) -> None:
+        """Sticks to disarm now (the RC link repeats it on close) and record the final row."""
+        session = self.session
+        if session.rc is None:
+            return
+        safe = replace(session.rc_command, throttle_us=RC_MIN_US,
+                       aux_us=(SWITCH_OFF_US, SWITCH_OFF_US))
+        session.set_rc(safe)
+        if self.last_sample is not None:
+            self._record(ending.value, self.target_alt_m, self.last_sample,
+                         self._climb.rate_m_s)
+
+
+def next_step(clock: SessionClock, next_s: float, period_s: float) -> float:
+    """Let simulation time pass to the next control step; its time.  A late step is taken at
+    once and the schedule restarts from it: no burst of steps to catch up."""
+    next_s += period_s
+    delay_s = next_s - clock.now_s()
+    if delay_s > 0:
+        clock.sleep_s(delay_s)
+        return next_s
+    return clock.now_s()

@@ -1,0 +1,145 @@
+"""Position and heading control inside the flight loop: the FC's GPS made local, the ANGLE
+stick curve, the position loop's sticks and the heading hold.
+
+:class:`PositionSteering` is the part of :class:`~bfsitl.mission.loop.Mission` that steers;
+the loop calls :meth:`PositionSteering._position_steer` once per step of a position
+manoeuvre and records the columns it leaves in :attr:`_position_columns`.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable
+from dataclasses import replace
+
+from bfsitl.control.angle_sticks import AngleStickMap
+from bfsitl.control.heading import HeadingController
+from bfsitl.control.horizontal_estimator import (
+    HorizontalEstimator,
+    specific_force_north_east,
+)
+from bfsitl.control.position import PositionController, PositionGains, PositionInput
+from bfsitl.errors import MissionError, MspErrorReply
+from bfsitl.fc.rc_link import RC_MID_US
+from bfsitl.mission.legs import LegPoint
+from bfsitl.mission.vehicle import FlightSample, GpsPosition, Vehicle
+from bfsitl.protocol import msp_messages as msg
+
+#: Time since the manoeuvre began -> where the position and altitude targets are.
+PositionTarget = Callable[[float], LegPoint]
+
+
+class PositionSteering:
+    """Steering state and steps (see the module docstring)."""
+
+    session: Vehicle
+    target_alt_m: float
+    _waypoint: int
+
+    def _init_steering(self, session: Vehicle, rate_hz: float) -> None:
+        self.session = session
+        self.position = PositionController(PositionGains.for_loop_rate(rate_hz))
+        #: Fuses the FC's accelerometer with its GPS for the position loop (None: the GPS
+        #: alone, extrapolated by the gains' lead).
+        self.horizontal: HorizontalEstimator | None = None
+        #: The FC's ANGLE-mode stick curve, read from it at the first position manoeuvre.
+        self.sticks: AngleStickMap | None = None
+        #: The FC's GPS and the target of the step being recorded (position control only).
+        self._position_columns: dict[str, float] = {}
+        self.last_gps: GpsPosition | None = None
+        self.heading = HeadingController()
+        #: The heading held during position control and turned to by ``yaw_to``.
+        self.target_heading_deg: float | None = None
+        #: The last position target (north, east): where the next leg starts.
+        self._target_ne: tuple[float, float] | None = None
+        self._waypoint = 0  # the waypoint being flown to or held (a log column)
+
+    def _fixed(self, north_east: tuple[float, float], *, alt_m: float | None = None
+               ) -> PositionTarget:
+        """A position target that stays put, at ``alt_m`` (default: the altitude held)."""
+        point = LegPoint(north_east[0], north_east[1],
+                         self.target_alt_m if alt_m is None else alt_m, 0.0, 0.0, 0.0, 0.0, True)
+        return lambda _elapsed_s: point
+
+    def _position_target(self, north_m: float | None, east_m: float | None
+                         ) -> tuple[float, float]:
+        """The given coordinates, else the last target, else where the FC's GPS is now."""
+        if self._target_ne is None:
+            gps = self._gps()
+            self._target_ne = (gps.north_m, gps.east_m)
+        return (self._target_ne[0] if north_m is None else north_m,
+                self._target_ne[1] if east_m is None else east_m)
+
+    def _gps(self) -> GpsPosition:
+        try:
+            gps = self.session.gps_position()
+        except MspErrorReply as exc:
+            raise MissionError(
+                "position control needs the FC's GPS, and this firmware has none (it refused "
+                "MSP_RAW_GPS): fly a GPS build (`bfsitl firmware build --gps`, add --lockstep "
+                "for lockstep; master always has it)") from exc
+        if not gps.has_fix:
+            raise MissionError(f"the FC's GPS has no fix ({gps.satellites} satellites): "
+                               f"position control needs one")
+        self.last_gps = gps
+        return gps
+
+    def _stick_map(self) -> AngleStickMap:
+        if self.sticks is None:
+            client = self.session.client
+            self.sticks = AngleStickMap.from_replies(client.get(msg.RcTuning),
+                                                     client.get(msg.PidAdvanced))
+        return self.sticks
+
+    def _set_sticks(self, *, roll_us: float | None = None, pitch_us: float | None = None,
+                    yaw_us: float | None = None) -> None:
+        rc = self.session.rc_command
+        self.session.set_rc(replace(
+            rc, roll_us=rc.roll_us if roll_us is None else roll_us,
+            pitch_us=rc.pitch_us if pitch_us is None else pitch_us,
+            yaw_us=rc.yaw_us if yaw_us is None else yaw_us))
+
+    def _steer_heading(self, sample: FlightSample) -> None:
+        """Yaw towards :attr:`target_heading_deg` (set to the heading now if there is none)."""
+        if self.target_heading_deg is None:
+            self.target_heading_deg = sample.yaw_deg % 360.0
+        rate = self.heading.rate_deg_s(sample.yaw_deg, self.target_heading_deg)
+        self._set_sticks(yaw_us=self._stick_map().yaw_stick_us(rate))
+        self._position_columns["target_heading_deg"] = self.target_heading_deg
+
+    def _position_steer(self, target: PositionTarget, waypoint: int
+                        ) -> Callable[[FlightSample], float | None]:
+        """One step of position and heading control towards ``target``: sets the roll,
+        pitch and yaw sticks, returns the altitude target."""
+        sticks = self._stick_map()
+        started_s = self.session.time_s
+
+        def steer(sample: FlightSample) -> float | None:
+            gps = self._gps()
+            point = target(sample.time_s - started_s)
+            north, east = point.north_m, point.east_m
+            here = (gps.north_m, gps.east_m, gps.v_north_m_s, gps.v_east_m_s)
+            if self.horizontal is not None and all(map(math.isfinite,
+                                                       sample.fc_accel_flu_m_s2)):
+                a_north, a_east = specific_force_north_east(
+                    sample.fc_accel_flu_m_s2, sample.roll_deg, sample.pitch_deg,
+                    sample.yaw_deg)
+                fused = self.horizontal.update(sample.time_s, a_north, a_east, here)
+                here = (fused.north_m, fused.east_m, fused.v_north_m_s, fused.v_east_m_s)
+            tilt = self.position.update(PositionInput(
+                sample.time_s, *here, sample.yaw_deg, north, east, point.v_north_m_s,
+                point.v_east_m_s, point.a_north_m_s2, point.a_east_m_s2))
+            self._set_sticks(roll_us=sticks.stick_us("roll", tilt.roll_deg),
+                             pitch_us=sticks.stick_us("pitch", tilt.pitch_deg))
+            self._position_columns = {
+                "fc_north_m": gps.north_m, "fc_east_m": gps.east_m,
+                "target_north_m": north, "target_east_m": east}
+            self._waypoint = waypoint
+            self._steer_heading(sample)
+            return point.alt_m
+
+        return steer
+
+    def _end_position_control(self) -> None:
+        self._position_columns, self._waypoint = {}, 0
+        self._set_sticks(roll_us=RC_MID_US, pitch_us=RC_MID_US, yaw_us=RC_MID_US)

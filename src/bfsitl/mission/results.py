@@ -1,0 +1,89 @@
+"""What a flown mission comes to: how it ended (:class:`Outcome`) and its figures
+(:class:`MissionResult`), JSON-ready through :meth:`MissionResult.summary`."""
+
+from __future__ import annotations
+
+import enum
+import math
+from dataclasses import dataclass, field
+from typing import Any
+
+from bfsitl.mission.flight_log import FlightRow
+from bfsitl.mission.flight_metrics import (
+    AttitudeTracking,
+    HoldStats,
+    cross_track_rms,
+    landed_from_start_m,
+)
+from bfsitl.mission.legs import LegStats
+from bfsitl.mission.plan import MissionPlan
+
+
+class Outcome(enum.Enum):
+    LANDED = "landed"
+    COMPLETED = "completed"       # a plan with land = false: ended in the air
+    ARMING_BLOCKED = "arming-blocked"
+    SITL_EXITED = "sitl-exited"
+    TIMEOUT = "timeout"
+    CRASHED = "crashed"
+    INTERRUPTED = "interrupted"
+    ERROR = "error"
+
+    @property
+    def succeeded(self) -> bool:
+        return self in (Outcome.LANDED, Outcome.COMPLETED)
+
+
+@dataclass
+class MissionResult:
+    outcome: Outcome
+    reason: str
+    controller: str
+    plan: MissionPlan
+    rows: list[FlightRow] = field(default_factory=list)
+    blockers: tuple[str, ...] = ()
+    armed_after_s: float | None = None
+    hold: HoldStats | None = None
+    attitude: AttitudeTracking | None = None  # FC roll/pitch vs the truth in the air
+    metrics: Any = None  # bfsitl.control.metrics.StepMetrics of the take-off step
+    legs: list[LegStats] = field(default_factory=list)  # one per waypoint reached
+    extra: dict[str, Any] = field(default_factory=dict)
+
+    @property
+    def succeeded(self) -> bool:
+        return self.outcome.succeeded
+
+    def summary(self) -> dict[str, Any]:
+        """Everything worth keeping, JSON-ready."""
+        def plain(value: Any) -> Any:
+            if value is None:
+                return None
+            if hasattr(value, "__dataclass_fields__"):
+                return {name: plain(getattr(value, name)) for name in value.__dataclass_fields__}
+            if isinstance(value, float):
+                return round(value, 4) if math.isfinite(value) else None
+            if isinstance(value, (list, tuple)):
+                return [plain(v) for v in value]
+            if isinstance(value, dict):
+                return {k: plain(v) for k, v in value.items()}
+            return value
+
+        return {
+            "outcome": self.outcome.value,
+            "succeeded": self.succeeded,
+            "reason": self.reason,
+            "controller": self.controller,
+            "plan": plain(self.plan),
+            "blockers": list(self.blockers),
+            "armed_after_s": plain(self.armed_after_s),
+            "hold": plain(self.hold),
+            "attitude": plain(self.attitude),
+            "step_response": plain(self.metrics),
+            "waypoints": plain(self.legs),
+            "cross_track_rms_m": plain(cross_track_rms(self.legs)),
+            "landed_from_start_m": plain(landed_from_start_m(self.rows)),
+            "rows": len(self.rows),
+            "flight_time_s": plain(self.rows[-1].time_s - self.rows[0].time_s)
+            if self.rows else None,
+            **plain(self.extra),
+        }

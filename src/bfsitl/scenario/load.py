@@ -1,0 +1,44 @@
+"""Reading scenario files: each one parsed (:mod:`bfsitl.scenario.spec`, its faults checked
+as they are read) and its expectations checked, before anything flies."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+from bfsitl.errors import ScenarioError
+from bfsitl.scenario.expectations import check_expectations
+from bfsitl.scenario.spec import SCENARIO_GLOB, Scenario, scenario_from_dict
+from bfsitl.toml_file import read_toml_file
+
+
+def load_scenario(path: str | Path) -> Scenario:
+    """Read one scenario file, checked, faults and expectations included."""
+    path = Path(path)
+    data = read_toml_file(path, "scenario", ScenarioError)
+    scenario = scenario_from_dict(data, name=path.stem, source=path)
+    check_expectations(scenario)
+    return scenario
+
+
+def find_scenarios(paths: list[str | Path]) -> list[Scenario]:
+    """Every scenario named: files as they are, directories by their ``*.toml`` files (sorted;
+    not recursive).  Two scenarios with one name are refused (their reports would clash)."""
+    scenarios: list[Scenario] = []
+    for given in paths:
+        path = Path(given)
+        if path.is_dir():
+            files = sorted(path.glob(SCENARIO_GLOB))
+            if not files:
+                raise ScenarioError(f"{path} holds no scenario files ({SCENARIO_GLOB})")
+        elif path.is_file():
+            files = [path]
+        else:
+            raise ScenarioError(f"{path}: no such scenario file or directory")
+        scenarios.extend(load_scenario(f) for f in files)
+    seen: dict[str, Scenario] = {}
+    for scenario in scenarios:
+        if scenario.name in seen:
+            raise ScenarioError(f"two scenarios are named {scenario.name!r}: "
+                                f"{seen[scenario.name].where} and {scenario.where}")
+        seen[scenario.name] = scenario
+    return scenarios

@@ -26,8 +26,9 @@ import time
 from dataclasses import replace
 from pathlib import Path
 
-from bfsitl.flight_record import FoxgloveRecorder
-from bfsitl.mission.flight_log import CsvFlightLog, FlightRow
+from bfsitl.mission.flight_row import FlightRow
+from bfsitl.records.csv_log import CsvFlightLog
+from bfsitl.records.foxglove import FoxgloveRecorder
 
 BFSITL = [sys.executable, "-m", "bfsitl.cli.main"]
 

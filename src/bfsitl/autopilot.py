@@ -35,7 +35,7 @@ from bfsitl.control.horizontal_estimator import HorizontalEstimator
 from bfsitl.control.position import PositionController
 from bfsitl.errors import MissionError
 from bfsitl.mission.board import BoardVehicle
-from bfsitl.mission.flight_log import CsvFlightLog, FlightRow
+from bfsitl.mission.flight_row import FlightRow
 from bfsitl.mission.legs import LegStats
 from bfsitl.mission.phase import Phase
 from bfsitl.mission.plan import MissionPlan
@@ -44,11 +44,10 @@ from bfsitl.mission.session import (
     FLY_PROFILE,
     FlightSession,
     SessionConfig,
-    fly_sensors,
-    with_fast_serial,
 )
 from bfsitl.mission.vehicle import Vehicle
 from bfsitl.physics.wind import Wind
+from bfsitl.records.outputs import FlightOutputs, OutputOptions
 
 #: Armed at idle before the first take-off: the FC's altitude settles, and the fused
 #: controller learns the barometer's zero from the vehicle at rest.
@@ -66,12 +65,9 @@ def launch_sitl(firmware: str | Path | None = None, *, physics: str = "embedded"
     x real time (default: real time on a stock build, as fast as possible on a lockstep one);
     ``gps_noise``: a typical receiver's errors on the GPS.
     """
-    sensors = fly_sensors()
-    if gps_noise:
-        sensors = sensors.with_typical_gps()
-    config = SessionConfig(firmware=firmware, physics=physics, wind=wind, speed=speed,
-                           seed=seed, sensors=sensors, workdir=workdir,
-                           profile=with_fast_serial(FLY_PROFILE))
+    config = SessionConfig.for_autopilot(
+        control_rate_hz=FlightSession.control_rate_hz, gps_noise=gps_noise, firmware=firmware,
+        physics=physics, wind=wind, speed=speed, seed=seed, workdir=workdir)
     return FlightSession(config, progress=progress).start()
 
 
@@ -105,13 +101,22 @@ class Autopilot:
         self.vehicle = vehicle
         self.controller = make_controller(controller) if isinstance(controller, str) \
             else controller
-        self._log = CsvFlightLog(log) if log is not None else None
-        if self._log is not None:
-            vehicle.on_close(self._log.close)
+        # The record format comes from the file's suffix (bfsitl.records.sinks): rows and
+        # events stream to it as they are flown, and it is closed with the vehicle.
+        self._outputs = FlightOutputs(OutputOptions(
+            extra_paths=(log,) if log is not None else ()))
+        self._outputs.start()
+        if any(not sink.streams for sink in self._outputs.sinks):
+            self._outputs.close()
+            raise MissionError(f"log {log}: the Autopilot's log is written as it flies; name "
+                               f"a .csv or .mcap file (plots and summaries come from "
+                               f"`bfsitl fly --plot/--summary`)")
+        vehicle.on_close(self._outputs.close)
+        self._on_event = on_event
         if rate_hz is None:
             rate_hz = vehicle.control_rate_hz
-        self.mission = Mission(vehicle, self.controller, rate_hz=rate_hz, log=self._log,
-                               on_event=on_event)
+        self.mission = Mission(vehicle, self.controller, rate_hz=rate_hz,
+                               on_row=self._outputs.on_row, on_event=self._event)
         if fuse_accelerometer:
             # The GPS fused with the FC's accelerometer for the position loop: as good as the
             # GPS alone in SITL, where the fix is fresh; better with a slow, late receiver
@@ -179,7 +184,12 @@ class Autopilot:
         if self.armed:
             raise MissionError("fly(plan) starts from the ground: land first")
         return run_mission(self.vehicle, plan, self.controller, rate_hz=self.mission.rate_hz,
-                           log=self._log)
+                           on_row=self._outputs.on_row, on_event=self._event)
+
+    def _event(self, text: str) -> None:
+        self._outputs.on_event(text)
+        if self._on_event is not None:
+            self._on_event(text)
 
     def _require_airborne(self, what: str) -> None:
         if not self.armed:

@@ -17,7 +17,7 @@ from pathlib import Path
 
 import pytest
 
-from bfsitl.mission.flight_log import COLUMNS
+from bfsitl.mission.flight_row import COLUMNS
 
 pytestmark = pytest.mark.sitl
 

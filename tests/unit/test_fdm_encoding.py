@@ -253,7 +253,7 @@ def test_health_targets_follow_the_firmwares_own_pid_rate():
 
 
 def test_attitude_tracking_compares_the_fc_with_the_truth_in_the_air_only():
-    from bfsitl.mission.flight_log import FlightRow
+    from bfsitl.mission.flight_row import FlightRow
     from bfsitl.mission.runner import attitude_tracking
 
     def row(phase: str, alt_m: float, fc_roll: float, sim_roll: float) -> FlightRow:

@@ -9,8 +9,8 @@ import pytest
 from test_flight_record import make_row, read_mcap
 
 from bfsitl.errors import BfsitlError
-from bfsitl.mission.flight_log import read_flight_log
-from bfsitl.mission.outputs import FlightOutputs, OutputOptions
+from bfsitl.records.csv_log import read_flight_log
+from bfsitl.records.outputs import FlightOutputs, OutputOptions
 
 
 def test_rows_and_events_reach_every_sink_and_the_files_agree(tmp_path):
@@ -66,3 +66,83 @@ def test_an_unwritable_log_fails_before_the_flight_and_opens_nothing(tmp_path):
     with pytest.raises(BfsitlError, match="cannot write the flight log"):
         outputs.start()
     assert outputs.sinks == [] and not (tmp_path / "f.mcap").exists()
+
+
+# -- the registry: a sink per file suffix ---------------------------------------------------
+def test_each_suffix_opens_its_sink_and_an_unknown_one_says_which_exist(tmp_path):
+    from bfsitl.records.sinks import CsvSink, FoxgloveSink, PlotSink, SummarySink, open_sink
+
+    kinds = {suffix: type(open_sink(tmp_path / f"f{suffix}"))
+             for suffix in (".csv", ".CSV", ".png", ".svg", ".json")}
+    assert kinds == {".csv": CsvSink, ".CSV": CsvSink, ".png": PlotSink, ".svg": PlotSink,
+                     ".json": SummarySink}
+    mcap = open_sink(tmp_path / "f.mcap")
+    assert isinstance(mcap, FoxgloveSink) and mcap.live_url is None
+    mcap.close()
+    with pytest.raises(BfsitlError, match=r"no record format for \.txt; known: \.csv"):
+        open_sink(tmp_path / "f.txt")
+    with pytest.raises(BfsitlError, match="without a suffix"):
+        open_sink(tmp_path / "f")
+
+
+def test_a_registered_format_is_written_like_the_built_in_ones(tmp_path):
+    from bfsitl.records import sinks
+
+    class Lines(sinks.SinkBase):
+        def __init__(self, path, **_options):  # type: ignore[no-untyped-def]
+            self.file = path.open("w")
+
+        def write(self, row, sample=None):  # type: ignore[no-untyped-def]
+            self.file.write(f"{row.time_s:.2f} {row.phase}\n")
+
+        def close(self):  # type: ignore[no-untyped-def]
+            self.file.close()
+
+    with pytest.raises(BfsitlError, match="starts with a dot"):
+        sinks.register_sink("lines", Lines)
+    sinks.register_sink(".lines", Lines)
+    try:
+        outputs = FlightOutputs(OutputOptions(csv_path=tmp_path / "f.csv",
+                                              extra_paths=(tmp_path / "f.lines",))).start()
+        for index in range(5):
+            outputs.on_row(make_row(index))
+        outputs.close()
+    finally:
+        sinks._SINKS.pop(".lines")
+    assert (tmp_path / "f.lines").read_text().splitlines()[-1] == "3.08 hold"
+    assert len(read_flight_log(tmp_path / "f.csv")) == 5
+
+
+def test_the_autopilot_records_in_the_format_its_log_names(tmp_path):
+    from test_mission_runner import FakeSession, PController
+
+    from bfsitl.autopilot import Autopilot
+
+    vehicle = FakeSession()
+    pilot = Autopilot(vehicle, PController(), log=tmp_path / "flight.mcap")  # type: ignore[arg-type]
+    pilot.takeoff(1.0)
+    vehicle.close()  # the log is closed with the vehicle
+    counts, _messages = read_mcap(tmp_path / "flight.mcap")
+    assert counts["/flight/altitude"] == len(pilot.rows) > 50
+
+
+def test_the_autopilot_log_carries_its_events_and_refuses_a_format_written_only_at_the_end(
+        tmp_path):
+    from test_mission_runner import FakeSession, PController
+
+    from bfsitl.autopilot import Autopilot
+    from bfsitl.errors import MissionError
+
+    heard: list[str] = []
+    vehicle = FakeSession()
+    pilot = Autopilot(vehicle, PController(), log=tmp_path / "flight.mcap",  # type: ignore[arg-type]
+                      on_event=heard.append)
+    pilot.takeoff(1.0)
+    vehicle.close()
+    _counts, messages = read_mcap(tmp_path / "flight.mcap")
+    logged = [decoded.message for _schema, _message, decoded in messages["/events"]]
+    assert heard and all(line in logged for line in heard)
+    for name in ("flight.png", "flight.json"):
+        with pytest.raises(MissionError, match="written as it flies; name a .csv or .mcap"):
+            Autopilot(FakeSession(), PController(), log=tmp_path / name)  # type: ignore[arg-type]
+        assert not (tmp_path / name).exists()

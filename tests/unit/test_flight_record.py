@@ -19,10 +19,10 @@ from websockets.sync.client import connect  # noqa: E402
 
 from bfsitl.bridges.origin_policy import CLOSE_POLICY_VIOLATION  # noqa: E402
 from bfsitl.errors import BfsitlError, ListenAddressInUseError  # noqa: E402
-from bfsitl.flight_record import FoxgloveRecorder  # noqa: E402
-from bfsitl.flight_record.channels import PER_ROW_TOPICS, row_messages  # noqa: E402
-from bfsitl.flight_record.frames import betaflight_to_enu_quaternion, enu_flu_rotation  # noqa: E402,E501
-from bfsitl.mission.flight_log import FlightRow  # noqa: E402
+from bfsitl.records.csv_log import FlightRow  # noqa: E402
+from bfsitl.records.foxglove import FoxgloveRecorder  # noqa: E402
+from bfsitl.records.foxglove.channels import PER_ROW_TOPICS, row_messages  # noqa: E402
+from bfsitl.records.foxglove.frames import betaflight_to_enu_quaternion, enu_flu_rotation  # noqa: E402,E501
 
 
 def make_row(index: int, **changes: object) -> FlightRow:

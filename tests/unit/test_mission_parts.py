@@ -9,7 +9,8 @@ import pytest
 
 from bfsitl.errors import BfsitlError
 from bfsitl.mission.climb_rate import ClimbRateEstimator
-from bfsitl.mission.flight_log import COLUMNS, CsvFlightLog, FlightRow, read_flight_log
+from bfsitl.mission.flight_row import COLUMNS, FlightRow
+from bfsitl.records.csv_log import CsvFlightLog, read_flight_log
 
 
 def row(time_s: float, phase: str = "hold", alt_m: float = 2.0) -> FlightRow:
@@ -85,7 +86,7 @@ def test_unwritable_log_and_foreign_csv_are_clear_errors(tmp_path):
 
 def test_plot_writes_a_png(tmp_path):
     pytest.importorskip("matplotlib")
-    from bfsitl.mission.plot import write_flight_plot
+    from bfsitl.records.plot import write_flight_plot
 
     rows = [row(t * 0.02, "takeoff" if t < 50 else "hold", alt_m=min(2.0, t * 0.04))
             for t in range(150)]

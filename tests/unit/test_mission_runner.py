@@ -13,10 +13,10 @@ import pytest
 
 from bfsitl.errors import ArmingBlockedError, MissionError, SitlExitedError
 from bfsitl.fc.rc_link import RcCommand, RcLinkStats
-from bfsitl.mission.flight_log import CsvFlightLog, read_flight_log
 from bfsitl.mission.runner import Mission, MissionPlan, Outcome, hold_stats, run_mission
 from bfsitl.mission.session import SWITCH_ON_US, FlightSample
 from bfsitl.mission.vehicle import Vehicle
+from bfsitl.records.csv_log import CsvFlightLog, read_flight_log
 
 HOVER_US = 1500.0
 

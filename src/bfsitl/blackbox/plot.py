@@ -10,7 +10,7 @@ from __future__ import annotations
 from pathlib import Path
 
 from bfsitl.blackbox.decode import BlackboxLog, FailsafePhase
-from bfsitl.mission.plot import load_pyplot
+from bfsitl.records.plot import load_pyplot
 
 AXES = ("roll", "pitch", "yaw")
 

@@ -301,9 +301,8 @@ def cmd_fly(args: argparse.Namespace) -> int:
     from bfsitl.control import gain_names, make_controller
     from bfsitl.fc.provisioning import ARM_ON_AUX1, Profile
     from bfsitl.mission import FLY_PROFILE, FlightSession, SessionConfig
-    from bfsitl.mission.outputs import FlightOutputs, OutputOptions, plan_waypoints
     from bfsitl.mission.runner import Outcome, run_mission
-    from bfsitl.mission.session import FAST_SERIAL_ABOVE_HZ, fly_sensors, with_fast_serial
+    from bfsitl.records.outputs import FlightOutputs, OutputOptions, plan_waypoints
 
     if args.list_gains:
         for name, default in gain_names(args.controller).items():
@@ -319,12 +318,6 @@ def cmd_fly(args: argparse.Namespace) -> int:
         profile = FLY_PROFILE if not args.no_angle else Profile(mode_ranges=(ARM_ON_AUX1,))
         if args.profile:
             profile = Profile.from_file(args.profile, mode_ranges=profile.mode_ranges)
-        if args.rate > FAST_SERIAL_ABOVE_HZ:
-            profile = with_fast_serial(profile)
-    sensors = fly_sensors(baro_noise_std_pa=args.baro_noise_pa,
-                          accel_noise_std_m_s2=args.accel_noise)
-    if args.gps_noise:
-        sensors = sensors.with_typical_gps()
     wind = None
     if args.wind or args.gusts:
         from bfsitl.physics.wind import Wind
@@ -334,13 +327,14 @@ def cmd_fly(args: argparse.Namespace) -> int:
     speed = args.speed
     if speed is None and (args.configurator or args.foxglove):
         speed = 1.0  # someone watches: a lockstep build would otherwise fly at full speed
-    config = SessionConfig(sensors=sensors, firmware=args.firmware, workdir=args.workdir,
-                           isolate=not args.no_isolate, speed=speed, profile=profile,
-                           lockstep=args.lockstep,
-                           angle_mode=not args.no_angle, physics=args.physics,
-                           gz_plugin_dir=args.gz_plugin_dir, wind=wind, seed=args.seed,
-                           configurator_port=args.configurator_port if args.configurator
-                           else None, allow_origins=tuple(args.allow_origin))
+    config = SessionConfig.for_autopilot(
+        control_rate_hz=args.rate, gps_noise=args.gps_noise, profile=profile,
+        baro_noise_std_pa=args.baro_noise_pa, accel_noise_std_m_s2=args.accel_noise,
+        firmware=args.firmware, workdir=args.workdir, isolate=not args.no_isolate,
+        speed=speed, lockstep=args.lockstep, angle_mode=not args.no_angle,
+        physics=args.physics, gz_plugin_dir=args.gz_plugin_dir, wind=wind, seed=args.seed,
+        configurator_port=args.configurator_port if args.configurator else None,
+        allow_origins=tuple(args.allow_origin))
     outputs = FlightOutputs(OutputOptions(
         csv_path=args.log, plot_path=args.plot, summary_path=args.summary,
         mcap_path=args.mcap, foxglove_port=args.foxglove_port if args.foxglove else None,

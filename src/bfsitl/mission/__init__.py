@@ -9,7 +9,7 @@
     print(result.outcome, result.hold)
 """
 
-from bfsitl.mission.flight_log import CsvFlightLog, FlightRow
+from bfsitl.mission.flight_row import FlightRow
 from bfsitl.mission.legs import LegStats
 from bfsitl.mission.plan import MissionPlan, Waypoint, load_mission
 from bfsitl.mission.runner import (
@@ -22,7 +22,7 @@ from bfsitl.mission.runner import (
 from bfsitl.mission.session import FLY_PROFILE, FlightSample, FlightSession, SessionConfig
 
 __all__ = [
-    "FLY_PROFILE", "CsvFlightLog", "FlightRow", "FlightSample", "FlightSession", "HoldStats",
+    "FLY_PROFILE", "FlightRow", "FlightSample", "FlightSession", "HoldStats",
     "LegStats", "Mission", "MissionPlan", "MissionResult", "Outcome", "SessionConfig",
     "Waypoint", "load_mission", "run_mission",
 ]

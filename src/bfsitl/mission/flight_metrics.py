@@ -11,7 +11,7 @@ import math
 from dataclasses import dataclass
 from typing import Any
 
-from bfsitl.mission.flight_log import FlightRow
+from bfsitl.mission.flight_row import FlightRow
 from bfsitl.mission.legs import LegStats
 from bfsitl.mission.phase import FLOWN, Phase
 

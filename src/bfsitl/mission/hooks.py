@@ -13,7 +13,7 @@ from __future__ import annotations
 from collections.abc import Callable
 from dataclasses import dataclass
 
-from bfsitl.mission.flight_log import FlightRow
+from bfsitl.mission.flight_row import FlightRow
 from bfsitl.mission.phase import Phase
 from bfsitl.mission.vehicle import FlightSample
 

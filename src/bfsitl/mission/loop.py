@@ -33,8 +33,8 @@ from bfsitl.errors import (
 )
 from bfsitl.fc.rc_link import RC_MID_US, RC_MIN_US
 from bfsitl.mission.climb_rate import ClimbRateEstimator
-from bfsitl.mission.flight_log import CsvFlightLog, FlightRow
 from bfsitl.mission.flight_metrics import judged_position
+from bfsitl.mission.flight_row import FlightRow, RowWriter
 from bfsitl.mission.hooks import EventCallback, FlightHooks, RowCallback
 from bfsitl.mission.legs import LegPoint, LegReference, LegStats, leg_stats
 from bfsitl.mission.phase import Phase
@@ -78,7 +78,7 @@ class Mission(PositionSteering):
         *,
         landing: AltitudeController | None = None,
         rate_hz: float = DEFAULT_RATE_HZ,
-        log: CsvFlightLog | None = None,
+        log: RowWriter | None = None,
         on_row: RowCallback | None = None,
         on_event: EventCallback | None = None,
         hooks: FlightHooks | None = None,
@@ -505,7 +505,7 @@ class Mission(PositionSteering):
         self.rows.append(row)
         self.last_sample = sample
         if self.log is not None:
-            self.log.write(row)
+            self.log.write(row, sample)
         if self._on_row is not None:
             self._on_row(row, sample)
         return row

@@ -17,8 +17,8 @@ from bfsitl.errors import (
     MissionTimeoutError,
     SitlExitedError,
 )
-from bfsitl.mission.flight_log import CsvFlightLog
 from bfsitl.mission.flight_metrics import attitude_tracking, hold_stats, takeoff_metrics
+from bfsitl.mission.flight_row import RowWriter
 from bfsitl.mission.hooks import EventCallback, RowCallback
 from bfsitl.mission.loop import DEFAULT_RATE_HZ, Mission
 from bfsitl.mission.phase import Phase
@@ -89,7 +89,7 @@ def run_mission(
     controller: AltitudeController,
     *,
     landing: AltitudeController | None = None,
-    log: CsvFlightLog | None = None,
+    log: RowWriter | None = None,
     on_row: RowCallback | None = None,
     on_event: EventCallback | None = None,
     rate_hz: float = DEFAULT_RATE_HZ,

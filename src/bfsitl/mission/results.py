@@ -8,13 +8,13 @@ import math
 from dataclasses import dataclass, field
 from typing import Any
 
-from bfsitl.mission.flight_log import FlightRow
 from bfsitl.mission.flight_metrics import (
     AttitudeTracking,
     HoldStats,
     cross_track_rms,
     landed_from_start_m,
 )
+from bfsitl.mission.flight_row import FlightRow
 from bfsitl.mission.legs import LegStats
 from bfsitl.mission.plan import MissionPlan
 

@@ -27,7 +27,7 @@ from __future__ import annotations
 import dataclasses
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Self
+from typing import Any, Self
 
 from bfsitl.backend.base import SitlBackend
 from bfsitl.backend.factory import check_speed, make_backend
@@ -158,6 +158,24 @@ class SessionConfig:
     #: sleeping: fastest when the run has cores to itself; off when runs share the cores
     #: (``bfsitl scenario run --jobs 2`` on two cores), where spinning steals time slices.
     lockstep_spin: bool = True
+
+    @classmethod
+    def for_autopilot(cls, *, control_rate_hz: float = 100.0, gps_noise: bool = False,
+                      baro_noise_std_pa: float | None = None,
+                      accel_noise_std_m_s2: float | None = None,
+                      profile: Profile | None = FLY_PROFILE, **fields: Any) -> SessionConfig:
+        """What bfsitl's own flights use (``bfsitl fly``, :func:`~bfsitl.launch_sitl`,
+        scenario runs): ``profile`` with the serial task at 1 kHz when the control loop runs
+        above 50 Hz (:data:`FAST_SERIAL_LINE`), the default sensor errors
+        (:func:`fly_sensors`, plus a typical receiver's GPS errors with ``gps_noise``), and
+        any other field as given."""
+        sensors = fly_sensors(baro_noise_std_pa=baro_noise_std_pa,
+                              accel_noise_std_m_s2=accel_noise_std_m_s2)
+        if gps_noise:
+            sensors = sensors.with_typical_gps()
+        if profile is not None and control_rate_hz > FAST_SERIAL_ABOVE_HZ:
+            profile = with_fast_serial(profile)
+        return cls(sensors=sensors, profile=profile, **fields)
 
 
 class FlightSession(Vehicle):

@@ -42,17 +42,15 @@ from bfsitl.errors import (
 )
 from bfsitl.fc.firmware_detect import profile_of_binary
 from bfsitl.fc.provisioning import Profile
-from bfsitl.mission.flight_log import FlightRow
+from bfsitl.mission.flight_row import FlightRow
 from bfsitl.mission.hooks import FlightHooks
 from bfsitl.mission.loop import Mission
-from bfsitl.mission.outputs import FlightOutputs, OutputOptions
 from bfsitl.mission.phase import Phase
 from bfsitl.mission.plan_driver import fly_plan
 from bfsitl.mission.session import (
     FLY_PROFILE,
     FlightSession,
     SessionConfig,
-    fly_sensors,
     with_fast_serial,
 )
 from bfsitl.mission.vehicle import FlightSample
@@ -60,6 +58,7 @@ from bfsitl.physics.params import IRIS, QuadParams
 from bfsitl.protocol import msp_messages as msg
 from bfsitl.protocol.boxes import BoxId
 from bfsitl.protocol.firmware_profile import FirmwareProfile, Generation
+from bfsitl.records.outputs import FlightOutputs, OutputOptions
 from bfsitl.scenario.expectations import judge
 from bfsitl.scenario.faults import FAILSAFE_SWITCH_AUX_INDEX, Fault, Undo, make_faults
 from bfsitl.scenario.result import ScenarioResult, TimedEvent, Verdict
@@ -234,11 +233,11 @@ def _fly(scenario: Scenario, binary: Path, profile: FirmwareProfile, faults: tup
          options: RunOptions, result: ScenarioResult, say: Progress) -> None:
     out = options.out_dir
     trace = Trace()
-    config = SessionConfig(firmware=binary, workdir=out / "sitl",
-                           profile=scenario_profile(scenario, profile, faults),
-                           quad=scenario.quad, wind=scenario.wind, seed=scenario.seed,
-                           sensors=fly_sensors(), speed=options.speed,
-                           lockstep_spin=not options.shares_cores)
+    config = SessionConfig.for_autopilot(
+        control_rate_hz=FlightSession.control_rate_hz,
+        profile=scenario_profile(scenario, profile, faults), firmware=binary,
+        workdir=out / "sitl", quad=scenario.quad, wind=scenario.wind, seed=scenario.seed,
+        speed=options.speed, lockstep_spin=not options.shares_cores)
     outputs = FlightOutputs(OutputOptions(
         csv_path=out / "flight.csv", mcap_path=out / "flight.mcap" if options.mcap else None))
     outputs.start()

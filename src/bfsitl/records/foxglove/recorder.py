@@ -19,9 +19,9 @@ from bfsitl.bridges.origin_policy import OriginPolicy
 from bfsitl.errors import BfsitlError, ExtraMissingError
 
 if TYPE_CHECKING:
-    from bfsitl.flight_record.channels import FlightChannels
-    from bfsitl.mission.flight_log import FlightRow
+    from bfsitl.mission.flight_row import FlightRow
     from bfsitl.mission.vehicle import FlightSample
+    from bfsitl.records.foxglove.channels import FlightChannels
 
 #: The only subprotocol the SDK's server (0.30) accepts.
 FOXGLOVE_SUBPROTOCOLS = ("foxglove.sdk.v1",)
@@ -61,7 +61,7 @@ class FoxgloveRecorder:
 
     def start(self) -> FoxgloveRecorder:
         foxglove = _import_foxglove()
-        from bfsitl.flight_record.channels import FlightChannels
+        from bfsitl.records.foxglove.channels import FlightChannels
 
         # Held for the recorder's life: channels of a dropped context are closed.
         context = self._context = foxglove.Context()

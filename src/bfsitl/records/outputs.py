@@ -1,4 +1,5 @@
-"""Where a flight's rows go: the one place that turns them into every output format.
+"""Where a flight's rows go: the sinks of one flight (:mod:`bfsitl.records.sinks`, chosen by
+file suffix), opened together, fed together and closed together.
 
 During the flight each row (and each event) goes to the sinks that stream: the CSV log, the
 MCAP file and the live Foxglove server.  After it, the same rows make the plot and the summary.
@@ -9,45 +10,19 @@ index.
 
 from __future__ import annotations
 
-import json
 from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import TYPE_CHECKING, Any, Protocol
+from typing import TYPE_CHECKING, Any
 
 from bfsitl.errors import BfsitlError
-from bfsitl.mission.flight_log import CsvFlightLog, FlightRow
+from bfsitl.mission.flight_row import FlightRow
+from bfsitl.records.sinks import FoxgloveSink, RowSink, open_sink
 
 if TYPE_CHECKING:
     from bfsitl.mission.plan import MissionPlan
-    from bfsitl.mission.runner import MissionResult
+    from bfsitl.mission.results import MissionResult
     from bfsitl.mission.vehicle import FlightSample
-
-
-class RowSink(Protocol):
-    """Something that takes the rows as they are flown."""
-
-    def write(self, row: FlightRow, sample: FlightSample | None = None) -> None: ...
-
-    def event(self, time_s: float, text: str) -> None: ...
-
-    def close(self) -> None: ...
-
-
-class _CsvSink:
-    """The CSV log as a sink (it has no events: its rows are the record)."""
-
-    def __init__(self, path: str | Path) -> None:
-        self.log = CsvFlightLog(path)
-
-    def write(self, row: FlightRow, sample: FlightSample | None = None) -> None:
-        self.log.write(row)
-
-    def event(self, time_s: float, text: str) -> None:
-        pass
-
-    def close(self) -> None:
-        self.log.close()
 
 
 @dataclass
@@ -62,6 +37,8 @@ class OutputOptions:
     foxglove_port: int | None = None
     allow_origins: tuple[str, ...] = ()
     waypoints: list[tuple[float, float]] = field(default_factory=list)
+    #: More record files, each written by the sink its suffix picks.
+    extra_paths: tuple[str | Path, ...] = ()
 
 
 class FlightOutputs:
@@ -79,31 +56,42 @@ class FlightOutputs:
         self.rows_written = 0
         self._last_time_s = 0.0
         self.foxglove_url: str | None = None
-        self.recorder: Any = None
+        #: Every sink opened, in order (closing empties :attr:`sinks`; finishing uses these).
+        self._opened: list[RowSink] = []
 
     def start(self) -> FlightOutputs:
-        """Open every streaming sink; a failure closes the ones already open."""
+        """Open every streaming sink, each chosen by its file's suffix
+        (:mod:`bfsitl.records.sinks`); a failure closes the ones already open."""
         options = self.options
+        paths = [Path(p) for p in (options.csv_path, options.mcap_path, options.plot_path,
+                                   options.summary_path, *options.extra_paths) if p]
+        live_port = options.foxglove_port
         try:
-            if options.csv_path:
-                self.sinks.append(_CsvSink(options.csv_path))
-            if options.mcap_path or options.foxglove_port is not None:
-                from bfsitl.flight_record import FoxgloveRecorder
-
-                self.recorder = FoxgloveRecorder(
-                    mcap_path=Path(options.mcap_path) if options.mcap_path else None,
-                    live_port=options.foxglove_port, allow_origins=options.allow_origins,
-                    on_event=lambda line: self._progress(f"foxglove: {line}"))
-                self.recorder.start()
-                self.sinks.append(self.recorder)
-                self.foxglove_url = self.recorder.live_url
-                if self.foxglove_url:
-                    self._progress(f"Foxglove can watch this flight live: open a Foxglove "
-                                   f"WebSocket connection to {self.foxglove_url}")
+            for path in paths:
+                extra: dict[str, Any] = {}
+                if live_port is not None and path.suffix.lower() == ".mcap":
+                    # The MCAP file's recorder serves the live view too.
+                    extra = {"live_port": live_port, "allow_origins": options.allow_origins}
+                    live_port = None
+                self._open(open_sink(path, progress=self._progress,
+                                     waypoints=options.waypoints, **extra))
+            if live_port is not None:
+                self._open(FoxgloveSink(None, live_port=live_port,
+                                        allow_origins=options.allow_origins,
+                                        progress=self._progress))
+            self.foxglove_url = next((url for sink in self._opened
+                                      if (url := getattr(sink, "live_url", None))), None)
+            if self.foxglove_url:
+                self._progress(f"Foxglove can watch this flight live: open a Foxglove "
+                               f"WebSocket connection to {self.foxglove_url}")
         except BaseException:
             self.close()
             raise
         return self
+
+    def _open(self, sink: RowSink) -> None:
+        self.sinks.append(sink)
+        self._opened.append(sink)
 
     # -- during the flight ----------------------------------------------------------------
     def on_row(self, row: FlightRow, sample: FlightSample | None = None) -> None:
@@ -131,29 +119,10 @@ class FlightOutputs:
 
     # -- after the flight -----------------------------------------------------------------
     def finish(self, result: MissionResult, summary: dict[str, Any]) -> list[str]:
-        """Write the plot and the summary from the flight's rows; what was written, in words."""
-        options = self.options
-        written = []
-        if options.csv_path:
-            written.append(f"log {options.csv_path} ({len(result.rows)} rows)")
-        if options.mcap_path:
-            written.append(f"MCAP {options.mcap_path}")
-        if options.plot_path and result.rows:
-            from bfsitl.mission.plot import write_flight_plot
-
-            write_flight_plot(result.rows, options.plot_path,
-                              title=f"bfsitl fly: {result.controller}, {result.outcome.value}",
-                              waypoints=options.waypoints)
-            written.append(f"plot {options.plot_path}")
-        if options.summary_path:
-            path = Path(options.summary_path)
-            try:
-                path.parent.mkdir(parents=True, exist_ok=True)
-                path.write_text(json.dumps(summary, indent=2) + "\n")
-            except OSError as exc:
-                raise BfsitlError(f"cannot write the summary {path}: {exc}") from exc
-            written.append(f"summary {options.summary_path}")
-        return written
+        """What each sink writes from the whole flight (the plot, the summary); what was
+        written, in words."""
+        written = [sink.finish(result, summary) for sink in self._opened]
+        return [line for line in written if line]
 
 
 def plan_waypoints(plan: MissionPlan) -> list[tuple[float, float]]:

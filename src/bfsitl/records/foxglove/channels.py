@@ -17,7 +17,7 @@ simulation's pace whatever the wall clock did (lockstep flies many times faster)
 | ``/events`` | foxglove.Log | the mission's events; an arming change is one too |
 
 Frames: ``world`` is ENU (x east, y north, z up) with its origin at the take-off point; bodies
-are FLU (see :mod:`bfsitl.flight_record.frames`).  Unknown values (NaN) are JSON nulls.
+are FLU (see :mod:`bfsitl.records.foxglove.frames`).  Unknown values (NaN) are JSON nulls.
 """
 
 from __future__ import annotations
@@ -27,10 +27,10 @@ import math
 from collections.abc import Callable
 from typing import TYPE_CHECKING, Any
 
-from bfsitl.flight_record.frames import betaflight_to_enu_quaternion
+from bfsitl.records.foxglove.frames import betaflight_to_enu_quaternion
 
 if TYPE_CHECKING:
-    from bfsitl.mission.flight_log import FlightRow
+    from bfsitl.mission.flight_row import FlightRow
     from bfsitl.mission.vehicle import FlightSample
 
 WORLD_FRAME = "world"

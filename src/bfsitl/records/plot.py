@@ -13,7 +13,7 @@ from collections.abc import Sequence
 from pathlib import Path
 
 from bfsitl.errors import BfsitlError, ExtraMissingError
-from bfsitl.mission.flight_log import FlightRow
+from bfsitl.mission.flight_row import FlightRow
 from bfsitl.mission.phase import Phase
 
 

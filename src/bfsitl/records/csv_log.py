@@ -1,0 +1,68 @@
+"""A flight's rows as CSV: one row per control step, written as it happens.
+
+Each row is flushed when written, so a crash, a killed process or Ctrl-C loses nothing that
+was flown.  The columns carry their units in their names.
+"""
+
+from __future__ import annotations
+
+import csv
+import io
+import math
+from pathlib import Path
+
+from bfsitl.errors import BfsitlError
+from bfsitl.mission.flight_row import COLUMNS, FlightRow
+
+
+def _cell(value: object) -> str:
+    if isinstance(value, bool):
+        return "1" if value else "0"
+    if isinstance(value, float):
+        # Unknown values (no simulated truth with Gazebo) are empty cells, not "nan".
+        return f"{value:.4f}" if math.isfinite(value) else ""
+    return str(value)
+
+
+class CsvFlightLog:
+    """Writes :class:`FlightRow` lines to a CSV file, flushed row by row."""
+
+    def __init__(self, path: str | Path) -> None:
+        self.path = Path(path)
+        try:
+            self.path.parent.mkdir(parents=True, exist_ok=True)
+            self._file: io.TextIOWrapper | None = self.path.open("w", newline="")
+        except OSError as exc:
+            raise BfsitlError(f"cannot write the flight log {self.path}: {exc}") from exc
+        self._writer = csv.writer(self._file)
+        self._writer.writerow(COLUMNS)
+        self._file.flush()
+        self.rows_written = 0
+
+    def write(self, row: FlightRow, sample: object = None) -> None:
+        if self._file is None:
+            raise BfsitlError(f"flight log {self.path} is closed")
+        self._writer.writerow([_cell(getattr(row, name)) for name in COLUMNS])
+        self._file.flush()
+        self.rows_written += 1
+
+    def close(self) -> None:
+        if self._file is not None:
+            self._file.close()
+            self._file = None
+
+    def __enter__(self) -> CsvFlightLog:
+        return self
+
+    def __exit__(self, *exc_info: object) -> None:
+        self.close()
+
+
+def read_flight_log(path: str | Path) -> list[dict[str, str]]:
+    """The rows of a log as dicts of strings (for tools and tests)."""
+    with Path(path).open(newline="") as file:
+        reader = csv.DictReader(file)
+        if reader.fieldnames is None or tuple(reader.fieldnames) != COLUMNS:
+            raise BfsitlError(f"{path} is not a bfsitl flight log (columns "
+                              f"{reader.fieldnames})")
+        return list(reader)

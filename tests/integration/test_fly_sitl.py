@@ -164,7 +164,7 @@ def test_scripted_mission_from_python_goes_to_a_second_altitude(lockstep_46_firm
         mission = Mission(s, make_controller("cascade"))
         mission.arm()
         mission.takeoff(1.0)
-        mission.goto(2.5)
+        mission.climb_to(2.5)
         mission.hold(1.0)
         held = [r.sim_alt_m for r in mission.rows if r.phase == "hold"]
         assert held and all(abs(alt - 2.5) <= HOLD_TOLERANCE_M for alt in held)

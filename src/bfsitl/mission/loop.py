@@ -172,7 +172,10 @@ class Mission(PositionSteering):
         finally:
             self._end_position_control()
 
-    def goto(self, altitude_m: float, *, timeout_s: float = 20.0) -> float:
+    def climb_to(self, altitude_m: float, *, timeout_s: float = 20.0) -> float:
+        """Climb or descend to ``altitude_m`` where the vehicle is (an altitude step; a leg
+        to a position is :meth:`fly_to`); returns the sim time it took.  Logged as a
+        :attr:`Phase.GOTO`, as before."""
         if self.stopped:
             return 0.0
         self._on_event(f"go to {altitude_m:.2f} m")

@@ -34,7 +34,7 @@ import time
 from dataclasses import dataclass
 from pathlib import Path
 
-from firmware_cache import MASTER_TARBALL, cached_firmware
+from firmware_cache import MASTER_SOURCE, cached_firmware
 
 from bfsitl.build import FirmwareBuildOptions
 from bfsitl.control import make_controller
@@ -44,9 +44,9 @@ from bfsitl.sim.health import HealthMonitor
 from bfsitl.sitl.firmware import find_firmware
 
 BUILDS = {  # name: (source, lockstep)
-    "master": (MASTER_TARBALL, False),
+    "master": (MASTER_SOURCE, False),
     "4.6.0-lockstep": (None, True),
-    "master-lockstep": (MASTER_TARBALL, True),
+    "master-lockstep": (MASTER_SOURCE, True),
 }
 
 

@@ -36,7 +36,7 @@ import sys
 import time
 from dataclasses import dataclass, field
 
-from firmware_cache import MASTER_TARBALL, cached_firmware
+from firmware_cache import MASTER_SOURCE, cached_firmware
 
 from bfsitl.build import FirmwareBuildOptions
 from bfsitl.control import make_controller
@@ -51,7 +51,7 @@ from bfsitl.protocol.boxes import BoxId
 
 BUILDS = {  # name: (source, options)
     "4.6.0-gps-lockstep": (None, FirmwareBuildOptions(gps=True, lockstep=True)),
-    "master-lockstep": (MASTER_TARBALL, FirmwareBuildOptions(lockstep=True)),
+    "master-lockstep": (MASTER_SOURCE, FirmwareBuildOptions(lockstep=True)),
 }
 WIND = Wind.from_direction(3.0, 30.0, 1.5)
 SQUARE = (Waypoint(10.0, 0.0, 2.0), Waypoint(10.0, 10.0, 2.0), Waypoint(0.0, 10.0, 2.0),

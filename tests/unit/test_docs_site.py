@@ -18,8 +18,10 @@ README_MAX_LINES = 300
 CHECKED = ("README.md", "Makefile", "mkdocs.yml", "pyproject.toml", "docs", "src", "tests",
            "benchmarks", ".ci")
 TEXT_SUFFIXES = {".md", ".py", ".toml", ".yml", ".yaml", ".txt", ".c", ".sdf", ""}
+# A path to the steering folder beside the clone, spelled out or put together from parts
+# (``Path(...).parents[2] / "shared" / "firmware"``).
 _OUTSIDE = re.compile(r"(\.\./shared\b|(?<![\w.-])shared/(FIRMWARE_FACTS|research|firmware|"
-                      r"configurator|DESIGN))")
+                      r"configurator|DESIGN)|[\"']shared[\"']\s*/)")
 
 
 def test_the_readme_is_read_in_five_minutes() -> None:

@@ -37,9 +37,11 @@ from bfsitl.errors import MissionError
 from bfsitl.mission.board import BoardVehicle
 from bfsitl.mission.flight_row import FlightRow
 from bfsitl.mission.legs import LegStats
+from bfsitl.mission.loop import Mission
 from bfsitl.mission.phase import Phase
 from bfsitl.mission.plan import MissionPlan
-from bfsitl.mission.runner import Mission, MissionResult, run_mission
+from bfsitl.mission.plan_driver import fly_mission
+from bfsitl.mission.results import MissionResult
 from bfsitl.mission.session import (
     FLY_PROFILE,
     FlightSession,
@@ -105,6 +107,12 @@ class Autopilot:
         # events stream to it as they are flown, and it is closed with the vehicle.
         self._outputs = FlightOutputs(OutputOptions(
             extra_paths=(log,) if log is not None else ()))
+        self._on_event = on_event
+        if rate_hz is None:
+            rate_hz = vehicle.control_rate_hz
+        # Made before the log is opened: a bad rate opens no file.
+        self.mission = Mission(vehicle, self.controller, rate_hz=rate_hz,
+                               on_row=self._outputs.on_row, on_event=self._event)
         self._outputs.start()
         if any(not sink.streams for sink in self._outputs.sinks):
             self._outputs.close()
@@ -112,11 +120,6 @@ class Autopilot:
                                f"a .csv or .mcap file (plots and summaries come from "
                                f"`bfsitl fly --plot/--summary`)")
         vehicle.on_close(self._outputs.close)
-        self._on_event = on_event
-        if rate_hz is None:
-            rate_hz = vehicle.control_rate_hz
-        self.mission = Mission(vehicle, self.controller, rate_hz=rate_hz,
-                               on_row=self._outputs.on_row, on_event=self._event)
         if fuse_accelerometer:
             # The GPS fused with the FC's accelerometer for the position loop: as good as the
             # GPS alone in SITL, where the fix is fresh; better with a slow, late receiver
@@ -183,8 +186,7 @@ class Autopilot:
         for a failed flight): the same as ``bfsitl fly --mission``."""
         if self.armed:
             raise MissionError("fly(plan) starts from the ground: land first")
-        return run_mission(self.vehicle, plan, self.controller, rate_hz=self.mission.rate_hz,
-                           on_row=self._outputs.on_row, on_event=self._event)
+        return fly_mission(self.mission, plan, keep_flying=True)
 
     def _event(self, text: str) -> None:
         self._outputs.on_event(text)

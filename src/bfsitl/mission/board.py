@@ -27,15 +27,16 @@ last sticks, unlike a SITL on UDP).
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from typing import Self
 
 from bfsitl.backend.board import BoardBackend
-from bfsitl.errors import BoardSetupError, MspErrorReply
+from bfsitl.errors import BoardSetupError
 from bfsitl.fc.firmware_detect import detect_profile
 from bfsitl.fc.msp_client import MspClient
 from bfsitl.fc.provisioning import Profile, ProvisionResult, provision
 from bfsitl.fc.rc_link import DEFAULT_MSP_RATE_HZ, MspRcLink
-from bfsitl.link import open_link
+from bfsitl.link import Link, open_link
 from bfsitl.mission.vehicle import DEFAULT_ARM_TIMEOUT_S, Progress, Vehicle
 from bfsitl.protocol import msp_messages as msg
 from bfsitl.protocol.firmware_profile import FirmwareProfile
@@ -56,9 +57,14 @@ class BoardVehicle(Vehicle):
                  rc_rate_hz: float = DEFAULT_MSP_RATE_HZ,
                  timeout_s: float = BOARD_MSP_TIMEOUT_S,
                  arm_timeout_s: float = DEFAULT_ARM_TIMEOUT_S, angle_mode: bool = True,
-                 progress: Progress | None = None) -> None:
+                 progress: Progress | None = None,
+                 link_opener: Callable[..., Link] | None = None) -> None:
         super().__init__(progress=progress, arm_timeout_s=arm_timeout_s, angle_mode=angle_mode)
         self.uri = uri
+        #: Opens the link to the board from ``uri`` (``timeout_s=``): a serial port or a TCP
+        #: socket by default (:func:`~bfsitl.link.open_link`), anything that speaks MSP in
+        #: tests.
+        self._open_link = link_opener if link_opener is not None else open_link
         self.profile = profile
         self.rc_rate_hz = rc_rate_hz
         self.timeout_s = timeout_s
@@ -72,16 +78,14 @@ class BoardVehicle(Vehicle):
         if self._client is not None:
             return self
         try:
-            link = open_link(self.uri, timeout_s=self.timeout_s)
+            link = self._open_link(self.uri, timeout_s=self.timeout_s)
             self._stack.callback(link.close)
             client = MspClient(link, timeout_s=self.timeout_s)
             self._client = client
-            self._firmware = detect_profile(client)
-            try:
-                client.get(msg.RawGps)
-                self._has_gps = True
-            except MspErrorReply:
-                self._has_gps = False
+            # A board's build has no record, so ask the FC whether it has a GPS; the profile
+            # carries the answer (the summary and the fault catalog read it there).
+            self._firmware = detect_profile(client, probe_gps=True)
+            self._has_gps = self._firmware.has_gps
             # Measured before arming, while the board stands still.
             self.backend = BoardBackend.measured(lambda: client.get(msg.RawImu).acc_raw)
             self.clock = self.backend.clock

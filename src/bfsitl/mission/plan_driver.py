@@ -1,7 +1,8 @@
 """Flying a plan: :func:`fly_plan` drives a :class:`~bfsitl.mission.loop.Mission` through a
 :class:`~bfsitl.mission.plan.MissionPlan` (``bfsitl fly``, the Autopilot and scenarios all use
-it), and :func:`run_mission` turns every way a flight can end into an
-:class:`~bfsitl.mission.results.Outcome` with a reason, so callers get data, not exceptions.
+it), and :func:`fly_mission` (:func:`run_mission` on a new mission) turns every way a flight
+can end into an :class:`~bfsitl.mission.results.Outcome` with a reason, so callers get data,
+not exceptions.
 """
 
 from __future__ import annotations
@@ -101,6 +102,21 @@ def run_mission(
     """
     mission = Mission(session, controller, landing=landing, rate_hz=rate_hz, log=log,
                       on_row=on_row, on_event=on_event)
+    return fly_mission(mission, plan)
+
+
+def fly_mission(mission: Mission, plan: MissionPlan, *,
+                keep_flying: bool = False) -> MissionResult:
+    """Fly ``plan`` from the ground on ``mission`` (a new one, or one that has flown and
+    landed before: the :class:`~bfsitl.autopilot.Autopilot` flies on its own); every ending
+    becomes an :class:`Outcome`, and the result covers the rows and legs of this plan only.
+
+    A plan that does not land (``land = false``) ends with the sticks at disarm, as every
+    other ending but a landing does, unless ``keep_flying``: then the mission is still
+    flying it, and its next manoeuvre (``land()``) goes on from there."""
+    session = mission.session
+    first_row, first_leg = len(mission.rows), len(mission.legs)
+    controller = mission.controller
     name = getattr(controller, "name", type(controller).__name__)
     outcome, reason = Outcome.LANDED, "landed and disarmed"
     blockers: tuple[str, ...] = ()
@@ -125,18 +141,19 @@ def run_mission(
         outcome, reason = Outcome.CRASHED, str(exc)
     except BfsitlError as exc:
         outcome, reason = Outcome.ERROR, str(exc)
-    if outcome is not Outcome.LANDED:
+    if outcome is not Outcome.LANDED and not (keep_flying and outcome is Outcome.COMPLETED):
         try:
             mission.abort(outcome)
         except (BfsitlError, OSError):
             pass  # the session's close still sends disarm through the RC link
     if outcome is Outcome.ERROR and session.has_exited():
         outcome = Outcome.SITL_EXITED
+    rows = mission.rows[first_row:]
     result = MissionResult(outcome, reason.splitlines()[0] if reason else "", name, plan,
-                           mission.rows, blockers, session.armed_after_s)
-    result.hold = hold_stats(mission.rows)
-    result.legs = list(mission.legs)
-    result.attitude = attitude_tracking(mission.rows)
+                           rows, blockers, session.armed_after_s)
+    result.hold = hold_stats(rows)
+    result.legs = list(mission.legs[first_leg:])
+    result.attitude = attitude_tracking(rows)
     profile = session.firmware
     if profile is not None:
         result.extra["firmware"] = {
@@ -144,7 +161,7 @@ def run_mission(
             "conventions": profile.generation.value, "gps": profile.has_gps}
     if not plan.waypoints or plan.hold_s >= STEP_STEADY_WINDOW_S:
         # A step response needs the hold after it: straight into a leg, there is none.
-        result.metrics = takeoff_metrics(mission.rows, plan.target_alt_m)
+        result.metrics = takeoff_metrics(rows, plan.target_alt_m)
     rc_stats, bridge_stats = session.rc_stats(), session.bridge_stats()
     if rc_stats is not None:
         result.extra["rc_link"] = rc_stats

@@ -126,6 +126,11 @@ class RunOptions:
     #: Other runs share this machine's cores: no busy-waiting in lockstep (see
     #: SessionConfig.lockstep_spin).
     shares_cores: bool = False
+    #: Makes the flight's vehicle from its configuration (``progress=`` too); a fake in unit
+    #: tests.  Picklable as it is, for Ray.
+    session_factory: Callable[..., FlightSession] = FlightSession
+    #: The autopilot's altitude controller, by name (see ``bfsitl fly --list-gains``).
+    controller: str = DEFAULT_CONTROLLER
 
 
 class _Injector:
@@ -244,7 +249,7 @@ def _fly(scenario: Scenario, binary: Path, profile: FirmwareProfile, faults: tup
     result.artifacts["log"] = out / "flight.csv"
     if options.mcap:
         result.artifacts["mcap"] = out / "flight.mcap"
-    session = FlightSession(config, progress=lambda line: say(f"[sitl] {line}"))
+    session = options.session_factory(config, progress=lambda line: say(f"[sitl] {line}"))
     injector = _Injector(session, faults, trace, result.events, say, outputs.on_event)
 
     def on_row(row: FlightRow, sample: FlightSample) -> None:
@@ -257,7 +262,7 @@ def _fly(scenario: Scenario, binary: Path, profile: FirmwareProfile, faults: tup
                                        if session.firmware else result.firmware_version)
             if session.sitl is not None:
                 result.artifacts["sitl_log"] = session.sitl.log_path
-            mission = Mission(session, make_controller(DEFAULT_CONTROLLER),
+            mission = Mission(session, make_controller(options.controller),
                               rate_hz=session.control_rate_hz,
                               hooks=FlightHooks(on_step=on_row, stop=injector.stop))
             try:

@@ -614,3 +614,90 @@ def test_multiple_msp_decode_replies_random(commands: list[int], payload: bytes)
         m.MultipleMspReply.decode(payload).decode_replies(commands)
     except MspDecodeError:
         pass
+
+
+# ---------------------------------------------------------------------------------------------
+# the module is a facade over bfsitl.protocol.messages: same names, same errors
+
+
+#: Every public name the hand-written module offered (less the standard library it imported).
+FACADE_NAMES = (
+    "Altitude", "Analog", "ApiVersion", "ArmingConfig", "ArmingFlagInfo", "Attitude",
+    "BATTERY_STATE_NAMES", "BOX_NAMES", "BUILD_OPTION_NAMES", "BatteryState", "BoardInfo",
+    "BoxIds", "BoxNames", "BuildInfo", "CONFIGURATION_PROBLEM_NAMES", "CraftName",
+    "DEFAULT_RCMAP", "Debug", "EepromWrite", "FEATURE_NAMES", "FcVariant", "FcVersion",
+    "FeatureConfig", "GYRO_LSB_PER_DPS", "MAX_AUX_CHANNELS", "MAX_RC_CHANNELS",
+    "MAX_REQUEST_PAYLOAD", "MODE_RANGE_MAX_US", "MODE_RANGE_MIN_US", "MODE_RANGE_SLOTS",
+    "MODE_RANGE_STEP_US", "McuInfo", "ModeRange", "ModeRanges", "Motor", "MotorTelemetry",
+    "MotorTelemetryEntry", "MspCommand", "MspDecodeError", "MspMessage", "MspRequestError",
+    "MultipleMspReply", "MultipleMspRequest", "PayloadReader", "PayloadWriter", "PidAdvanced",
+    "RC_MAP_LETTERS", "REPLY_TYPES", "REQUEST_TYPES", "RX_MAP_CHANNELS", "RawGps", "RawImu",
+    "Rc", "RcTuning", "Reboot", "RebootMode", "RebootReply", "Rtc", "RxMap", "SENSOR_NAMES",
+    "SENSOR_NOT_BUILT", "SITL_ACC_1G_LSB", "SITL_ACC_TRUNCATION_LSB", "SensorConfigActive",
+    "SetArmingConfig", "SetFeatureConfig", "SetModeRange", "SetRawRc", "SetRtc", "SetRxMap",
+    "Status", "StatusEx", "Uid", "decode_arming_flags", "decode_reply", "decode_request",
+)  # fmt: skip
+
+
+def test_the_facade_keeps_every_name() -> None:
+    from bfsitl import errors
+    from bfsitl.protocol import messages
+
+    missing = [name for name in FACADE_NAMES if not hasattr(m, name)]
+    assert not missing
+    assert m.MspRequestError is errors.MspRequestError
+    assert m.Status is messages.Status and m.REPLY_TYPES is messages.REPLY_TYPES
+    assert len(m.REPLY_TYPES) == 32 and len(m.REQUEST_TYPES) == 9
+
+
+def test_short_payload_messages_name_the_first_missing_byte() -> None:
+    """As the field-by-field readers said it, though the codecs now read runs of fields."""
+    cases = [
+        (m.Attitude, h("f1ff 64"), "MSP Attitude: needs at least 4 bytes, got 3"),
+        (m.RawImu, bytes(7), "MSP RawImu: needs at least 8 bytes, got 7"),
+        (m.Analog, h("a8 0201 ff03 6aff 90"), "MSP Analog: needs at least 9 bytes, got 8"),
+        (m.StatusEx, STATUS_EX_SITL[:20], "MSP StatusEx: needs at least 21 bytes, got 20"),
+        (m.Status, h("7d00 0000 2100 03000000 01 0a00 0000 02 81"),
+         "MSP Status: needs at least 18 bytes, got 17"),
+        (m.ArmingConfig, h("05"), "MSP ArmingConfig: needs at least 2 bytes, got 1"),
+        (m.SetArmingConfig, h("05 00 19"), "MSP SetArmingConfig: needs at least 4 bytes, got 3"),
+        (m.BoardInfo, b"SITL" + h("0000 00 00 05") + b"SIT",
+         "MSP BoardInfo: needs at least 14 bytes, got 12"),
+        (m.MotorTelemetry, h("01 10270000 10"),
+         "MSP MotorTelemetry: needs at least 7 bytes, got 6"),
+        (m.MultipleMspReply, h("05 0001"), "MSP MultipleMspReply: needs at least 6 bytes, got 3"),
+        (m.BuildInfo, b"Nov 21 2026" + b"14:42:00" + b"abcdef0" + h("1f"),
+         "MSP BuildInfo options: 1 bytes is not a whole number of 2-byte items"),
+        (m.ModeRanges, bytes(5), "MSP ModeRanges: 5 bytes is not a whole number of 4-byte items"),
+    ]
+    for cls, payload, message in cases:
+        with pytest.raises(MspDecodeError) as caught:
+            cls.decode(payload)
+        assert str(caught.value) == message, cls.__name__
+
+
+def test_optional_tails_half_present_and_read_only_when_whole() -> None:
+    with pytest.raises(MspDecodeError, match="needs at least 9 bytes, got 8"):
+        m.Analog.decode(h("a8 0201 ff03 6aff 90"))  # half the 0.01 V field: broken
+    gps = h("02 0c 404b4c00 80969800 6400 2c01 0807")
+    assert m.RawGps.decode(gps + h("96")).pdop is None  # PDOP was always read only when whole
+    tuning = h("07 00 43 44 43 00 00 00 00 00 00 07 08 05")
+    assert m.RcTuning.decode(tuning + bytes(8)).rates_type is None
+    assert m.RcTuning.decode(tuning + bytes(8) + h("03")).rates_type == m.RcTuning.ACTUAL
+    assert m.RcTuning(7, 0, 67, 68, 67, 0, 7, 8, 5, 3).encode() == tuning + bytes(8) + h("03")
+
+
+def test_values_that_do_not_fit_are_request_errors_everywhere() -> None:
+    """Also where bytes() used to raise a bare ValueError; MspRequestError is a ValueError."""
+    for bad in (lambda: m.BoxIds((256,)).encode(), lambda: m.RxMap((0,) * 7 + (256,)).encode(),
+                lambda: m.McuInfo(0, "x" * 256).encode(), lambda: m.PidAdvanced(256).encode(),
+                lambda: m.Uid((1, 2)).encode(), lambda: m.RawImu((0, 0), (0, 0, 0),
+                                                                  (0, 0, 0)).encode()):
+        with pytest.raises(MspFrameError):
+            bad()
+    with pytest.raises(MspFrameError, match="a channel map has 8 entries, got 7"):
+        m.RxMap((0,) * 7).encode()
+    with pytest.raises(MspFrameError, match="signature must be 32 bytes, got 3"):
+        m.BoardInfo("SITL", 0, 0, 0, "SITL", "", "", b"abc").encode()
+    with pytest.raises(MspFrameError):
+        m.Reboot(None).encode()  # type: ignore[arg-type]  # the mode is always written

@@ -7,7 +7,7 @@ of the app (``BFSITL_CONFIGURATOR_DIST``) test_configurator_app.py drives the re
 from __future__ import annotations
 
 import pytest
-from configurator_client import ConfiguratorLikeClient, frames
+from support.configurator_client import ConfiguratorLikeClient, frames
 
 from bfsitl.bridges.websocket_relay import CLOSE_UPSTREAM_GONE
 from bfsitl.protocol import msp_messages as msg

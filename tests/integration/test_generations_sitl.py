@@ -13,7 +13,7 @@ tests disturb the vehicle instead and compare what the FC reports with the simul
 
 Each runs on 4.6.0 (PyPI) and on master built by ``bfsitl firmware build`` from the source
 named by ``BFSITL_MASTER_SOURCE`` (fixture ``generation_firmware``; without it the master cases
-are skipped, and tests/unit/test_master_recordings.py checks master's conventions against a
+are skipped, and tests/unit/sim/test_master_recordings.py checks master's conventions against a
 recording of a real master SITL); the flights use their ``--lockstep`` builds (fixture
 ``lockstep_firmware``).
 """

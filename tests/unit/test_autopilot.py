@@ -17,7 +17,7 @@ from pathlib import Path
 from typing import Any
 
 import pytest
-from test_mission_runner import FakeSession, PController, PlanarSession
+from support.fake_vehicles import FakeSession, PController, PlanarSession
 
 from bfsitl.autopilot import GROUND_WAIT_S, Autopilot
 from bfsitl.control.horizontal_estimator import HorizontalEstimator

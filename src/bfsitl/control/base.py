@@ -12,7 +12,7 @@ then hands it the samples of its ground phase (armed at idle before the take-off
 resetting it when the take-off begins.
 
 Everything here is plain data and a :class:`typing.Protocol`, so controllers can be tested
-offline (``tests/unit/altitude_plant.py``) exactly as the mission runner calls them.
+offline (``tests/support/altitude_plant.py``) exactly as the mission runner calls them.
 """
 
 from __future__ import annotations

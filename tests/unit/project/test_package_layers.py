@@ -1,0 +1,173 @@
+"""The package's layers: the physics at the bottom imports nothing of bfsitl above it, each
+layer imports only those below it, no module imports itself round a circle, nobody outside
+the backend factory asks what kind of backend or link it has, and modules stay small enough
+to read (issue 21's seams)."""
+
+from __future__ import annotations
+
+import ast
+from pathlib import Path
+
+PACKAGE = Path(__file__).resolve().parents[3] / "src" / "bfsitl"
+#: What the pure physics may import of bfsitl: itself, and the one exception tree.
+PHYSICS_MAY_IMPORT = ("bfsitl.physics", "bfsitl.errors")
+
+
+def _module_name(path: Path) -> str:
+    parts = path.relative_to(PACKAGE.parent).with_suffix("").parts
+    return ".".join(parts[:-1] if parts[-1] == "__init__" else parts)
+
+
+def _imports(path: Path) -> list[str]:
+    tree = ast.parse(path.read_text())
+    found = []
+    for node in ast.walk(tree):
+        if isinstance(node, ast.ImportFrom) and node.module and node.level == 0:
+            found.append(node.module)
+        elif isinstance(node, ast.Import):
+            found.extend(alias.name for alias in node.names)
+    return [name for name in found if name == "bfsitl" or name.startswith("bfsitl.")]
+
+
+def test_the_physics_imports_nothing_above_it() -> None:
+    offenders = [f"{path.name}: {name}"
+                 for path in sorted((PACKAGE / "physics").glob("*.py"))
+                 for name in _imports(path)
+                 if not name.startswith(PHYSICS_MAY_IMPORT)]
+    assert not offenders, offenders
+
+
+def test_the_physics_modules_stay_small() -> None:
+    sizes = {path.name: len(path.read_text().splitlines())
+             for path in (PACKAGE / "physics").glob("*.py")}
+    assert max(sizes.values()) <= 600, sizes
+
+
+def _import_graph() -> dict[str, set[str]]:
+    """Module -> the bfsitl modules it imports anywhere (top level, TYPE_CHECKING, inside a
+    function).  ``from bfsitl.x import y`` counts ``bfsitl.x.y`` when that is a module.  The
+    package root is left out: its lazy table names everything for ``import bfsitl``."""
+    modules = {_module_name(path): path for path in PACKAGE.rglob("*.py")}
+    modules.pop("bfsitl")
+    graph: dict[str, set[str]] = {name: set() for name in modules}
+    for name, path in modules.items():
+        for node in ast.walk(ast.parse(path.read_text())):
+            if isinstance(node, ast.ImportFrom) and node.module and node.level == 0:
+                targets = [node.module, *(f"{node.module}.{a.name}" for a in node.names)]
+            elif isinstance(node, ast.Import):
+                targets = [alias.name for alias in node.names]
+            else:
+                continue
+            graph[name].update(t for t in targets if t in modules and t != name)
+    return graph
+
+
+def _cycles(graph: dict[str, set[str]]) -> list[list[str]]:
+    """The strongly connected components with more than one module (Tarjan's algorithm)."""
+    index: dict[str, int] = {}
+    low: dict[str, int] = {}
+    stack: list[str] = []
+    found: list[list[str]] = []
+
+    def visit(node: str) -> None:
+        index[node] = low[node] = len(index)
+        stack.append(node)
+        for target in sorted(graph[node]):
+            if target not in index:
+                visit(target)
+                low[node] = min(low[node], low[target])
+            elif target in stack:
+                low[node] = min(low[node], index[target])
+        if low[node] == index[node]:
+            component = []
+            while True:
+                member = stack.pop()
+                component.append(member)
+                if member == node:
+                    break
+            if len(component) > 1:
+                found.append(sorted(component))
+
+    for node in sorted(graph):
+        if node not in index:
+            visit(node)
+    return found
+
+
+def test_no_module_imports_itself_round_a_circle() -> None:
+    assert _cycles({"a": {"b"}, "b": {"c"}, "c": {"a"}, "d": {"a"}}) == [["a", "b", "c"]]
+    assert _cycles(_import_graph()) == []
+
+
+#: Packages that must not import the ones named (a lower layer never reaches up).
+LAYERS = {
+    "bfsitl.physics": ("bfsitl.sim", "bfsitl.backend", "bfsitl.mission", "bfsitl.scenario"),
+    "bfsitl.sim": ("bfsitl.backend", "bfsitl.mission", "bfsitl.scenario", "bfsitl.cli"),
+    "bfsitl.backend": ("bfsitl.mission", "bfsitl.scenario", "bfsitl.cli", "bfsitl.autopilot"),
+    "bfsitl.mission": ("bfsitl.records", "bfsitl.scenario", "bfsitl.cli", "bfsitl.autopilot"),
+    "bfsitl.records": ("bfsitl.scenario", "bfsitl.cli", "bfsitl.autopilot"),
+    "bfsitl.protocol": ("bfsitl.fc", "bfsitl.sitl", "bfsitl.sim", "bfsitl.mission"),
+}
+
+
+def test_each_layer_imports_only_what_is_below_it() -> None:
+    graph = _import_graph()
+    offenders = [f"{module} imports {target}"
+                 for module, targets in graph.items()
+                 for layer, above in LAYERS.items() if module.startswith(layer)
+                 for target in targets if target.startswith(above)]
+    assert not offenders, offenders
+
+
+#: The kinds of backend, bridge, clock and link: what the factory picks and nobody asks.
+BACKEND_TYPES = {"SitlBridge", "LockstepBridge", "LockstepClock", "RealTimeClock", "WallClock",
+                 "Backend", "SitlBackend", "RealTimeBackend", "LockstepBackend",
+                 "GazeboBackend", "BoardBackend", "TcpLink", "SerialLink", "SteppedLink",
+                 "UdpRcLink", "MspRcLink", "LockstepRc", "FlightSession", "BoardVehicle"}
+
+
+def test_nobody_asks_which_kind_of_backend_or_link_it_has() -> None:
+    offenders = []
+    for path in PACKAGE.rglob("*.py"):
+        if path.relative_to(PACKAGE).as_posix() == "backend/factory.py":
+            continue
+        for node in ast.walk(ast.parse(path.read_text())):
+            if isinstance(node, ast.Call) and isinstance(node.func, ast.Name) \
+                    and node.func.id == "isinstance" and len(node.args) == 2:
+                kinds = node.args[1].elts if isinstance(node.args[1], ast.Tuple) \
+                    else [node.args[1]]
+                named = {k.id if isinstance(k, ast.Name) else getattr(k, "attr", "")
+                         for k in kinds}
+                if named & BACKEND_TYPES:
+                    offenders.append(f"{path.relative_to(PACKAGE)}:{node.lineno}")
+    assert not offenders, offenders
+
+
+def test_no_source_file_is_over_about_600_lines() -> None:
+    sizes = {path.relative_to(PACKAGE).as_posix(): len(path.read_text().splitlines())
+             for path in PACKAGE.rglob("*.py")}
+    too_long = {name: lines for name, lines in sizes.items() if lines > 620}
+    assert too_long == {}
+
+
+UNIT_TESTS = PACKAGE.parents[1] / "tests" / "unit"
+#: The folder of tests/unit that is no package of bfsitl: checks of the project as a whole.
+PROJECT_CHECKS = "project"
+#: Packages without unit tests of their own: shipped data (the scenario library, read by the
+#: scenario and input-fuzz tests).
+NO_UNIT_FOLDER = {"library"}
+
+
+def test_the_unit_tests_mirror_the_packages() -> None:
+    packages = {path.parent.name for path in PACKAGE.glob("*/__init__.py")}
+    folders = {path.name for path in UNIT_TESTS.iterdir()
+               if path.is_dir() and path.name != "__pycache__"}
+    assert folders - {PROJECT_CHECKS} <= packages, "a folder of tests/unit names no package"
+    assert packages - NO_UNIT_FOLDER <= folders, "a package has no folder in tests/unit"
+    # Tests of the top-level modules (autopilot.py, errors.py) stand at tests/unit itself.
+    top_level = {path.stem for path in PACKAGE.glob("*.py")}
+    for test in UNIT_TESTS.glob("test_*.py"):
+        assert test.stem.removeprefix("test_") in top_level, test.name
+    # Test folders are no packages (pytest puts each on sys.path): a name must be unique.
+    names = [path.name for path in UNIT_TESTS.parent.rglob("test_*.py")]
+    assert len(names) == len(set(names)), sorted(n for n in names if names.count(n) > 1)

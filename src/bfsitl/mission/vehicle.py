@@ -364,7 +364,11 @@ class Vehicle:
         others raise :class:`MspErrorReply`.  The conversion is the FC's flat-earth one, good
         to centimetres over a flying field.
         """
-        gps = self.client.get(msg.RawGps)
+        return self.local_gps(self.client.get(msg.RawGps))
+
+    def local_gps(self, gps: msg.RawGps) -> GpsPosition:
+        """An MSP_RAW_GPS reply made local, as :meth:`gps_position` does (for a caller that
+        asked for it in a batch of its own); its first fix becomes the origin."""
         if self._gps_origin_e7 is None and gps.has_fix:
             self._gps_origin_e7 = (gps.lat_e7, gps.lon_e7)
         lat0, lon0 = self._gps_origin_e7 or (gps.lat_e7, gps.lon_e7)

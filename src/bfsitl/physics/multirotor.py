@@ -226,6 +226,12 @@ class Simulator(GroundContact):
             self.on_ground,
         )
 
+    @property
+    def specific_force_frd_m_s2(self) -> Vec3:
+        """What an ideal accelerometer reads now, body FRD: no noise, no bias, and no draw
+        from the sensors' random generator (watching leaves the flight as it is)."""
+        return _rotate_inverse(self._q, self._sf_world)
+
     # ---- control ----------------------------------------------------------------------------
 
     def hold(self, enabled: bool = True) -> None:

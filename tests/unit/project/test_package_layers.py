@@ -104,7 +104,9 @@ LAYERS = {
     "bfsitl.physics": ("bfsitl.sim", "bfsitl.backend", "bfsitl.mission", "bfsitl.scenario"),
     "bfsitl.sim": ("bfsitl.backend", "bfsitl.mission", "bfsitl.scenario", "bfsitl.cli"),
     "bfsitl.backend": ("bfsitl.mission", "bfsitl.scenario", "bfsitl.cli", "bfsitl.autopilot"),
-    "bfsitl.mission": ("bfsitl.records", "bfsitl.scenario", "bfsitl.cli", "bfsitl.autopilot"),
+    "bfsitl.mission": ("bfsitl.records", "bfsitl.scenario", "bfsitl.cli", "bfsitl.autopilot",
+                       "bfsitl.gym"),
+    "bfsitl.gym": ("bfsitl.scenario", "bfsitl.cli", "bfsitl.autopilot"),
     "bfsitl.records": ("bfsitl.scenario", "bfsitl.cli", "bfsitl.autopilot"),
     "bfsitl.protocol": ("bfsitl.fc", "bfsitl.sitl", "bfsitl.sim", "bfsitl.mission"),
 }

@@ -1,0 +1,254 @@
+"""The real Betaflight as a Gymnasium environment, stepped in lockstep.
+
+Each environment owns one SITL of a ``--lockstep`` build, in its own network namespace: the
+firmware's clock moves only when the physics steps, so a step of the policy is exactly
+``1 / control_hz`` of simulated time however long the policy thinks, and the same seed and
+actions give the same trajectory, bit for bit (``tests/integration/test_gym_sitl.py``).
+
+**A step**: the action's sticks go out as RC (riding in the next fdm packets), the simulation
+runs to the next control tick, and the FC is read (one MSP round trip, the GPS in it) beside
+the truth.  **A reset** ends the SITL and boots a fresh one from the same provisioned EEPROM,
+arms it and, with ``start="air"``, has bfsitl's own autopilot take off to ``start_alt_m``
+before the policy gets the sticks.  Nothing of the firmware's state carries over from one
+episode to the next (filters, the attitude estimate, the I-terms, failsafe counters): that is
+what makes episodes repeatable, and it costs about a third of a second of wall time (the
+boot and arming run on simulated time too).  The first reset provisions the EEPROM once
+(ARM, ANGLE and the serial rate), in a boot of its own, so the first episode starts like all
+the others.
+
+The observation (:mod:`~bfsitl.gym.observation`), the reward and the endings
+(:mod:`~bfsitl.gym.tasks`) are documented where they are computed.
+"""
+
+from __future__ import annotations
+
+import math
+import multiprocessing
+import shutil
+import tempfile
+from collections.abc import Callable
+from pathlib import Path
+from typing import Any
+
+import gymnasium
+import numpy as np
+from gymnasium import spaces
+
+from bfsitl.backend.disturbances import Disturbances
+from bfsitl.control import make_controller
+from bfsitl.errors import EnvironmentConfigError, LinkError, MspError, SitlError
+from bfsitl.gym.observation import OBSERVATIONS, observation_space, observe
+from bfsitl.gym.snapshot import Snapshot, Vec3, read_snapshot
+from bfsitl.gym.sticks import sticks_to_rc
+from bfsitl.gym.tasks import AIRBORNE_M, FAILURE_REWARD, Hover, Waypoints, failure, step_reward
+from bfsitl.mission.loop import Mission
+from bfsitl.mission.session import FlightSession, SessionConfig
+from bfsitl.physics.wind import Wind
+from bfsitl.sitl.firmware import find_firmware
+
+MODES = ("angle", "acro")
+STARTS = ("air", "ground")
+#: The control rates a lockstep SITL's MSP budget sustains (the serial task runs at 1 kHz).
+CONTROL_HZ_RANGE = (1.0, 200.0)
+DEFAULT_FIRMWARE = "4.6.0-gps-lockstep"
+#: Armed on the ground before an "air" start's take-off (the FC's altitude settles).
+_GROUND_S = 1.0
+
+#: Called before every step with the flight's disturbance surface and the episode's time:
+#: faults, wind changes, a weak motor, sensor errors (see bfsitl.backend.disturbances).
+DisturbanceHook = Callable[[Disturbances, float], object]
+
+
+class FlightEnv(gymnasium.Env[np.ndarray, np.ndarray]):
+    """See the module docstring; :class:`HoverEnv` and :class:`WaypointsEnv` choose the task."""
+
+    metadata: dict[str, Any] = {"render_modes": []}
+
+    def __init__(self, task: Hover, *, firmware: str | Path = DEFAULT_FIRMWARE,
+                 control_hz: float = 100.0, mode: str = "angle", observation: str = "fc",
+                 wind: float = 0.0, wind_from_deg: float = 0.0, gusts: float = 0.0,
+                 disturbances: DisturbanceHook | None = None, episode_s: float = 10.0,
+                 start: str = "air", start_alt_m: float = 1.5, spin: bool | None = None,
+                 workdir: str | Path | None = None) -> None:
+        _check_choice("mode", mode, MODES)
+        _check_choice("observation", observation, OBSERVATIONS)
+        _check_choice("start", start, STARTS)
+        low, high = CONTROL_HZ_RANGE
+        if not low <= control_hz <= high:
+            raise EnvironmentConfigError(
+                f"control_hz {control_hz} is outside {low:g}..{high:g} Hz")
+        if not 0.1 <= episode_s <= 3600.0:
+            raise EnvironmentConfigError(f"episode_s {episode_s} is outside 0.1..3600 s")
+        self.binary = find_firmware(firmware)
+        if not self.binary.lockstep:
+            raise EnvironmentConfigError(
+                f"{firmware}: not a lockstep build; the environment steps the firmware with "
+                f"the physics. Build one: `bfsitl firmware build --gps --lockstep` (makes "
+                f"{DEFAULT_FIRMWARE})")
+        self.task = task
+        self.control_hz = control_hz
+        self.mode = mode
+        self.observation = observation
+        self.wind = (Wind.from_direction(wind, wind_from_deg, gusts)
+                     if wind or gusts else None)
+        self.disturbances = disturbances
+        self.episode_s = episode_s
+        self.start = start
+        self.start_alt_m = start_alt_m
+        #: Busy-wait for the firmware's replies (SessionConfig.lockstep_spin): the SITL and
+        #: bfsitl each keep a core busy, which makes one environment about 2x faster and
+        #: several sharing the cores 3x slower (benchmarks/gym.py).  None: spin in the main
+        #: process only, not in the workers of an AsyncVectorEnv.
+        self.spin = multiprocessing.parent_process() is None if spin is None else spin
+        self.action_space = spaces.Box(-1.0, 1.0, shape=(4,), dtype=np.float32)
+        self.observation_space = observation_space()
+        self._own_workdir = workdir is None
+        self.workdir = Path(tempfile.mkdtemp(prefix="bfsitl-gym-") if workdir is None
+                            else workdir)
+        self._session: FlightSession | None = None
+        self._prepared = False
+        self._arm_ned: Vec3 = (0.0, 0.0, 0.0)
+        self._started_s = 0.0
+        self._next_s = 0.0
+        self._has_flown = False
+        self._snapshot: Snapshot | None = None
+
+    # -- the episode -------------------------------------------------------------------------
+    def reset(self, *, seed: int | None = None,
+              options: dict[str, Any] | None = None) -> tuple[np.ndarray, dict[str, Any]]:
+        super().reset(seed=seed)
+        self._end_session()
+        if not self._prepared:
+            self._prepare()
+        episode_seed = int(self.np_random.integers(0, 2**31 - 1))
+        self.task.reset(self.np_random)
+        session = self._new_session(episode_seed).start()
+        self._session = session
+        if self.start == "air":
+            mission = Mission(session, make_controller("fused"), rate_hz=self.control_hz)
+            mission.arm()
+            self._mark_arming(session)
+            mission.wait_on_ground(_GROUND_S)
+            mission.takeoff(self.start_alt_m, hold_position=session.has_gps)
+        else:
+            session.arm()
+            self._mark_arming(session)
+        self._started_s = self._next_s = session.time_s
+        self._has_flown = self.start == "air"
+        self._snapshot = read_snapshot(session, arm_ned_m=self._arm_ned)
+        return self._observe(), self._info(None)
+
+    def step(self, action: np.ndarray) -> tuple[np.ndarray, float, bool, bool,
+                                                 dict[str, Any]]:
+        session = self._session
+        if session is None:
+            raise EnvironmentConfigError("step() before reset(): call env.reset() first")
+        action = np.asarray(action, dtype=np.float32)
+        if action.shape != (4,):
+            raise EnvironmentConfigError(
+                f"an action is 4 sticks (roll, pitch, throttle, yaw), got shape {action.shape}")
+        try:
+            if self.disturbances is not None:
+                self.disturbances(session.disturbances, session.time_s - self._started_s)
+            session.set_rc(sticks_to_rc(action.tolist(), session.rc_command))
+            self._next_s += 1.0 / self.control_hz
+            wait_s = self._next_s - session.time_s
+            if wait_s > 0:
+                session.clock.sleep_s(wait_s)
+            else:
+                self._next_s = session.time_s  # late: the schedule restarts here
+            self._snapshot = snapshot = read_snapshot(session, arm_ned_m=self._arm_ned)
+        except (SitlError, LinkError, MspError) as exc:
+            # The firmware died or stopped answering: the episode ends, the next reset boots
+            # a fresh one; training goes on.
+            self._end_session()
+            assert self._snapshot is not None
+            return (self._observe(), FAILURE_REWARD, True, False,
+                    self._info(f"the SITL failed: {exc}".splitlines()[0]))
+        truth = snapshot.truth
+        if truth.alt_m > AIRBORNE_M:
+            self._has_flown = True
+        reward = step_reward(truth, self.task.target, action)
+        bonus, finished = self.task.advance(truth)
+        why = failure(truth, self.task.target, armed=snapshot.fc.armed,
+                      has_flown=self._has_flown)
+        reward += bonus + (FAILURE_REWARD if why is not None else 0.0)
+        terminated = finished or why is not None
+        truncated = not terminated and (session.time_s - self._started_s
+                                        >= self.episode_s - 0.5 / self.control_hz)
+        return self._observe(), float(reward), terminated, truncated, self._info(why)
+
+    def close(self) -> None:
+        self._end_session()
+        if self._own_workdir:
+            shutil.rmtree(self.workdir, ignore_errors=True)
+        super().close()
+
+    # -- parts ---------------------------------------------------------------------------------
+    def _new_session(self, seed: int) -> FlightSession:
+        config = SessionConfig.for_autopilot(
+            control_rate_hz=self.control_hz, firmware=self.binary.path,
+            workdir=self.workdir / "sitl", seed=seed, wind=self.wind, lockstep=True,
+            angle_mode=self.mode == "angle", lockstep_spin=self.spin)
+        return FlightSession(config)
+
+    def _prepare(self) -> None:
+        """One boot that provisions the EEPROM, so every episode boots the same FC."""
+        with self._new_session(0) as session:
+            session.start()
+        self._prepared = True
+
+    def _mark_arming(self, session: FlightSession) -> None:
+        simulator = session.simulator
+        assert simulator is not None
+        north, east, down = simulator.state.position_ned_m
+        self._arm_ned = (north, east, down)
+
+    def _end_session(self) -> None:
+        session, self._session = self._session, None
+        if session is not None:
+            session.close()
+
+    def _observe(self) -> np.ndarray:
+        assert self._snapshot is not None
+        return observe(self._snapshot, self.task.target, self.observation)
+
+    def _info(self, ended_because: str | None) -> dict[str, Any]:
+        snapshot = self._snapshot
+        assert snapshot is not None
+        truth = snapshot.truth
+        return {
+            "time_s": snapshot.time_s - self._started_s,
+            "target": self.task.target,
+            "waypoint": self.task.index,
+            "distance_m": math.dist((truth.north_m, truth.east_m, truth.alt_m),
+                                    self.task.target),
+            "truth": truth.as_dict(),
+            "armed": snapshot.fc.armed,
+            "arming_blockers": snapshot.fc.arming_blockers,
+            "flight_modes": snapshot.fc.flight_modes,
+            "failsafe": "FAILSAFE" in snapshot.fc.flight_modes,
+            "ended_because": ended_because,
+        }
+
+
+class HoverEnv(FlightEnv):
+    """``bfsitl/Hover-v0``: reach and hold one point (see :class:`~bfsitl.gym.tasks.Hover`)."""
+
+    def __init__(self, **options: Any) -> None:
+        super().__init__(Hover(), **options)
+
+
+class WaypointsEnv(FlightEnv):
+    """``bfsitl/Waypoints-v0``: three points in turn, the next one in the observation (see
+    :class:`~bfsitl.gym.tasks.Waypoints`); 20 s by default."""
+
+    def __init__(self, *, count: int = 3, episode_s: float = 20.0, **options: Any) -> None:
+        if not 1 <= count <= 50:
+            raise EnvironmentConfigError(f"count {count} is outside 1..50 waypoints")
+        super().__init__(Waypoints(count=count), episode_s=episode_s, **options)
+
+
+def _check_choice(name: str, value: str, choices: tuple[str, ...]) -> None:
+    if value not in choices:
+        raise EnvironmentConfigError(f"{name} must be one of {', '.join(choices)}, not {value!r}")

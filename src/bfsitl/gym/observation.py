@@ -1,0 +1,62 @@
+"""The observation vector: 20 numbers, the same layout for the FC's view and for the truth.
+
+=====  ==================================================================  =======
+index  what                                                                unit
+=====  ==================================================================  =======
+0-2    the target minus the position: north, east, up                      m
+3-5    velocity: north, east, up                                           m/s
+6-7    roll (right wing down +), pitch (nose down +)                       rad
+8-9    sin and cos of the heading (clockwise from north)                   -
+10-12  body rates, FLU (x forward, y left, z up)                           rad/s
+13-15  specific force, FLU (+9.81 on z at rest)                            m/s^2
+16-19  motor outputs M1..M4 (Betaflight's order)                           0..1
+=====  ==================================================================  =======
+
+``observation="fc"`` fills it only from what the FC says over MSP: the GPS (position,
+velocity), MSP_ALTITUDE (height, vario), MSP_ATTITUDE, MSP_RAW_IMU and MSP_MOTOR.  On a build
+without a GPS the horizontal position and velocity are 0: use a GPS build
+(``bfsitl firmware build --gps --lockstep``).  ``observation="truth"`` fills the same slots
+from the simulation, for comparison.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from gymnasium import spaces
+
+from bfsitl.gym.snapshot import FcView, Snapshot, TrueView, Vec3
+
+OBSERVATION_SIZE = 20
+OBSERVATIONS = ("fc", "truth")
+
+#: Bounds of each slot, far outside a flight (a 2000 deg/s gyro is 35 rad/s, a 16 g
+#: accelerometer 157 m/s^2); a value beyond them is clipped, so every observation is inside
+#: the space.
+_HIGH = np.array([1000.0] * 3 + [100.0] * 3 + [math.pi] * 2 + [1.0] * 2 + [100.0] * 3
+                 + [1000.0] * 3 + [1.0] * 4, dtype=np.float32)
+_LOW = np.concatenate([-_HIGH[:16], np.zeros(4, dtype=np.float32)])
+
+
+def observation_space() -> spaces.Box:
+    """The space every observation is in."""
+    return spaces.Box(_LOW, _HIGH, dtype=np.float32)
+
+
+def observe(snapshot: Snapshot, target: Vec3, which: str) -> np.ndarray:
+    """The observation of ``snapshot`` towards ``target`` (north, east, up)."""
+    view: FcView | TrueView = snapshot.fc if which == "fc" else snapshot.truth
+    if isinstance(view, FcView):
+        position = (view.north_m, view.east_m, view.alt_m)
+        velocity = (view.v_north_m_s, view.v_east_m_s, view.climb_m_s)
+    else:
+        position = (view.north_m, view.east_m, view.alt_m)
+        velocity = (view.v_north_m_s, view.v_east_m_s, view.v_up_m_s)
+    values = (
+        target[0] - position[0], target[1] - position[1], target[2] - position[2],
+        *velocity,
+        view.roll_rad, view.pitch_rad, math.sin(view.yaw_rad), math.cos(view.yaw_rad),
+        *view.rates_flu_rad_s, *view.accel_flu_m_s2, *view.motors,
+    )
+    return np.clip(np.asarray(values, dtype=np.float32), _LOW, _HIGH)

@@ -1,0 +1,114 @@
+"""What an episode asks for, and how a step is scored: pure, without a SITL.
+
+Every score is computed from the simulated truth, whatever the policy observes, so a policy
+cannot earn it by fooling the FC's estimate.  Per step:
+
+    reward = exp(-distance_m) - 0.1 * tilt_rad - 0.01 * |roll, pitch, yaw sticks|^2
+
+``exp(-distance_m)`` is 1 at the target and 0.37 a metre away; the tilt term asks for a calm
+attitude, the stick term for little effort (throttle is not charged: holding height needs
+it).  An episode **terminates** when the vehicle crashes (tilted past ``CRASH_TILT_DEG``, or
+back on the ground after it had flown), when the FC disarms (a failsafe, its own crash
+detection), or when it leaves the bounds (``MAX_DISTANCE_M`` from the target, or above
+``MAX_ALT_M``); each of those costs ``FAILURE_REWARD`` once.  It is **truncated** at the
+time limit.  :class:`Waypoints` also ends (terminated, a success) when its last point is
+reached, and pays ``WAYPOINT_BONUS`` for each point.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from bfsitl.gym.snapshot import TrueView, Vec3
+
+CRASH_TILT_DEG = 70.0
+MAX_DISTANCE_M = 10.0
+MAX_ALT_M = 20.0
+FAILURE_REWARD = -10.0
+WAYPOINT_BONUS = 5.0
+#: A waypoint counts as reached within this distance of it.
+REACHED_M = 0.5
+#: Off the ground after take-off means above this height.
+AIRBORNE_M = 0.3
+
+
+def distance_m(truth: TrueView, target: Vec3) -> float:
+    return math.dist((truth.north_m, truth.east_m, truth.alt_m), target)
+
+
+def step_reward(truth: TrueView, target: Vec3, action: np.ndarray) -> float:
+    """The per-step reward of the module docstring."""
+    roll, pitch, _throttle, yaw = (float(v) for v in action)
+    tilt_rad = math.radians(truth.tilt_deg)
+    return (math.exp(-distance_m(truth, target)) - 0.1 * tilt_rad
+            - 0.01 * (roll * roll + pitch * pitch + yaw * yaw))
+
+
+def failure(truth: TrueView, target: Vec3, *, armed: bool, has_flown: bool) -> str | None:
+    """Why the episode must end now (None: it goes on)."""
+    if truth.tilt_deg > CRASH_TILT_DEG:
+        return f"crashed: tilted {truth.tilt_deg:.0f} deg"
+    if has_flown and truth.on_ground:
+        return "crashed: back on the ground"
+    if not armed:
+        return "the FC disarmed"
+    if distance_m(truth, target) > MAX_DISTANCE_M:
+        return f"out of bounds: more than {MAX_DISTANCE_M:g} m from the target"
+    if truth.alt_m > MAX_ALT_M:
+        return f"out of bounds: above {MAX_ALT_M:g} m"
+    return None
+
+
+@dataclass
+class Hover:
+    """Reach and hold one point: ``north_m`` and ``east_m`` within ``horizontal_m`` of the
+    start, ``up_m`` between ``min_alt_m`` and ``max_alt_m``, drawn at each reset."""
+
+    horizontal_m: float = 2.0
+    min_alt_m: float = 1.5
+    max_alt_m: float = 3.0
+    targets: list[Vec3] = field(default_factory=list)
+    index: int = 0
+
+    name = "hover"
+
+    def reset(self, rng: np.random.Generator) -> None:
+        self.targets = [self._draw(rng)]
+        self.index = 0
+
+    def _draw(self, rng: np.random.Generator) -> Vec3:
+        north, east = rng.uniform(-self.horizontal_m, self.horizontal_m, size=2)
+        return (float(north), float(east), float(rng.uniform(self.min_alt_m, self.max_alt_m)))
+
+    @property
+    def target(self) -> Vec3:
+        return self.targets[self.index]
+
+    def advance(self, truth: TrueView) -> tuple[float, bool]:
+        """(bonus, finished) after this step: a hover never finishes early."""
+        return 0.0, False
+
+
+@dataclass
+class Waypoints(Hover):
+    """``count`` points in turn, each drawn like :class:`Hover`'s; the next one is the
+    target, and reaching the last ends the episode."""
+
+    count: int = 3
+
+    name = "waypoints"
+
+    def reset(self, rng: np.random.Generator) -> None:
+        self.targets = [self._draw(rng) for _ in range(self.count)]
+        self.index = 0
+
+    def advance(self, truth: TrueView) -> tuple[float, bool]:
+        if distance_m(truth, self.target) > REACHED_M:
+            return 0.0, False
+        if self.index == len(self.targets) - 1:
+            return WAYPOINT_BONUS, True
+        self.index += 1
+        return WAYPOINT_BONUS, False

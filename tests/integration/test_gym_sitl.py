@@ -1,0 +1,207 @@
+"""The Gymnasium environments on the real 4.6.0 SITL (a --gps --lockstep build): Gymnasium's
+own checker, bit-for-bit repeats, the FC's observation against the truth under disturbances
+(a wrong sign or axis fails), and many at once with nothing left running after close() or a
+crash of the parent."""
+
+from __future__ import annotations
+
+import os
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+gymnasium = pytest.importorskip("gymnasium")
+
+import bfsitl.gym  # noqa: E402, F401  (registers the environments)
+from bfsitl.gym.env import HoverEnv  # noqa: E402
+
+pytestmark = pytest.mark.sitl
+
+
+def sitl_processes_under(folder: Path) -> list[int]:
+    """SITL processes whose run directory is inside ``folder`` (any namespace: pids are
+    shared)."""
+    found = []
+    for entry in Path("/proc").iterdir():
+        if not entry.name.isdigit():
+            continue
+        try:
+            exe = os.readlink(entry / "exe")
+            cwd = os.readlink(entry / "cwd")
+        except OSError:
+            continue
+        if "_SITL" in exe and cwd.startswith(str(folder)):
+            found.append(int(entry.name))
+    return found
+
+
+def test_gymnasiums_checker_passes_for_every_registered_environment(
+        lockstep_gps_46_firmware: Path, tmp_path: Path) -> None:
+    from gymnasium.utils.env_checker import check_env
+
+    for number, env_id in enumerate(bfsitl.gym.ENVIRONMENTS):
+        env = gymnasium.make(env_id, firmware=lockstep_gps_46_firmware,
+                             workdir=tmp_path / str(number))
+        try:
+            check_env(env.unwrapped, skip_render_check=True)
+        finally:
+            env.close()
+    assert sitl_processes_under(tmp_path) == []
+
+
+def rollout(firmware: Path, workdir: Path, seed: int, steps: int = 500
+            ) -> tuple[np.ndarray, np.ndarray, int]:
+    """Observations and rewards of ``steps`` steps of the same action sequence; an episode
+    that ends is reset (without a seed: the environment's generator goes on)."""
+    env = HoverEnv(firmware=firmware, workdir=workdir)
+    actions = np.random.default_rng(99).uniform(-0.25, 0.25, size=(steps, 4)).astype(np.float32)
+    actions[:, 2] += 0.12  # about the hover throttle: the episodes last
+    try:
+        observation, _info = env.reset(seed=seed)
+        observations, rewards, resets = [observation], [], 0
+        for action in actions:
+            observation, reward, terminated, truncated, _info = env.step(action)
+            observations.append(observation)
+            rewards.append(reward)
+            if terminated or truncated:
+                observation, _info = env.reset()
+                observations.append(observation)
+                resets += 1
+    finally:
+        env.close()
+    return np.array(observations), np.array(rewards), resets
+
+
+def test_the_same_seed_and_actions_give_the_same_flight_bit_for_bit(
+        lockstep_gps_46_firmware: Path, tmp_path: Path) -> None:
+    first, first_rewards, resets = rollout(lockstep_gps_46_firmware, tmp_path / "a", seed=4)
+    again, again_rewards, _ = rollout(lockstep_gps_46_firmware, tmp_path / "b", seed=4)
+    other, _other_rewards, _ = rollout(lockstep_gps_46_firmware, tmp_path / "c", seed=5)
+    assert resets >= 1                     # the repeat holds across a reset too
+    assert first.tobytes() == again.tobytes()
+    assert first_rewards.tobytes() == again_rewards.tobytes()
+    assert first.shape != other.shape or not np.array_equal(first, other)
+
+
+def test_what_the_fc_reports_follows_the_truth_in_wind_and_stick_steps(
+        lockstep_gps_46_firmware: Path, tmp_path: Path) -> None:
+    """Roll right, pitch forward, yaw right, in a 3 m/s wind from the east: the FC's attitude,
+    gyro, climb and GPS in the observation against the same slots filled from the truth."""
+    env = HoverEnv(firmware=lockstep_gps_46_firmware, workdir=tmp_path / "run", wind=3.0,
+                   wind_from_deg=90.0, episode_s=60.0)
+    try:
+        _obs, info = env.reset(seed=2)
+        hover = 0.12
+
+        def fly(sticks: tuple[float, float, float, float], seconds: float
+                ) -> list[tuple[np.ndarray, np.ndarray]]:
+            pairs = []
+            for _ in range(round(seconds * env.control_hz)):
+                fc, _r, terminated, _t, info = env.step(np.array(sticks, dtype=np.float32))
+                assert not terminated, info["ended_because"]
+                assert env._snapshot is not None
+                pairs.append((fc, observe_truth(env)))
+            return pairs
+
+        def observe_truth(env: HoverEnv) -> np.ndarray:
+            from bfsitl.gym.observation import observe
+
+            assert env._snapshot is not None
+            return observe(env._snapshot, env.task.target, "truth")
+
+        def mean(pairs: list[tuple[np.ndarray, np.ndarray]], slot: int) -> tuple[float, float]:
+            return (float(np.mean([fc[slot] for fc, _ in pairs])),
+                    float(np.mean([truth[slot] for _, truth in pairs])))
+
+        rolled = fly((0.3, 0.0, hover, 0.0), 0.6)[20:]     # right wing down
+        fc_roll, true_roll = mean(rolled, 6)
+        assert true_roll > 0.05 and abs(fc_roll - true_roll) < 0.05
+        fly((0.0, 0.0, hover, 0.0), 1.0)
+        pitched = fly((0.0, 0.3, hover, 0.0), 0.6)[20:]    # stick forward: nose down
+        fc_pitch, true_pitch = mean(pitched, 7)
+        assert true_pitch > 0.05 and abs(fc_pitch - true_pitch) < 0.05
+        fly((0.0, 0.0, hover, 0.0), 1.0)
+        turning = fly((0.0, 0.0, hover, 0.5), 1.0)[20:]    # yaw right: z rate negative in FLU
+        fc_rate, true_rate = mean(turning, 12)
+        assert true_rate < -0.3 and abs(fc_rate - true_rate) < 0.1
+        drifting = fly((0.0, 0.0, hover, 0.0), 1.5)
+        # The wind from the east pushes west: the GPS and the truth agree on where.
+        fc_last, truth_last = drifting[-1]
+        assert truth_last[4] < -0.3                        # moving west (east velocity < 0)
+        assert abs(fc_last[1] - truth_last[1]) < 0.5       # east offset, GPS vs truth
+        assert abs(fc_last[0] - truth_last[0]) < 0.5
+        fc_climb, true_climb = mean(drifting, 5)
+        assert abs(fc_climb - true_climb) < 0.2
+    finally:
+        env.close()
+    assert sitl_processes_under(tmp_path) == []
+
+
+def test_a_vector_of_environments_runs_side_by_side_and_leaves_nothing(
+        lockstep_gps_46_firmware: Path, tmp_path: Path) -> None:
+    from gymnasium.vector import AsyncVectorEnv
+
+    def make(number: int):  # type: ignore[no-untyped-def]
+        return lambda: HoverEnv(firmware=lockstep_gps_46_firmware,
+                                workdir=tmp_path / f"env{number}")
+
+    envs = AsyncVectorEnv([make(0), make(1)])
+    try:
+        observations, _infos = envs.reset(seed=[1, 2])
+        assert observations.shape == (2, 20)
+        assert not np.array_equal(observations[0], observations[1])  # two targets
+        assert len(sitl_processes_under(tmp_path)) == 2  # each in its own namespace
+        for _ in range(50):
+            observations, rewards, _terminated, _truncated, _infos = envs.step(
+                np.tile(np.array([0.0, 0.0, 0.12, 0.0], dtype=np.float32), (2, 1)))
+        assert np.all(np.isfinite(rewards))
+    finally:
+        envs.close()
+    assert sitl_processes_under(tmp_path) == []
+
+
+CRASHING_PARENT = """
+import os, sys, numpy as np
+from gymnasium.vector import AsyncVectorEnv
+from bfsitl.gym.env import HoverEnv
+firmware, folder = sys.argv[1], sys.argv[2]
+envs = AsyncVectorEnv([lambda n=n: HoverEnv(firmware=firmware, workdir=f"{folder}/env{n}")
+                       for n in range(2)])
+envs.reset(seed=0)
+envs.step(np.zeros((2, 4), dtype=np.float32))
+print("flying", flush=True)
+os.kill(os.getpid(), 9)
+"""
+
+
+def test_a_crashed_parent_leaves_no_firmware_running(lockstep_gps_46_firmware: Path,
+                                                      tmp_path: Path) -> None:
+    parent = subprocess.run([sys.executable, "-c", CRASHING_PARENT,
+                             str(lockstep_gps_46_firmware), str(tmp_path)],
+                            capture_output=True, text=True, timeout=120)
+    assert "flying" in parent.stdout, parent.stderr
+    assert parent.returncode == -signal.SIGKILL
+    deadline = time.monotonic() + 15.0
+    while sitl_processes_under(tmp_path) and time.monotonic() < deadline:
+        time.sleep(0.2)  # the workers notice their parent is gone and close their SITLs
+    assert sitl_processes_under(tmp_path) == []
+
+
+def test_step_before_reset_says_to_reset(lockstep_gps_46_firmware: Path) -> None:
+    from bfsitl.errors import EnvironmentConfigError
+
+    env = HoverEnv(firmware=lockstep_gps_46_firmware)
+    try:
+        with pytest.raises(EnvironmentConfigError, match=r"call env.reset\(\) first"):
+            env.step(np.zeros(4, dtype=np.float32))
+        env.reset(seed=0)
+        with pytest.raises(EnvironmentConfigError, match="4 sticks"):
+            env.step(np.zeros(3, dtype=np.float32))
+    finally:
+        env.close()
+    assert not env.workdir.exists()  # its own temporary run directory is removed

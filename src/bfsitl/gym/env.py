@@ -37,6 +37,7 @@ from gymnasium import spaces
 from bfsitl.backend.disturbances import Disturbances
 from bfsitl.control import make_controller
 from bfsitl.errors import EnvironmentConfigError, LinkError, MspError, SitlError
+from bfsitl.fc.rc_link import RcCommand
 from bfsitl.gym.observation import OBSERVATIONS, observation_space, observe
 from bfsitl.gym.snapshot import Snapshot, Vec3, read_snapshot
 from bfsitl.gym.sticks import sticks_to_rc
@@ -183,6 +184,16 @@ class FlightEnv(gymnasium.Env[np.ndarray, np.ndarray]):
         if self._own_workdir:
             shutil.rmtree(self.workdir, ignore_errors=True)
         super().close()
+
+    @property
+    def snapshot(self) -> Snapshot | None:
+        """The last look at the flight (the FC's view and the truth), None before a reset."""
+        return self._snapshot
+
+    @property
+    def rc_command(self) -> RcCommand | None:
+        """What the RC link sends now (the last action's sticks and the switches)."""
+        return self._session.rc_command if self._session is not None else None
 
     # -- parts ---------------------------------------------------------------------------------
     def _new_session(self, seed: int) -> FlightSession:

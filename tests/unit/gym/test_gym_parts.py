@@ -177,3 +177,23 @@ def test_the_hand_policy_steers_towards_the_target_whatever_the_heading() -> Non
     assert roll < 0 and pitch == pytest.approx(0.0, abs=1e-6)     # it is on its left
     _, _, throttle, _ = hand_policy(offsets(0.0, 0.0, 1.0, 0.0))
     assert throttle > HOVER_THROTTLE                               # below the target: climb
+
+
+# -- recording an episode ----------------------------------------------------------------------
+def test_a_step_becomes_a_flight_row_with_the_fc_the_truth_and_the_target() -> None:
+    from types import SimpleNamespace
+
+    from bfsitl.gym.recording import snapshot_row
+
+    env = SimpleNamespace(rc_command=RcCommand(1600, 1450, 1550, 1500, (1800, 1800)))
+    row = snapshot_row(snapshot(), (1.0, 2.0, 3.0), env, wall_s=0.5, waypoint=0)  # type: ignore[arg-type]
+    assert (row.time_s, row.phase, row.waypoint) == (12.0, "policy", 1)
+    assert (row.target_north_m, row.target_east_m, row.target_alt_m) == (1.0, 2.0, 3.0)
+    assert (row.fc_alt_m, row.fc_north_m, row.fc_east_m) == (1.9, 0.5, -0.5)
+    assert (row.sim_alt_m, row.sim_north_m, row.sim_east_m) == (2.0, 0.6, -0.6)
+    assert row.roll_deg == pytest.approx(math.degrees(0.1))
+    assert row.pitch_deg == pytest.approx(math.degrees(-0.2))
+    assert row.yaw_deg == pytest.approx(90.0) and row.sim_yaw_deg == pytest.approx(180.0)
+    assert (row.rc_roll_us, row.rc_pitch_us, row.rc_throttle_us, row.rc_aux1_us) == (
+        1600, 1450, 1550, 1800)
+    assert row.motor4 == 0.71 and row.armed

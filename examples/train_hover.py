@@ -191,7 +191,8 @@ def main() -> int:
     recorder.plot(args.out / "evaluation.png", title="bfsitl/Hover-v0: the trained policy")
     learned_max = results["learned"]["last_10s_max_distance_m"]
     summary = {
-        "training": {"steps": args.steps, "envs": args.envs, "episodes": len(episodes),
+        "training": {"steps": int(model.num_timesteps), "envs": args.envs,  # type: ignore[attr-defined]
+                     "episodes": len(episodes),
                      "wall_s": round(train_s, 1), "firmware": args.firmware},
         "evaluation": results,
         "holds_within_0_3_m_for_10_s": (learned_max is not None

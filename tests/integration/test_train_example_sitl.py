@@ -32,7 +32,7 @@ def test_the_training_example_runs_and_writes_its_outputs(lockstep_gps_46_firmwa
                  "evaluation.png", "evaluation.json"):
         assert (out / name).is_file(), name
     summary = json.loads((out / "evaluation.json").read_text())
-    assert summary["training"]["steps"] == 256 and summary["training"]["envs"] == 2
+    assert 256 <= summary["training"]["steps"] <= 512 and summary["training"]["envs"] == 2
     assert set(summary["evaluation"]) == {"learned", "random", "hand-written"}
     # The hand-written policy flies the whole 2 s evaluation; the CSV has the fly columns.
     assert summary["evaluation"]["hand-written"]["ended_because"] is None

@@ -5,14 +5,14 @@ this, so a fault never reaches into a bridge or a simulator, and a backend that 
 something says so in one way: :class:`~bfsitl.errors.DisturbanceUnavailableError`, naming
 the backend.  What each backend offers:
 
-==================  ========================  =======================================
-backend             RC (faults on the link)   GPS loss, motors, sensors, wind
-==================  ========================  =======================================
+==================  ========================  ==================================================
+backend             RC (faults on the link)   GPS loss, motors, sensors, wind, a hand
+==================  ========================  ==================================================
 real time           yes                       yes (bfsitl's physics)
 lockstep            yes                       yes (bfsitl's physics)
 Gazebo              yes                       no (Gazebo's physics)
 a real board        no                        no
-==================  ========================  =======================================
+==================  ========================  ==================================================
 
 Every setter acts from the next physics step (the next RC packet for RC); every getter
 reads what is set now, so a fault can undo itself exactly.
@@ -125,3 +125,19 @@ class Disturbances:
     def set_wind(self, wind: Wind | None) -> None:
         """The wind from now on (None: still air)."""
         self._sim("the wind").set_wind(wind)
+
+    # -- a hand on the vehicle -------------------------------------------------------------------
+    def place(self, position_ned_m: tuple[float, float, float], *, yaw_deg: float = 0.0,
+              motor_speeds_rad_s: tuple[float, float, float, float] = (0.0, 0.0, 0.0, 0.0)
+              ) -> None:
+        """Put the vehicle at ``position_ned_m`` (world NED), level, heading ``yaw_deg``, at
+        rest, its rotors at ``motor_speeds_rad_s``: a hand that picks it up and sets it there.
+        The firmware sees a jump in its sensors, as it would."""
+        self._sim("the vehicle's pose").reset(position_ned_m, yaw_deg=yaw_deg,
+                                              motor_speeds_rad_s=motor_speeds_rad_s)
+
+    def hold_still(self, held: bool) -> None:
+        """Hold the vehicle where it is (a test stand: it reads level and at rest while the
+        motors spin), or let it go."""
+        self._sim("the vehicle's pose").hold(held)
+

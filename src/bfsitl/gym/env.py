@@ -7,14 +7,25 @@ actions give the same trajectory, bit for bit (``tests/integration/test_gym_sitl
 
 **A step**: the action's sticks go out as RC (riding in the next fdm packets), the simulation
 runs to the next control tick, and the FC is read (one MSP round trip, the GPS in it) beside
-the truth.  **A reset** ends the SITL and boots a fresh one from the same provisioned EEPROM,
-arms it and, with ``start="air"``, has bfsitl's own autopilot take off to ``start_alt_m``
-before the policy gets the sticks.  Nothing of the firmware's state carries over from one
-episode to the next (filters, the attitude estimate, the I-terms, failsafe counters): that is
-what makes episodes repeatable, and it costs about a third of a second of wall time (the
-boot and arming run on simulated time too).  The first reset provisions the EEPROM once
-(ARM, ANGLE and the serial rate), in a boot of its own, so the first episode starts like all
-the others.
+the truth.
+
+**A reset with a seed** (and the first reset) ends the SITL and boots a fresh one from the same
+provisioned EEPROM, arms it and, with ``start="air"``, has bfsitl's own autopilot take off to
+``start_alt_m`` before the policy gets the sticks: nothing of the firmware's state carries
+over, so the same seed and actions repeat bit for bit.  It costs about 0.6 s of wall time (the
+FC's 5 s boot grace, the ground wait and the take-off, all on simulated time).  The first
+reset provisions the EEPROM once (ARM, ANGLE and the serial rate), in a boot of its own, so
+the first episode starts like all the others.
+
+**A reset without a seed** (what training does between episodes) is warm when the firmware is
+alive, armed and out of failsafe: a hand (the disturbance surface's ``place`` and
+``hold_still``) puts the vehicle back at the start, level, rotors at hover speed, and holds it
+for ``WARM_SETTLE_S`` of simulated time while the FC settles, throttle low first so that the
+FC resets its I-terms, then lets go: about 10 ms of wall time.  What carries over is what a
+quad caught by hand and released would keep: the filters, the attitude estimate (held level,
+it settles), the clock, the GPS origin and the altitude zero of the first arming.  It is as
+deterministic as the episodes before it: from a seeded reset on, the same actions give the
+same flights.  ``warm_resets=False`` boots afresh every time.
 
 The observation (:mod:`~bfsitl.gym.observation`), the reward and the endings
 (:mod:`~bfsitl.gym.tasks`) are documented where they are computed.
@@ -38,6 +49,7 @@ from bfsitl.backend.disturbances import Disturbances
 from bfsitl.control import make_controller
 from bfsitl.errors import EnvironmentConfigError, LinkError, MspError, SitlError
 from bfsitl.fc.rc_link import RcCommand
+from bfsitl.gym.baseline import HOVER_THROTTLE
 from bfsitl.gym.observation import OBSERVATIONS, observation_space, observe
 from bfsitl.gym.snapshot import Snapshot, Vec3, read_snapshot
 from bfsitl.gym.sticks import sticks_to_rc
@@ -54,6 +66,8 @@ CONTROL_HZ_RANGE = (1.0, 200.0)
 DEFAULT_FIRMWARE = "4.6.0-gps-lockstep"
 #: Armed on the ground before an "air" start's take-off (the FC's altitude settles).
 _GROUND_S = 1.0
+#: A warm reset holds the vehicle this long (simulated) while the FC settles.
+WARM_SETTLE_S = 0.5
 
 #: Called before every step with the flight's disturbance surface and the episode's time:
 #: faults, wind changes, a weak motor, sensor errors (see bfsitl.backend.disturbances).
@@ -70,7 +84,7 @@ class FlightEnv(gymnasium.Env[np.ndarray, np.ndarray]):
                  wind: float = 0.0, wind_from_deg: float = 0.0, gusts: float = 0.0,
                  disturbances: DisturbanceHook | None = None, episode_s: float = 10.0,
                  start: str = "air", start_alt_m: float = 1.5, spin: bool | None = None,
-                 workdir: str | Path | None = None) -> None:
+                 warm_resets: bool = True, workdir: str | Path | None = None) -> None:
         _check_choice("mode", mode, MODES)
         _check_choice("observation", observation, OBSERVATIONS)
         _check_choice("start", start, STARTS)
@@ -80,6 +94,8 @@ class FlightEnv(gymnasium.Env[np.ndarray, np.ndarray]):
                 f"control_hz {control_hz} is outside {low:g}..{high:g} Hz")
         if not 0.1 <= episode_s <= 3600.0:
             raise EnvironmentConfigError(f"episode_s {episode_s} is outside 0.1..3600 s")
+        if not 0.5 <= start_alt_m <= 15.0:
+            raise EnvironmentConfigError(f"start_alt_m {start_alt_m} is outside 0.5..15 m")
         self.binary = find_firmware(firmware)
         if not self.binary.lockstep:
             raise EnvironmentConfigError(
@@ -101,6 +117,9 @@ class FlightEnv(gymnasium.Env[np.ndarray, np.ndarray]):
         #: several sharing the cores 3x slower (benchmarks/gym.py).  None: spin in the main
         #: process only, not in the workers of an AsyncVectorEnv.
         self.spin = multiprocessing.parent_process() is None if spin is None else spin
+        #: A reset without a seed keeps the firmware running when it can (see the module
+        #: docstring); False boots a fresh one every time.
+        self.warm_resets = warm_resets
         self.action_space = spaces.Box(-1.0, 1.0, shape=(4,), dtype=np.float32)
         self.observation_space = observation_space()
         self._own_workdir = workdir is None
@@ -118,6 +137,8 @@ class FlightEnv(gymnasium.Env[np.ndarray, np.ndarray]):
     def reset(self, *, seed: int | None = None,
               options: dict[str, Any] | None = None) -> tuple[np.ndarray, dict[str, Any]]:
         super().reset(seed=seed)
+        if seed is None and self.warm_resets and self.start == "air" and self._can_go_on():
+            return self._warm_reset()
         self._end_session()
         if not self._prepared:
             self._prepare()
@@ -178,6 +199,35 @@ class FlightEnv(gymnasium.Env[np.ndarray, np.ndarray]):
         truncated = not terminated and (session.time_s - self._started_s
                                         >= self.episode_s - 0.5 / self.control_hz)
         return self._observe(), float(reward), terminated, truncated, self._info(why)
+
+    def _can_go_on(self) -> bool:
+        """The firmware is alive, armed and out of failsafe: a warm reset can use it."""
+        session, snapshot = self._session, self._snapshot
+        return (session is not None and snapshot is not None and not session.has_exited()
+                and snapshot.fc.armed and "FAILSAFE" not in snapshot.fc.flight_modes)
+
+    def _warm_reset(self) -> tuple[np.ndarray, dict[str, Any]]:
+        """A hand puts the vehicle back at the start, level, rotors at hover speed, and holds
+        it there while the FC settles: sticks centred, throttle low first (the FC resets its
+        I-terms at low throttle), then about the hover point; then lets go."""
+        session = self._session
+        assert session is not None and session.simulator is not None
+        self.task.reset(self.np_random)
+        hands = session.disturbances
+        north, east, down = self._arm_ned
+        start = (north, east, down - self.start_alt_m)
+        hover_rad_s = session.simulator.params.hover_rotor_speed_rad_s
+        hands.place(start, motor_speeds_rad_s=(hover_rad_s,) * 4)
+        hands.hold_still(True)
+        for throttle in (-1.0, HOVER_THROTTLE):
+            session.set_rc(sticks_to_rc([0.0, 0.0, throttle, 0.0], session.rc_command))
+            session.clock.sleep_s(WARM_SETTLE_S / 2)
+        hands.place(start, motor_speeds_rad_s=(hover_rad_s,) * 4)
+        hands.hold_still(False)
+        self._started_s = self._next_s = session.time_s
+        self._has_flown = True
+        self._snapshot = read_snapshot(session, arm_ned_m=self._arm_ned)
+        return self._observe(), self._info(None)
 
     def close(self) -> None:
         self._end_session()

@@ -140,6 +140,7 @@ def test_waypoints_advance_when_reached_pay_a_bonus_and_finish_at_the_last() -> 
     ({"start": "orbit"}, "start must be one of air, ground"),
     ({"control_hz": 500.0}, r"control_hz 500.0 is outside 1..200 Hz"),
     ({"episode_s": 0.0}, "episode_s 0.0 is outside"),
+    ({"start_alt_m": 40.0}, "start_alt_m 40.0 is outside 0.5..15 m"),
 ])
 def test_an_option_the_environment_cannot_take_is_refused_with_what_it_takes(
         options: dict, fix: str) -> None:

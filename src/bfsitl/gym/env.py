@@ -33,7 +33,6 @@ The observation (:mod:`~bfsitl.gym.observation`), the reward and the endings
 
 from __future__ import annotations
 
-import math
 import multiprocessing
 import shutil
 import tempfile
@@ -53,7 +52,15 @@ from bfsitl.gym.baseline import HOVER_THROTTLE
 from bfsitl.gym.observation import OBSERVATIONS, observation_space, observe
 from bfsitl.gym.snapshot import Snapshot, Vec3, read_snapshot
 from bfsitl.gym.sticks import sticks_to_rc
-from bfsitl.gym.tasks import AIRBORNE_M, FAILURE_REWARD, Hover, Waypoints, failure, step_reward
+from bfsitl.gym.tasks import (
+    AIRBORNE_M,
+    FAILURE_REWARD,
+    Hover,
+    Waypoints,
+    distance_m,
+    failure,
+    step_reward,
+)
 from bfsitl.mission.loop import Mission
 from bfsitl.mission.session import FlightSession, SessionConfig
 from bfsitl.physics.wind import Wind
@@ -282,8 +289,7 @@ class FlightEnv(gymnasium.Env[np.ndarray, np.ndarray]):
             "time_s": snapshot.time_s - self._started_s,
             "target": self.task.target,
             "waypoint": self.task.index,
-            "distance_m": math.dist((truth.north_m, truth.east_m, truth.alt_m),
-                                    self.task.target),
+            "distance_m": distance_m(truth, self.task.target),
             "truth": truth.as_dict(),
             "armed": snapshot.fc.armed,
             "arming_blockers": snapshot.fc.arming_blockers,

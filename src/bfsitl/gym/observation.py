@@ -47,15 +47,11 @@ def observation_space() -> spaces.Box:
 def observe(snapshot: Snapshot, target: Vec3, which: str) -> np.ndarray:
     """The observation of ``snapshot`` towards ``target`` (north, east, up)."""
     view: FcView | TrueView = snapshot.fc if which == "fc" else snapshot.truth
-    if isinstance(view, FcView):
-        position = (view.north_m, view.east_m, view.alt_m)
-        velocity = (view.v_north_m_s, view.v_east_m_s, view.climb_m_s)
-    else:
-        position = (view.north_m, view.east_m, view.alt_m)
-        velocity = (view.v_north_m_s, view.v_east_m_s, view.v_up_m_s)
+    # The FC's climb rate is MSP_ALTITUDE's vario; the truth's is its vertical velocity.
+    v_up = view.climb_m_s if isinstance(view, FcView) else view.v_up_m_s
     values = (
-        target[0] - position[0], target[1] - position[1], target[2] - position[2],
-        *velocity,
+        target[0] - view.north_m, target[1] - view.east_m, target[2] - view.alt_m,
+        view.v_north_m_s, view.v_east_m_s, v_up,
         view.roll_rad, view.pitch_rad, math.sin(view.yaw_rad), math.cos(view.yaw_rad),
         *view.rates_flu_rad_s, *view.accel_flu_m_s2, *view.motors,
     )

@@ -15,7 +15,6 @@ from bfsitl.fc.rc_link import RC_MIN_US, RcCommand
 from bfsitl.gym.env import FlightEnv
 from bfsitl.gym.snapshot import Snapshot
 from bfsitl.mission.flight_row import FlightRow
-from bfsitl.physics.constants import STANDARD_GRAVITY_M_S2
 from bfsitl.records.sinks import RowSink, open_sink
 
 #: The phase written in every row: the policy flies.
@@ -27,14 +26,10 @@ def snapshot_row(snapshot: Snapshot, target: tuple[float, float, float], env: Fl
     fc, truth = snapshot.fc, snapshot.truth
     rc = env.rc_command or RcCommand()
     aux = (*rc.aux_us, RC_MIN_US, RC_MIN_US)  # AUX1 and AUX2, the switches off if absent
-    ax, ay, az = fc.accel_flu_m_s2
-    cos_pitch = math.cos(fc.pitch_rad)
-    accel_up = (-math.sin(fc.pitch_rad) * ax + math.sin(fc.roll_rad) * cos_pitch * ay
-                + math.cos(fc.roll_rad) * cos_pitch * az - STANDARD_GRAVITY_M_S2)
     return FlightRow(
         time_s=snapshot.time_s, phase=POLICY_PHASE, target_alt_m=target[2],
         sim_alt_m=truth.alt_m, fc_alt_m=fc.alt_m, climb_m_s=fc.climb_m_s,
-        sim_climb_m_s=truth.v_up_m_s, fc_accel_up_m_s2=accel_up,
+        sim_climb_m_s=truth.v_up_m_s, fc_accel_up_m_s2=fc.accel_up_m_s2,
         roll_deg=math.degrees(fc.roll_rad), pitch_deg=math.degrees(fc.pitch_rad),
         yaw_deg=math.degrees(fc.yaw_rad) % 360.0, sim_tilt_deg=truth.tilt_deg,
         sim_roll_deg=math.degrees(truth.roll_rad), sim_pitch_deg=math.degrees(truth.pitch_rad),

@@ -15,7 +15,7 @@ from dataclasses import dataclass
 
 from bfsitl.fc.telemetry import TELEMETRY_COMMANDS, telemetry_from_payloads
 from bfsitl.mission.session import FlightSession
-from bfsitl.physics.constants import STANDARD_GRAVITY_M_S2
+from bfsitl.mission.vehicle import accel_flu_m_s2
 from bfsitl.protocol import msp_messages as msg
 from bfsitl.protocol.msp_codes import MspCommand
 
@@ -35,6 +35,7 @@ class FcView:
     yaw_rad: float                # heading, clockwise from north
     rates_flu_rad_s: Vec3         # MSP_RAW_IMU gyro
     accel_flu_m_s2: Vec3          # MSP_RAW_IMU accelerometer (specific force: +g up at rest)
+    accel_up_m_s2: float          # the same made vertical, gravity removed (0 at rest)
     alt_m: float                  # MSP_ALTITUDE, zeroed at arming
     climb_m_s: float              # MSP_ALTITUDE vario
     north_m: float                # the FC's GPS made local (0 without a GPS: see has_gps)
@@ -88,8 +89,6 @@ def read_snapshot(session: FlightSession, *, arm_ned_m: Vec3) -> Snapshot:
     telemetry = telemetry_from_payloads(payloads[:len(TELEMETRY_COMMANDS)], session.time_s,
                                         client.box_ids())
     imu = session.backend.imu
-    scale = STANDARD_GRAVITY_M_S2 / imu.acc_1g_lsb
-    ax, ay, az = telemetry.imu.acc_raw
     gx, gy, gz = telemetry.imu.gyro_dps()
     north = east = v_north = v_east = 0.0
     if with_gps:
@@ -102,7 +101,9 @@ def read_snapshot(session: FlightSession, *, arm_ned_m: Vec3) -> Snapshot:
         # MSP_ATTITUDE truncates the heading to whole degrees: the middle is unbiased.
         yaw_rad=math.radians(attitude.yaw_deg + 0.5),
         rates_flu_rad_s=(math.radians(gx), math.radians(gy), math.radians(gz)),
-        accel_flu_m_s2=(ax * scale, ay * scale, (az + imu.acc_truncation_lsb) * scale),
+        accel_flu_m_s2=accel_flu_m_s2(telemetry, imu),
+        accel_up_m_s2=telemetry.accel_up_m_s2(imu.acc_1g_lsb,
+                                              offset_lsb=imu.acc_truncation_lsb),
         alt_m=telemetry.altitude.altitude_m, climb_m_s=telemetry.altitude.vario_m_s,
         north_m=north, east_m=east, v_north_m_s=v_north, v_east_m_s=v_east,
         has_gps=with_gps,

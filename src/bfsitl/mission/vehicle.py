@@ -52,7 +52,7 @@ METRES_PER_DEGREE = 111_319.5
 Progress = Callable[[str], None]
 
 
-def _accel_flu_m_s2(telemetry: Telemetry, imu: ImuScale) -> tuple[float, float, float]:
+def accel_flu_m_s2(telemetry: Telemetry, imu: ImuScale) -> tuple[float, float, float]:
     """MSP_RAW_IMU's accelerometer in m/s^2 (the FC's own scale; the SITL's z truncation
     added back, as for the vertical)."""
     scale = STANDARD_GRAVITY_M_S2 / imu.acc_1g_lsb
@@ -343,7 +343,7 @@ class Vehicle:
             fc_alt_m=telemetry.altitude.altitude_m, fc_climb_m_s=telemetry.altitude.vario_m_s,
             fc_accel_up_m_s2=telemetry.accel_up_m_s2(
                 imu.acc_1g_lsb, offset_lsb=imu.acc_truncation_lsb),
-            fc_accel_flu_m_s2=_accel_flu_m_s2(telemetry, imu),
+            fc_accel_flu_m_s2=accel_flu_m_s2(telemetry, imu),
             roll_deg=telemetry.attitude.roll_deg, pitch_deg=telemetry.attitude.pitch_deg,
             # MSP_ATTITUDE truncates the heading to whole degrees: the middle of the degree
             # is the unbiased reading.

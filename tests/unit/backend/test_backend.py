@@ -200,14 +200,14 @@ def test_a_boards_accelerometer_scale_is_measured_at_rest() -> None:
 
 
 def test_a_vehicle_reads_its_accelerometer_in_its_backends_scale() -> None:
-    from bfsitl.mission.vehicle import _accel_flu_m_s2
+    from bfsitl.mission.vehicle import accel_flu_m_s2
 
     class Telemetry:
         class imu:  # noqa: N801 - shaped like Telemetry.imu
             acc_raw = (0, 0, 2048)
 
-    board = _accel_flu_m_s2(Telemetry(), BOARD_IMU)  # type: ignore[arg-type]
-    sitl = _accel_flu_m_s2(Telemetry(), SITL_IMU)  # type: ignore[arg-type]
+    board = accel_flu_m_s2(Telemetry(), BOARD_IMU)  # type: ignore[arg-type]
+    sitl = accel_flu_m_s2(Telemetry(), SITL_IMU)  # type: ignore[arg-type]
     assert board[2] == pytest.approx(9.80665)
     assert sitl[2] == pytest.approx(9.80665 * 2048.5 / 256)
 

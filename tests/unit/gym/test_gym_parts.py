@@ -42,7 +42,8 @@ def test_sticks_map_onto_pulses_in_the_receivers_order_and_keep_the_switches() -
 # -- the observation ---------------------------------------------------------------------------
 def snapshot(**truth_changes: object) -> Snapshot:
     fc = FcView(roll_rad=0.1, pitch_rad=-0.2, yaw_rad=math.pi / 2, rates_flu_rad_s=(1, 2, 3),
-                accel_flu_m_s2=(0.1, 0.2, 9.8), alt_m=1.9, climb_m_s=0.3, north_m=0.5,
+                accel_flu_m_s2=(0.1, 0.2, 9.8), accel_up_m_s2=0.05, alt_m=1.9, climb_m_s=0.3,
+                north_m=0.5,
                 east_m=-0.5, v_north_m_s=0.4, v_east_m_s=-0.4, has_gps=True,
                 motors=(0.4, 0.5, 0.6, 0.7), armed=True, arming_blockers=(),
                 flight_modes=("ANGLE",))
@@ -197,4 +198,4 @@ def test_a_step_becomes_a_flight_row_with_the_fc_the_truth_and_the_target() -> N
     assert row.yaw_deg == pytest.approx(90.0) and row.sim_yaw_deg == pytest.approx(180.0)
     assert (row.rc_roll_us, row.rc_pitch_us, row.rc_throttle_us, row.rc_aux1_us) == (
         1600, 1450, 1550, 1800)
-    assert row.motor4 == 0.71 and row.armed
+    assert row.motor4 == 0.71 and row.armed and row.fc_accel_up_m_s2 == 0.05

@@ -3,19 +3,25 @@
 All rows in one run, on this machine, with ``bfsitl/Hover-v0`` flown by the hand-written
 policy (``bfsitl.gym.baseline``) at ``--control-hz``:
 
-* **reset**: wall seconds of ``reset()`` (end the SITL, boot a fresh one from the provisioned
-  EEPROM, arm, take off to 1.5 m), median over the resets of the single-environment row;
-* **1, 2, 4 environments**: environment steps per wall second and simulated seconds per wall
-  second, summed over the environments (``gymnasium.vector.AsyncVectorEnv`` for 2 and 4,
-  one process each), resets included, over ``--seconds`` of wall time;
+* **reset**: wall seconds of ``reset()``, median over the resets of the single-environment
+  rows (warm ones, with the first, cold, one as the maximum);
+* **1 environment** in this process, each way it can use the machine: spinning on two cores
+  (the default in a main process), or pinned with its SITL to one core
+  (``pin_core=True``), each through the shared-memory exchange and, for comparison, UDP;
+* **2 and 4 environments**: Gymnasium's ``AsyncVectorEnv`` (one worker process each, pinned
+  by default) and bfsitl's own ``FlightVectorEnv`` (``gymnasium.make_vec(...,
+  vectorization_mode="vector_entry_point")``: pinned workers, numbers in shared memory);
+  steps per wall second and simulated seconds per wall second summed over the environments,
+  resets included, over ``--seconds`` of wall time;
 * **the baseline**: what a wall-clock SITL gives (gym-pybullet-drones' ``BetaAviary`` runs
   the stock SITL that way): a stock 4.6.0 SITL with bfsitl's real-time bridge, the same
   control loop paced by the wall clock, measured here in the same run: its simulated seconds
   per wall second are 1.0 by construction, and its step rate is the control rate at best.
 
-What limits it: one environment keeps about one core busy (the firmware's passes, the physics
-and the MSP exchange take turns in lockstep); so the aggregate grows with the cores, not past.
-Run: ``python benchmarks/gym.py [--seconds 20] [--control-hz 100] [--firmware NAME]``.
+What limits it: in lockstep the firmware and bfsitl take turns, so one environment is one
+core's work at most (spinning on two cores only shortens the hand-over); the aggregate grows
+with the cores, not past them.  Run:
+``python benchmarks/gym.py [--seconds 20] [--control-hz 100] [--firmware NAME]``.
 """
 
 from __future__ import annotations
@@ -25,6 +31,8 @@ import statistics
 import time
 from dataclasses import replace
 
+import gymnasium
+import gymnasium.vector
 import numpy as np
 
 import bfsitl.gym  # noqa: F401  (registers the environments)
@@ -32,11 +40,13 @@ from bfsitl.gym.baseline import hand_policy
 from bfsitl.gym.env import DEFAULT_FIRMWARE, HoverEnv
 from bfsitl.gym.sticks import sticks_to_rc
 from bfsitl.mission.session import FlightSession, SessionConfig
+from bfsitl.sim.shm_exchange import shm_exchange_supported
 
 
-def single(firmware: str, control_hz: float, seconds: float, *, spin: bool
-           ) -> tuple[dict[str, float], list[float]]:
-    env = HoverEnv(firmware=firmware, control_hz=control_hz, spin=spin)
+def single(firmware: str, control_hz: float, seconds: float, *, spin: bool, pin: bool,
+           exchange: str) -> tuple[dict[str, float], list[float]]:
+    env = HoverEnv(firmware=firmware, control_hz=control_hz, spin=spin, pin_core=pin,
+                   lockstep_exchange=exchange)
     resets: list[float] = []
     steps, sim_s = 0, 0.0
     try:
@@ -59,12 +69,18 @@ def single(firmware: str, control_hz: float, seconds: float, *, spin: bool
     return {"steps_per_s": steps / wall_s, "sim_per_wall": sim_s / wall_s}, resets
 
 
-def vector(firmware: str, control_hz: float, seconds: float, count: int, *, spin: bool
+def vector(firmware: str, control_hz: float, seconds: float, count: int, *, own: bool
            ) -> dict[str, float]:
-    from gymnasium.vector import AsyncVectorEnv
-
-    envs = AsyncVectorEnv([lambda: HoverEnv(firmware=firmware, control_hz=control_hz,
-                                            spin=spin) for _ in range(count)])
+    """``count`` environments in ``AsyncVectorEnv`` (its default autoreset: the step after
+    an ending resets) or in bfsitl's ``FlightVectorEnv`` (resets in the same step)."""
+    if own:
+        envs = gymnasium.make_vec("bfsitl/Hover-v0", num_envs=count,
+                                  vectorization_mode="vector_entry_point",
+                                  firmware=firmware, control_hz=control_hz)
+    else:
+        envs = gymnasium.vector.AsyncVectorEnv(
+            [lambda: HoverEnv(firmware=firmware, control_hz=control_hz)
+             for _ in range(count)])
     steps = 0
     sim_s = np.zeros(count)
     try:
@@ -75,9 +91,16 @@ def vector(firmware: str, control_hz: float, seconds: float, count: int, *, spin
             observations, _rewards, terminated, truncated, infos = envs.step(actions)
             steps += count
             ended = np.logical_or(terminated, truncated)
-            # The time of an episode that just ended; the next step resets it (autoreset).
-            sim_s += np.where(ended, infos["time_s"], 0.0)
-        sim_s += np.where(ended, 0.0, infos["time_s"])
+            if own:
+                # The episode that ended is in final_info; infos are the next one's.
+                for index in np.flatnonzero(ended):
+                    sim_s[index] += infos["final_info"][index]["time_s"]
+            else:
+                sim_s += np.where(ended, infos["time_s"], 0.0)
+        if own:
+            sim_s += infos["time_s"]
+        else:
+            sim_s += np.where(ended, 0.0, infos["time_s"])
         wall_s = time.monotonic() - started
     finally:
         envs.close()
@@ -117,27 +140,27 @@ def main() -> None:
     baseline = wall_clock_baseline(args.control_hz, min(args.seconds, 10.0))
     rows.append(("wall-clock SITL (stock, real time)", 1, baseline))
     resets: list[float] = []
-    for spin in (False, True):
-        print(f"[gym bench] 1 environment, spin={spin}", flush=True)
-        one, resets_here = single(args.firmware, args.control_hz, args.seconds, spin=spin)
-        resets += resets_here
-        rows.append((f"bfsitl/Hover-v0, lockstep, spin={spin}", 1, one))
+    exchanges = ("shm", "udp") if shm_exchange_supported() else ("udp",)
+    for exchange in exchanges:
+        for spin, pin, how in ((True, False, "spin, 2 cores"), (False, True, "pinned, 1 core")):
+            print(f"[gym bench] 1 environment, {how}, {exchange}", flush=True)
+            one, resets_here = single(args.firmware, args.control_hz, args.seconds, spin=spin,
+                                      pin=pin, exchange=exchange)
+            resets += resets_here
+            rows.append((f"Hover-v0, {how}, {exchange}", 1, one))
     for count in (2, 4):
-        for spin in (False, True):
-            print(f"[gym bench] {count} environments (AsyncVectorEnv), spin={spin}",
-                  flush=True)
-            rows.append((f"bfsitl/Hover-v0, lockstep, AsyncVectorEnv, spin={spin}", count,
-                         vector(args.firmware, args.control_hz, args.seconds, count,
-                                spin=spin)))
+        for own, name in ((False, "AsyncVectorEnv"), (True, "FlightVectorEnv")):
+            print(f"[gym bench] {count} environments, {name}", flush=True)
+            rows.append((f"Hover-v0, {name} (pinned workers)", count,
+                         vector(args.firmware, args.control_hz, args.seconds, count, own=own)))
     print(f"\ncontrol at {args.control_hz:g} Hz, {args.seconds:g} s of wall time per row; "
-          f"reset: median {statistics.median(resets):.2f} s wall over {len(resets)} resets "
+          f"reset: median {statistics.median(resets):.3f} s wall over {len(resets)} resets "
           f"(max {max(resets):.2f} s)")
     print("| environment | envs | steps/s (all envs) | sim s per wall s | x the wall-clock SITL |")
     print("| --- | ---: | ---: | ---: | ---: |")
     for name, count, row in rows:
         print(f"| {name} | {count} | {row['steps_per_s']:.0f} | {row['sim_per_wall']:.1f} | "
               f"{row['sim_per_wall'] / baseline['sim_per_wall']:.1f}x |")
-
 
 if __name__ == "__main__":
     main()

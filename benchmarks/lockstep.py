@@ -4,7 +4,11 @@ For each generation (4.6.0 and master) the default mission (arm, 2 s on the grou
 to 2 m, hold ``--hold`` s, land) is flown with the fused controller and ``--seed``:
 
 * on the stock binary in real-time mode (the baseline, measured in the same run), and
-* on the lockstep build at ``--speed max``.
+* on the lockstep build at ``--speed max``, once per exchange (UDP, and shared memory where
+  the build and the machine have it: :mod:`bfsitl.sim.shm_exchange`) and per way of sharing
+  the machine: on two cores, each side busy-waiting for the other (``spin``), and on one core
+  (``1 core``: bfsitl and its SITL pinned to one core, taking turns without spinning, as
+  the learning environment's vector workers and ``--jobs`` runs side by side do).
 
 Per flight: wall time from the session's start to its end, simulated time, their ratio, the
 share of fdm packets answered, the FC clock against the simulated clock (MSP_RTC, over 2 s of
@@ -41,6 +45,8 @@ from bfsitl.control import make_controller
 from bfsitl.errors import BfsitlError
 from bfsitl.mission import FlightSession, MissionPlan, SessionConfig, run_mission
 from bfsitl.sim.health import HealthMonitor
+from bfsitl.sim.shm_exchange import shm_exchange_supported
+from bfsitl.sitl.core_claim import claim_core
 from bfsitl.sitl.firmware import find_firmware
 
 BUILDS = {  # name: (source, lockstep)
@@ -87,9 +93,29 @@ def sitl_cpu_s(pid: int | None) -> float | None:
     return (int(fields[11]) + int(fields[12])) / os.sysconf("SC_CLK_TCK")
 
 
-def fly(name: str, path: str, lockstep: bool, hold_s: float, seed: int) -> Flight:
-    config = SessionConfig(firmware=path, seed=seed, lockstep=lockstep)
+#: The lockstep rows: (exchange, one core).
+LOCKSTEP_MODES = (("udp", False), ("shm", False), ("udp", True), ("shm", True))
+
+
+def fly(name: str, path: str, lockstep: bool, hold_s: float, seed: int,
+        exchange: str = "udp", one_core: bool = False) -> Flight:
+    config = SessionConfig(firmware=path, seed=seed, lockstep=lockstep,
+                           lockstep_exchange=exchange, lockstep_spin=not one_core)
+    claim = claim_core() if one_core else None  # the SITL started below inherits it
     started_s = time.perf_counter()
+    try:
+        flight = _fly(config, name, lockstep, hold_s,
+                      f"lockstep max, {exchange}, {'1 core' if one_core else 'spin'}"
+                      if lockstep else "real time 1x")
+    finally:
+        if claim is not None:
+            claim.release()
+    flight.wall_s = time.perf_counter() - started_s
+    return flight
+
+
+def _fly(config: SessionConfig, name: str, lockstep: bool, hold_s: float, mode: str
+         ) -> Flight:
     with FlightSession(config) as session:
         result = run_mission(session, MissionPlan(hold_s=hold_s), make_controller("fused"))
         assert session.bridge is not None
@@ -99,7 +125,7 @@ def fly(name: str, path: str, lockstep: bool, hold_s: float, seed: int) -> Fligh
         health = monitor.sample()
         stats = session.bridge.stats()
         flight = Flight(
-            name, "lockstep max" if lockstep else "real time 1x", result.outcome.value, 0.0,
+            name, mode, result.outcome.value, 0.0,
             stats.sim_time_s, stats.answered_ratio, health.fc_clock_ratio,
             health.fc_cycle_us or 0.0,
             getattr(result.metrics, "rise_time_s", None),
@@ -115,7 +141,6 @@ def fly(name: str, path: str, lockstep: bool, hold_s: float, seed: int) -> Fligh
                 / steps * 1e6
             cpu_s = sitl_cpu_s(session.sitl.pid if session.sitl else None)
             flight.fc_cpu_us = cpu_s / steps * 1e6 if cpu_s is not None else None
-    flight.wall_s = time.perf_counter() - started_s
     return flight
 
 
@@ -163,9 +188,12 @@ def main() -> None:
     for generation in args.generations.split(","):
         stock = firmware_path(generation, args.build)
         lockstep = firmware_path(f"{generation}-lockstep", args.build)
-        for path, is_lockstep in ((stock, False), (lockstep, True)):
-            flights = [fly(generation, path, is_lockstep, args.hold, args.seed)
-                       for _ in range(args.repeats)]
+        modes = [(stock, False, "udp", False)] + [
+            (lockstep, True, exchange, one_core) for exchange, one_core in LOCKSTEP_MODES
+            if exchange == "udp" or shm_exchange_supported()]
+        for path, is_lockstep, exchange, one_core in modes:
+            flights = [fly(generation, path, is_lockstep, args.hold, args.seed, exchange,
+                           one_core) for _ in range(args.repeats)]
             flights.sort(key=lambda f: f.wall_s)
             rows.append(flights[len(flights) // 2])
             print(f"flew {generation} {rows[-1].mode}: {rows[-1].wall_s:.1f} s",
@@ -183,14 +211,14 @@ def main() -> None:
               f"{fmt(r.settle_s, '.2f')} | {fmt(r.hold_rms_cm, '.1f')} | "
               f"{fmt(r.hold_max_cm, '.1f')} |")
     print()
-    print("| firmware | per step: exchange us | physics us | Python rest us | total us | "
-          "SITL CPU us |")
-    print("|---|---|---|---|---|---|")
+    print("| firmware | mode | per step: exchange us | physics us | Python rest us | "
+          "total us | SITL CPU us |")
+    print("|---|---|---|---|---|---|---|")
     for r in rows:
         if r.exchange_us is None:
             continue
         total = (r.exchange_us or 0) + (r.physics_us or 0) + (r.python_us or 0)
-        print(f"| {r.firmware} | {r.exchange_us:.0f} | {r.physics_us:.0f} | "
+        print(f"| {r.firmware} | {r.mode} | {r.exchange_us:.0f} | {r.physics_us:.0f} | "
               f"{r.python_us:.0f} | {total:.0f} | {fmt(r.fc_cpu_us, '.0f')} |")
     if args.starts:
         path = firmware_path(f"{args.generations.split(',')[0]}-lockstep", args.build)

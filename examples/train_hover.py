@@ -41,21 +41,28 @@ HOLD_WINDOW_S = 10.0
 HOLD_WITHIN_M = 0.3
 
 
-def make_env(firmware: str, rank: int, out: Path) -> Callable[[], object]:
+def make_env(firmware: str, control_hz: float, rank: int, out: Path) -> Callable[[], object]:
     def make() -> object:
         from stable_baselines3.common.monitor import Monitor
 
-        return Monitor(HoverEnv(firmware=firmware, workdir=out / "sitl" / f"env{rank}"))
+        # In a SubprocVecEnv worker each environment claims a core of its own for itself and
+        # its SITL (HoverEnv's pin_core): the workers do not take each other's time.
+        return Monitor(HoverEnv(firmware=firmware, control_hz=control_hz,
+                                workdir=out / "sitl" / f"env{rank}"))
 
     return make
 
 
 def train(args: argparse.Namespace) -> tuple[object, object, list[tuple[float, int, float]]]:
+    import torch
     from stable_baselines3 import PPO
     from stable_baselines3.common.callbacks import BaseCallback
     from stable_baselines3.common.vec_env import SubprocVecEnv, VecNormalize
 
-    envs = VecNormalize(SubprocVecEnv([make_env(args.firmware, rank, args.out)
+    # One thread for the learner: a network this small gains nothing from a second, and
+    # torch's idle threads would spin on the cores the environments are pinned to.
+    torch.set_num_threads(1)
+    envs = VecNormalize(SubprocVecEnv([make_env(args.firmware, args.control_hz, rank, args.out)
                                        for rank in range(args.envs)], start_method="fork"),
                         norm_obs=True, norm_reward=True, clip_obs=10.0)
     episodes: list[tuple[float, int, float]] = []
@@ -75,9 +82,11 @@ def train(args: argparse.Namespace) -> tuple[object, object, list[tuple[float, i
                               f"mean return of the last 20: {np.mean(recent):.1f}", flush=True)
             return time.monotonic() < deadline  # --minutes: stop training then
 
-    # A narrower start than SB3's (std 1 on a [-1, 1] stick crashes at once), two small layers.
-    model = PPO("MlpPolicy", envs, n_steps=args.n_steps, batch_size=256, learning_rate=3e-4,
-                gamma=0.99, gae_lambda=0.95, ent_coef=0.0, seed=args.seed, verbose=0,
+    # A narrower start than SB3's (std 1 on a [-1, 1] stick crashes at once), two small layers;
+    # the learning rate falls to zero over the run, which lets the last updates refine.
+    model = PPO("MlpPolicy", envs, n_steps=args.n_steps, batch_size=256,
+                learning_rate=lambda remaining: 3e-4 * remaining, gamma=args.gamma,
+                gae_lambda=0.95, ent_coef=0.0, seed=args.seed, verbose=0,
                 policy_kwargs={"log_std_init": -1.0, "net_arch": [64, 64]}, device="cpu")
     try:
         model.learn(total_timesteps=args.steps, callback=Curve())
@@ -114,10 +123,12 @@ def write_curve(episodes: list[tuple[float, int, float]], out: Path) -> None:
     plt.close(figure)
 
 
-def fly(policy: Callable[[np.ndarray], np.ndarray], firmware: str, seed: int, seconds: float,
-        workdir: Path, recorder: EpisodeRecorder | None = None) -> dict[str, object]:
+def fly(policy: Callable[[np.ndarray], np.ndarray], firmware: str, control_hz: float, seed: int,
+        seconds: float, workdir: Path, recorder: EpisodeRecorder | None = None
+        ) -> dict[str, object]:
     """One evaluation flight; the distances over its last HOLD_WINDOW_S seconds."""
-    env = HoverEnv(firmware=firmware, workdir=workdir, episode_s=seconds)
+    env = HoverEnv(firmware=firmware, control_hz=control_hz, workdir=workdir,
+                   episode_s=seconds)
     try:
         observation, info = env.reset(seed=seed)
         distances: list[tuple[float, float]] = []
@@ -145,6 +156,9 @@ def main() -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--firmware", default=DEFAULT_FIRMWARE)
     parser.add_argument("--envs", type=int, default=2)
+    parser.add_argument("--control-hz", type=float, default=50.0,
+                        help="the policy's rate (50 Hz: each step sees more of the flight)")
+    parser.add_argument("--gamma", type=float, default=0.99)
     parser.add_argument("--steps", type=int, default=300_000)
     parser.add_argument("--n-steps", type=int, default=1024, help="PPO rollout per env")
     parser.add_argument("--seed", type=int, default=0)
@@ -166,7 +180,8 @@ def main() -> int:
     from stable_baselines3.common.vec_env import DummyVecEnv, VecNormalize
 
     scaling = VecNormalize.load(str(args.out / "vecnormalize.pkl"),
-                                DummyVecEnv([lambda: HoverEnv(firmware=args.firmware)]))
+                                DummyVecEnv([lambda: HoverEnv(firmware=args.firmware,
+                                                              control_hz=args.control_hz)]))
     scaling.training = False
     scaling.venv.close()
 
@@ -177,14 +192,14 @@ def main() -> int:
     random_actions = np.random.default_rng(args.seed)
     eval_seed = 10_000 + args.seed
     recorder = EpisodeRecorder(args.out / "evaluation.csv")
+    evaluation = (args.firmware, args.control_hz, eval_seed, args.eval_s,
+                  args.out / "sitl" / "eval")
     try:
         results = {
-            "learned": fly(learned, args.firmware, eval_seed, args.eval_s,
-                           args.out / "sitl" / "eval", recorder),
+            "learned": fly(learned, *evaluation, recorder),
             "random": fly(lambda _o: random_actions.uniform(-1, 1, 4).astype(np.float32),
-                          args.firmware, eval_seed, args.eval_s, args.out / "sitl" / "eval"),
-            "hand-written": fly(hand_policy, args.firmware, eval_seed, args.eval_s,
-                                args.out / "sitl" / "eval"),
+                          *evaluation),
+            "hand-written": fly(hand_policy, *evaluation),
         }
     finally:
         recorder.close()
@@ -193,7 +208,8 @@ def main() -> int:
     summary = {
         "training": {"steps": int(model.num_timesteps), "envs": args.envs,  # type: ignore[attr-defined]
                      "episodes": len(episodes),
-                     "wall_s": round(train_s, 1), "firmware": args.firmware},
+                     "wall_s": round(train_s, 1), "firmware": args.firmware,
+                     "control_hz": args.control_hz},
         "evaluation": results,
         "holds_within_0_3_m_for_10_s": (learned_max is not None
                                          and results["learned"]["flown_s"] >= args.eval_s - 0.1

@@ -197,13 +197,54 @@ def test_a_vector_of_environments_runs_side_by_side_and_leaves_nothing(
     assert sitl_processes_under(tmp_path) == []
 
 
+def test_bfsitls_own_vector_environment_pins_each_firmware_and_flies_as_one_alone(
+        lockstep_gps_46_firmware: Path, tmp_path: Path) -> None:
+    envs = gymnasium.make_vec("bfsitl/Hover-v0", num_envs=2,
+                              vectorization_mode="vector_entry_point",
+                              firmware=lockstep_gps_46_firmware, episode_s=0.5,
+                              workdir=tmp_path / "vector")
+    single = HoverEnv(firmware=lockstep_gps_46_firmware, episode_s=0.5,
+                      workdir=tmp_path / "single")
+    try:
+        observations, info = envs.reset(seed=[5, 6])
+        alone, _ = single.reset(seed=5)
+        # Pinned, without spinning, in another process: the same flight as on its own.
+        assert np.array_equal(observations[0], alone)
+        assert not np.array_equal(observations[0], observations[1])
+        pinned = [os.sched_getaffinity(pid) for pid in sitl_processes_under(tmp_path / "vector")]
+        assert len(pinned) == 2 and all(len(cores) == 1 for cores in pinned)
+        if len(os.sched_getaffinity(0)) >= 2:
+            assert pinned[0] != pinned[1]                  # a core each
+        action = np.array([0.0, 0.0, 0.12, 0.0], dtype=np.float32)
+        for _ in range(60):
+            observations, rewards, terminated, truncated, info = envs.step(
+                np.tile(action, (2, 1)))
+            alone, reward, _terminated, ended, alone_info = single.step(action)
+            if "final_info" in info:
+                break
+            assert np.array_equal(observations[0], alone) and rewards[0] == reward
+            assert info["distance_m"][0] == alone_info["distance_m"]
+        assert ended and truncated.all() and info["_final_info"].all()
+        assert np.array_equal(info["final_obs"][0], alone)  # the ended episode's last
+        assert info["final_info"][0]["time_s"] == pytest.approx(0.5, abs=0.01)
+        assert (info["time_s"] < 0.01).all()                 # already the next episodes
+    finally:
+        envs.close()
+        single.close()
+    assert sitl_processes_under(tmp_path) == []
+
+
 CRASHING_PARENT = """
 import os, sys, numpy as np
 from gymnasium.vector import AsyncVectorEnv
 from bfsitl.gym.env import HoverEnv
-firmware, folder = sys.argv[1], sys.argv[2]
-envs = AsyncVectorEnv([lambda n=n: HoverEnv(firmware=firmware, workdir=f"{folder}/env{n}")
-                       for n in range(2)])
+from bfsitl.gym.vector import FlightVectorEnv
+firmware, folder, kind = sys.argv[1], sys.argv[2], sys.argv[3]
+if kind == "async":
+    envs = AsyncVectorEnv([lambda n=n: HoverEnv(firmware=firmware, workdir=f"{folder}/env{n}")
+                           for n in range(2)])
+else:
+    envs = FlightVectorEnv("bfsitl.gym.env:HoverEnv", 2, firmware=firmware, workdir=folder)
 envs.reset(seed=0)
 envs.step(np.zeros((2, 4), dtype=np.float32))
 print("flying", flush=True)
@@ -211,10 +252,11 @@ os.kill(os.getpid(), 9)
 """
 
 
+@pytest.mark.parametrize("kind", ["async", "own"])
 def test_a_crashed_parent_leaves_no_firmware_running(lockstep_gps_46_firmware: Path,
-                                                      tmp_path: Path) -> None:
+                                                      tmp_path: Path, kind: str) -> None:
     parent = subprocess.run([sys.executable, "-c", CRASHING_PARENT,
-                             str(lockstep_gps_46_firmware), str(tmp_path)],
+                             str(lockstep_gps_46_firmware), str(tmp_path), kind],
                             capture_output=True, text=True, timeout=120)
     assert "flying" in parent.stdout, parent.stderr
     assert parent.returncode == -signal.SIGKILL

@@ -27,6 +27,7 @@ from bfsitl.fc.rc_link import RC_MID_US
 from bfsitl.mission.runner import Mission
 from bfsitl.mission.session import FLY_PROFILE, FlightSession, SessionConfig, with_fast_serial
 from bfsitl.physics.wind import Wind
+from bfsitl.sim.shm_exchange import shm_exchange_supported
 from bfsitl.sitl.process import SitlProcess
 
 pytestmark = pytest.mark.sitl
@@ -50,22 +51,27 @@ def simulated_columns(path: Path) -> list[dict[str, str]]:
 
 
 def test_the_builds_are_lockstep(lockstep_firmware: Path) -> None:
-    assert binary_traits(lockstep_firmware).lockstep
+    traits = binary_traits(lockstep_firmware)
+    assert traits.lockstep and traits.shm_exchange
 
 
 @pytest.mark.timeout(400)
 def test_the_same_seed_flies_the_same_flight_and_another_seed_does_not(
         lockstep_firmware: Path, tmp_path: Path) -> None:
     logs = []
-    for name, seed in (("a", "1"), ("b", "1"), ("c", "2")):
+    # The second flight takes its packets over UDP, the others through shared memory where
+    # the machine has it: the exchange must not change a thing the firmware does.
+    shared = "shm" if shm_exchange_supported() else "udp"
+    for name, seed, exchange in (("a", "1", "auto"), ("b", "1", "udp"), ("c", "2", "auto")):
         log, summary = tmp_path / f"{name}.csv", tmp_path / f"{name}.json"
         done = fly(tmp_path, lockstep_firmware, "--seed", seed, "--hold", "3", "--log",
-                   str(log), "--summary", str(summary))
+                   str(log), "--summary", str(summary), "--lockstep-exchange", exchange)
         assert done.returncode == 0, done.stdout + done.stderr
         assert "lockstep: the FC's clock follows the physics" in done.stderr
         result = json.loads(summary.read_text())
         assert result["outcome"] == "landed" and result["physics"]["lockstep"] is True
         assert result["physics"]["answered_ratio"] == 1.0
+        assert result["physics"]["exchange"] == (shared if exchange == "auto" else exchange)
         logs.append(simulated_columns(log))
     first, again, other = logs
     assert len(first) > 300

@@ -134,6 +134,12 @@ class Backend:
         """Why the backend's own machinery stopped (a bridge thread that died), if it did."""
         return None
 
+    @property
+    def exchange(self) -> str | None:
+        """How the physics' packets reach the firmware (``"udp"``, ``"shm"``); None when the
+        physics is not ours."""
+        return None
+
 
 class SitlBackend(Backend):
     """A backend under a SITL process: it starts the process its own way, supplies its RC

@@ -37,6 +37,7 @@ from bfsitl.sim.lockstep import (
     LockstepRc,
     SteppedLink,
 )
+from bfsitl.sim.shm_exchange import ShmExchange
 from bfsitl.sitl.process import SitlHooks
 
 if TYPE_CHECKING:
@@ -54,6 +55,10 @@ class _EmbeddedPhysics(SitlBackend):
         self.progress = progress
         self.disturbances = Disturbances(self.name, rc=lambda: self.rc, simulator=simulator,
                                          gps_lost=self._set_gps_lost)
+
+    @property
+    def exchange(self) -> str | None:
+        return "udp"
 
     def _set_gps_lost(self, lost: bool) -> None:
         if self.bridge is not None:
@@ -150,13 +155,17 @@ class LockstepBackend(_EmbeddedPhysics):
 
     def __init__(self, simulator: Simulator, *, speed: float | None, spin: bool,
                  progress: Callable[[str], None],
-                 alive: Callable[[], None] | None = None) -> None:
+                 alive: Callable[[], None] | None = None,
+                 shared_memory: bool = False) -> None:
         super().__init__(simulator, progress)
         self.speed = speed
         self.spin = spin
         #: Asked during a wait that runs long: raises if the SITL has ended.
         self.alive = alive
         self._lockstep: LockstepBridge | None = None
+        #: The shared-memory exchange (made now: its path goes into the SITL's environment),
+        #: or None for UDP.
+        self.shared: ShmExchange | None = ShmExchange() if shared_memory else None
 
     @property
     def _bridge(self) -> LockstepBridge:
@@ -174,13 +183,23 @@ class LockstepBackend(_EmbeddedPhysics):
         return SteppedLink(link, self._bridge)
 
     @property
+    def exchange(self) -> str | None:
+        return "shm" if self.shared is not None else "udp"
+
+    @property
     def sitl_env(self) -> Mapping[str, str] | None:
-        return None if self.spin else {SITL_SPIN_ENV: "0"}
+        env = {} if self.spin else {SITL_SPIN_ENV: "0"}
+        if self.shared is not None:
+            env.update(self.shared.env)
+        return env or None
 
     def start(self, sitl: SitlProcess, stack: ExitStack) -> None:
+        if self.shared is not None:
+            stack.callback(self.shared.close)
         bridge = LockstepBridge(self._simulator, sitl.prepare_network(), speed=self.speed,
                                 profile=profile_of_binary(sitl.firmware.path),
-                                spin_s=REPLY_SPIN_S if self.spin else 0.0, alive=self.alive)
+                                spin_s=REPLY_SPIN_S if self.spin else 0.0, alive=self.alive,
+                                exchange=self.shared)
         self._lockstep = self.bridge = bridge
         bridge.bind()
         stack.callback(bridge.close)
@@ -190,7 +209,9 @@ class LockstepBackend(_EmbeddedPhysics):
         bridge.set_profile(sitl.profile)
         pace = "as fast as it goes" if self.speed is None else \
             f"paced to {self.speed:g}x real time"
-        self.progress(f"lockstep: the FC's clock follows the physics, {pace}")
+        through = "shared memory" if self.shared is not None else "UDP"
+        self.progress(f"lockstep: the FC's clock follows the physics, {pace}, "
+                      f"packets through {through}")
 
     def rc_sender(self, sitl: SitlProcess) -> RcSender:
         # Closes first on the way out: its disarm is stepped in before the rest stops.

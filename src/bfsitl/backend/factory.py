@@ -46,6 +46,8 @@ class BackendOptions(Protocol):
     @property
     def lockstep_spin(self) -> bool: ...
     @property
+    def lockstep_exchange(self) -> str: ...
+    @property
     def quad(self) -> QuadParams: ...
     @property
     def sensors(self) -> SensorConfig: ...
@@ -84,6 +86,27 @@ def wants_lockstep(firmware: FirmwareBinary, asked: bool | None) -> bool:
     return firmware.lockstep if asked is None else asked
 
 
+LOCKSTEP_EXCHANGES = ("auto", "shm", "udp")
+
+
+def uses_shm_exchange(firmware: FirmwareBinary, asked: str) -> bool:
+    """Whether a lockstep run of ``firmware`` takes the shared-memory exchange."""
+    from bfsitl.sim.shm_exchange import shm_exchange_supported
+
+    if asked not in LOCKSTEP_EXCHANGES:
+        raise BfsitlError(f"lockstep exchange {asked!r}: one of {', '.join(LOCKSTEP_EXCHANGES)}")
+    if asked == "udp":
+        return False
+    possible = firmware.shm_exchange and shm_exchange_supported()
+    if asked == "shm" and not possible:
+        why = ("this machine is not x86-64 Linux" if firmware.shm_exchange else
+               f"{firmware.path} was built without it: rebuild it with this bfsitl "
+               f"(`bfsitl firmware build --lockstep`)")
+        raise BfsitlError(f"the shared-memory lockstep exchange was asked for, but {why}; "
+                          f"or use the UDP exchange")
+    return possible
+
+
 def make_backend(options: BackendOptions, firmware: FirmwareBinary, *,
                  progress: Callable[[str], None],
                  alive: Callable[[], None] | None = None) -> SitlBackend:
@@ -118,5 +141,7 @@ def make_backend(options: BackendOptions, firmware: FirmwareBinary, *,
         speed = options.speed
         return LockstepBackend(simulator, speed=None if speed is None or math.isinf(speed)
                                else speed, spin=options.lockstep_spin, progress=progress,
-                               alive=alive)
+                               alive=alive,
+                               shared_memory=uses_shm_exchange(firmware,
+                                                               options.lockstep_exchange))
     return RealTimeBackend(simulator, speed=real_time_speed(options.speed), progress=progress)

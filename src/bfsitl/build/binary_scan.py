@@ -23,6 +23,9 @@ from dataclasses import dataclass
 IP_FLAG_MARKER = b"--ip <address>"
 LOCKSTEP_MARKER = b"[LOCKSTEP] bfsitl lockstep build"
 """Printed at boot by a ``--lockstep`` build (:mod:`bfsitl.build.lockstep`)."""
+SHM_EXCHANGE_MARKER = b"BFSITL_LOCKSTEP_SHM\x00"
+"""The variable a lockstep build that has the shared-memory exchange reads (earlier lockstep
+builds have only UDP: :mod:`bfsitl.sim.shm_exchange`)."""
 """In master's usage text (sitl.c ``targetParseArgs``); absent from 4.6.0."""
 
 FEATURE_MARKERS: dict[str, bytes] = {
@@ -44,6 +47,8 @@ class BinaryTraits:
     features: tuple[str, ...]
     #: Built with ``--lockstep``: its clock follows fdm packets, RC rides in them.
     lockstep: bool = False
+    #: A lockstep build that can also take its packets through shared memory.
+    shm_exchange: bool = False
 
     @property
     def has_gps(self) -> bool:
@@ -65,9 +70,10 @@ def _scan(real_path: str, _size: int, _mtime_ns: int, _ino: int, _dev: int) -> B
         with mmap.mmap(handle.fileno(), 0, access=mmap.ACCESS_READ) as mapped:
             takes_ip = mapped.find(IP_FLAG_MARKER) >= 0
             lockstep = mapped.find(LOCKSTEP_MARKER) >= 0
+            shm_exchange = lockstep and mapped.find(SHM_EXCHANGE_MARKER) >= 0
             features = tuple(name for name, marker in FEATURE_MARKERS.items()
                              if mapped.find(marker) >= 0)
-    return BinaryTraits(takes_ip, features, lockstep)
+    return BinaryTraits(takes_ip, features, lockstep, shm_exchange)
 
 
 def clear_cache() -> None:

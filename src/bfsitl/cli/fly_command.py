@@ -146,6 +146,10 @@ def add_fly_parser(sub: argparse._SubParsersAction) -> None:  # type: ignore[typ
     sitl.add_argument("--lockstep", action=argparse.BooleanOptionalAction, default=None,
                       help="step the FC with the physics (default: when the firmware is a "
                            "lockstep build; --no-lockstep flies one on the wall clock)")
+    sitl.add_argument("--lockstep-exchange", choices=("auto", "shm", "udp"), default="auto",
+                      help="how lockstep packets pass: shared memory (shm, on builds made by "
+                           "this bfsitl, x86-64 Linux) or UDP; both fly the same flight "
+                           "(default auto: shm where it can)")
     sitl.add_argument("--baro-noise-pa", type=number_in(0, None, "Pa"), default=None, metavar="PA",
                       help="barometer noise std of the embedded physics (default 0.5: dithers "
                            "the SITL's whole-pascal pressure; 0 for a noiseless barometer)")
@@ -331,7 +335,8 @@ def cmd_fly(args: argparse.Namespace) -> int:
         control_rate_hz=args.rate, gps_noise=args.gps_noise, profile=profile,
         baro_noise_std_pa=args.baro_noise_pa, accel_noise_std_m_s2=args.accel_noise,
         firmware=args.firmware, workdir=args.workdir, isolate=not args.no_isolate,
-        speed=speed, lockstep=args.lockstep, angle_mode=not args.no_angle,
+        speed=speed, lockstep=args.lockstep, lockstep_exchange=args.lockstep_exchange,
+        angle_mode=not args.no_angle,
         physics=args.physics, gz_plugin_dir=args.gz_plugin_dir, wind=wind, seed=args.seed,
         configurator_port=args.configurator_port if args.configurator else None,
         allow_origins=tuple(args.allow_origin))

@@ -14,6 +14,11 @@ the FC reports; ``"truth"``: the simulation), ``wind``, ``wind_from_deg``, ``gus
 ``disturbances`` (a hook called before every step with the flight's disturbance surface),
 ``episode_s``, ``start`` (``"air"`` or ``"ground"``), ``start_alt_m``.  Needs the ``gym``
 extra: ``pip install 'bfsitl[gym]'``.
+
+Many at once: ``gymnasium.make_vec(id, num_envs=N, vectorization_mode="vector_entry_point")``
+gives :class:`~bfsitl.gym.vector.FlightVectorEnv` (a worker per environment, each pinned to
+a core with its SITL, the numbers in shared memory); Gymnasium's own ``AsyncVectorEnv`` works
+too, at a higher cost per step.
 """
 
 from __future__ import annotations
@@ -30,9 +35,14 @@ from bfsitl.gym.env import FlightEnv, HoverEnv, WaypointsEnv
 
 ENVIRONMENTS = {"bfsitl/Hover-v0": "bfsitl.gym.env:HoverEnv",
                 "bfsitl/Waypoints-v0": "bfsitl.gym.env:WaypointsEnv"}
+#: What ``gymnasium.make_vec(id, num_envs=N, vectorization_mode="vector_entry_point")``
+#: makes: N environments in pinned workers, sharing memory (bfsitl.gym.vector).
+VECTOR_ENVIRONMENTS = {"bfsitl/Hover-v0": "bfsitl.gym.vector:HoverVectorEnv",
+                       "bfsitl/Waypoints-v0": "bfsitl.gym.vector:WaypointsVectorEnv"}
 
 for _id, _entry_point in ENVIRONMENTS.items():
     if _id not in registry:
-        register(id=_id, entry_point=_entry_point)
+        register(id=_id, entry_point=_entry_point,
+                 vector_entry_point=VECTOR_ENVIRONMENTS[_id])
 
-__all__ = ["ENVIRONMENTS", "FlightEnv", "HoverEnv", "WaypointsEnv"]
+__all__ = ["ENVIRONMENTS", "VECTOR_ENVIRONMENTS", "FlightEnv", "HoverEnv", "WaypointsEnv"]

@@ -45,6 +45,7 @@ import numpy as np
 from gymnasium import spaces
 
 from bfsitl.backend.disturbances import Disturbances
+from bfsitl.backend.factory import LOCKSTEP_EXCHANGES
 from bfsitl.control import make_controller
 from bfsitl.errors import EnvironmentConfigError, LinkError, MspError, SitlError
 from bfsitl.fc.rc_link import RcCommand
@@ -64,6 +65,7 @@ from bfsitl.gym.tasks import (
 from bfsitl.mission.loop import Mission
 from bfsitl.mission.session import FlightSession, SessionConfig
 from bfsitl.physics.wind import Wind
+from bfsitl.sitl.core_claim import CoreClaim, claim_core
 from bfsitl.sitl.firmware import find_firmware
 
 MODES = ("angle", "acro")
@@ -91,10 +93,12 @@ class FlightEnv(gymnasium.Env[np.ndarray, np.ndarray]):
                  wind: float = 0.0, wind_from_deg: float = 0.0, gusts: float = 0.0,
                  disturbances: DisturbanceHook | None = None, episode_s: float = 10.0,
                  start: str = "air", start_alt_m: float = 1.5, spin: bool | None = None,
+                 pin_core: bool | None = None, lockstep_exchange: str = "auto",
                  warm_resets: bool = True, workdir: str | Path | None = None) -> None:
         _check_choice("mode", mode, MODES)
         _check_choice("observation", observation, OBSERVATIONS)
         _check_choice("start", start, STARTS)
+        _check_choice("lockstep_exchange", lockstep_exchange, LOCKSTEP_EXCHANGES)
         low, high = CONTROL_HZ_RANGE
         if not low <= control_hz <= high:
             raise EnvironmentConfigError(
@@ -119,11 +123,24 @@ class FlightEnv(gymnasium.Env[np.ndarray, np.ndarray]):
         self.episode_s = episode_s
         self.start = start
         self.start_alt_m = start_alt_m
+        in_worker = multiprocessing.parent_process() is not None
+        #: Pin this process and its SITL to one core of their own (bfsitl.sitl.core_claim):
+        #: the lockstep hand-over stays on that core, and environments side by side do not
+        #: take each other's time.  None: in the workers of a vector environment only.
+        self.pin_core = in_worker if pin_core is None else pin_core
+        if self.pin_core and spin:
+            raise EnvironmentConfigError(
+                "spin=True with pin_core=True: the SITL and the environment share the pinned "
+                "core, so a busy-wait would starve the firmware it waits for; choose one")
         #: Busy-wait for the firmware's replies (SessionConfig.lockstep_spin): the SITL and
-        #: bfsitl each keep a core busy, which makes one environment about 2x faster and
-        #: several sharing the cores 3x slower (benchmarks/gym.py).  None: spin in the main
-        #: process only, not in the workers of an AsyncVectorEnv.
-        self.spin = multiprocessing.parent_process() is None if spin is None else spin
+        #: bfsitl each keep a core busy, which makes one environment faster and several
+        #: sharing the cores slower (benchmarks/gym.py).  None: spin when not pinned and not
+        #: in the worker of a vector environment.
+        self.spin = (not in_worker and not self.pin_core) if spin is None else spin
+        self._core: CoreClaim | None = None
+        #: How packets pass to the firmware (SessionConfig.lockstep_exchange): shared memory
+        #: where the build has it, or UDP; the flights are the same.
+        self.lockstep_exchange = lockstep_exchange
         #: A reset without a seed keeps the firmware running when it can (see the module
         #: docstring); False boots a fresh one every time.
         self.warm_resets = warm_resets
@@ -238,6 +255,9 @@ class FlightEnv(gymnasium.Env[np.ndarray, np.ndarray]):
 
     def close(self) -> None:
         self._end_session()
+        if self._core is not None:
+            self._core.release()
+            self._core = None
         if self._own_workdir:
             shutil.rmtree(self.workdir, ignore_errors=True)
         super().close()
@@ -257,11 +277,15 @@ class FlightEnv(gymnasium.Env[np.ndarray, np.ndarray]):
         config = SessionConfig.for_autopilot(
             control_rate_hz=self.control_hz, firmware=self.binary.path,
             workdir=self.workdir / "sitl", seed=seed, wind=self.wind, lockstep=True,
-            angle_mode=self.mode == "angle", lockstep_spin=self.spin)
+            angle_mode=self.mode == "angle", lockstep_spin=self.spin,
+            lockstep_exchange=self.lockstep_exchange)
         return FlightSession(config)
 
     def _prepare(self) -> None:
-        """One boot that provisions the EEPROM, so every episode boots the same FC."""
+        """One boot that provisions the EEPROM, so every episode boots the same FC (on the
+        claimed core, which every SITL started from now on inherits)."""
+        if self.pin_core and self._core is None:
+            self._core = claim_core()
         with self._new_session(0) as session:
             session.start()
         self._prepared = True

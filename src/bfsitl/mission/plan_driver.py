@@ -168,5 +168,6 @@ def fly_mission(mission: Mission, plan: MissionPlan, *,
     if bridge_stats is not None:
         result.extra["physics"] = {
             "answered_ratio": bridge_stats.answered_ratio, "speed": bridge_stats.speed,
-            "steps": bridge_stats.steps, "lockstep": session.lockstep}
+            "steps": bridge_stats.steps, "lockstep": session.lockstep,
+            "exchange": session.backend.exchange}
     return result

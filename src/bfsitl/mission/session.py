@@ -158,6 +158,10 @@ class SessionConfig:
     #: sleeping: fastest when the run has cores to itself; off when runs share the cores
     #: (``bfsitl scenario run --jobs 2`` on two cores), where spinning steals time slices.
     lockstep_spin: bool = True
+    #: Lockstep: how packets pass between the physics and the firmware: ``"auto"`` (shared
+    #: memory where the build and the machine have it, else UDP), ``"shm"`` or ``"udp"``.
+    #: Either gives the same flight (bfsitl.sim.shm_exchange).
+    lockstep_exchange: str = "auto"
 
     @classmethod
     def for_autopilot(cls, *, control_rate_hz: float = 100.0, gps_noise: bool = False,

@@ -29,6 +29,7 @@ from bfsitl.errors import ScenarioError
 from bfsitl.scenario.result import ScenarioResult, Verdict
 from bfsitl.scenario.run import RunOptions, run_scenario
 from bfsitl.scenario.spec import Scenario
+from bfsitl.sitl.core_claim import claim_core
 from bfsitl.sitl.firmware import ENV_VAR as FIRMWARE_ENV_VAR
 
 Progress = Callable[[str], None]
@@ -101,13 +102,20 @@ def _run_one(run: PlannedRun, speed: float | None, plot: bool, mcap: bool
              ) -> ScenarioResult:
     """A worker's job: the run's progress goes to a file in its directory (several runs'
     lines interleaved on one terminal would be unreadable).  Workers share the machine's
-    cores, so a lockstep run does not busy-wait (SessionConfig.lockstep_spin)."""
+    cores, so a lockstep run does not busy-wait (SessionConfig.lockstep_spin); it claims a
+    core for itself and its SITL instead (bfsitl.sitl.core_claim), so that runs side by side
+    neither take each other's time nor wake each other's cores."""
     run.out_dir.mkdir(parents=True, exist_ok=True)
-    with open(run.out_dir / "progress.log", "w", buffering=1) as log:
-        return run_scenario(run.scenario, run.firmware,
-                            RunOptions(run.out_dir, speed=speed, plot=plot, mcap=mcap,
-                                       shares_cores=True),
-                            progress=lambda line: print(line, file=log))
+    claim = claim_core()
+    try:
+        with open(run.out_dir / "progress.log", "w", buffering=1) as log:
+            return run_scenario(run.scenario, run.firmware,
+                                RunOptions(run.out_dir, speed=speed, plot=plot, mcap=mcap,
+                                           shares_cores=True),
+                                progress=lambda line: print(line, file=log))
+    finally:
+        if claim is not None:
+            claim.release()
 
 
 def run_suite(runs: Sequence[PlannedRun], *, jobs: int = 1, speed: float | None = None,

@@ -49,6 +49,7 @@ from bfsitl.sim.bridge import (
     bind_motor_port,
 )
 from bfsitl.sim.fdm_encoding import FdmEncoder
+from bfsitl.sim.shm_exchange import ShmExchange
 
 T = TypeVar("T")
 
@@ -118,6 +119,7 @@ class LockstepBridge:
         wall_clock: Callable[[], float] = time.perf_counter,
         sleep: Callable[[float], None] = time.sleep,
         spin_s: float = REPLY_SPIN_S,
+        exchange: ShmExchange | None = None,
     ) -> None:
         if not 0.0001 <= step_s <= 0.01:
             raise ValueError(f"step_s {step_s} outside 0.1..10 ms")
@@ -134,6 +136,12 @@ class LockstepBridge:
         self.alive = alive
         self._wall = wall_clock
         self._sleep = sleep
+        #: The shared-memory exchange, once the FC has mapped it (None: UDP).
+        self.exchange = exchange
+        #: The requests of the packet in flight through it: the first and the last sent (a
+        #: resend is a new request; the FC's answer to any of them will do).
+        self._first_seq = self._seq = 0
+        self._seq_stamp_s = math.nan
         self.encoder = FdmEncoder(profile, getattr(simulator, "home", GeoPoint(0.0, 0.0)))
         self.motors: Motors = (0.0, 0.0, 0.0, 0.0)
         self.rc_command: RcCommand = SAFE_COMMAND
@@ -204,7 +212,7 @@ class LockstepBridge:
         datagram = self._datagram()
         deadline_s = self._wall() + LOCK_TIMEOUT_S
         while True:
-            self._send(datagram)
+            self._send(datagram, stamp_s)
             reply = self._wait_reply(stamp_s, LOCK_RESEND_S, spin=False)
             if reply is not None:
                 break
@@ -258,7 +266,7 @@ class LockstepBridge:
         stamp_s = self.simulator.time_s
         datagram = self._datagram()
         for _attempt in range(REPLY_RETRIES + 1):
-            self._send(datagram)
+            self._send(datagram, stamp_s)
             reply = self._wait_reply(stamp_s, REPLY_TIMEOUT_S / (REPLY_RETRIES + 1))
             if reply is not None:
                 break
@@ -295,7 +303,15 @@ class LockstepBridge:
         while self.simulator.time_s + self.step_s / 2 < time_s:
             self.step()
 
-    def _send(self, datagram: bytes) -> None:
+    def _send(self, datagram: bytes, stamp_s: float) -> None:
+        exchange = self.exchange
+        if exchange is not None and exchange.ready:
+            seq = exchange.send(datagram)
+            if not self._seq or stamp_s != self._seq_stamp_s:
+                self._first_seq, self._seq_stamp_s = seq, stamp_s
+            self._seq = seq
+            return
+        self._seq = 0
         assert self._sock is not None
         try:
             self._sock.sendto(datagram, (SITL_HOST, FDM_PORT))
@@ -323,6 +339,8 @@ class LockstepBridge:
 
     def _wait_reply(self, stamp_s: float, timeout_s: float, *, spin: bool = True
                     ) -> Motors | None:
+        if self._seq:
+            return self._wait_shared_reply(stamp_s, timeout_s, spin=spin)
         assert self._sock is not None
         start_s = self._wall()
         spin_until_s = start_s + (self.spin_s if spin else 0.0)
@@ -338,6 +356,35 @@ class LockstepBridge:
                 return None
             if not select.select([self._sock], [], [], min(remaining_s, 0.05))[0] and \
                     self.alive is not None:
+                self.alive()  # a SITL that ended (a reboot, a crash) says so now
+
+
+    def _wait_shared_reply(self, stamp_s: float, timeout_s: float, *, spin: bool
+                           ) -> Motors | None:
+        """The reply through shared memory: the same bytes as the UDP reply."""
+        exchange = self.exchange
+        assert exchange is not None
+        wall = self._wall
+        start_s = wall()
+        spin_until_s = start_s + (self.spin_s if spin else 0.0)
+        first, last = self._first_seq, self._seq
+
+        def spinning() -> bool:
+            return wall() < spin_until_s
+
+        while True:
+            remaining_s = start_s + timeout_s - wall()
+            if remaining_s <= 0:
+                return None
+            data = exchange.wait_reply(first, last, min(remaining_s, 0.05), spinning)
+            if data is not None:
+                speeds, answered_s = decode_reply(data)
+                if answered_s != stamp_s:
+                    raise SitlError(f"the FC answered fdm time {answered_s} for {stamp_s} "
+                                    f"through shared memory: its exchange is out of step")
+                return ServoPacket(speeds).betaflight_motors(
+                    self.encoder.profile.motor_slot_of_betaflight_motor)
+            if self.alive is not None:
                 self.alive()  # a SITL that ended (a reboot, a crash) says so now
 
 

@@ -107,6 +107,15 @@ class FirmwareBinary:
         except OSError:
             return False
 
+    @property
+    def shm_exchange(self) -> bool:
+        """A lockstep build that can take its packets through shared memory
+        (:mod:`bfsitl.sim.shm_exchange`); False when it cannot be read."""
+        try:
+            return binary_traits(self.path).shm_exchange
+        except OSError:
+            return False
+
     def command(self, ip: str | None = None) -> list[str]:
         """The argv to start this SITL, sending its motor output to ``ip`` (default 127.0.0.1).
 

@@ -142,6 +142,8 @@ def test_waypoints_advance_when_reached_pay_a_bonus_and_finish_at_the_last() -> 
     ({"control_hz": 500.0}, r"control_hz 500.0 is outside 1..200 Hz"),
     ({"episode_s": 0.0}, "episode_s 0.0 is outside"),
     ({"start_alt_m": 40.0}, "start_alt_m 40.0 is outside 0.5..15 m"),
+    ({"lockstep_exchange": "pigeon"}, "lockstep_exchange must be one of auto, shm, udp"),
+    ({"spin": True, "pin_core": True}, "spin=True with pin_core=True"),
 ])
 def test_an_option_the_environment_cannot_take_is_refused_with_what_it_takes(
         options: dict, fix: str) -> None:
@@ -149,6 +151,15 @@ def test_an_option_the_environment_cannot_take_is_refused_with_what_it_takes(
         HoverEnv(**options)
     with pytest.raises(EnvironmentConfigError, match="count 0 is outside"):
         WaypointsEnv(count=0)
+
+
+def test_pinning_and_spin_default_by_where_the_environment_runs() -> None:
+    here = HoverEnv()                      # a main process: spin on two cores, no pinning
+    assert here.spin and not here.pin_core
+    pinned = HoverEnv(pin_core=True)       # pinned: it shares the core with its SITL
+    assert pinned.pin_core and not pinned.spin
+    for env in (here, pinned):
+        env.close()
 
 
 def test_a_stock_build_is_refused_with_the_command_that_makes_a_lockstep_one(tmp_path) -> None:  # type: ignore[no-untyped-def]

@@ -57,12 +57,28 @@
  *    and do nothing once the main loop runs: a pass takes no FC time, as if the FC were
  *    infinitely fast, and FC time never passes the packet's time.
  *
+ * 6. The exchange: UDP as above, or, when bfsitl names a file in BFSITL_LOCKSTEP_SHM, a
+ *    region of shared memory (lockstepShm_t): the simulator writes the datagram and bumps
+ *    requestSeq, the FC writes its reply and sets replySeq to the request it answers, and
+ *    each side wakes the other with a futex on that word (the waiter polls it first, for the
+ *    spin time, then sleeps in FUTEX_WAIT).  A hand-over costs two futex calls instead of a
+ *    sendto, a select and a recv on each side.  The bytes and their meaning are those of the
+ *    datagram and the reply, so nothing the firmware does depends on the exchange used.  A
+ *    file that cannot be mapped ends the process with the reason: bfsitl only names one for
+ *    a build that has this code, and would otherwise wait on the region forever.
+ *
  * Sensor timing: packet k's sensors are seen by every pass after packet k-1's time up to
  * packet k's time, and the motor command sent back is the one computed at packet k's time.
  */
 
+#include <fcntl.h>
+#include <linux/futex.h>
+#include <stddef.h>
+#include <sys/mman.h>
 #include <sys/select.h>
 #include <sys/socket.h>
+#include <sys/syscall.h>
+#include <unistd.h>
 
 #ifndef LOCKSTEP_MAX_PASS_US
 #define LOCKSTEP_MAX_PASS_US 25
@@ -96,6 +112,22 @@ typedef struct {
     double timestamp;  // of the fdm packet answered
 } lockstepReply_t;
 
+// The shared region of 6. above; bfsitl reads the layout from the header the FC writes.
+#define LOCKSTEP_SHM_MAGIC 0x6d736662U  // "bfsm"
+#define LOCKSTEP_SHM_VERSION 1U
+typedef struct {
+    uint32_t magic;             // written last by the FC once the region is set up
+    uint32_t version;
+    uint32_t requestSeq;        // the simulator: one more for each datagram it writes
+    uint32_t replySeq;          // the FC: the requestSeq it has answered
+    uint32_t datagramBytes;     // the simulator: how much of `datagram` it wrote
+    uint32_t datagramOffset;    // the FC: where `datagram` and `reply` are
+    uint32_t replyOffset;
+    uint32_t regionBytes;
+    lockstepDatagram_t datagram;
+    lockstepReply_t reply;
+} lockstepShm_t;
+
 static uint64_t lockstepClockUs;
 static uint32_t lockstepCycleSkew;
 static bool lockstepLoopRunning;
@@ -113,6 +145,76 @@ static double lockstepLastStampS;
 // is fastest when the run has cores to itself, and steals them from its neighbours when
 // several runs share the cores (bfsitl sets 0 there).
 static uint32_t lockstepSpinUs = LOCKSTEP_SPIN_US;
+static lockstepShm_t *lockstepShm;      // NULL: the exchange is UDP
+static uint32_t lockstepShmSeen;        // the last requestSeq taken
+
+static void lockstepShmOpen(const char *path)
+{
+    const int fd = open(path, O_RDWR | O_CLOEXEC);
+    if (fd < 0 || ftruncate(fd, sizeof(lockstepShm_t)) != 0) {
+        fprintf(stderr, "[LOCKSTEP] cannot open the shared exchange %s: %s\n", path, strerror(errno));
+        exit(2);
+    }
+    void *region = mmap(NULL, sizeof(lockstepShm_t), PROT_READ | PROT_WRITE, MAP_SHARED, fd, 0);
+    close(fd);
+    if (region == MAP_FAILED) {
+        fprintf(stderr, "[LOCKSTEP] cannot map the shared exchange %s: %s\n", path, strerror(errno));
+        exit(2);
+    }
+    lockstepShm = region;
+    lockstepShm->version = LOCKSTEP_SHM_VERSION;
+    lockstepShm->datagramOffset = offsetof(lockstepShm_t, datagram);
+    lockstepShm->replyOffset = offsetof(lockstepShm_t, reply);
+    lockstepShm->regionBytes = sizeof(lockstepShm_t);
+    // A request written before this process mapped the region is not taken: the simulator
+    // locking a booting FC writes the packet again until it is answered.
+    lockstepShmSeen = __atomic_load_n(&lockstepShm->requestSeq, __ATOMIC_ACQUIRE);
+    __atomic_store_n(&lockstepShm->magic, LOCKSTEP_SHM_MAGIC, __ATOMIC_RELEASE);
+}
+
+static void lockstepFutexWake(uint32_t *word)
+{
+    syscall(SYS_futex, word, FUTEX_WAKE, 1, NULL, NULL, 0);
+}
+
+// The next datagram from the region if one comes within timeoutUs (the word is polled for
+// the first spinUs, then FUTEX_WAIT sleeps on it); its size, or -1.
+static ssize_t lockstepShmTake(lockstepDatagram_t *datagram, uint32_t timeoutUs, uint32_t spinUs)
+{
+    uint32_t *word = &lockstepShm->requestSeq;
+    uint32_t seq = __atomic_load_n(word, __ATOMIC_ACQUIRE);
+    if (seq == lockstepShmSeen && spinUs > 0) {
+        const uint64_t spinUntilUs = micros64_real() + spinUs;
+        do {
+            seq = __atomic_load_n(word, __ATOMIC_ACQUIRE);
+        } while (seq == lockstepShmSeen && micros64_real() < spinUntilUs);
+    }
+    if (seq == lockstepShmSeen && timeoutUs > 0) {
+        const struct timespec timeout = { .tv_sec = timeoutUs / 1000000,
+                                          .tv_nsec = (long)(timeoutUs % 1000000) * 1000 };
+        // Returns at once if the word has moved on since it was read (no lost wake-up).
+        syscall(SYS_futex, word, FUTEX_WAIT, lockstepShmSeen, &timeout, NULL, 0);
+        seq = __atomic_load_n(word, __ATOMIC_ACQUIRE);
+    }
+    if (seq == lockstepShmSeen) {
+        return -1;
+    }
+    lockstepShmSeen = seq;
+    const uint32_t bytes = MIN(lockstepShm->datagramBytes, (uint32_t)sizeof(*datagram));
+    memcpy(datagram, &lockstepShm->datagram, bytes);
+    return (ssize_t)bytes;
+}
+
+static void lockstepSend(const lockstepReply_t *reply)
+{
+    if (lockstepShm == NULL) {
+        udpSend(&pwmLink, reply, sizeof(*reply));
+        return;
+    }
+    lockstepShm->reply = *reply;
+    __atomic_store_n(&lockstepShm->replySeq, lockstepShmSeen, __ATOMIC_RELEASE);
+    lockstepFutexWake(&lockstepShm->replySeq);
+}
 
 static void lockstepInit(void)
 {
@@ -124,8 +226,13 @@ static void lockstepInit(void)
     if (spin != NULL && spin[0] != '\0') {
         lockstepSpinUs = (uint32_t)strtoul(spin, NULL, 10);
     }
+    const char *shmPath = getenv("BFSITL_LOCKSTEP_SHM");
+    if (shmPath != NULL && shmPath[0] != '\0') {
+        lockstepShmOpen(shmPath);
+    }
     printf("[LOCKSTEP] bfsitl lockstep build: FC time follows fdm packets (RC inside them), "
-           "spin %u us\n", (unsigned)lockstepSpinUs);
+           "spin %u us, exchange %s\n", (unsigned)lockstepSpinUs,
+           lockstepShm != NULL ? "shared memory" : "UDP");
 }
 
 static uint64_t lockstepNowUs(void)
@@ -192,8 +299,10 @@ static void lockstepReply(double stampS)
     // RealFlight port (9001) gets nothing: the lockstep reply is bfsitl's.
     dyad_update();
     const lockstepReply_t reply = { .servo = pwmPkt, .timestamp = stampS };
-    udpSend(&pwmLink, &reply, sizeof(reply));
+    lockstepSend(&reply);
 }
+
+static bool lockstepTakeDatagram(const lockstepDatagram_t *datagram, ssize_t n);
 
 // One datagram if one comes within timeoutUs (polled for the first spinUs, then select());
 // true if it was a new packet.
@@ -201,6 +310,13 @@ static bool lockstepTake(uint32_t timeoutUs, uint32_t spinUs)
 {
     lockstepDatagram_t datagram;
     ssize_t n = -1;
+    if (lockstepShm != NULL) {
+        n = lockstepShmTake(&datagram, timeoutUs, spinUs);
+        if (n < 0) {
+            return false;
+        }
+        return lockstepTakeDatagram(&datagram, n);
+    }
     const uint64_t spinUntilUs = micros64_real() + spinUs;
     do {
         n = recv(stateLink.fd, &datagram, sizeof(datagram), MSG_DONTWAIT);
@@ -215,6 +331,13 @@ static bool lockstepTake(uint32_t timeoutUs, uint32_t spinUs)
         }
         n = recv(stateLink.fd, &datagram, sizeof(datagram), MSG_DONTWAIT);
     }
+    return lockstepTakeDatagram(&datagram, n);
+}
+
+// One datagram taken (from either exchange): apply it, or answer a repeat; true if new.
+static bool lockstepTakeDatagram(const lockstepDatagram_t *datagramIn, ssize_t n)
+{
+    lockstepDatagram_t datagram = *datagramIn;
     if (n < (ssize_t)sizeof(fdm_packet)) {
         return false;  // not an fdm packet: ignored
     }

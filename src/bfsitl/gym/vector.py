@@ -1,0 +1,310 @@
+"""Many environments at once, cheaply: one worker process per environment, each pinned to a
+core with its SITL, and the numbers of every step passed through shared memory.
+
+    envs = gymnasium.make_vec("bfsitl/Hover-v0", num_envs=2,
+                              vectorization_mode="vector_entry_point", control_hz=100)
+
+Gymnasium's ``AsyncVectorEnv`` runs the same environments, but pickles each step's ``info``
+through a pipe and merges it key by key in the parent; with this environment's info (the
+truth and the FC's state in nested dicts) that is about a quarter of a millisecond of the
+parent's time per step, on the same two cores the firmwares need.  Here a step is: the
+parent writes the actions into shared memory and sends each worker one byte; each worker
+steps its environment and writes the observation, the reward, the flags and the info's
+numbers back; one byte back says it is done.  What is not a number a step (why an episode
+ended, the full info with the truth, the FC's flight modes and blockers) travels only at the
+end of an episode, as ``info["final_info"]``, with ``info["final_obs"]``: the autoreset is
+Gymnasium's ``SAME_STEP`` (the observation returned for an ended episode is the first of the
+next, as Stable-Baselines3 also expects).
+
+A ``workdir`` option becomes one folder per environment below it (``env0``, ``env1``, ...).
+Each step's ``info`` holds, per environment, ``time_s``, ``distance_m``, ``waypoint``,
+``armed``, ``failsafe``, the ``target`` (north, east, up) and the truth's ``position_m`` and
+``velocity_m_s`` (north, east, up), each with Gymnasium's ``_key`` mask.
+
+The workers are forked by default, as Gymnasium's own vector environments do on Linux;
+``context="spawn"`` or ``"forkserver"`` starts fresh interpreters instead (then the options,
+a ``disturbances`` hook included, must be picklable, and the script needs the
+``if __name__ == "__main__":`` guard).  A worker whose parent dies finds its pipe closed and
+closes its environment (and so its SITL).
+"""
+
+from __future__ import annotations
+
+import multiprocessing
+import multiprocessing.connection
+import traceback
+from importlib import import_module
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+from gymnasium.vector import AutoresetMode, VectorEnv
+from gymnasium.vector.utils import batch_space
+
+from bfsitl.errors import EnvironmentConfigError
+from bfsitl.gym.observation import OBSERVATION_SIZE, observation_space
+
+#: The numbers of each step's info, in their slots of the shared block.
+INFO_NUMBERS = ("time_s", "distance_m", "waypoint", "armed", "failsafe")
+_VECTORS = ("target", "position_m", "velocity_m_s")
+_INFO_WIDTH = len(INFO_NUMBERS) + 3 * len(_VECTORS)
+#: One-byte commands to a worker, and its answers.
+_STEP, _RESET, _CLOSE = b"s", b"r", b"c"
+_DONE, _ENDED, _FAILED = b"d", b"e", b"f"
+#: How long close() waits for a worker to end its SITL before it is terminated.
+_CLOSE_WAIT_S = 10.0
+
+
+class _Shared:
+    """The numbers of every step, for every environment, in one block of shared memory."""
+
+    def __init__(self, count: int, block: Any) -> None:
+        self.block = block
+        buffer = memoryview(block).cast("B")
+        offset = 0
+
+        def view(dtype: Any, shape: tuple[int, ...]) -> np.ndarray:
+            nonlocal offset
+            size = int(np.prod(shape)) * np.dtype(dtype).itemsize
+            array = np.frombuffer(buffer, dtype=dtype, count=int(np.prod(shape)),
+                                  offset=offset).reshape(shape)
+            offset += (size + 7) // 8 * 8
+            return array
+
+        self.actions = view(np.float32, (count, 4))
+        self.observations = view(np.float32, (count, OBSERVATION_SIZE))
+        self.rewards = view(np.float64, (count,))
+        self.terminated = view(np.bool_, (count,))
+        self.truncated = view(np.bool_, (count,))
+        self.info = view(np.float64, (count, _INFO_WIDTH))
+
+    @staticmethod
+    def size(count: int) -> int:
+        def aligned(nbytes: int) -> int:
+            return (nbytes + 7) // 8 * 8
+
+        return (aligned(count * 4 * 4) + aligned(count * OBSERVATION_SIZE * 4)
+                + aligned(count * 8) + 2 * aligned(count) + aligned(count * _INFO_WIDTH * 8))
+
+
+def _info_row(info: dict[str, Any]) -> list[float]:
+    truth = info["truth"]
+    return [float(info["time_s"]), float(info["distance_m"]), float(info["waypoint"]),
+            float(info["armed"]), float(info["failsafe"]), *info["target"],
+            truth["north_m"], truth["east_m"], truth["alt_m"],
+            truth["v_north_m_s"], truth["v_east_m_s"], truth["v_up_m_s"]]
+
+
+def _worker(index: int, entry_point: str, options: dict[str, Any], block: Any, count: int,
+            connection: multiprocessing.connection.Connection,
+            parents_ends: list[multiprocessing.connection.Connection]) -> None:
+    """One environment: steps when the parent says, until it says close or goes away."""
+    # A forked worker holds copies of the parent's ends of the pipes made so far: closed, so
+    # that the parent's death closes this worker's pipe (and the reads below end).
+    for end in parents_ends:
+        end.close()
+    shared = _Shared(count, block)
+    env = None
+    if options.get("workdir") is not None:
+        # One run directory each: two SITLs must not share an EEPROM file.
+        options = {**options, "workdir": Path(options["workdir"]) / f"env{index}"}
+    try:
+        module_name, class_name = entry_point.split(":")
+        env = getattr(import_module(module_name), class_name)(**options)
+        while True:
+            command = connection.recv_bytes()
+            if command == _STEP:
+                observation, reward, terminated, truncated, info = env.step(
+                    shared.actions[index])
+                shared.rewards[index] = reward
+                shared.terminated[index] = terminated
+                shared.truncated[index] = truncated
+                if terminated or truncated:
+                    final = (observation, info)
+                    observation, info = env.reset()
+                    shared.observations[index] = observation
+                    shared.info[index] = _info_row(info)
+                    connection.send_bytes(_ENDED)
+                    connection.send(final)
+                    continue
+                shared.observations[index] = observation
+                shared.info[index] = _info_row(info)
+                connection.send_bytes(_DONE)
+            elif command == _RESET:
+                seed, reset_options = connection.recv()
+                observation, info = env.reset(seed=seed, options=reset_options)
+                shared.observations[index] = observation
+                shared.info[index] = _info_row(info)
+                connection.send_bytes(_DONE)
+            elif command == _CLOSE:
+                break
+    except (EOFError, OSError, KeyboardInterrupt):
+        pass  # the parent is gone (or interrupted us): close the SITL and end
+    except Exception as exc:  # noqa: BLE001 - reported to the parent, which raises it
+        try:
+            connection.send_bytes(_FAILED)
+            connection.send(f"environment {index}: {type(exc).__name__}: {exc}\n"
+                            f"{traceback.format_exc()}")
+        except OSError:
+            pass
+    finally:
+        if env is not None:
+            env.close()
+        connection.close()
+
+
+class FlightVectorEnv(VectorEnv[np.ndarray, np.ndarray, np.ndarray]):
+    """``num_envs`` copies of one environment (``entry_point``, ``module:Class``), stepped
+    together; every other keyword goes to each copy (see the module docstring)."""
+
+    metadata: dict[str, Any] = {"autoreset_mode": AutoresetMode.SAME_STEP,
+                                "render_modes": []}
+
+    def __init__(self, entry_point: str, num_envs: int = 2, *, context: str = "fork",
+                 **options: Any) -> None:
+        if not 1 <= num_envs <= 256:
+            raise EnvironmentConfigError(f"num_envs {num_envs} is outside 1..256")
+        options.setdefault("pin_core", True)
+        options.setdefault("spin", False)
+        self.num_envs = num_envs
+        self.single_observation_space = observation_space()
+        self.observation_space = batch_space(self.single_observation_space, num_envs)
+        # The single action space, without making an environment (and a SITL) here.
+        from gymnasium import spaces
+
+        self.single_action_space = spaces.Box(-1.0, 1.0, shape=(4,), dtype=np.float32)
+        self.action_space = batch_space(self.single_action_space, num_envs)
+        self._closed_workers = False
+        mp: Any = multiprocessing.get_context(context)
+        self._shared = _Shared(num_envs, mp.RawArray("b", _Shared.size(num_envs)))
+        self._connections: list[multiprocessing.connection.Connection] = []
+        self._processes: list[Any] = []
+        try:
+            for index in range(num_envs):
+                parent_end, child_end = mp.Pipe()
+                forked = context == "fork"
+                process = mp.Process(
+                    target=_worker, name=f"bfsitl-gym-{index}", daemon=True,
+                    args=(index, entry_point, options, self._shared.block, num_envs,
+                          child_end, [*self._connections, parent_end] if forked else []))
+                process.start()
+                child_end.close()
+                self._connections.append(parent_end)
+                self._processes.append(process)
+        except BaseException:
+            self.close()
+            raise
+
+    # -- the vector environment ----------------------------------------------------------------
+    def reset(self, *, seed: int | list[int | None] | None = None,
+              options: dict[str, Any] | None = None) -> tuple[np.ndarray, dict[str, Any]]:
+        if seed is None or isinstance(seed, int):
+            seeds: list[int | None] = ([None] * self.num_envs if seed is None
+                                       else [seed + index for index in range(self.num_envs)])
+        else:
+            seeds = list(seed)
+            if len(seeds) != self.num_envs:
+                raise EnvironmentConfigError(
+                    f"{len(seeds)} seeds for {self.num_envs} environments")
+        for connection, env_seed in zip(self._connections, seeds, strict=True):
+            connection.send_bytes(_RESET)
+            connection.send((env_seed, options))
+        self._collect()
+        return self._shared.observations.copy(), self._info()
+
+    def step(self, actions: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray,
+                                                   np.ndarray, dict[str, Any]]:
+        actions = np.asarray(actions, dtype=np.float32)
+        if actions.shape != (self.num_envs, 4):
+            raise EnvironmentConfigError(
+                f"actions are {self.num_envs} x 4 sticks, got shape {actions.shape}")
+        self._shared.actions[:] = actions
+        for connection in self._connections:
+            connection.send_bytes(_STEP)
+        finals = self._collect()
+        shared = self._shared
+        info = self._info()
+        if finals:
+            final_obs = np.full(self.num_envs, None, dtype=object)
+            final_info = np.full(self.num_envs, None, dtype=object)
+            for index, (observation, env_info) in finals.items():
+                final_obs[index] = observation
+                final_info[index] = env_info
+            mask = np.zeros(self.num_envs, dtype=bool)
+            mask[list(finals)] = True
+            info.update({"final_obs": final_obs, "_final_obs": mask,
+                         "final_info": final_info, "_final_info": mask.copy()})
+        return (shared.observations.copy(), shared.rewards.copy(), shared.terminated.copy(),
+                shared.truncated.copy(), info)
+
+    def close_extras(self, **kwargs: Any) -> None:
+        if self._closed_workers:
+            return
+        self._closed_workers = True
+        for connection in self._connections:
+            try:
+                connection.send_bytes(_CLOSE)
+            except OSError:
+                pass  # that worker has already gone
+        for process in self._processes:
+            process.join(_CLOSE_WAIT_S)
+            if process.is_alive():
+                process.terminate()  # its SITL's agent ends the SITL with it
+                process.join(1.0)
+        for connection in self._connections:
+            connection.close()
+
+    # -- parts -------------------------------------------------------------------------------
+    def _collect(self) -> dict[int, tuple[np.ndarray, dict[str, Any]]]:
+        """Wait for every worker's answer; the (final observation, info) of episodes that
+        ended.  A worker that failed raises its error here."""
+        finals: dict[int, tuple[np.ndarray, dict[str, Any]]] = {}
+        failures: list[str] = []
+        for index, connection in enumerate(self._connections):
+            try:
+                answer = connection.recv_bytes()
+            except (EOFError, OSError):
+                process = self._processes[index]
+                process.join(1.0)  # the pipe closes a moment before the exit code is known
+                failures.append(f"environment {index}: its worker process ended "
+                                f"(exit code {process.exitcode})")
+                continue
+            if answer == _ENDED:
+                finals[index] = connection.recv()
+            elif answer == _FAILED:
+                failures.append(connection.recv())
+        if failures:
+            self.close()
+            raise EnvironmentConfigError("; ".join(failures))
+        return finals
+
+    def _info(self) -> dict[str, Any]:
+        numbers = self._shared.info
+        everyone = np.ones(self.num_envs, dtype=bool)
+        info: dict[str, Any] = {}
+        for column, name in enumerate(INFO_NUMBERS):
+            values = numbers[:, column].copy()
+            info[name] = values.astype(bool) if name in ("armed", "failsafe") else values
+            info[f"_{name}"] = everyone
+        first = len(INFO_NUMBERS)
+        for number, name in enumerate(_VECTORS):
+            info[name] = numbers[:, first + 3 * number:first + 3 * number + 3].copy()
+            info[f"_{name}"] = everyone
+        info["waypoint"] = info["waypoint"].astype(np.int64)
+        return info
+
+
+class HoverVectorEnv(FlightVectorEnv):
+    """``bfsitl/Hover-v0``, ``num_envs`` at once (``gymnasium.make_vec(...,
+    vectorization_mode="vector_entry_point")``)."""
+
+    def __init__(self, num_envs: int = 2, **options: Any) -> None:
+        super().__init__("bfsitl.gym.env:HoverEnv", num_envs, **options)
+
+
+class WaypointsVectorEnv(FlightVectorEnv):
+    """``bfsitl/Waypoints-v0``, ``num_envs`` at once."""
+
+    def __init__(self, num_envs: int = 2, **options: Any) -> None:
+        super().__init__("bfsitl.gym.env:WaypointsEnv", num_envs, **options)
+

@@ -1,0 +1,183 @@
+"""The lockstep exchange through shared memory: the same datagram and reply as over UDP,
+handed over through a mapped file and a futex instead of sockets.
+
+A lockstep step is a strict hand-over (bfsitl writes, the FC answers, bfsitl goes on), so the
+transport's cost is paid twice per simulated millisecond.  Over UDP that is a ``sendto``, a
+``select`` and a ``recv`` on each side; here each side writes into the region, bumps a
+sequence word and wakes the other with one ``FUTEX_WAKE``, and a waiter polls the word for the
+spin time and then sleeps in ``FUTEX_WAIT`` on it.  The layout is the FC's (its header says
+where the datagram and the reply are; ``sitl_lockstep.c`` point 6); this side only checks it.
+
+Used for lockstep builds that carry it (:func:`bfsitl.build.binary_scan.binary_traits`), on
+x86-64 Linux: there stores become visible in program order, so the datagram is complete
+before the sequence word that announces it (other processors would need a barrier that
+Python cannot issue).  Anywhere else, and when asked (``lockstep_exchange="udp"``), UDP.
+"""
+
+from __future__ import annotations
+
+import ctypes
+import mmap
+import os
+import platform
+import struct
+import tempfile
+import uuid
+from collections.abc import Callable
+from pathlib import Path
+
+from bfsitl.errors import SitlError
+
+#: The variable that names the region to the FC.
+SHM_ENV = "BFSITL_LOCKSTEP_SHM"
+_MAGIC = 0x6D736662  # "bfsm", written last by the FC
+_VERSION = 1
+#: The header's words: magic, version, requestSeq, replySeq, datagramBytes, datagramOffset,
+#: replyOffset, regionBytes.
+_HEADER = struct.Struct("<8I")
+_MAGIC_WORD, _VERSION_WORD, _REQUEST_WORD, _REPLY_WORD, _BYTES_WORD = 0, 1, 2, 3, 4
+_DATAGRAM_OFFSET_WORD, _REPLY_OFFSET_WORD, _REGION_WORD = 5, 6, 7
+#: Room for the FC's region (224 bytes today) and anything a later layout adds.
+REGION_BYTES = 4096
+#: Reply size: the servo packet and the timestamp it answers (sim/lockstep.py REPLY_FORMAT).
+_REPLY_BYTES = 24
+_FUTEX_WAIT, _FUTEX_WAKE = 0, 1
+_SYS_FUTEX = {"x86_64": 202}
+
+
+def shm_exchange_supported() -> bool:
+    """This machine can use the exchange (x86-64 Linux, see the module docstring)."""
+    return platform.system() == "Linux" and platform.machine() in _SYS_FUTEX
+
+
+def _region_directory() -> Path:
+    # tmpfs where there is one: the region is never written back to a disk.
+    shm = Path("/dev/shm")
+    return shm if shm.is_dir() and os.access(shm, os.W_OK) else Path(tempfile.gettempdir())
+
+
+class _Futex:
+    """FUTEX_WAIT and FUTEX_WAKE on a word of a shared mapping (not private: two processes)."""
+
+    def __init__(self) -> None:
+        libc = ctypes.CDLL(None, use_errno=True)
+        self._syscall = libc.syscall
+        self._syscall.restype = ctypes.c_long
+        self._syscall.argtypes = [ctypes.c_long, ctypes.c_void_p, ctypes.c_int, ctypes.c_uint32,
+                                  ctypes.c_void_p, ctypes.c_void_p, ctypes.c_uint32]
+        self._number = _SYS_FUTEX[platform.machine()]
+
+    def wake(self, address: int) -> None:
+        self._syscall(self._number, address, _FUTEX_WAKE, 1, None, None, 0)
+
+    def wait(self, address: int, expected: int, timeout_s: float) -> None:
+        """Sleep while the word holds ``expected``, at most ``timeout_s``; returns at once
+        if it holds something else (so a wake-up between reading it and sleeping is never
+        lost)."""
+        seconds = int(timeout_s)
+        timeout = (ctypes.c_long * 2)(seconds, int((timeout_s - seconds) * 1e9))
+        self._syscall(self._number, address, _FUTEX_WAIT, expected, ctypes.addressof(timeout),
+                      None, 0)
+
+
+class ShmExchange:
+    """bfsitl's side of the region: made before the SITL starts (its path goes into the
+    firmware's environment), ready once the FC has written its header."""
+
+    def __init__(self, directory: Path | None = None) -> None:
+        folder = directory if directory is not None else _region_directory()
+        self.path = folder / f"bfsitl-lockstep-{os.getpid()}-{uuid.uuid4().hex[:12]}"
+        fd = os.open(self.path, os.O_RDWR | os.O_CREAT | os.O_EXCL | os.O_CLOEXEC, 0o600)
+        try:
+            os.ftruncate(fd, REGION_BYTES)
+            self._map = mmap.mmap(fd, REGION_BYTES, mmap.MAP_SHARED,
+                                  mmap.PROT_READ | mmap.PROT_WRITE)
+        finally:
+            os.close(fd)
+        self._words = memoryview(self._map).cast("I")
+        self._base = ctypes.addressof(ctypes.c_char.from_buffer(self._map))
+        self._futex = _Futex()
+        self._datagram_offset = 0
+        self._reply_offset = 0
+        self._seq = 0
+        self._ready = False
+
+    @property
+    def env(self) -> dict[str, str]:
+        """What the firmware's environment needs to use this region."""
+        return {SHM_ENV: str(self.path)}
+
+    @property
+    def ready(self) -> bool:
+        """The FC has mapped the region and written its layout (checked once it has)."""
+        if self._ready:
+            return True
+        if self._words[_MAGIC_WORD] != _MAGIC:
+            return False
+        version, datagram_at, reply_at, size = (
+            self._words[_VERSION_WORD], self._words[_DATAGRAM_OFFSET_WORD],
+            self._words[_REPLY_OFFSET_WORD], self._words[_REGION_WORD])
+        if version != _VERSION or size > REGION_BYTES or reply_at + _REPLY_BYTES > size \
+                or datagram_at < _HEADER.size:
+            raise SitlError(
+                f"the firmware's shared exchange has layout version {version} ({size} bytes), "
+                f"this bfsitl knows version {_VERSION}: rebuild the firmware with this bfsitl "
+                f"(`bfsitl firmware build --lockstep`), or use the UDP exchange")
+        self._datagram_offset, self._reply_offset = datagram_at, reply_at
+        self._ready = True
+        return True
+
+    def reset(self) -> None:
+        """Before a (re)started SITL maps the region: it is not ready until it says so."""
+        self._words[_MAGIC_WORD] = 0
+        self._ready = False
+
+    def send(self, datagram: bytes) -> int:
+        """Write ``datagram`` and wake the FC; the sequence number its reply will carry."""
+        offset = self._datagram_offset
+        self._map[offset:offset + len(datagram)] = datagram
+        self._words[_BYTES_WORD] = len(datagram)
+        self._seq = (self._seq + 1) & 0xFFFFFFFF
+        if self._seq == 0:
+            self._seq = 1  # 0 is what a fresh region holds: never a request
+        self._words[_REQUEST_WORD] = self._seq
+        self._futex.wake(self._base + 4 * _REQUEST_WORD)
+        return self._seq
+
+    def wait_reply(self, first: int, last: int, timeout_s: float,
+                   spin_until: Callable[[], bool]) -> bytes | None:
+        """The reply to any of the requests ``first`` to ``last`` (one packet and its
+        resends) if it comes within ``timeout_s``; the word is polled while ``spin_until()``
+        is true, then slept on."""
+        words = self._words
+        reply_word = _REPLY_WORD
+        span = (last - first) & 0xFFFFFFFF
+
+        def answered(seq: int) -> bool:
+            return ((seq - first) & 0xFFFFFFFF) <= span
+
+        while spin_until():
+            if answered(words[reply_word]):
+                return self._reply()
+        now = words[reply_word]
+        if not answered(now):
+            self._futex.wait(self._base + 4 * reply_word, now, timeout_s)
+            if not answered(words[reply_word]):
+                return None
+        return self._reply()
+
+    def _reply(self) -> bytes:
+        offset = self._reply_offset
+        return self._map[offset:offset + _REPLY_BYTES]
+
+    def close(self) -> None:
+        """Unmap and remove the region (the FC's mapping, if it still runs, stays valid)."""
+        try:
+            self._words.release()
+            self._map.close()
+        except (BufferError, ValueError):
+            pass
+        try:
+            self.path.unlink()
+        except FileNotFoundError:
+            pass

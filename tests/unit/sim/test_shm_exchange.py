@@ -1,0 +1,234 @@
+"""The shared-memory lockstep exchange without a firmware: a stand-in FC in a thread maps the
+region as sitl_lockstep.c does (header, sequence words, futex wake-ups) and answers; the bridge
+steps through it exactly as over UDP, falls back to UDP until the FC has mapped the region,
+waits out an FC that answers late, and refuses a region of another layout."""
+
+from __future__ import annotations
+
+import mmap
+import socket
+import struct
+import threading
+import time
+from pathlib import Path
+
+import pytest
+
+from bfsitl.backend.factory import uses_shm_exchange
+from bfsitl.build.binary_scan import SHM_EXCHANGE_MARKER, clear_cache
+from bfsitl.build.lockstep import MARKER
+from bfsitl.errors import BfsitlError, SitlError, SitlExitedError
+from bfsitl.fc.rc_link import RcCommand
+from bfsitl.protocol.sitl_packets import FdmPacket, RcPacket
+from bfsitl.sim.lockstep import REPLY_FORMAT, LockstepBridge, LockstepClock, LockstepRc
+from bfsitl.sim.shm_exchange import (
+    REGION_BYTES,
+    SHM_ENV,
+    ShmExchange,
+    _Futex,
+    shm_exchange_supported,
+)
+from bfsitl.sitl.firmware import FirmwareBinary
+
+pytestmark = pytest.mark.skipif(not shm_exchange_supported(),
+                                reason="the shared-memory exchange is x86-64 Linux only")
+
+# The FC's layout (lockstepShm_t): 8 words of header, the datagram at 32, the reply after it.
+DATAGRAM_AT = 32
+REPLY_AT = DATAGRAM_AT + FdmPacket.SIZE + RcPacket.SIZE
+
+
+class SharedFakeFc:
+    """Maps the region, writes the header last, answers every new request (4.6's slot order)
+    after ``delay_s``; ``version`` other than 1 plays a firmware of another layout."""
+
+    def __init__(self, path: Path, *, delay_s: float = 0.0, version: int = 1,
+                 answer: bool = True) -> None:
+        self.file = path.open("r+b")
+        self.map = mmap.mmap(self.file.fileno(), REGION_BYTES)
+        self.words = memoryview(self.map).cast("I")
+        self.delay_s = delay_s
+        self.answer = answer
+        self.received: list[tuple[float, tuple[int, ...]]] = []
+        self.futex = _Futex()
+        import ctypes
+
+        self.base = ctypes.addressof(ctypes.c_char.from_buffer(self.map))
+        self.seen = self.words[2]
+        self.words[1] = version
+        self.words[5], self.words[6], self.words[7] = DATAGRAM_AT, REPLY_AT, REPLY_AT + 24
+        self.words[0] = 0x6D736662
+        self.stop = threading.Event()
+        self.thread = threading.Thread(target=self.run, daemon=True)
+        self.thread.start()
+
+    def run(self) -> None:
+        while not self.stop.is_set():
+            seq = self.words[2]
+            if seq == self.seen:
+                self.futex.wait(self.base + 8, seq, 0.05)
+                continue
+            self.seen = seq
+            size = self.words[4]
+            data = bytes(self.map[DATAGRAM_AT:DATAGRAM_AT + size])
+            fdm = FdmPacket.unpack(data[:FdmPacket.SIZE])
+            rc = RcPacket.unpack(data[FdmPacket.SIZE:])
+            self.received.append((fdm.timestamp_s, rc.channels_us[:6]))
+            if not self.answer:
+                continue
+            time.sleep(self.delay_s)
+            self.map[REPLY_AT:REPLY_AT + 24] = REPLY_FORMAT.pack(0.2, 0.3, 0.4, 0.1,
+                                                                  fdm.timestamp_s)
+            self.words[3] = seq
+            self.futex.wake(self.base + 12)
+
+    def close(self) -> None:
+        self.stop.set()
+        self.thread.join()
+        self.words.release()
+        self.map.close()
+        self.file.close()
+
+
+class NoSockets:
+    """The bridge's UDP side, unused once the region is ready (and harmless before)."""
+
+    netns_pid = None
+
+    def socket(self, family: int, kind: int) -> socket.socket:
+        sock = socket.socket(family, kind)
+        sock.setsockopt(socket.SOL_SOCKET, socket.SO_REUSEADDR, 1)
+        return sock
+
+
+class FakeSimulator:
+    def __init__(self) -> None:
+        self.time_s = 0.0
+        self.applied: list[tuple[float, ...]] = []
+
+    def step(self, motors: tuple[float, ...], dt_s: float) -> None:
+        self.applied.append(motors)
+        self.time_s = round(self.time_s + dt_s, 9)
+
+    def read_sensors(self):  # noqa: ANN201 - a SensorReading
+        from bfsitl.physics.sensors import SensorReading
+
+        zero = (0.0, 0.0, 0.0)
+        return SensorReading(time_s=self.time_s, gyro_frd_rad_s=zero,
+                             specific_force_frd_m_s2=(0.0, 0.0, -9.80665),
+                             quaternion_wxyz=(1.0, 0.0, 0.0, 0.0), pressure_pa=101325.0,
+                             position_ned_m=zero, velocity_ned_m_s=zero,
+                             geodetic=(0.0, 0.0, 0.0), velocity_enu_m_s=zero)
+
+
+@pytest.fixture
+def region(tmp_path: Path):
+    exchange = ShmExchange(tmp_path)
+    yield exchange
+    exchange.close()
+
+
+def bridge_on(exchange: ShmExchange, simulator: FakeSimulator, **options: object
+              ) -> LockstepBridge:
+    bridge = LockstepBridge(simulator, NoSockets(), exchange=exchange,  # type: ignore[arg-type]
+                            **options)  # type: ignore[arg-type]
+    bridge._sock = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)  # no port of 9002 needed
+    bridge._sock.setblocking(False)
+    return bridge.start()
+
+
+def test_steps_go_through_the_region_with_their_rc_and_apply_their_own_answer(
+        region: ShmExchange) -> None:
+    assert region.env == {SHM_ENV: str(region.path)} and region.path.exists()
+    fc = SharedFakeFc(region.path)
+    simulator = FakeSimulator()
+    try:
+        bridge = bridge_on(region, simulator)
+        rc = LockstepRc(bridge)
+        rc.set(RcCommand(throttle_us=1300, aux_us=(1800, 1000)))
+        bridge.lock()
+        LockstepClock(bridge).sleep_s(0.005)
+        assert region.ready
+        assert bridge.lockstep_stats().steps == 6 and bridge.lockstep_stats().resends == 0
+        bridge.close()
+    finally:
+        fc.close()
+    assert all(motors == pytest.approx((0.1, 0.2, 0.3, 0.4)) for motors in simulator.applied)
+    assert [stamp for stamp, _ in fc.received] == pytest.approx(
+        [0.0, 0.001, 0.002, 0.003, 0.004, 0.005])
+    assert fc.received[-1][1] == (1500, 1500, 1300, 1500, 1800, 1000)
+
+
+def test_until_the_fc_maps_the_region_the_lock_goes_over_udp_then_moves_over(
+        region: ShmExchange, tmp_path: Path) -> None:
+    simulator = FakeSimulator()
+    bridge = bridge_on(region, simulator)
+    started: list[SharedFakeFc] = []
+    # The FC maps the region while the bridge is already trying to lock it.
+    timer = threading.Timer(0.05, lambda: started.append(SharedFakeFc(region.path)))
+    timer.start()
+    try:
+        bridge.lock()
+        bridge.step()
+    finally:
+        timer.join()
+        for fc in started:
+            fc.close()
+        bridge.close()
+    assert region.ready and len(simulator.applied) == 2
+    assert started[0].received[0][0] == 0.0  # the lock's packet, taken from the region
+
+
+def test_a_late_answer_is_waited_for_and_a_silent_fc_is_asked_about(region: ShmExchange) -> None:
+    fc = SharedFakeFc(region.path, delay_s=0.08)  # longer than one futex wait
+    try:
+        bridge = bridge_on(region, FakeSimulator(), spin_s=0.0)
+        bridge.lock()
+        bridge.step()
+        assert bridge.lockstep_stats().resends == 0
+        fc.answer = False
+
+        def dead() -> None:
+            raise SitlExitedError("the SITL exited with code 0", 0, "")
+
+        bridge.alive = dead
+        with pytest.raises(SitlExitedError):
+            bridge.step()
+        bridge.close()
+    finally:
+        fc.close()
+
+
+def test_a_region_of_another_layout_is_refused_with_the_fix(region: ShmExchange) -> None:
+    fc = SharedFakeFc(region.path, version=7)
+    try:
+        with pytest.raises(SitlError, match=r"version 7 .* rebuild the firmware"):
+            assert region.ready
+    finally:
+        fc.close()
+
+
+def test_closing_removes_the_region(tmp_path: Path) -> None:
+    exchange = ShmExchange(tmp_path)
+    assert exchange.path.stat().st_size == REGION_BYTES
+    exchange.close()
+    exchange.close()
+    assert not exchange.path.exists()
+
+
+def test_the_exchange_is_chosen_from_the_build_and_the_request(tmp_path: Path) -> None:
+    def binary(name: str, *markers: bytes) -> FirmwareBinary:
+        path = tmp_path / name
+        path.write_bytes(b"\x00" * 64 + b"".join(markers))
+        clear_cache()
+        return FirmwareBinary(path, "test")
+
+    new = binary("new", MARKER.encode() + b"\x00", SHM_EXCHANGE_MARKER)
+    old = binary("old", MARKER.encode() + b"\x00")
+    assert uses_shm_exchange(new, "auto") and not uses_shm_exchange(new, "udp")
+    assert not uses_shm_exchange(old, "auto")  # an earlier lockstep build: UDP
+    with pytest.raises(BfsitlError, match="built without it: rebuild it"):
+        uses_shm_exchange(old, "shm")
+    with pytest.raises(BfsitlError, match="one of auto, shm, udp"):
+        uses_shm_exchange(new, "pigeon")
+    assert struct.calcsize("<8I") == DATAGRAM_AT

@@ -94,7 +94,7 @@ def vector(firmware: str, control_hz: float, seconds: float, count: int, *, own:
             if own:
                 # The episode that ended is in final_info; infos are the next one's.
                 for index in np.flatnonzero(ended):
-                    sim_s[index] += infos["final_info"][index]["time_s"]
+                    sim_s[index] += infos["final_info"]["time_s"][index]
             else:
                 sim_s += np.where(ended, infos["time_s"], 0.0)
         if own:

@@ -62,39 +62,67 @@ def train(args: argparse.Namespace) -> tuple[object, object, list[tuple[float, i
     # One thread for the learner: a network this small gains nothing from a second, and
     # torch's idle threads would spin on the cores the environments are pinned to.
     torch.set_num_threads(1)
-    envs = VecNormalize(SubprocVecEnv([make_env(args.firmware, args.control_hz, rank, args.out)
-                                       for rank in range(args.envs)], start_method="fork"),
-                        norm_obs=True, norm_reward=True, clip_obs=10.0)
-    episodes: list[tuple[float, int, float]] = []
+    workers = SubprocVecEnv([make_env(args.firmware, args.control_hz, rank, args.out)
+                             for rank in range(args.envs)], start_method="fork")
+    if args.resume:
+        envs = VecNormalize.load(str(args.resume / "vecnormalize.pkl"), workers)
+        episodes = read_curve(args.resume)
+    else:
+        envs = VecNormalize(workers, norm_obs=True, norm_reward=True, clip_obs=10.0)
+        episodes = []
     started = time.monotonic()
+    already_s = episodes[-1][2] if episodes else 0.0
 
     deadline = started + args.minutes * 60.0 if args.minutes else math.inf
+
+    def learning_rate(remaining: float) -> float:
+        """3e-4 falling to zero over the run (its steps, or its minutes when bounded): the
+        last updates refine instead of undoing."""
+        if args.minutes:
+            remaining = max(0.0, deadline - time.monotonic()) / (args.minutes * 60.0)
+        return 3e-4 * max(remaining, 0.02)
 
     class Curve(BaseCallback):
         def _on_step(self) -> bool:
             for info in self.locals["infos"]:
                 if "episode" in info:
                     episodes.append((info["episode"]["r"], info["episode"]["l"],
-                                     time.monotonic() - started))
+                                     already_s + time.monotonic() - started))
                     if len(episodes) % 20 == 0:
                         recent = [r for r, _l, _t in episodes[-20:]]
                         print(f"[train] {self.num_timesteps} steps, {len(episodes)} episodes, "
                               f"mean return of the last 20: {np.mean(recent):.1f}", flush=True)
             return time.monotonic() < deadline  # --minutes: stop training then
 
-    # A narrower start than SB3's (std 1 on a [-1, 1] stick crashes at once), two small layers;
-    # the learning rate falls to zero over the run, which lets the last updates refine.
-    model = PPO("MlpPolicy", envs, n_steps=args.n_steps, batch_size=256,
-                learning_rate=lambda remaining: 3e-4 * remaining, gamma=args.gamma,
-                gae_lambda=0.95, ent_coef=0.0, seed=args.seed, verbose=0,
-                policy_kwargs={"log_std_init": -1.0, "net_arch": [64, 64]}, device="cpu")
+    if args.resume:
+        model = PPO.load(args.resume / "policy.zip", env=envs, device="cpu",
+                         custom_objects={"learning_rate": learning_rate,
+                                         "lr_schedule": learning_rate})
+    else:
+        # A narrower start than SB3's (std 1 on a [-1, 1] stick crashes at once), two small
+        # layers.
+        model = PPO("MlpPolicy", envs, n_steps=args.n_steps, batch_size=256,
+                    learning_rate=learning_rate, gamma=args.gamma, gae_lambda=0.95,
+                    ent_coef=0.0, seed=args.seed, verbose=0,
+                    policy_kwargs={"log_std_init": -1.0, "net_arch": [64, 64]}, device="cpu")
     try:
-        model.learn(total_timesteps=args.steps, callback=Curve())
+        model.learn(total_timesteps=args.steps, callback=Curve(),
+                    reset_num_timesteps=not args.resume)
     finally:
         model.save(args.out / "policy.zip")
         envs.save(str(args.out / "vecnormalize.pkl"))
         envs.close()
     return model, envs, episodes
+
+
+def read_curve(folder: Path) -> list[tuple[float, int, float]]:
+    """The episodes of an earlier run's learning_curve.csv (none if it has none)."""
+    path = folder / "learning_curve.csv"
+    if not path.exists():
+        return []
+    with path.open(newline="") as file:
+        return [(float(row["return"]), int(row["length_steps"]), float(row["wall_s"]))
+                for row in csv.DictReader(file)]
 
 
 def write_curve(episodes: list[tuple[float, int, float]], out: Path) -> None:
@@ -166,6 +194,9 @@ def main() -> int:
                         help="stop training after this much wall time (then evaluate)")
     parser.add_argument("--eval-s", type=float, default=15.0)
     parser.add_argument("--out", type=Path, default=Path("hover-run"))
+    parser.add_argument("--resume", type=Path, default=None, metavar="DIR",
+                        help="go on training the policy an earlier run left in DIR (its "
+                             "policy.zip, vecnormalize.pkl and learning curve)")
     parser.add_argument("--smoke", action="store_true",
                         help="a few hundred steps: the pipeline works, nothing is learned")
     args = parser.parse_args()
@@ -209,7 +240,10 @@ def main() -> int:
         "training": {"steps": int(model.num_timesteps), "envs": args.envs,  # type: ignore[attr-defined]
                      "episodes": len(episodes),
                      "wall_s": round(train_s, 1), "firmware": args.firmware,
-                     "control_hz": args.control_hz},
+                     "control_hz": args.control_hz,
+                     # With --resume: the earlier runs' training time too.
+                     "total_wall_s": round(episodes[-1][2] if episodes else train_s, 1),
+                     "resumed_from": str(args.resume) if args.resume else None},
         "evaluation": results,
         "holds_within_0_3_m_for_10_s": (learned_max is not None
                                          and results["learned"]["flown_s"] >= args.eval_s - 0.1

@@ -226,7 +226,7 @@ def test_bfsitls_own_vector_environment_pins_each_firmware_and_flies_as_one_alon
             assert info["distance_m"][0] == alone_info["distance_m"]
         assert ended and truncated.all() and info["_final_info"].all()
         assert np.array_equal(info["final_obs"][0], alone)  # the ended episode's last
-        assert info["final_info"][0]["time_s"] == pytest.approx(0.5, abs=0.01)
+        assert info["final_info"]["time_s"][0] == pytest.approx(0.5, abs=0.01)
         assert (info["time_s"] < 0.01).all()                 # already the next episodes
     finally:
         envs.close()

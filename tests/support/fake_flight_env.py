@@ -15,7 +15,9 @@ from bfsitl.gym.observation import observation_space
 
 
 class FakeFlightEnv(gymnasium.Env[np.ndarray, np.ndarray]):
-    def __init__(self, *, episode_steps: int = 3, marker: float = 0.0, **options: Any) -> None:
+    def __init__(self, *, episode_steps: int = 3, marker: float = 0.0, pin_core: bool = False,
+                 spin: bool = False) -> None:
+        options = {"pin_core": pin_core, "spin": spin}
         self.episode_steps = episode_steps
         self.marker = marker
         self.options = options

@@ -21,12 +21,12 @@ import os
 from dataclasses import dataclass
 
 IP_FLAG_MARKER = b"--ip <address>"
+"""In master's usage text (sitl.c ``targetParseArgs``); absent from 4.6.0."""
 LOCKSTEP_MARKER = b"[LOCKSTEP] bfsitl lockstep build"
 """Printed at boot by a ``--lockstep`` build (:mod:`bfsitl.build.lockstep`)."""
 SHM_EXCHANGE_MARKER = b"BFSITL_LOCKSTEP_SHM\x00"
 """The variable a lockstep build that has the shared-memory exchange reads (earlier lockstep
 builds have only UDP: :mod:`bfsitl.sim.shm_exchange`)."""
-"""In master's usage text (sitl.c ``targetParseArgs``); absent from 4.6.0."""
 
 FEATURE_MARKERS: dict[str, bytes] = {
     "gps": b"\x00gps_provider\x00",

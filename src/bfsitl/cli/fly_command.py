@@ -441,7 +441,10 @@ def render_summary(summary: dict) -> str:
                      f"{rc['period_mean_ms']:.2f} ms, max {rc['period_max_ms']:.2f} ms")
     physics = summary.get("physics")
     if physics:
-        mode = "lockstep, " if physics.get("lockstep") else ""
+        mode = ""
+        if physics.get("lockstep"):
+            through = {"shm": "shared memory", "udp": "UDP"}.get(physics.get("exchange"), "")
+            mode = f"lockstep through {through}, " if through else "lockstep, "
         lines.append(f"physics        {mode}{physics['answered_ratio'] * 100:.1f} % of fdm "
                      f"packets answered at {physics['speed']:.2f}x real time")
     return "\n".join(lines)

@@ -15,10 +15,10 @@ the FC reports; ``"truth"``: the simulation), ``wind``, ``wind_from_deg``, ``gus
 ``episode_s``, ``start`` (``"air"`` or ``"ground"``), ``start_alt_m``.  Needs the ``gym``
 extra: ``pip install 'bfsitl[gym]'``.
 
-Many at once: ``gymnasium.make_vec(id, num_envs=N, vectorization_mode="vector_entry_point")``
-gives :class:`~bfsitl.gym.vector.FlightVectorEnv` (a worker per environment, each pinned to
-a core with its SITL, the numbers in shared memory); Gymnasium's own ``AsyncVectorEnv`` works
-too, at a higher cost per step.
+Many at once: ``gymnasium.make_vec(id, num_envs=N)`` gives
+:class:`~bfsitl.gym.vector.FlightVectorEnv` (a worker per environment, each pinned to a core
+with its SITL, the numbers in shared memory); Gymnasium's own ``AsyncVectorEnv`` works too,
+at a higher cost per step.
 """
 
 from __future__ import annotations
@@ -35,8 +35,9 @@ from bfsitl.gym.env import FlightEnv, HoverEnv, WaypointsEnv
 
 ENVIRONMENTS = {"bfsitl/Hover-v0": "bfsitl.gym.env:HoverEnv",
                 "bfsitl/Waypoints-v0": "bfsitl.gym.env:WaypointsEnv"}
-#: What ``gymnasium.make_vec(id, num_envs=N, vectorization_mode="vector_entry_point")``
-#: makes: N environments in pinned workers, sharing memory (bfsitl.gym.vector).
+#: What ``gymnasium.make_vec(id, num_envs=N)`` makes (Gymnasium takes a registered vector
+#: entry point first): N environments in pinned workers, sharing memory (bfsitl.gym.vector);
+#: ``vectorization_mode="async"`` or ``"sync"`` asks for Gymnasium's own.
 VECTOR_ENVIRONMENTS = {"bfsitl/Hover-v0": "bfsitl.gym.vector:HoverVectorEnv",
                        "bfsitl/Waypoints-v0": "bfsitl.gym.vector:WaypointsVectorEnv"}
 

@@ -1,20 +1,22 @@
 """Many environments at once, cheaply: one worker process per environment, each pinned to a
 core with its SITL, and the numbers of every step passed through shared memory.
 
-    envs = gymnasium.make_vec("bfsitl/Hover-v0", num_envs=2,
-                              vectorization_mode="vector_entry_point", control_hz=100)
+    envs = gymnasium.make_vec("bfsitl/Hover-v0", num_envs=2, control_hz=100)
 
-Gymnasium's ``AsyncVectorEnv`` runs the same environments, but pickles each step's ``info``
-through a pipe and merges it key by key in the parent; with this environment's info (the
-truth and the FC's state in nested dicts) that is about a quarter of a millisecond of the
-parent's time per step, on the same two cores the firmwares need.  Here a step is: the
-parent writes the actions into shared memory and sends each worker one byte; each worker
-steps its environment and writes the observation, the reward, the flags and the info's
-numbers back; one byte back says it is done.  What is not a number a step (why an episode
-ended, the full info with the truth, the FC's flight modes and blockers) travels only at the
-end of an episode, as ``info["final_info"]``, with ``info["final_obs"]``: the autoreset is
-Gymnasium's ``SAME_STEP`` (the observation returned for an ended episode is the first of the
-next, as Stable-Baselines3 also expects).
+(``make_vec`` picks this class for bfsitl's ids by itself; ``vectorization_mode="async"``
+gives Gymnasium's ``AsyncVectorEnv`` instead.)  ``AsyncVectorEnv`` runs the same
+environments, but pickles each step's ``info`` through a pipe and merges it key by key in the
+parent; with this environment's info (the truth and the FC's state in nested dicts) that is
+about a quarter of a millisecond of the parent's time per step, on the same cores the
+firmwares need.  Here a step is: the parent writes the actions into shared memory and sends
+each worker one byte; each worker steps its environment and writes the observation, the
+reward, the flags and the info's numbers back; one message back says it is done.  What is
+not a number a step (why an episode ended, the full info with the truth, the FC's flight
+modes and blockers) travels only at the end of an episode, in ``info["final_info"]``, with
+``info["final_obs"]``: the autoreset is Gymnasium's ``SAME_STEP`` (the observation returned
+for an ended episode is the first of the next, as Stable-Baselines3 also expects), and
+``final_info`` is batched key by key with ``_key`` masks, as Gymnasium's own vector
+environments batch it.
 
 A ``workdir`` option becomes one folder per environment below it (``env0``, ``env1``, ...).
 Each step's ``info`` holds, per environment, ``time_s``, ``distance_m``, ``waypoint``,
@@ -24,20 +26,25 @@ Each step's ``info`` holds, per environment, ``time_s``, ``distance_m``, ``waypo
 The workers are forked by default, as Gymnasium's own vector environments do on Linux;
 ``context="spawn"`` or ``"forkserver"`` starts fresh interpreters instead (then the options,
 a ``disturbances`` hook included, must be picklable, and the script needs the
-``if __name__ == "__main__":`` guard).  A worker whose parent dies finds its pipe closed and
-closes its environment (and so its SITL).
+``if __name__ == "__main__":`` guard).  An option no environment takes is raised when the
+vector environment is made.  A worker whose parent dies finds its pipe closed and closes its
+environment (and so its SITL); one that is terminated does the same.  Anything that
+interrupts a step in the parent (Ctrl-C, a worker's failure) closes the vector environment.
 """
 
 from __future__ import annotations
 
 import multiprocessing
 import multiprocessing.connection
+import pickle
+import signal
 import traceback
 from importlib import import_module
 from pathlib import Path
 from typing import Any
 
 import numpy as np
+from gymnasium import spaces
 from gymnasium.vector import AutoresetMode, VectorEnv
 from gymnasium.vector.utils import batch_space
 
@@ -48,9 +55,11 @@ from bfsitl.gym.observation import OBSERVATION_SIZE, observation_space
 INFO_NUMBERS = ("time_s", "distance_m", "waypoint", "armed", "failsafe")
 _VECTORS = ("target", "position_m", "velocity_m_s")
 _INFO_WIDTH = len(INFO_NUMBERS) + 3 * len(_VECTORS)
-#: One-byte commands to a worker, and its answers.
+#: What the parent says to a worker (a reset carries its seed and options, pickled), and what
+#: a worker answers (an ended episode carries its last observation and info, a failure its
+#: message): one pipe message each, so an answer is never half read.
 _STEP, _RESET, _CLOSE = b"s", b"r", b"c"
-_DONE, _ENDED, _FAILED = b"d", b"e", b"f"
+_READY, _DONE, _ENDED, _FAILED = b"y", b"d", b"e", b"f"
 #: How long close() waits for a worker to end its SITL before it is terminated.
 _CLOSE_WAIT_S = 10.0
 
@@ -95,14 +104,19 @@ def _info_row(info: dict[str, Any]) -> list[float]:
             truth["v_north_m_s"], truth["v_east_m_s"], truth["v_up_m_s"]]
 
 
+def _end_on_terminate(_signal: int, _frame: object) -> None:
+    raise SystemExit(0)  # so that the worker's finally closes its SITL
+
+
 def _worker(index: int, entry_point: str, options: dict[str, Any], block: Any, count: int,
             connection: multiprocessing.connection.Connection,
             parents_ends: list[multiprocessing.connection.Connection]) -> None:
     """One environment: steps when the parent says, until it says close or goes away."""
     # A forked worker holds copies of the parent's ends of the pipes made so far: closed, so
-    # that the parent's death closes this worker's pipe (and the reads below end).
+    # that the parent's death closes this worker's pipe (and the read below ends).
     for end in parents_ends:
         end.close()
+    signal.signal(signal.SIGTERM, _end_on_terminate)
     shared = _Shared(count, block)
     env = None
     if options.get("workdir") is not None:
@@ -111,42 +125,42 @@ def _worker(index: int, entry_point: str, options: dict[str, Any], block: Any, c
     try:
         module_name, class_name = entry_point.split(":")
         env = getattr(import_module(module_name), class_name)(**options)
+        connection.send_bytes(_READY)
         while True:
-            command = connection.recv_bytes()
+            try:
+                message = connection.recv_bytes()
+            except (EOFError, OSError):
+                break  # the parent is gone: close the SITL and end
+            command = message[:1]
             if command == _STEP:
                 observation, reward, terminated, truncated, info = env.step(
                     shared.actions[index])
                 shared.rewards[index] = reward
                 shared.terminated[index] = terminated
                 shared.truncated[index] = truncated
+                answer = _DONE
                 if terminated or truncated:
-                    final = (observation, info)
+                    answer = _ENDED + pickle.dumps((observation, info))
                     observation, info = env.reset()
-                    shared.observations[index] = observation
-                    shared.info[index] = _info_row(info)
-                    connection.send_bytes(_ENDED)
-                    connection.send(final)
-                    continue
                 shared.observations[index] = observation
                 shared.info[index] = _info_row(info)
-                connection.send_bytes(_DONE)
+                connection.send_bytes(answer)
             elif command == _RESET:
-                seed, reset_options = connection.recv()
+                seed, reset_options = pickle.loads(message[1:])
                 observation, info = env.reset(seed=seed, options=reset_options)
                 shared.observations[index] = observation
                 shared.info[index] = _info_row(info)
                 connection.send_bytes(_DONE)
             elif command == _CLOSE:
                 break
-    except (EOFError, OSError, KeyboardInterrupt):
-        pass  # the parent is gone (or interrupted us): close the SITL and end
+    except KeyboardInterrupt:
+        pass  # Ctrl-C reaches the whole process group: the parent decides what follows
     except Exception as exc:  # noqa: BLE001 - reported to the parent, which raises it
+        report = f"environment {index}: {type(exc).__name__}: {exc}\n{traceback.format_exc()}"
         try:
-            connection.send_bytes(_FAILED)
-            connection.send(f"environment {index}: {type(exc).__name__}: {exc}\n"
-                            f"{traceback.format_exc()}")
+            connection.send_bytes(_FAILED + report.encode())
         except OSError:
-            pass
+            pass  # the parent is gone too
     finally:
         if env is not None:
             env.close()
@@ -170,8 +184,6 @@ class FlightVectorEnv(VectorEnv[np.ndarray, np.ndarray, np.ndarray]):
         self.single_observation_space = observation_space()
         self.observation_space = batch_space(self.single_observation_space, num_envs)
         # The single action space, without making an environment (and a SITL) here.
-        from gymnasium import spaces
-
         self.single_action_space = spaces.Box(-1.0, 1.0, shape=(4,), dtype=np.float32)
         self.action_space = batch_space(self.single_action_space, num_envs)
         self._closed_workers = False
@@ -191,6 +203,7 @@ class FlightVectorEnv(VectorEnv[np.ndarray, np.ndarray, np.ndarray]):
                 child_end.close()
                 self._connections.append(parent_end)
                 self._processes.append(process)
+            self._collect(expect=_READY)  # an option no environment takes is raised here
         except BaseException:
             self.close()
             raise
@@ -198,6 +211,7 @@ class FlightVectorEnv(VectorEnv[np.ndarray, np.ndarray, np.ndarray]):
     # -- the vector environment ----------------------------------------------------------------
     def reset(self, *, seed: int | list[int | None] | None = None,
               options: dict[str, Any] | None = None) -> tuple[np.ndarray, dict[str, Any]]:
+        self._check_open()
         if seed is None or isinstance(seed, int):
             seeds: list[int | None] = ([None] * self.num_envs if seed is None
                                        else [seed + index for index in range(self.num_envs)])
@@ -206,34 +220,23 @@ class FlightVectorEnv(VectorEnv[np.ndarray, np.ndarray, np.ndarray]):
             if len(seeds) != self.num_envs:
                 raise EnvironmentConfigError(
                     f"{len(seeds)} seeds for {self.num_envs} environments")
-        for connection, env_seed in zip(self._connections, seeds, strict=True):
-            connection.send_bytes(_RESET)
-            connection.send((env_seed, options))
-        self._collect()
+        self._exchange([_RESET + pickle.dumps((env_seed, options)) for env_seed in seeds])
         return self._shared.observations.copy(), self._info()
 
     def step(self, actions: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray,
                                                    np.ndarray, dict[str, Any]]:
+        self._check_open()
         actions = np.asarray(actions, dtype=np.float32)
         if actions.shape != (self.num_envs, 4):
             raise EnvironmentConfigError(
                 f"actions are {self.num_envs} x 4 sticks, got shape {actions.shape}")
         self._shared.actions[:] = actions
-        for connection in self._connections:
-            connection.send_bytes(_STEP)
-        finals = self._collect()
+        finals = self._exchange([_STEP] * self.num_envs)
         shared = self._shared
         info = self._info()
-        if finals:
-            final_obs = np.full(self.num_envs, None, dtype=object)
-            final_info = np.full(self.num_envs, None, dtype=object)
-            for index, (observation, env_info) in finals.items():
-                final_obs[index] = observation
-                final_info[index] = env_info
-            mask = np.zeros(self.num_envs, dtype=bool)
-            mask[list(finals)] = True
-            info.update({"final_obs": final_obs, "_final_obs": mask,
-                         "final_info": final_info, "_final_info": mask.copy()})
+        for index, (observation, env_info) in finals.items():
+            info = self._add_info(info, {"final_obs": observation, "final_info": env_info},
+                                  index)
         return (shared.observations.copy(), shared.rewards.copy(), shared.terminated.copy(),
                 shared.truncated.copy(), info)
 
@@ -249,15 +252,37 @@ class FlightVectorEnv(VectorEnv[np.ndarray, np.ndarray, np.ndarray]):
         for process in self._processes:
             process.join(_CLOSE_WAIT_S)
             if process.is_alive():
-                process.terminate()  # its SITL's agent ends the SITL with it
+                process.terminate()  # its SIGTERM handler still closes the SITL
+                process.join(_CLOSE_WAIT_S)
+            if process.is_alive():
+                process.kill()       # its namespace agent ends the SITL with it
                 process.join(1.0)
         for connection in self._connections:
             connection.close()
 
     # -- parts -------------------------------------------------------------------------------
-    def _collect(self) -> dict[int, tuple[np.ndarray, dict[str, Any]]]:
-        """Wait for every worker's answer; the (final observation, info) of episodes that
-        ended.  A worker that failed raises its error here."""
+    def _check_open(self) -> None:
+        if self._closed_workers:
+            raise EnvironmentConfigError("this vector environment is closed: make a new one")
+
+    def _exchange(self, messages: list[bytes]) -> dict[int, tuple[np.ndarray, dict[str, Any]]]:
+        """Send each worker its message and collect every answer.  Anything that interrupts
+        this (Ctrl-C in the parent only, a failure) closes the environment: half a step's
+        answers left in the pipes would be read as the next step's."""
+        try:
+            for connection, message in zip(self._connections, messages, strict=True):
+                try:
+                    connection.send_bytes(message)
+                except OSError:
+                    pass  # a worker that has ended: its answer, or its end, is read below
+            return self._collect(expect=_DONE)
+        except BaseException:
+            self.close()
+            raise
+
+    def _collect(self, *, expect: bytes) -> dict[int, tuple[np.ndarray, dict[str, Any]]]:
+        """Every worker's answer; the (final observation, info) of episodes that ended.  A
+        worker that failed or ended raises here, with its own message."""
         finals: dict[int, tuple[np.ndarray, dict[str, Any]]] = {}
         failures: list[str] = []
         for index, connection in enumerate(self._connections):
@@ -269,28 +294,29 @@ class FlightVectorEnv(VectorEnv[np.ndarray, np.ndarray, np.ndarray]):
                 failures.append(f"environment {index}: its worker process ended "
                                 f"(exit code {process.exitcode})")
                 continue
-            if answer == _ENDED:
-                finals[index] = connection.recv()
-            elif answer == _FAILED:
-                failures.append(connection.recv())
+            kind = answer[:1]
+            if kind == _ENDED:
+                finals[index] = pickle.loads(answer[1:])
+            elif kind == _FAILED:
+                failures.append(answer[1:].decode(errors="replace"))
+            elif kind != expect:
+                failures.append(f"environment {index}: answered {kind!r}, not {expect!r}")
         if failures:
-            self.close()
             raise EnvironmentConfigError("; ".join(failures))
         return finals
 
     def _info(self) -> dict[str, Any]:
         numbers = self._shared.info
-        everyone = np.ones(self.num_envs, dtype=bool)
         info: dict[str, Any] = {}
         for column, name in enumerate(INFO_NUMBERS):
             values = numbers[:, column].copy()
             info[name] = values.astype(bool) if name in ("armed", "failsafe") else values
-            info[f"_{name}"] = everyone
         first = len(INFO_NUMBERS)
         for number, name in enumerate(_VECTORS):
             info[name] = numbers[:, first + 3 * number:first + 3 * number + 3].copy()
-            info[f"_{name}"] = everyone
         info["waypoint"] = info["waypoint"].astype(np.int64)
+        for name in (*INFO_NUMBERS, *_VECTORS):
+            info[f"_{name}"] = np.ones(self.num_envs, dtype=bool)
         return info
 
 

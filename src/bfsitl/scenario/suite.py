@@ -25,12 +25,13 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from bfsitl.build.cache import CACHE_ENV_VAR
-from bfsitl.errors import ScenarioError
+from bfsitl.errors import BfsitlError, ScenarioError
 from bfsitl.scenario.result import ScenarioResult, Verdict
 from bfsitl.scenario.run import RunOptions, run_scenario
 from bfsitl.scenario.spec import Scenario
 from bfsitl.sitl.core_claim import claim_core
 from bfsitl.sitl.firmware import ENV_VAR as FIRMWARE_ENV_VAR
+from bfsitl.sitl.firmware import find_firmware
 
 Progress = Callable[[str], None]
 #: Called with each finished run, in the order they finish.
@@ -98,6 +99,14 @@ def split_by_build(runs: Sequence[PlannedRun], is_built: Callable[[str], bool]
     return kept, [name for name, there in built.items() if not there]
 
 
+def _is_lockstep(firmware: str) -> bool:
+    """The build is a lockstep one (False if it cannot be found: the run says why)."""
+    try:
+        return find_firmware(firmware).lockstep
+    except BfsitlError:
+        return False
+
+
 def _run_one(run: PlannedRun, speed: float | None, plot: bool, mcap: bool
              ) -> ScenarioResult:
     """A worker's job: the run's progress goes to a file in its directory (several runs'
@@ -106,7 +115,8 @@ def _run_one(run: PlannedRun, speed: float | None, plot: bool, mcap: bool
     core for itself and its SITL instead (bfsitl.sitl.core_claim), so that runs side by side
     neither take each other's time nor wake each other's cores."""
     run.out_dir.mkdir(parents=True, exist_ok=True)
-    claim = claim_core()
+    # Only a lockstep run is one core's work; a stock SITL runs on the wall clock beside us.
+    claim = claim_core() if _is_lockstep(run.firmware) else None
     try:
         with open(run.out_dir / "progress.log", "w", buffering=1) as log:
             return run_scenario(run.scenario, run.firmware,

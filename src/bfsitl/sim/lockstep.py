@@ -208,6 +208,7 @@ class LockstepBridge:
         until it answers, then take the physics step.  A restarted SITL is locked again."""
         self.start()
         assert self._sock is not None
+        self._seq = 0  # a new process: nothing it answers belongs to the one before
         stamp_s = self.simulator.time_s
         datagram = self._datagram()
         deadline_s = self._wall() + LOCK_TIMEOUT_S

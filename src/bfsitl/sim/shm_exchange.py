@@ -21,8 +21,10 @@ import mmap
 import os
 import platform
 import struct
+import sys
 import tempfile
 import uuid
+import weakref
 from collections.abc import Callable
 from pathlib import Path
 
@@ -30,6 +32,8 @@ from bfsitl.errors import SitlError
 
 #: The variable that names the region to the FC.
 SHM_ENV = "BFSITL_LOCKSTEP_SHM"
+#: A region's file name: this prefix, the owner's pid, a random part.
+_PREFIX = "bfsitl-lockstep-"
 _MAGIC = 0x6D736662  # "bfsm", written last by the FC
 _VERSION = 1
 #: The header's words: magic, version, requestSeq, replySeq, datagramBytes, datagramOffset,
@@ -37,17 +41,21 @@ _VERSION = 1
 _HEADER = struct.Struct("<8I")
 _MAGIC_WORD, _VERSION_WORD, _REQUEST_WORD, _REPLY_WORD, _BYTES_WORD = 0, 1, 2, 3, 4
 _DATAGRAM_OFFSET_WORD, _REPLY_OFFSET_WORD, _REGION_WORD = 5, 6, 7
-#: Room for the FC's region (224 bytes today) and anything a later layout adds.
+#: Room for the FC's region (240 bytes today) and anything a later layout adds.
 REGION_BYTES = 4096
 #: Reply size: the servo packet and the timestamp it answers (sim/lockstep.py REPLY_FORMAT).
 _REPLY_BYTES = 24
+#: The largest datagram: an fdm packet and an RC packet.
+_DATAGRAM_BYTES = 144 + 40
 _FUTEX_WAIT, _FUTEX_WAKE = 0, 1
 _SYS_FUTEX = {"x86_64": 202}
 
 
 def shm_exchange_supported() -> bool:
-    """This machine can use the exchange (x86-64 Linux, see the module docstring)."""
-    return platform.system() == "Linux" and platform.machine() in _SYS_FUTEX
+    """This machine can use the exchange (x86-64 Linux and a 64-bit Python, see the module
+    docstring)."""
+    return (platform.system() == "Linux" and platform.machine() in _SYS_FUTEX
+            and sys.maxsize > 2**32)
 
 
 def _region_directory() -> Path:
@@ -86,8 +94,11 @@ class ShmExchange:
 
     def __init__(self, directory: Path | None = None) -> None:
         folder = directory if directory is not None else _region_directory()
-        self.path = folder / f"bfsitl-lockstep-{os.getpid()}-{uuid.uuid4().hex[:12]}"
+        remove_stale_regions(folder)
+        self.path = folder / f"{_PREFIX}{os.getpid()}-{uuid.uuid4().hex[:12]}"
         fd = os.open(self.path, os.O_RDWR | os.O_CREAT | os.O_EXCL | os.O_CLOEXEC, 0o600)
+        # Removed when this object goes, or at exit, if close() is never reached.
+        self._remove = weakref.finalize(self, _unlink, self.path)
         try:
             os.ftruncate(fd, REGION_BYTES)
             self._map = mmap.mmap(fd, REGION_BYTES, mmap.MAP_SHARED,
@@ -118,7 +129,7 @@ class ShmExchange:
             self._words[_VERSION_WORD], self._words[_DATAGRAM_OFFSET_WORD],
             self._words[_REPLY_OFFSET_WORD], self._words[_REGION_WORD])
         if version != _VERSION or size > REGION_BYTES or reply_at + _REPLY_BYTES > size \
-                or datagram_at < _HEADER.size:
+                or datagram_at < _HEADER.size or reply_at < datagram_at + _DATAGRAM_BYTES:
             raise SitlError(
                 f"the firmware's shared exchange has layout version {version} ({size} bytes), "
                 f"this bfsitl knows version {_VERSION}: rebuild the firmware with this bfsitl "
@@ -127,20 +138,21 @@ class ShmExchange:
         self._ready = True
         return True
 
-    def reset(self) -> None:
-        """Before a (re)started SITL maps the region: it is not ready until it says so."""
-        self._words[_MAGIC_WORD] = 0
-        self._ready = False
-
     def send(self, datagram: bytes) -> int:
-        """Write ``datagram`` and wake the FC; the sequence number its reply will carry."""
+        """Write ``datagram`` and wake the FC; the sequence number its reply will carry.  The
+        word is 0 while the datagram is written (the FC's copy checks it: a seqlock)."""
         offset = self._datagram_offset
+        if offset + len(datagram) > self._reply_offset:
+            raise SitlError(f"a lockstep datagram of {len(datagram)} bytes does not fit the "
+                            f"firmware's shared exchange ({self._reply_offset - offset} bytes)")
+        words = self._words
+        words[_REQUEST_WORD] = 0
         self._map[offset:offset + len(datagram)] = datagram
-        self._words[_BYTES_WORD] = len(datagram)
+        words[_BYTES_WORD] = len(datagram)
         self._seq = (self._seq + 1) & 0xFFFFFFFF
         if self._seq == 0:
-            self._seq = 1  # 0 is what a fresh region holds: never a request
-        self._words[_REQUEST_WORD] = self._seq
+            self._seq = 1  # 0 means "being written": never a request
+        words[_REQUEST_WORD] = self._seq
         self._futex.wake(self._base + 4 * _REQUEST_WORD)
         return self._seq
 
@@ -177,7 +189,38 @@ class ShmExchange:
             self._map.close()
         except (BufferError, ValueError):
             pass
+        self._remove()
+
+
+def _unlink(path: Path) -> None:
+    try:
+        path.unlink()
+    except FileNotFoundError:
+        pass
+
+
+def remove_stale_regions(folder: Path) -> None:
+    """Remove regions left by processes that no longer run (a SIGKILLed bfsitl cannot
+    clean up after itself); the owner's pid is in the name."""
+    try:
+        entries = list(folder.glob(f"{_PREFIX}*"))
+    except OSError:
+        return
+    for entry in entries:
+        pid_text = entry.name[len(_PREFIX):].split("-", 1)[0]
+        if not pid_text.isdigit() or _running(int(pid_text)):
+            continue
         try:
-            self.path.unlink()
-        except FileNotFoundError:
-            pass
+            entry.unlink()
+        except OSError:
+            pass  # another user's, or gone already
+
+
+def _running(pid: int) -> bool:
+    try:
+        os.kill(pid, 0)
+    except ProcessLookupError:
+        return False
+    except PermissionError:
+        return True
+    return True

@@ -31,9 +31,10 @@ def _default_lock_dir() -> Path:
     return Path(tempfile.gettempdir()) / f"bfsitl-cores-{os.getuid()}"
 
 
-@dataclass
+@dataclass(eq=False)
 class CoreClaim:
-    """A core this process is pinned to, held until :meth:`release` or the process ends."""
+    """A core this process is pinned to, held until :meth:`release` (from the thread that
+    claimed it: affinity belongs to a thread) or until the process ends."""
 
     core: int
     round: int
@@ -43,6 +44,8 @@ class CoreClaim:
     def release(self) -> None:
         """Give the core back and restore the affinity the process had before the claim."""
         fd, self._fd = self._fd, None
+        if self in _HELD:
+            _HELD.remove(self)
         if fd is None:
             return
         with contextlib.suppress(OSError):
@@ -52,8 +55,30 @@ class CoreClaim:
                 os.sched_setaffinity(0, self._previous)
 
 
+#: The claims this process holds.  A forked child inherits the list (and learns from it the
+#: cores there were before the claim) but not the locks: see _forget_in_child.
+_HELD: list[CoreClaim] = []
+
+
+def _forget_in_child() -> None:
+    # The child shares the parent's open lock files; closing its copies keeps the parent's
+    # release effective.  The child keeps the parent's pin until it claims a core of its own.
+    for claim in _HELD:
+        if claim._fd is not None:
+            with contextlib.suppress(OSError):
+                os.close(claim._fd)
+            claim._fd = None
+
+
+if hasattr(os, "register_at_fork"):
+    os.register_at_fork(after_in_child=_forget_in_child)
+
+
 def available_cores() -> list[int]:
-    """The cores this process may run on, in order."""
+    """The cores this process may run on, in order: those it had before a claim of its own
+    or of the parent that forked it pinned it to one."""
+    if _HELD and _HELD[0]._previous:
+        return sorted(_HELD[0]._previous)
     return sorted(os.sched_getaffinity(0))
 
 
@@ -68,14 +93,18 @@ def claim_core(lock_dir: Path | None = None) -> CoreClaim | None:
     if len(cores) < 2:
         return None  # nothing to choose: a run on one core shares it anyway
     directory = lock_dir if lock_dir is not None else _default_lock_dir()
-    directory.mkdir(parents=True, exist_ok=True)
-    for round_number in range(_MAX_ROUNDS):
-        for core in cores:
-            fd = _try_lock(directory / f"core{core}-{round_number}.lock")
-            if fd is not None:
-                return _pin(core, round_number, fd, frozenset(cores))
+    previous = frozenset(os.sched_getaffinity(0))
+    try:
+        directory.mkdir(parents=True, exist_ok=True)
+        for round_number in range(_MAX_ROUNDS):
+            for core in cores:
+                fd = _try_lock(directory / f"core{core}-{round_number}.lock")
+                if fd is not None:
+                    return _pin(core, round_number, fd, previous)
+    except OSError:
+        return None  # no lock files here (a read-only or foreign directory): no pinning
     # Every slot of every round is held: share the first core, unclaimed.
-    return _pin(cores[0], _MAX_ROUNDS, None, frozenset(cores))
+    return _pin(cores[0], _MAX_ROUNDS, None, previous)
 
 
 def _try_lock(path: Path) -> int | None:
@@ -95,4 +124,6 @@ def _pin(core: int, round_number: int, fd: int | None, previous: frozenset[int])
         if fd is not None:
             os.close(fd)
         raise
-    return CoreClaim(core, round_number, fd, previous)
+    claim = CoreClaim(core, round_number, fd, previous)
+    _HELD.append(claim)
+    return claim

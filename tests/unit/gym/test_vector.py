@@ -55,8 +55,11 @@ def test_an_ended_episode_is_reset_in_the_same_step_with_its_end_beside_it() -> 
         assert observations[:, 1].tolist() == [2.0, 2.0]
         assert info["_final_obs"].tolist() == [True, True]
         assert [o[0] for o in info["final_obs"]] == [2.0, 2.0]  # the ended episodes' last
-        assert info["final_info"][0]["ended_because"] == "crashed: asked to"
-        assert info["final_info"][1]["ended_because"] is None
+        # Gymnasium's layout: the ended episodes' infos batched key by key, with masks.
+        final = info["final_info"]
+        assert final["ended_because"].tolist() == ["crashed: asked to", None]
+        assert final["time_s"].tolist() == [0.02, 0.02] and final["_time_s"].all()
+        assert final["truth"]["alt_m"].tolist() == [3.5, 3.5]
         _o, _r, terminated, truncated, info = envs.step(actions((0, 0, 0, 0), (0, 0, 0, 0)))
         assert not terminated.any() and not truncated.any() and "final_info" not in info
     finally:
@@ -71,6 +74,24 @@ def test_workers_ask_for_a_core_each_and_no_spin_unless_told_otherwise() -> None
             assert observations[:, 4:6].tolist() == [expected, expected]
         finally:
             envs.close()
+
+
+def test_an_option_no_environment_takes_is_raised_when_it_is_made() -> None:
+    with pytest.raises(EnvironmentConfigError, match="environment 0: TypeError: .*wings"):
+        FlightVectorEnv(FAKE, 2, wings=3)
+
+
+def test_only_some_endings_fill_the_final_masks() -> None:
+    envs = FlightVectorEnv(FAKE, 2, episode_steps=5)
+    try:
+        envs.reset(seed=0)
+        _o, _r, terminated, _t, info = envs.step(actions((0, 0, 0, 0), (0, 0, -1, 0)))
+        assert terminated.tolist() == [False, True]
+        assert info["_final_obs"].tolist() == [False, True]
+        assert info["final_obs"][0] is None
+        assert info["final_info"]["_ended_because"].tolist() == [False, True]
+    finally:
+        envs.close()
 
 
 def test_a_workers_error_is_raised_in_the_parent_and_ends_the_rest() -> None:
@@ -99,5 +120,7 @@ def test_close_ends_every_worker_and_bad_input_is_refused() -> None:
     envs.close()
     envs.close()  # twice is harmless
     assert all(not process.is_alive() for process in envs._processes)
+    with pytest.raises(EnvironmentConfigError, match="closed: make a new one"):
+        envs.step(np.zeros((3, 4), dtype=np.float32))
     with pytest.raises(EnvironmentConfigError, match="outside 1..256"):
         FlightVectorEnv(FAKE, 0)

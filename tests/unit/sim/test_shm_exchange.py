@@ -8,6 +8,8 @@ from __future__ import annotations
 import mmap
 import socket
 import struct
+import subprocess
+import sys
 import threading
 import time
 from pathlib import Path
@@ -65,12 +67,14 @@ class SharedFakeFc:
     def run(self) -> None:
         while not self.stop.is_set():
             seq = self.words[2]
-            if seq == self.seen:
+            if seq in (self.seen, 0):  # answered, or being written
                 self.futex.wait(self.base + 8, seq, 0.05)
                 continue
-            self.seen = seq
             size = self.words[4]
             data = bytes(self.map[DATAGRAM_AT:DATAGRAM_AT + size])
+            if self.words[2] != seq:
+                continue  # rewritten while copied: take the new one
+            self.seen = seq
             fdm = FdmPacket.unpack(data[:FdmPacket.SIZE])
             rc = RcPacket.unpack(data[FdmPacket.SIZE:])
             self.received.append((fdm.timestamp_s, rc.channels_us[:6]))
@@ -208,12 +212,21 @@ def test_a_region_of_another_layout_is_refused_with_the_fix(region: ShmExchange)
         fc.close()
 
 
-def test_closing_removes_the_region(tmp_path: Path) -> None:
+def test_closing_removes_the_region_and_a_dead_owners_region_goes_too(tmp_path: Path) -> None:
     exchange = ShmExchange(tmp_path)
     assert exchange.path.stat().st_size == REGION_BYTES
     exchange.close()
     exchange.close()
     assert not exchange.path.exists()
+    dead = subprocess.run([sys.executable, "-c", "import os; print(os.getpid())"],
+                          capture_output=True, text=True, check=True).stdout.strip()
+    stale = tmp_path / f"bfsitl-lockstep-{dead}-0123456789ab"
+    stale.write_bytes(b"\0" * 64)
+    forgotten = ShmExchange(tmp_path)          # never closed: removed when it goes
+    alive = forgotten.path
+    assert not stale.exists() and alive.exists()
+    del forgotten
+    assert not alive.exists()
 
 
 def test_the_exchange_is_chosen_from_the_build_and_the_request(tmp_path: Path) -> None:

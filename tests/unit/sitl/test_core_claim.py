@@ -73,6 +73,41 @@ def test_a_killed_holders_claim_is_free_again(tmp_path: Path) -> None:
     mine.release()
 
 
+def _claim_in_child(lock_dir: str, out) -> None:  # type: ignore[no-untyped-def]
+    claim = claim_core(Path(lock_dir))
+    out.send(None if claim is None else claim.core)
+
+
+@needs_two
+def test_a_forked_child_of_a_pinned_process_claims_among_all_the_cores(tmp_path: Path) -> None:
+    import multiprocessing
+
+    before = os.sched_getaffinity(0)
+    mine = claim_core(tmp_path)
+    assert mine is not None and mine.core == CORES[0]
+    try:
+        context = multiprocessing.get_context("fork")
+        reader, writer = context.Pipe(duplex=False)
+        child = context.Process(target=_claim_in_child, args=(str(tmp_path), writer))
+        child.start()
+        child.join(10)
+        assert reader.recv() == CORES[1]       # not the parent's one core, nor "no choice"
+    finally:
+        mine.release()
+    assert os.sched_getaffinity(0) == before
+    again = claim_core(tmp_path)               # the child's copy of our lock did not keep it
+    assert again is not None and again.core == CORES[0]
+    again.release()
+
+
+def test_a_lock_directory_that_cannot_be_made_means_no_pinning(tmp_path: Path) -> None:
+    blocker = tmp_path / "file"
+    blocker.write_text("not a directory")
+    before = os.sched_getaffinity(0)
+    assert claim_core(blocker / "locks") is None
+    assert os.sched_getaffinity(0) == before
+
+
 def test_on_one_core_nothing_is_claimed(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
     monkeypatch.setattr(os, "sched_getaffinity", lambda _pid: {0})
     assert claim_core(tmp_path) is None

@@ -75,6 +75,7 @@
 #include <linux/futex.h>
 #include <stddef.h>
 #include <sys/mman.h>
+#include <sys/stat.h>
 #include <sys/select.h>
 #include <sys/socket.h>
 #include <sys/syscall.h>
@@ -151,7 +152,9 @@ static uint32_t lockstepShmSeen;        // the last requestSeq taken
 static void lockstepShmOpen(const char *path)
 {
     const int fd = open(path, O_RDWR | O_CLOEXEC);
-    if (fd < 0 || ftruncate(fd, sizeof(lockstepShm_t)) != 0) {
+    struct stat info;
+    if (fd < 0 || fstat(fd, &info) != 0 ||
+        ((size_t)info.st_size < sizeof(lockstepShm_t) && ftruncate(fd, sizeof(lockstepShm_t)) != 0)) {
         fprintf(stderr, "[LOCKSTEP] cannot open the shared exchange %s: %s\n", path, strerror(errno));
         exit(2);
     }
@@ -177,31 +180,44 @@ static void lockstepFutexWake(uint32_t *word)
     syscall(SYS_futex, word, FUTEX_WAKE, 1, NULL, NULL, 0);
 }
 
+// Nothing new to take: the request already answered, or 0 while the simulator writes one.
+static bool lockstepShmIdle(uint32_t seq)
+{
+    return seq == lockstepShmSeen || seq == 0;
+}
+
 // The next datagram from the region if one comes within timeoutUs (the word is polled for
-// the first spinUs, then FUTEX_WAIT sleeps on it); its size, or -1.
+// the first spinUs, then FUTEX_WAIT sleeps on it); its size, or -1.  The simulator sets the
+// word to 0 before it writes a datagram and to the new number after: a copy during which the
+// word changed is dropped and the datagram taken afresh (a seqlock), so a half-written
+// datagram (one written while a resend of the one before was being taken) is never used.
 static ssize_t lockstepShmTake(lockstepDatagram_t *datagram, uint32_t timeoutUs, uint32_t spinUs)
 {
     uint32_t *word = &lockstepShm->requestSeq;
     uint32_t seq = __atomic_load_n(word, __ATOMIC_ACQUIRE);
-    if (seq == lockstepShmSeen && spinUs > 0) {
+    if (lockstepShmIdle(seq) && spinUs > 0) {
         const uint64_t spinUntilUs = micros64_real() + spinUs;
         do {
             seq = __atomic_load_n(word, __ATOMIC_ACQUIRE);
-        } while (seq == lockstepShmSeen && micros64_real() < spinUntilUs);
+        } while (lockstepShmIdle(seq) && micros64_real() < spinUntilUs);
     }
-    if (seq == lockstepShmSeen && timeoutUs > 0) {
+    if (lockstepShmIdle(seq) && timeoutUs > 0) {
         const struct timespec timeout = { .tv_sec = timeoutUs / 1000000,
                                           .tv_nsec = (long)(timeoutUs % 1000000) * 1000 };
         // Returns at once if the word has moved on since it was read (no lost wake-up).
-        syscall(SYS_futex, word, FUTEX_WAIT, lockstepShmSeen, &timeout, NULL, 0);
+        syscall(SYS_futex, word, FUTEX_WAIT, seq, &timeout, NULL, 0);
         seq = __atomic_load_n(word, __ATOMIC_ACQUIRE);
     }
-    if (seq == lockstepShmSeen) {
+    if (lockstepShmIdle(seq)) {
         return -1;
     }
-    lockstepShmSeen = seq;
     const uint32_t bytes = MIN(lockstepShm->datagramBytes, (uint32_t)sizeof(*datagram));
     memcpy(datagram, &lockstepShm->datagram, bytes);
+    __atomic_thread_fence(__ATOMIC_ACQUIRE);
+    if (__atomic_load_n(word, __ATOMIC_RELAXED) != seq) {
+        return -1;  // rewritten while copied: the next call takes the new one
+    }
+    lockstepShmSeen = seq;
     return (ssize_t)bytes;
 }
 

@@ -16,6 +16,7 @@ Run: ``python benchmarks/scenarios.py [--firmware master-lockstep --firmware
 from __future__ import annotations
 
 import argparse
+import os
 import subprocess
 import sys
 import tempfile
@@ -23,9 +24,10 @@ import time
 from pathlib import Path
 
 from bfsitl.library import scenarios_dir
+from bfsitl.scenario.load import find_scenarios
 from bfsitl.scenario.result import Verdict
-from bfsitl.scenario.spec import find_scenarios
 from bfsitl.scenario.suite import plan_runs, run_suite
+from bfsitl.sitl.core_claim import PIN_ENV
 
 DEFAULT_BUILDS = ["master-lockstep", "4.6.0-gps-lockstep"]
 
@@ -72,6 +74,13 @@ def main() -> None:
         root = Path(tmp)
         rows.append(measure("--jobs 1", root / "j1", args.paths, firmwares))
         rows.append(measure("--jobs 2", root / "j2", args.paths, firmwares, jobs=2))
+        # The same without core claims (each run sleeping for its packets, as before them).
+        os.environ[PIN_ENV] = "0"
+        try:
+            rows.append(measure("--jobs 2, runs not pinned", root / "j2u", args.paths,
+                                firmwares, jobs=2))
+        finally:
+            del os.environ[PIN_ENV]
         if not args.no_ray:
             address = start_ray(2)
             try:

@@ -25,6 +25,8 @@ from pathlib import Path
 
 #: Runs sharing one core before the rounds start over (a claim beyond that takes any core).
 _MAX_ROUNDS = 64
+#: ``BFSITL_PIN_CORES=0`` turns claims off (a container whose affinity lies, a comparison).
+PIN_ENV = "BFSITL_PIN_CORES"
 
 
 def _default_lock_dir() -> Path:
@@ -85,7 +87,9 @@ def available_cores() -> list[int]:
 def claim_core(lock_dir: Path | None = None) -> CoreClaim | None:
     """Pin the calling thread (and so the processes it starts from now on) to the least
     claimed core and hold the claim; None where pinning is not possible (one core only, or
-    no affinity on this system)."""
+    no affinity on this system) or is turned off (``BFSITL_PIN_CORES=0``)."""
+    if os.environ.get(PIN_ENV, "").strip() == "0":
+        return None
     try:
         cores = available_cores()
     except (AttributeError, OSError):

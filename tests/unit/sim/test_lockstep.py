@@ -8,6 +8,7 @@ import threading
 from pathlib import Path
 
 import pytest
+from support.fake_simulator import FakeSimulator
 
 from bfsitl.build.lockstep import LockstepPatch, patch_sitl_source
 from bfsitl.build.lockstep.patch import EDITS
@@ -96,26 +97,6 @@ class HostSockets:
 
     def socket(self, family: int, kind: int) -> socket.socket:
         return socket.socket(family, kind)
-
-
-class FakeSimulator:
-    def __init__(self) -> None:
-        self.time_s = 0.0
-        self.applied: list[tuple[float, ...]] = []
-
-    def step(self, motors: tuple[float, ...], dt_s: float) -> None:
-        self.applied.append(motors)
-        self.time_s = round(self.time_s + dt_s, 9)
-
-    def read_sensors(self):  # noqa: ANN201 - a SensorReading
-        from bfsitl.physics.sensors import SensorReading
-
-        zero = (0.0, 0.0, 0.0)
-        return SensorReading(time_s=self.time_s, gyro_frd_rad_s=zero,
-                             specific_force_frd_m_s2=(0.0, 0.0, -9.80665),
-                             quaternion_wxyz=(1.0, 0.0, 0.0, 0.0), pressure_pa=101325.0,
-                             position_ned_m=zero, velocity_ned_m_s=zero,
-                             geodetic=(0.0, 0.0, 0.0), velocity_enu_m_s=zero)
 
 
 class FakeFc:

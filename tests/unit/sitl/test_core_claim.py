@@ -108,6 +108,11 @@ def test_a_lock_directory_that_cannot_be_made_means_no_pinning(tmp_path: Path) -
     assert os.sched_getaffinity(0) == before
 
 
+def test_claims_can_be_turned_off(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    monkeypatch.setenv("BFSITL_PIN_CORES", "0")
+    assert claim_core(tmp_path) is None
+
+
 def test_on_one_core_nothing_is_claimed(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
     monkeypatch.setattr(os, "sched_getaffinity", lambda _pid: {0})
     assert claim_core(tmp_path) is None

@@ -141,6 +141,10 @@ class SensorReading:
     velocity_enu_m_s: Vec3
 
 
+#: What the GPS error adds without one.
+_NO_GPS_ERROR = (0.0, 0.0, 0.0, 0.0)
+
+
 class SensorModel:
     """Adds the configured bias and noise to true values; ideal sensors pass them through.
 
@@ -148,12 +152,14 @@ class SensorModel:
     :mod:`random`, so the sequence does not depend on ``PYTHONHASHSEED``).
     """
 
-    __slots__ = ("config", "_ideal", "_rng", "_gps_rng", "_gps_drift", "_gps_time_s",
-                 "_drift_origin_s")
+    __slots__ = ("config", "_ideal", "_gps_errors", "_rng", "_gps_rng", "_gps_drift",
+                 "_gps_time_s", "_drift_origin_s")
 
     def __init__(self, config: SensorConfig, seed: int) -> None:
         self.config = config
         self._ideal = config.is_ideal
+        # Read every step: the configuration's properties are worked out once.
+        self._gps_errors = config.has_gps_error
         # The seed strings keep the module's first name (bfsitl.sim): a rename must not change
         # the noise a seed gives, or no run would repeat across versions.
         self._rng = random.Random(f"bfsitl.sim.sensors:{seed}")
@@ -168,13 +174,14 @@ class SensorModel:
         where they were, so a run stays repeatable, and a drift starts from zero then."""
         self.config = config
         self._ideal = config.is_ideal
+        self._gps_errors = config.has_gps_error
         self._drift_origin_s = time_s
 
     def gps_error(self, time_s: float) -> tuple[float, float, float, float]:
         """(north m, east m, north m/s, east m/s) to add to the GPS at ``time_s``."""
+        if not self._gps_errors:
+            return _NO_GPS_ERROR
         c = self.config
-        if not c.has_gps_error:
-            return (0.0, 0.0, 0.0, 0.0)
         gauss = self._gps_rng.gauss
         if c.gps_drift_std_m == 0.0:
             self._gps_drift = (0.0, 0.0)

@@ -143,8 +143,15 @@ class ServoPacket:
         ``slots``: the slot of each motor, from the firmware profile
         (``FirmwareProfile.motor_slot_of_betaflight_motor``); default 4.6's remap.
         """
-        s = self.motor_speed
-        m = self.SLOT_OF_BETAFLIGHT_MOTOR if slots is None else slots
+        return self.in_betaflight_order(self.motor_speed, slots)
+
+    @classmethod
+    def in_betaflight_order(
+        cls, motor_speed: tuple[float, ...], slots: tuple[int, int, int, int] | None = None
+    ) -> tuple[float, float, float, float]:
+        """:meth:`betaflight_motors` of the packet's four slots, without making the packet."""
+        m = cls.SLOT_OF_BETAFLIGHT_MOTOR if slots is None else slots
+        s = motor_speed
         return (s[m[0]], s[m[1]], s[m[2]], s[m[3]])
 
 

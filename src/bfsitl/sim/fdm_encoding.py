@@ -36,6 +36,8 @@ from bfsitl.protocol.firmware_profile import (
 )
 from bfsitl.protocol.sitl_packets import FdmPacket
 
+_FDM_FORMAT = FdmPacket.FORMAT
+
 #: Betaflight's body rates from FRD rates: FLU (the 4.6 SITL makes exactly this of FRD).
 BETAFLIGHT_GYRO_FROM_FRD = (1, -1, -1)
 #: Betaflight's accelerometer from the FRD specific force: FLU as well.
@@ -87,6 +89,23 @@ class FdmEncoder:
         self._gyro_k = tuple(b * s for b, s in zip(BETAFLIGHT_GYRO_FROM_FRD, signs, strict=True))
         signs = self.fdm.acc_fc_signs
         self._acc_k = tuple(b * s for b, s in zip(BETAFLIGHT_ACC_FROM_FRD, signs, strict=True))
+
+    def pack(self, reading: SensorReading, timestamp_s: float) -> bytes:
+        """``encode(reading, timestamp_s).pack()``, the same bytes, without the packet object
+        (the lockstep exchange packs one every simulated millisecond)."""
+        g, a = reading.gyro_frd_rad_s, reading.specific_force_frd_m_s2
+        gk, ak = self._gyro_k, self._acc_k
+        q = reading.quaternion_wxyz
+        if self.fdm.quaternion is QuaternionConvention.GAZEBO:
+            q = gazebo_quaternion(q)
+        position, velocity = self._position_velocity(reading)
+        pressure = reading.pressure_pa
+        values = (timestamp_s, g[0] * gk[0], g[1] * gk[1], g[2] * gk[2],
+                  a[0] * ak[0], a[1] * ak[1], a[2] * ak[2], *q, *velocity, *position, pressure)
+        if len(values) != 18 or not math.isfinite(sum(values)) or pressure <= 0:
+            # Let the packet say which field is wrong.
+            return self.encode(reading, timestamp_s).pack()
+        return _FDM_FORMAT.pack(*values)
 
     def encode(self, reading: SensorReading, timestamp_s: float) -> FdmPacket:
         fdm = self.fdm

@@ -242,8 +242,7 @@ class LockstepBridge:
     # -- stepping --------------------------------------------------------------------------
     def _datagram(self) -> bytes:
         now_s = self.simulator.time_s
-        packet = self.encoder.encode(self.simulator.read_sensors(), now_s).pack()
-        return packet + self._rc_bytes(now_s)
+        return self.encoder.pack(self.simulator.read_sensors(), now_s) + self._rc_bytes(now_s)
 
     def _rc_bytes(self, now_s: float) -> bytes:
         # The firmware ignores the RC packet's timestamp; the channels change at the control
@@ -335,8 +334,8 @@ class LockstepBridge:
                 continue  # a stock servo packet, 9001's raw packet or garbage: not ours
             if answered_s != stamp_s:
                 continue  # the answer to a resent packet, or to one before a restart
-            return ServoPacket(speeds).betaflight_motors(
-                self.encoder.profile.motor_slot_of_betaflight_motor)
+            return ServoPacket.in_betaflight_order(
+                speeds, self.encoder.profile.motor_slot_of_betaflight_motor)
 
     def _wait_reply(self, stamp_s: float, timeout_s: float, *, spin: bool = True
                     ) -> Motors | None:
@@ -383,8 +382,8 @@ class LockstepBridge:
                 if answered_s != stamp_s:
                     raise SitlError(f"the FC answered fdm time {answered_s} for {stamp_s} "
                                     f"through shared memory: its exchange is out of step")
-                return ServoPacket(speeds).betaflight_motors(
-                    self.encoder.profile.motor_slot_of_betaflight_motor)
+                return ServoPacket.in_betaflight_order(
+                    speeds, self.encoder.profile.motor_slot_of_betaflight_motor)
             if self.alive is not None:
                 self.alive()  # a SITL that ended (a reboot, a crash) says so now
 

@@ -93,31 +93,29 @@ class FdmEncoder:
     def pack(self, reading: SensorReading, timestamp_s: float) -> bytes:
         """``encode(reading, timestamp_s).pack()``, the same bytes, without the packet object
         (the lockstep exchange packs one every simulated millisecond)."""
-        g, a = reading.gyro_frd_rad_s, reading.specific_force_frd_m_s2
-        gk, ak = self._gyro_k, self._acc_k
-        q = reading.quaternion_wxyz
-        if self.fdm.quaternion is QuaternionConvention.GAZEBO:
-            q = gazebo_quaternion(q)
-        position, velocity = self._position_velocity(reading)
+        gyro, accel, q, position, velocity = self._fields(reading)
         pressure = reading.pressure_pa
-        values = (timestamp_s, g[0] * gk[0], g[1] * gk[1], g[2] * gk[2],
-                  a[0] * ak[0], a[1] * ak[1], a[2] * ak[2], *q, *velocity, *position, pressure)
+        values = (timestamp_s, *gyro, *accel, *q, *velocity, *position, pressure)
         if len(values) != 18 or not math.isfinite(sum(values)) or pressure <= 0:
             # Let the packet say which field is wrong.
             return self.encode(reading, timestamp_s).pack()
         return _FDM_FORMAT.pack(*values)
 
     def encode(self, reading: SensorReading, timestamp_s: float) -> FdmPacket:
-        fdm = self.fdm
+        gyro, accel, q, position, velocity = self._fields(reading)
+        return FdmPacket(timestamp_s, gyro, accel, q, velocity, position, reading.pressure_pa)
+
+    def _fields(self, reading: SensorReading) -> tuple[Vec3, Vec3, Quat, Vec3, Vec3]:
+        """(gyro, accelerometer, quaternion, position, velocity) as the firmware reads them."""
         g, a = reading.gyro_frd_rad_s, reading.specific_force_frd_m_s2
         gk, ak = self._gyro_k, self._acc_k
         gyro: Vec3 = (g[0] * gk[0], g[1] * gk[1], g[2] * gk[2])
         accel: Vec3 = (a[0] * ak[0], a[1] * ak[1], a[2] * ak[2])
         q = reading.quaternion_wxyz
-        if fdm.quaternion is QuaternionConvention.GAZEBO:
+        if self.fdm.quaternion is QuaternionConvention.GAZEBO:
             q = gazebo_quaternion(q)
         position, velocity = self._position_velocity(reading)
-        return FdmPacket(timestamp_s, gyro, accel, q, velocity, position, reading.pressure_pa)
+        return gyro, accel, q, position, velocity
 
     def _position_velocity(self, reading: SensorReading) -> tuple[Vec3, Vec3]:
         fdm = self.fdm

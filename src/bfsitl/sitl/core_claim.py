@@ -45,13 +45,14 @@ class CoreClaim:
 
     def release(self) -> None:
         """Give the core back and restore the affinity the process had before the claim."""
+        if self not in _HELD:
+            return  # released already
+        _HELD.remove(self)
         fd, self._fd = self._fd, None
-        if self in _HELD:
-            _HELD.remove(self)
-        if fd is None:
-            return
-        with contextlib.suppress(OSError):
-            os.close(fd)  # closing the file drops its lock
+        if fd is not None:
+            with contextlib.suppress(OSError):
+                os.close(fd)  # closing the file drops its lock
+        # Also for a core shared without a lock (every round held): the pin is undone.
         if self._previous:
             with contextlib.suppress(OSError):
                 os.sched_setaffinity(0, self._previous)

@@ -327,11 +327,8 @@ static bool lockstepTake(uint32_t timeoutUs, uint32_t spinUs)
     lockstepDatagram_t datagram;
     ssize_t n = -1;
     if (lockstepShm != NULL) {
-        n = lockstepShmTake(&datagram, timeoutUs, spinUs);
-        if (n < 0) {
-            return false;
-        }
-        return lockstepTakeDatagram(&datagram, n);
+        // -1 when nothing came: smaller than any fdm packet, so nothing is taken.
+        return lockstepTakeDatagram(&datagram, lockstepShmTake(&datagram, timeoutUs, spinUs));
     }
     const uint64_t spinUntilUs = micros64_real() + spinUs;
     do {
@@ -351,36 +348,35 @@ static bool lockstepTake(uint32_t timeoutUs, uint32_t spinUs)
 }
 
 // One datagram taken (from either exchange): apply it, or answer a repeat; true if new.
-static bool lockstepTakeDatagram(const lockstepDatagram_t *datagramIn, ssize_t n)
+static bool lockstepTakeDatagram(const lockstepDatagram_t *datagram, ssize_t n)
 {
-    lockstepDatagram_t datagram = *datagramIn;
     if (n < (ssize_t)sizeof(fdm_packet)) {
         return false;  // not an fdm packet: ignored
     }
-    const int64_t stampUs = llround(datagram.fdm.timestamp * 1e6);
+    const int64_t stampUs = llround(datagram->fdm.timestamp * 1e6);
     if (!lockstepLocked) {
         // No jump: the packet's time is now (see 3. above).
         lockstepOffsetUs = (int64_t)lockstepClockUs - stampUs;
         lockstepLocked = true;
         lockstepTargetUs = 0;
         printf("[LOCKSTEP] locked to the simulator at FC time %llu us (fdm time %.6f s)%s\n",
-               (unsigned long long)lockstepClockUs, datagram.fdm.timestamp,
+               (unsigned long long)lockstepClockUs, datagram->fdm.timestamp,
                lockstepPacketsTaken == 0 && lockstepClockUs == lockstepPaceOriginClockUs
                    ? ", at the first pass" : " after free-running");
         fflush(stdout);
     }
     const int64_t targetUs = stampUs + lockstepOffsetUs;
     if (targetUs <= (int64_t)lockstepTargetUs) {
-        lockstepReply(datagram.fdm.timestamp);  // every packet gets its one answer
+        lockstepReply(datagram->fdm.timestamp);  // every packet gets its one answer
         return false;
     }
-    lockstepLastStampS = datagram.fdm.timestamp;
+    lockstepLastStampS = datagram->fdm.timestamp;
     lockstepPacketsTaken++;
     if (n >= (ssize_t)sizeof(lockstepDatagram_t)) {
-        lockstepApplyRc(&datagram.rc);
+        lockstepApplyRc(&datagram->rc);
     }
     fdm_received = true;
-    updateState(&datagram.fdm);
+    updateState(&datagram->fdm);
     lockstepTargetUs = (uint64_t)targetUs;
     return true;
 }

@@ -8,7 +8,9 @@ to 2 m, hold ``--hold`` s, land) is flown with the fused controller and ``--seed
   the build and the machine have it: :mod:`bfsitl.sim.shm_exchange`) and per way of sharing
   the machine: on two cores, each side busy-waiting for the other (``spin``), and on one core
   (``1 core``: bfsitl and its SITL pinned to one core, taking turns without spinning, as
-  the learning environment's vector workers and ``--jobs`` runs side by side do).
+  the learning environment's vector workers and ``--jobs`` runs side by side do);
+* through shared memory, once with the pure-Python step and once with the compiled kernel
+  (:mod:`bfsitl.kernel`: the same flight bit for bit, steps that never enter Python).
 
 Per flight: wall time from the session's start to its end, simulated time, their ratio, the
 share of fdm packets answered, the FC clock against the simulated clock (MSP_RTC, over 2 s of
@@ -43,6 +45,7 @@ from firmware_cache import MASTER_SOURCE, cached_firmware
 from bfsitl.build import FirmwareBuildOptions
 from bfsitl.control import make_controller
 from bfsitl.errors import BfsitlError
+from bfsitl.kernel.compiler import kernel_available
 from bfsitl.mission import FlightSession, MissionPlan, SessionConfig, run_mission
 from bfsitl.sim.health import HealthMonitor
 from bfsitl.sim.shm_exchange import shm_exchange_supported
@@ -93,19 +96,22 @@ def sitl_cpu_s(pid: int | None) -> float | None:
     return (int(fields[11]) + int(fields[12])) / os.sysconf("SC_CLK_TCK")
 
 
-#: The lockstep rows: (exchange, one core).
-LOCKSTEP_MODES = (("udp", False), ("shm", False), ("udp", True), ("shm", True))
+#: The lockstep rows: (exchange, one core, physics kernel).
+LOCKSTEP_MODES = (("udp", False, "python"), ("shm", False, "python"), ("shm", False, "compiled"),
+                  ("udp", True, "python"), ("shm", True, "python"), ("shm", True, "compiled"))
 
 
 def fly(name: str, path: str, lockstep: bool, hold_s: float, seed: int,
-        exchange: str = "udp", one_core: bool = False) -> Flight:
+        exchange: str = "udp", one_core: bool = False, kernel: str = "python") -> Flight:
     config = SessionConfig(firmware=path, seed=seed, lockstep=lockstep,
-                           lockstep_exchange=exchange, lockstep_spin=not one_core)
+                           lockstep_exchange=exchange, lockstep_spin=not one_core,
+                           physics_kernel=kernel)
     claim = claim_core() if one_core else None  # the SITL started below inherits it
     started_s = time.perf_counter()
     try:
         flight = _fly(config, name, lockstep, hold_s,
                       f"lockstep max, {exchange}, {'1 core' if one_core else 'spin'}"
+                      + (", compiled" if kernel == "compiled" else "")
                       if lockstep else "real time 1x")
     finally:
         if claim is not None:
@@ -188,12 +194,14 @@ def main() -> None:
     for generation in args.generations.split(","):
         stock = firmware_path(generation, args.build)
         lockstep = firmware_path(f"{generation}-lockstep", args.build)
-        modes = [(stock, False, "udp", False)] + [
-            (lockstep, True, exchange, one_core) for exchange, one_core in LOCKSTEP_MODES
-            if exchange == "udp" or shm_exchange_supported()]
-        for path, is_lockstep, exchange, one_core in modes:
+        modes = [(stock, False, "udp", False, "python")] + [
+            (lockstep, True, exchange, one_core, kernel)
+            for exchange, one_core, kernel in LOCKSTEP_MODES
+            if (exchange == "udp" or shm_exchange_supported())
+            and (kernel == "python" or kernel_available())]
+        for path, is_lockstep, exchange, one_core, kernel in modes:
             flights = [fly(generation, path, is_lockstep, args.hold, args.seed, exchange,
-                           one_core) for _ in range(args.repeats)]
+                           one_core, kernel) for _ in range(args.repeats)]
             flights.sort(key=lambda f: f.wall_s)
             rows.append(flights[len(flights) // 2])
             print(f"flew {generation} {rows[-1].mode}: {rows[-1].wall_s:.1f} s",

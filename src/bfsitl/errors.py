@@ -44,6 +44,7 @@ Messages are written for the person at the terminal: what went wrong, then what 
     │   └── ScenarioFailedError        a scenario run as a pytest item did not pass
     ├── DisturbanceUnavailableError    this backend cannot do that to a flight (Gazebo, a board)
     ├── BlackboxError                  a blackbox log that cannot be read
+    ├── KernelUnavailableError         the optional compiled step cannot be built or loaded here
     └── SitlError                      the SITL process
         ├── FirmwareNotFoundError      no SITL binary anywhere we looked
         ├── FirmwareBuildError         `bfsitl firmware build` could not make a SITL binary
@@ -244,6 +245,11 @@ class DisturbanceUnavailableError(BfsitlError):
 
 class BlackboxError(BfsitlError):
     """A blackbox log that cannot be found or decoded."""
+
+
+class KernelUnavailableError(BfsitlError):
+    """The optional compiled kernel (:mod:`bfsitl.kernel`) cannot be built or loaded here: no C
+    compiler, or it failed.  The pure-Python step does the same work, only slower."""
 
 
 class SitlError(BfsitlError):

@@ -18,7 +18,7 @@ from __future__ import annotations
 import math
 from collections.abc import Callable
 from pathlib import Path
-from typing import Protocol
+from typing import TYPE_CHECKING, Protocol, cast
 
 from bfsitl.backend.base import SitlBackend
 from bfsitl.errors import BfsitlError
@@ -26,6 +26,9 @@ from bfsitl.physics.params import QuadParams
 from bfsitl.physics.sensors import SensorConfig
 from bfsitl.physics.wind import Wind
 from bfsitl.sitl.firmware import FirmwareBinary
+
+if TYPE_CHECKING:
+    from bfsitl.physics import Simulator
 
 #: A stock SITL runs on the wall clock; outside this range it cannot keep up or crawls.
 REAL_TIME_SPEEDS = (0.05, 4.0)
@@ -47,6 +50,8 @@ class BackendOptions(Protocol):
     def lockstep_spin(self) -> bool: ...
     @property
     def lockstep_exchange(self) -> str: ...
+    @property
+    def physics_kernel(self) -> str: ...
     @property
     def quad(self) -> QuadParams: ...
     @property
@@ -107,6 +112,42 @@ def uses_shm_exchange(firmware: FirmwareBinary, asked: str) -> bool:
     return possible
 
 
+#: How the embedded physics steps: ``auto`` (the compiled kernel for lockstep runs through
+#: shared memory, where it builds), ``compiled`` (always, or an error saying why not), ``python``.
+PHYSICS_KERNELS = ("auto", "compiled", "python")
+
+
+def make_simulator(options: BackendOptions, *, lockstep_shm: bool,
+                   progress: Callable[[str], None] = lambda _line: None) -> Simulator:
+    """The embedded physics: the pure-Python reference, or the compiled kernel (the same
+    numbers, bit for bit: bfsitl.kernel) where it is asked for or pays (a lockstep run through
+    shared memory, whose steps then never enter Python)."""
+    from bfsitl.physics import Simulator
+
+    asked = options.physics_kernel
+    if asked not in PHYSICS_KERNELS:
+        raise BfsitlError(f"physics kernel {asked!r}: one of {', '.join(PHYSICS_KERNELS)}")
+    compiled = asked == "compiled"
+    if asked == "auto" and lockstep_shm:
+        from bfsitl.errors import KernelUnavailableError
+        from bfsitl.kernel.compiler import load_kernel
+
+        try:
+            load_kernel()
+            compiled = True
+        except KernelUnavailableError as exc:
+            progress(f"the compiled step is not available, stepping in Python (the same "
+                     f"flight, slower): {str(exc).splitlines()[0]}")
+    if compiled:
+        from bfsitl.kernel.simulator import KernelSimulator
+
+        # The same public API as the reference (not a subclass: its private state is C's).
+        return cast("Simulator", KernelSimulator(options.quad, sensors=options.sensors,
+                                                 wind=options.wind, seed=options.seed))
+    return Simulator(options.quad, sensors=options.sensors, wind=options.wind,
+                     seed=options.seed)
+
+
 def make_backend(options: BackendOptions, firmware: FirmwareBinary, *,
                  progress: Callable[[str], None],
                  alive: Callable[[], None] | None = None) -> SitlBackend:
@@ -114,7 +155,6 @@ def make_backend(options: BackendOptions, firmware: FirmwareBinary, *,
     asked during a lockstep wait that runs long (it raises if the SITL has ended)."""
     from bfsitl.backend.embedded import LockstepBackend, RealTimeBackend
     from bfsitl.backend.gazebo import GazeboBackend
-    from bfsitl.physics import Simulator
 
     check_speed(options.speed)
     if options.physics == "gazebo":
@@ -131,17 +171,16 @@ def make_backend(options: BackendOptions, firmware: FirmwareBinary, *,
     if options.physics != "embedded":
         raise BfsitlError(f"unknown physics {options.physics!r}: "
                           f"{' or '.join(PHYSICS)}")
-    simulator = Simulator(options.quad, sensors=options.sensors, wind=options.wind,
-                          seed=options.seed)
     if wants_lockstep(firmware, options.lockstep):
         if not options.rc_link:
             raise BfsitlError("rc_link=False (RC from elsewhere, e.g. MSP through the serial "
                               "bridge) needs a real-time SITL: a lockstep build takes its RC "
                               "in the fdm packets bfsitl steps it with; use a stock build")
         speed = options.speed
+        shared = uses_shm_exchange(firmware, options.lockstep_exchange)
+        simulator = make_simulator(options, lockstep_shm=shared, progress=progress)
         return LockstepBackend(simulator, speed=None if speed is None or math.isinf(speed)
                                else speed, spin=options.lockstep_spin, progress=progress,
-                               alive=alive,
-                               shared_memory=uses_shm_exchange(firmware,
-                                                               options.lockstep_exchange))
-    return RealTimeBackend(simulator, speed=real_time_speed(options.speed), progress=progress)
+                               alive=alive, shared_memory=shared)
+    return RealTimeBackend(make_simulator(options, lockstep_shm=False),
+                           speed=real_time_speed(options.speed), progress=progress)

@@ -55,6 +55,12 @@ class Link(abc.ABC):
     def _close(self) -> None:
         """Release the OS resource."""
 
+    @property
+    def readable_fd(self) -> int:
+        """A descriptor that polls readable when bytes have come (-1: none to poll); a
+        lockstep MSP wait lets the compiled loop watch it between steps."""
+        return -1
+
     # -- public API ------------------------------------------------------------------------
     @property
     def closed(self) -> bool:

@@ -102,6 +102,10 @@ class TcpLink(Link):
             return b""
         return data if data else None
 
+    @property
+    def readable_fd(self) -> int:
+        return self._sock.fileno()
+
     def _close(self) -> None:
         try:
             self._sock.shutdown(socket.SHUT_RDWR)

@@ -90,6 +90,16 @@ class FdmEncoder:
         signs = self.fdm.acc_fc_signs
         self._acc_k = tuple(b * s for b, s in zip(BETAFLIGHT_ACC_FROM_FRD, signs, strict=True))
 
+    @property
+    def gyro_factors(self) -> tuple[int, ...]:
+        """What each FRD gyro axis is multiplied by for this generation."""
+        return self._gyro_k
+
+    @property
+    def acc_factors(self) -> tuple[int, ...]:
+        """What each FRD specific-force axis is multiplied by for this generation."""
+        return self._acc_k
+
     def pack(self, reading: SensorReading, timestamp_s: float) -> bytes:
         """``encode(reading, timestamp_s).pack()``, the same bytes, without the packet object
         (the lockstep exchange packs one every simulated millisecond)."""

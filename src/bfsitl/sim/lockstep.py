@@ -32,7 +32,7 @@ import struct
 import time
 from collections.abc import Callable
 from dataclasses import dataclass
-from typing import Protocol, TypeVar
+from typing import TYPE_CHECKING, Protocol, TypeVar
 
 from bfsitl.errors import PacketError, SitlError, SitlExitedError
 from bfsitl.fc.rc_link import SAFE_COMMAND, RcCommand, RcFault, RcFaultState, RcLinkStats
@@ -51,6 +51,9 @@ from bfsitl.sim.bridge import (
 from bfsitl.sim.fdm_encoding import FdmEncoder
 from bfsitl.sim.shm_exchange import ShmExchange
 
+if TYPE_CHECKING:
+    from bfsitl.kernel.lockstep_stepper import KernelRun, KernelStepper
+
 T = TypeVar("T")
 
 #: Busy-poll the reply this long before sleeping in select(): a reply usually comes within
@@ -67,6 +70,11 @@ REPLY_RETRIES = 2
 #: The lock packet is repeated this often while the SITL boots, until it answers.
 LOCK_RESEND_S = 0.005
 LOCK_TIMEOUT_S = 10.0
+#: The compiled loop hands a step back to Python when its reply is this late (the Python
+#: wait then asks whether the SITL still runs, and resends).
+KERNEL_WAIT_S = 0.05
+#: At most this many compiled steps per call: Ctrl-C is seen between two calls.
+KERNEL_MAX_STEPS = 1000
 #: A lockstep reply: the servo packet, then the timestamp of the fdm packet it answers.
 REPLY_FORMAT = struct.Struct("<4fd")
 
@@ -157,6 +165,10 @@ class LockstepBridge:
         self._exchange_s = self._physics_s = 0.0
         self._sim_start_s = 0.0
         self._wall_start_s = 0.0
+        #: The compiled loop (bfsitl.kernel), made on first use when the simulator is the
+        #: compiled one and the exchange is shared memory; None: every step in Python.
+        self._kernel: KernelStepper | None = None
+        self._kernel_possible = hasattr(simulator, "kernel_pointer")
 
     # -- what a session needs from any bridge ------------------------------------------------
     @property
@@ -185,8 +197,16 @@ class LockstepBridge:
 
     def lockstep_stats(self) -> LockstepStats:
         wall_s = self._wall() - self._wall_start_s if self._started else 0.0
+        kernel = self._kernel
+        exchange_s = self._exchange_s + (kernel.exchange_s if kernel is not None else 0.0)
+        physics_s = self._physics_s + (kernel.physics_s if kernel is not None else 0.0)
         return LockstepStats(self._steps, self.simulator.time_s - self._sim_start_s, wall_s,
-                             self._exchange_s, self._physics_s, self._resends)
+                             exchange_s, physics_s, self._resends)
+
+    @property
+    def compiled(self) -> bool:
+        """Whether the steps run in the compiled loop (bfsitl.kernel) when they can."""
+        return self._kernel is not None
 
     # -- sockets and lifecycle ---------------------------------------------------------------
     def bind(self) -> None:
@@ -262,11 +282,32 @@ class LockstepBridge:
         """One exchange with the FC, then one physics step with its reply."""
         if not self._locked or self._sock is None:
             raise SitlError("the lockstep bridge has no SITL locked to it (lock() first)")
-        began_s = self._wall()
+        kernel = self._kernel_stepper()
+        if kernel is not None:
+            self._kernel_steps(kernel, math.inf, 0.0, 1)
+        else:
+            self._python_step(self._wall())
+
+    def step_until_readable(self, fd: int, until_s: float) -> None:
+        """Step at least once, and on while the time is below ``until_s`` and ``fd`` has
+        nothing to read (an MSP reply the FC writes during its passes): what an MSP wait
+        does, step by step in Python, or in one call of the compiled loop."""
+        kernel = self._kernel_stepper() if fd >= 0 else None
+        if kernel is None:
+            self.step()
+        elif self._locked and self._sock is not None:
+            self._kernel_steps(kernel, until_s, 0.0, KERNEL_MAX_STEPS, fd)
+        else:
+            self.step()  # it raises the error
+
+    def _python_step(self, began_s: float, *, sent: bool = False) -> None:
+        """A step in Python; ``sent``: its datagram is out already (the compiled loop sent
+        it and handed the wait over)."""
         stamp_s = self.simulator.time_s
         datagram = self._datagram()
-        for _attempt in range(REPLY_RETRIES + 1):
-            self._send(datagram, stamp_s)
+        for attempt in range(REPLY_RETRIES + 1):
+            if not (sent and attempt == 0):
+                self._send(datagram, stamp_s)
             reply = self._wait_reply(stamp_s, REPLY_TIMEOUT_S / (REPLY_RETRIES + 1))
             if reply is not None:
                 break
@@ -301,7 +342,59 @@ class LockstepBridge:
     def run_until(self, time_s: float) -> None:
         # Half a step of slack: float sums of step_s must not add a step.
         while self.simulator.time_s + self.step_s / 2 < time_s:
-            self.step()
+            kernel = self._kernel_stepper()
+            if kernel is not None:
+                self._kernel_steps(kernel, time_s, self.step_s / 2, KERNEL_MAX_STEPS)
+            else:
+                self.step()
+
+    # -- the compiled loop -----------------------------------------------------------------
+    def _kernel_stepper(self) -> KernelStepper | None:
+        """The compiled loop, when it may take the next steps: a compiled simulator, the
+        shared-memory exchange ready, a locked SITL, and nothing that needs Python at every
+        step (a callback, a pace, an RC fault whose channels follow the clock)."""
+        if not self._kernel_possible or self.on_step is not None or self.speed is not None \
+                or self.rc_fault.fault is not None or not self._locked:
+            return None
+        kernel = self._kernel
+        if kernel is None:
+            exchange = self.exchange
+            if exchange is None or not exchange.ready:
+                return None
+            from bfsitl.kernel.lockstep_stepper import KernelStepper
+
+            kernel = self._kernel = KernelStepper(
+                self.simulator.kernel_pointer,  # type: ignore[attr-defined]
+                exchange, step_s=self.step_s, wait_s=KERNEL_WAIT_S)
+        return kernel
+
+    def _kernel_steps(self, kernel: KernelStepper, until_s: float, slack_s: float,
+                      max_steps: int, watch_fd: int = -1) -> None:
+        from bfsitl.kernel import lockstep_stepper as outcome
+
+        run: KernelRun = kernel.run(self.encoder, self._rc_bytes(self.simulator.time_s),
+                                    until_s=until_s, slack_s=slack_s, max_steps=max_steps,
+                                    spin_s=self.spin_s, watch_fd=watch_fd)
+        self._steps += run.steps
+        status = run.status
+        if status == outcome.BAD_MOTORS:
+            self._advance(run.motors, run.began_s)  # the simulator names the bad command
+            return
+        if run.steps:
+            self.motors = run.motors
+        if status == outcome.DONE:
+            return
+        if status == outcome.PENDING:
+            # Late: the Python wait takes over that request (asking whether the SITL still
+            # runs, resending), as if it had sent it.
+            self._seq = self._first_seq = run.seq
+            self._seq_stamp_s = run.stamp_s
+            self._python_step(run.began_s, sent=True)
+        elif status == outcome.OUT_OF_STEP:
+            raise SitlError(f"the FC answered fdm time {run.answered_s} for {run.stamp_s} "
+                            f"through shared memory: its exchange is out of step")
+        else:
+            self._python_step(self._wall())  # it names the reading, or steps in Python
 
     def _send(self, datagram: bytes, stamp_s: float) -> None:
         exchange = self.exchange
@@ -477,9 +570,13 @@ class SteppedLink(Link):
         if data or data is None or timeout_s <= 0:
             return data
         until_s = self.bridge.sim_time_s + timeout_s
+        fd = self.inner.readable_fd
         while self.bridge.sim_time_s < until_s:
             try:
-                self.bridge.step()
+                if fd < 0:
+                    self.bridge.step()
+                else:
+                    self.bridge.step_until_readable(fd, until_s)
             except SitlExitedError:
                 return None  # the SITL ended (a reboot): to the reader, the peer closed
             data = self.inner._read_bytes(max_bytes, 0.0)

@@ -138,6 +138,26 @@ class ShmExchange:
         self._ready = True
         return True
 
+    @property
+    def base_address(self) -> int:
+        """The mapping's address in this process (for the compiled loop)."""
+        return self._base
+
+    @property
+    def offsets(self) -> tuple[int, int]:
+        """(datagram, reply) offsets in the region, as the FC wrote them (once ready)."""
+        return self._datagram_offset, self._reply_offset
+
+    @property
+    def seq(self) -> int:
+        """The last request number sent; the compiled loop sends through the region too and
+        hands its count back here."""
+        return self._seq
+
+    @seq.setter
+    def seq(self, value: int) -> None:
+        self._seq = value & 0xFFFFFFFF
+
     def send(self, datagram: bytes) -> int:
         """Write ``datagram`` and wake the FC; the sequence number its reply will carry.  The
         word is 0 while the datagram is written (the FC's copy checks it: a seqlock)."""

@@ -5,30 +5,26 @@ waits out an FC that answers late, and refuses a region of another layout."""
 
 from __future__ import annotations
 
-import mmap
-import socket
 import struct
 import subprocess
 import sys
 import threading
-import time
 from pathlib import Path
 
 import pytest
 from support.fake_simulator import FakeSimulator
+from support.shared_fake_fc import DATAGRAM_AT, SharedFakeFc, bridge_on
 
 from bfsitl.backend.factory import uses_shm_exchange
 from bfsitl.build.binary_scan import SHM_EXCHANGE_MARKER, clear_cache
 from bfsitl.build.lockstep import MARKER
 from bfsitl.errors import BfsitlError, SitlError, SitlExitedError
 from bfsitl.fc.rc_link import RcCommand
-from bfsitl.protocol.sitl_packets import FdmPacket, RcPacket
-from bfsitl.sim.lockstep import REPLY_FORMAT, LockstepBridge, LockstepClock, LockstepRc
+from bfsitl.sim.lockstep import LockstepClock, LockstepRc
 from bfsitl.sim.shm_exchange import (
     REGION_BYTES,
     SHM_ENV,
     ShmExchange,
-    _Futex,
     shm_exchange_supported,
 )
 from bfsitl.sitl.firmware import FirmwareBinary
@@ -36,90 +32,11 @@ from bfsitl.sitl.firmware import FirmwareBinary
 pytestmark = pytest.mark.skipif(not shm_exchange_supported(),
                                 reason="the shared-memory exchange is x86-64 Linux only")
 
-# The FC's layout (lockstepShm_t): 8 words of header, the datagram at 32, the reply after it.
-DATAGRAM_AT = 32
-REPLY_AT = DATAGRAM_AT + FdmPacket.SIZE + RcPacket.SIZE
-
-
-class SharedFakeFc:
-    """Maps the region, writes the header last, answers every new request (4.6's slot order)
-    after ``delay_s``; ``version`` other than 1 plays a firmware of another layout."""
-
-    def __init__(self, path: Path, *, delay_s: float = 0.0, version: int = 1,
-                 answer: bool = True) -> None:
-        self.file = path.open("r+b")
-        self.map = mmap.mmap(self.file.fileno(), REGION_BYTES)
-        self.words = memoryview(self.map).cast("I")
-        self.delay_s = delay_s
-        self.answer = answer
-        self.received: list[tuple[float, tuple[int, ...]]] = []
-        self.futex = _Futex()
-        import ctypes
-
-        self.base = ctypes.addressof(ctypes.c_char.from_buffer(self.map))
-        self.seen = self.words[2]
-        self.words[1] = version
-        self.words[5], self.words[6], self.words[7] = DATAGRAM_AT, REPLY_AT, REPLY_AT + 24
-        self.words[0] = 0x6D736662
-        self.stop = threading.Event()
-        self.thread = threading.Thread(target=self.run, daemon=True)
-        self.thread.start()
-
-    def run(self) -> None:
-        while not self.stop.is_set():
-            seq = self.words[2]
-            if seq in (self.seen, 0):  # answered, or being written
-                self.futex.wait(self.base + 8, seq, 0.05)
-                continue
-            size = self.words[4]
-            data = bytes(self.map[DATAGRAM_AT:DATAGRAM_AT + size])
-            if self.words[2] != seq:
-                continue  # rewritten while copied: take the new one
-            self.seen = seq
-            fdm = FdmPacket.unpack(data[:FdmPacket.SIZE])
-            rc = RcPacket.unpack(data[FdmPacket.SIZE:])
-            self.received.append((fdm.timestamp_s, rc.channels_us[:6]))
-            if not self.answer:
-                continue
-            time.sleep(self.delay_s)
-            self.map[REPLY_AT:REPLY_AT + 24] = REPLY_FORMAT.pack(0.2, 0.3, 0.4, 0.1,
-                                                                  fdm.timestamp_s)
-            self.words[3] = seq
-            self.futex.wake(self.base + 12)
-
-    def close(self) -> None:
-        self.stop.set()
-        self.thread.join()
-        self.words.release()
-        self.map.close()
-        self.file.close()
-
-
-class NoSockets:
-    """The bridge's UDP side, unused once the region is ready (and harmless before)."""
-
-    netns_pid = None
-
-    def socket(self, family: int, kind: int) -> socket.socket:
-        sock = socket.socket(family, kind)
-        sock.setsockopt(socket.SOL_SOCKET, socket.SO_REUSEADDR, 1)
-        return sock
-
-
 @pytest.fixture
 def region(tmp_path: Path):
     exchange = ShmExchange(tmp_path)
     yield exchange
     exchange.close()
-
-
-def bridge_on(exchange: ShmExchange, simulator: FakeSimulator, **options: object
-              ) -> LockstepBridge:
-    bridge = LockstepBridge(simulator, NoSockets(), exchange=exchange,  # type: ignore[arg-type]
-                            **options)  # type: ignore[arg-type]
-    bridge._sock = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)  # no port of 9002 needed
-    bridge._sock.setblocking(False)
-    return bridge.start()
 
 
 def test_steps_go_through_the_region_with_their_rc_and_apply_their_own_answer(

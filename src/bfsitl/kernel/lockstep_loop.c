@@ -1,0 +1,300 @@
+/*
+ * bfsitl's compiled lockstep loop: the steps of bfsitl.sim.lockstep.LockstepBridge between two
+ * of the mission's decisions, without returning to Python.
+ *
+ * One step is what the bridge's pure-Python step does, in the same order and with the same
+ * bytes: read the sensors, encode the fdm packet for the firmware's generation (mirroring
+ * bfsitl.sim.fdm_encoding.FdmEncoder), append the RC packet the caller packed, hand the
+ * datagram to the FC through the shared region (bfsitl.sim.shm_exchange: the request word is
+ * 0 while the datagram is written, then the new sequence number, then one FUTEX_WAKE), wait
+ * for the reply (polling the reply word for spin_s, then FUTEX_WAIT), check that it answers
+ * this packet's timestamp, put the motors in Betaflight's order and integrate the physics.
+ *
+ * Anything unusual goes back to Python with a status, where the reference code handles it
+ * the one way it always does: a reply that has not come within wait_s (resends, the check
+ * that the SITL still runs), a reading or motors that are not finite (the errors that name
+ * the field), a reply for another timestamp.
+ */
+#include <errno.h>
+#include <math.h>
+#include <stdint.h>
+#include <string.h>
+#include <time.h>
+
+#include "physics.h"
+
+#ifdef __linux__
+#include <linux/futex.h>
+#include <poll.h>
+#include <sys/syscall.h>
+#include <unistd.h>
+#endif
+
+enum {
+    BK_LOCKSTEP_DONE = 0,        /* stepped up to the time or the count asked */
+    BK_LOCKSTEP_PENDING = 1,     /* the datagram went out, no reply within wait_s */
+    BK_LOCKSTEP_OUT_OF_STEP = 2, /* the reply answers another timestamp */
+    BK_LOCKSTEP_BAD_READING = 3, /* a reading Python must name (not finite, pressure <= 0) */
+    BK_LOCKSTEP_BAD_MOTORS = 4,  /* the reply's motors are not finite, or the step refused */
+    BK_LOCKSTEP_TOO_BIG = 5,     /* the datagram does not fit the region */
+    BK_LOCKSTEP_NO_FUTEX = 6,    /* not built for Linux */
+};
+
+/* The header's words (bfsitl.sim.shm_exchange). */
+#define REQUEST_WORD 2
+#define REPLY_WORD 3
+#define BYTES_WORD 4
+#define FDM_BYTES 144
+#define REPLY_BYTES 24
+#define MAX_DATAGRAM 256
+
+typedef struct bk_lockstep {
+    /* the region, as ShmExchange found it */
+    uint8_t *region;
+    uint32_t datagram_offset;
+    uint32_t reply_offset;
+    uint32_t seq;               /* the last request number sent (ShmExchange._seq) */
+    int32_t status;
+    /* the encoder (FdmEncoder's fields for this profile) */
+    double gyro_k[3];
+    double acc_k[3];
+    double rz_minus_90[4];
+    double home_lon_deg;
+    double home_lat_deg;
+    double sea_level_pa;
+    double lapse_per_m;
+    double exponent;
+    double lost_lon_deg;
+    double lost_lat_deg;
+    int32_t gazebo_quaternion;
+    int32_t altitude_z_up;
+    int32_t has_gps;
+    int32_t send_gps_lost;
+    int32_t mirrored;
+    int32_t motor_slot[4];      /* profile.motor_slot_of_betaflight_motor */
+    /* the stepping */
+    double step_s;
+    double spin_s;              /* poll the reply word this long before sleeping */
+    double wait_s;              /* give up (PENDING) after this long without a reply */
+    /* what happened (totals over the object's life, and the last step's) */
+    double exchange_s;
+    double physics_s;
+    int64_t steps;
+    double motors[4];           /* the last reply's, Betaflight order */
+    double stamp_s;             /* the timestamp of the last datagram sent */
+    double began_s;             /* the wall time the last step began */
+    double answered_s;          /* the timestamp an out-of-step reply answered */
+} bk_lockstep;
+
+size_t bk_lockstep_size(void) { return sizeof(bk_lockstep); }
+
+static double wall_s(void)
+{
+    struct timespec now;
+    clock_gettime(CLOCK_MONOTONIC, &now);
+    return (double)now.tv_sec + (double)now.tv_nsec * 1e-9;
+}
+
+static void put_doubles(uint8_t *out, const double *values, int count)
+{
+    memcpy(out, values, (size_t)count * sizeof(double)); /* x86-64: little-endian as "<d" */
+}
+
+/* FdmEncoder.pack: 18 doubles (timestamp, gyro, accel, quaternion, velocity, position,
+   pressure); 0 when a value is one Python must report. */
+static int encode(const bk_lockstep *ls, const bk_reading *r, double stamp_s, uint8_t *out)
+{
+    double v[18];
+    const double *g = r->gyro_frd_rad_s, *a = r->specific_force_frd_m_s2;
+    v[0] = stamp_s;
+    v[1] = g[0] * ls->gyro_k[0];
+    v[2] = g[1] * ls->gyro_k[1];
+    v[3] = g[2] * ls->gyro_k[2];
+    v[4] = a[0] * ls->acc_k[0];
+    v[5] = a[1] * ls->acc_k[1];
+    v[6] = a[2] * ls->acc_k[2];
+    const double *q = r->quaternion_wxyz;
+    if (ls->gazebo_quaternion) {
+        /* gazebo_quaternion(): (pw, px, -py, -pz) of Rz(-90) * (w, x, -y, -z) */
+        const double *m = ls->rz_minus_90;
+        double bw = q[0], bx = q[1], by = -q[2], bz = -q[3];
+        v[7] = m[0] * bw - m[1] * bx - m[2] * by - m[3] * bz;
+        v[8] = m[0] * bx + m[1] * bw + m[2] * bz - m[3] * by;
+        v[9] = -(m[0] * by - m[1] * bz + m[2] * bw + m[3] * bx);
+        v[10] = -(m[0] * bz + m[1] * by - m[2] * bx + m[3] * bw);
+    } else {
+        v[7] = q[0];
+        v[8] = q[1];
+        v[9] = q[2];
+        v[10] = q[3];
+    }
+    double altitude_m;
+    if (ls->altitude_z_up) {
+        /* altitude_for_pressure_m: Python's max(pressure, 1.0) keeps the first unless the
+           second is larger. */
+        double pressure = r->pressure_pa;
+        double ratio = (1.0 > pressure ? 1.0 : pressure) / ls->sea_level_pa;
+        altitude_m = (1.0 - pow(ratio, 1.0 / ls->exponent)) / ls->lapse_per_m;
+    } else {
+        altitude_m = r->geodetic[2];
+    }
+    const double *vel;
+    if (!ls->has_gps) {
+        v[14] = r->position_ned_m[0];
+        v[15] = r->position_ned_m[1];
+        v[16] = ls->altitude_z_up ? altitude_m : r->position_ned_m[2];
+        vel = r->velocity_ned_m_s;
+    } else {
+        double lon = r->geodetic[0], lat = r->geodetic[1];
+        if (ls->send_gps_lost) {
+            lon = ls->lost_lon_deg;
+            lat = ls->lost_lat_deg;
+        } else if (ls->mirrored) {
+            lon = 2.0 * ls->home_lon_deg - lon;
+            lat = 2.0 * ls->home_lat_deg - lat;
+        }
+        v[14] = lon;
+        v[15] = lat;
+        v[16] = altitude_m;
+        vel = r->velocity_enu_m_s;
+    }
+    v[11] = vel[0];
+    v[12] = vel[1];
+    v[13] = vel[2];
+    v[17] = r->pressure_pa;
+    for (int i = 0; i < 18; i++) {
+        if (!isfinite(v[i]))
+            return 0;
+    }
+    if (!(v[17] > 0.0))
+        return 0;
+    put_doubles(out, v, 18);
+    return 1;
+}
+
+#ifdef __linux__
+static void futex_wake(volatile uint32_t *word)
+{
+    syscall(SYS_futex, (uint32_t *)word, FUTEX_WAKE, 1, NULL, NULL, 0);
+}
+
+static void futex_wait(volatile uint32_t *word, uint32_t expected, double timeout_s)
+{
+    struct timespec timeout;
+    timeout.tv_sec = (time_t)timeout_s;
+    timeout.tv_nsec = (long)((timeout_s - (double)timeout.tv_sec) * 1e9);
+    syscall(SYS_futex, (uint32_t *)word, FUTEX_WAIT, expected, &timeout, NULL, 0);
+}
+
+static void send_datagram(bk_lockstep *ls, const uint8_t *datagram, uint32_t length)
+{
+    volatile uint32_t *words = (volatile uint32_t *)ls->region;
+    __atomic_store_n(&words[REQUEST_WORD], 0u, __ATOMIC_RELEASE);
+    memcpy(ls->region + ls->datagram_offset, datagram, length);
+    __atomic_store_n(&words[BYTES_WORD], length, __ATOMIC_RELEASE);
+    ls->seq += 1u;
+    if (ls->seq == 0u)
+        ls->seq = 1u; /* 0 means "being written": never a request */
+    __atomic_store_n(&words[REQUEST_WORD], ls->seq, __ATOMIC_RELEASE);
+    futex_wake(&words[REQUEST_WORD]);
+}
+
+/* 1 when the reply to request ls->seq is in the region within wait_s. */
+static int wait_reply(bk_lockstep *ls)
+{
+    volatile uint32_t *words = (volatile uint32_t *)ls->region;
+    uint32_t want = ls->seq;
+    double start = wall_s();
+    double spin_until = start + ls->spin_s;
+    for (;;) {
+        if (__atomic_load_n(&words[REPLY_WORD], __ATOMIC_ACQUIRE) == want)
+            return 1;
+        if (wall_s() >= spin_until)
+            break;
+    }
+    for (;;) {
+        uint32_t now = __atomic_load_n(&words[REPLY_WORD], __ATOMIC_ACQUIRE);
+        if (now == want)
+            return 1;
+        double left = start + ls->wait_s - wall_s();
+        if (left <= 0.0)
+            return 0;
+        futex_wait(&words[REPLY_WORD], now, left);
+    }
+}
+
+/* 1 when fd has something to read (or was closed): an MSP reply has come. */
+static int readable(int fd)
+{
+    struct pollfd watched = {.fd = fd, .events = POLLIN, .revents = 0};
+    return poll(&watched, 1, 0) > 0;
+}
+#endif
+
+/* Step while the simulated time plus slack_s is below until_s (the bridge's tests: half a
+   step of slack for run_until, none for an MSP wait) and fewer than max_steps have been
+   taken, and, when watch_fd >= 0, until that descriptor is readable after a step (the FC
+   wrote an MSP reply during its passes); the number taken.  rc (rc_len bytes) rides in every
+   datagram.  ls->status says why it stopped. */
+long bk_lockstep_run(bk_sim *sim, bk_lockstep *ls, const uint8_t *rc, uint32_t rc_len,
+                     double until_s, double slack_s, long max_steps, int watch_fd)
+{
+    long taken = 0;
+    ls->status = BK_LOCKSTEP_DONE;
+#ifndef __linux__
+    (void)sim; (void)rc; (void)rc_len; (void)until_s; (void)slack_s; (void)max_steps;
+    (void)watch_fd;
+    ls->status = BK_LOCKSTEP_NO_FUTEX;
+    return 0;
+#else
+    uint8_t datagram[MAX_DATAGRAM];
+    uint32_t length = FDM_BYTES + rc_len;
+    if (length > MAX_DATAGRAM || ls->datagram_offset + length > ls->reply_offset) {
+        ls->status = BK_LOCKSTEP_TOO_BIG;
+        return 0;
+    }
+    if (rc_len)
+        memcpy(datagram + FDM_BYTES, rc, rc_len);
+    while (taken < max_steps && bk_time_s(sim) + slack_s < until_s) {
+        double began = wall_s();
+        ls->began_s = began;
+        double stamp = bk_time_s(sim);
+        const bk_reading *reading = bk_read_sensors(sim); /* NULL: outside the ISA model */
+        if (reading == NULL || !encode(ls, reading, stamp, datagram)) {
+            ls->status = BK_LOCKSTEP_BAD_READING;
+            return taken;
+        }
+        send_datagram(ls, datagram, length);
+        ls->stamp_s = stamp;
+        if (!wait_reply(ls)) {
+            ls->status = BK_LOCKSTEP_PENDING;
+            return taken;
+        }
+        const uint8_t *reply = ls->region + ls->reply_offset;
+        float speeds[4];
+        double answered;
+        memcpy(speeds, reply, sizeof speeds);
+        memcpy(&answered, reply + 16, sizeof answered);
+        if (answered != stamp) {
+            ls->answered_s = answered;
+            ls->status = BK_LOCKSTEP_OUT_OF_STEP;
+            return taken;
+        }
+        for (int i = 0; i < 4; i++)
+            ls->motors[i] = (double)speeds[ls->motor_slot[i]];
+        double stepped = wall_s();
+        if (bk_step(sim, ls->motors, ls->step_s) != 0) {
+            ls->status = BK_LOCKSTEP_BAD_MOTORS;
+            return taken;
+        }
+        double done = wall_s();
+        ls->exchange_s += stepped - began;
+        ls->physics_s += done - stepped;
+        ls->steps += 1;
+        taken += 1;
+        if (watch_fd >= 0 && readable(watch_fd))
+            break;
+    }
+    return taken;
+#endif
+}

@@ -1,0 +1,148 @@
+"""The compiled lockstep loop against a stand-in FC (tests/support/shared_fake_fc.py): the
+same datagrams, motors and vehicle states as the pure-Python bridge, step for step, on both
+firmware generations' encodings; a late reply handed over to Python's wait; a reply for
+another packet refused; RC changes, the GPS-loss sentinel and RC faults in between."""
+
+from __future__ import annotations
+
+import math
+from pathlib import Path
+
+import pytest
+from support.shared_fake_fc import SharedFakeFc, bridge_on
+
+from bfsitl.errors import KernelUnavailableError, SitlError, SitlExitedError
+from bfsitl.fc.rc_link import RcCommand, RcFault
+from bfsitl.physics import Simulator
+from bfsitl.physics.frames import GeoPoint
+from bfsitl.physics.sensors import SensorConfig
+from bfsitl.physics.wind import Wind
+from bfsitl.protocol.firmware_profile import FirmwareProfile, profile_for
+from bfsitl.protocol.sitl_packets import FdmPacket
+from bfsitl.sim.lockstep import LockstepBridge, LockstepClock, LockstepRc
+from bfsitl.sim.shm_exchange import ShmExchange, shm_exchange_supported
+
+try:
+    from bfsitl.kernel.compiler import load_kernel
+    from bfsitl.kernel.simulator import KernelSimulator
+
+    load_kernel()
+except KernelUnavailableError as exc:  # no C compiler here
+    pytest.skip(f"the compiled kernel is not available: {exc}", allow_module_level=True)
+
+pytestmark = pytest.mark.skipif(not shm_exchange_supported(),
+                                reason="the shared-memory exchange is x86-64 Linux only")
+
+HOME = GeoPoint(47.397742, 8.545594, 488.0)
+PROFILES = {
+    "4.6.0": profile_for("1.47", "4.6.0", has_gps=True),
+    "master": profile_for("1.49", "2026.12.0-alpha", has_gps=True),
+    "4.6.0 no GPS": profile_for("1.47", "4.6.0", has_gps=False),
+}
+
+
+def hover_motors(data: bytes) -> tuple[float, float, float, float]:
+    """A stand-in controller in the FC: each slot's command depends on the packet's gyro,
+    accelerometer, altitude and time, so any difference in a datagram changes the flight."""
+    fdm = FdmPacket.unpack(data[:FdmPacket.SIZE])
+    g, a = fdm.gyro_rad_s, fdm.accel_m_s2
+    base = 0.58 + 0.04 * math.sin(7.0 * fdm.timestamp_s) - 0.002 * (a[2] + 9.80665)
+    roll, pitch, yaw = 0.03 * g[0], 0.03 * g[1], 0.01 * g[2]
+    return (min(1.0, max(0.0, base - roll + pitch + yaw)),
+            min(1.0, max(0.0, base + roll + pitch - yaw)),
+            min(1.0, max(0.0, base + roll - pitch + yaw)),
+            min(1.0, max(0.0, base - roll - pitch - yaw)))
+
+
+def fly(simulator: Simulator, tmp_path: Path, profile: FirmwareProfile, name: str
+        ) -> tuple[list[bytes], LockstepBridge, object]:
+    (tmp_path / name).mkdir()
+    region = ShmExchange(tmp_path / name)
+    fc = SharedFakeFc(region.path, motors=hover_motors)
+    try:
+        bridge = bridge_on(region, simulator, profile=profile)
+        rc, clock = LockstepRc(bridge), LockstepClock(bridge)
+        rc.set(RcCommand(throttle_us=1300, aux_us=(1800, 1000)))
+        bridge.lock()
+        clock.sleep_s(0.8)
+        rc.set(RcCommand(throttle_us=1600, roll_us=1550, aux_us=(1800, 1800)))
+        for _ in range(7):
+            bridge.step()  # one at a time, as an MSP wait steps
+        bridge.set_gps_lost(True)
+        clock.sleep_s(0.3)
+        bridge.set_gps_lost(False)
+        rc.fault = RcFault(delay_s=0.02, jitter_s=0.005)  # Python steps it, step by step
+        clock.sleep_s(0.1)
+        rc.fault = None
+        clock.sleep_s(0.4)
+        state = (simulator.state, simulator.read_sensors(), bridge.motors,
+                 bridge.lockstep_stats().steps, bridge.lockstep_stats().resends)
+        bridge.close()
+    finally:
+        fc.close()
+        region.close()
+    return fc.datagrams, bridge, state
+
+
+@pytest.mark.parametrize("generation", sorted(PROFILES))
+def test_the_compiled_loop_sends_and_flies_what_python_does(tmp_path: Path,
+                                                            generation: str) -> None:
+    def make(kind: type) -> Simulator:
+        return kind(sensors=SensorConfig.typical_mems().with_typical_gps(),
+                    wind=Wind((2.0, -1.0, 0.0), gust_std_m_s=1.0), home=HOME, seed=7)
+
+    profile = PROFILES[generation]
+    python_sent, python_bridge, python_end = fly(make(Simulator), tmp_path, profile, "p")
+    kernel_sent, kernel_bridge, kernel_end = fly(make(KernelSimulator), tmp_path, profile, "k")
+    assert not python_bridge.compiled and kernel_bridge.compiled
+    assert len(kernel_sent) == len(python_sent) > 1500
+    pairs = enumerate(zip(python_sent, kernel_sent, strict=True))
+    first_difference = next((i for i, (a, b) in pairs if a != b), None)
+    assert first_difference is None, f"datagram {first_difference} differs"
+    assert kernel_end == python_end
+
+
+def test_a_late_reply_is_handed_to_the_python_wait_and_a_dead_sitl_is_noticed(
+        tmp_path: Path) -> None:
+    region = ShmExchange(tmp_path)
+    fc = SharedFakeFc(region.path, delay_s=0.08)  # later than the loop waits
+    try:
+        simulator = KernelSimulator(seed=1)
+        bridge = bridge_on(region, simulator, spin_s=0.0)
+        bridge.lock()
+        LockstepClock(bridge).sleep_s(0.003)
+        assert bridge.compiled and bridge.lockstep_stats().steps == 4
+        assert bridge.lockstep_stats().resends == 0  # waited out, not resent
+        # The lock (Python) resends its packet every 5 ms; each step's went out once.
+        stamps = [stamp for stamp, _ in fc.received]
+        assert stamps[stamps.count(0.0):] == pytest.approx([0.001, 0.002, 0.003])
+        fc.answer = False
+
+        def dead() -> None:
+            raise SitlExitedError("the SITL exited with code 0", 0, "")
+
+        bridge.alive = dead
+        with pytest.raises(SitlExitedError):
+            bridge.step()
+        bridge.close()
+    finally:
+        fc.close()
+        region.close()
+
+
+def test_a_reply_for_another_packet_stops_the_flight(tmp_path: Path) -> None:
+    region = ShmExchange(tmp_path)
+    fc = SharedFakeFc(region.path)
+    try:
+        bridge = bridge_on(region, KernelSimulator(seed=1))
+        bridge.lock()
+        bridge.step()
+        assert bridge.compiled
+        fc.stamp_error_s = 1.0
+        with pytest.raises(SitlError, match="out of step"):
+            LockstepClock(bridge).sleep_s(0.01)
+        bridge.close()
+    finally:
+        fc.close()
+        region.close()
+

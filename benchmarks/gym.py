@@ -7,10 +7,12 @@ policy (``bfsitl.gym.baseline``) at ``--control-hz``:
   rows (warm ones, with the first, cold, one as the maximum);
 * **1 environment** in this process, each way it can use the machine: spinning on two cores
   (the default in a main process), or pinned with its SITL to one core
-  (``pin_core=True``), each through the shared-memory exchange and, for comparison, UDP;
+  (``pin_core=True``), each through the shared-memory exchange with the compiled step (the
+  default) and with the pure-Python one, and, for comparison, UDP;
 * **2 and 4 environments**: Gymnasium's ``AsyncVectorEnv`` (one worker process each, pinned
   by default) and bfsitl's own ``FlightVectorEnv`` (``gymnasium.make_vec(...,
   vectorization_mode="vector_entry_point")``: pinned workers, numbers in shared memory);
+  the default step (compiled where it builds);
   steps per wall second and simulated seconds per wall second summed over the environments,
   resets included, over ``--seconds`` of wall time;
 * **the baseline**: what a wall-clock SITL gives (gym-pybullet-drones' ``BetaAviary`` runs
@@ -39,14 +41,15 @@ import bfsitl.gym  # noqa: F401  (registers the environments)
 from bfsitl.gym.baseline import hand_policy
 from bfsitl.gym.env import DEFAULT_FIRMWARE, HoverEnv
 from bfsitl.gym.sticks import sticks_to_rc
+from bfsitl.kernel.compiler import kernel_available
 from bfsitl.mission.session import FlightSession, SessionConfig
 from bfsitl.sim.shm_exchange import shm_exchange_supported
 
 
 def single(firmware: str, control_hz: float, seconds: float, *, spin: bool, pin: bool,
-           exchange: str) -> tuple[dict[str, float], list[float]]:
+           exchange: str, kernel: str) -> tuple[dict[str, float], list[float]]:
     env = HoverEnv(firmware=firmware, control_hz=control_hz, spin=spin, pin_core=pin,
-                   lockstep_exchange=exchange)
+                   lockstep_exchange=exchange, physics_kernel=kernel)
     resets: list[float] = []
     steps, sim_s = 0, 0.0
     try:
@@ -140,14 +143,17 @@ def main() -> None:
     baseline = wall_clock_baseline(args.control_hz, min(args.seconds, 10.0))
     rows.append(("wall-clock SITL (stock, real time)", 1, baseline))
     resets: list[float] = []
-    exchanges = ("shm", "udp") if shm_exchange_supported() else ("udp",)
-    for exchange in exchanges:
+    ways = [("udp", "python")]
+    if shm_exchange_supported():
+        ways[:0] = [("shm", "compiled"), ("shm", "python")] if kernel_available() else \
+            [("shm", "python")]
+    for exchange, kernel in ways:
         for spin, pin, how in ((True, False, "spin, 2 cores"), (False, True, "pinned, 1 core")):
-            print(f"[gym bench] 1 environment, {how}, {exchange}", flush=True)
+            print(f"[gym bench] 1 environment, {how}, {exchange}, {kernel}", flush=True)
             one, resets_here = single(args.firmware, args.control_hz, args.seconds, spin=spin,
-                                      pin=pin, exchange=exchange)
+                                      pin=pin, exchange=exchange, kernel=kernel)
             resets += resets_here
-            rows.append((f"Hover-v0, {how}, {exchange}", 1, one))
+            rows.append((f"Hover-v0, {how}, {exchange}, {kernel} step", 1, one))
     for count in (2, 4):
         for own, name in ((False, "AsyncVectorEnv"), (True, "FlightVectorEnv")):
             print(f"[gym bench] {count} environments, {name}", flush=True)

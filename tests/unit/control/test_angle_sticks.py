@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import random
+
 import pytest
 
 from bfsitl.control.angle_sticks import ActualRates, AngleStickMap
@@ -57,3 +59,30 @@ def test_the_replies_decode_at_the_firmwares_offsets():
             tuning.pitch_expo, tuning.rates_type) == (7, 1, 67, 68, 69, 2, 9, 8, 3, 3)
     advanced = bytes(17) + bytes([60, 0, 0, 0, 80]) + bytes(39)  # the SITLs' first bytes
     assert msg.PidAdvanced.decode(advanced).angle_limit_deg == 60
+
+
+def bisect_share(rates: ActualRates, rate_deg_s: float) -> float:
+    """The inversion as defined: 40 halvings of share() (what deflection_for writes out)."""
+    full = rates.setpoint(1.0)
+    if full <= 0:
+        return 0.0
+    wanted = max(-1.0, min(1.0, rate_deg_s / full))
+    sign = 1.0 if wanted >= 0 else -1.0
+    low, high = 0.0, 1.0
+    for _ in range(40):
+        mid = 0.5 * (low + high)
+        if rates.share(mid) < abs(wanted):
+            low = mid
+        else:
+            high = mid
+    return sign * 0.5 * (low + high)
+
+
+@pytest.mark.parametrize("curve", [(7, 67, 0), (100, 67, 0), (1, 200, 50), (20, 80, 30),
+                                   (12, 50, 100), (0, 0, 0)])
+def test_the_written_out_inversion_gives_the_same_floats_as_halving_share(
+        curve: tuple[int, int, int]) -> None:
+    rates = ActualRates(*curve)
+    rng = random.Random(sum(curve))
+    for rate in [0.0, -0.0, 670.0, -670.0, 1e-9] + [rng.uniform(-900, 900) for _ in range(2000)]:
+        assert rates.deflection_for(rate) == bisect_share(rates, rate)

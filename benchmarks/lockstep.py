@@ -12,7 +12,8 @@ to 2 m, hold ``--hold`` s, land) is flown with the fused controller and ``--seed
 * through shared memory, once with the pure-Python step and once with the compiled kernel
   (:mod:`bfsitl.kernel`: the same flight bit for bit, steps that never enter Python).
 
-Per flight: wall time from the session's start to its end, simulated time, their ratio, the
+Per flight: wall time from the session's start to its end, simulated time, their ratio (and
+the mission's alone: ``run_mission``'s simulated time over its wall time, no start-up), the
 share of fdm packets answered, the FC clock against the simulated clock (MSP_RTC, over 2 s of
 simulated time after landing), the PID cycle in FC time, and the altitude metrics (rise,
 settling, hold RMS/max) so that the two modes can be compared.  For lockstep, the per-step
@@ -77,6 +78,7 @@ class Flight:
     physics_us: float | None = None
     python_us: float | None = None
     fc_cpu_us: float | None = None
+    mission_x: float | None = None  # the mission alone (no start-up): sim / wall
 
 
 def firmware_path(name: str, build_missing: bool) -> str:
@@ -123,7 +125,9 @@ def fly(name: str, path: str, lockstep: bool, hold_s: float, seed: int,
 def _fly(config: SessionConfig, name: str, lockstep: bool, hold_s: float, mode: str
          ) -> Flight:
     with FlightSession(config) as session:
+        began_sim_s, began_s = session.time_s, time.perf_counter()
         result = run_mission(session, MissionPlan(hold_s=hold_s), make_controller("fused"))
+        mission_x = (session.time_s - began_sim_s) / (time.perf_counter() - began_s)
         assert session.bridge is not None
         monitor = HealthMonitor(session.bridge, session.client)  # type: ignore[arg-type]
         monitor.reset()
@@ -138,6 +142,7 @@ def _fly(config: SessionConfig, name: str, lockstep: bool, hold_s: float, mode: 
             getattr(result.metrics, "settling_time_s", None),
             result.hold.rms_error_m * 100 if result.hold else None,
             result.hold.max_abs_error_m * 100 if result.hold else None)
+        flight.mission_x = mission_x
         if lockstep:
             budget = session.bridge.lockstep_stats()  # type: ignore[union-attr]
             steps = max(budget.steps, 1)
@@ -219,14 +224,15 @@ def main() -> None:
               f"{fmt(r.settle_s, '.2f')} | {fmt(r.hold_rms_cm, '.1f')} | "
               f"{fmt(r.hold_max_cm, '.1f')} |")
     print()
-    print("| firmware | mode | per step: exchange us | physics us | Python rest us | "
-          "total us | SITL CPU us |")
-    print("|---|---|---|---|---|---|---|")
+    print("| firmware | mode | mission alone: sim/wall | per step: exchange us | physics us | "
+          "Python rest us | total us | SITL CPU us |")
+    print("|---|---|---|---|---|---|---|---|")
     for r in rows:
         if r.exchange_us is None:
             continue
         total = (r.exchange_us or 0) + (r.physics_us or 0) + (r.python_us or 0)
-        print(f"| {r.firmware} | {r.mode} | {r.exchange_us:.0f} | {r.physics_us:.0f} | "
+        print(f"| {r.firmware} | {r.mode} | {fmt(r.mission_x, '.1f')}x | {r.exchange_us:.0f} | "
+              f"{r.physics_us:.0f} | "
               f"{r.python_us:.0f} | {total:.0f} | {fmt(r.fc_cpu_us, '.0f')} |")
     if args.starts:
         path = firmware_path(f"{args.generations.split(',')[0]}-lockstep", args.build)

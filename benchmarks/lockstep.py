@@ -155,6 +155,47 @@ def _fly(config: SessionConfig, name: str, lockstep: bool, hold_s: float, mode: 
     return flight
 
 
+@dataclass
+class Idle:
+    """The stepping alone: a parked vehicle, no mission, no MSP (the floor of each mode)."""
+
+    firmware: str
+    mode: str
+    wall_us: float      # per simulated millisecond
+    exchange_us: float
+    physics_us: float
+    sitl_cpu_us: float | None
+
+
+def idle(name: str, path: str, seconds: float, exchange: str, one_core: bool,
+         kernel: str) -> Idle:
+    """Step ``seconds`` of simulated time with nothing else going on: what the exchange, the
+    firmware's passes and the physics cost per step, in each mode."""
+    config = SessionConfig(firmware=path, lockstep=True, lockstep_exchange=exchange,
+                           lockstep_spin=not one_core, physics_kernel=kernel)
+    claim = claim_core() if one_core else None
+    try:
+        with FlightSession(config) as session:
+            bridge = session.bridge
+            session.clock.sleep_s(0.5)  # past the boot
+            pid = session.sitl.pid if session.sitl else None
+            before, cpu_before, began_s = bridge.lockstep_stats(), sitl_cpu_s(pid), \
+                time.perf_counter()
+            session.clock.sleep_s(seconds)
+            wall_s = time.perf_counter() - began_s
+            after, cpu_after = bridge.lockstep_stats(), sitl_cpu_s(pid)
+    finally:
+        if claim is not None:
+            claim.release()
+    steps = max(after.steps - before.steps, 1)
+    cpu = None if cpu_before is None or cpu_after is None else \
+        (cpu_after - cpu_before) / steps * 1e6
+    mode = f"{exchange}, {'1 core' if one_core else 'spin'}, {kernel} step"
+    return Idle(name, mode, wall_s / steps * 1e6,
+                (after.exchange_s - before.exchange_s) / steps * 1e6,
+                (after.physics_s - before.physics_s) / steps * 1e6, cpu)
+
+
 def spin() -> None:
     while True:
         pass
@@ -193,10 +234,14 @@ def main() -> None:
     parser.add_argument("--starts", type=int, default=0, help="lockstep starts to count")
     parser.add_argument("--busy", type=int, default=2, help="busy loops during --starts")
     parser.add_argument("--generations", default="4.6.0,master")
+    parser.add_argument("--idle", type=float, default=10.0,
+                        help="simulated seconds of stepping alone per mode (0: none)")
+    parser.add_argument("--no-flights", action="store_true",
+                        help="only the stepping alone (and --starts)")
     args = parser.parse_args()
 
     rows: list[Flight] = []
-    for generation in args.generations.split(","):
+    for generation in [] if args.no_flights else args.generations.split(","):
         stock = firmware_path(generation, args.build)
         lockstep = firmware_path(f"{generation}-lockstep", args.build)
         modes = [(stock, False, "udp", False, "python")] + [
@@ -212,28 +257,49 @@ def main() -> None:
             print(f"flew {generation} {rows[-1].mode}: {rows[-1].wall_s:.1f} s",
                   file=sys.stderr)
 
-    print("| firmware | mode | outcome | wall s | sim s | sim/wall | vs real time | answered "
-          "| FC clock / sim | PID cycle us | rise s | settle s | hold RMS cm | hold max cm |")
-    print("|" + "---|" * 14)
-    baseline = {r.firmware: r.wall_s for r in rows if r.mode.startswith("real")}
-    for r in rows:
-        speedup = baseline.get(r.firmware, r.wall_s) / r.wall_s
-        print(f"| {r.firmware} | {r.mode} | {r.outcome} | {r.wall_s:.1f} | {r.sim_s:.1f} | "
-              f"{r.sim_s / r.wall_s:.2f}x | {speedup:.2f}x | {r.answered * 100:.1f} % | "
-              f"{fmt(r.fc_clock_ratio, '.3f')} | {r.cycle_us:.0f} | {fmt(r.rise_s, '.2f')} | "
-              f"{fmt(r.settle_s, '.2f')} | {fmt(r.hold_rms_cm, '.1f')} | "
-              f"{fmt(r.hold_max_cm, '.1f')} |")
-    print()
-    print("| firmware | mode | mission alone: sim/wall | per step: exchange us | physics us | "
-          "Python rest us | total us | SITL CPU us |")
-    print("|---|---|---|---|---|---|---|---|")
-    for r in rows:
-        if r.exchange_us is None:
-            continue
-        total = (r.exchange_us or 0) + (r.physics_us or 0) + (r.python_us or 0)
-        print(f"| {r.firmware} | {r.mode} | {fmt(r.mission_x, '.1f')}x | {r.exchange_us:.0f} | "
-              f"{r.physics_us:.0f} | "
-              f"{r.python_us:.0f} | {total:.0f} | {fmt(r.fc_cpu_us, '.0f')} |")
+    if rows:
+        print("| firmware | mode | outcome | wall s | sim s | sim/wall | vs real time | answered "
+              "| FC clock / sim | PID cycle us | rise s | settle s | hold RMS cm | hold max cm |")
+        print("|" + "---|" * 14)
+        baseline = {r.firmware: r.wall_s for r in rows if r.mode.startswith("real")}
+        for r in rows:
+            speedup = baseline.get(r.firmware, r.wall_s) / r.wall_s
+            print(f"| {r.firmware} | {r.mode} | {r.outcome} | {r.wall_s:.1f} | {r.sim_s:.1f} | "
+                  f"{r.sim_s / r.wall_s:.2f}x | {speedup:.2f}x | {r.answered * 100:.1f} % | "
+                  f"{fmt(r.fc_clock_ratio, '.3f')} | {r.cycle_us:.0f} | {fmt(r.rise_s, '.2f')} | "
+                  f"{fmt(r.settle_s, '.2f')} | {fmt(r.hold_rms_cm, '.1f')} | "
+                  f"{fmt(r.hold_max_cm, '.1f')} |")
+        print()
+        print("| firmware | mode | mission alone: sim/wall | per step: exchange us | physics us | "
+              "Python rest us | total us | SITL CPU us |")
+        print("|---|---|---|---|---|---|---|---|")
+        for r in rows:
+            if r.exchange_us is None:
+                continue
+            total = (r.exchange_us or 0) + (r.physics_us or 0) + (r.python_us or 0)
+            print(f"| {r.firmware} | {r.mode} | {fmt(r.mission_x, '.1f')}x | {r.exchange_us:.0f} | "
+                  f"{r.physics_us:.0f} | "
+                  f"{r.python_us:.0f} | {total:.0f} | {fmt(r.fc_cpu_us, '.0f')} |")
+    if args.idle:
+        idles = []
+        for generation in args.generations.split(","):
+            lockstep = firmware_path(f"{generation}-lockstep", args.build)
+            for exchange, one_core, kernel in LOCKSTEP_MODES:
+                if (exchange == "shm" and not shm_exchange_supported()) or \
+                        (kernel == "compiled" and not kernel_available()):
+                    continue
+                idles.append(idle(generation, lockstep, args.idle, exchange, one_core, kernel))
+                print(f"stepped {generation} {idles[-1].mode}", file=sys.stderr)
+        print()
+        print(f"The stepping alone ({args.idle:g} s simulated, parked, no mission, no MSP), "
+              f"per simulated millisecond:")
+        print("| firmware | mode | wall us | exchange us | physics us | SITL CPU us | "
+              "at most |")
+        print("|---|---|---|---|---|---|---|")
+        for i in idles:
+            print(f"| {i.firmware} | {i.mode} | {i.wall_us:.1f} | {i.exchange_us:.1f} | "
+                  f"{i.physics_us:.1f} | {fmt(i.sitl_cpu_us, '.1f')} | "
+                  f"{1000.0 / i.wall_us:.0f}x |")
     if args.starts:
         path = firmware_path(f"{args.generations.split(',')[0]}-lockstep", args.build)
         count, failures, took_s = starts(path, args.starts, args.busy)

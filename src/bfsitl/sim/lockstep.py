@@ -354,12 +354,14 @@ class LockstepBridge:
         shared-memory exchange ready, a locked SITL, and nothing that needs Python at every
         step (a callback, a pace, an RC fault whose channels follow the clock)."""
         if not self._kernel_possible or self.on_step is not None or self.speed is not None \
-                or self.rc_fault.fault is not None or not self._locked:
+                or self.rc_fault.fault is not None or not self._locked or self._sock is None:
             return None
         kernel = self._kernel
+        if kernel is not None and kernel.exchange.closed:
+            return None  # its region is unmapped: Python's path reports what is wrong
         if kernel is None:
             exchange = self.exchange
-            if exchange is None or not exchange.ready:
+            if exchange is None or exchange.closed or not exchange.ready:
                 return None
             from bfsitl.kernel.lockstep_stepper import KernelStepper
 
@@ -398,6 +400,9 @@ class LockstepBridge:
 
     def _send(self, datagram: bytes, stamp_s: float) -> None:
         exchange = self.exchange
+        if exchange is not None and exchange.closed:
+            raise SitlError("the lockstep exchange's shared region is closed: the session "
+                            "that made it has ended")
         if exchange is not None and exchange.ready:
             seq = exchange.send(datagram)
             if not self._seq or stamp_s != self._seq_stamp_s:

@@ -112,6 +112,7 @@ class ShmExchange:
         self._reply_offset = 0
         self._seq = 0
         self._ready = False
+        self.closed = False
 
     @property
     def env(self) -> dict[str, str]:
@@ -204,6 +205,7 @@ class ShmExchange:
 
     def close(self) -> None:
         """Unmap and remove the region (the FC's mapping, if it still runs, stays valid)."""
+        self.closed = True  # the compiled loop holds the mapping's address: never again
         try:
             self._words.release()
             self._map.close()

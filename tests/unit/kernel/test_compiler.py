@@ -48,3 +48,19 @@ def test_a_build_is_cached_under_its_hash_and_loads(monkeypatch: pytest.MonkeyPa
 def test_the_sources_are_shipped_beside_the_loader() -> None:
     names = {p.name for p in compiler.kernel_sources()}
     assert {"physics.c", "physics.h", "lockstep_loop.c"} <= names
+
+
+def test_doctor_says_whether_lockstep_runs_get_the_compiled_step(
+        monkeypatch: pytest.MonkeyPatch) -> None:
+    from bfsitl.cli.doctor import compiled_step_check
+
+    def no_compiler() -> None:
+        raise KernelUnavailableError("no C compiler for the compiled kernel (looked for $CC)")
+
+    monkeypatch.setattr(compiler, "load_kernel", no_compiler)
+    finding = compiled_step_check()
+    assert finding.status == "WARN" and "no C compiler" in finding.detail
+    assert "the same in Python" in finding.detail
+    monkeypatch.setattr(compiler, "load_kernel", lambda: None)
+    finding = compiled_step_check()
+    assert finding.status == "ok" and "kernel" in finding.detail

@@ -146,3 +146,20 @@ def test_a_reply_for_another_packet_stops_the_flight(tmp_path: Path) -> None:
         fc.close()
         region.close()
 
+
+
+def test_a_closed_region_is_an_error_not_a_crash(tmp_path: Path) -> None:
+    region = ShmExchange(tmp_path)
+    fc = SharedFakeFc(region.path)
+    try:
+        bridge = bridge_on(region, KernelSimulator(seed=1))
+        bridge.lock()
+        bridge.step()
+        assert bridge.compiled
+    finally:
+        fc.close()
+        region.close()
+    # The compiled loop holds the mapping's address: it must not step through it any more.
+    with pytest.raises(SitlError, match="shared region is closed"):
+        LockstepClock(bridge).sleep_s(0.01)
+    bridge.close()

@@ -16,7 +16,6 @@ carries on those generators' sequences (CPython's Mersenne Twister and ``gauss``
 from __future__ import annotations
 
 import ctypes
-import math
 import random
 import struct
 from functools import lru_cache
@@ -26,11 +25,10 @@ from bfsitl.kernel.compiler import load_kernel
 from bfsitl.physics.atmosphere import isa_pressure_pa
 from bfsitl.physics.frames import GeoPoint
 from bfsitl.physics.multirotor import (
-    MAX_STEP_S,
     Simulator,
     VehicleState,
-    _check_motors,
     _rotate_inverse,
+    check_step_input,
 )
 from bfsitl.physics.params import IRIS, Motors, QuadParams, Quat, SimInputError, Vec3
 from bfsitl.physics.sensors import SensorConfig, SensorModel, SensorReading
@@ -378,17 +376,7 @@ class KernelSimulator:
 
     def _step_checked(self, motors: Any, dt_s: Any) -> None:
         """The reference's checks (its errors, word for word), then the step as floats."""
-        try:
-            u1, u2, u3, u4 = motors
-            finite = math.isfinite(u1 + u2 + u3 + u4)
-        except (TypeError, ValueError):
-            raise SimInputError(
-                f"step: motors must be 4 numbers (Betaflight M1..M4), got {motors!r}"
-            ) from None
-        if not finite:
-            _check_motors((u1, u2, u3, u4))
-        if not 0.0 < dt_s <= MAX_STEP_S:
-            raise SimInputError(f"step: dt_s must be in (0, {MAX_STEP_S}] s, got {dt_s!r}")
+        u1, u2, u3, u4 = check_step_input(motors, dt_s)
         if self._step(self._ptr, float(u1), float(u2), float(u3), float(u4), float(dt_s)):
             raise SimInputError(f"step: the compiled kernel refused motors {motors!r} and "
                                 f"dt_s {dt_s!r}")

@@ -308,17 +308,7 @@ class Simulator(GroundContact):
 
     def step(self, motors: Motors, dt_s: float) -> None:
         """Advance ``dt_s`` seconds with the motor commands held (zero-order hold, as Gazebo)."""
-        try:
-            u1, u2, u3, u4 = motors
-            finite = math.isfinite(u1 + u2 + u3 + u4)
-        except (TypeError, ValueError):
-            raise SimInputError(
-                f"step: motors must be 4 numbers (Betaflight M1..M4), got {motors!r}"
-            ) from None
-        if not finite:
-            _check_motors((u1, u2, u3, u4))
-        if not 0.0 < dt_s <= MAX_STEP_S:
-            raise SimInputError(f"step: dt_s must be in (0, {MAX_STEP_S}] s, got {dt_s!r}")
+        u1, u2, u3, u4 = check_step_input(motors, dt_s)
         if dt_s != self._dt:
             self._set_step(dt_s)
         self._update_motors((u1, u2, u3, u4), dt_s)
@@ -576,6 +566,23 @@ def _vec3(values: object, name: str) -> Vec3:
 def _vec4(values: object, name: str) -> Quat:
     w, x, y, z = _vector(values, 4, name)
     return (w, x, y, z)
+
+
+def check_step_input(motors: Motors, dt_s: float) -> Motors:
+    """The four commands of a step, or the SimInputError that names what is wrong with the
+    step's input (the reference's checks; the compiled kernel's face raises the same)."""
+    try:
+        u1, u2, u3, u4 = motors
+        finite = math.isfinite(u1 + u2 + u3 + u4)
+    except (TypeError, ValueError):
+        raise SimInputError(
+            f"step: motors must be 4 numbers (Betaflight M1..M4), got {motors!r}"
+        ) from None
+    if not finite:
+        _check_motors((u1, u2, u3, u4))
+    if not 0.0 < dt_s <= MAX_STEP_S:
+        raise SimInputError(f"step: dt_s must be in (0, {MAX_STEP_S}] s, got {dt_s!r}")
+    return (u1, u2, u3, u4)
 
 
 def _check_motors(motors: Motors) -> None:

@@ -6,7 +6,10 @@ another packet refused; RC changes, the GPS-loss sentinel and RC faults in betwe
 from __future__ import annotations
 
 import math
+from collections.abc import Iterator
+from contextlib import contextmanager
 from pathlib import Path
+from typing import Any
 
 import pytest
 from support.shared_fake_fc import SharedFakeFc, bridge_on
@@ -102,16 +105,29 @@ def test_the_compiled_loop_sends_and_flies_what_python_does(tmp_path: Path,
     assert kernel_end == python_end
 
 
+@contextmanager
+def compiled_bridge(tmp_path: Path, **fc_options: Any) -> Iterator[
+        tuple[LockstepBridge, SharedFakeFc, ShmExchange]]:
+    """A compiled simulator's bridge on a region a stand-in FC answers, locked and stepped
+    once (so the compiled loop has taken over); the FC and the region are closed after."""
+    region = ShmExchange(tmp_path)
+    fc = SharedFakeFc(region.path, **fc_options)
+    try:
+        bridge = bridge_on(region, KernelSimulator(seed=1), spin_s=0.0)
+        bridge.lock()
+        bridge.step()
+        assert bridge.compiled
+        yield bridge, fc, region
+    finally:
+        fc.close()
+        region.close()
+
+
 def test_a_late_reply_is_handed_to_the_python_wait_and_a_dead_sitl_is_noticed(
         tmp_path: Path) -> None:
-    region = ShmExchange(tmp_path)
-    fc = SharedFakeFc(region.path, delay_s=0.08)  # later than the loop waits
-    try:
-        simulator = KernelSimulator(seed=1)
-        bridge = bridge_on(region, simulator, spin_s=0.0)
-        bridge.lock()
-        LockstepClock(bridge).sleep_s(0.003)
-        assert bridge.compiled and bridge.lockstep_stats().steps == 4
+    with compiled_bridge(tmp_path, delay_s=0.08) as (bridge, fc, _region):  # later than the
+        LockstepClock(bridge).sleep_s(0.002)                             # loop waits
+        assert bridge.lockstep_stats().steps == 4
         assert bridge.lockstep_stats().resends == 0  # waited out, not resent
         # The lock (Python) resends its packet every 5 ms; each step's went out once.
         stamps = [stamp for stamp, _ in fc.received]
@@ -125,40 +141,19 @@ def test_a_late_reply_is_handed_to_the_python_wait_and_a_dead_sitl_is_noticed(
         with pytest.raises(SitlExitedError):
             bridge.step()
         bridge.close()
-    finally:
-        fc.close()
-        region.close()
 
 
 def test_a_reply_for_another_packet_stops_the_flight(tmp_path: Path) -> None:
-    region = ShmExchange(tmp_path)
-    fc = SharedFakeFc(region.path)
-    try:
-        bridge = bridge_on(region, KernelSimulator(seed=1))
-        bridge.lock()
-        bridge.step()
-        assert bridge.compiled
+    with compiled_bridge(tmp_path) as (bridge, fc, _region):
         fc.stamp_error_s = 1.0
         with pytest.raises(SitlError, match="out of step"):
             LockstepClock(bridge).sleep_s(0.01)
         bridge.close()
-    finally:
-        fc.close()
-        region.close()
-
 
 
 def test_a_closed_region_is_an_error_not_a_crash(tmp_path: Path) -> None:
-    region = ShmExchange(tmp_path)
-    fc = SharedFakeFc(region.path)
-    try:
-        bridge = bridge_on(region, KernelSimulator(seed=1))
-        bridge.lock()
-        bridge.step()
-        assert bridge.compiled
-    finally:
-        fc.close()
-        region.close()
+    with compiled_bridge(tmp_path) as (bridge, _fc, _region):
+        pass
     # The compiled loop holds the mapping's address: it must not step through it any more.
     with pytest.raises(SitlError, match="shared region is closed"):
         LockstepClock(bridge).sleep_s(0.01)

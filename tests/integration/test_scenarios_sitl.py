@@ -8,10 +8,14 @@ each run's blackbox.  Speed is ``benchmarks/scenarios.py``'s business.
 
 from __future__ import annotations
 
+import json
 import os
 import subprocess
 import sys
+import time
+from dataclasses import dataclass
 from pathlib import Path
+from typing import Any
 
 import pytest
 from firmware_builds import master_source_given
@@ -20,6 +24,7 @@ from mcap.reader import make_reader
 
 from bfsitl.autopilot import Autopilot
 from bfsitl.build import FirmwareCache
+from bfsitl.cli.doctor import stale_sitl_processes
 from bfsitl.fc.rc_link import RcFault
 from bfsitl.library import scenarios_dir
 from bfsitl.mission.session import FLY_PROFILE, FlightSession, SessionConfig, with_fast_serial
@@ -189,48 +194,89 @@ def test_faults_reach_the_fc_where_they_should(
         vehicle.rc.fault = None
 
 
+@dataclass
+class ThreeNodes:
+    """A Ray cluster of a head with no CPUs and two worker nodes of one CPU each, every
+    worker node with its own (empty) bfsitl cache and temporary directory."""
+
+    cluster: Any
+    workers: list[Any]
+    caches: list[Path]
+    temps: list[Path]
+
+    @property
+    def address(self) -> str:
+        return str(self.cluster.address)
+
+
 @pytest.fixture
-def ray_cluster(tmp_path: Path):  # type: ignore[no-untyped-def]
-    """A local Ray head (2 CPUs, a small object store) for one test; stopped afterwards."""
+def three_nodes(tmp_path: Path):  # type: ignore[no-untyped-def]
     pytest.importorskip("ray")
-    ray_cli = [sys.executable, "-m", "ray.scripts.scripts"]
-    started = subprocess.run(
-        [*ray_cli, "start", "--head", "--port=0", "--num-cpus=2", "--include-dashboard=false",
-         "--disable-usage-stats", "--object-store-memory=100000000"],
-        capture_output=True, text=True, timeout=120, cwd=tmp_path)
-    output = started.stdout + started.stderr
-    assert started.returncode == 0, output
-    address = next(line.split("--address=")[1].strip().strip("'\"")
-                   for line in output.splitlines() if "--address=" in line)
+    from ray.cluster_utils import Cluster
+
+    cluster = Cluster(initialize_head=True, head_node_args={
+        "num_cpus": 0, "include_dashboard": False, "object_store_memory": 100_000_000})
     try:
-        yield address
+        caches, temps, workers = [], [], []
+        for index in range(2):
+            cache, temp = tmp_path / f"node{index}-cache", tmp_path / f"node{index}-tmp"
+            temp.mkdir()
+            caches.append(cache)
+            temps.append(temp)
+            workers.append(cluster.add_node(
+                num_cpus=1, object_store_memory=100_000_000,
+                env_vars={"BFSITL_CACHE_DIR": str(cache), "TMPDIR": str(temp)}))
+        cluster.wait_for_nodes()
+        yield ThreeNodes(cluster, workers, caches, temps)
     finally:
-        subprocess.run([*ray_cli, "stop", "--force"], capture_output=True, timeout=120)
+        cluster.shutdown()
+
+
+def sitl_pids() -> set[int]:
+    return {pid for pid, _name in stale_sitl_processes()}
 
 
 @pytest.mark.timeout(600)
-def test_runs_go_to_a_local_ray_cluster_and_come_back_as_one_junit_file(
-        request: pytest.FixtureRequest, firmware_build_cache: FirmwareCache, ray_cluster: str,
-        tmp_path: Path) -> None:
+def test_runs_on_a_three_node_cluster_bring_their_firmware_and_their_files_home(
+        request: pytest.FixtureRequest, firmware_build_cache: FirmwareCache,
+        three_nodes: ThreeNodes, tmp_path: Path) -> None:
     builds = available_builds(request)
-    junit = tmp_path / "ray.xml"
+    junit, report, out = tmp_path / "ray.xml", tmp_path / "report", tmp_path / "runs"
     run = subprocess.run(
         [sys.executable, "-m", "bfsitl.cli.main", "scenario", "run",
          str(LIBRARY / "rc-loss-hover-drop.toml"), str(WRONG), *firmware_args(builds),
-         "--ray", ray_cluster, "--junit", str(junit),
-         "--out", str(tmp_path / "runs"), "--mcap"],
+         "--ray", three_nodes.address, "--junit", str(junit), "--report", str(report),
+         "--out", str(out), "--mcap"],
         capture_output=True, text=True, timeout=500, cwd=tmp_path,
         env=env_for(firmware_build_cache))
     assert run.returncode == 1, run.stdout + run.stderr[-3000:]  # the wrong one fails
     assert f"{2 * len(builds)} runs on the Ray cluster" in run.stderr
+    assert "travels as" in run.stderr
+    # The build travelled: the workers had no cache, and kept what they received by hash.
+    received = [p for cache in three_nodes.caches for p in cache.glob("received/*/*_SITL*")]
+    assert received and all(p.stat().st_mode & 0o111 for p in received)
     xml = JUnitXml.fromfile(str(junit))
     cases = {(suite.name, case.name): case for suite in xml for case in suite}
     assert len(cases) == 2 * len(builds)
     for (suite, name), case in cases.items():
         failed = any(isinstance(r, Failure) for r in case.result)
         assert failed == (name == "wrong-expectation"), (suite, name)
+    # The files came home: every run's artefacts under the driver's --out, and the summary
+    # names them there.
+    for build in builds:
+        for scenario in ("rc-loss-hover-drop", "wrong-expectation"):
+            run_dir = out / build / scenario
+            summary = json.loads((run_dir / "result.json").read_text())
+            assert summary["firmware"] == build and summary["retried"] == []
+            for kind, path in summary["artifacts"].items():
+                assert Path(path).is_file() and Path(path).is_relative_to(run_dir), kind
+            assert {"log", "sitl_log"} <= set(summary["artifacts"])
+    html = (report / "index.html").read_text()
+    assert 'class="missing"' not in html  # every link in the report has its file
+    # Nothing stays behind on the nodes: their run directories are gone.
+    assert not [p for temp in three_nodes.temps for p in temp.glob("bfsitl-ray-run-*")]
     # --mcap: each run's flight as MCAP too, one message per CSV row, the events with it.
-    run_dir = tmp_path / "runs" / builds[0] / "rc-loss-hover-drop"
+    run_dir = out / builds[0] / "rc-loss-hover-drop"
     with (run_dir / "flight.csv").open() as file:
         rows = len(file.readlines()) - 1
     with (run_dir / "flight.mcap").open("rb") as file:
@@ -240,3 +286,49 @@ def test_runs_go_to_a_local_ray_cluster_and_come_back_as_one_junit_file(
               for c in summary.channels.values()}
     assert counts["/flight/altitude"] == rows > 100
     assert counts["/events"] >= 4  # armed, RC lost, the FC disarmed, its failsafe phase
+
+
+@pytest.mark.timeout(600)
+def test_a_node_lost_mid_suite_loses_no_run_and_leaves_no_sitl(
+        request: pytest.FixtureRequest, firmware_build_cache: FirmwareCache,
+        three_nodes: ThreeNodes, tmp_path: Path) -> None:
+    builds = available_builds(request)[:1]
+    before = sitl_pids()
+    junit, out = tmp_path / "lost.xml", tmp_path / "runs"
+    names = ("rc-loss-hover-drop", "failsafe-switch", "motor-weak", "rc-loss-forward-drop")
+    driver = subprocess.Popen(
+        [sys.executable, "-m", "bfsitl.cli.main", "scenario", "run",
+         *(str(LIBRARY / f"{name}.toml") for name in names), *firmware_args(builds),
+         "--ray", three_nodes.address, "--junit", str(junit), "--out", str(out), "--no-plot"],
+        stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, cwd=tmp_path,
+        env=env_for(firmware_build_cache))
+    try:
+        # Once worker 0 is flying a run (its run directory exists), the node goes: raylet,
+        # workers and all, as a machine that is switched off.
+        deadline = time.monotonic() + 120
+        while not list(three_nodes.temps[0].glob("bfsitl-ray-run-*")):
+            assert driver.poll() is None and time.monotonic() < deadline, "no run started"
+            time.sleep(0.05)
+        three_nodes.cluster.remove_node(three_nodes.workers[0], allow_graceful=False)
+        stdout, stderr = driver.communicate(timeout=480)
+    finally:
+        if driver.poll() is None:
+            driver.kill()
+    assert driver.returncode == 0, stdout + stderr[-3000:]
+    assert "trying again" in stderr
+    xml = JUnitXml.fromfile(str(junit))
+    cases = [case for suite in xml for case in suite]
+    # Every planned run exactly once, none lost, none failed; the lost one says so.
+    assert sorted(case.name for case in cases) == sorted(names)
+    assert not any(case.result for case in cases)
+    retried = [case for case in cases if "retried: attempt 1 was lost" in
+               (case.system_out or "")]
+    assert retried
+    for case in retried:
+        summary = json.loads((out / builds[0] / case.name / "result.json").read_text())
+        assert summary["retried"] and "lost" in summary["retried"][0]
+    # The lost node's SITL went with it (its namespace agent saw its owner die).
+    deadline = time.monotonic() + 10
+    while sitl_pids() - before and time.monotonic() < deadline:
+        time.sleep(0.2)
+    assert not sitl_pids() - before

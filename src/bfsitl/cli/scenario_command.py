@@ -7,7 +7,7 @@ import sys
 import time
 from pathlib import Path
 
-from bfsitl.cli.arg_types import whole_number_at_least
+from bfsitl.cli.arg_types import number_in, whole_number_at_least
 from bfsitl.cli.fly_command import parse_speed
 from bfsitl.cli.target import progress
 
@@ -51,7 +51,15 @@ def add_scenario_parser(sub: argparse._SubParsersAction) -> None:  # type: ignor
     run.add_argument("--ray", metavar="ADDRESS", dest="ray_address",
                      help="run on a Ray cluster instead (e.g. 127.0.0.1:6379 from `ray start "
                           "--head`; 'auto' finds a local one): one task per run, one CPU "
-                          "each; needs the ray extra")
+                          "each; the firmware travels to the nodes and each run's files come "
+                          "back to --out; needs the ray extra")
+    run.add_argument("--ray-retries", type=whole_number_at_least(0), default=2, metavar="N",
+                     help="submit a run again at most N times when its Ray worker or node is "
+                          "lost (default 2; a run that fails on its own is never retried)")
+    run.add_argument("--ray-max-mb", type=number_in(0.1, None, "MB"), default=256.0,
+                     metavar="MB",
+                     help="the most a run's files may bring home from a Ray node, compressed "
+                          "(default 256)")
     run.add_argument("--junit", type=Path, metavar="FILE",
                      help="write the results as JUnit XML (one suite per firmware)")
     run.add_argument("--report", type=Path, metavar="DIR",
@@ -109,7 +117,8 @@ def cmd_scenario_run(args: argparse.Namespace) -> int:
 
     suite = run_suite(runs, jobs=args.jobs, speed=args.speed, plot=not args.no_plot,
                       progress=progress if args.jobs == 1 or args.ray_address else None,
-                      on_result=finished, ray_address=args.ray_address, mcap=args.mcap)
+                      on_result=finished, ray_address=args.ray_address, mcap=args.mcap,
+                      ray_retries=args.ray_retries, ray_max_mb=args.ray_max_mb)
     results, interrupted = suite.results, suite.interrupted
     wall_s = time.monotonic() - started
     _write_outputs(args, results)

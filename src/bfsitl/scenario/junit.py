@@ -56,7 +56,8 @@ def _classname(firmware: str) -> str:
 def _detail_text(result: ScenarioResult) -> str:
     """Every check (PASS/FAIL and its message), then the timeline: what a person reading a
     failure needs to see why, without opening the run's files."""
-    lines = [f"{'PASS' if c.passed else 'FAIL'} {c.message}" for c in result.checks]
+    lines = [f"retried: attempt {n} was lost: {why}" for n, why in enumerate(result.retried, 1)]
+    lines += [f"{'PASS' if c.passed else 'FAIL'} {c.message}" for c in result.checks]
     if result.events:
         if lines:
             lines.append("")

@@ -83,13 +83,21 @@ def _table(results: Sequence[ScenarioResult], directory: Path) -> str:
     rows = [
         f'<tr><td><a href="#run-{index}">{escape(result.name)}</a></td>'
         f"<td>{escape(result.firmware)}</td><td>{_verdict(result.verdict)}</td>"
-        f"<td>{escape(result.reason)}</td><td class=\"num\">{result.sim_time_s:.1f}</td>"
+        f"<td>{escape(_reason(result))}</td><td class=\"num\">{result.sim_time_s:.1f}</td>"
         f"<td class=\"num\">{result.wall_time_s:.1f}</td><td>{_links(result, directory)}</td>"
         "</tr>"
         for index, result in enumerate(results)]
     return ("<table><tr><th>scenario</th><th>firmware</th><th>verdict</th><th>reason</th>"
             '<th class="num">sim s</th><th class="num">wall s</th><th>files</th></tr>'
             + "".join(rows) + "</table>")
+
+
+def _reason(result: ScenarioResult) -> str:
+    """The run's reason, and how often it had to be run (a Ray node or worker lost)."""
+    if not result.retried:
+        return result.reason
+    return (f"{result.reason} (run {len(result.retried) + 1} times: "
+            f"{'; '.join(result.retried)})")
 
 
 def _check_row(check: CheckResult) -> str:

@@ -73,6 +73,9 @@ class ScenarioResult:
     #: Files the run wrote, by kind: "log" (CSV), "plot" (PNG), "blackbox" (the FC's own
     #: log), "sitl_log" (the firmware's stdout), "summary" (JSON).
     artifacts: dict[str, Path] = field(default_factory=dict)
+    #: Why earlier attempts of this run were lost (a Ray worker or node gone), oldest first;
+    #: empty when it ran once.
+    retried: tuple[str, ...] = ()
 
     @property
     def passed(self) -> bool:

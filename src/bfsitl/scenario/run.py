@@ -230,7 +230,7 @@ def run_scenario(scenario: Scenario, firmware: str, options: RunOptions, *,
         result.verdict, result.reason = Verdict.ERROR, str(exc).splitlines()[0]
     finally:
         result.wall_time_s = round(time.monotonic() - started, 3)
-        _write_summary(result, out)
+        write_summary(result, out)
     return result
 
 
@@ -360,7 +360,9 @@ def _collect_blackbox(out: Path, trace: Trace, result: ScenarioResult) -> None:
             result.events.append(TimedEvent(trace.end_s, f"blackbox {path.name}: {exc}"))
 
 
-def _write_summary(result: ScenarioResult, out: Path) -> None:
+def write_summary(result: ScenarioResult, out: Path) -> None:
+    """The run's result.json in ``out`` (also rewritten on a Ray driver once the files are
+    home: the names and paths there are the driver's)."""
     if not out.is_dir():
         return
     data = {
@@ -372,6 +374,7 @@ def _write_summary(result: ScenarioResult, out: Path) -> None:
                     "measured": c.measured, "at_time_s": c.at_time_s} for c in result.checks],
         "events": [{"time_s": e.time_s, "text": e.text} for e in result.events],
         "artifacts": {k: str(v) for k, v in result.artifacts.items()},
+        "retried": list(result.retried),
     }
     path = out / "result.json"
     write_atomically(path, (json.dumps(data, indent=2) + "\n").encode("utf-8"))

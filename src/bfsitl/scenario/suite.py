@@ -7,7 +7,8 @@ Results come back as :class:`~bfsitl.scenario.result.ScenarioResult` in the orde
 were planned, whatever order they finished in.
 
 ``ray_address`` hands the same runs to a Ray cluster instead (``bfsitl scenario run --ray
-ADDRESS``): one task per run, one CPU each, results gathered the same way.
+ADDRESS``): one task per run, one CPU each, results gathered the same way; the firmware
+travels to the nodes and the files come home (:mod:`bfsitl.scenario.ray_runs`).
 
 Ctrl-C stops everything: the workers' sessions close (disarm, stop the SITL), and the runs
 that finished are still returned (:class:`SuiteResult` says it was interrupted), so the JUnit
@@ -17,20 +18,17 @@ file and the report keep them.
 from __future__ import annotations
 
 import multiprocessing
-import os
 import re
 from collections.abc import Callable, Sequence
 from concurrent.futures import FIRST_COMPLETED, Future, ProcessPoolExecutor, wait
 from dataclasses import dataclass
 from pathlib import Path
 
-from bfsitl.build.cache import CACHE_ENV_VAR
 from bfsitl.errors import BfsitlError, ScenarioError
 from bfsitl.scenario.result import ScenarioResult, Verdict
 from bfsitl.scenario.run import RunOptions, run_scenario
 from bfsitl.scenario.spec import Scenario
 from bfsitl.sitl.core_claim import claim_core
-from bfsitl.sitl.firmware import ENV_VAR as FIRMWARE_ENV_VAR
 from bfsitl.sitl.firmware import find_firmware
 
 Progress = Callable[[str], None]
@@ -109,18 +107,23 @@ def _is_lockstep(firmware: str) -> bool:
 
 def _run_one(run: PlannedRun, speed: float | None, plot: bool, mcap: bool
              ) -> ScenarioResult:
+    return fly_one(run.scenario, run.firmware, run.out_dir, speed, plot, mcap)
+
+
+def fly_one(scenario: Scenario, firmware: str, out_dir: Path, speed: float | None, plot: bool,
+            mcap: bool) -> ScenarioResult:
     """A worker's job: the run's progress goes to a file in its directory (several runs'
     lines interleaved on one terminal would be unreadable).  Workers share the machine's
     cores, so a lockstep run does not busy-wait (SessionConfig.lockstep_spin); it claims a
     core for itself and its SITL instead (bfsitl.sitl.core_claim), so that runs side by side
     neither take each other's time nor wake each other's cores."""
-    run.out_dir.mkdir(parents=True, exist_ok=True)
+    out_dir.mkdir(parents=True, exist_ok=True)
     # Only a lockstep run is one core's work; a stock SITL runs on the wall clock beside us.
-    claim = claim_core() if _is_lockstep(run.firmware) else None
+    claim = claim_core() if _is_lockstep(firmware) else None
     try:
-        with open(run.out_dir / "progress.log", "w", buffering=1) as log:
-            return run_scenario(run.scenario, run.firmware,
-                                RunOptions(run.out_dir, speed=speed, plot=plot, mcap=mcap,
+        with open(out_dir / "progress.log", "w", buffering=1) as log:
+            return run_scenario(scenario, firmware,
+                                RunOptions(out_dir, speed=speed, plot=plot, mcap=mcap,
                                            shares_cores=True),
                                 progress=lambda line: print(line, file=log))
     finally:
@@ -131,7 +134,8 @@ def _run_one(run: PlannedRun, speed: float | None, plot: bool, mcap: bool
 def run_suite(runs: Sequence[PlannedRun], *, jobs: int = 1, speed: float | None = None,
               plot: bool = True, progress: Progress | None = None,
               on_result: OnResult | None = None, ray_address: str | None = None,
-              mcap: bool = False) -> SuiteResult:
+              mcap: bool = False, ray_retries: int = 2, ray_max_mb: float = 256.0
+              ) -> SuiteResult:
     """Every planned run, ``jobs`` at a time; results in plan order.  With ``jobs = 1`` the
     runs happen in this process and their events go to ``progress`` as they happen; with a
     ``ray_address`` they are Ray tasks on that cluster (one CPU each).  Ctrl-C ends it with
@@ -143,7 +147,10 @@ def run_suite(runs: Sequence[PlannedRun], *, jobs: int = 1, speed: float | None 
     results: dict[int, ScenarioResult] = {}
     try:
         if ray_address is not None:
-            _run_on_ray(runs, ray_address, speed, plot, mcap, results, done, say)
+            from bfsitl.scenario.ray_runs import run_on_ray
+
+            run_on_ray(runs, ray_address, speed=speed, plot=plot, mcap=mcap, results=results,
+                       done=done, say=say, max_artifact_mb=ray_max_mb, retries=ray_retries)
         elif jobs == 1:
             for index, run in enumerate(runs):
                 say(f"{run.test_id}: starting")
@@ -192,55 +199,6 @@ def _run_parallel(runs: Sequence[PlannedRun], jobs: int, speed: float | None, pl
                                             source=run.scenario.source)
                 results[index] = result
                 done(result)
-
-
-def _run_on_ray(runs: Sequence[PlannedRun], address: str, speed: float | None, plot: bool,
-                mcap: bool, results: dict[int, ScenarioResult], done: OnResult,
-                say: Progress) -> None:
-    """The same runs as Ray tasks.  Each task flies one run on whichever node Ray picks, in
-    that node's namespaces, with the firmware builds where this process finds them (the
-    cache path must hold them on every node); its files land under ``out_dir`` on that node
-    (one machine, or a shared filesystem, keeps them together)."""
-    try:
-        import ray
-    except ImportError as exc:
-        raise ScenarioError("--ray needs Ray: pip install 'bfsitl[ray]'") from exc
-    # The tasks find firmware builds as this process does: its cache and firmware settings
-    # go with them (a Ray worker has the environment of the node's raylet, not ours).
-    env_vars = {name: os.environ[name] for name in (CACHE_ENV_VAR, FIRMWARE_ENV_VAR,
-                                                   "XDG_CACHE_HOME") if name in os.environ}
-    try:
-        ray.init(address=address, log_to_driver=False, ignore_reinit_error=True,
-                 runtime_env={"env_vars": env_vars})
-    except (ConnectionError, RuntimeError, ValueError) as exc:
-        raise ScenarioError(f"cannot reach the Ray cluster at {address}: {exc} (start one "
-                            f"with `ray start --head`, then pass the address it prints)") \
-            from exc
-    remote = ray.remote(num_cpus=1, max_retries=0)(_run_one)
-    refs = {remote.remote(run, speed, plot, mcap): index for index, run in enumerate(runs)}
-    say(f"{len(runs)} runs on the Ray cluster at {address} "
-        f"({ray.cluster_resources().get('CPU', 0):g} CPUs)")
-    pending = list(refs)
-    try:
-        while pending:
-            ready, pending = ray.wait(pending, num_returns=1)
-            for ref in ready:
-                index = refs[ref]
-                try:
-                    result = ray.get(ref)
-                except Exception as exc:  # noqa: BLE001 - a task died: the run errs
-                    run = runs[index]
-                    result = ScenarioResult(run.scenario.name, run.firmware, Verdict.ERROR,
-                                            f"the Ray task failed: {exc!r}"[:500],
-                                            source=run.scenario.source)
-                results[index] = result
-                done(result)
-    except KeyboardInterrupt:
-        for ref in pending:
-            ray.cancel(ref, force=True)  # the namespace agent stops each task's SITL
-        raise
-    finally:
-        ray.shutdown()
 
 
 def _interrupted(run: PlannedRun) -> ScenarioResult:

@@ -9,14 +9,21 @@ the simulated time (1.0x), before any boot or set-up is counted.  The speed-up c
 against that.  What limits it: with lockstep, each run keeps one core busy (the firmware's
 passes and the Python physics and MSP in turn); two cores run two at a time.
 
+With Ray, also a few runs one at a time through the cluster: what Ray adds to each (from the
+driver's submit to the run's files home, against the run's own time: scheduling, the build's
+fetch on a node's first run, packing and unpacking the files), so that a suite's time on N
+machines can be planned on paper.
+
 Run: ``python benchmarks/scenarios.py [--firmware master-lockstep --firmware
-4.6.0-gps-lockstep] [--no-ray] [PATHS...]`` (default: the library in ``scenarios/``).
+4.6.0-gps-lockstep] [--no-ray | --only-ray] [PATHS...]`` (default: the library in
+``scenarios/``).
 """
 
 from __future__ import annotations
 
 import argparse
 import os
+import statistics
 import subprocess
 import sys
 import tempfile
@@ -25,6 +32,7 @@ from pathlib import Path
 
 from bfsitl.library import scenarios_dir
 from bfsitl.scenario.load import find_scenarios
+from bfsitl.scenario.ray_runs import RayTiming, run_on_ray
 from bfsitl.scenario.result import Verdict
 from bfsitl.scenario.suite import plan_runs, run_suite
 from bfsitl.sitl.core_claim import PIN_ENV
@@ -42,6 +50,18 @@ def measure(label: str, runs_dir: Path, paths: list[str], firmwares: list[str], 
     verdicts = {v.value: sum(1 for r in results if r.verdict is v) for v in Verdict}
     return {"label": label, "runs": len(results), "simulated_s": simulated_s,
             "wall_s": wall_s, "verdicts": verdicts}
+
+
+def ray_overhead(runs_dir: Path, paths: list[str], firmwares: list[str], address: str,
+                 count: int) -> list[RayTiming]:
+    """``count`` runs through Ray one at a time (no queueing): what Ray adds to each run, from
+    the driver's submit to its files home, against the run's own time."""
+    runs = plan_runs(find_scenarios(paths), firmwares, runs_dir)[:count]
+    timings: list[RayTiming] = []
+    for run in runs:
+        run_on_ray([run], address, speed=None, plot=True, mcap=False, results={},
+                   done=lambda _result: None, say=lambda _line: None, timings=timings)
+    return timings
 
 
 def start_ray(num_cpus: int) -> str:
@@ -67,25 +87,30 @@ def main() -> None:
     parser.add_argument("paths", nargs="*", default=[str(scenarios_dir())])
     parser.add_argument("--firmware", action="append", default=[])
     parser.add_argument("--no-ray", action="store_true")
+    parser.add_argument("--only-ray", action="store_true",
+                        help="only the Ray rows (the cluster and its cost per run)")
     args = parser.parse_args()
     firmwares = args.firmware or DEFAULT_BUILDS
     rows = []
     with tempfile.TemporaryDirectory(prefix="bfsitl-bench-scenarios-") as tmp:
         root = Path(tmp)
-        rows.append(measure("--jobs 1", root / "j1", args.paths, firmwares))
-        rows.append(measure("--jobs 2", root / "j2", args.paths, firmwares, jobs=2))
-        # The same without core claims (each run sleeping for its packets, as before them).
-        os.environ[PIN_ENV] = "0"
-        try:
-            rows.append(measure("--jobs 2, runs not pinned", root / "j2u", args.paths,
-                                firmwares, jobs=2))
-        finally:
-            del os.environ[PIN_ENV]
+        if not args.only_ray:
+            rows.append(measure("--jobs 1", root / "j1", args.paths, firmwares))
+            rows.append(measure("--jobs 2", root / "j2", args.paths, firmwares, jobs=2))
+            # The same without core claims (each run sleeping for its packets, as before).
+            os.environ[PIN_ENV] = "0"
+            try:
+                rows.append(measure("--jobs 2, runs not pinned", root / "j2u", args.paths,
+                                    firmwares, jobs=2))
+            finally:
+                del os.environ[PIN_ENV]
+        timings: list[RayTiming] = []
         if not args.no_ray:
             address = start_ray(2)
             try:
                 rows.append(measure("--ray (local, 2 CPUs)", root / "ray", args.paths,
                                     firmwares, ray_address=address))
+                timings = ray_overhead(root / "ray1", args.paths, firmwares, address, 6)
             finally:
                 stop_ray()
     print(f"\nScenario library on {', '.join(firmwares)}; baseline: the firmware's harness "
@@ -100,6 +125,25 @@ def main() -> None:
         print(f"| {row['label']} | {row['runs']} | {row['simulated_s']:.0f} | "
               f"{row['wall_s']:.0f} | {ratio:.1f}x | {v['passed']} / {v['failed']} / "
               f"{v['error']} / {v['skipped']} |")
+    if timings:
+        print_overhead(timings)
+
+
+def print_overhead(timings: list[RayTiming]) -> None:
+    """What Ray adds per run, and the plan it gives for N machines."""
+    print("\nRay's cost per run, one run at a time (no queueing), the first run fetching the "
+          "build to its node:\n")
+    print("| run | run s | task on its node s | submit to files home s | Ray adds s | "
+          "archive MB |")
+    print("| --- | --- | --- | --- | --- | --- |")
+    for t in timings:
+        print(f"| {t.test_id} | {t.run_s:.2f} | {t.task_s:.2f} | {t.latency_s:.2f} | "
+              f"{t.latency_s - t.run_s:.2f} | {t.archive_bytes / 1e6:.2f} |")
+    added = statistics.median(t.latency_s - t.run_s for t in timings)
+    run_s = statistics.mean(t.run_s for t in timings)
+    print(f"\nmedian added per run {added:.2f} s against a mean run of {run_s:.2f} s: a "
+          f"suite of R runs on N machines of C cores takes about R x ({run_s:.1f} + "
+          f"{added:.1f}) / (N x C) s, and each node fetches each build once.")
 
 
 if __name__ == "__main__":

@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import json
 import os
+import signal
 import subprocess
 import sys
 import time
@@ -332,3 +333,39 @@ def test_a_node_lost_mid_suite_loses_no_run_and_leaves_no_sitl(
     while sitl_pids() - before and time.monotonic() < deadline:
         time.sleep(0.2)
     assert not sitl_pids() - before
+
+
+@pytest.mark.timeout(300)
+def test_ctrl_c_on_the_driver_cancels_the_clusters_runs_and_leaves_no_sitl(
+        request: pytest.FixtureRequest, firmware_build_cache: FirmwareCache,
+        three_nodes: ThreeNodes, tmp_path: Path) -> None:
+    builds = available_builds(request)[:1]
+    before = sitl_pids()
+    junit = tmp_path / "stopped.xml"
+    names = ("failsafe-switch", "motor-weak", "gusts")
+    driver = subprocess.Popen(
+        [sys.executable, "-m", "bfsitl.cli.main", "scenario", "run",
+         *(str(LIBRARY / f"{name}.toml") for name in names), *firmware_args(builds),
+         "--ray", three_nodes.address, "--junit", str(junit), "--out", str(tmp_path / "runs"),
+         "--no-plot"],
+        stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, cwd=tmp_path,
+        env=env_for(firmware_build_cache))
+    try:
+        deadline = time.monotonic() + 120
+        while not (sitl_pids() - before):  # a run is flying on a node
+            assert driver.poll() is None and time.monotonic() < deadline, "no run started"
+            time.sleep(0.05)
+        driver.send_signal(signal.SIGINT)
+        _stdout, stderr = driver.communicate(timeout=120)
+    finally:
+        if driver.poll() is None:
+            driver.kill()
+    assert "interrupted" in stderr, stderr[-3000:]
+    # What finished is kept; what did not is marked not run, never lost.
+    cases = [case for suite in JUnitXml.fromfile(str(junit)) for case in suite]
+    assert sorted(case.name for case in cases) == sorted(names)
+    assert any(isinstance(r, Skipped) for case in cases for r in case.result)
+    deadline = time.monotonic() + 15
+    while sitl_pids() - before and time.monotonic() < deadline:
+        time.sleep(0.2)
+    assert not sitl_pids() - before, "a SITL outlived the cancelled run"

@@ -26,6 +26,7 @@ import io
 import shutil
 import tarfile
 import tempfile
+import time
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from pathlib import Path, PurePosixPath
@@ -40,7 +41,7 @@ from bfsitl.scenario.run import write_summary
 from bfsitl.sitl.firmware import find_firmware
 
 if TYPE_CHECKING:
-    from bfsitl.scenario.suite import PlannedRun
+    from bfsitl.scenario.planned_run import PlannedRun
 
 #: A run's files may bring at most this much home by default (compressed).
 DEFAULT_MAX_ARTIFACT_MB = 256.0
@@ -66,11 +67,24 @@ class FirmwareParcel:
 @dataclass(frozen=True, slots=True)
 class RemoteOutcome:
     """What a task sends back: the result (artefacts relative to the run's directory), the
-    run's files as one archive, and where it ran."""
+    run's files as one archive, where it ran and how long the task took there."""
 
     result: ScenarioResult
     archive: bytes
     node_id: str
+    task_s: float = 0.0
+
+
+@dataclass(frozen=True, slots=True)
+class RayTiming:
+    """One run's cost on the cluster, for planning (``benchmarks/scenarios.py``): from the
+    driver's submit to its files home, the task's time on its node, the run's own time."""
+
+    test_id: str
+    latency_s: float    # submit -> result and files home (the driver's clock)
+    task_s: float       # the task on its node: firmware, run, packing (the node's clock)
+    run_s: float        # the run itself (ScenarioResult.wall_time_s)
+    archive_bytes: int
 
 
 def pack_firmware(ray: Any, names: Sequence[str]) -> dict[str, FirmwareParcel]:
@@ -157,8 +171,9 @@ def fly_remote(run: PlannedRun, parcel: FirmwareParcel, speed: float | None, plo
     travelled; its files packed to go home."""
     import ray
 
-    from bfsitl.scenario.suite import fly_one
+    from bfsitl.scenario.planned_run import fly_one
 
+    began_s = time.monotonic()
     binary = unpack_firmware(parcel, ray.get)
     work = Path(tempfile.mkdtemp(prefix="bfsitl-ray-run-"))
     try:
@@ -172,7 +187,8 @@ def fly_remote(run: PlannedRun, parcel: FirmwareParcel, speed: float | None, plo
             result.verdict, result.reason = Verdict.ERROR, str(exc)
             result.artifacts = {}
             archive = b""
-        return RemoteOutcome(result, archive, ray.get_runtime_context().get_node_id())
+        return RemoteOutcome(result, archive, ray.get_runtime_context().get_node_id(),
+                             time.monotonic() - began_s)
     finally:
         shutil.rmtree(work, ignore_errors=True)
 
@@ -208,15 +224,18 @@ class _Attempt:
     parcel: FirmwareParcel
     tries: int = 1
     why: tuple[str, ...] = ()
+    submitted_s: float = 0.0
 
 
 def run_on_ray(runs: Sequence[PlannedRun], address: str, *, speed: float | None, plot: bool,
                mcap: bool, results: dict[int, ScenarioResult],
                done: Callable[[ScenarioResult], None], say: Callable[[str], None],
                max_artifact_mb: float = DEFAULT_MAX_ARTIFACT_MB,
-               retries: int = DEFAULT_RETRIES) -> None:
+               retries: int = DEFAULT_RETRIES, timings: list[RayTiming] | None = None
+               ) -> None:
     """Every run as a Ray task on the cluster at ``address`` (module docstring); results
-    into ``results`` by plan index, each passed to ``done`` as it comes."""
+    into ``results`` by plan index, each passed to ``done`` as it comes; each run's
+    :class:`RayTiming` appended to ``timings`` when given."""
     try:
         import ray
     except ImportError as exc:
@@ -240,6 +259,7 @@ def run_on_ray(runs: Sequence[PlannedRun], address: str, *, speed: float | None,
 
         def submit(attempt: _Attempt) -> Any:
             run = runs[attempt.index]
+            attempt.submitted_s = time.monotonic()
             return task.remote(run, attempt.parcel, speed, plot, mcap, max_bytes)
 
         pending = {submit(a): a for a in (_Attempt(i, parcels[run.firmware])
@@ -249,7 +269,8 @@ def run_on_ray(runs: Sequence[PlannedRun], address: str, *, speed: float | None,
                 ready, _rest = ray.wait(list(pending), num_returns=1)
                 for ref in ready:
                     attempt = pending.pop(ref)
-                    result = _collect(ray, ref, runs[attempt.index], attempt, retries)
+                    result = _collect(ray, ref, runs[attempt.index], attempt, retries,
+                                      timings)
                     if result is None:  # lost with its worker: once more
                         pending[submit(attempt)] = attempt
                         say(f"{runs[attempt.index].test_id}: {attempt.why[-1]}; trying again "
@@ -265,8 +286,8 @@ def run_on_ray(runs: Sequence[PlannedRun], address: str, *, speed: float | None,
         ray.shutdown()
 
 
-def _collect(ray: Any, ref: Any, run: PlannedRun, attempt: _Attempt, retries: int
-             ) -> ScenarioResult | None:
+def _collect(ray: Any, ref: Any, run: PlannedRun, attempt: _Attempt, retries: int,
+             timings: list[RayTiming] | None = None) -> ScenarioResult | None:
     """The run's result with its files home; None when it should be tried again."""
     try:
         outcome: RemoteOutcome = ray.get(ref)
@@ -280,6 +301,9 @@ def _collect(ray: Any, ref: Any, run: PlannedRun, attempt: _Attempt, retries: in
                               source=run.scenario.source, retried=attempt.why)
     result = bring_home(outcome, run)
     result.retried = attempt.why
+    if timings is not None:
+        timings.append(RayTiming(run.test_id, time.monotonic() - attempt.submitted_s,
+                                 outcome.task_s, result.wall_time_s, len(outcome.archive)))
     if "summary" in result.artifacts:
         write_summary(result, run.out_dir)  # the driver's names and paths
     return result

@@ -16,6 +16,7 @@ Requests and replies are single JSON datagrams.
 from __future__ import annotations
 
 import argparse
+import ctypes
 import fcntl
 import json
 import os
@@ -26,9 +27,11 @@ import struct
 import subprocess
 import sys
 import time
+from collections.abc import Callable
 
 from bfsitl.sitl.timer_slack import timer_slack
 
+_PR_SET_PDEATHSIG = 1
 _SIOCGIFFLAGS = 0x8913
 _SIOCSIFFLAGS = 0x8914
 _IFF_UP = 0x1
@@ -36,6 +39,21 @@ _MAX_MESSAGE = 65536
 #: How often an idle agent reaps children that exited: a SITL ends itself on every reboot, and
 #: until someone waits for it, it lingers as a zombie under the agent.
 REAP_INTERVAL_S = 0.2
+
+
+def _die_with_agent(agent_pid: int) -> Callable[[], None]:
+    """In the child between fork and exec: the kernel kills it when the agent ends, however
+    the agent ends.  The agent cleans up after itself when its owner goes (EOF on the control
+    socket), but a SIGKILL of the agent itself (a Ray worker cancelled with its processes, a
+    killed container) must not leave the SITL running without a parent."""
+
+    def arm() -> None:
+        libc = ctypes.CDLL(None, use_errno=True)
+        libc.prctl(_PR_SET_PDEATHSIG, signal.SIGKILL, 0, 0, 0)
+        if os.getppid() != agent_pid:  # the agent went before the line above
+            os._exit(1)
+
+    return arm
 
 
 def bring_loopback_up() -> None:
@@ -96,6 +114,7 @@ class Agent:
                         request["argv"], cwd=request["cwd"], stdin=subprocess.DEVNULL,
                         stdout=log, stderr=subprocess.STDOUT, start_new_session=True,
                         env=request.get("env") or None,
+                        preexec_fn=_die_with_agent(os.getpid()),  # noqa: PLW1509 - one thread
                     )
             finally:
                 log.close()

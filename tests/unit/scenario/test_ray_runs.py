@@ -19,6 +19,7 @@ import pytest
 from bfsitl.errors import ScenarioError
 from bfsitl.mission import MissionPlan
 from bfsitl.scenario import ray_runs
+from bfsitl.scenario.planned_run import PlannedRun
 from bfsitl.scenario.ray_runs import (
     FirmwareParcel,
     RemoteOutcome,
@@ -30,7 +31,6 @@ from bfsitl.scenario.ray_runs import (
 )
 from bfsitl.scenario.result import ScenarioResult, Verdict
 from bfsitl.scenario.spec import Scenario
-from bfsitl.scenario.suite import PlannedRun
 
 BINARY = b"\x7fELF pretend SITL " * 1000
 SCENARIO = Scenario("hover", MissionPlan(), 10.0)

@@ -84,6 +84,13 @@ def vector(firmware: str, control_hz: float, seconds: float, count: int, *, own:
         envs = gymnasium.vector.AsyncVectorEnv(
             [lambda: HoverEnv(firmware=firmware, control_hz=control_hz)
              for _ in range(count)])
+    return _drive(envs, count, seconds, final_info=own)
+
+
+def _drive(envs: gymnasium.vector.VectorEnv, count: int, seconds: float, *, final_info: bool
+           ) -> dict[str, float]:
+    """Step ``envs`` with the hand-written policy for ``seconds`` of wall time, then close."""
+    own = final_info
     steps = 0
     sim_s = np.zeros(count)
     try:
@@ -108,6 +115,24 @@ def vector(firmware: str, control_hz: float, seconds: float, count: int, *, own:
     finally:
         envs.close()
     return {"steps_per_s": steps / wall_s, "sim_per_wall": float(sim_s.sum()) / wall_s}
+
+
+def ray_vector(firmware: str, control_hz: float, seconds: float, count: int
+               ) -> dict[str, float]:
+    """``count`` environments as Ray actors (bfsitl.gym.ray_vector) on a local cluster of one
+    node with ``count`` CPUs: what the Ray calls cost against FlightVectorEnv's pipes."""
+    from ray.cluster_utils import Cluster
+
+    from bfsitl.gym.ray_vector import RayVectorEnv
+
+    cluster = Cluster(initialize_head=True, head_node_args={
+        "num_cpus": count, "include_dashboard": False, "object_store_memory": 100_000_000})
+    try:
+        envs = RayVectorEnv("bfsitl.gym.env:HoverEnv", count, address=cluster.address,
+                            firmware=firmware, control_hz=control_hz)
+        return _drive(envs, count, seconds, final_info=True)
+    finally:
+        cluster.shutdown()
 
 
 def wall_clock_baseline(control_hz: float, seconds: float) -> dict[str, float]:
@@ -137,6 +162,8 @@ def main() -> None:
     parser.add_argument("--seconds", type=float, default=20.0)
     parser.add_argument("--control-hz", type=float, default=100.0)
     parser.add_argument("--firmware", default=DEFAULT_FIRMWARE)
+    parser.add_argument("--ray", action="store_true",
+                        help="also 2 environments as Ray actors on a local cluster")
     args = parser.parse_args()
     rows = []
     print("[gym bench] wall-clock baseline (stock SITL, real time)", flush=True)
@@ -159,6 +186,10 @@ def main() -> None:
             print(f"[gym bench] {count} environments, {name}", flush=True)
             rows.append((f"Hover-v0, {name} (pinned workers)", count,
                          vector(args.firmware, args.control_hz, args.seconds, count, own=own)))
+    if args.ray:
+        print("[gym bench] 2 environments, RayVectorEnv (local cluster)", flush=True)
+        rows.append(("Hover-v0, RayVectorEnv (Ray actors, one node)", 2,
+                     ray_vector(args.firmware, args.control_hz, args.seconds, 2)))
     print(f"\ncontrol at {args.control_hz:g} Hz, {args.seconds:g} s of wall time per row; "
           f"reset: median {statistics.median(resets):.3f} s wall over {len(resets)} resets "
           f"(max {max(resets):.2f} s)")

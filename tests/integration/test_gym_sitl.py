@@ -279,3 +279,58 @@ def test_step_before_reset_says_to_reset(lockstep_gps_46_firmware: Path) -> None
     finally:
         env.close()
     assert not env.workdir.exists()  # its own temporary run directory is removed
+
+
+@pytest.mark.timeout(300)
+def test_environments_as_ray_actors_fly_as_one_alone_and_leave_nothing(
+        lockstep_gps_46_firmware: Path, tmp_path: Path) -> None:
+    """Two environments on a cluster of a head and two worker nodes with empty caches: the
+    firmware travels, environment 0 flies the same flight bit for bit as the same environment
+    here, the episode's end comes as Gymnasium batches it, and close() leaves no SITL."""
+    pytest.importorskip("ray")
+    from ray.cluster_utils import Cluster
+
+    from bfsitl.cli.doctor import stale_sitl_processes
+    from bfsitl.gym.ray_vector import RayVectorEnv
+
+    before = {pid for pid, _name in stale_sitl_processes()}
+    cluster = Cluster(initialize_head=True, head_node_args={
+        "num_cpus": 0, "include_dashboard": False, "object_store_memory": 100_000_000})
+    caches = [tmp_path / f"node{index}-cache" for index in range(2)]
+    single = HoverEnv(firmware=lockstep_gps_46_firmware, episode_s=0.5,
+                      workdir=tmp_path / "single")
+    envs = None
+    try:
+        for cache in caches:
+            cluster.add_node(num_cpus=1, object_store_memory=100_000_000,
+                             env_vars={"BFSITL_CACHE_DIR": str(cache)})
+        cluster.wait_for_nodes()
+        envs = RayVectorEnv("bfsitl.gym.env:HoverEnv", 2, address=cluster.address,
+                            firmware=str(lockstep_gps_46_firmware), episode_s=0.5)
+        assert all(list(cache.glob("received/*/*_SITL")) for cache in caches)
+        observations, info = envs.reset(seed=[5, 6])
+        alone, _ = single.reset(seed=5)
+        assert np.array_equal(observations[0], alone)
+        assert not np.array_equal(observations[0], observations[1])
+        action = np.array([0.0, 0.0, 0.12, 0.0], dtype=np.float32)
+        for _ in range(60):
+            observations, rewards, terminated, truncated, info = envs.step(
+                np.tile(action, (2, 1)))
+            alone, reward, _terminated, ended, alone_info = single.step(action)
+            if "final_info" in info:
+                break
+            assert np.array_equal(observations[0], alone) and rewards[0] == reward
+            assert info["distance_m"][0] == alone_info["distance_m"]
+        assert ended and truncated.all() and info["_final_info"].all()
+        assert np.array_equal(info["final_obs"][0], alone)
+        assert (info["time_s"] < 0.01).all()
+    finally:
+        if envs is not None:
+            envs.close()
+        single.close()
+        cluster.shutdown()
+    deadline = time.monotonic() + 10
+    while {pid for pid, _name in stale_sitl_processes()} - before and \
+            time.monotonic() < deadline:
+        time.sleep(0.2)
+    assert not {pid for pid, _name in stale_sitl_processes()} - before

@@ -18,7 +18,8 @@ extra: ``pip install 'bfsitl[gym]'``.
 Many at once: ``gymnasium.make_vec(id, num_envs=N)`` gives
 :class:`~bfsitl.gym.vector.FlightVectorEnv` (a worker per environment, each pinned to a core
 with its SITL, the numbers in shared memory); Gymnasium's own ``AsyncVectorEnv`` works too,
-at a higher cost per step.
+at a higher cost per step.  On a Ray cluster: :class:`~bfsitl.gym.ray_vector.RayVectorEnv`
+(one Ray actor per environment; the firmware travels to the nodes).
 """
 
 from __future__ import annotations

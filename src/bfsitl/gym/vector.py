@@ -104,6 +104,31 @@ def _info_row(info: dict[str, Any]) -> list[float]:
             truth["v_north_m_s"], truth["v_east_m_s"], truth["v_up_m_s"]]
 
 
+def handle_command(env: Any, shared: _Shared, index: int, message: bytes) -> bytes:
+    """One step or reset of one environment: its numbers into row ``index`` of ``shared``,
+    and the answer (an ended episode's last observation and info ride in it; the autoreset
+    is SAME_STEP).  What a worker process and a Ray actor (bfsitl.gym.ray_vector) both do."""
+    command = message[:1]
+    if command == _STEP:
+        observation, reward, terminated, truncated, info = env.step(shared.actions[index])
+        shared.rewards[index] = reward
+        shared.terminated[index] = terminated
+        shared.truncated[index] = truncated
+        answer = _DONE
+        if terminated or truncated:
+            answer = _ENDED + pickle.dumps((observation, info))
+            observation, info = env.reset()
+    elif command == _RESET:
+        seed, reset_options = pickle.loads(message[1:])
+        observation, info = env.reset(seed=seed, options=reset_options)
+        answer = _DONE
+    else:
+        raise EnvironmentConfigError(f"environment {index}: unknown command {command!r}")
+    shared.observations[index] = observation
+    shared.info[index] = _info_row(info)
+    return answer
+
+
 def _end_on_terminate(_signal: int, _frame: object) -> None:
     raise SystemExit(0)  # so that the worker's finally closes its SITL
 
@@ -131,28 +156,9 @@ def _worker(index: int, entry_point: str, options: dict[str, Any], block: Any, c
                 message = connection.recv_bytes()
             except (EOFError, OSError):
                 break  # the parent is gone: close the SITL and end
-            command = message[:1]
-            if command == _STEP:
-                observation, reward, terminated, truncated, info = env.step(
-                    shared.actions[index])
-                shared.rewards[index] = reward
-                shared.terminated[index] = terminated
-                shared.truncated[index] = truncated
-                answer = _DONE
-                if terminated or truncated:
-                    answer = _ENDED + pickle.dumps((observation, info))
-                    observation, info = env.reset()
-                shared.observations[index] = observation
-                shared.info[index] = _info_row(info)
-                connection.send_bytes(answer)
-            elif command == _RESET:
-                seed, reset_options = pickle.loads(message[1:])
-                observation, info = env.reset(seed=seed, options=reset_options)
-                shared.observations[index] = observation
-                shared.info[index] = _info_row(info)
-                connection.send_bytes(_DONE)
-            elif command == _CLOSE:
+            if message[:1] == _CLOSE:
                 break
+            connection.send_bytes(handle_command(env, shared, index, message))
     except KeyboardInterrupt:
         pass  # Ctrl-C reaches the whole process group: the parent decides what follows
     except Exception as exc:  # noqa: BLE001 - reported to the parent, which raises it
@@ -294,13 +300,7 @@ class FlightVectorEnv(VectorEnv[np.ndarray, np.ndarray, np.ndarray]):
                 failures.append(f"environment {index}: its worker process ended "
                                 f"(exit code {process.exitcode})")
                 continue
-            kind = answer[:1]
-            if kind == _ENDED:
-                finals[index] = pickle.loads(answer[1:])
-            elif kind == _FAILED:
-                failures.append(answer[1:].decode(errors="replace"))
-            elif kind != expect:
-                failures.append(f"environment {index}: answered {kind!r}, not {expect!r}")
+            _sort_answer(index, answer, expect, finals, failures)
         if failures:
             raise EnvironmentConfigError("; ".join(failures))
         return finals
@@ -318,6 +318,20 @@ class FlightVectorEnv(VectorEnv[np.ndarray, np.ndarray, np.ndarray]):
         for name in (*INFO_NUMBERS, *_VECTORS):
             info[f"_{name}"] = np.ones(self.num_envs, dtype=bool)
         return info
+
+
+def _sort_answer(index: int, answer: bytes, expect: bytes,
+                 finals: dict[int, tuple[np.ndarray, dict[str, Any]]],
+                 failures: list[str]) -> None:
+    """An environment's answer: an ended episode's (observation, info) into ``finals``, a
+    failure's text into ``failures``."""
+    kind = answer[:1]
+    if kind == _ENDED:
+        finals[index] = pickle.loads(answer[1:])
+    elif kind == _FAILED:
+        failures.append(answer[1:].decode(errors="replace"))
+    elif kind != expect:
+        failures.append(f"environment {index}: answered {kind!r}, not {expect!r}")
 
 
 class HoverVectorEnv(FlightVectorEnv):

@@ -16,21 +16,14 @@ from typing import Any
 
 import pytest
 
-from bfsitl.errors import ScenarioError
+from bfsitl.errors import ScenarioError, SitlError
 from bfsitl.mission import MissionPlan
 from bfsitl.scenario import ray_runs
 from bfsitl.scenario.planned_run import PlannedRun
-from bfsitl.scenario.ray_runs import (
-    FirmwareParcel,
-    RemoteOutcome,
-    bring_home,
-    pack_outputs,
-    received_path,
-    unpack_firmware,
-    unpack_outputs,
-)
+from bfsitl.scenario.ray_runs import RemoteOutcome, bring_home, pack_outputs, unpack_outputs
 from bfsitl.scenario.result import ScenarioResult, Verdict
 from bfsitl.scenario.spec import Scenario
+from bfsitl.sitl.firmware_parcel import FirmwareParcel, received_path, unpack_firmware
 
 BINARY = b"\x7fELF pretend SITL " * 1000
 SCENARIO = Scenario("hover", MissionPlan(), 10.0)
@@ -67,7 +60,7 @@ def test_a_build_is_fetched_once_kept_by_its_hash_and_runnable(tmp_path: Path) -
 
 def test_a_damaged_build_is_refused_and_not_kept(tmp_path: Path) -> None:
     parcel = parcel_of(BINARY)
-    with pytest.raises(ScenarioError, match="arrived damaged"):
+    with pytest.raises(SitlError, match="arrived damaged"):
         unpack_firmware(parcel, lambda _ref: BINARY[:-1] + b"!", tmp_path)
     assert not received_path(parcel, tmp_path).exists()
 

@@ -253,3 +253,21 @@ def test_the_report_replaces_an_older_page_whole(tmp_path: Path) -> None:
     page = (directory / "index.html").read_text()
     assert "hover" in page and "an older run" not in page
     assert [p.name for p in directory.iterdir()] == ["index.html"]
+
+
+def test_a_run_retried_on_a_cluster_says_so_once_in_junit_and_in_the_report(
+        tmp_path: Path) -> None:
+    retried = ScenarioResult("hover", "4.6.0", Verdict.PASSED, "all 2 expectations met",
+                             retried=("its Ray worker or node was lost (NodeDiedError)",))
+    other = ScenarioResult("drop", "4.6.0", Verdict.PASSED, "all 1 expectations met")
+    write_junit([retried, other], tmp_path / "results.xml")
+    cases = {case.name: case for suite in JUnitXml.fromfile(str(tmp_path / "results.xml"))
+             for case in suite}
+    assert sorted(cases) == ["drop", "hover"]  # once each
+    assert (cases["hover"].system_out or "").startswith(
+        "retried: attempt 1 was lost: its Ray worker or node was lost (NodeDiedError)")
+    assert "retried" not in (cases["drop"].system_out or "")
+    write_report([retried, other], tmp_path / "report")
+    html = (tmp_path / "report" / "index.html").read_text()
+    assert "all 2 expectations met (run 2 times: its Ray worker or node was lost" in html
+    assert "all 1 expectations met (run" not in html

@@ -10,7 +10,9 @@ import signal
 import subprocess
 import sys
 import time
+from collections.abc import Callable
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 import pytest
@@ -197,6 +199,31 @@ def test_a_vector_of_environments_runs_side_by_side_and_leaves_nothing(
     assert sitl_processes_under(tmp_path) == []
 
 
+def env0_flies_as_alone(envs: Any, single: HoverEnv, *,
+                        after_reset: Callable[[], None] = lambda: None) -> None:
+    """Two environments (seeds 5 and 6) and the first of them alone, through one 0.5 s
+    episode with the same actions: bit for bit the same, and the episode's end batched as
+    Gymnasium does it (SAME_STEP)."""
+    observations, info = envs.reset(seed=[5, 6])
+    alone, _ = single.reset(seed=5)
+    assert np.array_equal(observations[0], alone)
+    assert not np.array_equal(observations[0], observations[1])
+    after_reset()
+    action = np.array([0.0, 0.0, 0.12, 0.0], dtype=np.float32)
+    for _ in range(60):
+        observations, rewards, _terminated, truncated, info = envs.step(
+            np.tile(action, (2, 1)))
+        alone, reward, _done, ended, alone_info = single.step(action)
+        if "final_info" in info:
+            break
+        assert np.array_equal(observations[0], alone) and rewards[0] == reward
+        assert info["distance_m"][0] == alone_info["distance_m"]
+    assert ended and truncated.all() and info["_final_info"].all()
+    assert np.array_equal(info["final_obs"][0], alone)  # the ended episode's last
+    assert info["final_info"]["time_s"][0] == pytest.approx(0.5, abs=0.01)
+    assert (info["time_s"] < 0.01).all()                 # already the next episodes
+
+
 def test_bfsitls_own_vector_environment_pins_each_firmware_and_flies_as_one_alone(
         lockstep_gps_46_firmware: Path, tmp_path: Path) -> None:
     envs = gymnasium.make_vec("bfsitl/Hover-v0", num_envs=2,
@@ -206,28 +233,15 @@ def test_bfsitls_own_vector_environment_pins_each_firmware_and_flies_as_one_alon
     single = HoverEnv(firmware=lockstep_gps_46_firmware, episode_s=0.5,
                       workdir=tmp_path / "single")
     try:
-        observations, info = envs.reset(seed=[5, 6])
-        alone, _ = single.reset(seed=5)
+        def pinned_a_core_each() -> None:
+            pinned = [os.sched_getaffinity(pid)
+                      for pid in sitl_processes_under(tmp_path / "vector")]
+            assert len(pinned) == 2 and all(len(cores) == 1 for cores in pinned)
+            if len(os.sched_getaffinity(0)) >= 2:
+                assert pinned[0] != pinned[1]
+
         # Pinned, without spinning, in another process: the same flight as on its own.
-        assert np.array_equal(observations[0], alone)
-        assert not np.array_equal(observations[0], observations[1])
-        pinned = [os.sched_getaffinity(pid) for pid in sitl_processes_under(tmp_path / "vector")]
-        assert len(pinned) == 2 and all(len(cores) == 1 for cores in pinned)
-        if len(os.sched_getaffinity(0)) >= 2:
-            assert pinned[0] != pinned[1]                  # a core each
-        action = np.array([0.0, 0.0, 0.12, 0.0], dtype=np.float32)
-        for _ in range(60):
-            observations, rewards, terminated, truncated, info = envs.step(
-                np.tile(action, (2, 1)))
-            alone, reward, _terminated, ended, alone_info = single.step(action)
-            if "final_info" in info:
-                break
-            assert np.array_equal(observations[0], alone) and rewards[0] == reward
-            assert info["distance_m"][0] == alone_info["distance_m"]
-        assert ended and truncated.all() and info["_final_info"].all()
-        assert np.array_equal(info["final_obs"][0], alone)  # the ended episode's last
-        assert info["final_info"]["time_s"][0] == pytest.approx(0.5, abs=0.01)
-        assert (info["time_s"] < 0.01).all()                 # already the next episodes
+        env0_flies_as_alone(envs, single, after_reset=pinned_a_core_each)
     finally:
         envs.close()
         single.close()
@@ -308,22 +322,7 @@ def test_environments_as_ray_actors_fly_as_one_alone_and_leave_nothing(
         envs = RayVectorEnv("bfsitl.gym.env:HoverEnv", 2, address=cluster.address,
                             firmware=str(lockstep_gps_46_firmware), episode_s=0.5)
         assert all(list(cache.glob("received/*/*_SITL")) for cache in caches)
-        observations, info = envs.reset(seed=[5, 6])
-        alone, _ = single.reset(seed=5)
-        assert np.array_equal(observations[0], alone)
-        assert not np.array_equal(observations[0], observations[1])
-        action = np.array([0.0, 0.0, 0.12, 0.0], dtype=np.float32)
-        for _ in range(60):
-            observations, rewards, terminated, truncated, info = envs.step(
-                np.tile(action, (2, 1)))
-            alone, reward, _terminated, ended, alone_info = single.step(action)
-            if "final_info" in info:
-                break
-            assert np.array_equal(observations[0], alone) and rewards[0] == reward
-            assert info["distance_m"][0] == alone_info["distance_m"]
-        assert ended and truncated.all() and info["_final_info"].all()
-        assert np.array_equal(info["final_obs"][0], alone)
-        assert (info["time_s"] < 0.01).all()
+        env0_flies_as_alone(envs, single)
     finally:
         if envs is not None:
             envs.close()

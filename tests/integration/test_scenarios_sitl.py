@@ -14,6 +14,7 @@ import signal
 import subprocess
 import sys
 import time
+from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -233,6 +234,16 @@ def three_nodes(tmp_path: Path):  # type: ignore[no-untyped-def]
         cluster.shutdown()
 
 
+def start_driver(names: Sequence[str], builds: Sequence[str], address: str, junit: Path,
+                 out: Path, cache: FirmwareCache, cwd: Path) -> subprocess.Popen[str]:
+    """`bfsitl scenario run` of library scenarios on the cluster, running in the background."""
+    return subprocess.Popen(
+        [sys.executable, "-m", "bfsitl.cli.main", "scenario", "run",
+         *(str(LIBRARY / f"{name}.toml") for name in names), *firmware_args(tuple(builds)),
+         "--ray", address, "--junit", str(junit), "--out", str(out), "--no-plot"],
+        stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, cwd=cwd, env=env_for(cache))
+
+
 def sitl_pids() -> set[int]:
     return {pid for pid, _name in stale_sitl_processes()}
 
@@ -297,12 +308,8 @@ def test_a_node_lost_mid_suite_loses_no_run_and_leaves_no_sitl(
     before = sitl_pids()
     junit, out = tmp_path / "lost.xml", tmp_path / "runs"
     names = ("rc-loss-hover-drop", "failsafe-switch", "motor-weak", "rc-loss-forward-drop")
-    driver = subprocess.Popen(
-        [sys.executable, "-m", "bfsitl.cli.main", "scenario", "run",
-         *(str(LIBRARY / f"{name}.toml") for name in names), *firmware_args(builds),
-         "--ray", three_nodes.address, "--junit", str(junit), "--out", str(out), "--no-plot"],
-        stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, cwd=tmp_path,
-        env=env_for(firmware_build_cache))
+    driver = start_driver(names, builds, three_nodes.address, junit, out,
+                          firmware_build_cache, tmp_path)
     try:
         # Once worker 0 is flying a run (its run directory exists), the node goes: raylet,
         # workers and all, as a machine that is switched off.
@@ -343,13 +350,8 @@ def test_ctrl_c_on_the_driver_cancels_the_clusters_runs_and_leaves_no_sitl(
     before = sitl_pids()
     junit = tmp_path / "stopped.xml"
     names = ("failsafe-switch", "motor-weak", "gusts")
-    driver = subprocess.Popen(
-        [sys.executable, "-m", "bfsitl.cli.main", "scenario", "run",
-         *(str(LIBRARY / f"{name}.toml") for name in names), *firmware_args(builds),
-         "--ray", three_nodes.address, "--junit", str(junit), "--out", str(tmp_path / "runs"),
-         "--no-plot"],
-        stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, cwd=tmp_path,
-        env=env_for(firmware_build_cache))
+    driver = start_driver(names, builds, three_nodes.address, junit, tmp_path / "runs",
+                          firmware_build_cache, tmp_path)
     try:
         deadline = time.monotonic() + 120
         while not (sitl_pids() - before):  # a run is flying on a node

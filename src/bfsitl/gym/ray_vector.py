@@ -25,12 +25,9 @@ from importlib import import_module
 from typing import Any
 
 import numpy as np
-from gymnasium import spaces
-from gymnasium.vector.utils import batch_space
 
 from bfsitl.errors import EnvironmentConfigError
 from bfsitl.gym.env import DEFAULT_FIRMWARE
-from bfsitl.gym.observation import observation_space
 from bfsitl.gym.vector import (
     _DONE,
     _FAILED,
@@ -90,20 +87,11 @@ class RayVectorEnv(FlightVectorEnv):
         except ImportError as exc:
             raise EnvironmentConfigError("RayVectorEnv needs Ray: pip install "
                                          "'bfsitl[ray]'") from exc
-        if not 1 <= num_envs <= 256:
-            raise EnvironmentConfigError(f"num_envs {num_envs} is outside 1..256")
         if "workdir" in options:
             raise EnvironmentConfigError("workdir: a Ray actor's SITL runs in a temporary "
                                          "directory of its node")
-        options.setdefault("pin_core", True)
-        options.setdefault("spin", False)
+        self._set_up(num_envs, options)
         self._ray = ray
-        self.num_envs = num_envs
-        self.single_observation_space = observation_space()
-        self.observation_space = batch_space(self.single_observation_space, num_envs)
-        self.single_action_space = spaces.Box(-1.0, 1.0, shape=(4,), dtype=np.float32)
-        self.action_space = batch_space(self.single_action_space, num_envs)
-        self._closed_workers = False
         self._shared = _Shared(num_envs, bytearray(_Shared.size(num_envs)))
         self._connections = []
         self._processes = []

@@ -182,17 +182,7 @@ class FlightVectorEnv(VectorEnv[np.ndarray, np.ndarray, np.ndarray]):
 
     def __init__(self, entry_point: str, num_envs: int = 2, *, context: str = "fork",
                  **options: Any) -> None:
-        if not 1 <= num_envs <= 256:
-            raise EnvironmentConfigError(f"num_envs {num_envs} is outside 1..256")
-        options.setdefault("pin_core", True)
-        options.setdefault("spin", False)
-        self.num_envs = num_envs
-        self.single_observation_space = observation_space()
-        self.observation_space = batch_space(self.single_observation_space, num_envs)
-        # The single action space, without making an environment (and a SITL) here.
-        self.single_action_space = spaces.Box(-1.0, 1.0, shape=(4,), dtype=np.float32)
-        self.action_space = batch_space(self.single_action_space, num_envs)
-        self._closed_workers = False
+        self._set_up(num_envs, options)
         mp: Any = multiprocessing.get_context(context)
         self._shared = _Shared(num_envs, mp.RawArray("b", _Shared.size(num_envs)))
         self._connections: list[multiprocessing.connection.Connection] = []
@@ -213,6 +203,20 @@ class FlightVectorEnv(VectorEnv[np.ndarray, np.ndarray, np.ndarray]):
         except BaseException:
             self.close()
             raise
+
+    def _set_up(self, num_envs: int, options: dict[str, Any]) -> None:
+        """The count, the spaces and the workers' defaults (pinned, not spinning), checked."""
+        if not 1 <= num_envs <= 256:
+            raise EnvironmentConfigError(f"num_envs {num_envs} is outside 1..256")
+        options.setdefault("pin_core", True)
+        options.setdefault("spin", False)
+        self.num_envs = num_envs
+        self.single_observation_space = observation_space()
+        self.observation_space = batch_space(self.single_observation_space, num_envs)
+        # The single action space, without making an environment (and a SITL) here.
+        self.single_action_space = spaces.Box(-1.0, 1.0, shape=(4,), dtype=np.float32)
+        self.action_space = batch_space(self.single_action_space, num_envs)
+        self._closed_workers = False
 
     # -- the vector environment ----------------------------------------------------------------
     def reset(self, *, seed: int | list[int | None] | None = None,

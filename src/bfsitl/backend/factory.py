@@ -21,7 +21,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Protocol, cast
 
 from bfsitl.backend.base import SitlBackend
-from bfsitl.errors import BfsitlError
+from bfsitl.errors import BfsitlError, KernelUnavailableError
 from bfsitl.physics.params import QuadParams
 from bfsitl.physics.sensors import SensorConfig
 from bfsitl.physics.wind import Wind
@@ -129,7 +129,6 @@ def make_simulator(options: BackendOptions, *, lockstep_shm: bool,
         raise BfsitlError(f"physics kernel {asked!r}: one of {', '.join(PHYSICS_KERNELS)}")
     compiled = asked == "compiled"
     if asked == "auto" and lockstep_shm:
-        from bfsitl.errors import KernelUnavailableError
         from bfsitl.kernel.compiler import load_kernel
 
         try:

@@ -11,7 +11,6 @@ or pace per step, no RC fault) and handles every status but "done" with its own 
 from __future__ import annotations
 
 import ctypes
-import math
 from dataclasses import dataclass
 from typing import TYPE_CHECKING
 
@@ -133,10 +132,6 @@ class KernelStepper:
     def physics_s(self) -> float:
         return self._state.physics_s
 
-    @property
-    def steps(self) -> int:
-        return self._state.steps
-
     def run(self, encoder: FdmEncoder, rc: bytes, *, until_s: float, slack_s: float,
             max_steps: int, spin_s: float, watch_fd: int = -1) -> KernelRun:
         """Step while the time plus ``slack_s`` is below ``until_s``, at most ``max_steps``,
@@ -146,8 +141,7 @@ class KernelStepper:
         state, exchange = self._state, self.exchange
         state.spin_s = spin_s
         state.seq = exchange.seq
-        taken = self._run(self._sim, self._pointer, rc, len(rc),
-                          until_s if math.isfinite(until_s) else 1e300, slack_s, max_steps,
+        taken = self._run(self._sim, self._pointer, rc, len(rc), until_s, slack_s, max_steps,
                           watch_fd)
         exchange.seq = state.seq
         m = state.motors

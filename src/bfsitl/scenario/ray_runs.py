@@ -29,16 +29,14 @@ import time
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from pathlib import Path, PurePosixPath
-from typing import TYPE_CHECKING, Any
+from typing import Any
 
 from bfsitl.atomic_file import write_atomically
 from bfsitl.errors import ScenarioError
+from bfsitl.scenario.planned_run import PlannedRun, fly_one
 from bfsitl.scenario.result import ScenarioResult, Verdict
 from bfsitl.scenario.run import write_summary
 from bfsitl.sitl.firmware_parcel import FirmwareParcel, pack_firmware, unpack_firmware
-
-if TYPE_CHECKING:
-    from bfsitl.scenario.planned_run import PlannedRun
 
 #: A run's files may bring at most this much home by default (compressed).
 DEFAULT_MAX_ARTIFACT_MB = 256.0
@@ -112,8 +110,6 @@ def fly_remote(run: PlannedRun, parcel: FirmwareParcel, speed: float | None, plo
     """A Ray task: one run on this node, in a temporary directory, with the firmware that
     travelled; its files packed to go home."""
     import ray
-
-    from bfsitl.scenario.planned_run import fly_one
 
     began_s = time.monotonic()
     binary = unpack_firmware(parcel, ray.get)

@@ -32,10 +32,12 @@ import struct
 import time
 from collections.abc import Callable
 from dataclasses import dataclass
-from typing import TYPE_CHECKING, Protocol, TypeVar
+from typing import Protocol, TypeVar
 
 from bfsitl.errors import PacketError, SitlError, SitlExitedError
 from bfsitl.fc.rc_link import SAFE_COMMAND, RcCommand, RcFault, RcFaultState, RcLinkStats
+from bfsitl.kernel import lockstep_stepper as outcome
+from bfsitl.kernel.lockstep_stepper import KernelRun, KernelStepper
 from bfsitl.link.base import Link
 from bfsitl.physics.frames import GeoPoint
 from bfsitl.protocol.firmware_profile import DEFAULT_PROFILE, FirmwareProfile
@@ -50,9 +52,6 @@ from bfsitl.sim.bridge import (
 )
 from bfsitl.sim.fdm_encoding import FdmEncoder
 from bfsitl.sim.shm_exchange import ShmExchange
-
-if TYPE_CHECKING:
-    from bfsitl.kernel.lockstep_stepper import KernelRun, KernelStepper
 
 T = TypeVar("T")
 
@@ -295,10 +294,8 @@ class LockstepBridge:
         kernel = self._kernel_stepper() if fd >= 0 else None
         if kernel is None:
             self.step()
-        elif self._locked and self._sock is not None:
-            self._kernel_steps(kernel, until_s, 0.0, KERNEL_MAX_STEPS, fd)
         else:
-            self.step()  # it raises the error
+            self._kernel_steps(kernel, until_s, 0.0, KERNEL_MAX_STEPS, fd)
 
     def _python_step(self, began_s: float, *, sent: bool = False) -> None:
         """A step in Python; ``sent``: its datagram is out already (the compiled loop sent
@@ -363,8 +360,6 @@ class LockstepBridge:
             exchange = self.exchange
             if exchange is None or exchange.closed or not exchange.ready:
                 return None
-            from bfsitl.kernel.lockstep_stepper import KernelStepper
-
             kernel = self._kernel = KernelStepper(
                 self.simulator.kernel_pointer,  # type: ignore[attr-defined]
                 exchange, step_s=self.step_s, wait_s=KERNEL_WAIT_S)
@@ -372,8 +367,6 @@ class LockstepBridge:
 
     def _kernel_steps(self, kernel: KernelStepper, until_s: float, slack_s: float,
                       max_steps: int, watch_fd: int = -1) -> None:
-        from bfsitl.kernel import lockstep_stepper as outcome
-
         run: KernelRun = kernel.run(self.encoder, self._rc_bytes(self.simulator.time_s),
                                     until_s=until_s, slack_s=slack_s, max_steps=max_steps,
                                     spin_s=self.spin_s, watch_fd=watch_fd)

@@ -12,6 +12,9 @@ import time
 from collections.abc import Callable
 from pathlib import Path
 
+import pytest
+
+from bfsitl.errors import SitlExitedError
 from bfsitl.protocol.sitl_packets import FdmPacket, RcPacket
 from bfsitl.sim.lockstep import REPLY_FORMAT, LockstepBridge
 from bfsitl.sim.shm_exchange import REGION_BYTES, ShmExchange, _Futex
@@ -101,3 +104,16 @@ def bridge_on(exchange: ShmExchange, simulator: object, **options: object
     bridge._sock = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)  # no port of 9002 needed
     bridge._sock.setblocking(False)
     return bridge.start()
+
+
+def assert_a_silent_fc_is_asked_about(bridge: LockstepBridge, fc: SharedFakeFc) -> None:
+    """The FC stops answering: the bridge's wait asks whether the SITL still runs, and the
+    SITL's end (here: it has exited) is what the step raises."""
+    fc.answer = False
+
+    def dead() -> None:
+        raise SitlExitedError("the SITL exited with code 0", 0, "")
+
+    bridge.alive = dead
+    with pytest.raises(SitlExitedError):
+        bridge.step()

@@ -12,9 +12,9 @@ from pathlib import Path
 from typing import Any
 
 import pytest
-from support.shared_fake_fc import SharedFakeFc, bridge_on
+from support.shared_fake_fc import SharedFakeFc, assert_a_silent_fc_is_asked_about, bridge_on
 
-from bfsitl.errors import KernelUnavailableError, SitlError, SitlExitedError
+from bfsitl.errors import KernelUnavailableError, SitlError
 from bfsitl.fc.rc_link import RcCommand, RcFault
 from bfsitl.physics import Simulator
 from bfsitl.physics.frames import GeoPoint
@@ -132,14 +132,7 @@ def test_a_late_reply_is_handed_to_the_python_wait_and_a_dead_sitl_is_noticed(
         # The lock (Python) resends its packet every 5 ms; each step's went out once.
         stamps = [stamp for stamp, _ in fc.received]
         assert stamps[stamps.count(0.0):] == pytest.approx([0.001, 0.002, 0.003])
-        fc.answer = False
-
-        def dead() -> None:
-            raise SitlExitedError("the SITL exited with code 0", 0, "")
-
-        bridge.alive = dead
-        with pytest.raises(SitlExitedError):
-            bridge.step()
+        assert_a_silent_fc_is_asked_about(bridge, fc)
         bridge.close()
 
 

@@ -13,12 +13,17 @@ from pathlib import Path
 
 import pytest
 from support.fake_simulator import FakeSimulator
-from support.shared_fake_fc import DATAGRAM_AT, SharedFakeFc, bridge_on
+from support.shared_fake_fc import (
+    DATAGRAM_AT,
+    SharedFakeFc,
+    assert_a_silent_fc_is_asked_about,
+    bridge_on,
+)
 
 from bfsitl.backend.factory import uses_shm_exchange
 from bfsitl.build.binary_scan import SHM_EXCHANGE_MARKER, clear_cache
 from bfsitl.build.lockstep import MARKER
-from bfsitl.errors import BfsitlError, SitlError, SitlExitedError
+from bfsitl.errors import BfsitlError, SitlError
 from bfsitl.fc.rc_link import RcCommand
 from bfsitl.sim.lockstep import LockstepClock, LockstepRc
 from bfsitl.sim.shm_exchange import (
@@ -88,14 +93,7 @@ def test_a_late_answer_is_waited_for_and_a_silent_fc_is_asked_about(region: ShmE
         bridge.lock()
         bridge.step()
         assert bridge.lockstep_stats().resends == 0
-        fc.answer = False
-
-        def dead() -> None:
-            raise SitlExitedError("the SITL exited with code 0", 0, "")
-
-        bridge.alive = dead
-        with pytest.raises(SitlExitedError):
-            bridge.step()
+        assert_a_silent_fc_is_asked_about(bridge, fc)
         bridge.close()
     finally:
         fc.close()

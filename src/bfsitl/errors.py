@@ -44,6 +44,7 @@ Messages are written for the person at the terminal: what went wrong, then what 
     │   └── ScenarioFailedError        a scenario run as a pytest item did not pass
     ├── DisturbanceUnavailableError    this backend cannot do that to a flight (Gazebo, a board)
     ├── BlackboxError                  a blackbox log that cannot be read
+    ├── TrackDataMissingError          a flight record lacks what an analyser reads (it is skipped)
     ├── KernelUnavailableError         the optional compiled step cannot be built or loaded here
     └── SitlError                      the SITL process
         ├── FirmwareNotFoundError      no SITL binary anywhere we looked
@@ -245,6 +246,12 @@ class DisturbanceUnavailableError(BfsitlError):
 
 class BlackboxError(BfsitlError):
     """A blackbox log that cannot be found or decoded."""
+
+
+class TrackDataMissingError(BfsitlError):
+    """A flight's record lacks what an analyser reads (a blackbox log has no GPS track and no
+    simulated truth): the analyser is listed as not watched, with this message, and the others
+    run."""
 
 
 class KernelUnavailableError(BfsitlError):

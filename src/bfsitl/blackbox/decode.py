@@ -77,6 +77,13 @@ class BlackboxFrame:
     setpoint: tuple[int, ...]          # setpoint[0..3] (deg/s, throttle)
     gyro_adc: tuple[int, ...]          # gyroADC[0..2], as logged
     debug: tuple[int, ...]             # debug[0..7] (what debug_mode puts there)
+    #: accSmooth[0..2] (the accelerometer, ``acc_1G`` per g; empty when not logged).
+    acc: tuple[int, ...] = ()
+    #: imuQuaternion[0..2]: the attitude's x, y, z scaled by 0x7FFF, w >= 0 implied
+    #: (``[4.6] src/main/blackbox/blackbox.c:1260-1269``); empty when not logged.
+    quaternion_xyz: tuple[int, ...] = ()
+    #: baroAlt: the barometer's altitude above where it was calibrated, cm (None: no baro).
+    baro_alt_cm: int | None = None
 
 
 @dataclass(frozen=True, slots=True)
@@ -239,7 +246,8 @@ def _frame(row: dict[str, object]) -> BlackboxFrame:
         state_flags=_int(row.get("stateFlags")) or 0,
         motors=_group(row, "motor", 8), rc_command=_group(row, "rcCommand", 4),
         setpoint=_group(row, "setpoint", 4), gyro_adc=_group(row, "gyroADC", 3),
-        debug=_group(row, "debug", 8))
+        debug=_group(row, "debug", 8), acc=_group(row, "accSmooth", 3),
+        quaternion_xyz=_group(row, "imuQuaternion", 3), baro_alt_cm=_int(row.get("baroAlt")))
 
 
 def frames_to_rows(log: BlackboxLog) -> list[dict[str, float | int | bool | None]]:

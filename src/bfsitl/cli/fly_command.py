@@ -455,4 +455,13 @@ def render_summary(summary: dict) -> str:
                 mode += "compiled step, "
         lines.append(f"physics        {mode}{physics['answered_ratio'] * 100:.1f} % of fdm "
                      f"packets answered at {physics['speed']:.2f}x real time")
+    if "findings" in summary:
+        findings = summary["findings"]
+        watched = len((summary.get("analysers") or {}).get("watched") or ())
+        if not findings:
+            lines.append(f"findings       none ({watched} analysers watched)")
+        for index, finding in enumerate(findings):
+            head = "findings       " if index == 0 else " " * 15
+            lines.append(f"{head}{finding['severity']:<8} {finding['analyser']}: "
+                         f"{finding['summary']} (t={finding['time_s']:.2f} s)")
     return "\n".join(lines)

@@ -21,6 +21,7 @@ from bfsitl.cli.bridge_commands import add_configurator_parser, add_serial_bridg
 from bfsitl.cli.doctor import add_doctor_parser
 from bfsitl.cli.firmware_command import add_firmware_parser
 from bfsitl.cli.fly_command import add_fly_parser
+from bfsitl.cli.log_command import add_log_parser
 from bfsitl.cli.scenario_command import add_scenario_parser
 from bfsitl.cli.sim_command import add_sim_parser
 from bfsitl.cli.target import add_target_arguments, open_target, progress
@@ -206,6 +207,7 @@ def build_parser() -> argparse.ArgumentParser:
     add_configurator_parser(sub)
     add_serial_bridge_parser(sub)
     add_firmware_parser(sub)
+    add_log_parser(sub)
     return parser
 
 

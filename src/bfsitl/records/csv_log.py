@@ -7,6 +7,7 @@ was flown.  The columns carry their units in their names.
 from __future__ import annotations
 
 import csv
+import dataclasses
 import io
 import math
 from pathlib import Path
@@ -66,3 +67,29 @@ def read_flight_log(path: str | Path) -> list[dict[str, str]]:
             raise BfsitlError(f"{path} is not a bfsitl flight log (columns "
                               f"{reader.fieldnames})")
         return list(reader)
+
+
+def _typed(name: str, text: str) -> object:
+    kind = _KINDS[name]
+    if kind == "bool":
+        return text == "1"
+    if kind == "int":
+        return int(text)
+    if kind == "str":
+        return text
+    return float(text) if text else math.nan
+
+
+#: Each column's type, from FlightRow's annotations (strings: ``from __future__``).
+_KINDS = {f.name: str(f.type) for f in dataclasses.fields(FlightRow)}
+
+
+def read_flight_rows(path: str | Path) -> list[FlightRow]:
+    """A log read back as :class:`FlightRow` (empty cells are NaN): what the analysers
+    read (``bfsitl log check flight.csv``)."""
+    try:
+        rows = read_flight_log(path)
+        return [FlightRow(**{name: _typed(name, row[name]) for name in COLUMNS})  # type: ignore[arg-type]
+                for row in rows]
+    except (OSError, ValueError, KeyError, UnicodeDecodeError, csv.Error) as exc:
+        raise BfsitlError(f"cannot read the flight log {path}: {exc}") from exc

@@ -2,7 +2,9 @@
 file suffix), opened together, fed together and closed together.
 
 During the flight each row (and each event) goes to the sinks that stream: the CSV log, the
-MCAP file and the live Foxglove server.  After it, the same rows make the plot and the summary.
+MCAP file and the live Foxglove server, and to the analysers that watch every flight
+(:class:`~bfsitl.analysis.FlightWatch`).  After it, the same rows make the plot and the
+summary, whose ``findings`` are what the analysers found.
 Streaming sinks flush as they go and are closed on every way out (Ctrl-C, a crash of the SITL,
 an exception), so what was flown is never lost: the CSV row by row, the MCAP finished with its
 index.
@@ -15,6 +17,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
+from bfsitl.analysis import Analysis, FlightWatch
 from bfsitl.errors import BfsitlError
 from bfsitl.mission.flight_row import FlightRow
 from bfsitl.records.sinks import FoxgloveSink, RowSink, open_sink
@@ -39,6 +42,9 @@ class OutputOptions:
     waypoints: list[tuple[float, float]] = field(default_factory=list)
     #: More record files, each written by the sink its suffix picks.
     extra_paths: tuple[str | Path, ...] = ()
+    #: Run the analysers on the flight (crash, saturation, excursions, ...): their findings
+    #: go into the summary.
+    watch: bool = True
 
 
 class FlightOutputs:
@@ -58,6 +64,10 @@ class FlightOutputs:
         self.foxglove_url: str | None = None
         #: Every sink opened, in order (closing empties :attr:`sinks`; finishing uses these).
         self._opened: list[RowSink] = []
+        #: The analysers' record of the flight (None: not watched).
+        self.watch: FlightWatch | None = FlightWatch() if options.watch else None
+        #: What they found, once :meth:`finish` ran.
+        self.analysis: Analysis | None = None
 
     def start(self) -> FlightOutputs:
         """Open every streaming sink, each chosen by its file's suffix
@@ -98,6 +108,8 @@ class FlightOutputs:
         self._last_time_s = row.time_s
         for sink in self.sinks:
             sink.write(row, sample)
+        if self.watch is not None:
+            self.watch.add(row, sample)
         self.rows_written += 1
 
     def on_event(self, text: str) -> None:
@@ -120,7 +132,13 @@ class FlightOutputs:
     # -- after the flight -----------------------------------------------------------------
     def finish(self, result: MissionResult, summary: dict[str, Any]) -> list[str]:
         """What each sink writes from the whole flight (the plot, the summary); what was
-        written, in words."""
+        written, in words.  The analysers' findings go into ``summary`` first
+        (``findings``, ``analysers``), so the summary file has them."""
+        if self.watch is not None:
+            self.analysis = self.watch.analysis()
+            summary["findings"] = [f.as_dict() for f in self.analysis.findings]
+            summary["analysers"] = {"watched": self.analysis.watched,
+                                    "skipped": self.analysis.skipped}
         written = [sink.finish(result, summary) for sink in self._opened]
         return [line for line in written if line]
 

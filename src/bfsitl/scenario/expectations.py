@@ -29,6 +29,11 @@ key = value                    holds when
                                GPS_RESCUE, ...)
 ``blackbox_link_lost = true``  the blackbox shows the flight channels invalid at some point
                                (``rxFlightChannelsValid``: what the FC made of its receiver)
+``finding = A | [A..]``        the analyser(s) A reported something (``crash``,
+                               ``motor_saturation``, ...: :mod:`bfsitl.analysis.analysers`)
+``no_finding = A | [A..]``     they reported nothing
+``worst_finding = S``          no finding is worse than S (``none``, ``info``, ``warning``,
+                               ``failure``)
 =============================  ===============================================================
 
 Expectations that hold for one firmware generation only go in ``[expect."4.6"]`` or
@@ -45,6 +50,7 @@ from collections.abc import Callable
 from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any
 
+from bfsitl.analysis import ANALYSERS, Severity
 from bfsitl.errors import ScenarioError
 from bfsitl.mission.runner import CRASH_TILT_DEG, CRASH_TOUCHDOWN_M_S
 from bfsitl.scenario.result import CheckResult
@@ -333,9 +339,46 @@ def _blackbox_disarm(key: str, value: str, trace: Trace, _e: dict[str, Any]) -> 
                   f"{', '.join(reasons)}", reasons[-1], None)
 
 
+def _found(trace: Trace, name: str) -> str:
+    finding = next((f for f in trace.findings if f.analyser == name), None)
+    return "nothing" if finding is None else f"{finding.severity.label}: {finding.summary}"
+
+
+def _finding(key: str, value: str | list[str], trace: Trace, _e: dict[str, Any]
+             ) -> CheckResult:
+    names = _names(value)
+    missing = [n for n in names if not any(f.analyser == n for f in trace.findings)]
+    seen = "; ".join(f"{n}: {_found(trace, n)}" for n in names)
+    first = next((f for f in trace.findings if f.analyser in names), None)
+    return _check(key, value, not missing,
+                  (f"{', '.join(missing)} found nothing; " if missing else "") + seen,
+                  first.severity.label if first else None, first.time_s if first else None)
+
+
+def _no_finding(key: str, value: str | list[str], trace: Trace, _e: dict[str, Any]
+                ) -> CheckResult:
+    found = [f for f in trace.findings if f.analyser in _names(value)]
+    if not found:
+        return _check(key, value, True, "none of them found anything", None, None)
+    return _check(key, value, False, "; ".join(f"{f.analyser}: {f.severity.label}: "
+                                               f"{f.summary}" for f in found),
+                  found[0].severity.label, found[0].time_s)
+
+
+def _worst_finding(key: str, value: str, trace: Trace, _e: dict[str, Any]) -> CheckResult:
+    allowed = 0 if value == "none" else int(Severity.parse(value))
+    worse = [f for f in trace.findings if f.severity > allowed]
+    if not worse:
+        worst = trace.findings[0].severity.label if trace.findings else "none"
+        return _check(key, value, True, f"the worst finding was {worst}", worst, None)
+    return _check(key, value, False, f"{worse[0].analyser} found {worse[0].severity.label}: "
+                  f"{worse[0].summary}", worse[0].severity.label, worse[0].time_s)
+
+
 _Judge = Callable[[str, Any, Trace, dict[str, Any]], CheckResult]
 
-#: key -> (value kind, judge).  Kinds: "bool", "number", "names", "phases", "limit", "text".
+#: key -> (value kind, judge).  Kinds: "bool", "number", "names", "phases", "limit", "text",
+#: "analysers", "severity".
 _KEYS: dict[str, tuple[str, _Judge | None]] = {
     "disarmed": ("bool", _disarmed),
     "disarmed_within_s": ("number", _disarmed_within),
@@ -358,7 +401,12 @@ _KEYS: dict[str, tuple[str, _Judge | None]] = {
     "blackbox_phase": ("phases", _blackbox_phase),
     "blackbox_disarm_reason": ("text", _blackbox_disarm),
     "blackbox_link_lost": ("bool", _blackbox_link_lost),
+    "finding": ("analysers", _finding),
+    "no_finding": ("analysers", _no_finding),
+    "worst_finding": ("severity", _worst_finding),
 }
+ANALYSER_NAMES = tuple(a.name for a in ANALYSERS)
+SEVERITY_NAMES = ("none", *(s.label for s in Severity))
 EXPECTATION_KEYS = tuple(sorted(_KEYS))
 
 
@@ -376,6 +424,19 @@ def _parse(where: str, key: str, value: Any) -> Any:
             raise ScenarioError(f"{where}, [expect]: {key} must be a number >= 0, "
                                 f"got {value!r}")
         return float(value)
+    if kind == "severity":
+        if value not in SEVERITY_NAMES:
+            raise ScenarioError(f"{where}, [expect]: {key} = {value!r} is not one of "
+                                f"{', '.join(SEVERITY_NAMES)}")
+        return value
+    if kind == "analysers":
+        listed = _names(value) if isinstance(value, (str, list)) else []
+        unknown = [n for n in listed if n not in ANALYSER_NAMES]
+        if not listed or unknown:
+            raise ScenarioError(f"{where}, [expect]: {key}: unknown analyser(s) "
+                                f"{', '.join(map(repr, unknown)) or repr(value)}; known: "
+                                f"{', '.join(ANALYSER_NAMES)}")
+        return value
     if kind in ("names", "phases", "text"):
         names = _names(value) if isinstance(value, (str, list)) else None
         if not names or not all(isinstance(n, str) and n for n in names):

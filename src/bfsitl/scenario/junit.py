@@ -2,11 +2,12 @@
 
 One ``<testsuite>`` per firmware, one ``<testcase>`` per scenario: a failed run is a
 ``<failure>`` whose message is its reason (the first failed check) and whose text lists every
-check and the event timeline; a run that could not be flown is an ``<error>``; a run that was
-not attempted a ``<skipped>``.  The timeline also goes to ``system-out`` (CI pages show it for
-passed runs too), the firmware version, the simulated time and the run's files to the suite's
-``<properties>``.  CI servers (Jenkins, GitLab, GitHub's test reporters) read it as they read
-any test run's.
+check, the analysers' findings and the event timeline; a run that could not be flown is an
+``<error>``; a run that was not attempted a ``<skipped>``.  The timeline also goes to
+``system-out`` (CI pages show it for passed runs too), the firmware version, the simulated
+time, each finding (``NAME.finding.crash = failure at t=...``) and the run's files to the
+suite's ``<properties>``.  CI servers (Jenkins, GitLab, GitHub's test reporters) read it as
+they read any test run's.
 """
 
 from __future__ import annotations
@@ -58,6 +59,11 @@ def _detail_text(result: ScenarioResult) -> str:
     failure needs to see why, without opening the run's files."""
     lines = [f"retried: attempt {n} was lost: {why}" for n, why in enumerate(result.retried, 1)]
     lines += [f"{'PASS' if c.passed else 'FAIL'} {c.message}" for c in result.checks]
+    if result.findings:
+        if lines:
+            lines.append("")
+        lines.append("findings (the analysers that watch every run):")
+        lines.extend(f.line() for f in result.findings)
     if result.events:
         if lines:
             lines.append("")
@@ -112,6 +118,9 @@ def _suite(name: str, runs: Sequence[ScenarioResult]) -> TestSuite:
     for result in runs:
         prefix = _xml_safe(result.name) + "."
         suite.add_property(prefix + "sim_time_s", f"{result.sim_time_s:g}")
+        for finding in result.findings:
+            suite.add_property(f"{prefix}finding.{finding.analyser}", _xml_safe(
+                f"{finding.severity.label} at t={finding.time_s:.2f} s: {finding.summary}"))
         for kind, artifact in result.artifacts.items():
             suite.add_property(prefix + _xml_safe(kind), _xml_safe(_display_path(artifact)))
     for result in runs:

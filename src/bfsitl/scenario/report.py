@@ -37,6 +37,9 @@ th { background: #f6f8fa; }
 section { border-top: 2px solid #d0d7de; margin-top: 2em; }
 pre { background: #f6f8fa; padding: .6em; overflow-x: auto; font-size: 12px; }
 img { max-width: 100%; border: 1px solid #d0d7de; margin: .5em 0; }
+.finding { font-weight: 600; } span.finding { margin-right: .4em; }
+.finding.failure { color: #cf222e; } .finding.warning { color: #9a6700; }
+.finding.info { color: #0969da; } .unwatched { color: #6e7781; font-size: 12px; }
 """
 
 
@@ -83,7 +86,8 @@ def _table(results: Sequence[ScenarioResult], directory: Path) -> str:
     rows = [
         f'<tr><td><a href="#run-{index}">{escape(result.name)}</a></td>'
         f"<td>{escape(result.firmware)}</td><td>{_verdict(result.verdict)}</td>"
-        f"<td>{escape(_reason(result))}</td><td class=\"num\">{result.sim_time_s:.1f}</td>"
+        f"<td>{escape(_reason(result))}</td><td>{_finding_badges(result)}</td>"
+        f"<td class=\"num\">{result.sim_time_s:.1f}</td>"
         f"<td class=\"num\">{result.wall_time_s:.1f}</td><td>{_links(result, directory)}</td>"
         "</tr>"
         for index, result in enumerate(results)]
@@ -116,6 +120,41 @@ def _checks(result: ScenarioResult) -> str:
             + "".join(_check_row(c) for c in result.checks) + "</table>")
 
 
+def _finding_badges(result: ScenarioResult) -> str:
+    """The run's findings in the summary table: each analyser's name, coloured by severity."""
+    return " ".join(f'<span class="finding {f.severity.label}" '
+                    f'title="{escape(f.summary, quote=True)}">{escape(f.analyser)}</span>'
+                    for f in result.findings)
+
+
+def _findings(result: ScenarioResult) -> str:
+    """What the analysers found, with the evidence; which of them could not watch."""
+    if not result.findings and not result.unwatched:
+        return ""
+    rows = "".join(
+        f'<tr><td class="finding {f.severity.label}">{f.severity.label}</td>'
+        f"<td>{escape(f.analyser)}</td><td>{escape(f.summary)}</td>"
+        f'<td class="num">{f.time_s:.2f}</td><td>{escape(f.source)}</td>'
+        f"<td><code>{escape(_evidence(f.evidence))}</code></td></tr>" for f in result.findings)
+    table = ("<table><tr><th></th><th>analyser</th><th>finding</th><th class=\"num\">at s"
+             "</th><th>seen in</th><th>evidence</th></tr>" + rows + "</table>") if rows \
+        else "<p>nothing found</p>"
+    unwatched = ""
+    if result.unwatched:
+        unwatched = ("<p class=\"unwatched\">not watched: " + escape("; ".join(
+            f"{name} ({why})" for name, why in result.unwatched.items())) + "</p>")
+    return f"<h3>findings</h3>{table}{unwatched}"
+
+
+def _evidence(evidence: dict[str, object]) -> str:
+    parts = []
+    for key, value in evidence.items():
+        if isinstance(value, float):
+            value = round(value, 3)
+        parts.append(f"{key}={value}")
+    return ", ".join(parts)
+
+
 def _timeline(result: ScenarioResult) -> str:
     if not result.events:
         return ""
@@ -142,7 +181,8 @@ def _section(index: int, result: ScenarioResult, directory: Path) -> str:
         parts.append(f"<p>Betaflight {escape(result.firmware_version)}</p>")
     if result.description:
         parts.append(f"<p>{escape(' '.join(result.description.split()))}</p>")
-    parts.extend((_checks(result), _timeline(result), _images(result, directory), "</section>"))
+    parts.extend((_checks(result), _findings(result), _timeline(result),
+                  _images(result, directory), "</section>"))
     return "".join(parts)
 
 

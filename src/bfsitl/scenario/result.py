@@ -11,6 +11,8 @@ import enum
 from dataclasses import dataclass, field
 from pathlib import Path
 
+from bfsitl.analysis import Finding
+
 
 class Verdict(enum.Enum):
     """How a scenario ended."""
@@ -76,6 +78,12 @@ class ScenarioResult:
     #: Why earlier attempts of this run were lost (a Ray worker or node gone), oldest first;
     #: empty when it ran once.
     retried: tuple[str, ...] = ()
+    #: What the analysers that watch every run found (:mod:`bfsitl.analysis`), worst first,
+    #: whether or not an expectation asked.
+    findings: list[Finding] = field(default_factory=list)
+    #: The analysers that watched this run, and those that could not (name -> why).
+    watched: list[str] = field(default_factory=list)
+    unwatched: dict[str, str] = field(default_factory=dict)
 
     @property
     def passed(self) -> bool:

@@ -30,6 +30,7 @@ from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
 
+from bfsitl.analysis import FlightWatch, analyse, combine, track_from_blackbox
 from bfsitl.atomic_file import write_atomically
 from bfsitl.control import DEFAULT_CONTROLLER, make_controller
 from bfsitl.errors import (
@@ -137,8 +138,11 @@ class _Injector:
     """Injects each fault when it is due and undoes it when it ends; keeps the trace."""
 
     def __init__(self, session: FlightSession, faults: tuple[Fault, ...], trace: Trace,
-                 events: list[TimedEvent], progress: Progress, record: Progress) -> None:
+                 events: list[TimedEvent], progress: Progress, record: Progress,
+                 watch: FlightWatch | None = None) -> None:
         self.session = session
+        #: The analysers' record of the run, on the trace's clock (seconds from arming).
+        self.watch = watch or FlightWatch()
         #: Events go to the flight's outputs as well (the MCAP file's /events log).
         self.record = record
         self.pending = sorted(faults, key=lambda f: f.spec.at_s)
@@ -157,7 +161,7 @@ class _Injector:
     def since_arming(self, sample: FlightSample) -> float:
         return sample.time_s - (self.armed_at_s or 0.0)
 
-    def on_row(self, _row: FlightRow, sample: FlightSample) -> None:
+    def on_row(self, row: FlightRow, sample: FlightSample) -> None:
         if self.armed_at_s is None:
             return
         t = self.since_arming(sample)
@@ -176,6 +180,8 @@ class _Injector:
             if fault.takes_sticks:
                 self.sticks_taken = True
         self.trace.rows.append(self._row(t, sample))
+        self.watch.add(row, sample, time_s=round(t, 4),
+                       failsafe_phase=self.trace.rows[-1].failsafe_phase)
 
     def stop(self, _sample: FlightSample) -> str | None:
         """The autopilot stops flying once a fault has taken its sticks (then it watches)."""
@@ -284,6 +290,7 @@ def _fly(scenario: Scenario, binary: Path, profile: FirmwareProfile, faults: tup
         result.artifacts["blackbox_plot"] = write_blackbox_plot(
             trace.blackbox[0], out / "blackbox.png",
             title=f"{scenario.name} on {result.firmware}")
+    _analyse(injector.watch, trace, result)
     checks = judge(scenario, trace, profile.generation.value)
     result.checks = checks
     failed = [c for c in checks if not c.passed]
@@ -346,6 +353,18 @@ def _watch(scenario: Scenario, mission: Mission, injector: _Injector) -> None:
         mission.observe(done, timeout_s=left_s + 1.0, phase=Phase.WATCH)
 
 
+def _analyse(watch: FlightWatch, trace: Trace, result: ScenarioResult) -> None:
+    """Every analyser on the run (the trace's rows with the truth) and on the FC's own
+    log(s): each analyser's worst finding, in the result and in the trace (expectations may
+    ask about them)."""
+    analysis = combine(watch.analysis(),
+                       *(analyse(track_from_blackbox(log)) for log in trace.blackbox))
+    trace.findings = analysis.findings
+    result.findings = analysis.findings
+    result.watched = analysis.watched
+    result.unwatched = analysis.skipped
+
+
 def _collect_blackbox(out: Path, trace: Trace, result: ScenarioResult) -> None:
     """The FC's own log(s) copied out of the SITL's run directory and decoded; a log that
     cannot be read is an event, not a failed run (an expectation on it says so)."""
@@ -375,6 +394,8 @@ def write_summary(result: ScenarioResult, out: Path) -> None:
         "events": [{"time_s": e.time_s, "text": e.text} for e in result.events],
         "artifacts": {k: str(v) for k, v in result.artifacts.items()},
         "retried": list(result.retried),
+        "findings": [f.as_dict() for f in result.findings],
+        "analysers": {"watched": result.watched, "skipped": result.unwatched},
     }
     path = out / "result.json"
     write_atomically(path, (json.dumps(data, indent=2) + "\n").encode("utf-8"))

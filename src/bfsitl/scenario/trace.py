@@ -11,6 +11,7 @@ from dataclasses import dataclass, field
 from typing import TYPE_CHECKING
 
 if TYPE_CHECKING:
+    from bfsitl.analysis import Finding
     from bfsitl.blackbox import BlackboxLog
 
 #: Betaflight's failsafe phases (``failsafePhase_e``, flight/failsafe.h); 7 is master's.
@@ -60,6 +61,8 @@ class Trace:
     crash: tuple[float, str] | None = None
     #: The FC's own logs of the flight (empty when none was written or decoded).
     blackbox: list[BlackboxLog] = field(default_factory=list)
+    #: What the analysers found (:mod:`bfsitl.analysis`), worst first.
+    findings: list[Finding] = field(default_factory=list)
 
     @property
     def first_fault_s(self) -> float | None:

@@ -139,6 +139,18 @@ def test_summary_text_names_outcome_hold_and_link():
     })
     assert "landed" in text and "RMS 1.2 cm" in text and "97.0 %" in text
     assert "rise_time_s 1.500" in text
+    assert "findings" not in text    # not watched: nothing said
+    watched = render_summary({
+        "outcome": "landed", "reason": "landed", "controller": "fused",
+        "analysers": {"watched": ["crash", "hard_landing"], "skipped": {}},
+        "findings": [{"analyser": "hard_landing", "severity": "warning", "time_s": 12.5,
+                      "summary": "touched down at 1.9 m/s"}]})
+    assert "findings       warning  hard_landing: touched down at 1.9 m/s (t=12.50 s)" \
+        in watched
+    clean = render_summary({"outcome": "landed", "reason": "landed", "controller": "fused",
+                            "analysers": {"watched": ["crash"], "skipped": {}},
+                            "findings": []})
+    assert "findings       none (1 analysers watched)" in clean
 
 
 def test_fly_with_gazebo_missing_says_how_to_install_before_starting_anything(

@@ -108,6 +108,8 @@ LAYERS = {
                        "bfsitl.gym"),
     "bfsitl.gym": ("bfsitl.scenario", "bfsitl.cli", "bfsitl.autopilot"),
     "bfsitl.records": ("bfsitl.scenario", "bfsitl.cli", "bfsitl.autopilot"),
+    "bfsitl.analysis": ("bfsitl.records", "bfsitl.scenario", "bfsitl.cli", "bfsitl.autopilot",
+                        "bfsitl.gym", "bfsitl.sitl", "bfsitl.fc"),
     "bfsitl.protocol": ("bfsitl.fc", "bfsitl.sitl", "bfsitl.sim", "bfsitl.mission"),
 }
 

@@ -36,9 +36,31 @@ def test_rows_and_events_reach_every_sink_and_the_files_agree(tmp_path):
     result = SimpleNamespace(rows=rows, controller="fused", outcome=SimpleNamespace(
         value="landed"))
     written = outputs.finish(result, {"outcome": "landed"})  # type: ignore[arg-type]
-    assert json.loads((tmp_path / "out" / "f.json").read_text()) == {"outcome": "landed"}
+    # The analysers watched every row: what they found (nothing here) is in the summary.
+    summary = json.loads((tmp_path / "out" / "f.json").read_text())
+    assert summary["outcome"] == "landed" and summary["findings"] == []
+    assert "crash" in summary["analysers"]["watched"]
     assert (tmp_path / "f.png").stat().st_size > 10_000
     assert [w.split()[0] for w in written] == ["log", "MCAP", "plot", "summary"]
+
+
+def test_what_the_analysers_find_in_the_rows_goes_into_the_summary(tmp_path):
+    outputs = FlightOutputs(OutputOptions(summary_path=tmp_path / "f.json")).start()
+    rows = [make_row(i, motor2=1.0 if 20 <= i < 60 else 0.52) for i in range(100)]
+    for row in rows:
+        outputs.on_row(row)
+    outputs.close()
+    result = SimpleNamespace(rows=rows, controller="fused", outcome=SimpleNamespace(
+        value="landed"))
+    outputs.finish(result, {"outcome": "landed"})  # type: ignore[arg-type]
+    (finding,) = json.loads((tmp_path / "f.json").read_text())["findings"]
+    assert finding["analyser"] == "motor_saturation" and finding["severity"] == "warning"
+    assert finding["evidence"]["motors"] == [2] and finding["value"] == 0.8
+    unwatched = FlightOutputs(OutputOptions(watch=False)).start()
+    unwatched.on_row(rows[0])
+    summary: dict = {}
+    unwatched.finish(result, summary)  # type: ignore[arg-type]
+    assert "findings" not in summary and unwatched.analysis is None
 
 
 def test_a_sink_that_fails_to_close_does_not_keep_the_others_open(tmp_path):

@@ -11,6 +11,7 @@ from urllib.parse import unquote
 import pytest
 from junitparser import Error, Failure, JUnitXml, Skipped, TestSuite
 
+from bfsitl.analysis import Finding, Severity
 from bfsitl.scenario import report as report_module
 from bfsitl.scenario.junit import write_junit
 from bfsitl.scenario.report import write_report
@@ -25,6 +26,8 @@ OK = CheckResult("disarmed = true", True, "disarmed = true: the FC was disarmed 
 BAD = CheckResult("disarmed_within_s = 0.2", False,
                   "disarmed_within_s = 0.2: disarmed 0.52 s after the fault (expected within "
                   "0.2 s) at t=8.53 s", 0.52, 8.53)
+CRASH = Finding("crash", Severity.FAILURE, "hit the ground at 7.0 m/s, upside down", 9.3, 7.0,
+                "m/s", {"touchdown_speed_m_s": 7.0, "tilt_at_rest_deg": 171.2})
 
 
 def make_results(root: Path) -> list[ScenarioResult]:
@@ -43,6 +46,8 @@ def make_results(root: Path) -> list[ScenarioResult]:
                        events=[TimedEvent(8.0, "RC lost (silence)"),
                                TimedEvent(8.52, "disarmed")],
                        sim_time_s=11.2, wall_time_s=2.0,
+                       findings=[CRASH], watched=["crash", "failsafe"],
+                       unwatched={"gps_glitch": "the flight track has no fc_north_m"},
                        artifacts={"plot": run_dir / "plot.png",
                                   "log": run_dir / "flight log.csv",
                                   "blackbox": run_dir / "never-written.bbl"}),
@@ -133,6 +138,9 @@ def test_junit_properties_hold_version_sim_time_and_files(tmp_path: Path,
     assert properties["hover.sim_time_s"] == "20"
     assert properties["drop.plot"] == "runs/drop/plot.png"
     assert properties["drop.log"] == "runs/drop/flight log.csv"
+    assert properties["drop.finding.crash"] == \
+        "failure at t=9.30 s: hit the ground at 7.0 m/s, upside down"
+    assert not any(".finding." in name for name in properties if name.startswith("hover"))
     older = suites_by_name(path)[f"bfsitl scenarios [{OLDER}]"]
     assert "firmware_version" not in {p.name for p in older.properties()}
 
@@ -213,6 +221,11 @@ def test_the_report_lists_every_run_and_verdict(tmp_path: Path) -> None:
     assert "31.7 s simulated in 6.0 s" in text and "5.3x real time" in text
     assert BAD.message in text and OK.message in text
     assert "RC lost (silence)" in text and "gps_loss cannot happen on Betaflight 4.6.0" in text
+    # What the analysers found, with its evidence, and what they could not watch.
+    assert "hit the ground at 7.0 m/s, upside down" in text
+    assert "touchdown_speed_m_s=7.0" in text
+    assert "not watched: gps_glitch (the flight track has no fc_north_m)" in text
+    assert 'class="finding failure"' in page
 
 
 def test_the_report_escapes_user_text_and_runs_no_script(tmp_path: Path) -> None:

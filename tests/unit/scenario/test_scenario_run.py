@@ -8,6 +8,7 @@ import json
 from pathlib import Path
 
 import pytest
+from support.flight_rows import make_row
 from support.scenario_files import MASTER, V46, fake_binary, scenario
 
 from bfsitl.backend.embedded import RealTimeBackend
@@ -84,13 +85,14 @@ def test_the_injector_applies_each_fault_on_time_undoes_it_and_keeps_the_trace()
     trace, events, recorded = Trace(), [], []
     injector = _Injector(vehicle, make_faults(specs, V46), trace, events,  # type: ignore[arg-type]
                          progress=lambda _line: None, record=recorded.append)
-    injector.on_row(None, sample(0.5))  # type: ignore[arg-type]
+    injector.on_row(make_row(0), sample(0.5))
     assert trace.rows == []                        # not armed yet: nothing is watched
     injector.armed_at_s = 10.0
     thrust = []
     for step in range(1, 45):
         t = 10.0 + step * 0.1
-        injector.on_row(None, sample(t, modes=("ANGLE",) if t < 13.5 else ("ANGLE", "FS")))  # type: ignore[arg-type]
+        injector.on_row(make_row(step),
+                        sample(t, modes=("ANGLE",) if t < 13.5 else ("ANGLE", "FS")))
         thrust.append(vehicle.simulator.motor_thrust[1])
         stop = injector.stop(sample(t))
         assert (stop is not None) == (t >= 13.0 - 1e-9)
@@ -101,6 +103,10 @@ def test_the_injector_applies_each_fault_on_time_undoes_it_and_keeps_the_trace()
     assert texts[0].startswith("motor 2 at 50 %") and "motor 2 at 50 % thrust: over" in texts
     assert "flight mode FS on" in texts and texts == recorded
     assert len(trace.rows) == 44 and trace.rows[0].failsafe_phase is None
+    # The analysers watch the same steps, on the trace's clock (seconds from arming).
+    points = injector.watch.track.points
+    assert [p.time_s for p in points] == [r.time_s for r in trace.rows]
+    assert points[0].time_s == pytest.approx(0.1) and points[-1].modes == ("ANGLE", "FS")
 
 
 def test_a_scenario_that_needs_gps_skips_a_build_without_it(tmp_path: Path) -> None:

@@ -6,6 +6,7 @@ from pathlib import Path
 
 import pytest
 
+from bfsitl.analysis import Finding, Severity
 from bfsitl.errors import ScenarioError
 from bfsitl.library import scenarios_dir
 from bfsitl.scenario.expectations import crash_of, judge
@@ -37,7 +38,8 @@ def test_the_shipped_library_reads_and_runs_on_both_generations() -> None:
     scenarios = find_scenarios([LIBRARY])
     assert len(scenarios) >= 6
     for scenario in scenarios:
-        assert scenario.description and scenario.faults and scenario.expect
+        # Each injects a fault, or flies a configuration (a tune, a failsafe setting).
+        assert scenario.description and (scenario.faults or scenario.cli) and scenario.expect
         assert set(scenario.firmware) == {"master-lockstep", "4.6.0-gps-lockstep"}
 
 
@@ -58,6 +60,9 @@ def test_a_minimal_file_gets_its_name_and_defaults(tmp_path: Path) -> None:
     (("disarmed = true", 'failsafe_phase = "LANDIT"'), "unknown phase"),
     (("disarmed = true", "failsafe_within_s = 1.0"), "needs failsafe_phase"),
     (("disarmed = true", 'min_alt_m = { value = 1, after_s = 2 }'), "takes a number or"),
+    (("disarmed = true", 'finding = "crsh"'), "unknown analyser.*'crsh'.*known: crash"),
+    (("disarmed = true", 'no_finding = []'), "unknown analyser"),
+    (("disarmed = true", 'worst_finding = "bad"'), "is not one of none, info, warning"),
     (("[expect]\ndisarmed = true", ""), r"\[expect\] is missing"),
     (("takeoff_alt_m = 3.0", "takeoff_alt_m = 300.0"), r"\[flight\]: target altitude"),
 ])
@@ -154,6 +159,26 @@ def test_crash_is_judged_on_the_truth_once_nobody_flies() -> None:
     calm = drop_trace()
     calm.rows = [r for r in calm.rows if r.time_s < 8.0]
     assert crash_of(calm) is None
+
+
+def test_findings_are_expectations_too() -> None:
+    trace = drop_trace()
+    trace.findings = [
+        Finding("crash", Severity.FAILURE, "hit the ground at 7.0 m/s", 9.3, 7.0, "m/s"),
+        Finding("failsafe", Severity.INFO, "failsafe: RX_LOSS_MONITORING at 8.5 s", 8.5,
+                1.0, "phases")]
+    found, absent, worst = judge(scenario_expecting(
+        finding=["crash", "failsafe"], no_finding="fly_away", worst_finding="failure"), trace)
+    assert found.passed and absent.passed and worst.passed
+    assert found.measured == "failure" and found.at_time_s == 9.3
+    wrong = judge(scenario_expecting(finding="motor_saturation", no_finding="crash",
+                                     worst_finding="warning"), trace)
+    assert [c.passed for c in wrong] == [False, False, False]
+    assert "motor_saturation found nothing" in wrong[0].message
+    assert "crash: failure: hit the ground at 7.0 m/s" in wrong[1].message
+    assert wrong[2].measured == "failure" and wrong[2].at_time_s == 9.3
+    trace.findings = []
+    assert judge(scenario_expecting(worst_finding="none"), trace)[0].passed
 
 
 def test_blackbox_expectations_fail_clearly_without_a_log() -> None:

@@ -1,0 +1,181 @@
+"""What the analysers read: a flight as a list of :class:`TrackPoint`, from either source.
+
+* bfsitl's own record of a flight (:func:`point_from_row`: a
+  :class:`~bfsitl.mission.flight_row.FlightRow` and its sample): the simulated truth
+  (height, position, attitude, ground contact), the autopilot's targets, the motors, and
+  what the FC reported; about 50 points a second;
+* the FC's blackbox log (:func:`track_from_blackbox`, a real flight's or a SITL's): the
+  gyro against its setpoint, the motors, the FC's attitude, accelerometer and barometer,
+  the failsafe phase; a few hundred points a second, and no truth.
+
+A value a source does not have is NaN (or None, or an empty tuple); each analyser says what
+it needs and is skipped on a track without it.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+from typing import TYPE_CHECKING
+
+if TYPE_CHECKING:
+    from bfsitl.blackbox import BlackboxLog
+    from bfsitl.mission.flight_row import FlightRow
+    from bfsitl.mission.vehicle import FlightSample
+
+_NAN = math.nan
+#: Below this height the truth counts as on the ground when no sample says so.
+GROUND_ALT_M = 0.05
+
+
+@dataclass(frozen=True, slots=True)
+class TrackPoint:
+    """One look at a flight, on the track's clock."""
+
+    time_s: float
+    armed: bool
+    #: The vehicle is off the ground (None: the source cannot tell, a blackbox log).
+    airborne: bool | None = None
+    #: Height above the take-off point: the truth for a flight, the barometer for a log.
+    alt_m: float = _NAN
+    climb_m_s: float = _NAN           # vertical speed, up positive (truth)
+    north_m: float = _NAN             # position from the take-off point (truth)
+    east_m: float = _NAN
+    #: Attitude: the truth for a flight, the FC's estimate for a log (Betaflight's signs).
+    tilt_deg: float = _NAN
+    roll_deg: float = _NAN
+    pitch_deg: float = _NAN
+    #: The autopilot's phase (hold, goto, land, watch, ...); "" when no autopilot flies.
+    phase: str = ""
+    target_alt_m: float = _NAN
+    target_north_m: float = _NAN
+    target_east_m: float = _NAN
+    #: Motor commands 0..1, Betaflight's order.
+    motors: tuple[float, ...] = ()
+    #: Roll, pitch, yaw rates (deg/s): the filtered gyro and the PID loop's setpoint.
+    gyro_deg_s: tuple[float, ...] = ()
+    setpoint_deg_s: tuple[float, ...] = ()
+    #: The accelerometer's magnitude, g (1 at rest; NaN when not known).
+    accel_g: float = _NAN
+    #: ``failsafePhase_e`` (None: not read).
+    failsafe_phase: int | None = None
+    #: The receiver: a signal and valid flight channels (None: not known).
+    rx_ok: bool | None = None
+    modes: tuple[str, ...] = ()
+    #: What the FC believes: its altitude and its GPS position (NaN: not reported).
+    fc_alt_m: float = _NAN
+    fc_north_m: float = _NAN
+    fc_east_m: float = _NAN
+
+    @property
+    def distance_m(self) -> float:
+        return math.hypot(self.north_m, self.east_m)
+
+
+@dataclass(slots=True)
+class Track:
+    """A flight for the analysers."""
+
+    #: ``flight`` (bfsitl's record, with the truth) or ``blackbox`` (the FC's log).
+    source: str
+    points: list[TrackPoint] = field(default_factory=list)
+    #: A log's disarm reason (FAILSAFE, CRASH_PROTECTION, ...); None when unknown.
+    disarm_reason: str | None = None
+    #: Where it came from, for messages (a file, a run).
+    label: str = ""
+
+    def has(self, name: str) -> bool:
+        """Whether some point has attribute ``name`` (a finite number, a non-empty tuple)."""
+        for point in self.points:
+            value = getattr(point, name)
+            if isinstance(value, float):
+                if math.isfinite(value):
+                    return True
+            elif isinstance(value, tuple):
+                if value:
+                    return True
+            elif value is not None and value != "":
+                return True
+        return False
+
+
+def point_from_row(row: FlightRow, sample: FlightSample | None = None, *,
+                   time_s: float | None = None, failsafe_phase: int | None = None
+                   ) -> TrackPoint:
+    """A point of bfsitl's record of a flight; ``time_s`` replaces the row's clock (a
+    scenario counts from arming)."""
+    if sample is not None:
+        airborne = not sample.on_ground
+        modes = sample.flight_modes
+        accel = math.sqrt(sum(a * a for a in sample.fc_accel_flu_m_s2)) / 9.80665
+    else:
+        airborne = row.sim_alt_m > GROUND_ALT_M
+        modes = ()
+        accel = _NAN
+    return TrackPoint(
+        time_s=row.time_s if time_s is None else time_s, armed=row.armed, airborne=airborne,
+        alt_m=row.sim_alt_m, climb_m_s=row.sim_climb_m_s, north_m=row.sim_north_m,
+        east_m=row.sim_east_m, tilt_deg=row.sim_tilt_deg, roll_deg=row.sim_roll_deg,
+        pitch_deg=row.sim_pitch_deg, phase=row.phase, target_alt_m=row.target_alt_m,
+        target_north_m=row.target_north_m, target_east_m=row.target_east_m,
+        motors=(row.motor1, row.motor2, row.motor3, row.motor4), accel_g=accel,
+        failsafe_phase=failsafe_phase, modes=modes, fc_alt_m=row.fc_alt_m,
+        fc_north_m=row.fc_north_m, fc_east_m=row.fc_east_m)
+
+
+def track_from_rows(rows: list[FlightRow], *, label: str = "") -> Track:
+    """A flight's rows as a track (no samples: ground contact from the true height)."""
+    return Track("flight", [point_from_row(row) for row in rows], label=label)
+
+
+def _motor_range(log: BlackboxLog) -> tuple[float, float]:
+    """``motorOutput: low,high`` from the log's header (DShot 48..2047, PWM 1000..2000)."""
+    low, _, high = log.headers.get("motorOutput", "").partition(",")
+    try:
+        lo, hi = float(low), float(high)
+    except ValueError:
+        lo, hi = 1000.0, 2000.0
+    return (lo, hi) if hi > lo else (1000.0, 2000.0)
+
+
+def _tilt_roll_pitch(xyz: tuple[int, ...]) -> tuple[float, float, float]:
+    """Tilt, roll and pitch in degrees from the logged quaternion's x, y, z (w >= 0)."""
+    if len(xyz) < 3:
+        return _NAN, _NAN, _NAN
+    x, y, z = (v / 0x7FFF for v in xyz[:3])
+    w = math.sqrt(max(0.0, 1.0 - x * x - y * y - z * z))
+    # Body z against the earth's vertical: cos(tilt) = 1 - 2 (x^2 + y^2).
+    tilt = math.degrees(math.acos(max(-1.0, min(1.0, 1.0 - 2.0 * (x * x + y * y)))))
+    roll = math.degrees(math.atan2(2.0 * (w * x + y * z), 1.0 - 2.0 * (x * x + y * y)))
+    pitch = math.degrees(math.asin(max(-1.0, min(1.0, 2.0 * (w * y - z * x)))))
+    return tilt, roll, pitch
+
+
+def track_from_blackbox(log: BlackboxLog) -> Track:
+    """One blackbox log as a track, times from its first frame.  Rates are scaled back from
+    ``blackbox_high_resolution``, motors from ``motorOutput``, the accelerometer from
+    ``acc_1G``."""
+    scale = 10.0 if log.headers.get("blackbox_high_resolution", "0").strip() == "1" else 1.0
+    low, high = _motor_range(log)
+    try:
+        one_g = float(log.headers.get("acc_1G", "")) or 1.0
+    except ValueError:
+        one_g = _NAN
+    start = log.frames[0].time_s if log.frames else 0.0
+    points = []
+    for frame in log.frames:
+        tilt, roll, pitch = _tilt_roll_pitch(frame.quaternion_xyz)
+        accel = math.sqrt(sum(a * a for a in frame.acc)) / one_g if len(frame.acc) == 3 \
+            else _NAN
+        points.append(TrackPoint(
+            time_s=round(frame.time_s - start, 6), armed=True,
+            alt_m=frame.baro_alt_cm / 100.0 if frame.baro_alt_cm is not None else _NAN,
+            tilt_deg=tilt, roll_deg=roll, pitch_deg=pitch,
+            motors=tuple(min(1.0, max(0.0, (m - low) / (high - low))) for m in frame.motors),
+            gyro_deg_s=tuple(g / scale for g in frame.gyro_adc),
+            setpoint_deg_s=tuple(s / scale for s in frame.setpoint[:3]),
+            accel_g=accel, failsafe_phase=frame.failsafe_phase,
+            rx_ok=None if frame.rx_signal_received is None
+            else bool(frame.rx_signal_received and frame.rx_flight_channels_valid)))
+    return Track("blackbox", points, disarm_reason=log.disarm_reason_name,
+                 label=f"{log.path.name} log {log.index}")

@@ -134,6 +134,8 @@ def test_a_square_mission_file_flies_in_wind_and_lands_at_its_start(gps_lockstep
     assert all(leg["arrival_error_m"] < 0.5 for leg in legs), legs
     assert summary["cross_track_rms_m"] < 0.5
     assert summary["landed_from_start_m"] < 0.5
+    # The analysers watched the whole flight and found nothing wrong in wind and gusts.
+    assert summary["findings"] == [] and len(summary["analysers"]["watched"]) >= 10
     rows = read_rows(tmp_path / "square.csv")
     legs_rows = [r for r in rows if r["phase"] == "goto"]
     # The FC's GPS (what the autopilot flew by) agrees with the truth along the way.

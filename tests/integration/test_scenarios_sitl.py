@@ -106,6 +106,16 @@ def test_the_shipped_library_passes_on_every_firmware(
             assert logs, f"no blackbox for {name}[{build}]"
         assert "blackbox_disarm_reason = 'FAILSAFE'" in (
             out / build / "rc-loss-hover-drop" / "result.json").read_text()
+        # The analysers watched every run, asked or not: the drop's crash is in result.json,
+        # in the suite's JUnit properties and on the report.
+        drop = json.loads((out / build / "rc-loss-hover-drop" / "result.json").read_text())
+        crash = next(f for f in drop["findings"] if f["analyser"] == "crash")
+        assert crash["severity"] == "failure" and crash["evidence"]["touchdown_speed_m_s"] > 5
+        assert len(drop["analysers"]["watched"]) >= 10
+        suite = next(s for name, s in suites.items() if build in name)
+        properties = {p.name: p.value for p in suite.properties()}
+        assert properties["rc-loss-hover-drop.finding.crash"].startswith("failure at t=")
+    assert 'class="finding failure"' in index
 
 
 @pytest.mark.timeout(300)

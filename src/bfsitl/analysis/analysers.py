@@ -84,7 +84,9 @@ class Analysis:
 
 # -- ground contact --------------------------------------------------------------------------
 @dataclass(frozen=True, slots=True)
-class _Touchdown:
+class Touchdown:
+    """A ground contact after flight."""
+
     index: int
     time_s: float
     speed_m_s: float      # downward, at contact (the fastest in the 0.3 s before)
@@ -93,7 +95,7 @@ class _Touchdown:
     from_alt_m: float     # the highest in the 10 s before
 
 
-def _touchdowns(track: Track) -> list[_Touchdown]:
+def touchdowns(track: Track) -> list[Touchdown]:
     points = track.points
     found = []
     for index in range(1, len(points)):
@@ -108,14 +110,14 @@ def _touchdowns(track: Track) -> list[_Touchdown]:
             ground_end += 1
         earlier = [p.alt_m for p in points[:index + 1] if t - 10.0 <= p.time_s
                    and finite(p.alt_m)]
-        found.append(_Touchdown(
+        found.append(Touchdown(
             index, t, max((-p.climb_m_s for p in before if finite(p.climb_m_s)), default=0.0),
             max((p.tilt_deg for p in around if finite(p.tilt_deg)), default=math.nan),
             points[ground_end].tilt_deg, max(earlier, default=math.nan)))
     return found
 
 
-def _contact_evidence(touch: _Touchdown, track: Track) -> dict[str, object]:
+def _contact_evidence(touch: Touchdown, track: Track) -> dict[str, object]:
     point = track.points[touch.index]
     return {"touchdown_speed_m_s": touch.speed_m_s, "tilt_at_contact_deg": touch.tilt_deg,
             "tilt_at_rest_deg": touch.rest_tilt_deg, "fell_from_m": touch.from_alt_m,
@@ -126,8 +128,8 @@ def crash(track: Track, limits: Limits) -> Finding | None:
     if track.source == "blackbox":
         return _crash_in_log(track)
     require(track, "airborne", "climb_m_s")
-    touchdowns = _touchdowns(track)
-    crashes = [t for t in touchdowns
+    contacts = touchdowns(track)
+    crashes = [t for t in contacts
                if t.speed_m_s >= limits.crash_speed_m_s
                or (finite(t.tilt_deg) and t.tilt_deg >= limits.tipped_over_deg)
                or (finite(t.rest_tilt_deg) and t.rest_tilt_deg >= limits.tipped_over_deg)]
@@ -178,7 +180,7 @@ def hard_landing(track: Track, limits: Limits) -> Finding | None:
                        peak.time_s, peak.accel_g, "g",
                        {"baro_descent_m_s": descent, "sample": evidence_of(peak)}, track.source)
     require(track, "airborne", "climb_m_s")
-    hard = [t for t in _touchdowns(track)
+    hard = [t for t in touchdowns(track)
             if limits.hard_landing_speed_m_s <= t.speed_m_s < limits.crash_speed_m_s]
     if not hard:
         return None

@@ -8,7 +8,9 @@ import time
 from pathlib import Path
 
 from bfsitl.cli.arg_types import number_in, whole_number_at_least
+from bfsitl.cli.compare_command import add_compare_parser
 from bfsitl.cli.fly_command import parse_speed
+from bfsitl.cli.scenario_inputs import check_builds, paths_or_library
 from bfsitl.cli.target import progress
 
 EXIT_OK = 0
@@ -86,27 +88,18 @@ def add_scenario_parser(sub: argparse._SubParsersAction) -> None:  # type: ignor
     faults = actions.add_parser("faults", help="the fault catalog, and where each works",
                                 description="Print the fault kinds and their parameters.")
     faults.set_defaults(func=cmd_scenario_faults)
+    add_compare_parser(actions)
 
 
 def cmd_scenario_run(args: argparse.Namespace) -> int:
-    from bfsitl.errors import FirmwareNotFoundError
     from bfsitl.scenario.load import find_scenarios
     from bfsitl.scenario.suite import plan_runs, run_suite
-    from bfsitl.sitl.firmware import find_firmware
 
-    scenarios = find_scenarios(_paths_or_library(args.paths))
+    scenarios = find_scenarios(paths_or_library(args.paths))
     runs = plan_runs(scenarios, args.firmware, args.out)
     if not args.firmware:
         runs = _runs_on_made_builds(runs)
-    for run in {run.firmware: run for run in runs}.values():
-        try:  # a missing build stops everything here, saying how to make it
-            find_firmware(run.firmware)
-        except FirmwareNotFoundError as exc:
-            origin = "--firmware" if args.firmware else f"named by {run.scenario.where}"
-            raise FirmwareNotFoundError(f"the build {run.firmware!r} ({origin}) is not there: "
-                                        f"`bfsitl firmware list` shows the builds, `bfsitl "
-                                        f"firmware build --lockstep [--gps]` makes one. "
-                                        f"{exc}") from exc
+    check_builds(runs, given=bool(args.firmware))
     progress(f"{len(runs)} runs of {len(scenarios)} scenarios; files in {args.out}/")
     started = time.monotonic()
 
@@ -142,15 +135,6 @@ def _write_outputs(args: argparse.Namespace, results: list) -> None:  # type: ig
         from bfsitl.scenario.report import write_report
 
         progress(f"report: {write_report(results, args.report)}")
-
-
-def _paths_or_library(paths: list[str]) -> list[str | Path]:
-    """The paths given, or the scenario library that ships inside the package."""
-    if paths:
-        return list(paths)
-    from bfsitl.library import scenarios_dir
-
-    return [scenarios_dir()]
 
 
 #: How each build a shipped scenario names is made (master comes from the user's clone).
@@ -193,7 +177,7 @@ def _runs_on_made_builds(runs: list) -> list:  # type: ignore[type-arg]
 def cmd_scenario_list(args: argparse.Namespace) -> int:
     from bfsitl.scenario.load import find_scenarios
 
-    for scenario in find_scenarios(_paths_or_library(args.paths)):
+    for scenario in find_scenarios(paths_or_library(args.paths)):
         firmware = ", ".join(scenario.firmware) or "(give --firmware)"
         print(f"{scenario.name}  [{scenario.where}]  {scenario.duration_s:g} s on {firmware}")
         if scenario.description:

@@ -198,13 +198,20 @@ def _serial_line(line: str) -> str | None:
 
 def _lines_to_run(cli: CliSession, lines: tuple[str, ...]) -> list[str]:
     """``lines`` without the ``set`` lines whose setting already holds that value, nor the
-    ``serial`` lines the port already has.
+    ``serial`` lines the port already has.  A setting set twice keeps its last line only: the
+    later line wins, as it would typed in order (a scenario's lines after bfsitl's own, a
+    comparison side's changed default); compared with the FC's value one by one, an earlier
+    line could be run while the later, equal to the old value, was dropped.
 
     The current values come from one ``get`` per setting, in non-interactive batches (which
     leave no CLI arming flag); ``get NAME`` prints ``NAME = VALUE`` (4.6.0 and master
     cli.c ``cliGet``).  A value that does not read back the same way (case, a number's
     form) is simply set again.
     """
+    last_set = {name: index for index, line in enumerate(lines)
+                if (name := _set_name(line)) is not None}
+    lines = tuple(line for index, line in enumerate(lines)
+                  if (name := _set_name(line)) is None or last_set[name] == index)
     names = [name for name in (_set_name(line) for line in lines) if name is not None]
     current: dict[str, str] = {}
     for batch in _batches(names, _BATCH_LINES):

@@ -50,3 +50,40 @@ def write_scenario_plot(trace: Trace, path: Path, *, title: str = "") -> Path:
     figure.savefig(path, dpi=90)
     plt.close(figure)
     return path
+
+
+def write_overlay_plot(traces: list[tuple[str, Trace]], path: Path, *, title: str = ""
+                       ) -> Path:
+    """Several runs of one scenario on one time axis (seconds from arming): height, distance
+    from home, tilt and the failsafe phase, one colour per run (``bfsitl scenario compare``
+    overlays side A's and side B's)."""
+    plt = load_pyplot()
+    figure, axes = plt.subplots(4, 1, figsize=(9, 8), sharex=True,
+                                gridspec_kw={"height_ratios": [3, 2, 2, 2]})
+    colours = ("tab:blue", "tab:orange", "tab:green", "tab:red")
+    for number, (label, trace) in enumerate(traces):
+        rows = trace.rows
+        t = [r.time_s for r in rows]
+        colour = colours[number % len(colours)]
+        panels = ([r.alt_m for r in rows], [r.distance_m for r in rows],
+                  [r.tilt_deg for r in rows])
+        for axis, values in zip(axes, panels, strict=False):
+            axis.plot(t, values, linewidth=1.2, color=colour, label=label)
+        phases = [r.failsafe_phase if r.failsafe_phase is not None else float("nan")
+                  for r in rows]
+        axes[3].step(t, phases, where="post", color=colour, linewidth=1.2)
+    for axis, label in zip(axes, ("height (m)", "from home (m)", "tilt (deg)", "failsafe"),
+                           strict=True):
+        axis.set_ylabel(label)
+        axis.grid(alpha=0.3)
+    axes[3].set_yticks(range(len(FAILSAFE_PHASES)))
+    axes[3].set_yticklabels(FAILSAFE_PHASES, fontsize=7)
+    axes[3].set_xlabel("simulation time from arming (s)")
+    axes[0].legend(loc="best", fontsize=8)
+    if title:
+        axes[0].set_title(title)
+    figure.tight_layout()
+    path = Path(path)
+    figure.savefig(path, dpi=90)
+    plt.close(figure)
+    return path

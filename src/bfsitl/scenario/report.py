@@ -22,7 +22,7 @@ from bfsitl.scenario.result import CheckResult, ScenarioResult, Verdict
 #: Files shown as images in a run's section (when they exist), by their suffix.
 _IMAGE_SUFFIXES = (".png", ".svg", ".jpg", ".jpeg")
 
-_STYLE = """
+STYLE = """
 body { font: 14px/1.45 system-ui, sans-serif; margin: 2em auto; max-width: 72em;
        padding: 0 1em; color: #1f2328; }
 table { border-collapse: collapse; width: 100%; margin: 1em 0; }
@@ -40,10 +40,12 @@ img { max-width: 100%; border: 1px solid #d0d7de; margin: .5em 0; }
 .finding { font-weight: 600; } span.finding { margin-right: .4em; }
 .finding.failure { color: #cf222e; } .finding.warning { color: #9a6700; }
 .finding.info { color: #0969da; } .unwatched { color: #6e7781; font-size: 12px; }
+.same { color: #1a7f37; } .better { color: #1a7f37; } .worse { color: #cf222e; }
+.changed { color: #8250df; } .accepted { color: #6e7781; }
 """
 
 
-def _href(target: Path, directory: Path) -> str:
+def href(target: Path, directory: Path) -> str:
     """``target`` relative to the page's directory, URL-quoted (a space or ``#`` in a file name
     must not break the link) and escaped for an attribute."""
     try:
@@ -76,7 +78,7 @@ def _links(result: ScenarioResult, directory: Path) -> str:
     parts = []
     for kind, path in result.artifacts.items():
         if Path(path).exists():
-            parts.append(f'<a href="{_href(path, directory)}">{escape(kind)}</a>')
+            parts.append(f'<a href="{href(path, directory)}">{escape(kind)}</a>')
         else:
             parts.append(f'<span class="missing" title="not written">{escape(kind)}</span>')
     return " ".join(parts)
@@ -169,7 +171,7 @@ def _images(result: ScenarioResult, directory: Path) -> str:
     for kind in kinds:
         path = Path(result.artifacts[kind])
         if path.suffix.lower() in _IMAGE_SUFFIXES and path.exists():
-            images.append(f'<img src="{_href(path, directory)}" '
+            images.append(f'<img src="{href(path, directory)}" '
                           f'alt="{escape(kind, quote=True)} of {escape(result.name, quote=True)}">')
     return "".join(images)
 
@@ -192,7 +194,7 @@ def render_report(results: Sequence[ScenarioResult], directory: Path, *,
     stamp = datetime.now(UTC).strftime("%Y-%m-%d %H:%M UTC")
     sections = "".join(_section(i, r, directory) for i, r in enumerate(results))
     return ('<!DOCTYPE html>\n<html lang="en"><head><meta charset="utf-8">'
-            f"<title>{escape(title)}</title><style>{_STYLE}</style></head><body>"
+            f"<title>{escape(title)}</title><style>{STYLE}</style></head><body>"
             f"<h1>{escape(title)}</h1><p>written {stamp}</p>{_summary(results)}"
             f"{_table(results, directory)}{sections}</body></html>\n")
 

@@ -84,6 +84,11 @@ class ScenarioResult:
     #: The analysers that watched this run, and those that could not (name -> why).
     watched: list[str] = field(default_factory=list)
     unwatched: dict[str, str] = field(default_factory=dict)
+    #: The run's figures (:mod:`bfsitl.scenario.metrics`; None: not applicable) and its
+    #: behaviour in words (failsafe phases, modes, how it ended, findings): what
+    #: ``bfsitl scenario compare`` compares.
+    metrics: dict[str, float | None] = field(default_factory=dict)
+    behaviour: dict[str, list[str]] = field(default_factory=dict)
 
     @property
     def passed(self) -> bool:

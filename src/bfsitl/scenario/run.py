@@ -62,9 +62,10 @@ from bfsitl.protocol.firmware_profile import FirmwareProfile, Generation
 from bfsitl.records.outputs import FlightOutputs, OutputOptions
 from bfsitl.scenario.expectations import judge
 from bfsitl.scenario.faults import FAILSAFE_SWITCH_AUX_INDEX, Fault, Undo, make_faults
+from bfsitl.scenario.metrics import run_metrics
 from bfsitl.scenario.result import ScenarioResult, TimedEvent, Verdict
 from bfsitl.scenario.spec import Scenario
-from bfsitl.scenario.trace import Trace, TraceRow, phase_name
+from bfsitl.scenario.trace import Trace, TraceRow, phase_name, write_trace_csv
 from bfsitl.sitl.firmware import find_firmware
 
 #: debug[] index of the failsafe phase with ``debug_mode = FAILSAFE`` (flight/failsafe.c).
@@ -291,6 +292,10 @@ def _fly(scenario: Scenario, binary: Path, profile: FirmwareProfile, faults: tup
             trace.blackbox[0], out / "blackbox.png",
             title=f"{scenario.name} on {result.firmware}")
     _analyse(injector.watch, trace, result)
+    figures = run_metrics(injector.watch.track, trace, result.findings)
+    result.metrics, result.behaviour = figures.values, figures.behaviour
+    if trace.rows:
+        result.artifacts["trace"] = write_trace_csv(trace, out / "trace.csv")
     checks = judge(scenario, trace, profile.generation.value)
     result.checks = checks
     failed = [c for c in checks if not c.passed]
@@ -395,6 +400,9 @@ def write_summary(result: ScenarioResult, out: Path) -> None:
         "artifacts": {k: str(v) for k, v in result.artifacts.items()},
         "retried": list(result.retried),
         "findings": [f.as_dict() for f in result.findings],
+        "metrics": {k: (round(v, 4) if v is not None else None)
+                    for k, v in result.metrics.items()},
+        "behaviour": result.behaviour,
         "analysers": {"watched": result.watched, "skipped": result.unwatched},
     }
     path = out / "result.json"

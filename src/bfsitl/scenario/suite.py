@@ -43,7 +43,7 @@ class SuiteResult:
     interrupted: bool = False
 
 
-def _dir_name(text: str) -> str:
+def dir_name(text: str) -> str:
     """A firmware name or path as one safe directory name."""
     name = re.sub(r"[^A-Za-z0-9._-]+", "_", Path(text).name if "/" in text else text)
     return name.strip("._") or "firmware"
@@ -62,7 +62,7 @@ def plan_runs(scenarios: Sequence[Scenario], firmwares: Sequence[str], out_dir: 
                                 f"list in the file")
         for firmware in dict.fromkeys(targets):
             runs.append(PlannedRun(scenario, firmware,
-                                   out_dir / _dir_name(firmware) / _dir_name(scenario.name)))
+                                   out_dir / dir_name(firmware) / dir_name(scenario.name)))
     return runs
 
 

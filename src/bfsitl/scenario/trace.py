@@ -6,9 +6,14 @@ sticks), times in simulation seconds from arming.  Expectations are judged on it
 
 from __future__ import annotations
 
+import csv
 import math
 from dataclasses import dataclass, field
+from pathlib import Path
 from typing import TYPE_CHECKING
+
+from bfsitl.atomic_file import write_atomically
+from bfsitl.errors import ScenarioError
 
 if TYPE_CHECKING:
     from bfsitl.analysis import Finding
@@ -76,3 +81,37 @@ class Trace:
         low = -math.inf if from_s is None else from_s
         high = math.inf if until_s is None else until_s
         return [row for row in self.rows if low <= row.time_s <= high]
+
+
+#: ``trace.csv``'s columns: what a comparison overlays (the modes and blockers stay out).
+TRACE_COLUMNS = ("time_s", "alt_m", "north_m", "east_m", "climb_m_s", "tilt_deg", "on_ground",
+                 "armed", "failsafe_phase")
+
+
+def write_trace_csv(trace: Trace, path: Path) -> Path:
+    """The trace's rows as CSV (``trace.csv`` in a run's directory), written whole."""
+    lines = [",".join(TRACE_COLUMNS)]
+    for row in trace.rows:
+        lines.append(",".join((
+            f"{row.time_s:.4f}", f"{row.alt_m:.4f}", f"{row.north_m:.4f}", f"{row.east_m:.4f}",
+            f"{row.climb_m_s:.4f}", f"{row.tilt_deg:.3f}", str(int(row.on_ground)),
+            str(int(row.armed)), "" if row.failsafe_phase is None else str(row.failsafe_phase))))
+    write_atomically(path, ("\n".join(lines) + "\n").encode("ascii"))
+    return path
+
+
+def read_trace_csv(path: Path) -> Trace:
+    """A run's ``trace.csv`` back as a :class:`Trace` (rows only)."""
+    try:
+        with Path(path).open(newline="") as file:
+            reader = csv.DictReader(file)
+            if tuple(reader.fieldnames or ()) != TRACE_COLUMNS:
+                raise ScenarioError(f"{path} is not a scenario run's trace.csv")
+            rows = [TraceRow(float(r["time_s"]), float(r["alt_m"]), float(r["north_m"]),
+                             float(r["east_m"]), float(r["climb_m_s"]), float(r["tilt_deg"]),
+                             r["on_ground"] == "1", r["armed"] == "1", (), (),
+                             int(r["failsafe_phase"]) if r["failsafe_phase"] else None)
+                    for r in reader]
+    except (OSError, ValueError, KeyError, csv.Error) as exc:
+        raise ScenarioError(f"cannot read {path}: {exc}") from exc
+    return Trace(rows=rows)

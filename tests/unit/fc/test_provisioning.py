@@ -94,6 +94,20 @@ def test_set_lines_whose_value_is_held_are_skipped_and_others_kept():
                             "get no_such_setting"]]
 
 
+def test_a_setting_set_twice_ends_at_its_last_value_even_when_that_is_the_current_one():
+    from bfsitl.fc.provisioning import _lines_to_run
+
+    # The FC holds 1275; bfsitl's profile sets 1545, a later line (a scenario's, a
+    # comparison's changed default) sets 1275 again: the last line wins, so nothing is run.
+    cli = GetOnlyCli({"ap_hover_throttle": "1275"})
+    lines = ("set ap_hover_throttle = 1545", "set ap_hover_throttle = 1275")
+    assert _lines_to_run(cli, lines) == []  # type: ignore[arg-type]
+    # And when the last differs from the FC's, only it is run.
+    lines = ("set ap_hover_throttle = 1275", "set AP_HOVER_THROTTLE = 1600")
+    assert _lines_to_run(cli, lines) == ["set AP_HOVER_THROTTLE = 1600"]  # type: ignore[arg-type]
+    assert cli.batches[-1] == ["get ap_hover_throttle"]
+
+
 def test_set_name_reads_both_spellings_and_nothing_else():
     from bfsitl.fc.provisioning import _set_name
 

@@ -44,6 +44,7 @@ from bfsitl.scenario import run
 from bfsitl.scenario.faults import make_faults, read_fault_spec
 from bfsitl.scenario.result import ScenarioResult, Verdict
 from bfsitl.scenario.run import RunOptions, blackbox_cli, hover_throttle_line, scenario_profile
+from bfsitl.scenario.trace import read_trace_csv
 
 #: The fake's clock reads this at arming (a SITL boots first): times "from arming" differ
 #: from the session's own.
@@ -256,8 +257,18 @@ def test_rc_lost_in_a_hover_the_fc_lands_disarms_and_the_run_passes(fly, tmp_pat
     summary = json.loads((out / "result.json").read_text())
     assert summary["verdict"] == "passed" and summary["sim_time_s"] == result.sim_time_s
     assert [e["text"] for e in summary["events"]] == events
-    assert set(summary["artifacts"]) == {"log"}                     # no plot, no blackbox
+    assert set(summary["artifacts"]) == {"log", "trace"}            # no plot, no blackbox
     assert result.artifacts["summary"] == out / "result.json"
+    # trace.csv holds the trace's rows (a comparison overlays two of them), and the run's
+    # figures and behaviour are in result.json.
+    again = read_trace_csv(out / "trace.csv")
+    assert len(again.rows) > 100
+    assert again.rows[-1].armed is False and again.rows[-1].on_ground is True
+    assert summary["metrics"]["fault_to_disarm_s"] == pytest.approx(2.0, abs=0.1)
+    assert summary["metrics"]["touchdown_m_s"] == pytest.approx(1.0)   # 2 m at 1 m/s
+    assert summary["metrics"]["landed_distance_m"] is None   # this physics has no position
+    assert summary["behaviour"]["ended"] == ["disarmed on the ground"]
+    assert summary["behaviour"]["phases"][0] == "RX_LOSS_DETECTED"
 
 
 def test_an_fc_that_never_disarms_fails_the_run_after_its_whole_duration(fly) -> None:
@@ -365,7 +376,8 @@ def test_the_files_of_a_run_blackbox_sitl_log_plot_and_mcap(fly, tmp_path) -> No
     assert result.artifacts["mcap"] == out / "flight.mcap" and (out / "flight.mcap").stat().st_size
     assert "blackbox_plot" not in result.artifacts                  # nothing decoded to plot
     summary = json.loads((out / "result.json").read_text())
-    assert set(summary["artifacts"]) == {"log", "mcap", "sitl_log", "blackbox", "plot"}
+    assert set(summary["artifacts"]) == {"log", "mcap", "sitl_log", "blackbox", "plot",
+                                         "trace"}
 
 
 def test_runs_that_share_the_cores_do_not_spin(fly, tmp_path) -> None:

@@ -1,0 +1,293 @@
+"""A/B: the same scenarios on two builds (or one build with changed defaults), over several
+seeds, and a verdict per scenario: did the change alter any failsafe, rescue or mission
+behaviour, and how?
+
+The plan flies each scenario with seeds ``seed, seed + 1, ...`` on side A and side B
+(:func:`plan_comparison`).  A side is a firmware and CLI lines applied before the scenario's
+own, so a changed default reaches every scenario that does not set it.  Judging
+(:func:`compare_results`) is pure:
+
+* **behaviour** (the failsafe's phases, the flight modes, how the run ended, the expectations'
+  outcome): changed when no seed of B behaves like any seed of A;
+* **findings** (:mod:`bfsitl.analysis`): an analyser that finds something on every seed of
+  one side and nothing on any seed of the other, or is worse on every seed, makes the side
+  worse or better;
+* **figures** (:mod:`bfsitl.scenario.metrics`): different when B's values lie outside A's
+  range (the seed-to-seed spread) by more than the figure's tolerance; a figure with a better
+  direction (lower touchdown speed, tilt, hold error, energy) is then better or worse, one
+  without (the time to a failsafe phase, the path) is a change.
+
+Verdicts: ``same``, ``better``, ``worse``, ``changed`` (behaviour, a neutral figure, or better
+and worse at once), ``error`` (a run could not be flown), ``skipped``.
+"""
+
+from __future__ import annotations
+
+import enum
+import statistics
+from collections.abc import Sequence
+from dataclasses import dataclass, field, replace
+from pathlib import Path
+
+from bfsitl.analysis import Severity
+from bfsitl.errors import ScenarioError
+from bfsitl.scenario.metrics import METRICS, metric
+from bfsitl.scenario.planned_run import PlannedRun
+from bfsitl.scenario.result import ScenarioResult, Verdict
+from bfsitl.scenario.spec import Scenario
+from bfsitl.scenario.suite import dir_name
+
+#: Behaviour keys compared, and how each is named in a reason.
+BEHAVIOUR_KEYS = {"phases": "failsafe phases", "modes": "flight modes", "ended": "ended",
+                  "expectations": "expectations"}
+
+
+class Change(enum.Enum):
+    SAME = "same"
+    BETTER = "better"
+    WORSE = "worse"
+    CHANGED = "changed"
+    ERROR = "error"
+    SKIPPED = "skipped"
+
+    @property
+    def fails(self) -> bool:
+        """Whether this verdict stops a pull request unless accepted."""
+        return self in (Change.WORSE, Change.CHANGED, Change.ERROR)
+
+
+@dataclass(frozen=True, slots=True)
+class Side:
+    """One side of a comparison: a firmware and CLI lines applied before each scenario's."""
+
+    label: str            # "A" or "B"
+    firmware: str
+    cli: tuple[str, ...] = ()
+
+    @property
+    def title(self) -> str:
+        extra = f" + {'; '.join(self.cli)}" if self.cli else ""
+        return f"{self.label}: {self.firmware}{extra}"
+
+
+@dataclass(frozen=True, slots=True)
+class ComparedRun:
+    """A planned run, and which side and seed it is."""
+
+    side: str
+    seed: int
+    run: PlannedRun
+
+
+def plan_comparison(scenarios: Sequence[Scenario], sides: tuple[Side, Side], seeds: int,
+                    out_dir: Path) -> list[ComparedRun]:
+    """Each scenario, each seed, on each side; files under ``OUT/SIDE/SCENARIO/seed-N``."""
+    if seeds < 1:
+        raise ScenarioError(f"--seeds {seeds}: at least 1")
+    if sides[0].label == sides[1].label:
+        raise ScenarioError("the two sides need different labels")
+    planned = []
+    for scenario in scenarios:
+        for seed in range(scenario.seed, scenario.seed + seeds):
+            for side in sides:
+                variant = replace(scenario, seed=seed, cli=(*side.cli, *scenario.cli))
+                out = out_dir / side.label / dir_name(scenario.name) / f"seed-{seed}"
+                planned.append(ComparedRun(side.label, seed,
+                                           PlannedRun(variant, side.firmware, out)))
+    return planned
+
+
+@dataclass(frozen=True, slots=True)
+class FigureDiff:
+    """One figure on both sides, judged."""
+
+    name: str
+    unit: str
+    a: tuple[float | None, ...]
+    b: tuple[float | None, ...]
+    change: Change
+    #: One line: the values and why they count as a difference (or not).
+    note: str
+
+    @staticmethod
+    def mean(values: Sequence[float | None]) -> float | None:
+        known = [v for v in values if v is not None]
+        return statistics.fmean(known) if known else None
+
+
+@dataclass(slots=True)
+class ScenarioComparison:
+    """One scenario on both sides, every seed, and the verdict."""
+
+    name: str
+    change: Change
+    #: One line: why (the first changed behaviour, the worst figures).
+    reason: str
+    figures: list[FigureDiff] = field(default_factory=list)
+    #: What differs beyond the figures, one line each ("failsafe phases: A ... B ...").
+    differences: list[str] = field(default_factory=list)
+    a_runs: list[ScenarioResult] = field(default_factory=list)
+    b_runs: list[ScenarioResult] = field(default_factory=list)
+    #: The verdict fails, but the user accepted it (``--accept NAME``).
+    accepted: bool = False
+
+    @property
+    def fails(self) -> bool:
+        return self.change.fails and not self.accepted
+
+
+def compare_results(planned: Sequence[ComparedRun], results: Sequence[ScenarioResult],
+                    sides: tuple[Side, Side], accepted: Sequence[str] = ()
+                    ) -> list[ScenarioComparison]:
+    """The verdict of each scenario from its runs (``results`` in ``planned``'s order)."""
+    if len(planned) != len(results):
+        raise ScenarioError(f"{len(results)} results for {len(planned)} planned runs")
+    grouped: dict[str, tuple[list[ScenarioResult], list[ScenarioResult]]] = {}
+    for entry, result in zip(planned, results, strict=True):
+        a_runs, b_runs = grouped.setdefault(entry.run.scenario.name, ([], []))
+        (a_runs if entry.side == sides[0].label else b_runs).append(result)
+    return [_compare_one(name, a, b, name in accepted) for name, (a, b) in grouped.items()]
+
+
+def _compare_one(name: str, a: list[ScenarioResult], b: list[ScenarioResult],
+                 accepted: bool) -> ScenarioComparison:
+    out = ScenarioComparison(name, Change.SAME, "", a_runs=a, b_runs=b, accepted=accepted)
+    runs = a + b
+    if all(r.verdict is Verdict.SKIPPED for r in runs):
+        out.change, out.reason = Change.SKIPPED, runs[0].reason
+        return out
+    broken = [r for r in runs if r.verdict in (Verdict.ERROR, Verdict.SKIPPED)]
+    if broken:
+        out.change = Change.ERROR
+        out.reason = f"{broken[0].test_id}: {broken[0].verdict.value}: {broken[0].reason}"
+        return out
+    out.differences = _behaviour_differences(a, b)
+    found_worse, found_better = _finding_differences(a, b, out.differences)
+    out.figures = _figures(a, b)
+    worse = [f for f in out.figures if f.change is Change.WORSE] + found_worse
+    better = [f for f in out.figures if f.change is Change.BETTER] + found_better
+    neutral = [f for f in out.figures if f.change is Change.CHANGED]
+    behaviour_changed = len(out.differences) > len(found_worse) + len(found_better)
+    out.change = _verdict(behaviour_changed or bool(neutral), found_worse, found_better,
+                          bool(worse), bool(better))
+    notes = [d for d in out.differences if not d.startswith("finding")] \
+        + [_said(f) for f in (*worse, *better, *neutral)]
+    out.reason = "; ".join(notes[:3]) if notes else \
+        f"every figure within the seeds' spread ({len(a)} seed{'s' if len(a) > 1 else ''})"
+    return out
+
+
+def _verdict(changed: bool, found_worse: list[str], found_better: list[str],
+             worse: bool, better: bool) -> Change:
+    """Behaviour first; then the analysers (a new crash makes a side worse even if it spent
+    less energy getting to the ground); then the figures."""
+    if changed:
+        return Change.CHANGED
+    if found_worse or found_better:
+        if found_worse and found_better:
+            return Change.CHANGED
+        return Change.WORSE if found_worse else Change.BETTER
+    if worse and better:
+        return Change.CHANGED
+    return Change.WORSE if worse else Change.BETTER if better else Change.SAME
+
+
+def _said(item: FigureDiff | str) -> str:
+    return item if isinstance(item, str) else f"{item.name} {item.note}"
+
+
+def _behaviour(result: ScenarioResult, key: str) -> tuple[str, ...]:
+    if key == "expectations":
+        # The ones that failed: "all met" is the empty tuple.
+        return tuple(f"{c.expectation} failed" for c in result.checks if not c.passed)
+    return tuple(result.behaviour.get(key, ()))
+
+
+def _behaviour_differences(a: list[ScenarioResult], b: list[ScenarioResult]) -> list[str]:
+    lines = []
+    for key, label in BEHAVIOUR_KEYS.items():
+        seen_a = {_behaviour(r, key) for r in a}
+        seen_b = {_behaviour(r, key) for r in b}
+        if seen_a.isdisjoint(seen_b):
+            lines.append(f"{label}: A {_shown(seen_a, key)}; B {_shown(seen_b, key)}")
+    return lines
+
+
+def _shown(values: set[tuple[str, ...]], key: str = "") -> str:
+    joiner = ", " if key in ("expectations", "modes") else " -> "
+    empty = "all met" if key == "expectations" else "none"
+    return " | ".join(joiner.join(v) or empty for v in sorted(values))
+
+
+def _severities(result: ScenarioResult) -> dict[str, int]:
+    return {f.analyser: int(f.severity) for f in result.findings}
+
+
+def _finding_differences(a: list[ScenarioResult], b: list[ScenarioResult],
+                         lines: list[str]) -> tuple[list[str], list[str]]:
+    """(findings that make B worse, ... better); each also a line of ``lines``."""
+    worse, better = [], []
+    names = sorted({n for r in a + b for n in _severities(r)})
+    for name in names:
+        in_a = [_severities(r).get(name, 0) for r in a]
+        in_b = [_severities(r).get(name, 0) for r in b]
+        if min(in_b) > max(in_a):
+            line = f"finding {name}: A {_levels(in_a)}, B {_levels(in_b)}"
+            worse.append(line)
+            lines.append(line)
+        elif max(in_b) < min(in_a):
+            line = f"finding {name}: A {_levels(in_a)}, B {_levels(in_b)}"
+            better.append(line)
+            lines.append(line)
+    return worse, better
+
+
+def _levels(values: list[int]) -> str:
+    return ",".join(Severity(v).label if v else "none" for v in values)
+
+
+def _figures(a: list[ScenarioResult], b: list[ScenarioResult]) -> list[FigureDiff]:
+    names = [m.name for m in METRICS]
+    names += sorted({n for r in a + b for n in r.metrics if n not in names})
+    diffs = []
+    for name in names:
+        va = tuple(r.metrics.get(name) for r in a)
+        vb = tuple(r.metrics.get(name) for r in b)
+        if all(v is None for v in va + vb):
+            continue
+        diffs.append(_judge_figure(name, va, vb))
+    return diffs
+
+
+def _judge_figure(name: str, va: tuple[float | None, ...], vb: tuple[float | None, ...]
+                  ) -> FigureDiff:
+    spec = metric(name)
+    known_a = [v for v in va if v is not None]
+    known_b = [v for v in vb if v is not None]
+    shown = f"A {_range(known_a)}, B {_range(known_b)} {spec.unit}"
+    if not known_a or not known_b:
+        if len(known_a) == len(va) or len(known_b) == len(vb):
+            # One side always has it, the other never: a different ending (landed or not, a
+            # phase reached or not).
+            return FigureDiff(name, spec.unit, va, vb, Change.CHANGED,
+                              f"{shown} (only one side has it)")
+        return FigureDiff(name, spec.unit, va, vb, Change.SAME, shown)
+    apart = min(known_b) - max(known_a) > spec.tolerance \
+        or min(known_a) - max(known_b) > spec.tolerance
+    if not apart:
+        return FigureDiff(name, spec.unit, va, vb, Change.SAME, shown)
+    higher = statistics.fmean(known_b) > statistics.fmean(known_a)
+    if spec.better == "lower":
+        change = Change.WORSE if higher else Change.BETTER
+    else:
+        change = Change.CHANGED
+    return FigureDiff(name, spec.unit, va, vb, change,
+                      f"{shown}: apart by more than {spec.tolerance:g} {spec.unit} beyond "
+                      f"the seeds' spread")
+
+
+def _range(values: list[float]) -> str:
+    if not values:
+        return "none"
+    low, high = min(values), max(values)
+    return f"{low:.2f}" if abs(high - low) < 0.005 else f"{low:.2f}..{high:.2f}"

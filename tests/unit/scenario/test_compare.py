@@ -1,0 +1,180 @@
+"""A/B judging on made-up results: the seeds' spread, the directions, behaviour, findings,
+errors, accepting; the plan; what is written."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import pytest
+from junitparser import Failure, JUnitXml
+
+from bfsitl.analysis import Finding, Severity
+from bfsitl.errors import ScenarioError
+from bfsitl.scenario.compare import (
+    Change,
+    ComparedRun,
+    Side,
+    compare_results,
+    plan_comparison,
+)
+from bfsitl.scenario.compare_output import (
+    comparison_lines,
+    write_comparison_json,
+    write_comparison_junit,
+    write_comparison_report,
+)
+from bfsitl.scenario.planned_run import PlannedRun
+from bfsitl.scenario.result import CheckResult, ScenarioResult, Verdict
+from bfsitl.scenario.spec import scenario_from_dict
+
+SIDES = (Side("A", "4.6.0-gps-lockstep"), Side("B", "4.6.0-gps-lockstep",
+                                               ("set ap_hover_throttle = 1275",)))
+
+
+def scenario(name: str = "drop", seed: int = 5):
+    return scenario_from_dict({"duration_s": 20, "seed": seed, "cli": ["set x = 1"],
+                               "flight": {"takeoff_alt_m": 3.0},
+                               "expect": {"disarmed": True}}, name=name)
+
+
+def result(name: str = "drop", *, touchdown: float = 1.0, tilt: float = 10.0,
+           phases: tuple[str, ...] = ("LANDING",), findings: tuple[Finding, ...] = (),
+           verdict: Verdict = Verdict.PASSED, failed: tuple[str, ...] = (),
+           **metrics: float | None) -> ScenarioResult:
+    run = ScenarioResult(name, "fw", verdict, "r")
+    run.metrics = {"touchdown_m_s": touchdown, "max_tilt_deg": tilt, **metrics}
+    run.behaviour = {"phases": list(phases), "modes": ["ANGLE"],
+                     "ended": ["disarmed on the ground"]}
+    run.findings = list(findings)
+    run.checks = [CheckResult(e, e not in failed, e) for e in ("disarmed = true", *failed)]
+    return run
+
+
+def judge(a: list[ScenarioResult], b: list[ScenarioResult], accepted: tuple[str, ...] = ()):
+    planned = [ComparedRun(side, seed, PlannedRun(scenario(r.name), "fw", Path("x")))
+               for side, runs in (("A", a), ("B", b)) for seed, r in enumerate(runs)]
+    (comparison,) = compare_results(planned, [*a, *b], SIDES, accepted)
+    return comparison
+
+
+def test_the_plan_flies_each_seed_on_each_side_with_the_sides_lines_first(tmp_path) -> None:
+    planned = plan_comparison([scenario(seed=5)], SIDES, 3, tmp_path)
+    assert [(p.side, p.seed) for p in planned] == [("A", 5), ("B", 5), ("A", 6), ("B", 6),
+                                                   ("A", 7), ("B", 7)]
+    b = planned[1].run
+    assert b.scenario.seed == 5 and b.firmware == "4.6.0-gps-lockstep"
+    # A changed default goes before the scenario's own lines: a scenario that sets it wins.
+    assert b.scenario.cli == ("set ap_hover_throttle = 1275", "set x = 1")
+    assert planned[0].run.scenario.cli == ("set x = 1",)
+    assert b.out_dir == tmp_path / "B" / "drop" / "seed-5"
+    with pytest.raises(ScenarioError, match="at least 1"):
+        plan_comparison([scenario()], SIDES, 0, tmp_path)
+
+
+def test_identical_runs_are_the_same() -> None:
+    runs = [result(touchdown=t) for t in (1.0, 1.4, 1.2)]
+    comparison = judge(runs, [result(touchdown=t) for t in (1.0, 1.4, 1.2)])
+    assert comparison.change is Change.SAME and not comparison.fails
+    assert "within the seeds' spread (3 seeds)" in comparison.reason
+
+
+def test_a_difference_inside_the_seeds_spread_or_the_tolerance_is_the_same() -> None:
+    a = [result(touchdown=t) for t in (1.0, 2.0, 1.5)]
+    assert judge(a, [result(touchdown=t) for t in (1.9, 2.2, 2.1)]).change is Change.SAME
+    # Apart, but by less than touchdown's 0.3 m/s tolerance.
+    a = [result(touchdown=1.0)] * 3
+    assert judge(a, [result(touchdown=1.25)] * 3).change is Change.SAME
+
+
+def test_a_figure_beyond_the_spread_is_worse_or_better_by_its_direction() -> None:
+    a = [result(touchdown=t) for t in (1.0, 1.2, 1.1)]
+    worse = judge(a, [result(touchdown=t) for t in (2.0, 2.3, 2.1)])
+    assert worse.change is Change.WORSE and worse.fails
+    figure = next(f for f in worse.figures if f.name == "touchdown_m_s")
+    assert figure.change is Change.WORSE and figure.b == (2.0, 2.3, 2.1)
+    assert "A 1.00..1.20, B 2.00..2.30 m/s" in worse.reason
+    better = judge([result(touchdown=t) for t in (2.0, 2.3, 2.1)], a)
+    assert better.change is Change.BETTER and not better.fails
+
+
+def test_a_neutral_figure_beyond_the_spread_is_a_change() -> None:
+    a = [result(fault_to_LANDING_s=0.5)] * 2
+    changed = judge(a, [result(fault_to_LANDING_s=1.5)] * 2)
+    assert changed.change is Change.CHANGED
+    assert "fault_to_LANDING_s" in changed.reason
+    # Reached on one side only.
+    assert judge(a, [result()] * 2).change is Change.CHANGED
+
+
+def test_better_and_worse_figures_together_are_a_change() -> None:
+    a = [result(touchdown=1.0, tilt=30.0)] * 2
+    assert judge(a, [result(touchdown=3.0, tilt=10.0)] * 2).change is Change.CHANGED
+
+
+def test_a_different_phase_sequence_or_failed_expectation_is_changed_behaviour() -> None:
+    a = [result(phases=("LANDING", "RX_LOSS_MONITORING"))] * 2
+    changed = judge(a, [result(phases=("RX_LOSS_MONITORING",))] * 2)
+    assert changed.change is Change.CHANGED
+    assert changed.differences == ["failsafe phases: A LANDING -> RX_LOSS_MONITORING; "
+                                   "B RX_LOSS_MONITORING"]
+    failing = judge([result()] * 2, [result(failed=("crashed = false",))] * 2)
+    assert failing.change is Change.CHANGED
+    assert failing.differences == ["expectations: A all met; B crashed = false failed"]
+    # One seed of B like one of A: the seeds already disagree, no consistent change.
+    mixed = judge([result(phases=("LANDING",)), result(phases=("GPS_RESCUE",))],
+                  [result(phases=("GPS_RESCUE",)), result(phases=("LANDED",))])
+    assert mixed.change is Change.SAME
+
+
+def crash(severity: Severity = Severity.FAILURE) -> Finding:
+    return Finding("crash", severity, "hit the ground", 9.0, 6.0, "m/s")
+
+
+def test_a_new_finding_on_every_seed_is_worse_even_with_a_better_figure() -> None:
+    a = [result(touchdown=1.0, throttle_s=15.0)] * 2
+    b = [result(touchdown=1.1, throttle_s=8.0, findings=(crash(),))] * 2
+    worse = judge(a, b)
+    assert worse.change is Change.WORSE
+    assert worse.differences == ["finding crash: A none,none, B failure,failure"]
+    assert judge(b, a).change is Change.BETTER
+    # On some seeds only: no consistent difference.
+    assert judge(a, [b[0], a[0]]).change is Change.SAME
+
+
+def test_errors_skips_and_accepting() -> None:
+    broken = result(verdict=Verdict.ERROR)
+    comparison = judge([result()], [broken])
+    assert comparison.change is Change.ERROR and comparison.fails
+    skipped = result(verdict=Verdict.SKIPPED)
+    assert judge([skipped], [skipped]).change is Change.SKIPPED
+    a = [result(touchdown=1.0)]
+    accepted = judge(a, [result(touchdown=5.0)], accepted=("drop",))
+    assert accepted.change is Change.WORSE and accepted.accepted and not accepted.fails
+
+
+def test_what_a_comparison_writes(tmp_path: Path) -> None:
+    same = judge([result("hover")] * 2, [result("hover")] * 2)
+    worse = judge([result(touchdown=1.0)] * 2, [result(touchdown=4.0, findings=(crash(),))] * 2)
+    comparisons = [same, worse]
+    lines = comparison_lines(comparisons)
+    assert lines[0].startswith("SAME") and lines[1].startswith("WORSE")
+    assert lines[-1] == "1 same, 1 worse"
+    data = json.loads(write_comparison_json(comparisons, SIDES, tmp_path / "c.json")
+                      .read_text())
+    assert data["sides"][1]["cli"] == ["set ap_hover_throttle = 1275"]
+    assert [s["change"] for s in data["scenarios"]] == ["same", "worse"]
+    assert data["scenarios"][1]["fails"] is True
+    xml = JUnitXml.fromfile(str(write_comparison_junit(comparisons, SIDES,
+                                                       tmp_path / "c.xml")))
+    (suite,) = list(xml)
+    cases = {case.name: case for case in suite}
+    assert not cases["hover"].result
+    (failure,) = cases["drop"].result
+    assert isinstance(failure, Failure) and failure.message.startswith("worse: ")
+    properties = {p.name: p.value for p in suite.properties()}
+    assert properties["drop.change"] == "worse"
+    assert properties["drop.touchdown_m_s"] == "A 1,1 | B 4,4 m/s"
+    page = write_comparison_report(comparisons, SIDES, tmp_path / "report").read_text()
+    assert "B: 4.6.0-gps-lockstep + set ap_hover_throttle = 1275" in page
+    assert 'class="verdict worse"' in page and "finding crash" in page

@@ -196,7 +196,9 @@ def hard_landing(track: Track, limits: Limits) -> Finding | None:
 def fly_away(track: Track, limits: Limits) -> Finding | None:
     require(track, "north_m")
     reach = max((math.hypot(p.target_north_m, p.target_east_m) for p in track.points
-                 if finite(p.target_north_m) and finite(p.target_east_m)), default=0.0)
+                 if finite(p.target_north_m) and finite(p.target_east_m)),
+                default=track.planned_reach_m)
+    reach = max(reach, track.planned_reach_m)
     bound = reach + limits.fly_away_margin_m
     placed = [p for p in track.points if finite(p.north_m)]
     beyond = [p for p in placed if p.distance_m > bound]

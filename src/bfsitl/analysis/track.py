@@ -83,6 +83,10 @@ class Track:
     disarm_reason: str | None = None
     #: Where it came from, for messages (a file, a run).
     label: str = ""
+    #: How far from home the flight was meant to go (the FC's own waypoints, which no
+    #: row's target shows); the fly-away bound starts from the farther of this and the
+    #: targets.
+    planned_reach_m: float = 0.0
 
     def has(self, name: str) -> bool:
         """Whether some point has attribute ``name`` (a finite number, a non-empty tuple)."""

@@ -33,6 +33,10 @@ FEATURE_MARKERS: dict[str, bytes] = {
     "gps_rescue": b"\x00gps_rescue_",
     "altitude_hold": b"\x00alt_hold_",
     "position_hold": b"\x00pos_hold_",
+    # Master's flight plans (ENABLE_FLIGHT_PLAN): the FC's own waypoint missions, the
+    # AUTOPILOT mode, its RC-loss policy and the geofence, all compiled in together.
+    "flight_plan": b"\x00ap_rx_loss_policy\x00",
+    "geofence": b"\x00ap_geofence_action\x00",
 }
 """Feature name -> a CLI setting name that exists only when the feature is compiled in."""
 

@@ -122,8 +122,10 @@ BOX_NAMES: dict[int, str] = {
     BoxId.CHIRP: "CHIRP",
 }
 #: Boxes 4.6 does not have (the enum above is 4.6's, checked against its source): master's
-#: AUTOPILOT (msp/msp_box.c), a flight-plan mission, which is how master flies GPS Rescue.
-LATER_BOX_NAMES: dict[int, str] = {56: "AUTOPILOT"}
+#: AUTOPILOT's permanent id (master's msp/msp_box.c): a flight-plan mission, which is also
+#: how master flies GPS Rescue.
+AUTOPILOT_BOX_ID = 56
+LATER_BOX_NAMES: dict[int, str] = {AUTOPILOT_BOX_ID: "AUTOPILOT"}
 
 #: Permanent ids in internal ``boxId_e`` order (fc/rc_modes.h:30-86): the order of the BOXNAMES
 #: and BOXIDS lists (and so of the STATUS mode bits) once inactive boxes are left out.

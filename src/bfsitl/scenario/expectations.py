@@ -23,7 +23,10 @@ key = value                    holds when
 ``min_alt_m = Y``              never lower than Y m (default window: from reaching the
                                take-off altitude to the fault, or the end)
 ``max_alt_m = Y``              never higher than Y m (whole run)
-``max_distance_m = D``         never further than D m from the take-off point (whole run)
+``max_distance_m = D``         never further than D m from the take-off point (whole run);
+                               this and the keys of where it went (a point reached, where it
+                               ended, ground speed, heading, the path): see
+                               :mod:`bfsitl.scenario.expect_path`
 ``blackbox_phase = P | [P..]`` the FC's own blackbox log shows failsafe phase P (each)
 ``blackbox_disarm_reason = N`` the blackbox's disarm event gives reason N (FAILSAFE, SWITCH,
                                GPS_RESCUE, ...)
@@ -47,47 +50,20 @@ from __future__ import annotations
 
 import math
 from collections.abc import Callable
-from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any
 
 from bfsitl.analysis import ANALYSERS, Severity
 from bfsitl.errors import ScenarioError
 from bfsitl.mission.runner import CRASH_TILT_DEG, CRASH_TOUCHDOWN_M_S
+from bfsitl.scenario import expect_path
+from bfsitl.scenario.expect_base import Limit
+from bfsitl.scenario.expect_base import check as _check
+from bfsitl.scenario.expect_base import shown as _shown
 from bfsitl.scenario.result import CheckResult
 from bfsitl.scenario.trace import FAILSAFE_PHASES, Trace, TraceRow, phase_name
 
 if TYPE_CHECKING:
     from bfsitl.scenario.spec import Scenario
-
-
-@dataclass(frozen=True, slots=True)
-class Limit:
-    """A bound over a window of the run (None: the key's default window)."""
-
-    value: float
-    from_s: float | None = None
-    until_s: float | None = None
-
-
-def _shown(key: str, value: Any) -> str:
-    if isinstance(value, Limit):
-        window = ""
-        if value.from_s is not None or value.until_s is not None:
-            window = (f" over {value.from_s if value.from_s is not None else 0:g}.."
-                      f"{value.until_s if value.until_s is not None else 'end'} s")
-        return f"{key} = {value.value:g}{window}"
-    if isinstance(value, bool):
-        return f"{key} = {str(value).lower()}"
-    if isinstance(value, (list, tuple)):
-        return f"{key} = [{', '.join(repr(v) for v in value)}]"
-    return f"{key} = {value!r}" if isinstance(value, str) else f"{key} = {value:g}"
-
-
-def _check(key: str, value: Any, passed: bool, message: str, measured: float | str | None,
-           at_s: float | None) -> CheckResult:
-    when = f" at t={at_s:.2f} s" if at_s is not None else ""
-    return CheckResult(_shown(key, value), passed, f"{_shown(key, value)}: {message}{when}",
-                       measured, at_s)
 
 
 # -- judging -------------------------------------------------------------------------------------
@@ -396,8 +372,13 @@ _KEYS: dict[str, tuple[str, _Judge | None]] = {
                                     unit="m", default_window=_in_the_air)),
     "max_alt_m": ("limit", _extreme(lambda r: r.alt_m, lowest=False, what="up to", unit="m",
                                     default_window=_whole_run)),
-    "max_distance_m": ("limit", _extreme(lambda r: r.distance_m, lowest=False,
-                                         what="went", unit="m", default_window=_whole_run)),
+    "max_distance_m": ("limit", expect_path.distance_bound(lowest=False)),
+    "min_distance_m": ("limit", expect_path.distance_bound(lowest=True)),
+    "reached": ("point", expect_path.reached),
+    "ends_within_m": ("limit", expect_path.ends_within),
+    "max_ground_speed_m_s": ("limit", expect_path.max_ground_speed),
+    "heading_deg": ("heading", expect_path.heading),
+    "min_path_m": ("limit", expect_path.min_path),
     "blackbox_phase": ("phases", _blackbox_phase),
     "blackbox_disarm_reason": ("text", _blackbox_disarm),
     "blackbox_link_lost": ("bool", _blackbox_link_lost),
@@ -406,6 +387,8 @@ _KEYS: dict[str, tuple[str, _Judge | None]] = {
     "worst_finding": ("severity", _worst_finding),
 }
 ANALYSER_NAMES = tuple(a.name for a in ANALYSERS)
+#: Limits measured from a point (the take-off point unless north_m / east_m say).
+_FROM_A_POINT = ("max_distance_m", "min_distance_m", "ends_within_m")
 SEVERITY_NAMES = ("none", *(s.label for s in Severity))
 EXPECTATION_KEYS = tuple(sorted(_KEYS))
 
@@ -450,13 +433,22 @@ def _parse(where: str, key: str, value: Any) -> Any:
         if kind == "text" and not isinstance(value, str):
             raise bad
         return value
-    # limit: a number, or a table with value and an optional window
+    if kind == "point":
+        return expect_path.parse_table(where, key, value, expect_path.POINT_KEYS,
+                                       {"north_m", "east_m", "within_m"})
+    if kind == "heading":
+        return expect_path.parse_table(where, key, value, expect_path.HEADING_KEYS,
+                                       {"value", "within_deg"})
+    # limit: a number, or a table with value, an optional window (and for a distance, the
+    # point it is measured from)
     if isinstance(value, dict):
-        extra = set(value) - {"value", "from_s", "until_s"}
+        allowed = ["value", "from_s", "until_s", *(("north_m", "east_m") if key in
+                                                   _FROM_A_POINT else ())]
+        extra = set(value) - set(allowed)
         if extra or "value" not in value:
             raise ScenarioError(f"{where}, [expect]: {key} takes a number or "
-                                f"{{ value = ..., from_s = ..., until_s = ... }}")
-        numbers = [value.get(k) for k in ("value", "from_s", "until_s")]
+                                f"{{ {', '.join(f'{k} = ...' for k in allowed)} }}")
+        numbers = [value.get(k) for k in ("value", "from_s", "until_s", "north_m", "east_m")]
         for number in numbers:
             if number is not None and (isinstance(number, bool)
                                        or not isinstance(number, (int, float))

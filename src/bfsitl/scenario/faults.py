@@ -32,6 +32,11 @@ kind (parameters)          what the FC sees                             firmware
 ``wind``                  the wind changes to ``north_m_s``,           every firmware
                           ``east_m_s``, ``gust_std_m_s`` (a step; with
                           ``duration_s``, a gust that ends)
+``mode_switch``           the pilot raises the ``mode`` switch          ALTHOLD, POSHOLD,
+(``mode``)                (ALTHOLD, POSHOLD, GPS RESCUE, AUTOPILOT)     GPS RESCUE: every
+                          and lets go: sticks centred, throttle where   firmware with them;
+                          it was; the FC flies (bfsitl only watches)    AUTOPILOT: master's
+                                                                       flight plan builds
 ========================  ==========================================  =====================
 
 Every fault may last ``duration_s`` (then it is undone: RC comes back, the motor recovers);
@@ -43,13 +48,14 @@ from __future__ import annotations
 
 import math
 from collections.abc import Callable, Mapping
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from typing import TYPE_CHECKING, Any
 
 from bfsitl.errors import FaultNotSupportedError, ScenarioError
-from bfsitl.fc.rc_link import RcFault
+from bfsitl.fc.rc_link import RC_MID_US, RcFault
 from bfsitl.mission.vehicle import SWITCH_OFF_US, SWITCH_ON_US
 from bfsitl.physics.wind import MAX_GUST_STD_M_S, MAX_WIND_COMPONENT_M_S, Wind
+from bfsitl.protocol.boxes import AUTOPILOT_BOX_ID, BoxId
 from bfsitl.protocol.firmware_profile import FirmwareProfile
 
 if TYPE_CHECKING:
@@ -60,6 +66,17 @@ if TYPE_CHECKING:
 LOST_PULSE_US = 0
 #: The FAILSAFE mode's switch for ``rc_loss`` with ``method = "switch"``: AUX3.
 FAILSAFE_SWITCH_AUX_INDEX = 2
+#: ``mode_switch``: each mode on its own AUX channel (AUX1 arms, AUX2 is ANGLE, AUX3 the
+#: FAILSAFE switch), so switches combine: mode -> (the permanent box ids it raises, AUX
+#: index).  POSHOLD raises ALTHOLD with it, as a pilot's hold switch does: POSHOLD alone
+#: holds the position and leaves the height to the throttle.
+MODE_SWITCHES: dict[str, tuple[tuple[int, ...], int]] = {
+    "ALTHOLD": ((int(BoxId.ALTHOLD),), 3),
+    "POSHOLD": ((int(BoxId.POSHOLD), int(BoxId.ALTHOLD)), 4),
+    "GPS RESCUE": ((int(BoxId.GPSRESCUE),), 5), "AUTOPILOT": ((AUTOPILOT_BOX_ID,), 6)}
+#: The build feature (bfsitl.build.binary_scan) a mode needs beyond GPS.
+MODE_FEATURES = {"AUTOPILOT": "flight_plan", "GPS RESCUE": "gps_rescue",
+                 "ALTHOLD": "altitude_hold", "POSHOLD": "position_hold"}
 #: ISA sea level: the pressure falls this much per metre of climb (rho g).
 PA_PER_M = 12.01
 RC_LOSS_METHODS = ("auto", "silence", "invalid_pulses", "switch")
@@ -98,8 +115,11 @@ class Fault:
     #: The autopilot's sticks no longer reach the FC: the runner stops flying and watches.
     takes_sticks: bool
     _inject: Inject
-    #: It works through the FAILSAFE mode's switch (AUX3), which must be provisioned.
-    needs_failsafe_switch: bool = False
+    #: The mode switches it works through, each (permanent box id, AUX index), which the
+    #: run provisions (the FAILSAFE switch on AUX3, a ``mode_switch``'s modes).
+    switches: tuple[tuple[int, int], ...] = ()
+    #: A build feature it needs (``flight_plan``: the binary is scanned before the run).
+    needs_feature: str | None = None
 
     def apply(self, vehicle: Vehicle) -> Undo:
         """Inject it; returns what undoes it."""
@@ -129,7 +149,7 @@ def _rc_loss(spec: FaultSpec, profile: FirmwareProfile, where: str) -> Fault:
             return lambda: vehicle.set_rc(
                 vehicle.rc_command.with_aux(FAILSAFE_SWITCH_AUX_INDEX, SWITCH_OFF_US))
         return Fault(spec, "RC lost (failsafe switch on AUX3)", True, apply_switch,
-                     needs_failsafe_switch=True)
+                     switches=((int(BoxId.FAILSAFE), FAILSAFE_SWITCH_AUX_INDEX),))
     rc_fault = RcFault(silent=True) if method == "silence" else RcFault(
         pulses_us=tuple((channel, LOST_PULSE_US) for channel in range(4)))
     title = "RC lost (silence)" if method == "silence" else "RC lost (invalid pulses)"
@@ -240,11 +260,29 @@ def _wind(spec: FaultSpec, profile: FirmwareProfile, where: str) -> Fault:
                        f"(gusts {wind.gust_std_m_s:g} m/s)", False, inject)
 
 
+def _mode_switch(spec: FaultSpec, profile: FirmwareProfile, where: str) -> Fault:
+    mode = spec.param("mode")
+    if mode in ("GPS RESCUE", "AUTOPILOT", "POSHOLD"):
+        _need_gps(profile, where, f"mode_switch {mode}")
+    boxes, aux_index = MODE_SWITCHES[mode]
+
+    def raise_switch(vehicle: Vehicle) -> Undo:
+        # Letting go: roll, pitch and yaw centred; the throttle stays where the autopilot
+        # held it, the hover, inside the altitude hold's deadband.
+        held = vehicle.rc_command
+        vehicle.set_rc(replace(held, roll_us=RC_MID_US, pitch_us=RC_MID_US, yaw_us=RC_MID_US
+                               ).with_aux(aux_index, SWITCH_ON_US))
+        return lambda: vehicle.set_rc(vehicle.rc_command.with_aux(aux_index, SWITCH_OFF_US))
+    return Fault(spec, f"{mode} switch on AUX{aux_index + 1}: the FC flies", True,
+                 raise_switch, switches=tuple((box, aux_index) for box in boxes),
+                 needs_feature=MODE_FEATURES[mode])
+
+
 _KINDS: dict[str, Callable[[FaultSpec, FirmwareProfile, str], Fault]] = {
     "rc_loss": _rc_loss, "rc_latency": _rc_latency, "gps_loss": _gps_loss,
     "gps_glitch": _gps_glitch, "motor_thrust": _motor_thrust, "gyro_noise": _gyro_noise,
     "gyro_bias": _gyro_bias, "accel_noise": _accel_noise, "accel_bias": _accel_bias,
-    "baro_drift": _baro_drift, "wind": _wind,
+    "baro_drift": _baro_drift, "wind": _wind, "mode_switch": _mode_switch,
 }
 
 
@@ -273,6 +311,8 @@ _PARAMS: dict[str, Mapping[str, _Number | tuple[str, ...] | type[int]]] = {
     "baro_drift": {"rate_m_s": _Number(-10.0, 10.0)},
     "wind": {"north_m_s": _Number(-_WIND, _WIND, 0.0), "east_m_s": _Number(-_WIND, _WIND, 0.0),
              "gust_std_m_s": _Number(0.0, MAX_GUST_STD_M_S, 0.0)},
+    # No default: the first word would be one, and a mode must be named.
+    "mode_switch": {"mode": ("", *MODE_SWITCHES)},
 }
 FAULT_KINDS = tuple(sorted(_KINDS))
 #: Keys every fault table has besides its kind's own.
@@ -314,11 +354,14 @@ def read_fault_spec(raw: Any, *, where: str, number: int, run_s: float) -> Fault
 
 def _param(here: str, kind: str, key: str, rule: _Number | tuple[str, ...] | type[int],
            value: Any) -> Any:
-    if isinstance(rule, tuple):  # one of some words; the first is the default
+    if isinstance(rule, tuple):  # one of some words; the first is the default ("": none)
+        words = [word for word in rule if word]
+        if value is None and not rule[0]:
+            raise ScenarioError(f"{here}: {kind} needs {key}: one of {', '.join(words)}")
         value = rule[0] if value is None else value
-        if value not in rule:
+        if value not in words:
             raise ScenarioError(f"{here}: {kind} {key} {value!r} is not one of "
-                                f"{', '.join(rule)}")
+                                f"{', '.join(words)}")
         return value
     if rule is int:  # a motor number, Betaflight's numbering
         if value not in (1, 2, 3, 4) or isinstance(value, bool):

@@ -57,11 +57,11 @@ from bfsitl.mission.session import (
 from bfsitl.mission.vehicle import FlightSample
 from bfsitl.physics.params import IRIS, QuadParams
 from bfsitl.protocol import msp_messages as msg
-from bfsitl.protocol.boxes import BoxId
 from bfsitl.protocol.firmware_profile import FirmwareProfile, Generation
 from bfsitl.records.outputs import FlightOutputs, OutputOptions
 from bfsitl.scenario.expectations import judge
-from bfsitl.scenario.faults import FAILSAFE_SWITCH_AUX_INDEX, Fault, Undo, make_faults
+from bfsitl.scenario.faults import Fault, Undo, make_faults
+from bfsitl.scenario.fc_mission import fc_mission_cli
 from bfsitl.scenario.metrics import run_metrics
 from bfsitl.scenario.result import ScenarioResult, TimedEvent, Verdict
 from bfsitl.scenario.spec import Scenario
@@ -84,6 +84,8 @@ def hover_throttle_line(quad: QuadParams) -> str:
     return f"set ap_hover_throttle = {round(1000 + (IRIS_HOVER_THROTTLE_US - 1000) * scale)}"
 
 
+#: The AUX channels a SITL reads by default (max_aux_channels).
+SITL_AUX_CHANNELS = 6
 #: A vehicle at rest: slower than this vertically.
 AT_REST_M_S = 0.05
 
@@ -102,16 +104,22 @@ def blackbox_cli(profile: FirmwareProfile) -> tuple[str, ...]:
 def scenario_profile(scenario: Scenario, profile: FirmwareProfile,
                      faults: tuple[Fault, ...]) -> Profile:
     """What a run provisions: bfsitl's flight profile, the blackbox, the simulated quad's
-    hover throttle, the scenario's lines (last, so they win), and the failsafe switch when a
-    fault uses it."""
+    hover throttle, the scenario's lines (last, so they win), and the mode switches its
+    faults use (the FAILSAFE switch, a ``mode_switch``'s mode)."""
     base = with_fast_serial(FLY_PROFILE)
     ranges = base.mode_ranges
-    if any(fault.needs_failsafe_switch for fault in faults):
-        ranges = (*ranges, msg.ModeRange.from_us(BoxId.FAILSAFE, FAILSAFE_SWITCH_AUX_INDEX,
-                                                 1700, 2100))
+    switches = dict.fromkeys(switch for fault in faults for switch in fault.switches)
+    ranges = (*ranges, *(msg.ModeRange.from_us(box_id, aux_index, 1700, 2100)
+                         for box_id, aux_index in switches))
+    # A SITL reads AUX1-AUX6 only (max_aux_channels, DEFAULT_AUX_CHANNEL_COUNT in
+    # target/common_post.h): a switch above that is never seen unless the FC reads it.
+    highest_aux = max((aux_index + 1 for _box, aux_index in switches), default=0)
+    more_aux = (f"set max_aux_channels = {highest_aux}",) if highest_aux > SITL_AUX_CHANNELS \
+        else ()
     return dataclasses.replace(base, mode_ranges=ranges, cli_lines=(
         *base.cli_lines, *blackbox_cli(profile), hover_throttle_line(scenario.quad),
-        *scenario.cli))
+        *more_aux, *fc_mission_cli(scenario.fc_waypoints), *scenario.cli,
+        *dict(scenario.cli_for).get(profile.generation.value, ())))
 
 
 @dataclass(frozen=True, slots=True)
@@ -207,7 +215,8 @@ class _Injector:
                 self.note(t, f"flight mode {', '.join(sorted(new_modes))} on")
         return TraceRow(round(t, 4), sample.sim_alt_m, sample.sim_north_m, sample.sim_east_m,
                         sample.sim_climb_m_s, sample.sim_tilt_deg, sample.on_ground,
-                        sample.armed, sample.flight_modes, sample.arming_blockers, phase)
+                        sample.armed, sample.flight_modes, sample.arming_blockers, phase,
+                        sample.sim_yaw_deg)
 
 
 def run_scenario(scenario: Scenario, firmware: str, options: RunOptions, *,
@@ -230,6 +239,13 @@ def run_scenario(scenario: Scenario, firmware: str, options: RunOptions, *,
                              f"firmware build --gps`)")
             return result
         faults = make_faults(scenario.faults, profile, where=scenario.where)
+        missing = missing_features(scenario, faults, binary.path)
+        if missing:
+            result.verdict, result.reason = Verdict.SKIPPED, (
+                f"needs {', '.join(missing)}, which {firmware} "
+                f"({profile.firmware_version or profile.generation.value}) was built "
+                f"without: {'; '.join(FEATURE_WHY.get(m, m) for m in missing)}")
+            return result
         _fly(scenario, binary.path, profile, faults, options, result, say)
     except FaultNotSupportedError as exc:
         result.verdict, result.reason = Verdict.SKIPPED, str(exc)
@@ -239,6 +255,33 @@ def run_scenario(scenario: Scenario, firmware: str, options: RunOptions, *,
         result.wall_time_s = round(time.monotonic() - started, 3)
         write_summary(result, out)
     return result
+
+
+#: What each build feature a scenario can need is, for a skip's reason.
+FEATURE_WHY = {
+    "flight_plan": "master's flight plans (the FC's own waypoint missions, AUTOPILOT mode, "
+                   "ap_rx_loss_policy); Betaflight 4.6.0 has none",
+    "geofence": "master's geofence (ap_max_distance_from_home, ap_geofence_action), part of "
+                "its flight plans",
+    "gps_rescue": "GPS Rescue", "altitude_hold": "ALTHOLD", "position_hold": "POSHOLD",
+    "gps": "a GPS (`bfsitl firmware build --gps`)"}
+
+
+def missing_features(scenario: Scenario, faults: tuple[Fault, ...], binary: Path
+                     ) -> list[str]:
+    """The build features the scenario and its faults need that ``binary`` lacks (its
+    CLI's setting names, scanned from its bytes)."""
+    needed = dict.fromkeys((*scenario.requires,
+                            *(f.needs_feature for f in faults if f.needs_feature)))
+    if not needed:
+        return []
+    from bfsitl.build.binary_scan import binary_traits
+
+    try:
+        have = set(binary_traits(binary).features)
+    except OSError:
+        return []  # unreadable here: the run says so when it starts the binary
+    return [feature for feature in needed if feature not in have]
 
 
 def _fly(scenario: Scenario, binary: Path, profile: FirmwareProfile, faults: tuple[Fault, ...],
@@ -258,6 +301,9 @@ def _fly(scenario: Scenario, binary: Path, profile: FirmwareProfile, faults: tup
         result.artifacts["mcap"] = out / "flight.mcap"
     session = options.session_factory(config, progress=lambda line: say(f"[sitl] {line}"))
     injector = _Injector(session, faults, trace, result.events, say, outputs.on_event)
+    planned = [(w.north_m, w.east_m) for w in scenario.fc_waypoints] \
+        + [(w.north_m, w.east_m) for w in scenario.plan.waypoints]
+    injector.watch.track.planned_reach_m = max((math.hypot(*p) for p in planned), default=0.0)
 
     def on_row(row: FlightRow, sample: FlightSample) -> None:
         outputs.on_row(row, sample)   # recorded first: the injector may end the flight

@@ -38,6 +38,7 @@ from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import Any
 
+from bfsitl.build.binary_scan import FEATURE_MARKERS
 from bfsitl.errors import MissionError, ScenarioError, SimInputError
 from bfsitl.mission.plan import MissionPlan, plan_from_dict
 from bfsitl.physics.params import IRIS, QuadParams
@@ -49,14 +50,16 @@ from bfsitl.physics.wind import (
     Wind,
 )
 from bfsitl.scenario.faults import FaultSpec, read_fault_spec  # noqa: F401 - FaultSpec re-exported
+from bfsitl.scenario.fc_mission import FcWaypoint, read_fc_waypoints
 
 #: A scenario's file name pattern inside a directory.
 SCENARIO_GLOB = "*.toml"
 MAX_DURATION_S = 3600.0
 DEFAULT_SETTLE_S = 2.0
 
-_TOP_KEYS = {"name", "description", "firmware", "requires_gps", "duration_s", "settle_s",
-             "seed", "cli", "vehicle", "wind", "flight", "fault", "expect"}
+_TOP_KEYS = {"name", "description", "firmware", "requires_gps", "requires", "duration_s",
+             "settle_s", "seed", "cli", "vehicle", "wind", "flight", "fault", "expect",
+             "fc_waypoint", "cli_for"}
 #: ``[vehicle] model``: the quads the embedded physics knows.
 VEHICLE_MODELS = {"iris": IRIS}
 _WIND_KEYS = {"north_m_s", "east_m_s", "down_m_s", "gust_std_m_s", "gust_time_constant_s"}
@@ -74,6 +77,9 @@ class Scenario:
     expect: tuple[tuple[str, Any], ...] = ()
     description: str = ""
     cli: tuple[str, ...] = ()
+    #: ``[cli_for]``: lines for one firmware generation only, after ``cli`` (settings the
+    #: other does not have): ``(("master", (...)), ("4.6", (...)))``.
+    cli_for: tuple[tuple[str, tuple[str, ...]], ...] = ()
     wind: Wind | None = None
     #: The simulated quad (``[vehicle]``).
     quad: QuadParams = IRIS
@@ -82,6 +88,12 @@ class Scenario:
     firmware: tuple[str, ...] = ()
     #: Only firmware with a GPS can fly it (a GPS Rescue); others skip it.
     requires_gps: bool = False
+    #: Build features it needs (``flight_plan``, ``geofence``, ...: the names of
+    #: :data:`bfsitl.build.binary_scan.FEATURE_MARKERS`); a build without one skips it.
+    requires: tuple[str, ...] = ()
+    #: The FC's own mission (``[[fc_waypoint]]``, master's flight plans), written to it as
+    #: ``waypoint`` CLI lines before the scenario's own lines.
+    fc_waypoints: tuple[FcWaypoint, ...] = ()
     #: The run ends early once the FC is disarmed and the vehicle at rest this long.
     settle_s: float = DEFAULT_SETTLE_S
     source: Path | None = None
@@ -147,6 +159,22 @@ def _vehicle(where: str, raw: Any) -> QuadParams:
     return quad
 
 
+#: ``[cli_for]`` tables: the firmware generations (bfsitl.protocol.firmware_profile).
+CLI_GENERATIONS = ("4.6", "master")
+
+
+def _cli_for(where: str, data: dict[str, Any]) -> tuple[tuple[str, tuple[str, ...]], ...]:
+    raw = data.get("cli_for", {})
+    if not isinstance(raw, dict):
+        raise ScenarioError(f"{where}: [cli_for] must be a table of generation = [lines]")
+    unknown = set(raw) - set(CLI_GENERATIONS)
+    if unknown:
+        raise ScenarioError(f"{where}: [cli_for] has unknown generation(s) "
+                            f"{', '.join(sorted(unknown))}; known: {', '.join(CLI_GENERATIONS)}")
+    return tuple((name, _strings(where, f"cli_for.{name}", lines))
+                 for name, lines in raw.items())
+
+
 def scenario_from_dict(data: dict[str, Any], *, name: str, source: Path | None = None
                        ) -> Scenario:
     """A scenario from a file's tables; ``name`` is used unless the file names itself."""
@@ -185,16 +213,25 @@ def scenario_from_dict(data: dict[str, Any], *, name: str, source: Path | None =
     seed = data.get("seed", 0)
     if isinstance(seed, bool) or not isinstance(seed, int):
         raise ScenarioError(f"{where}: seed must be an integer, got {seed!r}")
-    requires_gps = data.get("requires_gps", plan.needs_position)
+    waypoints = read_fc_waypoints(data.get("fc_waypoint", []), where=where)
+    requires = _strings(where, "requires", data.get("requires", []))
+    unknown_features = sorted(set(requires) - set(FEATURE_MARKERS))
+    if unknown_features:
+        raise ScenarioError(f"{where}: requires: unknown feature(s) "
+                            f"{', '.join(unknown_features)}; known: "
+                            f"{', '.join(sorted(FEATURE_MARKERS))}")
+    if waypoints and "flight_plan" not in requires:
+        requires = (*requires, "flight_plan")
+    requires_gps = data.get("requires_gps", plan.needs_position or bool(waypoints))
     if not isinstance(requires_gps, bool):
         raise ScenarioError(f"{where}: requires_gps must be true or false")
     return Scenario(
         name=own_name.strip(), plan=plan, duration_s=duration_s, faults=faults,
         expect=tuple(expect.items()), description=description,
-        cli=_strings(where, "cli", data.get("cli", [])),
+        cli=_strings(where, "cli", data.get("cli", [])), cli_for=_cli_for(where, data),
         wind=_wind(where, data["wind"]) if "wind" in data else None, seed=seed,
         quad=_vehicle(where, data["vehicle"]) if "vehicle" in data else IRIS,
         firmware=_strings(where, "firmware", data.get("firmware", [])),
-        requires_gps=requires_gps,
+        requires_gps=requires_gps, requires=requires, fc_waypoints=waypoints,
         settle_s=_number(where, "settle_s", data.get("settle_s", DEFAULT_SETTLE_S), 0.0, 60.0),
         source=source)

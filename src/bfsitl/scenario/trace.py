@@ -46,6 +46,8 @@ class TraceRow:
     blockers: tuple[str, ...]   # its arming-disable flags (RXLOSS, FAILSAFE, ...)
     #: debug[3] with ``debug_mode = FAILSAFE`` (the runner provisions it); None if unread.
     failsafe_phase: int | None = None
+    #: The true heading, degrees clockwise from north (0..360).
+    heading_deg: float = math.nan
 
     @property
     def distance_m(self) -> float:
@@ -85,7 +87,7 @@ class Trace:
 
 #: ``trace.csv``'s columns: what a comparison overlays (the modes and blockers stay out).
 TRACE_COLUMNS = ("time_s", "alt_m", "north_m", "east_m", "climb_m_s", "tilt_deg", "on_ground",
-                 "armed", "failsafe_phase")
+                 "armed", "failsafe_phase", "heading_deg")
 
 
 def write_trace_csv(trace: Trace, path: Path) -> Path:
@@ -95,7 +97,8 @@ def write_trace_csv(trace: Trace, path: Path) -> Path:
         lines.append(",".join((
             f"{row.time_s:.4f}", f"{row.alt_m:.4f}", f"{row.north_m:.4f}", f"{row.east_m:.4f}",
             f"{row.climb_m_s:.4f}", f"{row.tilt_deg:.3f}", str(int(row.on_ground)),
-            str(int(row.armed)), "" if row.failsafe_phase is None else str(row.failsafe_phase))))
+            str(int(row.armed)), "" if row.failsafe_phase is None else str(row.failsafe_phase),
+            f"{row.heading_deg:.2f}")))
     write_atomically(path, ("\n".join(lines) + "\n").encode("ascii"))
     return path
 
@@ -110,7 +113,8 @@ def read_trace_csv(path: Path) -> Trace:
             rows = [TraceRow(float(r["time_s"]), float(r["alt_m"]), float(r["north_m"]),
                              float(r["east_m"]), float(r["climb_m_s"]), float(r["tilt_deg"]),
                              r["on_ground"] == "1", r["armed"] == "1", (), (),
-                             int(r["failsafe_phase"]) if r["failsafe_phase"] else None)
+                             int(r["failsafe_phase"]) if r["failsafe_phase"] else None,
+                             float(r["heading_deg"]))
                     for r in reader]
     except (OSError, ValueError, KeyError, csv.Error) as exc:
         raise ScenarioError(f"cannot read {path}: {exc}") from exc

@@ -166,8 +166,8 @@ def spec(kind: str, **params: object) -> FaultSpec:
 def test_rc_loss_auto_is_silence_on_master_and_the_switch_on_46() -> None:
     on_master = make_fault(spec("rc_loss"), MASTER)
     on_46 = make_fault(spec("rc_loss"), V46)
-    assert on_master.title == "RC lost (silence)" and not on_master.needs_failsafe_switch
-    assert on_46.needs_failsafe_switch and on_46.takes_sticks
+    assert on_master.title == "RC lost (silence)" and on_master.switches == ()
+    assert on_46.switches == ((27, 2),) and on_46.takes_sticks
 
 
 def test_silence_on_46_is_refused_with_what_works_there() -> None:

@@ -20,9 +20,22 @@ def load_scenario(path: str | Path) -> Scenario:
     return scenario
 
 
+def _library_file(name: str | Path) -> Path | None:
+    """The shipped library's ``NAME.toml`` for a bare name, if there is one."""
+    text = str(name)
+    if "/" in text or text.endswith(SCENARIO_GLOB[1:]):
+        return None
+    from bfsitl.library import scenarios_dir
+
+    candidate = scenarios_dir() / f"{text}{SCENARIO_GLOB[1:]}"
+    return candidate if candidate.is_file() else None
+
+
 def find_scenarios(paths: list[str | Path]) -> list[Scenario]:
     """Every scenario named: files as they are, directories by their ``*.toml`` files (sorted;
-    not recursive).  Two scenarios with one name are refused (their reports would clash)."""
+    not recursive), and a bare name that is no file (``rc-loss-hover-drop``) as the shipped
+    library's file of that name.  Two scenarios with one name are refused (their reports would
+    clash)."""
     scenarios: list[Scenario] = []
     for given in paths:
         path = Path(given)
@@ -32,8 +45,11 @@ def find_scenarios(paths: list[str | Path]) -> list[Scenario]:
                 raise ScenarioError(f"{path} holds no scenario files ({SCENARIO_GLOB})")
         elif path.is_file():
             files = [path]
+        elif _library_file(given) is not None:
+            files = [_library_file(given)]  # type: ignore[list-item]
         else:
-            raise ScenarioError(f"{path}: no such scenario file or directory")
+            raise ScenarioError(f"{path}: no such scenario file or directory, nor a scenario "
+                                f"of the shipped library (`bfsitl scenario list` names them)")
         scenarios.extend(load_scenario(f) for f in files)
     seen: dict[str, Scenario] = {}
     for scenario in scenarios:

@@ -83,6 +83,11 @@ def test_directories_twins_and_missing_paths(tmp_path: Path) -> None:
         find_scenarios([tmp_path, tmp_path / "b"])
     with pytest.raises(ScenarioError, match="no such scenario file"):
         find_scenarios([tmp_path / "nope.toml"])
+    # A bare name is the shipped library's file of that name.
+    (drop,) = find_scenarios(["rc-loss-hover-drop"])
+    assert drop.source == LIBRARY / "rc-loss-hover-drop.toml"
+    with pytest.raises(ScenarioError, match="nor a scenario of the shipped library"):
+        find_scenarios(["rc-loss-hover-dorp"])
     (tmp_path / "empty").mkdir()
     with pytest.raises(ScenarioError, match="holds no scenario files"):
         find_scenarios([tmp_path / "empty"])

@@ -33,7 +33,8 @@ def add_compare_parser(actions: argparse._SubParsersAction) -> None:  # type: ig
                "--b-cli 'set ap_hover_throttle = 1275' --seeds 2 --report cmp/",
         formatter_class=argparse.RawDescriptionHelpFormatter)
     compare.add_argument("paths", nargs="*", metavar="FILE_OR_DIR",
-                         help="scenario files or directories (default: the shipped library)")
+                         help="scenario files, directories or library names (default: the "
+                              "shipped library)")
     compare.add_argument("--firmware", action="append", default=[], metavar="NAME",
                          required=True,
                          help="side A's build; give it twice for side B's (once: both sides "

@@ -41,7 +41,8 @@ def add_scenario_parser(sub: argparse._SubParsersAction) -> None:  # type: ignor
                "--junit results.xml --report report/",
         formatter_class=argparse.RawDescriptionHelpFormatter)
     run.add_argument("paths", nargs="*", metavar="FILE_OR_DIR",
-                     help="scenario files (.toml), or directories of them (default: the "
+                     help="scenario files (.toml), directories of them, or names of the "
+                          "shipped library's scenarios (default: the "
                           "library shipped with bfsitl; `bfsitl scenario list` shows it)")
     run.add_argument("--firmware", action="append", default=[], metavar="NAME",
                      help="a cached build's name or a SITL binary; repeat for several "
@@ -82,7 +83,8 @@ def add_scenario_parser(sub: argparse._SubParsersAction) -> None:  # type: ignor
     show = actions.add_parser("list", help="check scenario files and show what they do",
                               description="Read and check scenario files without flying.")
     show.add_argument("paths", nargs="*", metavar="FILE_OR_DIR",
-                      help="scenario files or directories (default: the shipped library)")
+                      help="scenario files, directories or library names (default: the "
+                           "shipped library)")
     show.set_defaults(func=cmd_scenario_list)
 
     faults = actions.add_parser("faults", help="the fault catalog, and where each works",

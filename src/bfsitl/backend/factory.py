@@ -61,6 +61,8 @@ class BackendOptions(Protocol):
     @property
     def seed(self) -> int: ...
     @property
+    def initial_heading_deg(self) -> float: ...
+    @property
     def gz_plugin_dir(self) -> str | Path | None: ...
 
 
@@ -141,10 +143,15 @@ def make_simulator(options: BackendOptions, *, lockstep_shm: bool,
         from bfsitl.kernel.simulator import KernelSimulator
 
         # The same public API as the reference (not a subclass: its private state is C's).
-        return cast("Simulator", KernelSimulator(options.quad, sensors=options.sensors,
-                                                 wind=options.wind, seed=options.seed))
-    return Simulator(options.quad, sensors=options.sensors, wind=options.wind,
-                     seed=options.seed)
+        simulator = cast("Simulator", KernelSimulator(options.quad, sensors=options.sensors,
+                                                      wind=options.wind, seed=options.seed))
+    else:
+        simulator = Simulator(options.quad, sensors=options.sensors, wind=options.wind,
+                              seed=options.seed)
+    heading_deg = getattr(options, "initial_heading_deg", 0.0)
+    if heading_deg:
+        simulator.reset(yaw_deg=heading_deg)
+    return simulator
 
 
 def make_backend(options: BackendOptions, firmware: FirmwareBinary, *,

@@ -144,6 +144,9 @@ class SessionConfig:
     quad: QuadParams = IRIS
     #: Seeds the sensor noise and the gusts: the same seed gives the same disturbances.
     seed: int = 0
+    #: The quad's heading when the flight starts (the embedded physics), degrees clockwise
+    #: from north.  A firmware without a compass believes north at boot whatever it is.
+    initial_heading_deg: float = 0.0
     #: Send RC over UDP (the SITL's usual receiver).  False leaves RC to someone else: a
     #: :class:`~bfsitl.mission.board.BoardVehicle` sending MSP_SET_RAW_RC through the serial
     #: bridge, as to a real board (real time only: a lockstep SITL takes RC in its fdm).

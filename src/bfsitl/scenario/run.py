@@ -292,6 +292,7 @@ def _fly(scenario: Scenario, binary: Path, profile: FirmwareProfile, faults: tup
         control_rate_hz=FlightSession.control_rate_hz,
         profile=scenario_profile(scenario, profile, faults), firmware=binary,
         workdir=out / "sitl", quad=scenario.quad, wind=scenario.wind, seed=scenario.seed,
+        initial_heading_deg=scenario.initial_heading_deg,
         speed=options.speed, lockstep_spin=not options.shares_cores)
     outputs = FlightOutputs(OutputOptions(
         csv_path=out / "flight.csv", mcap_path=out / "flight.mcap" if options.mcap else None))

@@ -9,6 +9,7 @@
     [vehicle]                # optional: the simulated quad (default Gazebo's IRIS)
     model = "iris"
     mass_kg = 1.9            # heavier: a payload
+    heading_deg = 90         # where the nose points at the start (default north)
 
     [wind]                   # optional: north/east m/s (the air's motion), gusts
     north_m_s = 2.0
@@ -83,6 +84,8 @@ class Scenario:
     wind: Wind | None = None
     #: The simulated quad (``[vehicle]``).
     quad: QuadParams = IRIS
+    #: Where its nose points at the start (``[vehicle] heading_deg``), clockwise from north.
+    initial_heading_deg: float = 0.0
     seed: int = 0
     #: Builds to run on when the command line names none.
     firmware: tuple[str, ...] = ()
@@ -140,10 +143,10 @@ def _vehicle(where: str, raw: Any) -> QuadParams:
     """``[vehicle]``: a known model, optionally heavier or lighter (payload, battery)."""
     if not isinstance(raw, dict):
         raise ScenarioError(f"{where}: [vehicle] must be a table")
-    unknown = set(raw) - {"model", "mass_kg"}
+    unknown = set(raw) - {"model", "mass_kg", "heading_deg"}
     if unknown:
         raise ScenarioError(f"{where}: [vehicle] has unknown key(s) "
-                            f"{', '.join(sorted(unknown))}; known: mass_kg, model")
+                            f"{', '.join(sorted(unknown))}; known: heading_deg, mass_kg, model")
     model = raw.get("model", "iris")
     if model not in VEHICLE_MODELS:
         raise ScenarioError(f"{where}: [vehicle] model {model!r} is not one of "
@@ -231,6 +234,9 @@ def scenario_from_dict(data: dict[str, Any], *, name: str, source: Path | None =
         cli=_strings(where, "cli", data.get("cli", [])), cli_for=_cli_for(where, data),
         wind=_wind(where, data["wind"]) if "wind" in data else None, seed=seed,
         quad=_vehicle(where, data["vehicle"]) if "vehicle" in data else IRIS,
+        initial_heading_deg=_number(where, "vehicle.heading_deg",
+                                    data.get("vehicle", {}).get("heading_deg", 0.0), 0.0, 360.0)
+        if isinstance(data.get("vehicle"), dict) else 0.0,
         firmware=_strings(where, "firmware", data.get("firmware", [])),
         requires_gps=requires_gps, requires=requires, fc_waypoints=waypoints,
         settle_s=_number(where, "settle_s", data.get("settle_s", DEFAULT_SETTLE_S), 0.0, 60.0),

@@ -3,6 +3,7 @@ files: read, checked, and turned into what the FC is given."""
 
 from __future__ import annotations
 
+import math
 from pathlib import Path
 
 import pytest
@@ -125,3 +126,19 @@ def test_missing_features_are_read_from_the_binarys_setting_names(tmp_path: Path
     binary.write_bytes(binary.read_bytes() + b"\x00ap_rx_loss_policy\x00")
     assert missing_features(mission, (autopilot,), binary) == []
     assert missing_features(scenario(), (), binary) == []
+
+
+def test_a_vehicle_may_start_facing_another_way() -> None:
+    from bfsitl.backend.factory import make_simulator
+    from bfsitl.mission.session import SessionConfig
+    from bfsitl.physics.frames import euler_from_quat_rad
+
+    east = scenario(vehicle={"heading_deg": 90.0})
+    assert east.initial_heading_deg == 90.0 and scenario().initial_heading_deg == 0.0
+    with pytest.raises(ScenarioError, match=r"vehicle.heading_deg = 400.0 must be"):
+        scenario(vehicle={"heading_deg": 400.0})
+    for kernel in ("python", "compiled"):
+        config = SessionConfig(initial_heading_deg=90.0, physics_kernel=kernel)
+        simulator = make_simulator(config, lockstep_shm=False)
+        _roll, _pitch, yaw = euler_from_quat_rad(simulator.state.quaternion_wxyz)
+        assert math.degrees(yaw) == pytest.approx(90.0), kernel

@@ -50,11 +50,9 @@ from bfsitl.analysis.series import (
     window_means,
 )
 from bfsitl.analysis.track import Track, TrackPoint
+from bfsitl.blackbox.decode import FailsafePhase
 from bfsitl.errors import TrackDataMissingError
 
-#: ``failsafePhase_e`` names (flight/failsafe.h; 7 is master's).
-FAILSAFE_PHASE_NAMES = ("IDLE", "RX_LOSS_DETECTED", "LANDING", "LANDED", "RX_LOSS_MONITORING",
-                        "RX_LOSS_RECOVERED", "GPS_RESCUE", "AUTOPILOT")
 #: A log's disarm reasons that mean the FC itself saw a crash or a runaway.
 CRASH_DISARM_REASONS = ("CRASH_PROTECTION", "RUNAWAY_TAKEOFF")
 #: The autopilot's phase in which it holds a target.
@@ -347,8 +345,10 @@ def motor_saturation(track: Track, limits: Limits) -> Finding | None:
 
 # -- failsafe --------------------------------------------------------------------------------
 def _phase_name(phase: int) -> str:
-    return FAILSAFE_PHASE_NAMES[phase] if 0 <= phase < len(FAILSAFE_PHASE_NAMES) \
-        else f"PHASE_{phase}"
+    try:
+        return FailsafePhase(phase).name
+    except ValueError:
+        return f"PHASE_{phase}"  # a phase a newer firmware added
 
 
 def failsafe(track: Track, limits: Limits) -> Finding | None:
@@ -435,16 +435,24 @@ def _held(track: Track, limits: Limits) -> list[TrackPoint]:
     return held
 
 
+def _worst_graded(points: list[TrackPoint], off: Callable[[TrackPoint], float],
+                  bounds: tuple[float, float]) -> tuple[TrackPoint, float, Severity] | None:
+    """The point farthest off, how far, and its grade; None when none reaches a bound."""
+    if not points:
+        return None
+    worst = max(points, key=off)
+    severity = _graded(off(worst), bounds)
+    return None if severity is None else (worst, off(worst), severity)
+
+
 def altitude_excursion(track: Track, limits: Limits) -> Finding | None:
     require(track, "alt_m", "target_alt_m", "phase")
     held = [p for p in _held(track, limits) if finite(p.target_alt_m) and finite(p.alt_m)]
-    if not held:
+    graded = _worst_graded(held, lambda p: abs(p.alt_m - p.target_alt_m),
+                           limits.altitude_excursion_m)
+    if graded is None:
         return None
-    worst = max(held, key=lambda p: abs(p.alt_m - p.target_alt_m))
-    error = abs(worst.alt_m - worst.target_alt_m)
-    severity = _graded(error, limits.altitude_excursion_m)
-    if severity is None:
-        return None
+    worst, error, severity = graded
     return Finding("altitude_excursion", severity,
                    f"{error:.1f} m {'above' if worst.alt_m > worst.target_alt_m else 'below'} "
                    f"the held {worst.target_alt_m:.1f} m", worst.time_s, error, "m",
@@ -456,18 +464,14 @@ def position_excursion(track: Track, limits: Limits) -> Finding | None:
     require(track, "north_m", "target_north_m", "phase")
     held = [p for p in _held(track, limits) if finite(p.target_north_m)
             and finite(p.north_m)]
-    if not held:
+    graded = _worst_graded(held, lambda p: math.hypot(p.north_m - p.target_north_m,
+                                                      p.east_m - p.target_east_m),
+                           limits.position_excursion_m)
+    if graded is None:
         return None
-
-    def off(p: TrackPoint) -> float:
-        return math.hypot(p.north_m - p.target_north_m, p.east_m - p.target_east_m)
-
-    worst = max(held, key=off)
-    severity = _graded(off(worst), limits.position_excursion_m)
-    if severity is None:
-        return None
-    return Finding("position_excursion", severity,
-                   f"{off(worst):.1f} m off the held position", worst.time_s, off(worst), "m",
+    worst, off, severity = graded
+    return Finding("position_excursion", severity, f"{off:.1f} m off the held position",
+                   worst.time_s, off, "m",
                    {"target_north_m": worst.target_north_m,
                     "target_east_m": worst.target_east_m, "sample": evidence_of(worst)},
                    track.source)
@@ -477,13 +481,11 @@ def altitude_estimate(track: Track, limits: Limits) -> Finding | None:
     require(track, "alt_m", "fc_alt_m", "airborne")
     flying = [p for p in track.points if p.armed and p.airborne and finite(p.fc_alt_m)
               and finite(p.alt_m)]
-    if not flying:
+    graded = _worst_graded(flying, lambda p: abs(p.fc_alt_m - p.alt_m),
+                           limits.altitude_estimate_m)
+    if graded is None:
         return None
-    worst = max(flying, key=lambda p: abs(p.fc_alt_m - p.alt_m))
-    error = abs(worst.fc_alt_m - worst.alt_m)
-    severity = _graded(error, limits.altitude_estimate_m)
-    if severity is None:
-        return None
+    worst, error, severity = graded
     return Finding("altitude_estimate", severity,
                    f"the FC's altitude {error:.1f} m off the truth ({worst.fc_alt_m:.1f} m "
                    f"against {worst.alt_m:.1f} m)", worst.time_s, error, "m",

@@ -57,6 +57,7 @@ from bfsitl.mission.vehicle import SWITCH_OFF_US, SWITCH_ON_US
 from bfsitl.physics.wind import MAX_GUST_STD_M_S, MAX_WIND_COMPONENT_M_S, Wind
 from bfsitl.protocol.boxes import AUTOPILOT_BOX_ID, BoxId
 from bfsitl.protocol.firmware_profile import FirmwareProfile
+from bfsitl.scenario.values import number_in
 
 if TYPE_CHECKING:
     from bfsitl.mission.vehicle import Vehicle
@@ -336,10 +337,10 @@ def read_fault_spec(raw: Any, *, where: str, number: int, run_s: float) -> Fault
     if kind not in _KINDS:
         raise ScenarioError(f"{here}: unknown fault kind {kind!r}; known: "
                             f"{', '.join(FAULT_KINDS)}")
-    at_s = _number(where, f"{label} at_s", raw["at_s"], 0.0, run_s)
+    at_s = number_in(where, f"{label} at_s", raw["at_s"], 0.0, run_s)
     lasts = raw.get("duration_s")
     if lasts is not None:
-        lasts = _number(where, f"{label} duration_s", lasts, 0.0, MAX_FAULT_DURATION_S)
+        lasts = number_in(where, f"{label} duration_s", lasts, 0.0, MAX_FAULT_DURATION_S)
     given = {key: value for key, value in raw.items() if key not in _COMMON_KEYS}
     schema = _PARAMS[kind]
     unknown = set(given) - set(schema)
@@ -373,7 +374,7 @@ def _param(here: str, kind: str, key: str, rule: _Number | tuple[str, ...] | typ
         if rule.default is None:
             raise ScenarioError(f"{here}: {kind} needs {key}")
         return rule.default
-    return _number(here, f"{kind} {key}", value, rule.low, rule.high)
+    return number_in(here, f"{kind} {key}", value, rule.low, rule.high)
 
 
 def make_fault(spec: FaultSpec, profile: FirmwareProfile, *, where: str = "scenario") -> Fault:
@@ -398,8 +399,3 @@ def _need_gps(profile: FirmwareProfile, where: str, kind: str) -> None:
                                      f"firmware build --gps`; master has it)")
 
 
-def _number(where: str, key: str, value: Any, low: float, high: float) -> float:
-    if isinstance(value, bool) or not isinstance(value, (int, float)) \
-            or not math.isfinite(value) or not low <= value <= high:
-        raise ScenarioError(f"{where}: {key} = {value!r} must be a number in {low:g}..{high:g}")
-    return float(value)

@@ -20,12 +20,12 @@ AUTOPILOT (or a failsafe hands it over).
 
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass
 from typing import Any
 
 from bfsitl.errors import ScenarioError
 from bfsitl.physics.frames import GeodeticProjection, GeoPoint
+from bfsitl.scenario.values import number_in
 
 #: The simulator's home (bfsitl.physics.multirotor: latitude and longitude 0, sea level).
 HOME = GeoPoint(0.0, 0.0, 0.0)
@@ -48,12 +48,6 @@ class FcWaypoint:
     duration_s: float = 0.0
     pattern: str = "none"
 
-
-def _number(where: str, key: str, value: Any, low: float, high: float) -> float:
-    if isinstance(value, bool) or not isinstance(value, (int, float)) \
-            or not math.isfinite(value) or not low <= value <= high:
-        raise ScenarioError(f"{where}: {key} = {value!r} must be a number in {low:g}..{high:g}")
-    return float(value)
 
 
 def _word(where: str, key: str, value: Any, words: tuple[str, ...]) -> str:
@@ -83,12 +77,12 @@ def read_fc_waypoints(raw: Any, *, where: str) -> tuple[FcWaypoint, ...]:
             if key not in table:
                 raise ScenarioError(f"{here}: {key} is missing")
         waypoints.append(FcWaypoint(
-            north_m=_number(here, "north_m", table["north_m"], -5000.0, 5000.0),
-            east_m=_number(here, "east_m", table["east_m"], -5000.0, 5000.0),
-            alt_m=_number(here, "alt_m", table["alt_m"], 0.0, 500.0),
-            speed_m_s=_number(here, "speed_m_s", table.get("speed_m_s", 5.0), 0.0, 50.0),
+            north_m=number_in(here, "north_m", table["north_m"], -5000.0, 5000.0),
+            east_m=number_in(here, "east_m", table["east_m"], -5000.0, 5000.0),
+            alt_m=number_in(here, "alt_m", table["alt_m"], 0.0, 500.0),
+            speed_m_s=number_in(here, "speed_m_s", table.get("speed_m_s", 5.0), 0.0, 50.0),
             type=_word(here, "type", table.get("type", "flyover"), WAYPOINT_TYPES),
-            duration_s=_number(here, "duration_s", table.get("duration_s", 0.0), 0.0, 6000.0),
+            duration_s=number_in(here, "duration_s", table.get("duration_s", 0.0), 0.0, 6000.0),
             pattern=_word(here, "pattern", table.get("pattern", "none"), PATTERNS)))
     return tuple(waypoints)
 

@@ -43,13 +43,7 @@ def write_scenario_plot(trace: Trace, path: Path, *, title: str = "") -> Path:
                               "fraction"), fontsize=8, color="tab:orange", va="top")
         if trace.crash is not None:
             axis.axvline(trace.crash[0], color="black", linestyle=":", linewidth=1)
-    if title:
-        axes[0].set_title(title)
-    figure.tight_layout()
-    path = Path(path)
-    figure.savefig(path, dpi=90)
-    plt.close(figure)
-    return path
+    return _finish(plt, figure, axes, path, title)
 
 
 def write_overlay_plot(traces: list[tuple[str, Trace]], path: Path, *, title: str = ""
@@ -80,6 +74,11 @@ def write_overlay_plot(traces: list[tuple[str, Trace]], path: Path, *, title: st
     axes[3].set_yticklabels(FAILSAFE_PHASES, fontsize=7)
     axes[3].set_xlabel("simulation time from arming (s)")
     axes[0].legend(loc="best", fontsize=8)
+    return _finish(plt, figure, axes, path, title)
+
+
+def _finish(plt, figure, axes, path: Path, title: str) -> Path:  # type: ignore[no-untyped-def]
+    """Title, layout, the PNG written, the figure closed (matplotlib keeps every open one)."""
     if title:
         axes[0].set_title(title)
     figure.tight_layout()

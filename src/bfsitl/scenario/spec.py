@@ -34,7 +34,6 @@ the file, the table and the key in the message.
 
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import Any
@@ -52,6 +51,7 @@ from bfsitl.physics.wind import (
 )
 from bfsitl.scenario.faults import FaultSpec, read_fault_spec  # noqa: F401 - FaultSpec re-exported
 from bfsitl.scenario.fc_mission import FcWaypoint, read_fc_waypoints
+from bfsitl.scenario.values import number_in
 
 #: A scenario's file name pattern inside a directory.
 SCENARIO_GLOB = "*.toml"
@@ -106,12 +106,6 @@ class Scenario:
         return str(self.source) if self.source is not None else f"scenario {self.name}"
 
 
-def _number(where: str, key: str, value: Any, low: float, high: float) -> float:
-    if isinstance(value, bool) or not isinstance(value, (int, float)) \
-            or not math.isfinite(value) or not low <= value <= high:
-        raise ScenarioError(f"{where}: {key} = {value!r} must be a number in {low:g}..{high:g}")
-    return float(value)
-
 
 def _strings(where: str, key: str, value: Any) -> tuple[str, ...]:
     if isinstance(value, str):
@@ -132,7 +126,7 @@ def _wind(where: str, raw: Any) -> Wind:
     limits = {"gust_std_m_s": (0.0, MAX_GUST_STD_M_S),
               "gust_time_constant_s": (MIN_GUST_TIME_CONSTANT_S, MAX_GUST_TIME_CONSTANT_S)}
     component = (-MAX_WIND_COMPONENT_M_S, MAX_WIND_COMPONENT_M_S)
-    values = {k: _number(where, f"wind.{k}", v, *limits.get(k, component))
+    values = {k: number_in(where, f"wind.{k}", v, *limits.get(k, component))
               for k, v in raw.items()}
     return Wind((values.get("north_m_s", 0.0), values.get("east_m_s", 0.0),
                  values.get("down_m_s", 0.0)), values.get("gust_std_m_s", 0.0),
@@ -153,7 +147,7 @@ def _vehicle(where: str, raw: Any) -> QuadParams:
                             f"{', '.join(VEHICLE_MODELS)}")
     quad = VEHICLE_MODELS[model]
     if "mass_kg" in raw:
-        mass_kg = _number(where, "vehicle.mass_kg", raw["mass_kg"], 0.2, 20.0)
+        mass_kg = number_in(where, "vehicle.mass_kg", raw["mass_kg"], 0.2, 20.0)
         quad = replace(quad, name=f"{quad.name}, {mass_kg:g} kg", mass_kg=mass_kg)
         try:
             quad.hover_command  # noqa: B018 - raises when its motors cannot lift it
@@ -191,7 +185,7 @@ def scenario_from_dict(data: dict[str, Any], *, name: str, source: Path | None =
             raise ScenarioError(f"{where}: {key} is missing"
                                 + (" (simulation seconds from arming)" if key == "duration_s"
                                    else " ([flight] says what the autopilot flies)"))
-    duration_s = _number(where, "duration_s", data["duration_s"], 1.0, MAX_DURATION_S)
+    duration_s = number_in(where, "duration_s", data["duration_s"], 1.0, MAX_DURATION_S)
     if not isinstance(data["flight"], dict):
         raise ScenarioError(f"{where}: [flight] must be a table")
     try:
@@ -234,10 +228,10 @@ def scenario_from_dict(data: dict[str, Any], *, name: str, source: Path | None =
         cli=_strings(where, "cli", data.get("cli", [])), cli_for=_cli_for(where, data),
         wind=_wind(where, data["wind"]) if "wind" in data else None, seed=seed,
         quad=_vehicle(where, data["vehicle"]) if "vehicle" in data else IRIS,
-        initial_heading_deg=_number(where, "vehicle.heading_deg",
+        initial_heading_deg=number_in(where, "vehicle.heading_deg",
                                     data.get("vehicle", {}).get("heading_deg", 0.0), 0.0, 360.0)
         if isinstance(data.get("vehicle"), dict) else 0.0,
         firmware=_strings(where, "firmware", data.get("firmware", [])),
         requires_gps=requires_gps, requires=requires, fc_waypoints=waypoints,
-        settle_s=_number(where, "settle_s", data.get("settle_s", DEFAULT_SETTLE_S), 0.0, 60.0),
+        settle_s=number_in(where, "settle_s", data.get("settle_s", DEFAULT_SETTLE_S), 0.0, 60.0),
         source=source)

@@ -133,7 +133,9 @@ class ScenarioComparison:
 
     @property
     def fails(self) -> bool:
-        return self.change.fails and not self.accepted
+        """Worse or changed and not accepted, or not flown at all (no acceptance waives
+        a run that could not be judged)."""
+        return self.change is Change.ERROR or (self.change.fails and not self.accepted)
 
 
 def compare_results(planned: Sequence[ComparedRun], results: Sequence[ScenarioResult],

@@ -146,6 +146,7 @@ def test_errors_skips_and_accepting() -> None:
     broken = result(verdict=Verdict.ERROR)
     comparison = judge([result()], [broken])
     assert comparison.change is Change.ERROR and comparison.fails
+    assert judge([result()], [broken], accepted=("drop",)).fails   # no waiving an error
     skipped = result(verdict=Verdict.SKIPPED)
     assert judge([skipped], [skipped]).change is Change.SKIPPED
     a = [result(touchdown=1.0)]

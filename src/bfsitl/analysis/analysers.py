@@ -43,6 +43,7 @@ from bfsitl.analysis.series import (
     descent_before,
     evidence_of,
     finite,
+    held_points,
     require,
     runs,
     span_s,
@@ -55,8 +56,6 @@ from bfsitl.errors import TrackDataMissingError
 
 #: A log's disarm reasons that mean the FC itself saw a crash or a runaway.
 CRASH_DISARM_REASONS = ("CRASH_PROTECTION", "RUNAWAY_TAKEOFF")
-#: The autopilot's phase in which it holds a target.
-HOLD_PHASE = "hold"
 
 
 @dataclass(frozen=True, slots=True)
@@ -426,15 +425,6 @@ def _graded(value: float, bounds: tuple[float, float]) -> Severity | None:
     return None
 
 
-def _held(track: Track, limits: Limits) -> list[TrackPoint]:
-    """Points of the autopilot's holds, after each hold's first seconds."""
-    held: list[TrackPoint] = []
-    for first, last in runs(track.points, lambda p: p.phase == HOLD_PHASE):
-        start = track.points[first].time_s + limits.hold_settle_s
-        held.extend(p for p in track.points[first:last + 1] if p.time_s >= start)
-    return held
-
-
 def _worst_graded(points: list[TrackPoint], off: Callable[[TrackPoint], float],
                   bounds: tuple[float, float]) -> tuple[TrackPoint, float, Severity] | None:
     """The point farthest off, how far, and its grade; None when none reaches a bound."""
@@ -447,7 +437,8 @@ def _worst_graded(points: list[TrackPoint], off: Callable[[TrackPoint], float],
 
 def altitude_excursion(track: Track, limits: Limits) -> Finding | None:
     require(track, "alt_m", "target_alt_m", "phase")
-    held = [p for p in _held(track, limits) if finite(p.target_alt_m) and finite(p.alt_m)]
+    held = [p for p in held_points(track, limits.hold_settle_s)
+            if finite(p.target_alt_m) and finite(p.alt_m)]
     graded = _worst_graded(held, lambda p: abs(p.alt_m - p.target_alt_m),
                            limits.altitude_excursion_m)
     if graded is None:
@@ -462,7 +453,7 @@ def altitude_excursion(track: Track, limits: Limits) -> Finding | None:
 
 def position_excursion(track: Track, limits: Limits) -> Finding | None:
     require(track, "north_m", "target_north_m", "phase")
-    held = [p for p in _held(track, limits) if finite(p.target_north_m)
+    held = [p for p in held_points(track, limits.hold_settle_s) if finite(p.target_north_m)
             and finite(p.north_m)]
     graded = _worst_graded(held, lambda p: math.hypot(p.north_m - p.target_north_m,
                                                       p.east_m - p.target_east_m),

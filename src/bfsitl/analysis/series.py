@@ -10,6 +10,19 @@ from collections.abc import Callable, Iterator, Sequence
 from bfsitl.analysis.track import Track, TrackPoint
 from bfsitl.errors import TrackDataMissingError
 
+#: The autopilot's phase in which it holds a target.
+HOLD_PHASE = "hold"
+
+
+def held_points(track: Track, settle_s: float) -> list[TrackPoint]:
+    """Points of the autopilot's holds, after each hold's first ``settle_s`` (which
+    settle)."""
+    held: list[TrackPoint] = []
+    for first, last in runs(track.points, lambda p: p.phase == HOLD_PHASE):
+        start = track.points[first].time_s + settle_s
+        held.extend(p for p in track.points[first:last + 1] if p.time_s >= start)
+    return held
+
 
 def runs(points: Sequence[TrackPoint], test: Callable[[TrackPoint], bool]
          ) -> Iterator[tuple[int, int]]:

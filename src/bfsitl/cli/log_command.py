@@ -46,6 +46,16 @@ def add_log_parser(sub: argparse._SubParsersAction) -> None:  # type: ignore[typ
     check.set_defaults(func=cmd_log_check)
 
 
+def _entry(path: Path, index: int, firmware: str, frames: int, duration_s: float,
+           disarm_reason: str | None, truncated: bool, analysis: Any) -> dict[str, Any]:
+    """One log's line of the output: what it is and what the analysers found."""
+    return {"file": str(path), "log": index, "firmware": firmware, "frames": frames,
+            "duration_s": round(duration_s, 3), "disarm_reason": disarm_reason,
+            "truncated": truncated, "findings": [f.as_dict() for f in analysis.findings],
+            "watched": analysis.watched, "skipped": analysis.skipped,
+            "_findings": analysis.findings}
+
+
 def _checked(path: Path) -> list[dict[str, Any]]:
     """Each log in ``path``: what it is and what the analysers found."""
     from bfsitl.analysis import analyse, track_from_blackbox, track_from_rows
@@ -54,25 +64,12 @@ def _checked(path: Path) -> list[dict[str, Any]]:
 
     if path.suffix.lower() == ".csv":
         rows = read_flight_rows(path)
-        analysis = analyse(track_from_rows(rows, label=str(path)))
-        return [{"file": str(path), "log": 1, "firmware": "bfsitl flight log",
-                 "frames": len(rows),
-                 "duration_s": round(rows[-1].time_s - rows[0].time_s, 3) if rows else 0.0,
-                 "disarm_reason": None, "truncated": False,
-                 "findings": [f.as_dict() for f in analysis.findings],
-                 "watched": analysis.watched, "skipped": analysis.skipped,
-                 "_findings": analysis.findings}]
-    results = []
-    for log in decode_blackbox(path):
-        analysis = analyse(track_from_blackbox(log))
-        results.append({
-            "file": str(path), "log": log.index, "firmware": log.firmware_revision,
-            "frames": len(log.frames), "duration_s": round(log.duration_s, 3),
-            "disarm_reason": log.disarm_reason_name, "truncated": log.truncated,
-            "findings": [f.as_dict() for f in analysis.findings],
-            "watched": analysis.watched, "skipped": analysis.skipped,
-            "_findings": analysis.findings})
-    return results
+        return [_entry(path, 1, "bfsitl flight log", len(rows),
+                       rows[-1].time_s - rows[0].time_s if rows else 0.0, None, False,
+                       analyse(track_from_rows(rows, label=str(path))))]
+    return [_entry(path, log.index, log.firmware_revision, len(log.frames), log.duration_s,
+                   log.disarm_reason_name, log.truncated, analyse(track_from_blackbox(log)))
+            for log in decode_blackbox(path)]
 
 
 def cmd_log_check(args: argparse.Namespace) -> int:

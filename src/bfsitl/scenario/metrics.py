@@ -15,16 +15,14 @@ from dataclasses import dataclass, field
 from typing import TYPE_CHECKING
 
 from bfsitl.analysis.analysers import touchdowns
+from bfsitl.analysis.limits import Limits
+from bfsitl.analysis.series import held_points
 from bfsitl.analysis.track import Track
 from bfsitl.scenario.trace import Trace, phase_name
 
 if TYPE_CHECKING:
     from bfsitl.analysis import Finding
 
-#: The autopilot's phase in which it holds a target (see bfsitl.analysis).
-_HOLD = "hold"
-#: A hold's first seconds settle and are not held.
-_SETTLE_S = 3.0
 
 
 @dataclass(frozen=True, slots=True)
@@ -127,15 +125,10 @@ def run_metrics(track: Track, trace: Trace, findings: list[Finding]) -> RunMetri
 
 
 def _held_errors(track: Track) -> list[float]:
+    """The 3-D error in the autopilot's holds (height alone where no position target)."""
     errors: list[float] = []
-    started: float | None = None
-    for point in track.points:
-        if point.phase != _HOLD:
-            started = None
-            continue
-        if started is None:
-            started = point.time_s
-        if point.time_s - started < _SETTLE_S or not math.isfinite(point.target_alt_m):
+    for point in held_points(track, Limits().hold_settle_s):
+        if not math.isfinite(point.target_alt_m):
             continue
         vertical = point.alt_m - point.target_alt_m
         horizontal = 0.0

@@ -57,6 +57,11 @@ Messages are written for the person at the terminal: what went wrong, then what 
         └── SitlNotReadyError          (also TimeoutError) it never answered MSP
             ├── SitlLockedOutError     it answers, but its gyro/PID tasks never ran
             └── SitlTcpServerLostError its MSP port's TCP server was lost at boot
+
+Apart from the tree, one stop that is no error:
+
+    KeyboardInterrupt
+    └── Interrupted                    SIGTERM or SIGHUP, taken like Ctrl-C (bfsitl.stop_signals)
 """
 
 from __future__ import annotations
@@ -317,3 +322,14 @@ class SitlTcpServerLostError(SitlNotReadyError):
     """The SITL's TCP server for its MSP port failed at boot (and will never serve)."""
 
     brief = "the SITL's MSP port never served (the dyad TCP-server race at boot)"
+
+
+class Interrupted(KeyboardInterrupt):
+    """A stop signal, raised where the main thread was (bfsitl.stop_signals).  A
+    :class:`KeyboardInterrupt`, not a :class:`BfsitlError`: code that already cleans up on
+    Ctrl-C does the same for SIGTERM and SIGHUP, and ``except BfsitlError`` never swallows
+    it."""
+
+    def __init__(self, signal_name: str = "SIGINT") -> None:
+        super().__init__(signal_name)
+        self.signal_name = signal_name

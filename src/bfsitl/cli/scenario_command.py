@@ -124,6 +124,7 @@ def cmd_scenario_run(args: argparse.Namespace) -> int:
           f"{counts['skipped']} skipped; {simulated:.0f} s simulated in {wall_s:.0f} s "
           f"({simulated / wall_s if wall_s > 0 else 0:.1f}x real time)")
     if interrupted:
+        progress(suite.stop_line())
         return EXIT_INTERRUPTED
     return EXIT_OK if counts["failed"] == counts["error"] == 0 else EXIT_FAILED
 

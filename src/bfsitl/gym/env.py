@@ -109,6 +109,22 @@ class FlightEnv(gymnasium.Env[np.ndarray, np.ndarray]):
             raise EnvironmentConfigError(f"episode_s {episode_s} is outside 0.1..3600 s")
         if not 0.5 <= start_alt_m <= 15.0:
             raise EnvironmentConfigError(f"start_alt_m {start_alt_m} is outside 0.5..15 m")
+        in_worker = multiprocessing.parent_process() is not None
+        #: Pin this process and its SITL to one core of their own (bfsitl.sitl.core_claim):
+        #: the lockstep hand-over stays on that core, and environments side by side do not
+        #: take each other's time.  None: in the workers of a vector environment only.
+        self.pin_core = in_worker if pin_core is None else pin_core
+        if self.pin_core and spin:
+            raise EnvironmentConfigError(
+                "spin=True with pin_core=True: the SITL and the environment share the pinned "
+                "core, so a busy-wait would starve the firmware it waits for; choose one")
+        #: Busy-wait for the firmware's replies (SessionConfig.lockstep_spin): the SITL and
+        #: bfsitl each keep a core busy, which makes one environment faster and several
+        #: sharing the cores slower (benchmarks/gym.py).  None: spin when not pinned and not
+        #: in the worker of a vector environment.
+        self.spin = (not in_worker and not self.pin_core) if spin is None else spin
+        # Every option is checked before the firmware is looked up: a wrong option is said
+        # as such, whatever builds this machine holds.
         self.binary = find_firmware(firmware)
         if not self.binary.lockstep:
             raise EnvironmentConfigError(
@@ -125,20 +141,6 @@ class FlightEnv(gymnasium.Env[np.ndarray, np.ndarray]):
         self.episode_s = episode_s
         self.start = start
         self.start_alt_m = start_alt_m
-        in_worker = multiprocessing.parent_process() is not None
-        #: Pin this process and its SITL to one core of their own (bfsitl.sitl.core_claim):
-        #: the lockstep hand-over stays on that core, and environments side by side do not
-        #: take each other's time.  None: in the workers of a vector environment only.
-        self.pin_core = in_worker if pin_core is None else pin_core
-        if self.pin_core and spin:
-            raise EnvironmentConfigError(
-                "spin=True with pin_core=True: the SITL and the environment share the pinned "
-                "core, so a busy-wait would starve the firmware it waits for; choose one")
-        #: Busy-wait for the firmware's replies (SessionConfig.lockstep_spin): the SITL and
-        #: bfsitl each keep a core busy, which makes one environment faster and several
-        #: sharing the cores slower (benchmarks/gym.py).  None: spin when not pinned and not
-        #: in the worker of a vector environment.
-        self.spin = (not in_worker and not self.pin_core) if spin is None else spin
         self._core: CoreClaim | None = None
         #: How packets pass to the firmware (SessionConfig.lockstep_exchange): shared memory
         #: where the build has it, or UDP; the flights are the same.

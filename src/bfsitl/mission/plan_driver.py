@@ -26,6 +26,7 @@ from bfsitl.mission.phase import Phase
 from bfsitl.mission.plan import MissionPlan, Waypoint
 from bfsitl.mission.results import MissionResult, Outcome
 from bfsitl.mission.vehicle import Vehicle
+from bfsitl.stop_signals import how_stopped
 
 #: The take-off's step response is judged over this much hold after it (metrics.py).
 STEP_STEADY_WINDOW_S = 5.0
@@ -129,8 +130,8 @@ def fly_mission(mission: Mission, plan: MissionPlan, *,
         fly_plan(mission, plan)
         if not plan.land:
             outcome, reason = Outcome.COMPLETED, "mission completed in the air (land = false)"
-    except KeyboardInterrupt:
-        outcome, reason = Outcome.INTERRUPTED, "interrupted (Ctrl-C)"
+    except KeyboardInterrupt as exc:
+        outcome, reason = Outcome.INTERRUPTED, f"interrupted ({how_stopped(exc)})"
     except ArmingBlockedError as exc:
         outcome, reason, blockers = Outcome.ARMING_BLOCKED, str(exc), exc.blockers
     except SitlExitedError as exc:

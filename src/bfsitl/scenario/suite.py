@@ -10,15 +10,23 @@ were planned, whatever order they finished in.
 ADDRESS``): one task per run, one CPU each, results gathered the same way; the firmware
 travels to the nodes and the files come home (:mod:`bfsitl.scenario.ray_runs`).
 
-Ctrl-C stops everything: the workers' sessions close (disarm, stop the SITL), and the runs
-that finished are still returned (:class:`SuiteResult` says it was interrupted), so the JUnit
-file and the report keep them.
+Ctrl-C, SIGTERM and SIGHUP stop everything alike (bfsitl.stop_signals): the workers are told
+to stop, their sessions close (disarm, stop the SITL), a worker that has not ended within
+:data:`WORKER_STOP_S` is killed, and the runs that finished are still returned
+(:class:`SuiteResult` says it was interrupted), so the JUnit file and the report keep them.
+A worker dies with the suite's process, even when that is killed outright (SIGKILL): the
+kernel signals it (:func:`~bfsitl.stop_signals.die_with_parent`), so no worker, and so no
+multiprocessing resource tracker or semaphore, outlives the suite.
 """
 
 from __future__ import annotations
 
 import multiprocessing
+import multiprocessing.connection
+import os
 import re
+import signal
+import time
 from collections.abc import Callable, Sequence
 from concurrent.futures import FIRST_COMPLETED, Future, ProcessPoolExecutor, wait
 from dataclasses import dataclass
@@ -29,6 +37,11 @@ from bfsitl.scenario.planned_run import PlannedRun, fly_one
 from bfsitl.scenario.result import ScenarioResult, Verdict
 from bfsitl.scenario.run import RunOptions, run_scenario
 from bfsitl.scenario.spec import Scenario
+from bfsitl.stop_signals import WorkerStop, die_with_parent, how_stopped, stop_signals_ignored
+
+#: How long stopped workers get to close their sessions (disarm, stop the SITL, write their
+#: files) before they are killed; a session's teardown takes a second or two.
+WORKER_STOP_S = 20.0
 
 Progress = Callable[[str], None]
 #: Called with each finished run, in the order they finish.
@@ -37,10 +50,20 @@ OnResult = Callable[[ScenarioResult], None]
 
 @dataclass(frozen=True, slots=True)
 class SuiteResult:
-    """Every run's result in plan order; ``interrupted`` when Ctrl-C ended the suite."""
+    """Every run's result in plan order; ``interrupted`` when a stop signal ended the suite,
+    ``stopped_by`` saying which (``Ctrl-C``, ``SIGTERM``, ``SIGHUP``)."""
 
     results: list[ScenarioResult]
     interrupted: bool = False
+    stopped_by: str = ""
+
+    def stop_line(self) -> str:
+        """What a user is told when the suite was stopped (empty when it was not)."""
+        if not self.interrupted:
+            return ""
+        finished = sum(1 for r in self.results if not r.reason.startswith("not run"))
+        return (f"interrupted ({self.stopped_by}): {finished} of {len(self.results)} runs "
+                f"finished; the others are marked not run")
 
 
 def dir_name(text: str) -> str:
@@ -83,9 +106,20 @@ def split_by_build(runs: Sequence[PlannedRun], is_built: Callable[[str], bool]
     return kept, [name for name, there in built.items() if not there]
 
 
+#: In a worker process: how it takes stop signals (set up by :func:`_start_worker`).
+_worker_stop = WorkerStop()
+
+
+def _start_worker(parent_pid: int) -> None:
+    """A worker's set-up: it ends with the suite's process, and stops cleanly once."""
+    die_with_parent(parent_pid, signal.SIGTERM)
+    _worker_stop.install()
+
+
 def _run_one(run: PlannedRun, speed: float | None, plot: bool, mcap: bool
              ) -> ScenarioResult:
-    return fly_one(run.scenario, run.firmware, run.out_dir, speed, plot, mcap)
+    with _worker_stop.job():
+        return fly_one(run.scenario, run.firmware, run.out_dir, speed, plot, mcap)
 
 
 def run_suite(runs: Sequence[PlannedRun], *, jobs: int = 1, speed: float | None = None,
@@ -120,11 +154,12 @@ def run_suite(runs: Sequence[PlannedRun], *, jobs: int = 1, speed: float | None 
                 done(result)
         else:
             _run_parallel(runs, jobs, speed, plot, mcap, results, done, say)
-    except KeyboardInterrupt:
-        say(f"interrupted: {len(results)} of {len(runs)} runs finished")
-        results.update({i: _interrupted(run) for i, run in enumerate(runs)
+    except KeyboardInterrupt as exc:
+        how = how_stopped(exc)
+        results.update({i: _interrupted(run, how) for i, run in enumerate(runs)
                         if i not in results})
-        return SuiteResult([results[i] for i in sorted(results)], interrupted=True)
+        return SuiteResult([results[i] for i in sorted(results)], interrupted=True,
+                           stopped_by=how)
     return SuiteResult([results[i] for i in sorted(results)])
 
 
@@ -137,8 +172,10 @@ def _run_parallel(runs: Sequence[PlannedRun], jobs: int, speed: float | None, pl
                   say: Progress) -> None:
     # spawn: a fresh interpreter per worker, nothing inherited from this one's threads.
     context = multiprocessing.get_context("spawn")
-    with ProcessPoolExecutor(max_workers=jobs, mp_context=context) as pool:
-        futures: dict[Future[ScenarioResult], int] = {}
+    pool = ProcessPoolExecutor(max_workers=jobs, mp_context=context,
+                               initializer=_start_worker, initargs=(os.getpid(),))
+    futures: dict[Future[ScenarioResult], int] = {}
+    try:
         for index, run in enumerate(runs):
             futures[pool.submit(_run_one, run, speed, plot, mcap)] = index
         say(f"{len(runs)} runs, {jobs} at a time")
@@ -146,18 +183,56 @@ def _run_parallel(runs: Sequence[PlannedRun], jobs: int, speed: float | None, pl
         while pending:
             finished, pending = wait(pending, return_when=FIRST_COMPLETED)
             for future in finished:
-                index = futures[future]
+                _take(future, runs[futures[future]], futures[future], results, done)
+    except BaseException:
+        _stop_workers(pool)
+        # A run that ended while the workers stopped is kept, not reported as not run.
+        for future, index in futures.items():
+            if index not in results and future.done() and not future.cancelled() \
+                    and future.exception() is None:
+                _take(future, runs[index], index, results, done)
+        raise
+    pool.shutdown(wait=True)
+
+
+def _take(future: Future[ScenarioResult], run: PlannedRun, index: int,
+          results: dict[int, ScenarioResult], done: OnResult) -> None:
+    try:
+        result = future.result()
+    except Exception as exc:  # noqa: BLE001 - a worker died: the run errs
+        result = ScenarioResult(run.scenario.name, run.firmware, Verdict.ERROR,
+                                f"the worker process failed: {exc!r}",
+                                source=run.scenario.source)
+    results[index] = result
+    done(result)
+
+
+def _stop_workers(pool: ProcessPoolExecutor) -> None:
+    """Stop the pool's workers, whatever they are doing: each gets SIGINT (its run's session
+    closes; a worker that already had one from the terminal ignores it), queued runs are
+    cancelled, and a worker still there after :data:`WORKER_STOP_S` is killed.  Stop signals
+    to this process are ignored meanwhile: the stop is bounded and must finish."""
+    with stop_signals_ignored():
+        workers = multiprocessing.active_children()
+        pool.shutdown(wait=False, cancel_futures=True)
+        for worker in workers:
+            if worker.pid is not None:
                 try:
-                    result = future.result()
-                except Exception as exc:  # noqa: BLE001 - a worker died: the run errs
-                    run = runs[index]
-                    result = ScenarioResult(run.scenario.name, run.firmware, Verdict.ERROR,
-                                            f"the worker process failed: {exc!r}",
-                                            source=run.scenario.source)
-                results[index] = result
-                done(result)
+                    os.kill(worker.pid, signal.SIGINT)
+                except ProcessLookupError:
+                    pass
+        # Wait on the sentinels, not join(): the pool's own thread reaps these processes.
+        deadline = time.monotonic() + WORKER_STOP_S
+        waiting = {worker.sentinel: worker for worker in workers}
+        while waiting and time.monotonic() < deadline:
+            ended = set(multiprocessing.connection.wait(list(waiting),
+                                                        timeout=deadline - time.monotonic()))
+            waiting = {sentinel: worker for sentinel, worker in waiting.items()
+                       if sentinel not in ended}
+        for worker in waiting.values():
+            worker.kill()
 
 
-def _interrupted(run: PlannedRun) -> ScenarioResult:
+def _interrupted(run: PlannedRun, how: str = "Ctrl-C") -> ScenarioResult:
     return ScenarioResult(run.scenario.name, run.firmware, Verdict.SKIPPED,
-                          "not run: interrupted (Ctrl-C)", source=run.scenario.source)
+                          f"not run: interrupted ({how})", source=run.scenario.source)

@@ -16,7 +16,6 @@ Requests and replies are single JSON datagrams.
 from __future__ import annotations
 
 import argparse
-import ctypes
 import fcntl
 import json
 import os
@@ -30,8 +29,8 @@ import time
 from collections.abc import Callable
 
 from bfsitl.sitl.timer_slack import timer_slack
+from bfsitl.stop_signals import die_with_parent
 
-_PR_SET_PDEATHSIG = 1
 _SIOCGIFFLAGS = 0x8913
 _SIOCSIFFLAGS = 0x8914
 _IFF_UP = 0x1
@@ -48,10 +47,7 @@ def _die_with_agent(agent_pid: int) -> Callable[[], None]:
     killed container) must not leave the SITL running without a parent."""
 
     def arm() -> None:
-        libc = ctypes.CDLL(None, use_errno=True)
-        libc.prctl(_PR_SET_PDEATHSIG, signal.SIGKILL, 0, 0, 0)
-        if os.getppid() != agent_pid:  # the agent went before the line above
-            os._exit(1)
+        die_with_parent(agent_pid, signal.SIGKILL)
 
     return arm
 

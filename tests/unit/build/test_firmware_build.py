@@ -584,6 +584,31 @@ def test_cli_list_info_clean(tree: Path, env: dict[str, str],
     assert cache_of(env).entries() == []
 
 
+def test_a_second_name_is_said_when_given_and_listed_beside_the_first(
+        tree: Path, env: dict[str, str], capsys: pytest.CaptureFixture[str]) -> None:
+    import json
+
+    assert main(["firmware", "build", "--source", str(tree), "--gps"]) == 0
+    capsys.readouterr()
+    # The same build again under a name of the user's: nothing compiles, the name is said.
+    assert main(["firmware", "build", "--source", str(tree), "--gps",
+                 "--name", "mine-gps"]) == 0
+    err = capsys.readouterr().err
+    assert "named it mine-gps: --firmware mine-gps now runs this build" in err
+    assert "its other names: 4.6.0-gps" in err
+    # Once more: the name is already there, so nothing new is named.
+    assert main(["firmware", "build", "--source", str(tree), "--gps",
+                 "--name", "mine-gps"]) == 0
+    assert "named it" not in capsys.readouterr().err
+    assert main(["firmware", "list"]) == 0
+    table = capsys.readouterr().out.splitlines()
+    assert table[0].startswith("NAMES ")
+    assert any(line.startswith("4.6.0-gps, mine-gps ") for line in table), table
+    assert main(["firmware", "list", "--json"]) == 0
+    rows = [r for r in json.loads(capsys.readouterr().out) if r["source"] == "cache"]
+    assert [r["names"] for r in rows] == [["4.6.0-gps", "mine-gps"]]
+
+
 # --- find_firmware and the command-line form ------------------------------------------------
 
 

@@ -4,12 +4,14 @@ the endings and the tasks, and the options refused before anything starts."""
 from __future__ import annotations
 
 import math
+from pathlib import Path
 
 import numpy as np
 import pytest
 
 pytest.importorskip("gymnasium")
 
+from bfsitl.build.binary_scan import LOCKSTEP_MARKER  # noqa: E402
 from bfsitl.errors import EnvironmentConfigError  # noqa: E402
 from bfsitl.fc.rc_link import RcCommand  # noqa: E402
 from bfsitl.gym.env import FlightEnv, HoverEnv, WaypointsEnv  # noqa: E402
@@ -153,10 +155,19 @@ def test_an_option_the_environment_cannot_take_is_refused_with_what_it_takes(
         WaypointsEnv(count=0)
 
 
-def test_pinning_and_spin_default_by_where_the_environment_runs() -> None:
-    here = HoverEnv()                      # a main process: spin on two cores, no pinning
+def fake_lockstep_build(directory: Path) -> Path:
+    """A file that reads as a lockstep build (its marker inside); nothing runs it."""
+    binary = directory / "betaflight_SITL.elf"
+    binary.write_bytes(b"\x00" * 64 + LOCKSTEP_MARKER + b"\x00" * 64)
+    binary.chmod(0o755)
+    return binary
+
+
+def test_pinning_and_spin_default_by_where_the_environment_runs(tmp_path: Path) -> None:
+    build = fake_lockstep_build(tmp_path)
+    here = HoverEnv(firmware=build)        # a main process: spin on two cores, no pinning
     assert here.spin and not here.pin_core
-    pinned = HoverEnv(pin_core=True)       # pinned: it shares the core with its SITL
+    pinned = HoverEnv(firmware=build, pin_core=True)  # it shares the core with its SITL
     assert pinned.pin_core and not pinned.spin
     for env in (here, pinned):
         env.close()

@@ -1,8 +1,8 @@
 """The embedded physics against the real SITL: conventions, mixing, clock, closed loop.
 
 Every sign and magnitude the firmware reports is compared with what the simulated vehicle
-does; the expected values come from the research's measured convention table
-(docs/firmware-findings.md) and Betaflight's quad-X layout.
+does; the expected values come from the measured convention table
+(docs/firmware-facts.md#sign-table) and Betaflight's quad-X layout.
 """
 
 from __future__ import annotations

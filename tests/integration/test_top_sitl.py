@@ -4,7 +4,7 @@ The frame is rendered without a terminal, through Rich's recording console.  Whi
 blockers to expect is read from the SITL itself with MSP_STATUS (a different message from the
 STATUS_EX the dashboard polls), before and after the frames: a flag set in both reads was set
 throughout, so it must be in the frame.  RXLOSS and ANGLE must always be among them: nothing
-ever sends RC or fdm packets to a fresh SITL (FIRMWARE_FACTS, Arming).
+ever sends RC or fdm packets to a fresh SITL (docs/firmware-facts.md#fresh-sitl-blockers).
 """
 
 from __future__ import annotations

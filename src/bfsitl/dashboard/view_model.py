@@ -14,7 +14,8 @@ from bfsitl.dashboard.link_stats import LinkStats
 from bfsitl.fc.msp_client import Telemetry
 
 #: RC channels shown: roll, pitch, yaw, throttle and AUX1-6.  4.6.0 SITL only processes
-#: ``max_aux_channels + 4`` = 10 channels (FIRMWARE_FACTS, MSP); the rest always read 1500.
+#: ``max_aux_channels + 4`` = 10 channels; the rest always read 1500
+#: (docs/firmware-facts.md#aux-channels).
 RC_CHANNELS_SHOWN = 10
 #: MSP_RC is in the FC's internal order: roll, pitch, yaw, throttle, then AUX1...
 RC_LABELS: tuple[str, ...] = ("roll", "pitch", "yaw", "thr")

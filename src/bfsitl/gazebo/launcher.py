@@ -32,7 +32,7 @@ Gazebo variables), because a namespace spawner replaces the environment rather t
 it.  The plan sets ``GZ_IP=127.0.0.1`` unless the caller set it: a fresh namespace has only a
 loopback interface, which gz-transport does not pick by itself.
 
-Timing caveat (FIRMWARE_FACTS, fdm_packet semantics): the plugin stamps fdm packets with sim
+Timing caveat (docs/firmware-facts.md#sim-clock): the plugin stamps fdm packets with sim
 time, and stock 4.6.0 SITL then runs its clock faster than sim time (2.9x-8.8x measured on a
 2-core VM).  The embedded physics avoids that; Gazebo is for parity with the tutorial and
 for worlds the embedded physics cannot model.

@@ -3,7 +3,7 @@
 The only outside sign that the BetaflightPlugin has loaded is its motor socket: it binds UDP
 9002 in ``Configure``, after the world and its sensors were created.  The SITL should start
 only then, so the servo_packet it sends while booting (the plugin's cue to go online, see
-research/physics-and-timing.md 3.3) is received.  The socket is seen in
+docs/firmware-facts.md#gazebo-plugin) is received.  The socket is seen in
 ``/proc/<pid>/net/udp`` of any process in the namespace (:mod:`bfsitl.sitl.ports`).
 """
 

@@ -1,10 +1,10 @@
 """ISA pressure for the virtual barometer, and the altitude Betaflight computes back from it.
 
-The 4.6.0 SITL's only altitude source is the fdm ``pressure`` field (research 1.3): it
-truncates it to whole pascals (~8.3 cm) and converts with ``pressureToAltitude``.  We send the
-International Standard Atmosphere troposphere pressure at the IMU's altitude above mean sea
-level (research 4.6), which matches the gz-sensors air-pressure model Gazebo uses to 0.02 Pa at
-100 m.
+The 4.6.0 SITL's only altitude source is the fdm ``pressure`` field
+(``docs/firmware-facts.md#barometer``): it truncates it to whole pascals (~8.3 cm) and converts
+with ``pressureToAltitude``.  We send the International Standard Atmosphere troposphere pressure
+at the IMU's altitude above mean sea level, which matches the gz-sensors air-pressure model
+Gazebo uses to 0.02 Pa at 100 m (``docs/firmware-facts.md#atmosphere``).
 """
 
 from __future__ import annotations

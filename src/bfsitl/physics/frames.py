@@ -1,6 +1,6 @@
 """Every frame convention of the embedded physics, in one place.
 
-Conventions (research ``physics-and-timing.md`` 1.3, 4.1):
+Conventions (``docs/firmware-facts.md#fdm-frames``, ``docs/firmware-facts.md#model-choices``):
 
 * world: **NED** (north, east, down), origin on the ground at the home point, metres;
 * body: **FRD** (forward, right, down), origin at the centre of mass;
@@ -244,8 +244,9 @@ class GeodeticProjection:
 def ned_to_geodetic(position_ned_m: Vec3, home: GeoPoint) -> GeoPoint:
     """Flat-earth (tangent plane at home) NED metres -> latitude, longitude, altitude MSL.
 
-    Research 1.3: lat = lat0 + N / R_E, lon = lon0 + E / (R_E cos lat0), alt = alt0 - D.  Good
-    to centimetres within a few kilometres of home, which is all a SITL flight covers.
+    lat = lat0 + N / R_E, lon = lon0 + E / (R_E cos lat0), alt = alt0 - D, the form a
+    ``-DUSE_GPS`` build reads (docs/firmware-facts.md#no-gps).  Good to centimetres within a few
+    kilometres of home, which is all a SITL flight covers.
     """
     lon, lat, alt = GeodeticProjection(home).lon_lat_alt(position_ned_m)
     return GeoPoint(lat, lon, alt)
@@ -266,9 +267,9 @@ def geodetic_to_ned(point: GeoPoint, home: GeoPoint) -> Vec3:
 def betaflight_attitude_deg(q: Quat) -> Vec3:
     """(roll, pitch, yaw) in degrees as the 4.6.0 SITL derives them from an FRD -> NED q.
 
-    ``flight/imu.c`` with the SITL rMat patch (research 1.3): roll = atan2(R21, R22) right wing
-    down positive, pitch = asin(R20) **nose down positive**, yaw = atan2(R10, R00) clockwise
-    heading from north in [0, 360).
+    ``flight/imu.c`` with the SITL rMat patch (docs/firmware-facts.md#attitude):
+    roll = atan2(R21, R22) right wing down positive, pitch = asin(R20) **nose down positive**,
+    yaw = atan2(R10, R00) clockwise heading from north in [0, 360).
     """
     r = rotation_matrix(q)
     roll = math.degrees(math.atan2(r[7], r[8]))
@@ -285,8 +286,8 @@ def _int16(value: float) -> int:
 def betaflight_gyro_raw(gyro_frd_rad_s: Vec3) -> tuple[int, int, int]:
     """Raw gyro LSB the SITL stores from the fdm packet: FLU, 16.4 LSB per deg/s, truncated.
 
-    MSP_RAW_IMU reports the filtered gyro, which can read one LSB lower (the research measured
-    491 for 30 deg/s, where this gives 492).
+    MSP_RAW_IMU reports the filtered gyro, which can read one LSB lower (491 was measured for
+    30 deg/s, where this gives 492: docs/firmware-facts.md#sign-table).
     """
     x, y, z = frd_to_flu(gyro_frd_rad_s)
     k = BETAFLIGHT_GYRO_LSB_PER_RAD_S

@@ -1,14 +1,15 @@
 """Quadrotor rigid body: motors, rotor forces and torques, drag, gravity, wind, ground contact.
 
-The model is research ``physics-and-timing.md`` section 4 (Gazebo-IRIS parity) with these
-choices, each made for the 1 ms step and a plain-CPython budget (measured 5-8 us per step
-airborne, 20-30 us while the contact is active, on a noisy 2-core VM; ``benchmarks/physics.py``):
+The model is Gazebo-IRIS parity (``docs/firmware-facts.md#iris-model``,
+``docs/firmware-facts.md#iris-motors``) with these choices, each made for the 1 ms step and a
+plain-CPython budget (measured 5-8 us per step airborne, 20-30 us while the contact is active,
+on a noisy 2-core VM; ``benchmarks/physics.py``):
 
-* **Motors** (4.2): first-order lag towards the speed the Gazebo joint P controller settles at,
+* **Motors**: first-order lag towards the speed the Gazebo joint P controller settles at,
   updated exactly (``1 - exp(-h/tau)``, tau = 0.82 ms) and slew-limited by the +-2.5 N m motor
   torque clamp.  The rotor's spin-up reaction ``I_r dOmega/dt`` is applied to the frame (on
   IRIS it dominates transient yaw), as is the rotor gyroscopic torque.
-* **Rotors** (4.3): T = k_T Omega^2, Q = k_Q Omega^2, with the LiftDrag elements' axial-inflow
+* **Rotors**: T = k_T Omega^2, Q = k_Q Omega^2, with the LiftDrag elements' axial-inflow
   term linearised: climbing at v through the disc lowers the angle of attack by
   v / (Omega r), so T = k_T Omega (Omega - v / (r a0)), capped at stall.
 * **Integrator**: one force evaluation per step.  Symplectic (semi-implicit) Euler for
@@ -16,18 +17,19 @@ airborne, 20-30 us while the contact is active, on a noisy 2-core VM; ``benchmar
   the contact springs); an explicit midpoint step for Euler's equations (plain Euler pumps
   energy into a free rotation: O(h^2) per step, 2.5 %/s at 20 rad/s); the exponential map of
   the step's mean body rate for the quaternion, renormalised (the end-of-step rate drifted the
-  angular momentum 1000x more in the tumbling test).  RK4 (research 4.7) would cost four force
-  evaluations and buys nothing here: the motors, the only fast states, are integrated exactly,
-  and the rigid body's own time scales are tens of milliseconds.  Measured: energy 2e-7 and
-  angular momentum 1e-6 relative over a minute of tumbling, |q| - 1 below 1e-15.
-* **Ground contact** (4.5): spring-dampers at the eight corners of the Gazebo collision box
-  (the four bottom ones are the skids), with Coulomb friction.  The ground only pushes, so the
-  damper cannot act on the way out; the vertical mode is damped at 1.5 x critical so that no
-  landing rebounds (``QuadParams.contact_damping_ratio``).  While a corner touches, the step is
-  split into sub-steps: the contact's rotational modes are ~30x lighter than the vertical one,
-  and an explicit damper that is stable for them at 1 ms could not damp the vertical one.
-  Below the sliding limit friction is a stiff viscous "stick" sized to the sub-step, so it can
-  neither chatter nor go unstable at impact.
+  angular momentum 1000x more in the tumbling test).  RK4 (the first design's integrator,
+  ``docs/firmware-facts.md#model-choices``) would cost four force evaluations and buys nothing
+  here: the motors, the only fast states, are integrated exactly, and the rigid body's own time
+  scales are tens of milliseconds.  Measured: energy 2e-7 and angular momentum 1e-6 relative
+  over a minute of tumbling, |q| - 1 below 1e-15.
+* **Ground contact** (``docs/firmware-facts.md#model-choices``): spring-dampers at the eight
+  corners of the Gazebo collision box (the four bottom ones are the skids), with Coulomb
+  friction.  The ground only pushes, so the damper cannot act on the way out; the vertical mode
+  is damped at 1.5 x critical so that no landing rebounds (``QuadParams.contact_damping_ratio``).
+  While a corner touches, the step is split into sub-steps: the contact's rotational modes are
+  ~30x lighter than the vertical one, and an explicit damper that is stable for them at 1 ms
+  could not damp the vertical one.  Below the sliding limit friction is a stiff viscous "stick"
+  sized to the sub-step, so it can neither chatter nor go unstable at impact.
 * **Rest**: a spring-damper alone holds a resting quad only approximately (the viscous stick
   lets a sustained sideways load creep).  So when the vehicle sits on all four skids, slow and
   unaccelerated, and the ground can carry the applied force and torque (normal load > 0,
@@ -63,7 +65,7 @@ CONTACT_RATE_STEP = 0.5
 #: Longest step we accept: beyond it the motor and contact models are not meant to be used.
 MAX_STEP_S = 0.02
 #: A reset may press the contact box at most this far into the ground.  Deeper, the springs
-#: would launch the vehicle (research 4.5: "starting at 0 launches it").
+#: would launch the vehicle (docs/firmware-facts.md#model-choices).
 MAX_RESET_PENETRATION_M = 0.05
 
 

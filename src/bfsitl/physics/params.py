@@ -56,7 +56,7 @@ class QuadParams:
     #: Aerodynamic rotor drag torque Q = k * omega^2 (N m per (rad/s)^2).
     torque_coefficient_nm_per_rad2_s2: float
     #: Rotor (propeller) inertia about its spin axis; its spin-up reaction torque I*dOmega/dt
-    #: dominates transient yaw on IRIS (research 3.6).
+    #: dominates transient yaw on IRIS (docs/firmware-facts.md#iris-motors).
     rotor_inertia_kg_m2: float
     #: Rotor speed target per unit of servo_packet command (rad/s at u = 1).
     motor_command_speed_rad_s: float
@@ -67,7 +67,7 @@ class QuadParams:
     rotor_damping_nm_s_per_rad: float
     #: Blade-element radius and zero-inflow angle of attack: climbing at v_axial lowers the
     #: blades' angle of attack by ~v_axial / (omega * radius), so thrust falls by that over the
-    #: pitch (Gazebo-IRIS's dominant aerodynamic effect, research 3.6 "Inflow").
+    #: pitch (Gazebo-IRIS's dominant aerodynamic effect, docs/firmware-facts.md#iris-motors).
     blade_radius_m: float
     blade_pitch_rad: float
     #: Angle of attack at which the LiftDrag element stalls (caps the descent thrust gain).
@@ -131,7 +131,7 @@ class QuadParams:
         if self.blade_stall_rad <= self.blade_pitch_rad:
             raise SimInputError(f"QuadParams {self.name!r}: blade_stall_rad must exceed the pitch")
 
-    # ---- derived actuator figures (research 3.6) -------------------------------------------
+    # ---- derived actuator figures (docs/firmware-facts.md#iris-motors) ---------------------
 
     @property
     def weight_n(self) -> float:
@@ -148,7 +148,8 @@ class QuadParams:
         """Rotor speed the P controller settles at for a command, before the torque limit.
 
         Solves P * (838 u - w) = damping * w + k_Q * w^2 (torque balance on the rotor joint);
-        for IRIS that is ~821.6 rad/s per unit command (research 3.6: 838 u / 1.02).
+        for IRIS that is ~821.6 rad/s per unit command (838 u / 1.02,
+        docs/firmware-facts.md#iris-motors).
         """
         p = self.motor_p_gain_nm_s_per_rad
         b = p + self.rotor_damping_nm_s_per_rad
@@ -221,14 +222,15 @@ _ROTOR_Z_FRD_M = -(0.023 - _COM_ABOVE_BASE_M)
 
 IRIS = QuadParams(
     name="iris",
-    # model.sdf: base_link 1.5 + imu_link 0.15 + 4 rotor links x 0.025 kg (research 3.5).
+    # model.sdf: base_link 1.5 + imu_link 0.15 + 4 rotor links x 0.025 kg
+    # (docs/firmware-facts.md#iris-model).
     mass_kg=1.75,
-    # model.sdf inertias plus parallel-axis terms about the CoM (research 3.5; re-derived here:
-    # 0.008 + 1e-5 + 4*9.75e-6 + 0.025*sum(y^2 + z^2) + ... = 0.012519, and so on).
+    # model.sdf inertias plus parallel-axis terms about the CoM (docs/firmware-facts.md#iris-model;
+    # re-derived here: 0.008 + 1e-5 + 4*9.75e-6 + 0.025*sum(y^2 + z^2) + ... = 0.012519, and so on).
     inertia_kg_m2=(0.012519, 0.017427, 0.0238),
     # model.sdf rotor_3 (-0.13, -0.20), rotor_0 (0.13, -0.22), rotor_1 (-0.13, 0.20),
     # rotor_2 (0.13, 0.22) FLU -> FRD (x, -y, -z); servo slot 3, 0, 1, 2 = M1, M2, M3, M4
-    # (sitl.c pwmCompleteMotorUpdate, research 1.4).
+    # (sitl.c pwmCompleteMotorUpdate, docs/firmware-facts.md#motor-order).
     rotor_positions_frd_m=(
         (-0.13, 0.20, _ROTOR_Z_FRD_M),   # M1 rear right   (rotor_3)
         (0.13, 0.22, _ROTOR_Z_FRD_M),    # M2 front right  (rotor_0)
@@ -239,29 +241,33 @@ IRIS = QuadParams(
     # -838 (CW) for rotor_2/3 -> M1 CW, M2 CCW, M3 CCW, M4 CW (Betaflight props-in default).
     rotor_spin_ccw=(False, True, True, False),
     # LiftDrag: 2 elements x cla 4.25 x a0 0.3 x 1/2 rho 1.2041 x area 0.002 x r 0.084^2
-    # = 2.1665e-5 (research 3.5).
+    # = 2.1665e-5 (docs/firmware-facts.md#iris-model).
     thrust_coefficient_n_per_rad2_s2=2.1665e-5,
-    # LiftDrag: 2 x r 0.084 x |cda 0.10 x a0 0.3| x 1/2 rho A r^2 = 4.282e-8 (research 3.5).
+    # LiftDrag: 2 x r 0.084 x |cda 0.10 x a0 0.3| x 1/2 rho A r^2 = 4.282e-8
+    # (docs/firmware-facts.md#iris-model).
     torque_coefficient_nm_per_rad2_s2=4.282e-8,
     # model.sdf rotor_i izz (spin axis).
     rotor_inertia_kg_m2=1.67604e-4,
-    # empty_betaflight_world.sdf BetaflightPlugin <multiplier> 838 (research 3.2).
+    # empty_betaflight_world.sdf BetaflightPlugin <multiplier> 838
+    # (docs/firmware-facts.md#iris-motors).
     motor_command_speed_rad_s=838.0,
-    # empty_betaflight_world.sdf <p_gain> 0.20, <cmd_max>/<cmd_min> +-2.5 (research 3.2).
+    # empty_betaflight_world.sdf <p_gain> 0.20, <cmd_max>/<cmd_min> +-2.5
+    # (docs/firmware-facts.md#iris-motors).
     motor_p_gain_nm_s_per_rad=0.2,
     motor_torque_limit_nm=2.5,
     # model.sdf rotor_i_joint <damping> 0.004.
     rotor_damping_nm_s_per_rad=0.004,
-    # model.sdf LiftDrag cp (+-0.084, 0, 0), a0 0.3, alpha_stall 1.4 (research 3.5).
+    # empty_betaflight_world.sdf LiftDrag cp (+-0.084, 0, 0), a0 0.3, alpha_stall 1.4
+    # (docs/firmware-facts.md#iris-model).
     blade_radius_m=0.084,
     blade_pitch_rad=0.3,
     blade_stall_rad=1.4,
     axial_inflow=True,
     # NOT Gazebo parity (model.sdf velocity_decay 0: no body drag there).  Linear: PX4 iris
     # rotorDragCoefficient 1.75e-4 x hover rotor speed ~790 rad/s x 4 rotors ~ 0.55 N s/m,
-    # horizontal only (iris.sdf.jinja, research 3.7).  Quadratic: 1/2 rho Cd A with Cd ~ 1 and
-    # an estimated 0.05 m^2 side / 0.07 m^2 top area of the IRIS body and arms.  Set both to
-    # zero for strict Gazebo parity.
+    # horizontal only (iris.sdf.jinja, docs/firmware-facts.md#px4-iris).  Quadratic: 1/2 rho
+    # Cd A with Cd ~ 1 and an estimated 0.05 m^2 side / 0.07 m^2 top area of the IRIS body and
+    # arms.  Set both to zero for strict Gazebo parity.
     drag_linear_n_s_per_m=(0.55, 0.55, 0.0),
     drag_quadratic_n_s2_per_m2=(0.03, 0.03, 0.04),
     # model.sdf base_collision box 0.47 x 0.47 x 0.23 at z -0.08 (see the comment above).
@@ -269,13 +275,15 @@ IRIS = QuadParams(
     contact_half_y_m=0.235,
     contact_bottom_m=0.195 + _COM_ABOVE_BASE_M,
     contact_top_m=-(0.035 - _COM_ABOVE_BASE_M),
-    # Research 4.5: 3000 N/m per corner (sag 1.4 mm).  Damping: the research's 50 N s/m per
-    # corner (ratio 0.69) rebounds.  Even ratio 1.0 (critical in the linear sense) rebounds from
-    # drops above ~1 m, because the ground only pushes: on the way out the damper would have to
-    # pull, so it is clamped off and the overshoot returns.  1.5 (109 N s/m per corner) lands
-    # drops of 3 m (7.7 m/s) without leaving the ground again, measured in the unit tests.
+    # 3000 N/m per corner, sag 1.4 mm (docs/firmware-facts.md#model-choices).  Damping: the
+    # first design's 50 N s/m per corner (ratio 0.69) rebounds.  Even ratio 1.0 (critical in the
+    # linear sense) rebounds from drops above ~1 m, because the ground only pushes: on the way
+    # out the damper would have to pull, so it is clamped off and the overshoot returns.  1.5
+    # (109 N s/m per corner) lands drops of 3 m (7.7 m/s) without leaving the ground again,
+    # measured in the unit tests.
     contact_stiffness_n_per_m=3000.0,
     contact_damping_ratio=1.5,
-    # Research 4.5: mu = 1 (model.sdf's ODE mu 1e5 means "never slips"; 1 is enough for that).
+    # mu = 1 (model.sdf's ODE mu 1e5 means "never slips"; 1 is enough for that;
+    # docs/firmware-facts.md#model-choices).
     friction_coefficient=1.0,
 )

@@ -1,6 +1,6 @@
 """The virtual IMU and barometer, and how their readings become an fdm_packet.
 
-Readings are in the physics' frames (research 1.3, ``FIRMWARE_FACTS.md``); how each firmware
+Readings are in the physics' frames (``docs/firmware-facts.md#fdm-frames``); how each firmware
 generation wants them in the fdm packet is :mod:`bfsitl.sim.fdm_encoding`'s job:
 
 * gyro: body rates in FRD, rad/s;
@@ -113,7 +113,8 @@ class SensorConfig:
     def typical_mems(cls, sample_rate_hz: float = 1000.0) -> SensorConfig:
         """PX4's gazebo-classic iris IMU noise densities, sampled at ``sample_rate_hz``.
 
-        Gyro 1.8665e-4 rad/s/sqrt(Hz), accelerometer 1.86e-3 m/s^2/sqrt(Hz) (research 3.7);
+        Gyro 1.8665e-4 rad/s/sqrt(Hz), accelerometer 1.86e-3 m/s^2/sqrt(Hz)
+        (docs/firmware-facts.md#px4-iris);
         white noise per sample = density * sqrt(rate).  Baro: 3 Pa (~25 cm), a typical MEMS
         barometer's RMS noise.  No bias: Betaflight calibrates neither in SITL.
         """

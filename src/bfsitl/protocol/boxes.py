@@ -141,7 +141,7 @@ INTERNAL_ORDER: tuple[BoxId, ...] = (
     BoxId.STICKCOMMANDDISABLE, BoxId.BEEPERMUTE, BoxId.READY, BoxId.LAPTIMERRESET,
 )  # fmt: skip
 
-#: MSP_BOXIDS of the stock 4.6.0 SITL (measured; research notes section 2). Handy for fakes.
+#: MSP_BOXIDS of the stock 4.6.0 SITL (measured: docs/firmware-facts.md#box-ids). Handy for fakes.
 SITL_DEFAULT_BOX_IDS: tuple[int, ...] = (
     0, 1, 2, 6, 27, 7, 13, 19, 26, 30, 32, 33, 34, 36, 45, 49, 51, 52, 53,
 )  # fmt: skip

@@ -89,7 +89,7 @@ class RcBehaviour:
 
     #: RC silence raises RXLOSS after this long (master: ``FEATURE_RX_UDP``, rx/rx.c's 150 ms
     #: signal timeout); None: the last sticks are held forever (4.6: the first UDP packet makes
-    #: the SITL the RC source and nothing times it out, FIRMWARE_FACTS.md "Arming").
+    #: the SITL the RC source and nothing times it out, docs/firmware-facts.md#udp-rc).
     rxloss_after_silence_s: float | None
     #: MSP_RC answers with no channels until the first RC packet (master); 4.6 answers with
     #: the MSP receiver's defaults.

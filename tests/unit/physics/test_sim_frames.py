@@ -1,4 +1,4 @@
-"""Frame conventions: the research's worked examples 1.6 (a)-(f) and the 1.7 sign table."""
+"""Frame conventions: the measured cases and sign table of docs/firmware-facts.md#sign-table."""
 
 from __future__ import annotations
 
@@ -54,8 +54,9 @@ def test_a_level_at_rest_heading_north():
     assert reading.specific_force_frd_m_s2 == (0.0, 0.0, -G)
     assert reading.quaternion_wxyz == (1.0, 0.0, 0.0, 0.0)
     assert reading.velocity_ned_m_s == (0.0, 0.0, 0.0)
-    # ISA at 0.1937 m.  The research prints 101322.66; the formula (and gz-sensors' variant)
-    # gives 101322.673, so .66 was truncated, not rounded.  The firmware keeps 101322 either way.
+    # ISA at 0.1937 m (docs/firmware-facts.md#sign-table): the formula (and gz-sensors' variant)
+    # gives 101322.673; 101322.66, the figure first written down, is that truncated, not
+    # rounded.  The firmware keeps 101322 either way.
     assert isa_pressure_pa(0.1937) == pytest.approx(101322.673, abs=1e-3)
     assert isa_pressure_pa(0.1937) == pytest.approx(101322.66, abs=0.02)
     assert int(isa_pressure_pa(0.1937)) == 101322
@@ -86,7 +87,8 @@ def test_c_pitching_further_nose_down_at_30_deg_s():
     reading = held_reading(pitch_deg=-10.0, angular_velocity_frd_rad_s=(0.0, rate, 0.0))
     assert reading.gyro_frd_rad_s == pytest.approx((0.0, -0.523599, 0.0), abs=1e-6)
     # The SITL stores trunc(0.523599 * 16.4 * 57.2958) = 492 (positive: nose down in FLU);
-    # the research read 491 back through MSP_RAW_IMU, one LSB lower after the gyro filters.
+    # 491 was read back through MSP_RAW_IMU, one LSB lower after the gyro filters
+    # (docs/firmware-facts.md#sign-table).
     assert betaflight_gyro_raw(reading.gyro_frd_rad_s) == (0, 492, 0)
     # And free, the attitude really moves that way: Betaflight's pitch grows.
     sim = Simulator()
@@ -138,7 +140,8 @@ def test_f_right_wing_down_twenty_degrees():
 
 
 def test_the_measured_gyro_sign_table():
-    # research 1.7: +1 rad/s on FRD x / y / z -> raw (939,0,0) / (0,-939,0) / (0,0,-939).
+    # Measured: +1 rad/s on FRD x / y / z -> raw (939,0,0) / (0,-939,0) / (0,0,-939)
+    # (docs/firmware-facts.md#sign-table).
     assert betaflight_gyro_raw((1.0, 0.0, 0.0)) == (939, 0, 0)
     assert betaflight_gyro_raw((0.0, 1.0, 0.0)) == (0, -939, 0)
     assert betaflight_gyro_raw((0.0, 0.0, 1.0)) == (0, 0, -939)

@@ -41,7 +41,8 @@ def test_hover_command_is_the_analytic_torque_balance():
     u = (0.204 * omega + 4.282e-8 * omega**2) / (0.2 * 838.0)
     assert IRIS.hover_rotor_speed_rad_s == pytest.approx(omega, rel=1e-12)
     assert IRIS.hover_command == pytest.approx(u, rel=1e-12)
-    assert IRIS.hover_command == pytest.approx(0.5417, abs=1e-4)  # research 3.6 / 4.9
+    # The hover command derived in docs/firmware-facts.md#iris-motors.
+    assert IRIS.hover_command == pytest.approx(0.5417, abs=1e-4)
     assert IRIS.steady_rotor_speed_rad_s(u) == pytest.approx(omega, rel=1e-12)
 
 
@@ -580,7 +581,7 @@ def test_bad_reset_arguments_raise_and_change_nothing():
     with pytest.raises(SimInputError, match="into the ground"):
         sim.reset((0.0, 0.0, 0.0), yaw_deg=90.0)  # the CoM on the ground plane: box 0.2 m deep
     assert sim.state == before
-    sim.reset((0.0, 0.0, -0.1937))  # the research's spawn height: 2.6 mm deep, accepted
+    sim.reset((0.0, 0.0, -0.1937))  # docs/firmware-facts.md#model-choices: 2.6 mm deep, accepted
 
 
 def test_bad_parameters_raise():

@@ -149,7 +149,8 @@ def test_ten_metre_climb_reads_ten_metres_of_betaflight_altitude():
     climbed = sim.read_sensors().pressure_pa
     # Hydrostatics: dP = rho g dh, ISA density at ~490 m being 1.168 kg/m^3.
     assert ground - climbed == pytest.approx(1.168 * G * 10.0, rel=2e-3)
-    # What the firmware computes from the truncated pascals (research 4.9: MSP ~1008 cm).
+    # What the firmware computes from the truncated pascals (measured: MSP ~1008 cm,
+    # docs/firmware-facts.md#sign-table).
     metres = betaflight_altitude_m(firmware_pressure_pa(climbed)) - betaflight_altitude_m(
         firmware_pressure_pa(ground))
     assert metres == pytest.approx(10.0, abs=0.1)

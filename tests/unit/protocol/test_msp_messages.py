@@ -1,7 +1,8 @@
 """MSP payload codecs against byte strings written out by hand from the 4.6.0 firmware layouts.
 
-Every literal below was built field by field from ``src/main/msp/msp.c`` (or copied from a SITL
-capture in the research notes), not produced by the encoder under test.
+Every literal below was built field by field from ``src/main/msp/msp.c`` (or copied from bytes
+a stock SITL sent, ``docs/firmware-facts.md#recorded-replies``), not produced by the encoder
+under test.
 """
 
 from __future__ import annotations
@@ -25,7 +26,7 @@ def h(text: str) -> bytes:
     return bytes.fromhex(text.replace(" ", ""))
 
 
-# SITL MSP_STATUS_EX capture (research notes, appendix A).
+# MSP_STATUS_EX recorded from a stock 4.6.0 SITL (docs/firmware-facts.md#recorded-replies).
 STATUS_EX_SITL = h("9100 0000 2300 00000000 00 0000 04 00 00 1d 04030000 00 0000 04")
 # The same state as MSP_STATUS: U16 0 instead of pidProfileCount/rateProfileIndex.
 STATUS_SITL = h("9100 0000 2300 00000000 00 0000 0000 00 1d 04030000 00 0000 04")

@@ -1,4 +1,5 @@
-"""The rate-frozen timestamp scheme (sitl.c's simRate estimator, research §2.9)."""
+"""The rate-frozen timestamp scheme (sitl.c's simRate estimator,
+docs/firmware-facts.md#sim-clock)."""
 
 from __future__ import annotations
 

@@ -34,7 +34,7 @@ class Generation(StrEnum):
 class QuaternionConvention(StrEnum):
     """What the fdm packet's ``imu_orientation_quat`` means to the firmware."""
 
-    #: Body FRD -> world NED, taken as the attitude as it is (4.6 sitl.c:188
+    #: Body FRD -> world NED, taken as the attitude as it is (4.6 sitl.c:190
     #: ``imuSetAttitudeQuat(pkt->imu_orientation_quat...)``).
     FRD_TO_NED = "frd-to-ned"
     #: The Gazebo BetaflightPlugin's form: Rx(pi) * M * Rx(pi) with M the FLU-body to ENU-world
@@ -46,7 +46,7 @@ class QuaternionConvention(StrEnum):
 class AltitudeSource(StrEnum):
     """Where the firmware's barometer comes from."""
 
-    #: ``virtualBaroSet(pkt->pressure)``: Pa, truncated to int32 (4.6 sitl.c:167).
+    #: ``virtualBaroSet(pkt->pressure)``: Pa, truncated to int32 (4.6 sitl.c:162).
     PRESSURE_FIELD = "pressure"
     #: ``position_xyz[2]`` as altitude in metres, up positive, turned into pressure with the
     #: standard atmosphere (master sitl.c:330-336, ``ENABLE_GAZEBO_BRIDGE``).
@@ -58,11 +58,11 @@ class FdmConvention:
     """How the firmware reads an fdm_packet (UDP 9003, 144 bytes in both generations)."""
 
     #: Sign the firmware applies to each fdm gyro axis before storing it as its own
-    #: (roll, pitch, yaw) gyro: 4.6 sitl.c:154-156 ``(x, -y, -z)``; master sitl_gyro.h
+    #: (roll, pitch, yaw) gyro: 4.6 sitl.c:155-157 ``(x, -y, -z)``; master sitl_gyro.h
     #: ``sitlGyroBodyFromSim``: ``(x, -y, +z)`` with the Gazebo bridge, ``(x, -y, -z)`` without.
     gyro_fc_signs: tuple[int, int, int]
     #: Sign the firmware applies to each accelerometer axis: all negated in both
-    #: (4.6 sitl.c:148-150, master sitl.c:297-299).
+    #: (4.6 sitl.c:149-151, master sitl.c:297-299).
     acc_fc_signs: tuple[int, int, int]
     quaternion: QuaternionConvention
     altitude: AltitudeSource

@@ -1,6 +1,7 @@
 """The static checks: the package type-checks (mypy over src/bfsitl, configured in
 pyproject.toml; the public surface is typed, py.typed, so its annotations are part of the API
 and must hold), and ruff's lint passes over all the Python in the repository."""
+
 from __future__ import annotations
 
 import subprocess

@@ -29,7 +29,7 @@ from types import ModuleType
 from typing import Any
 
 from bfsitl.fc.telemetry import TELEMETRY_COMMANDS
-from bfsitl.protocol import msp_messages as new
+from bfsitl.protocol import messages as new
 
 REPO = Path(__file__).resolve().parents[1]
 OLD_PATH = "src/bfsitl/protocol/msp_messages.py"

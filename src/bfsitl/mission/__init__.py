@@ -9,16 +9,13 @@
     print(result.outcome, result.hold)
 """
 
+from bfsitl.mission.flight_metrics import HoldStats
 from bfsitl.mission.flight_row import FlightRow
 from bfsitl.mission.legs import LegStats
+from bfsitl.mission.loop import Mission
 from bfsitl.mission.plan import MissionPlan, Waypoint, load_mission
-from bfsitl.mission.runner import (
-    HoldStats,
-    Mission,
-    MissionResult,
-    Outcome,
-    run_mission,
-)
+from bfsitl.mission.plan_driver import run_mission
+from bfsitl.mission.results import MissionResult, Outcome
 from bfsitl.mission.session import FLY_PROFILE, FlightSample, FlightSession, SessionConfig
 
 __all__ = [

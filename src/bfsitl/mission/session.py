@@ -59,7 +59,7 @@ from bfsitl.physics import Simulator
 from bfsitl.physics.params import IRIS, QuadParams
 from bfsitl.physics.sensors import SensorConfig
 from bfsitl.physics.wind import Wind
-from bfsitl.protocol import msp_messages as msg
+from bfsitl.protocol import messages as msg
 from bfsitl.protocol.firmware_profile import FirmwareProfile
 from bfsitl.sim.bridge import SitlBridge
 from bfsitl.sim.lockstep import LockstepBridge

@@ -18,7 +18,7 @@ from bfsitl.control.cascade import SensorLag
 from bfsitl.control.fused import FusedAltitudeController, FusedGains
 from bfsitl.control.metrics import step_response
 from bfsitl.control.tutorial import TutorialPid
-from bfsitl.mission.runner import MissionPlan
+from bfsitl.mission.plan import MissionPlan
 from bfsitl.mission.session import DEFAULT_ACCEL_NOISE_M_S2, DEFAULT_BARO_NOISE_PA
 
 TARGET_M = 2.0

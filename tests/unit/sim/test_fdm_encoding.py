@@ -253,8 +253,8 @@ def test_health_targets_follow_the_firmwares_own_pid_rate():
 
 
 def test_attitude_tracking_compares_the_fc_with_the_truth_in_the_air_only():
+    from bfsitl.mission.flight_metrics import attitude_tracking
     from bfsitl.mission.flight_row import FlightRow
-    from bfsitl.mission.runner import attitude_tracking
 
     def row(phase: str, alt_m: float, fc_roll: float, sim_roll: float) -> FlightRow:
         return FlightRow(0.0, phase, 2.0, alt_m, alt_m, 0.0, 0.0, 0.0, fc_roll, 0.0, 0.0,

@@ -28,7 +28,7 @@ import pytest
 from bfsitl.physics.frames import GeoPoint
 from bfsitl.physics.params import IRIS
 from bfsitl.physics.sensors import SensorReading
-from bfsitl.protocol import msp_messages as msg
+from bfsitl.protocol import messages as msg
 from bfsitl.protocol.arming import decode_arming_flags
 from bfsitl.protocol.firmware_profile import FirmwareProfile, Generation, profile_for
 from bfsitl.protocol.sitl_packets import FdmPacket, ServoPacket

@@ -16,7 +16,8 @@ from bfsitl.mission.loop import Mission
 from bfsitl.mission.plan import MissionPlan, Waypoint, load_mission
 from bfsitl.mission.plan_driver import run_mission
 from bfsitl.mission.results import MissionResult, Outcome
-from bfsitl.mission.session import FLY_PROFILE, FlightSample, FlightSession, SessionConfig
+from bfsitl.mission.session import FLY_PROFILE, FlightSession, SessionConfig
+from bfsitl.mission.vehicle import FlightSample
 
 __all__ = [
     "FLY_PROFILE", "FlightRow", "FlightSample", "FlightSession", "HoldStats",

@@ -40,21 +40,7 @@ from bfsitl.fc.provisioning import (
     ProvisionResult,
     provision,
 )
-
-# The vehicle's parts, importable from here as before the split.
-from bfsitl.mission.vehicle import (  # noqa: F401
-    DEFAULT_ARM_TIMEOUT_S,
-    METRES_PER_DEGREE,
-    SWITCH_OFF_US,
-    SWITCH_ON_US,
-    FlightSample,
-    GpsPosition,
-    Progress,
-    SessionClock,
-    Truth,
-    Vehicle,
-    WallClock,
-)
+from bfsitl.mission.vehicle import DEFAULT_ARM_TIMEOUT_S, Progress, Vehicle
 from bfsitl.physics import Simulator
 from bfsitl.physics.params import IRIS, QuadParams
 from bfsitl.physics.sensors import SensorConfig

@@ -18,13 +18,12 @@ from contextlib import ExitStack
 from dataclasses import dataclass, replace
 from typing import TYPE_CHECKING, Self
 
-from bfsitl.backend.base import (  # noqa: F401 - the vehicle's parts, importable from here
+from bfsitl.backend.base import (
     Backend,
     ImuScale,
     RcSender,
     SessionClock,
     Truth,
-    WallClock,
 )
 from bfsitl.backend.disturbances import Disturbances
 from bfsitl.errors import ArmingBlockedError, LinkError, MspError, SitlError

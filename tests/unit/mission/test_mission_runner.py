@@ -25,7 +25,7 @@ from bfsitl.mission.loop import Mission
 from bfsitl.mission.plan import MissionPlan
 from bfsitl.mission.plan_driver import run_mission
 from bfsitl.mission.results import Outcome
-from bfsitl.mission.session import FlightSample
+from bfsitl.mission.vehicle import FlightSample
 from bfsitl.records.csv_log import CsvFlightLog, read_flight_log
 
 

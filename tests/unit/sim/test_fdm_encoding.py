@@ -232,7 +232,7 @@ def test_the_flag_count_picks_the_arming_table():
 
 
 def test_wind_from_the_north_moves_the_air_south_and_from_the_east_west():
-    from bfsitl.physics.params import SimInputError
+    from bfsitl.errors import SimInputError
     from bfsitl.physics.wind import Wind
 
     assert Wind.from_direction(3.0, 0.0).velocity_ned_m_s == pytest.approx((-3.0, 0.0, 0.0))

@@ -149,7 +149,7 @@ class SessionConfig:
     lockstep_spin: bool = True
     #: Lockstep: how packets pass between the physics and the firmware: ``"auto"`` (shared
     #: memory where the build and the machine have it, else UDP), ``"shm"`` or ``"udp"``.
-    #: Either gives the same flight (bfsitl.sim.shm_exchange).
+    #: Either gives the same flight (bfsitl.link.shm_exchange).
     lockstep_exchange: str = "auto"
     #: How the embedded physics steps: ``"auto"`` (the compiled kernel for a lockstep run
     #: through shared memory where a C compiler builds it, else pure Python), ``"compiled"`` or

@@ -18,6 +18,7 @@ from bfsitl.physics.frames import (
     quat_from_euler_deg,
 )
 from bfsitl.protocol.arming import arming_flags_text, decode_arming_flags
+from bfsitl.protocol.fdm_encoding import GPS_LOST_LON_LAT, FdmEncoder, gazebo_quaternion
 from bfsitl.protocol.firmware_profile import (
     DEFAULT_PROFILE,
     BuildOptions,
@@ -25,7 +26,6 @@ from bfsitl.protocol.firmware_profile import (
     profile_for,
 )
 from bfsitl.protocol.sitl_packets import FdmPacket, ServoPacket
-from bfsitl.sim.fdm_encoding import GPS_LOST_LON_LAT, FdmEncoder, gazebo_quaternion
 
 HOME = GeoPoint(47.3977, 8.5456, 488.0)
 V46 = profile_for("1.47", "4.6.0", has_gps=False)

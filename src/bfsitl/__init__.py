@@ -19,8 +19,7 @@ import importlib
 from typing import TYPE_CHECKING, Any
 
 from bfsitl.errors import BfsitlError
-
-__version__ = "0.1.0"
+from bfsitl.version import __version__
 
 #: Public name -> the module that defines it.
 _EXPORTS: dict[str, str] = {

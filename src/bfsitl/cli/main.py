@@ -14,7 +14,6 @@ import time
 from collections.abc import Sequence
 from pathlib import Path
 
-from bfsitl import __version__
 from bfsitl.cli import render
 from bfsitl.cli.arg_types import number_in
 from bfsitl.cli.bridge_commands import add_configurator_parser, add_serial_bridge_parser
@@ -31,6 +30,7 @@ from bfsitl.fc.cli_session import CliSession
 from bfsitl.fc.identity import read_identity
 from bfsitl.fc.telemetry_poller import TelemetryPoller
 from bfsitl.toml_file import read_text_file
+from bfsitl.version import __version__
 
 EXIT_OK = 0
 EXIT_ERROR = 1

@@ -42,8 +42,8 @@ from bfsitl.gym.baseline import hand_policy
 from bfsitl.gym.env import DEFAULT_FIRMWARE, HoverEnv
 from bfsitl.gym.sticks import sticks_to_rc
 from bfsitl.kernel.compiler import kernel_available
+from bfsitl.link.shm_exchange import shm_exchange_supported
 from bfsitl.mission.session import FlightSession, SessionConfig
-from bfsitl.sim.shm_exchange import shm_exchange_supported
 
 
 def single(firmware: str, control_hz: float, seconds: float, *, spin: bool, pin: bool,

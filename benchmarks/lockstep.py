@@ -5,7 +5,7 @@ to 2 m, hold ``--hold`` s, land) is flown with the fused controller and ``--seed
 
 * on the stock binary in real-time mode (the baseline, measured in the same run), and
 * on the lockstep build at ``--speed max``, once per exchange (UDP, and shared memory where
-  the build and the machine have it: :mod:`bfsitl.sim.shm_exchange`) and per way of sharing
+  the build and the machine have it: :mod:`bfsitl.link.shm_exchange`) and per way of sharing
   the machine: on two cores, each side busy-waiting for the other (``spin``), and on one core
   (``1 core``: bfsitl and its SITL pinned to one core, taking turns without spinning, as
   the learning environment's vector workers and ``--jobs`` runs side by side do);
@@ -47,9 +47,9 @@ from bfsitl.build import FirmwareBuildOptions
 from bfsitl.control import make_controller
 from bfsitl.errors import BfsitlError
 from bfsitl.kernel.compiler import kernel_available
+from bfsitl.link.shm_exchange import shm_exchange_supported
 from bfsitl.mission import FlightSession, MissionPlan, SessionConfig, run_mission
 from bfsitl.sim.health import HealthMonitor
-from bfsitl.sim.shm_exchange import shm_exchange_supported
 from bfsitl.sitl.core_claim import claim_core
 from bfsitl.sitl.firmware import find_firmware
 

@@ -29,7 +29,7 @@ from types import ModuleType
 from typing import Any
 
 from bfsitl.fc.telemetry import TELEMETRY_COMMANDS
-from bfsitl.protocol import msp_messages as new
+from bfsitl.protocol import messages as new
 
 REPO = Path(__file__).resolve().parents[1]
 OLD_PATH = "src/bfsitl/protocol/msp_messages.py"
@@ -55,10 +55,10 @@ def _git(*args: str) -> str:
 
 def old_source(rev: str | None) -> tuple[str, str]:
     """(revision, text) of the hand-written module: ``rev``, or the newest commit whose file
-    still defines the message classes (later commits hold the facade)."""
+    still defines the message classes (later commits hold the facade, then delete it)."""
     if rev is not None:
         return rev, _git("show", f"{rev}:{OLD_PATH}")
-    for commit in _git("log", "--format=%H", "--", OLD_PATH).split():
+    for commit in _git("log", "--format=%H", "--diff-filter=AM", "--", OLD_PATH).split():
         text = _git("show", f"{commit}:{OLD_PATH}")
         if "class Attitude" in text:
             return commit, text

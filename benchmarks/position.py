@@ -42,11 +42,12 @@ from bfsitl.build import FirmwareBuildOptions
 from bfsitl.control import make_controller
 from bfsitl.fc.provisioning import ANGLE_ON_AUX2, ARM_ON_AUX1, Profile
 from bfsitl.mission import FlightSession, Mission, SessionConfig
+from bfsitl.mission.flight_metrics import cross_track_rms, landed_from_start_m
 from bfsitl.mission.plan import MissionPlan, Waypoint
-from bfsitl.mission.runner import cross_track_rms, fly_plan, landed_from_start_m
+from bfsitl.mission.plan_driver import fly_plan
 from bfsitl.mission.session import FAST_SERIAL_LINE, FLY_PROFILE, fly_sensors, with_fast_serial
 from bfsitl.physics.wind import Wind
-from bfsitl.protocol import msp_messages as msg
+from bfsitl.protocol import messages as msg
 from bfsitl.protocol.boxes import BoxId
 
 BUILDS = {  # name: (source, options)

@@ -34,7 +34,7 @@ from dataclasses import asdict, dataclass
 from bfsitl.fc.cli_session import CliSession
 from bfsitl.fc.msp_client import MspClient
 from bfsitl.fc.telemetry_poller import TelemetryPoller
-from bfsitl.protocol import msp_messages as msg
+from bfsitl.protocol import messages as msg
 from bfsitl.protocol.msp_codes import MspCommand
 from bfsitl.protocol.msp_frame import MspFrame, MspParser, encode_request
 from bfsitl.sitl.process import SitlProcess

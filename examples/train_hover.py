@@ -133,7 +133,7 @@ def write_curve(episodes: list[tuple[float, int, float]], out: Path) -> None:
             writer.writerow([number, f"{ret:.3f}", length, f"{wall_s:.1f}"])
     if not episodes:
         return
-    from bfsitl.records.plot import load_pyplot
+    from bfsitl.headless_pyplot import load_pyplot
 
     plt = load_pyplot()
     returns = np.array([r for r, _l, _t in episodes])

@@ -19,8 +19,7 @@ import importlib
 from typing import TYPE_CHECKING, Any
 
 from bfsitl.errors import BfsitlError
-
-__version__ = "0.1.0"
+from bfsitl.version import __version__
 
 #: Public name -> the module that defines it.
 _EXPORTS: dict[str, str] = {
@@ -28,11 +27,11 @@ _EXPORTS: dict[str, str] = {
     "FlightSession": "bfsitl.mission.session",
     "SessionConfig": "bfsitl.mission.session",
     "FLY_PROFILE": "bfsitl.mission.session",
-    "Mission": "bfsitl.mission.runner",
-    "MissionPlan": "bfsitl.mission.runner",
-    "MissionResult": "bfsitl.mission.runner",
-    "Outcome": "bfsitl.mission.runner",
-    "run_mission": "bfsitl.mission.runner",
+    "Mission": "bfsitl.mission.loop",
+    "MissionPlan": "bfsitl.mission.plan",
+    "MissionResult": "bfsitl.mission.results",
+    "Outcome": "bfsitl.mission.results",
+    "run_mission": "bfsitl.mission.plan_driver",
     "Waypoint": "bfsitl.mission.plan",
     "load_mission": "bfsitl.mission.plan",
     "Autopilot": "bfsitl.autopilot",
@@ -100,8 +99,10 @@ if TYPE_CHECKING:  # what type checkers and IDEs see; nothing is imported at run
     from bfsitl.fc.rc_link import RcFault
     from bfsitl.link import open_link
     from bfsitl.mission.board import BoardVehicle
-    from bfsitl.mission.plan import Waypoint, load_mission
-    from bfsitl.mission.runner import Mission, MissionPlan, MissionResult, Outcome, run_mission
+    from bfsitl.mission.loop import Mission
+    from bfsitl.mission.plan import MissionPlan, Waypoint, load_mission
+    from bfsitl.mission.plan_driver import run_mission
+    from bfsitl.mission.results import MissionResult, Outcome
     from bfsitl.mission.session import FLY_PROFILE, FlightSession, SessionConfig
     from bfsitl.mission.vehicle import Vehicle
     from bfsitl.physics import GeoPoint, SensorConfig, Simulator

@@ -18,7 +18,7 @@ the ``with`` block disarms and stops everything, on an exception or Ctrl-C too.
 :class:`Autopilot` owns the sticks: one altitude controller, the position and heading loops
 (on a GPS build), every manoeuvre a closed loop on the vehicle's clock.  :func:`connect`
 gives the same autopilot a flight controller on a serial port (RC by MSP, wall time).  It
-is a thin layer over :class:`~bfsitl.mission.runner.Mission`, which holds the loops and the
+is a thin layer over :class:`~bfsitl.mission.loop.Mission`, which holds the loops and the
 record.
 """
 

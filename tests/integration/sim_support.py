@@ -16,7 +16,7 @@ from bfsitl.errors import SitlError
 from bfsitl.fc.msp_client import MspClient
 from bfsitl.fc.rc_link import UdpRcLink
 from bfsitl.physics import Simulator
-from bfsitl.protocol import msp_messages as msg
+from bfsitl.protocol import messages as msg
 from bfsitl.sim.bridge import SitlBridge, bridged_sitl
 from bfsitl.sitl.process import SitlProcess
 

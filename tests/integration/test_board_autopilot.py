@@ -19,7 +19,7 @@ from bfsitl.bridges.pty_relay import PtyEndpoint, PtyRelay
 from bfsitl.cli.bridge_commands import sitl_upstream
 from bfsitl.errors import BoardSetupError
 from bfsitl.mission.session import FLY_PROFILE, with_fast_serial
-from bfsitl.protocol import msp_messages as msg
+from bfsitl.protocol import messages as msg
 
 pytestmark = pytest.mark.sitl
 

@@ -26,7 +26,7 @@ from websockets.sync.client import connect
 
 from bfsitl.bridges.websocket_relay import CLOSE_BUSY, CLOSE_UPSTREAM_GONE, WebSocketRelay
 from bfsitl.cli.bridge_commands import sitl_upstream
-from bfsitl.protocol import msp_messages as msg
+from bfsitl.protocol import messages as msg
 from bfsitl.protocol.msp_codes import MspCommand
 from bfsitl.protocol.msp_frame import MspFrame, MspParser, encode_request
 from bfsitl.sitl.process import SitlProcess

@@ -10,7 +10,7 @@ import pytest
 from support.configurator_client import ConfiguratorLikeClient, frames
 
 from bfsitl.bridges.websocket_relay import CLOSE_UPSTREAM_GONE
-from bfsitl.protocol import msp_messages as msg
+from bfsitl.protocol import messages as msg
 
 pytestmark = pytest.mark.sitl
 

@@ -34,7 +34,7 @@ from bfsitl.fc.cli_session import CliSession
 from bfsitl.mission import FlightSession, Mission, SessionConfig
 from bfsitl.physics import GeoPoint, Simulator
 from bfsitl.physics.frames import betaflight_attitude_deg, quat_from_euler_deg
-from bfsitl.protocol import msp_messages as msg
+from bfsitl.protocol import messages as msg
 from bfsitl.protocol.firmware_profile import Generation
 from bfsitl.sim.bridge import SitlBridge, wait_for_replies
 from bfsitl.sitl.process import SitlProcess

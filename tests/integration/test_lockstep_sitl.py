@@ -25,10 +25,10 @@ from bfsitl.fc.cli_session import CliSession
 from bfsitl.fc.provisioning import Profile
 from bfsitl.fc.rc_link import RC_MID_US
 from bfsitl.kernel.compiler import kernel_available
-from bfsitl.mission.runner import Mission
+from bfsitl.link.shm_exchange import shm_exchange_supported
+from bfsitl.mission.loop import Mission
 from bfsitl.mission.session import FLY_PROFILE, FlightSession, SessionConfig, with_fast_serial
 from bfsitl.physics.wind import Wind
-from bfsitl.sim.shm_exchange import shm_exchange_supported
 from bfsitl.sitl.process import SitlProcess
 
 pytestmark = pytest.mark.sitl

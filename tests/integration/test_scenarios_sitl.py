@@ -30,7 +30,7 @@ from bfsitl.cli.doctor import stale_sitl_processes
 from bfsitl.fc.rc_link import RcFault
 from bfsitl.library import scenarios_dir
 from bfsitl.mission.session import FLY_PROFILE, FlightSession, SessionConfig, with_fast_serial
-from bfsitl.protocol import msp_messages as msg
+from bfsitl.protocol import messages as msg
 from bfsitl.scenario.load import find_scenarios
 
 pytestmark = pytest.mark.sitl

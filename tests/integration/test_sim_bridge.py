@@ -13,7 +13,7 @@ import time
 import pytest
 from sim_support import LOW_US, MID_US, arm, mean_motors, simulated_sitl
 
-from bfsitl.protocol import msp_messages as msg
+from bfsitl.protocol import messages as msg
 from bfsitl.sim.health import HealthMonitor
 
 pytestmark = pytest.mark.sitl

@@ -6,7 +6,7 @@ import pytest
 
 from bfsitl.errors import CliCommandError, MspTimeoutError
 from bfsitl.fc.cli_session import CliSession
-from bfsitl.protocol import msp_messages as msg
+from bfsitl.protocol import messages as msg
 
 pytestmark = pytest.mark.sitl
 

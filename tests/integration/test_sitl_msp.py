@@ -12,7 +12,7 @@ from bfsitl.errors import LinkClosedError, MspErrorReply, MspTimeoutError, SitlE
 from bfsitl.fc.identity import read_identity
 from bfsitl.fc.msp_client import MspClient, MspRequest
 from bfsitl.fc.telemetry_poller import TelemetryPoller
-from bfsitl.protocol import msp_messages as msg
+from bfsitl.protocol import messages as msg
 from bfsitl.protocol.msp_codes import MspCommand
 from bfsitl.protocol.msp_frame import MspVersion, encode_request
 

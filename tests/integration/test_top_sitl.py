@@ -24,7 +24,7 @@ from bfsitl.dashboard.keys import NoKeys
 from bfsitl.dashboard.loop import run_dashboard
 from bfsitl.dashboard.render import render_text
 from bfsitl.dashboard.view_model import DashboardView
-from bfsitl.protocol import msp_messages as msg
+from bfsitl.protocol import messages as msg
 from bfsitl.protocol.arming import ArmingFlag, arming_flag_info
 from bfsitl.sitl.firmware import FirmwareBinary
 from bfsitl.sitl.process import SitlProcess

@@ -44,7 +44,7 @@ from websockets.exceptions import ConnectionClosed
 from websockets.sync.client import ClientConnection, connect
 
 from bfsitl.bridges.origin_policy import CLOSE_POLICY_VIOLATION
-from bfsitl.protocol import msp_messages as msg
+from bfsitl.protocol import messages as msg
 from bfsitl.protocol.msp_codes import MspCommand
 from bfsitl.protocol.msp_frame import MspFrame, MspParser, encode_request
 

@@ -21,7 +21,7 @@ from dataclasses import dataclass
 from typing import Any
 
 from bfsitl.link.base import Link
-from bfsitl.protocol import msp_messages as msg
+from bfsitl.protocol import messages as msg
 from bfsitl.protocol.msp_codes import MspCommand
 from bfsitl.protocol.msp_frame import Direction, MspFrame, MspParser, encode_frame
 

@@ -9,8 +9,7 @@ from dataclasses import dataclass, replace
 
 from bfsitl.fc.rc_link import RcCommand, RcLinkStats
 from bfsitl.mission.loop import Mission
-from bfsitl.mission.session import SWITCH_ON_US, FlightSample
-from bfsitl.mission.vehicle import Vehicle
+from bfsitl.mission.vehicle import SWITCH_ON_US, FlightSample, Vehicle
 
 HOVER_US = 1500.0
 
@@ -185,7 +184,7 @@ class PlanarSession(FakeSession):
                        sim_north_m=self.north_m, sim_east_m=self.east_m)
 
     def gps_position(self):  # type: ignore[no-untyped-def]
-        from bfsitl.mission.session import GpsPosition
+        from bfsitl.mission.vehicle import GpsPosition
 
         return GpsPosition(self.north_m, self.east_m, self.v_north, self.v_east, True, 12)
 

@@ -15,9 +15,9 @@ from pathlib import Path
 import pytest
 
 from bfsitl.errors import SitlExitedError
+from bfsitl.link.shm_exchange import REGION_BYTES, ShmExchange, _Futex
 from bfsitl.protocol.sitl_packets import FdmPacket, RcPacket
 from bfsitl.sim.lockstep import REPLY_FORMAT, LockstepBridge
-from bfsitl.sim.shm_exchange import REGION_BYTES, ShmExchange, _Futex
 
 # The FC's layout (lockstepShm_t): 8 words of header, the datagram at 32, the reply after it.
 DATAGRAM_AT = 32

@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from bfsitl.protocol import msp_messages as msg
+from bfsitl.protocol import messages as msg
 from bfsitl.protocol.msp_codes import MspCommand
 from bfsitl.protocol.msp_frame import MspFrame
 from support.fake_fc import FakeFcLink

@@ -51,8 +51,8 @@ from bfsitl.analysis.series import (
     window_means,
 )
 from bfsitl.analysis.track import Track, TrackPoint
-from bfsitl.blackbox.decode import FailsafePhase
 from bfsitl.errors import TrackDataMissingError
+from bfsitl.protocol.failsafe_phase import FailsafePhase
 
 #: A log's disarm reasons that mean the FC itself saw a crash or a runaway.
 CRASH_DISARM_REASONS = ("CRASH_PROTECTION", "RUNAWAY_TAKEOFF")

@@ -29,7 +29,7 @@ from typing import TYPE_CHECKING, ClassVar, Protocol
 
 from bfsitl.backend.disturbances import Disturbances
 from bfsitl.fc.rc_link import RcSender, UdpRcLink
-from bfsitl.protocol import msp_messages as msg
+from bfsitl.protocol import messages as msg
 from bfsitl.sitl.process import SitlHooks
 
 if TYPE_CHECKING:
@@ -49,7 +49,7 @@ class ImuScale:
     acc_truncation_lsb: float = 0.0
 
 
-#: The SITL's virtual IMU: 256 LSB per g, truncated to whole LSB (see msp_messages).
+#: The SITL's virtual IMU: 256 LSB per g, truncated to whole LSB (see protocol.messages.constants).
 SITL_IMU = ImuScale(msg.SITL_ACC_1G_LSB, msg.SITL_ACC_TRUNCATION_LSB)
 #: A real board: the usual MEMS IMUs (MPU6000, BMI270, ICM426xx at +-16 g) report 2048 per
 #: g, and their driver rounds, so nothing is added back.

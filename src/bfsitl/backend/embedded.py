@@ -25,6 +25,7 @@ from bfsitl.errors import SitlError, SitlExitedError
 from bfsitl.fc.firmware_detect import profile_of_binary
 from bfsitl.fc.rc_link import RcSender
 from bfsitl.link.base import Link
+from bfsitl.link.shm_exchange import ShmExchange
 from bfsitl.physics import Simulator
 from bfsitl.physics.frames import betaflight_attitude_deg
 from bfsitl.sim.bridge import BridgeStats, SitlBridge, bridged_sitl, wait_for_replies
@@ -37,7 +38,6 @@ from bfsitl.sim.lockstep import (
     LockstepRc,
     SteppedLink,
 )
-from bfsitl.sim.shm_exchange import ShmExchange
 from bfsitl.sitl.process import SitlHooks
 
 if TYPE_CHECKING:

@@ -98,7 +98,7 @@ LOCKSTEP_EXCHANGES = ("auto", "shm", "udp")
 
 def uses_shm_exchange(firmware: FirmwareBinary, asked: str) -> bool:
     """Whether a lockstep run of ``firmware`` takes the shared-memory exchange."""
-    from bfsitl.sim.shm_exchange import shm_exchange_supported
+    from bfsitl.link.shm_exchange import shm_exchange_supported
 
     if asked not in LOCKSTEP_EXCHANGES:
         raise BfsitlError(f"lockstep exchange {asked!r}: one of {', '.join(LOCKSTEP_EXCHANGES)}")

@@ -27,12 +27,11 @@ from bfsitl.blackbox.decode import (
     BlackboxEvent,
     BlackboxFrame,
     BlackboxLog,
-    FailsafePhase,
     decode_blackbox,
     frames_to_rows,
 )
 
 __all__ = [
-    "DISARM_REASONS", "BlackboxEvent", "BlackboxFrame", "BlackboxLog", "FailsafePhase",
+    "DISARM_REASONS", "BlackboxEvent", "BlackboxFrame", "BlackboxLog",
     "collect_blackbox", "decode_blackbox", "find_blackbox_files", "frames_to_rows",
 ]

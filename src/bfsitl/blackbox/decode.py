@@ -22,7 +22,6 @@ What a decoded log can be trusted for, measured on real SITL logs (tests/data/bl
 
 from __future__ import annotations
 
-import enum
 import logging
 import math
 from collections.abc import Iterator
@@ -36,27 +35,14 @@ from orangebox.reader import Reader
 
 from bfsitl.blackbox.events import DISARM_REASONS, EventKeepingParser, disarm_reason_name
 from bfsitl.errors import BlackboxError
+from bfsitl.protocol.failsafe_phase import FailsafePhase
 
-__all__ = ["DISARM_REASONS", "BlackboxEvent", "BlackboxFrame", "BlackboxLog", "FailsafePhase",
+__all__ = ["DISARM_REASONS", "BlackboxEvent", "BlackboxFrame", "BlackboxLog",
            "decode_blackbox", "frames_to_rows"]
 
 #: Every log starts with this header line (``[4.6] src/main/blackbox/blackbox.c:131``);
 #: orangebox splits a file into logs where it repeats.
 _FIRST_HEADER = b"H Product:"
-
-
-class FailsafePhase(enum.IntEnum):
-    """``failsafePhase_e`` (``[4.6] src/main/flight/failsafe.h:47-55``); AUTOPILOT is
-    master's (``[M] src/main/flight/failsafe.h:55``)."""
-
-    IDLE = 0
-    RX_LOSS_DETECTED = 1
-    LANDING = 2
-    LANDED = 3
-    RX_LOSS_MONITORING = 4
-    RX_LOSS_RECOVERED = 5
-    GPS_RESCUE = 6
-    AUTOPILOT = 7
 
 
 @dataclass(frozen=True, slots=True)

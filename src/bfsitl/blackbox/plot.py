@@ -9,8 +9,9 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from bfsitl.blackbox.decode import BlackboxLog, FailsafePhase
-from bfsitl.records.plot import load_pyplot
+from bfsitl.blackbox.decode import BlackboxLog
+from bfsitl.headless_pyplot import load_pyplot
+from bfsitl.protocol.failsafe_phase import FailsafePhase
 
 AXES = ("roll", "pitch", "yaw")
 

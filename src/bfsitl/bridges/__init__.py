@@ -27,7 +27,7 @@ import time
 from collections.abc import Callable
 from dataclasses import dataclass
 
-from bfsitl.errors import (  # noqa: F401 - defined in errors.py, importable here too
+from bfsitl.errors import (
     BridgeError,
     LinkError,
     ListenAddressInUseError,

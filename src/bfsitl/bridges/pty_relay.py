@@ -41,7 +41,7 @@ from bfsitl.bridges import (
 )
 from bfsitl.errors import (
     BfsitlError,
-    LinkPathError,  # noqa: F401 - defined in errors.py, importable here too
+    LinkPathError,
 )
 
 #: How often a bridge with no client looks whether one has opened the port.

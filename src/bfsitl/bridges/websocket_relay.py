@@ -34,16 +34,10 @@ from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from typing import TYPE_CHECKING
 
-from bfsitl.bridges import (
-    RequestWatch,
-    SessionStats,
-    Upstream,
-    UpstreamBusyError,
-    connect_upstream,
-)
+from bfsitl.bridges import RequestWatch, SessionStats, Upstream, connect_upstream
 from bfsitl.bridges.background import listen_error, serving_in_thread
 from bfsitl.bridges.origin_policy import CLOSE_POLICY_VIOLATION, OriginPolicy
-from bfsitl.errors import BfsitlError, ExtraMissingError
+from bfsitl.errors import BfsitlError, ExtraMissingError, UpstreamBusyError
 
 if TYPE_CHECKING:
     from websockets.asyncio.server import ServerConnection

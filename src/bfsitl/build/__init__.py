@@ -13,8 +13,9 @@ The parts, each a module with one job:
 * :mod:`~bfsitl.build.binary_scan`: what a binary is, from its bytes;
 * :mod:`~bfsitl.build.builder`: :func:`build_firmware`, the whole build.
 
-Nothing here imports the rest of bfsitl beyond :mod:`bfsitl.errors` (``sitl/`` uses this
-package to resolve names and to tell a binary's command-line form).
+Of the rest of bfsitl this imports only what is below it in the layers: the firmware's
+tables (:mod:`bfsitl.protocol`), the errors, the cache's place and the version; ``sitl/`` and
+``fc/`` use it to resolve names and to tell what a binary is.
 """
 
 from __future__ import annotations
@@ -25,7 +26,7 @@ from typing import TYPE_CHECKING, Any
 if TYPE_CHECKING:
     from bfsitl.build.binary_scan import BinaryTraits, binary_traits
     from bfsitl.build.builder import BuildResult, build_firmware, default_jobs
-    from bfsitl.build.cache import CACHE_ENV_VAR, CacheEntry, FirmwareCache, cache_root
+    from bfsitl.build.cache import CacheEntry, FirmwareCache
     from bfsitl.build.metadata import (
         BuildMetadata,
         build_options_for_binary,
@@ -39,8 +40,7 @@ if TYPE_CHECKING:
 _EXPORTS = {
     "BinaryTraits": "binary_scan", "binary_traits": "binary_scan",
     "BuildResult": "builder", "build_firmware": "builder", "default_jobs": "builder",
-    "CACHE_ENV_VAR": "cache", "CacheEntry": "cache", "FirmwareCache": "cache",
-    "cache_root": "cache",
+    "CacheEntry": "cache", "FirmwareCache": "cache",
     "BuildMetadata": "metadata", "build_options_for_binary": "metadata",
     "metadata_for_binary": "metadata",
     "FirmwareBuildOptions": "options",
@@ -48,7 +48,6 @@ _EXPORTS = {
 }
 
 __all__ = [
-    "CACHE_ENV_VAR",
     "BinaryTraits",
     "BuildMetadata",
     "BuildProgress",
@@ -59,7 +58,6 @@ __all__ = [
     "binary_traits",
     "build_firmware",
     "build_options_for_binary",
-    "cache_root",
     "default_jobs",
     "metadata_for_binary",
 ]

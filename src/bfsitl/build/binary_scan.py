@@ -26,7 +26,7 @@ LOCKSTEP_MARKER = b"[LOCKSTEP] bfsitl lockstep build"
 """Printed at boot by a ``--lockstep`` build (:mod:`bfsitl.build.lockstep`)."""
 SHM_EXCHANGE_MARKER = b"BFSITL_LOCKSTEP_SHM\x00"
 """The variable a lockstep build that has the shared-memory exchange reads (earlier lockstep
-builds have only UDP: :mod:`bfsitl.sim.shm_exchange`)."""
+builds have only UDP: :mod:`bfsitl.link.shm_exchange`)."""
 
 FEATURE_MARKERS: dict[str, bytes] = {
     "gps": b"\x00gps_provider\x00",

@@ -26,7 +26,6 @@ from collections.abc import Callable, Mapping
 from dataclasses import dataclass
 from pathlib import Path
 
-from bfsitl import __version__
 from bfsitl.build.binary_scan import binary_traits
 from bfsitl.build.cache import CacheEntry, FirmwareCache, check_name
 from bfsitl.build.make_runner import (
@@ -42,6 +41,7 @@ from bfsitl.build.source_facts import SKIPPED_WHEN_COPYING, identify_source, unp
 from bfsitl.build.source_tree import SourceSpec, remove_tree, resolve_source
 from bfsitl.build.submodules import stamp_missing_submodules
 from bfsitl.errors import FirmwareBuildError
+from bfsitl.version import __version__
 
 BINARY_GLOB = "betaflight_*_SITL"
 """What ``make TARGET=SITL`` leaves in ``obj/`` (the versioned copy of the ELF)."""

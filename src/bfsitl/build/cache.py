@@ -1,7 +1,7 @@
 """The firmware cache: finished builds, their names, and the locks that keep builds apart.
 
-Layout under :func:`cache_root` (``$BFSITL_CACHE_DIR``, else ``$XDG_CACHE_HOME/bfsitl/firmware``,
-else ``~/.cache/bfsitl/firmware``)::
+Layout under :func:`~bfsitl.cache_location.cache_root` (``$BFSITL_CACHE_DIR``, else
+``$XDG_CACHE_HOME/bfsitl/firmware``, else ``~/.cache/bfsitl/firmware``)::
 
     builds/<key>/      one finished build: the binary and build.json, nothing else
     names/<name>       a symlink to ../builds/<key>: the name pointer
@@ -30,10 +30,8 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from bfsitl.build.metadata import BuildMetadata
+from bfsitl.cache_location import cache_root
 from bfsitl.errors import FirmwareBuildError
-
-CACHE_ENV_VAR = "BFSITL_CACHE_DIR"
-"""Where the firmware cache is; wins over ``$XDG_CACHE_HOME`` and ``~/.cache``."""
 
 MIN_KEY_PREFIX = 6
 """A key may be abbreviated to this many hex digits when it stays unambiguous."""
@@ -42,16 +40,6 @@ STALE_SCRATCH_S = 6 * 3600.0
 """Age after which a scratch directory in ``tmp/`` counts as abandoned."""
 
 _NAME_RE = re.compile(r"^[A-Za-z0-9][A-Za-z0-9._+-]{0,99}$")
-
-
-def cache_root(environ: Mapping[str, str] | None = None) -> Path:
-    env = os.environ if environ is None else environ
-    if env.get(CACHE_ENV_VAR):
-        return Path(os.path.expanduser(env[CACHE_ENV_VAR])).absolute()
-    if env.get("XDG_CACHE_HOME"):
-        return Path(env["XDG_CACHE_HOME"]).absolute() / "bfsitl" / "firmware"
-    home = env.get("HOME") or str(Path.home())
-    return Path(home) / ".cache" / "bfsitl" / "firmware"
 
 
 def is_valid_name(name: str) -> bool:

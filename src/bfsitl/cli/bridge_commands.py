@@ -21,9 +21,10 @@ import sys
 from collections.abc import Callable, Iterator
 from urllib.parse import urlsplit
 
-from bfsitl.bridges import BridgeError, Upstream, UpstreamBusyError, connect_upstream
+from bfsitl.bridges import Upstream, connect_upstream
 from bfsitl.cli.arg_types import port_number
 from bfsitl.cli.target import add_target_arguments, progress
+from bfsitl.errors import BridgeError, UpstreamBusyError
 from bfsitl.link import DEFAULT_SITL_URI
 from bfsitl.sitl.process import SITL_HOST, SITL_MSP_PORT, SitlProcess
 

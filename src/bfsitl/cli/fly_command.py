@@ -53,7 +53,7 @@ def parse_speed(text: str) -> float:
 
 def add_fly_parser(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]
     from bfsitl.control import CONTROLLERS, DEFAULT_CONTROLLER
-    from bfsitl.mission.runner import MissionPlan
+    from bfsitl.mission.plan import MissionPlan
 
     fly = sub.add_parser(
         "fly", help="fly an autonomous mission on a SITL with the embedded physics",
@@ -286,7 +286,8 @@ def cmd_fly(args: argparse.Namespace) -> int:
     from bfsitl.control import gain_names, make_controller
     from bfsitl.fc.provisioning import ARM_ON_AUX1, Profile
     from bfsitl.mission import FLY_PROFILE, FlightSession, SessionConfig
-    from bfsitl.mission.runner import Outcome, run_mission
+    from bfsitl.mission.plan_driver import run_mission
+    from bfsitl.mission.results import Outcome
     from bfsitl.records.outputs import FlightOutputs, OutputOptions, plan_waypoints
 
     if args.list_gains:

@@ -15,7 +15,6 @@ import time
 from collections.abc import Sequence
 from pathlib import Path
 
-from bfsitl import __version__
 from bfsitl.cli import render
 from bfsitl.cli.arg_types import number_in
 from bfsitl.cli.bridge_commands import add_configurator_parser, add_serial_bridge_parser
@@ -33,6 +32,7 @@ from bfsitl.fc.identity import read_identity
 from bfsitl.fc.telemetry_poller import TelemetryPoller
 from bfsitl.stop_signals import how_stopped, stop_signals_interrupt
 from bfsitl.toml_file import read_text_file
+from bfsitl.version import __version__
 
 EXIT_OK = 0
 EXIT_ERROR = 1

@@ -22,7 +22,7 @@ import dataclasses
 import math
 from collections.abc import Mapping
 
-from bfsitl.control.base import AltitudeController, AltitudeInput, ControllerConfigError
+from bfsitl.control.base import AltitudeController, AltitudeInput
 from bfsitl.control.cascade import CascadedAltitudeController, CascadeGains
 from bfsitl.control.fused import FusedAltitudeController, FusedGains
 from bfsitl.control.landing import LandingController, LandingGains
@@ -33,6 +33,7 @@ from bfsitl.control.tutorial import (
     TutorialPid,
     TutorialPidGains,
 )
+from bfsitl.errors import ControllerConfigError
 
 DEFAULT_CONTROLLER = "fused"
 

@@ -18,7 +18,7 @@ from dataclasses import dataclass
 
 from bfsitl.errors import UnsupportedFirmwareError
 from bfsitl.fc.rc_link import RC_MAX_US, RC_MID_US
-from bfsitl.protocol import msp_messages as msg
+from bfsitl.protocol import messages as msg
 
 #: Full deflection, either way from the middle.
 RC_HALF_RANGE_US = float(RC_MAX_US - RC_MID_US)

@@ -22,7 +22,7 @@ from dataclasses import dataclass, fields
 from typing import Protocol, runtime_checkable
 
 from bfsitl.errors import (
-    ControllerConfigError,  # noqa: F401 - defined in errors.py, importable here too
+    ControllerConfigError,
 )
 
 #: RC throttle range the controllers speak, microseconds (the RC link clamps to it as well).

@@ -31,7 +31,6 @@ from bfsitl.control.altitude_estimator import AltitudeEstimator
 from bfsitl.control.base import (
     THROTTLE_MIN_US,
     AltitudeInput,
-    ControllerConfigError,
     WholeMicroseconds,
     check_gains,
     clamp,
@@ -39,6 +38,7 @@ from bfsitl.control.base import (
     require,
 )
 from bfsitl.control.cascade import MAX_STEP_S, ReferenceProfile
+from bfsitl.errors import ControllerConfigError
 
 
 @dataclass(frozen=True, slots=True)

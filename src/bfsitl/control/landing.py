@@ -25,13 +25,13 @@ from dataclasses import dataclass
 from bfsitl.control.base import (
     THROTTLE_MIN_US,
     AltitudeInput,
-    ControllerConfigError,
     check_gains,
     clamp,
     hover_range_ok,
     require,
 )
 from bfsitl.control.cascade import MAX_STEP_S
+from bfsitl.errors import ControllerConfigError
 
 
 @dataclass(frozen=True, slots=True)

@@ -26,7 +26,7 @@ from collections.abc import Sequence
 from dataclasses import dataclass
 
 from bfsitl.errors import (
-    MetricsInputError,  # noqa: F401 - defined in errors.py, importable here too
+    MetricsInputError,
 )
 
 DEFAULT_BAND_M = 0.05

@@ -12,7 +12,7 @@ import os
 
 from bfsitl.errors import MspErrorReply
 from bfsitl.fc.msp_client import MspClient
-from bfsitl.protocol import msp_messages as msg
+from bfsitl.protocol import messages as msg
 from bfsitl.protocol.firmware_profile import (
     DEFAULT_PROFILE,
     BuildOptions,

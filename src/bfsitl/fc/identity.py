@@ -10,7 +10,7 @@ from dataclasses import asdict, dataclass
 
 from bfsitl.errors import MspErrorReply
 from bfsitl.fc.msp_client import MspClient
-from bfsitl.protocol import msp_messages as msg
+from bfsitl.protocol import messages as msg
 
 
 @dataclass(frozen=True, slots=True)

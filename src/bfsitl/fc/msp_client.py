@@ -35,7 +35,7 @@ from bfsitl.fc.telemetry import TELEMETRY_COMMANDS, Telemetry, telemetry_from_pa
 from bfsitl.link.base import Link
 from bfsitl.link.serial_link import SerialLink
 from bfsitl.link.tcp_link import TcpLink
-from bfsitl.protocol import msp_messages as msg
+from bfsitl.protocol import messages as msg
 from bfsitl.protocol.msp_codes import MspCommand
 from bfsitl.protocol.msp_frame import (
     ChecksumFailure,

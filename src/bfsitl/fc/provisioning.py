@@ -26,7 +26,7 @@ from pathlib import Path
 from bfsitl.errors import ProvisioningError
 from bfsitl.fc.cli_session import CliSession
 from bfsitl.fc.msp_client import MspClient
-from bfsitl.protocol import msp_messages as msg
+from bfsitl.protocol import messages as msg
 from bfsitl.protocol.boxes import BoxId
 
 #: ARM while AUX1 is at 1700-2100 us: the default of every bfsitl flight.

@@ -28,7 +28,7 @@ from typing import Protocol
 
 from bfsitl.errors import BfsitlError
 from bfsitl.fc.msp_client import MspClient
-from bfsitl.protocol import msp_messages as msg
+from bfsitl.protocol import messages as msg
 from bfsitl.protocol.sitl_packets import RcPacket
 
 RC_MIN_US = 1000

@@ -10,7 +10,7 @@ from dataclasses import dataclass, field
 
 from bfsitl.errors import MspDecodeError
 from bfsitl.physics.constants import STANDARD_GRAVITY_M_S2
-from bfsitl.protocol import msp_messages as msg
+from bfsitl.protocol import messages as msg
 from bfsitl.protocol.msp_codes import MspCommand
 
 #: What :meth:`MspClient.telemetry` asks for in one MSP_MULTIPLE_MSP round trip.

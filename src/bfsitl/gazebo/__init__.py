@@ -5,12 +5,6 @@
 and stops the server.  The usage is in the :mod:`.launcher` docstring and docs/gazebo.md.
 """
 
-from bfsitl.gazebo.errors import (
-    GazeboError,
-    GazeboNotFoundError,
-    GazeboPluginNotFoundError,
-    GazeboStartError,
-)
 from bfsitl.gazebo.launcher import (
     GazeboInstall,
     GazeboLaunch,
@@ -29,12 +23,8 @@ __all__ = [
     "DEFAULT_WORLD",
     "PLUGIN_LIBRARY",
     "WORLD_NAME",
-    "GazeboError",
     "GazeboInstall",
     "GazeboLaunch",
-    "GazeboNotFoundError",
-    "GazeboPluginNotFoundError",
-    "GazeboStartError",
     "check_gazebo",
     "check_plugin_port_free",
     "plan_gazebo_launch",

@@ -48,12 +48,8 @@ from dataclasses import dataclass
 from pathlib import Path
 from types import MappingProxyType
 
-from bfsitl.gazebo.errors import (
-    BUILD_HINT,
-    INSTALL_HINT,
-    GazeboNotFoundError,
-    GazeboPluginNotFoundError,
-)
+from bfsitl.errors import GazeboNotFoundError, GazeboPluginNotFoundError
+from bfsitl.gazebo.install_hints import BUILD_HINT, INSTALL_HINT
 from bfsitl.gazebo.world import DEFAULT_WORLD, PLUGIN_LIBRARY, world_path
 
 #: Where ``gz sim`` (gz-sim 8) looks for system plugins and for models/worlds.

@@ -14,7 +14,8 @@ import time
 from collections.abc import Callable
 from pathlib import Path
 
-from bfsitl.gazebo.errors import DOCS, GazeboStartError
+from bfsitl.errors import GazeboStartError
+from bfsitl.gazebo.install_hints import DOCS
 from bfsitl.sitl.network import Network, ProcessHandle
 from bfsitl.sitl.ports import PROC_ROOT, check_ports_free, read_proc_net
 

@@ -16,7 +16,7 @@ from dataclasses import dataclass
 from bfsitl.fc.telemetry import TELEMETRY_COMMANDS, telemetry_from_payloads
 from bfsitl.mission.session import FlightSession
 from bfsitl.mission.vehicle import accel_flu_m_s2
-from bfsitl.protocol import msp_messages as msg
+from bfsitl.protocol import messages as msg
 from bfsitl.protocol.msp_codes import MspCommand
 
 Vec3 = tuple[float, float, float]

@@ -23,7 +23,7 @@ import sys
 import threading
 from pathlib import Path
 
-from bfsitl.build.cache import cache_root
+from bfsitl.cache_location import cache_root
 from bfsitl.errors import KernelUnavailableError
 
 #: The compiler's flags; part of the cache key.

@@ -16,12 +16,12 @@ from typing import TYPE_CHECKING
 
 from bfsitl.kernel.compiler import load_kernel
 from bfsitl.physics.constants import SEA_LEVEL_PRESSURE_PA
+from bfsitl.protocol import fdm_encoding
 from bfsitl.protocol.firmware_profile import AltitudeSource, QuaternionConvention
-from bfsitl.sim import fdm_encoding
 
 if TYPE_CHECKING:
-    from bfsitl.sim.fdm_encoding import FdmEncoder
-    from bfsitl.sim.shm_exchange import ShmExchange
+    from bfsitl.link.shm_exchange import ShmExchange
+    from bfsitl.protocol.fdm_encoding import FdmEncoder
 
 DONE, PENDING, OUT_OF_STEP, BAD_READING, BAD_MOTORS, TOO_BIG, NO_FUTEX = range(7)
 

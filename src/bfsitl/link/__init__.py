@@ -1,4 +1,7 @@
-"""Transports picked by URI: ``tcp://HOST:PORT`` and ``serial:///dev/DEVICE?baud=N``."""
+"""Transports picked by URI: ``tcp://HOST:PORT`` and ``serial:///dev/DEVICE?baud=N``.
+
+The lockstep builds' shared-memory exchange (:mod:`bfsitl.link.shm_exchange`) is a transport
+too, though for the fdm datagram rather than MSP: no URI picks it, the lockstep bridge does."""
 
 from __future__ import annotations
 

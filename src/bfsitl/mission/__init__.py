@@ -9,17 +9,15 @@
     print(result.outcome, result.hold)
 """
 
+from bfsitl.mission.flight_metrics import HoldStats
 from bfsitl.mission.flight_row import FlightRow
 from bfsitl.mission.legs import LegStats
+from bfsitl.mission.loop import Mission
 from bfsitl.mission.plan import MissionPlan, Waypoint, load_mission
-from bfsitl.mission.runner import (
-    HoldStats,
-    Mission,
-    MissionResult,
-    Outcome,
-    run_mission,
-)
-from bfsitl.mission.session import FLY_PROFILE, FlightSample, FlightSession, SessionConfig
+from bfsitl.mission.plan_driver import run_mission
+from bfsitl.mission.results import MissionResult, Outcome
+from bfsitl.mission.session import FLY_PROFILE, FlightSession, SessionConfig
+from bfsitl.mission.vehicle import FlightSample
 
 __all__ = [
     "FLY_PROFILE", "FlightRow", "FlightSample", "FlightSession", "HoldStats",

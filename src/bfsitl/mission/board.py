@@ -38,7 +38,7 @@ from bfsitl.fc.provisioning import Profile, ProvisionResult, provision
 from bfsitl.fc.rc_link import DEFAULT_MSP_RATE_HZ, MspRcLink
 from bfsitl.link import Link, open_link
 from bfsitl.mission.vehicle import DEFAULT_ARM_TIMEOUT_S, Progress, Vehicle
-from bfsitl.protocol import msp_messages as msg
+from bfsitl.protocol import messages as msg
 from bfsitl.protocol.firmware_profile import FirmwareProfile
 
 #: How long an MSP request may take on a board: a UART at 115200 baud plus one serial tick.

@@ -16,6 +16,7 @@ import time
 from collections.abc import Callable
 from dataclasses import replace
 
+from bfsitl.backend.base import SessionClock
 from bfsitl.control.base import (
     AltitudeController,
     AltitudeInput,
@@ -41,13 +42,7 @@ from bfsitl.mission.phase import Phase
 from bfsitl.mission.position_steering import PositionSteering, PositionTarget
 from bfsitl.mission.results import Outcome
 from bfsitl.mission.throttle_sources import FixedThrottle, GroundObserver
-from bfsitl.mission.vehicle import (
-    SWITCH_OFF_US,
-    SWITCH_ON_US,
-    FlightSample,
-    SessionClock,
-    Vehicle,
-)
+from bfsitl.mission.vehicle import SWITCH_OFF_US, SWITCH_ON_US, FlightSample, Vehicle
 
 DEFAULT_RATE_HZ = 50.0
 #: "Reached" means within this band of the target, nearly still, for REACHED_HOLD_S.

@@ -11,7 +11,7 @@ from enum import StrEnum
 
 class Phase(StrEnum):
     """The mission's phase.  The last row of a flight that did not land carries how it ended
-    instead (an :class:`~bfsitl.mission.runner.Outcome`'s value, written by ``Mission.abort``)."""
+    instead (an :class:`~bfsitl.mission.results.Outcome`'s value, written by ``Mission.abort``)."""
 
     ARMING = "arming"
     GROUND = "ground"          # armed on the ground while the barometer settles

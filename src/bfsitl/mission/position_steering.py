@@ -23,7 +23,7 @@ from bfsitl.errors import MissionError, MspErrorReply
 from bfsitl.fc.rc_link import RC_MID_US
 from bfsitl.mission.legs import LegPoint
 from bfsitl.mission.vehicle import FlightSample, GpsPosition, Vehicle
-from bfsitl.protocol import msp_messages as msg
+from bfsitl.protocol import messages as msg
 
 #: Time since the manoeuvre began -> where the position and altitude targets are.
 PositionTarget = Callable[[float], LegPoint]

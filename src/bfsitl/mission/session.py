@@ -40,26 +40,12 @@ from bfsitl.fc.provisioning import (
     ProvisionResult,
     provision,
 )
-
-# The vehicle's parts, importable from here as before the split.
-from bfsitl.mission.vehicle import (  # noqa: F401
-    DEFAULT_ARM_TIMEOUT_S,
-    METRES_PER_DEGREE,
-    SWITCH_OFF_US,
-    SWITCH_ON_US,
-    FlightSample,
-    GpsPosition,
-    Progress,
-    SessionClock,
-    Truth,
-    Vehicle,
-    WallClock,
-)
+from bfsitl.mission.vehicle import DEFAULT_ARM_TIMEOUT_S, Progress, Vehicle
 from bfsitl.physics import Simulator
 from bfsitl.physics.params import IRIS, QuadParams
 from bfsitl.physics.sensors import SensorConfig
 from bfsitl.physics.wind import Wind
-from bfsitl.protocol import msp_messages as msg
+from bfsitl.protocol import messages as msg
 from bfsitl.protocol.firmware_profile import FirmwareProfile
 from bfsitl.sim.bridge import SitlBridge
 from bfsitl.sim.lockstep import LockstepBridge
@@ -163,7 +149,7 @@ class SessionConfig:
     lockstep_spin: bool = True
     #: Lockstep: how packets pass between the physics and the firmware: ``"auto"`` (shared
     #: memory where the build and the machine have it, else UDP), ``"shm"`` or ``"udp"``.
-    #: Either gives the same flight (bfsitl.sim.shm_exchange).
+    #: Either gives the same flight (bfsitl.link.shm_exchange).
     lockstep_exchange: str = "auto"
     #: How the embedded physics steps: ``"auto"`` (the compiled kernel for a lockstep run
     #: through shared memory where a C compiler builds it, else pure Python), ``"compiled"`` or

@@ -6,7 +6,7 @@ flight (:class:`FlightSample`: the FC's view over MSP, next to the truth when it
 the FC's GPS made local, a clock.  :class:`~bfsitl.mission.session.FlightSession` is the
 simulated one (SITL, physics, UDP or lockstep RC, simulation time, the truth);
 :class:`~bfsitl.mission.board.BoardVehicle` a flight controller on a serial port (RC by MSP,
-wall time, no truth).  A :class:`~bfsitl.mission.runner.Mission` flies either.
+wall time, no truth).  A :class:`~bfsitl.mission.loop.Mission` flies either.
 """
 
 from __future__ import annotations
@@ -18,20 +18,19 @@ from contextlib import ExitStack
 from dataclasses import dataclass, replace
 from typing import TYPE_CHECKING, Self
 
-from bfsitl.backend.base import (  # noqa: F401 - the vehicle's parts, importable from here
+from bfsitl.backend.base import (
     Backend,
     ImuScale,
     RcSender,
     SessionClock,
     Truth,
-    WallClock,
 )
 from bfsitl.backend.disturbances import Disturbances
 from bfsitl.errors import ArmingBlockedError, LinkError, MspError, SitlError
 from bfsitl.fc.msp_client import MspClient, Telemetry
 from bfsitl.fc.rc_link import RC_MIN_US, RcCommand, RcLinkStats
 from bfsitl.physics.constants import STANDARD_GRAVITY_M_S2
-from bfsitl.protocol import msp_messages as msg
+from bfsitl.protocol import messages as msg
 from bfsitl.protocol.boxes import BoxId
 
 if TYPE_CHECKING:

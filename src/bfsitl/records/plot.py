@@ -1,9 +1,6 @@
 """The flight plot: altitude against target, throttle, attitude, on one time axis; and, for a
 flight that used position control, a top-down track (east across, north up) with the
-waypoints.
-
-matplotlib is imported here only, with the non-interactive Agg backend, so a headless machine
-(CI, SSH) can write PNGs and nothing else in bfsitl pays for the import.
+waypoints.  matplotlib comes from :mod:`bfsitl.headless_pyplot`, on first use.
 """
 
 from __future__ import annotations
@@ -12,23 +9,10 @@ import math
 from collections.abc import Sequence
 from pathlib import Path
 
-from bfsitl.errors import BfsitlError, ExtraMissingError
+from bfsitl.errors import BfsitlError
+from bfsitl.headless_pyplot import load_pyplot
 from bfsitl.mission.flight_row import FlightRow
 from bfsitl.mission.phase import Phase
-
-
-def load_pyplot():  # type: ignore[no-untyped-def]
-    try:
-        import matplotlib
-    except ImportError as exc:
-        raise ExtraMissingError(
-            "plots need matplotlib, a dependency of bfsitl that is missing here: "
-            "pip install matplotlib"
-        ) from exc
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
-    return plt
 
 
 def write_flight_plot(rows: Sequence[FlightRow], path: str | Path, *, title: str = "",

@@ -54,7 +54,7 @@ from typing import TYPE_CHECKING, Any
 
 from bfsitl.analysis import ANALYSERS, Severity
 from bfsitl.errors import ScenarioError
-from bfsitl.mission.runner import CRASH_TILT_DEG, CRASH_TOUCHDOWN_M_S
+from bfsitl.mission.loop import CRASH_TILT_DEG, CRASH_TOUCHDOWN_M_S
 from bfsitl.scenario import expect_path
 from bfsitl.scenario.expect_base import Limit
 from bfsitl.scenario.expect_base import check as _check

@@ -6,7 +6,7 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from bfsitl.records.plot import load_pyplot
+from bfsitl.headless_pyplot import load_pyplot
 from bfsitl.scenario.trace import FAILSAFE_PHASES, Trace
 
 

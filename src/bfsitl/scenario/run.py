@@ -56,7 +56,7 @@ from bfsitl.mission.session import (
 )
 from bfsitl.mission.vehicle import FlightSample
 from bfsitl.physics.params import IRIS, QuadParams
-from bfsitl.protocol import msp_messages as msg
+from bfsitl.protocol import messages as msg
 from bfsitl.protocol.firmware_profile import FirmwareProfile, Generation
 from bfsitl.records.outputs import FlightOutputs, OutputOptions
 from bfsitl.scenario.expectations import judge

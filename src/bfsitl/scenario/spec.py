@@ -49,7 +49,7 @@ from bfsitl.physics.wind import (
     MIN_GUST_TIME_CONSTANT_S,
     Wind,
 )
-from bfsitl.scenario.faults import FaultSpec, read_fault_spec  # noqa: F401 - FaultSpec re-exported
+from bfsitl.scenario.faults import FaultSpec, read_fault_spec
 from bfsitl.scenario.fc_mission import FcWaypoint, read_fc_waypoints
 from bfsitl.scenario.values import number_in
 

@@ -14,14 +14,14 @@ from typing import TYPE_CHECKING
 
 from bfsitl.atomic_file import write_atomically
 from bfsitl.errors import ScenarioError
+from bfsitl.protocol.failsafe_phase import FailsafePhase
 
 if TYPE_CHECKING:
     from bfsitl.analysis import Finding
     from bfsitl.blackbox import BlackboxLog
 
-#: Betaflight's failsafe phases (``failsafePhase_e``, flight/failsafe.h); 7 is master's.
-FAILSAFE_PHASES = ("IDLE", "RX_LOSS_DETECTED", "LANDING", "LANDED", "RX_LOSS_MONITORING",
-                   "RX_LOSS_RECOVERED", "GPS_RESCUE", "AUTOPILOT")
+#: The firmware's failsafe phase names, by number.
+FAILSAFE_PHASES = tuple(phase.name for phase in FailsafePhase)
 
 
 def phase_name(phase: int | None) -> str:

@@ -36,10 +36,10 @@ from typing import Any, Literal, Protocol, TypeVar
 from bfsitl.errors import PacketError, PortInUseError, SitlError
 from bfsitl.physics.frames import GeoPoint
 from bfsitl.physics.sensors import SensorReading
+from bfsitl.protocol.fdm_encoding import FdmEncoder
 from bfsitl.protocol.firmware_profile import DEFAULT_PROFILE, FirmwareProfile
 from bfsitl.protocol.sitl_packets import ServoPacket
 from bfsitl.sim.clock_lock import PRIMER_PACKETS, PRIMER_SPACING_S, FrozenRateStamps
-from bfsitl.sim.fdm_encoding import FdmEncoder
 from bfsitl.sitl.ports import SIM_UDP_PORTS, find_port_holders
 from bfsitl.sitl.process import SitlProcess
 from bfsitl.sitl.timer_slack import set_timer_slack

@@ -21,7 +21,7 @@ from collections.abc import Callable
 from dataclasses import asdict, dataclass
 
 from bfsitl.fc.msp_client import MspClient
-from bfsitl.protocol import msp_messages as msg
+from bfsitl.protocol import messages as msg
 from bfsitl.protocol.firmware_profile import DEFAULT_PROFILE, FirmwareProfile
 from bfsitl.sim.bridge import BridgeStats, SitlBridge
 

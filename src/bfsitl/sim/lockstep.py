@@ -39,7 +39,9 @@ from bfsitl.fc.rc_link import SAFE_COMMAND, RcCommand, RcFault, RcFaultState, Rc
 from bfsitl.kernel import lockstep_stepper as outcome
 from bfsitl.kernel.lockstep_stepper import KernelRun, KernelStepper
 from bfsitl.link.base import Link
+from bfsitl.link.shm_exchange import ShmExchange
 from bfsitl.physics.frames import GeoPoint
+from bfsitl.protocol.fdm_encoding import FdmEncoder
 from bfsitl.protocol.firmware_profile import DEFAULT_PROFILE, FirmwareProfile
 from bfsitl.protocol.sitl_packets import RcPacket, ServoPacket
 from bfsitl.sim.bridge import (
@@ -50,8 +52,6 @@ from bfsitl.sim.bridge import (
     SensorSource,
     bind_motor_port,
 )
-from bfsitl.sim.fdm_encoding import FdmEncoder
-from bfsitl.sim.shm_exchange import ShmExchange
 
 T = TypeVar("T")
 

@@ -110,7 +110,7 @@ class FirmwareBinary:
     @property
     def shm_exchange(self) -> bool:
         """A lockstep build that can take its packets through shared memory
-        (:mod:`bfsitl.sim.shm_exchange`); False when it cannot be read."""
+        (:mod:`bfsitl.link.shm_exchange`); False when it cannot be read."""
         try:
             return binary_traits(self.path).shm_exchange
         except OSError:

@@ -14,8 +14,8 @@ from pathlib import Path
 from typing import Any
 
 from bfsitl.atomic_file import write_atomically
-from bfsitl.build.cache import cache_root
 from bfsitl.build.metadata import METADATA_NAME
+from bfsitl.cache_location import cache_root
 from bfsitl.errors import SitlError
 from bfsitl.sitl.firmware import find_firmware
 

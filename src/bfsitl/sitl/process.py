@@ -39,7 +39,7 @@ from bfsitl.fc.msp_client import DEFAULT_RETRIES, DEFAULT_TIMEOUT_S, MspClient
 from bfsitl.link.base import Link
 from bfsitl.link.tcp_link import TcpLink
 from bfsitl.protocol.firmware_profile import DEFAULT_PROFILE, BuildOptions, FirmwareProfile
-from bfsitl.protocol.msp_messages import ApiVersion
+from bfsitl.protocol.messages import ApiVersion
 from bfsitl.sitl.firmware import FirmwareBinary, find_firmware
 from bfsitl.sitl.network import HostNetwork, IsolatedNetwork, Network, ProcessHandle
 from bfsitl.sitl.ports import SITL_TCP_PORTS, SITL_UDP_PORTS, check_ports_free

@@ -11,13 +11,13 @@ from orangebox import Parser
 
 from bfsitl.blackbox import (
     BlackboxLog,
-    FailsafePhase,
     collect_blackbox,
     decode_blackbox,
     find_blackbox_files,
     frames_to_rows,
 )
 from bfsitl.errors import BfsitlError, BlackboxError
+from bfsitl.protocol.failsafe_phase import FailsafePhase
 
 DATA = Path(__file__).resolve().parents[2] / "data" / "blackbox"
 V46, MASTER = "Betaflight 4.6.0", "Betaflight 2026.12.0-alpha"

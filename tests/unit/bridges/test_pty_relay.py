@@ -17,8 +17,8 @@ import serial  # type: ignore[import-untyped]
 from support.fake_sitl_port import API_VERSION_REPLY, FakeSitl, wait_until
 
 from bfsitl.bridges import Upstream
-from bfsitl.bridges.pty_relay import LinkPathError, PtyRelay
-from bfsitl.errors import MspErrorReply
+from bfsitl.bridges.pty_relay import PtyRelay
+from bfsitl.errors import LinkPathError, MspErrorReply
 from bfsitl.fc.msp_client import MspClient
 from bfsitl.link import open_link
 from bfsitl.protocol.msp_codes import MspCommand

@@ -12,7 +12,7 @@ from support.fake_sitl_port import API_VERSION_REPLY, FakeSitl, wait_until
 from websockets.exceptions import ConnectionClosed, InvalidStatus
 from websockets.sync.client import connect
 
-from bfsitl.bridges import ListenAddressInUseError, Upstream
+from bfsitl.bridges import Upstream
 from bfsitl.bridges.origin_policy import CLOSE_POLICY_VIOLATION, OriginPolicy
 from bfsitl.bridges.websocket_relay import (
     CLOSE_BUSY,
@@ -21,6 +21,7 @@ from bfsitl.bridges.websocket_relay import (
     WebSocketRelay,
     pick_subprotocol,
 )
+from bfsitl.errors import ListenAddressInUseError
 from bfsitl.protocol.msp_codes import MspCommand
 from bfsitl.protocol.msp_frame import encode_request
 

@@ -8,7 +8,7 @@ import pytest
 
 from bfsitl.control.angle_sticks import ActualRates, AngleStickMap
 from bfsitl.errors import UnsupportedFirmwareError
-from bfsitl.protocol import msp_messages as msg
+from bfsitl.protocol import messages as msg
 
 DEFAULT = ActualRates(rc_rate=7, rate=67, expo=0)  # 4.6.0 and master controlrate_profile.c
 

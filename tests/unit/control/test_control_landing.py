@@ -5,9 +5,10 @@ from __future__ import annotations
 import pytest
 from support.altitude_plant import AltitudePlant
 
-from bfsitl.control.base import AltitudeInput, ControllerConfigError
+from bfsitl.control.base import AltitudeInput
 from bfsitl.control.cascade import CascadedAltitudeController
 from bfsitl.control.landing import LandingController, LandingGains
+from bfsitl.errors import ControllerConfigError
 
 
 def hover_then_land(hand_over: bool):

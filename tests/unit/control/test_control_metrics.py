@@ -6,8 +6,8 @@ import math
 
 import pytest
 
-from bfsitl.control.metrics import MetricsInputError, step_response
-from bfsitl.errors import BfsitlError
+from bfsitl.control.metrics import step_response
+from bfsitl.errors import BfsitlError, MetricsInputError
 
 DT = 0.001
 

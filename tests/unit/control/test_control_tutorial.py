@@ -4,8 +4,9 @@ from __future__ import annotations
 
 import pytest
 
-from bfsitl.control.base import AltitudeInput, ControllerConfigError
+from bfsitl.control.base import AltitudeInput
 from bfsitl.control.tutorial import OpenLoopGains, OpenLoopTakeoff, TutorialPid, TutorialPidGains
+from bfsitl.errors import ControllerConfigError
 
 
 def sample(t: float, alt: float, target: float = 2.0) -> AltitudeInput:

@@ -28,7 +28,7 @@ from bfsitl.dashboard.view_model import (  # noqa: E402
 )
 from bfsitl.errors import ExtraMissingError, LinkClosedError  # noqa: E402
 from bfsitl.fc.msp_client import MspClient, Telemetry  # noqa: E402
-from bfsitl.protocol import msp_messages as msg  # noqa: E402
+from bfsitl.protocol import messages as msg  # noqa: E402
 from bfsitl.protocol.arming import ArmingFlag, arming_flag_info  # noqa: E402
 from bfsitl.protocol.boxes import SITL_DEFAULT_BOX_IDS  # noqa: E402
 from bfsitl.protocol.msp_codes import MspCommand  # noqa: E402

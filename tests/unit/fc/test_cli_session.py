@@ -17,7 +17,7 @@ from bfsitl.errors import CliCommandError, CliError, MspTimeoutError  # noqa: E4
 from bfsitl.fc import cli_session  # noqa: E402
 from bfsitl.fc.cli_session import CliSession  # noqa: E402
 from bfsitl.fc.msp_client import MspClient  # noqa: E402
-from bfsitl.protocol import msp_messages as msg  # noqa: E402
+from bfsitl.protocol import messages as msg  # noqa: E402
 from bfsitl.protocol.msp_codes import MspCommand  # noqa: E402
 
 API_VERSION = msg.ApiVersion(0, 1, 47)

@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 from bfsitl.fc.firmware_detect import detect_profile
-from bfsitl.protocol import msp_messages as msg
+from bfsitl.protocol import messages as msg
 from bfsitl.protocol.firmware_profile import Generation
 
 

@@ -22,7 +22,7 @@ from bfsitl.fc.msp_client import (  # noqa: E402
     Telemetry,
     is_idempotent,
 )
-from bfsitl.protocol import msp_messages as msg  # noqa: E402
+from bfsitl.protocol import messages as msg  # noqa: E402
 from bfsitl.protocol.arming import ArmingFlag  # noqa: E402
 from bfsitl.protocol.boxes import SITL_DEFAULT_BOX_IDS  # noqa: E402
 from bfsitl.protocol.msp_codes import MspCommand  # noqa: E402

@@ -17,7 +17,7 @@ from support.fake_fc import FakeFcLink, multiple_msp, telemetry_link  # noqa: E4
 from bfsitl.errors import LinkClosedError  # noqa: E402
 from bfsitl.fc.msp_client import MspClient, Telemetry  # noqa: E402
 from bfsitl.fc.telemetry_poller import TelemetryPoller  # noqa: E402
-from bfsitl.protocol import msp_messages as msg  # noqa: E402
+from bfsitl.protocol import messages as msg  # noqa: E402
 from bfsitl.protocol.arming import ArmingFlag  # noqa: E402
 from bfsitl.protocol.boxes import SITL_DEFAULT_BOX_IDS  # noqa: E402
 from bfsitl.protocol.msp_codes import MspCommand  # noqa: E402

@@ -18,12 +18,15 @@ from pathlib import Path
 
 import pytest
 
-from bfsitl.errors import BfsitlError, PortInUseError
-from bfsitl.gazebo import (
-    GazeboLaunch,
+from bfsitl.errors import (
+    BfsitlError,
     GazeboNotFoundError,
     GazeboPluginNotFoundError,
     GazeboStartError,
+    PortInUseError,
+)
+from bfsitl.gazebo import (
+    GazeboLaunch,
     check_gazebo,
     check_plugin_port_free,
     plan_gazebo_launch,

@@ -16,6 +16,7 @@ from support.shared_fake_fc import SharedFakeFc, assert_a_silent_fc_is_asked_abo
 
 from bfsitl.errors import KernelUnavailableError, SitlError
 from bfsitl.fc.rc_link import RcCommand, RcFault
+from bfsitl.link.shm_exchange import ShmExchange, shm_exchange_supported
 from bfsitl.physics import Simulator
 from bfsitl.physics.frames import GeoPoint
 from bfsitl.physics.sensors import SensorConfig
@@ -23,7 +24,6 @@ from bfsitl.physics.wind import Wind
 from bfsitl.protocol.firmware_profile import FirmwareProfile, profile_for
 from bfsitl.protocol.sitl_packets import FdmPacket
 from bfsitl.sim.lockstep import LockstepBridge, LockstepClock, LockstepRc
-from bfsitl.sim.shm_exchange import ShmExchange, shm_exchange_supported
 
 try:
     from bfsitl.kernel.compiler import load_kernel

@@ -34,7 +34,7 @@ from bfsitl.mission import board
 from bfsitl.mission.board import BOARD_MSP_TIMEOUT_S, BoardVehicle
 from bfsitl.mission.session import FLY_PROFILE
 from bfsitl.physics.wind import Wind
-from bfsitl.protocol import msp_messages as msg
+from bfsitl.protocol import messages as msg
 from bfsitl.protocol.boxes import SITL_DEFAULT_BOX_IDS
 from bfsitl.protocol.firmware_profile import Generation
 from bfsitl.protocol.msp_codes import MspCommand

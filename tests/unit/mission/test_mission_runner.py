@@ -20,8 +20,12 @@ from support.fake_vehicles import (
 )
 
 from bfsitl.errors import ArmingBlockedError, MissionError, SitlExitedError
-from bfsitl.mission.runner import Mission, MissionPlan, Outcome, hold_stats, run_mission
-from bfsitl.mission.session import FlightSample
+from bfsitl.mission.flight_metrics import hold_stats
+from bfsitl.mission.loop import Mission
+from bfsitl.mission.plan import MissionPlan
+from bfsitl.mission.plan_driver import run_mission
+from bfsitl.mission.results import Outcome
+from bfsitl.mission.vehicle import FlightSample
 from bfsitl.records.csv_log import CsvFlightLog, read_flight_log
 
 
@@ -267,8 +271,9 @@ def test_a_take_off_in_gusts_is_reached_with_a_wider_band_after_a_while(monkeypa
 def test_a_square_mission_flies_its_legs_turns_and_lands_at_its_start(tmp_path):
     import math
 
+    from bfsitl.mission.flight_metrics import cross_track_rms, landed_from_start_m
     from bfsitl.mission.plan import Waypoint
-    from bfsitl.mission.runner import cross_track_rms, fly_plan, landed_from_start_m
+    from bfsitl.mission.plan_driver import fly_plan
 
     session = PlanarSession()
     log = CsvFlightLog(tmp_path / "square.csv")
@@ -339,7 +344,8 @@ def test_waypoints_on_a_firmware_without_gps_end_before_arming_with_the_fix():
 def test_the_default_plan_on_a_gps_vehicle_holds_its_take_off_point(hold_position, stays):
     """No waypoints: with a GPS the take-off, hold and landing hold the take-off point
     against the fake's wind; ``hold_position=False`` drifts (the control)."""
-    from bfsitl.mission.runner import fly_plan, landed_from_start_m
+    from bfsitl.mission.flight_metrics import landed_from_start_m
+    from bfsitl.mission.plan_driver import fly_plan
 
     session = PlanarSession()
     mission = planar_mission(session)

@@ -30,8 +30,8 @@ from bfsitl.physics.frames import (
     rotation_matrix,
     world_to_body,
 )
+from bfsitl.protocol.fdm_encoding import FdmEncoder
 from bfsitl.protocol.firmware_profile import DEFAULT_PROFILE
-from bfsitl.sim.fdm_encoding import FdmEncoder
 
 G = 9.80665
 

@@ -1,4 +1,4 @@
-"""Sensor readings, noise and bias (packing them is tests/unit/sim/test_fdm_encoding.py)."""
+"""Sensor readings, noise and bias (packing them is tests/unit/protocol/test_fdm_encoding.py)."""
 
 from __future__ import annotations
 

@@ -1,7 +1,7 @@
-"""The package's layers: the physics at the bottom imports nothing of bfsitl above it, each
-layer imports only those below it, no module imports itself round a circle, nobody outside
-the backend factory asks what kind of backend or link it has, and modules stay small enough
-to read (issue 21's seams)."""
+"""What the declared layers (pyproject.toml's [tool.importlinter], run by
+test_import_layers.py) leave open: the physics imports nothing of bfsitl but the errors,
+nobody outside the backend factory asks what kind of backend or link it has, modules stay
+small enough to read (issue 21's seams), and the unit tests mirror the packages."""
 
 from __future__ import annotations
 
@@ -11,11 +11,6 @@ from pathlib import Path
 PACKAGE = Path(__file__).resolve().parents[3] / "src" / "bfsitl"
 #: What the pure physics may import of bfsitl: itself, and the one exception tree.
 PHYSICS_MAY_IMPORT = ("bfsitl.physics", "bfsitl.errors")
-
-
-def _module_name(path: Path) -> str:
-    parts = path.relative_to(PACKAGE.parent).with_suffix("").parts
-    return ".".join(parts[:-1] if parts[-1] == "__init__" else parts)
 
 
 def _imports(path: Path) -> list[str]:
@@ -41,86 +36,6 @@ def test_the_physics_modules_stay_small() -> None:
     sizes = {path.name: len(path.read_text().splitlines())
              for path in (PACKAGE / "physics").glob("*.py")}
     assert max(sizes.values()) <= 600, sizes
-
-
-def _import_graph() -> dict[str, set[str]]:
-    """Module -> the bfsitl modules it imports anywhere (top level, TYPE_CHECKING, inside a
-    function).  ``from bfsitl.x import y`` counts ``bfsitl.x.y`` when that is a module.  The
-    package root is left out: its lazy table names everything for ``import bfsitl``."""
-    modules = {_module_name(path): path for path in PACKAGE.rglob("*.py")}
-    modules.pop("bfsitl")
-    graph: dict[str, set[str]] = {name: set() for name in modules}
-    for name, path in modules.items():
-        for node in ast.walk(ast.parse(path.read_text())):
-            if isinstance(node, ast.ImportFrom) and node.module and node.level == 0:
-                targets = [node.module, *(f"{node.module}.{a.name}" for a in node.names)]
-            elif isinstance(node, ast.Import):
-                targets = [alias.name for alias in node.names]
-            else:
-                continue
-            graph[name].update(t for t in targets if t in modules and t != name)
-    return graph
-
-
-def _cycles(graph: dict[str, set[str]]) -> list[list[str]]:
-    """The strongly connected components with more than one module (Tarjan's algorithm)."""
-    index: dict[str, int] = {}
-    low: dict[str, int] = {}
-    stack: list[str] = []
-    found: list[list[str]] = []
-
-    def visit(node: str) -> None:
-        index[node] = low[node] = len(index)
-        stack.append(node)
-        for target in sorted(graph[node]):
-            if target not in index:
-                visit(target)
-                low[node] = min(low[node], low[target])
-            elif target in stack:
-                low[node] = min(low[node], index[target])
-        if low[node] == index[node]:
-            component = []
-            while True:
-                member = stack.pop()
-                component.append(member)
-                if member == node:
-                    break
-            if len(component) > 1:
-                found.append(sorted(component))
-
-    for node in sorted(graph):
-        if node not in index:
-            visit(node)
-    return found
-
-
-def test_no_module_imports_itself_round_a_circle() -> None:
-    assert _cycles({"a": {"b"}, "b": {"c"}, "c": {"a"}, "d": {"a"}}) == [["a", "b", "c"]]
-    assert _cycles(_import_graph()) == []
-
-
-#: Packages that must not import the ones named (a lower layer never reaches up).
-LAYERS = {
-    "bfsitl.physics": ("bfsitl.sim", "bfsitl.backend", "bfsitl.mission", "bfsitl.scenario"),
-    "bfsitl.sim": ("bfsitl.backend", "bfsitl.mission", "bfsitl.scenario", "bfsitl.cli"),
-    "bfsitl.backend": ("bfsitl.mission", "bfsitl.scenario", "bfsitl.cli", "bfsitl.autopilot"),
-    "bfsitl.mission": ("bfsitl.records", "bfsitl.scenario", "bfsitl.cli", "bfsitl.autopilot",
-                       "bfsitl.gym"),
-    "bfsitl.gym": ("bfsitl.scenario", "bfsitl.cli", "bfsitl.autopilot"),
-    "bfsitl.records": ("bfsitl.scenario", "bfsitl.cli", "bfsitl.autopilot"),
-    "bfsitl.analysis": ("bfsitl.records", "bfsitl.scenario", "bfsitl.cli", "bfsitl.autopilot",
-                        "bfsitl.gym", "bfsitl.sitl", "bfsitl.fc"),
-    "bfsitl.protocol": ("bfsitl.fc", "bfsitl.sitl", "bfsitl.sim", "bfsitl.mission"),
-}
-
-
-def test_each_layer_imports_only_what_is_below_it() -> None:
-    graph = _import_graph()
-    offenders = [f"{module} imports {target}"
-                 for module, targets in graph.items()
-                 for layer, above in LAYERS.items() if module.startswith(layer)
-                 for target in targets if target.startswith(above)]
-    assert not offenders, offenders
 
 
 #: The kinds of backend, bridge, clock and link: what the factory picks and nobody asks.

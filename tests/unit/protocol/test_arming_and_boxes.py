@@ -29,7 +29,7 @@ from bfsitl.protocol.boxes import (
     box_name,
     decode_flight_modes,
 )
-from bfsitl.protocol.msp_messages import StatusEx
+from bfsitl.protocol.messages import StatusEx
 
 # fc/runtime_config.c:38-68, in bit order.
 CLI_NAMES_4_6 = [

@@ -28,7 +28,7 @@ from hypothesis import strategies as st
 
 from bfsitl.errors import MspDecodeError, MspRequestError
 from bfsitl.protocol import messages
-from bfsitl.protocol import msp_messages as m
+from bfsitl.protocol import messages as m
 from bfsitl.protocol.boxes import BOX_NAMES
 from bfsitl.protocol.messages.wire_types import (
     Array,

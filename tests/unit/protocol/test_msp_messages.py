@@ -16,7 +16,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from bfsitl.errors import MspDecodeError, MspFrameError
-from bfsitl.protocol import msp_messages as m
+from bfsitl.protocol import messages as m
 from bfsitl.protocol.arming import ArmingFlag
 from bfsitl.protocol.msp_codes import MspCommand
 
@@ -615,40 +615,6 @@ def test_multiple_msp_decode_replies_random(commands: list[int], payload: bytes)
         m.MultipleMspReply.decode(payload).decode_replies(commands)
     except MspDecodeError:
         pass
-
-
-# ---------------------------------------------------------------------------------------------
-# the module is a facade over bfsitl.protocol.messages: same names, same errors
-
-
-#: Every public name the hand-written module offered (less the standard library it imported).
-FACADE_NAMES = (
-    "Altitude", "Analog", "ApiVersion", "ArmingConfig", "ArmingFlagInfo", "Attitude",
-    "BATTERY_STATE_NAMES", "BOX_NAMES", "BUILD_OPTION_NAMES", "BatteryState", "BoardInfo",
-    "BoxIds", "BoxNames", "BuildInfo", "CONFIGURATION_PROBLEM_NAMES", "CraftName",
-    "DEFAULT_RCMAP", "Debug", "EepromWrite", "FEATURE_NAMES", "FcVariant", "FcVersion",
-    "FeatureConfig", "GYRO_LSB_PER_DPS", "MAX_AUX_CHANNELS", "MAX_RC_CHANNELS",
-    "MAX_REQUEST_PAYLOAD", "MODE_RANGE_MAX_US", "MODE_RANGE_MIN_US", "MODE_RANGE_SLOTS",
-    "MODE_RANGE_STEP_US", "McuInfo", "ModeRange", "ModeRanges", "Motor", "MotorTelemetry",
-    "MotorTelemetryEntry", "MspCommand", "MspDecodeError", "MspMessage", "MspRequestError",
-    "MultipleMspReply", "MultipleMspRequest", "PayloadReader", "PayloadWriter", "PidAdvanced",
-    "RC_MAP_LETTERS", "REPLY_TYPES", "REQUEST_TYPES", "RX_MAP_CHANNELS", "RawGps", "RawImu",
-    "Rc", "RcTuning", "Reboot", "RebootMode", "RebootReply", "Rtc", "RxMap", "SENSOR_NAMES",
-    "SENSOR_NOT_BUILT", "SITL_ACC_1G_LSB", "SITL_ACC_TRUNCATION_LSB", "SensorConfigActive",
-    "SetArmingConfig", "SetFeatureConfig", "SetModeRange", "SetRawRc", "SetRtc", "SetRxMap",
-    "Status", "StatusEx", "Uid", "decode_arming_flags", "decode_reply", "decode_request",
-)  # fmt: skip
-
-
-def test_the_facade_keeps_every_name() -> None:
-    from bfsitl import errors
-    from bfsitl.protocol import messages
-
-    missing = [name for name in FACADE_NAMES if not hasattr(m, name)]
-    assert not missing
-    assert m.MspRequestError is errors.MspRequestError
-    assert m.Status is messages.Status and m.REPLY_TYPES is messages.REPLY_TYPES
-    assert len(m.REPLY_TYPES) == 32 and len(m.REQUEST_TYPES) == 9
 
 
 def test_short_payload_messages_name_the_first_missing_byte() -> None:

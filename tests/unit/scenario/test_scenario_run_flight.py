@@ -35,7 +35,7 @@ from bfsitl.mission.session import FAST_SERIAL_LINE, FLY_PROFILE, SessionConfig
 from bfsitl.mission.vehicle import FlightSample
 from bfsitl.physics import IRIS, Simulator
 from bfsitl.physics.wind import Wind
-from bfsitl.protocol import msp_messages as msg
+from bfsitl.protocol import messages as msg
 from bfsitl.protocol.boxes import BoxId
 from bfsitl.protocol.msp_codes import MspCommand
 from bfsitl.protocol.msp_frame import MspFrame

@@ -28,11 +28,11 @@ import pytest
 from bfsitl.physics.frames import GeoPoint
 from bfsitl.physics.params import IRIS
 from bfsitl.physics.sensors import SensorReading
-from bfsitl.protocol import msp_messages as msg
+from bfsitl.protocol import messages as msg
 from bfsitl.protocol.arming import decode_arming_flags
+from bfsitl.protocol.fdm_encoding import FdmEncoder
 from bfsitl.protocol.firmware_profile import FirmwareProfile, Generation, profile_for
 from bfsitl.protocol.sitl_packets import FdmPacket, ServoPacket
-from bfsitl.sim.fdm_encoding import FdmEncoder
 from bfsitl.sim.lockstep import decode_reply
 
 DATA = Path(__file__).resolve().parents[2] / "data" / "master"

@@ -25,13 +25,13 @@ from bfsitl.build.binary_scan import SHM_EXCHANGE_MARKER, clear_cache
 from bfsitl.build.lockstep import MARKER
 from bfsitl.errors import BfsitlError, SitlError
 from bfsitl.fc.rc_link import RcCommand
-from bfsitl.sim.lockstep import LockstepClock, LockstepRc
-from bfsitl.sim.shm_exchange import (
+from bfsitl.link.shm_exchange import (
     REGION_BYTES,
     SHM_ENV,
     ShmExchange,
     shm_exchange_supported,
 )
+from bfsitl.sim.lockstep import LockstepClock, LockstepRc
 from bfsitl.sitl.firmware import FirmwareBinary
 
 pytestmark = pytest.mark.skipif(not shm_exchange_supported(),

@@ -18,6 +18,7 @@ from bfsitl.physics.frames import (
     quat_from_euler_deg,
 )
 from bfsitl.protocol.arming import arming_flags_text, decode_arming_flags
+from bfsitl.protocol.fdm_encoding import GPS_LOST_LON_LAT, FdmEncoder, gazebo_quaternion
 from bfsitl.protocol.firmware_profile import (
     DEFAULT_PROFILE,
     BuildOptions,
@@ -25,7 +26,6 @@ from bfsitl.protocol.firmware_profile import (
     profile_for,
 )
 from bfsitl.protocol.sitl_packets import FdmPacket, ServoPacket
-from bfsitl.sim.fdm_encoding import GPS_LOST_LON_LAT, FdmEncoder, gazebo_quaternion
 
 HOME = GeoPoint(47.3977, 8.5456, 488.0)
 V46 = profile_for("1.47", "4.6.0", has_gps=False)
@@ -232,7 +232,7 @@ def test_the_flag_count_picks_the_arming_table():
 
 
 def test_wind_from_the_north_moves_the_air_south_and_from_the_east_west():
-    from bfsitl.physics.params import SimInputError
+    from bfsitl.errors import SimInputError
     from bfsitl.physics.wind import Wind
 
     assert Wind.from_direction(3.0, 0.0).velocity_ned_m_s == pytest.approx((-3.0, 0.0, 0.0))
@@ -253,8 +253,8 @@ def test_health_targets_follow_the_firmwares_own_pid_rate():
 
 
 def test_attitude_tracking_compares_the_fc_with_the_truth_in_the_air_only():
+    from bfsitl.mission.flight_metrics import attitude_tracking
     from bfsitl.mission.flight_row import FlightRow
-    from bfsitl.mission.runner import attitude_tracking
 
     def row(phase: str, alt_m: float, fc_roll: float, sim_roll: float) -> FlightRow:
         return FlightRow(0.0, phase, 2.0, alt_m, alt_m, 0.0, 0.0, 0.0, fc_roll, 0.0, 0.0,

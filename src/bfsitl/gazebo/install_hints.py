@@ -1,6 +1,5 @@
-"""What the Gazebo backend's errors tell the user to install or build.
-
-The classes live in :mod:`bfsitl.errors` (the one tree) and are importable from here too:
+"""What the Gazebo backend's errors tell the user to install or build: the hints their
+messages end with.  The error classes themselves are in :mod:`bfsitl.errors` (the one tree):
 
     BfsitlError
     └── GazeboError                    the Gazebo backend
@@ -10,14 +9,6 @@ The classes live in :mod:`bfsitl.errors` (the one tree) and are importable from 
 """
 
 from __future__ import annotations
-
-from bfsitl.errors import (  # noqa: F401 - defined in errors.py, importable here too
-    BfsitlError,
-    GazeboError,
-    GazeboNotFoundError,
-    GazeboPluginNotFoundError,
-    GazeboStartError,
-)
 
 #: Where the long instructions are; every message points there.
 DOCS = "docs/gazebo.md"

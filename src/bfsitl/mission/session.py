@@ -302,7 +302,19 @@ class FlightSession(Vehicle):
     # -- lifecycle ---------------------------------------------------------------------------
     def start(self) -> Self:
         """Start everything (see the module docstring); a started session is returned as it
-        is (``with launch_sitl(...) as vehicle`` enters a started one)."""
+        is (``with launch_sitl(...) as vehicle`` enters a started one).
+
+        Returns:
+            This session, started; on any error everything started so far is stopped first.
+
+        Raises:
+            FirmwareNotFoundError: No SITL binary by that name or anywhere searched.
+            SitlError: The SITL would not start or answer (``SitlNotReadyError``,
+                ``SitlExitedError``, ``PortInUseError`` are kinds of it).
+            ProvisioningError: The FC's configuration could not be applied.
+            BfsitlError: A backend this firmware or machine cannot have (Gazebo missing, a
+                speed out of range for a stock build, the Configurator's port taken).
+        """
         if self.sitl is not None:
             return self
         config = self.config

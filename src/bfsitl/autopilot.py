@@ -63,9 +63,29 @@ def launch_sitl(firmware: str | Path | None = None, *, physics: str = "embedded"
     """Start a SITL with its physics, provisioned for an :class:`Autopilot`; the started
     vehicle is returned (use it in a ``with`` block, or call ``close()``).
 
-    ``firmware``: a binary or a cached build's name (default: the usual search); ``speed``:
-    x real time (default: real time on a stock build, as fast as possible on a lockstep one);
-    ``gps_noise``: a typical receiver's errors on the GPS.
+    Args:
+        firmware: A SITL binary's path or a cached build's name (``master-lockstep``); None
+            searches as :func:`~bfsitl.sitl.firmware.find_firmware` does.
+        physics: ``"embedded"`` (bfsitl's simulator) or ``"gazebo"`` (``gz sim`` with the
+            BetaflightPlugin; no truth is then known).
+        wind: Wind and gusts of the embedded physics; None is still air.
+        speed: Simulation speed as a multiple of real time.  None: real time on a stock
+            build, as fast as possible on a lockstep one.
+        seed: Seeds the sensor noise and the gusts: the same seed, the same disturbances.
+        gps_noise: Put a typical receiver's errors on the GPS (a GPS build).
+        workdir: The SITL's run directory, whose ``eeprom.bin`` persists between runs;
+            None is a fresh temporary one.
+        progress: Called with one line of text at each step of the start.
+
+    Returns:
+        The started vehicle (a :class:`~bfsitl.mission.session.FlightSession`).
+
+    Raises:
+        FirmwareNotFoundError: No SITL binary by that name or anywhere searched.
+        SitlError: The SITL would not start or answer (``SitlNotReadyError``,
+            ``SitlExitedError``, ``PortInUseError`` are kinds of it).
+        ProvisioningError: The FC's configuration could not be applied.
+        BfsitlError: Anything else bfsitl refuses (a speed out of range, a missing extra).
     """
     config = SessionConfig.for_autopilot(
         control_rate_hz=FlightSession.control_rate_hz, gps_noise=gps_noise, firmware=firmware,
@@ -80,6 +100,22 @@ def connect(uri: str, *, provision: bool = True, rc_rate_hz: float = 25.0,
     ANGLE on AUX2 (``provision=False`` flies with what it holds), RC by MSP at ``rc_rate_hz``.
     Its clock is wall time and it has no truth.  **Propellers off** until you trust it: see
     docs/real-board.md.
+
+    Args:
+        uri: The board's link, ``serial:///dev/ttyACM0?baud=115200`` (or ``tcp://HOST:PORT``).
+        provision: Write ARM on AUX1 and ANGLE on AUX2 when the board lacks them; False flies
+            with the mode ranges it holds.
+        rc_rate_hz: RC frames per second sent by MSP (MSP_SET_RAW_RC).
+        progress: Called with one line of text at each step of the start.
+
+    Returns:
+        The started :class:`~bfsitl.mission.board.BoardVehicle`.
+
+    Raises:
+        LinkError: The port cannot be opened (``ExtraMissingError`` without pyserial).
+        MspError: The board does not answer MSP.
+        BoardSetupError: Its receiver is not MSP, or a setting needs a reboot first.
+        ProvisioningError: The mode ranges could not be written or read back.
     """
     vehicle = BoardVehicle(uri, profile=FLY_PROFILE if provision else None,
                            rc_rate_hz=rc_rate_hz, progress=progress)
@@ -94,6 +130,23 @@ class Autopilot:
     without one ``goto`` raises :class:`~bfsitl.errors.MissionError` and ``hold`` holds the
     altitude only.  Every method raises on trouble (a crash, a timeout, a disarm); the
     record so far stays in :attr:`rows` and the log.
+
+    Args:
+        vehicle: A started vehicle: :func:`launch_sitl`'s or :func:`connect`'s.
+        controller: The altitude controller, by name (``"fused"``, ``"cascade"``, ...: see
+            :func:`~bfsitl.control.make_controller`) or as an object.
+        rate_hz: Control steps per second of the vehicle's clock; None takes the vehicle's
+            own rate (100 on a SITL, 25 on a board).
+        log: A file the flight is written to as it is flown, in the format its suffix names
+            (``.csv`` or ``.mcap``); None writes none.
+        fuse_accelerometer: Fuse the FC's accelerometer with its GPS for the position loop
+            (better with a slow, late receiver; no better in SITL).
+        on_event: Called with each event of the flight as a line of text ("armed ...").
+
+    Raises:
+        MissionError: ``log`` names a format that cannot be written as it flies, or the
+            rate is outside 1 to 200 Hz.
+        ControllerConfigError: ``controller`` names no controller.
     """
 
     def __init__(self, vehicle: Vehicle, controller: str | AltitudeController =
@@ -145,7 +198,23 @@ class Autopilot:
     # -- manoeuvres ---------------------------------------------------------------------------
     def takeoff(self, height_m: float, *, timeout_s: float = 20.0) -> float:
         """Arm (if needed, with a short wait on the ground), climb to ``height_m``; on a GPS
-        build the take-off point is held on the way up.  Returns the climb's seconds."""
+        build the take-off point is held on the way up.
+
+        Args:
+            height_m: Metres above the take-off point.
+            timeout_s: Seconds of the vehicle's clock allowed for the climb to be reached
+                and settled.
+
+        Returns:
+            Seconds the climb took, on the vehicle's clock.
+
+        Raises:
+            ArmingBlockedError: The FC did not arm; ``blockers`` names why.
+            MissionTimeoutError: The height was not reached in ``timeout_s``.
+            CrashDetectedError: The vehicle tipped over or hit the ground.
+            MissionError: The FC disarmed on the way up.
+            SitlExitedError: The SITL ended during the climb.
+        """
         if not self.armed:
             self.mission.arm()
             self.mission.wait_on_ground(GROUND_WAIT_S)
@@ -154,15 +223,41 @@ class Autopilot:
 
     def goto(self, north_m: float, east_m: float, alt_m: float | None = None, *,
              speed_m_s: float | None = None, timeout_s: float | None = None) -> LegStats:
-        """A straight leg to a position and altitude (default: the altitude held); returns
-        how the leg went."""
+        """A straight leg to a position and altitude (default: the altitude held).
+
+        Args:
+            north_m: Metres north of the take-off point.
+            east_m: Metres east of the take-off point.
+            alt_m: Metres above the take-off point; None keeps the altitude held.
+            speed_m_s: Speed along the leg, metres per second; None is the position loop's
+                top speed (2 m/s).
+            timeout_s: Seconds allowed to arrive; None gives 20 s plus three times the leg's
+                planned duration.
+
+        Returns:
+            How the leg went: arrival error and cross-track, from the truth.
+
+        Raises:
+            MissionError: The vehicle is on the ground, the firmware has no GPS, or the FC
+                disarmed.
+            MissionTimeoutError: It did not arrive in ``timeout_s``.
+            CrashDetectedError: The vehicle tipped over or hit the ground.
+        """
         self._require_airborne("goto")
         self.mission.fly_to(north_m, east_m, alt_m, speed_m_s=speed_m_s, timeout_s=timeout_s,
                             waypoint=len(self.mission.legs) + 1)
         return self.mission.legs[-1]
 
     def hold(self, duration_s: float) -> None:
-        """Hold the position (GPS builds) and the altitude for ``duration_s``."""
+        """Hold the position (GPS builds) and the altitude for ``duration_s``.
+
+        Args:
+            duration_s: Seconds of the vehicle's clock.
+
+        Raises:
+            MissionError: The vehicle is on the ground, or the FC disarmed.
+            CrashDetectedError: The vehicle tipped over or hit the ground.
+        """
         self._require_airborne("hold")
         if self.vehicle.has_gps:
             self.mission.hold_position(duration_s)
@@ -170,20 +265,55 @@ class Autopilot:
             self.mission.hold(duration_s)
 
     def yaw_to(self, heading_deg: float, *, tolerance_deg: float = 2.0) -> float:
-        """Turn to ``heading_deg`` (clockwise from north) where the vehicle is."""
+        """Turn to ``heading_deg`` (clockwise from north) where the vehicle is.
+
+        Args:
+            heading_deg: Degrees clockwise from north.
+            tolerance_deg: Degrees off the heading that count as there, held for half a
+                second.
+
+        Returns:
+            Seconds the turn took, on the vehicle's clock.
+
+        Raises:
+            MissionError: The vehicle is on the ground, the heading is not a number, or the
+                FC disarmed.
+            MissionTimeoutError: The heading was not reached in 30 seconds.
+        """
         self._require_airborne("yaw_to")
         if not math.isfinite(heading_deg):
             raise MissionError(f"heading {heading_deg} is not a number")
         return self.mission.yaw_to(heading_deg, tolerance_deg=tolerance_deg)
 
     def land(self, *, timeout_s: float = 30.0) -> None:
-        """Descend (holding the position after position control), touch down, disarm."""
+        """Descend (holding the position after position control), touch down, disarm.
+
+        Args:
+            timeout_s: Seconds of the vehicle's clock allowed to touch down.
+
+        Raises:
+            MissionError: The vehicle is on the ground already, or the FC did not disarm
+                after touch-down.
+            MissionTimeoutError: It did not touch down in ``timeout_s``.
+            CrashDetectedError: It hit the ground too fast.
+        """
         self._require_airborne("land")
         self.mission.land(timeout_s=timeout_s)
 
     def fly(self, plan: MissionPlan) -> MissionResult:
         """A whole plan from the ground, every ending turned into an outcome (never raises
-        for a failed flight): the same as ``bfsitl fly --mission``."""
+        for a failed flight): the same as ``bfsitl fly --mission``.
+
+        Args:
+            plan: What to fly; :func:`~bfsitl.mission.plan.load_mission` reads one from a
+                file.
+
+        Returns:
+            How it ended and its figures; the rows and legs are this plan's only.
+
+        Raises:
+            MissionError: The vehicle is in the air (land first).
+        """
         if self.armed:
             raise MissionError("fly(plan) starts from the ground: land first")
         return fly_mission(self.mission, plan, keep_flying=True)

@@ -122,8 +122,17 @@ class BlackboxLog:
 def decode_blackbox(path: str | Path) -> list[BlackboxLog]:
     """Every log in the file at ``path``, decoded.
 
-    Raises :class:`BlackboxError` for a file that cannot be read or does not start like a
-    blackbox log; damage further in ends that log early (``truncated``), never the call."""
+    Args:
+        path: A blackbox file the FC wrote (``LOG00001.BFL`` on master, ``LOG00001.BF`` on
+            4.6.0); one file may hold several logs, one per armed flight.
+
+    Returns:
+        One decoded log per log in the file, in order: frames, events and headers.
+
+    Raises:
+        BlackboxError: The file cannot be read or does not start like a blackbox log.
+            Damage further in ends that log early (``truncated``), never the call.
+    """
     path = Path(path)
     try:
         data = path.read_bytes()

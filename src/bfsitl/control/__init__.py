@@ -75,8 +75,18 @@ def make_controller(
 ) -> AltitudeController:
     """Controller ``name`` with its default gains, overridden by ``gains``.
 
-    Raises :class:`ControllerConfigError` (also a ``ValueError``) for an unknown controller, an
-    unknown gain name (listing the known ones) or a value the controller cannot work with.
+    Args:
+        name: ``"fused"`` (the default), ``"cascade"``, ``"tutorial-pid"`` or ``"open-loop"``.
+        gains: Gain name to value, for the gains to change (:func:`gain_names` lists a
+            controller's gains and their defaults); None keeps every default.
+
+    Returns:
+        A new controller, ready to be reset at arming.
+
+    Raises:
+        ControllerConfigError: An unknown controller, an unknown gain name (the message lists
+            the known ones) or a value the controller cannot work with.  Also a
+            ``ValueError``.
     """
     gains_type = _gains_type(name)
     overrides = dict(gains or {})

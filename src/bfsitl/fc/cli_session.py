@@ -41,7 +41,16 @@ _REBOOTING = ("save", "exit", "defaults", "bl", "dfu", "msc")
 
 
 class CliSession:
-    """An interactive CLI session on one link (TCP to a SITL, or a serial port)."""
+    """An interactive CLI session on one link (TCP to a SITL, or a serial port).
+
+    Nothing is sent when it is made: :meth:`enter` (or entering the ``with`` block) enters
+    the CLI, and leaving the block returns the port to MSP.
+
+    Args:
+        link: The open transport to the FC's MSP port; the session does not close it.
+        timeout_s: Seconds to wait for a command's output (``diff all`` and ``save`` take at
+            least 10).
+    """
 
     def __init__(self, link: Link, *, timeout_s: float = 5.0) -> None:
         self.link = link
@@ -100,8 +109,20 @@ class CliSession:
     def run(self, command: str, *, check: bool = True, timeout_s: float | None = None) -> str:
         """Run one command and return its output (without the echo and the prompt).
 
-        Raises :class:`CliCommandError` when the output contains ``###ERROR`` and ``check``.
         Use :meth:`save` / :meth:`leave` for commands that reboot or leave the CLI.
+
+        Args:
+            command: One CLI command, printable, without a line break.
+            check: Raise when the output holds ``###ERROR``.
+            timeout_s: Seconds to wait for its output; None takes the session's.
+
+        Returns:
+            What the command printed.
+
+        Raises:
+            CliCommandError: The output holds ``###ERROR`` and ``check`` is on.
+            CliError: The session is not in the CLI, the command reboots or leaves it, holds
+                a control character or is too long, or the output did not come in time.
         """
         self._require_active()
         command = command.strip()
@@ -118,7 +139,19 @@ class CliSession:
         return output
 
     def run_many(self, commands: Iterable[str], *, check: bool = True) -> list[str]:
-        """Run several commands in order; blank lines and ``#`` comments are skipped."""
+        """Run several commands in order; blank lines and ``#`` comments are skipped.
+
+        Args:
+            commands: CLI lines, one command each.
+            check: Raise at the first output holding ``###ERROR``.
+
+        Returns:
+            Each command's output, in order (skipped lines give none).
+
+        Raises:
+            CliCommandError: A command failed and ``check`` is on; the ones before it ran.
+            CliError: As :meth:`run`.
+        """
         outputs = []
         for line in commands:
             line = line.strip()
@@ -127,7 +160,17 @@ class CliSession:
         return outputs
 
     def get(self, name: str) -> str:
-        """The value of one setting (``get`` matches substrings; this picks the exact name)."""
+        """The value of one setting (``get`` matches substrings; this picks the exact name).
+
+        Args:
+            name: The setting's name, as ``get`` prints it.
+
+        Returns:
+            Its value as the CLI prints it.
+
+        Raises:
+            CliCommandError: There is no setting of that exact name.
+        """
         output = self.run(f"get {name}")
         for line in output.splitlines():
             key, sep, value = line.partition(" = ")
@@ -136,6 +179,16 @@ class CliSession:
         raise CliCommandError(f"get {name}", f"###ERROR no setting named {name!r}###\n{output}")
 
     def set(self, name: str, value: object) -> None:
+        """``set name = value``, checked; not saved until :meth:`save`.
+
+        Args:
+            name: The setting's name.
+            value: Its new value, written as ``str(value)``.
+
+        Raises:
+            CliCommandError: The CLI did not confirm the change (an unknown setting, a
+                value out of range).
+        """
         output = self.run(f"set {name} = {value}")
         if "set to" not in output:
             raise CliCommandError(f"set {name} = {value}", output)
@@ -144,7 +197,18 @@ class CliSession:
         return self.run("diff all", timeout_s=max(self.timeout_s, 10.0))
 
     def backup(self, path: str | Path) -> Path:
-        """Write ``diff all`` to ``path`` atomically (a crash never leaves half a backup)."""
+        """Write ``diff all`` to ``path`` atomically (a crash never leaves half a backup).
+
+        Args:
+            path: The file to write; replaced if it exists.
+
+        Returns:
+            The path written.
+
+        Raises:
+            CliError: The CLI did not answer in time.
+            OSError: The file cannot be written.
+        """
         path = Path(path)
         text = self.diff_all()
         tmp = path.with_name(path.name + ".partial")
@@ -157,6 +221,15 @@ class CliSession:
 
         A SITL process exits on reboot; ``restart`` (for example
         ``sitl.restart_after_reboot``) is called once the FC has gone, and this session ends.
+
+        Args:
+            restart: Called with no arguments once the FC has gone; None calls nothing.
+
+        Returns:
+            What the FC printed before rebooting.
+
+        Raises:
+            CliError: The session is not in the CLI, or the FC did not answer in time.
         """
         self._require_active()
         self.link.write(b"save\r")
@@ -177,6 +250,18 @@ class CliSession:
 
         No echo, no prompt, and no ``CLI`` arming flag afterwards.  The firmware ends the
         session 2 s after it began, so keep batches short.
+
+        Args:
+            commands: CLI lines; blank lines and ``#`` comments are skipped.
+            check: Raise when the output holds ``###ERROR`` or ``ERR_CMD_NA``.
+
+        Returns:
+            Everything the batch printed.
+
+        Raises:
+            CliCommandError: A command failed and ``check`` is on.
+            CliError: The interactive CLI is active, a line reboots the FC or is not
+                printable, or the output did not come in time.
         """
         if self.active:
             raise CliError("batch() runs from MSP state; leave() the interactive CLI first")

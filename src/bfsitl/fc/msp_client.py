@@ -131,6 +131,20 @@ class MspClient:
 
     Thread-safe: each exchange holds a lock, so an RC thread and a telemetry thread can share
     a client (their requests are serialised, not interleaved).
+
+    Every request raises :class:`MspErrorReply` for an error frame (``!``: unknown to the FC,
+    or refused in its state), :class:`MspTimeoutError` when no reply comes (retries
+    included), :class:`MspDecodeError` for a reply that does not decode as asked, and
+    :class:`LinkError` when the link fails.
+
+    Args:
+        link: The open transport (:func:`~bfsitl.link.open_link`); closed with the client.
+        timeout_s: Seconds to wait for each reply.
+        retries: How many times a read that got no reply is sent again; writes never are.
+        max_in_flight_bytes: Bytes of requests in flight at most; None: the link's budget.
+        wake_interval_s: Seconds between wake bytes (:data:`WAKE_BYTE`) while waiting;
+            "auto" when the link says its peer needs them (a SITL's TCP port), None never.
+        clock: The clock timeouts count on, seconds (simulation time in lockstep).
     """
 
     def __init__(
@@ -143,9 +157,6 @@ class MspClient:
         wake_interval_s: float | None | Literal["auto"] = "auto",
         clock: Callable[[], float] = time.monotonic,
     ) -> None:
-        """``wake_interval_s``: see :data:`WAKE_BYTE`; "auto" wakes when the link says its
-        peer needs it (a SITL's TCP port); None never sends it.  The in-flight budget is the
-        link's too."""
         self.link = link
         if wake_interval_s == "auto":
             wake_interval_s = DEFAULT_WAKE_INTERVAL_S if link.wants_wake_bytes else None
@@ -183,8 +194,14 @@ class MspClient:
     ) -> bytes:
         """Send one request and return the reply payload.
 
-        Raises :class:`MspErrorReply` when the FC answers ``!`` and :class:`MspTimeoutError`
-        when no reply comes; reads are retried ``retries`` times first, writes never.
+        Args:
+            command: The MSP command id.
+            payload: The request's payload.
+            timeout_s: Seconds to wait for the reply; None: the client's.
+            retries: Times a read is retried first (writes never are); None: the client's.
+
+        Returns:
+            The reply's payload.
         """
         result = self.pipeline(
             [MspRequest(command, bytes(payload))], timeout_s=timeout_s, retries=retries
@@ -204,10 +221,15 @@ class MspClient:
     ) -> list[bytes | MspErrorReply | MspTimeoutError]:
         """Run many requests with up to ``depth`` in flight; results in request order.
 
-        Each result is the reply payload, or the :class:`MspErrorReply` /
-        :class:`MspTimeoutError` for that request (the others still complete).  ``requests``
-        may be a generator: it is consumed as the window opens.  ``on_reply`` is called for
-        every successful reply as it arrives.
+        Args:
+            requests: The requests; a generator is consumed as the window opens.
+            depth: Requests in flight at most (the byte budget may allow fewer).
+            timeout_s: Seconds to wait for each reply; None: the client's.
+            retries: Times a read is retried first; None: the client's.
+            on_reply: Called with each request and its payload as a good reply arrives.
+
+        Returns:
+            Per request, its payload or the error it got (the others still complete).
         """
         timeout_s = self.timeout_s if timeout_s is None else timeout_s
         retries = self.retries if retries is None else retries
@@ -242,18 +264,37 @@ class MspClient:
 
     # -- typed helpers ---------------------------------------------------------------------
     def get(self, message_type: type[T], payload: bytes = b"") -> T:
-        """Request a message by its type and decode the reply: ``client.get(Attitude)``."""
+        """Request a message by its type and decode the reply: ``client.get(Attitude)``.
+
+        Args:
+            message_type: A message class of :mod:`bfsitl.protocol.msp_messages`.
+            payload: The request's payload, for messages that take one.
+
+        Returns:
+            The decoded reply.
+        """
         decodable: Any = message_type
         return decodable.decode(self.request(decodable.COMMAND, payload))
 
     def send(self, message: _Encodable) -> bytes:
-        """Send a request message (``SetModeRange(...)``) and return the raw reply."""
+        """Send a request message (``SetModeRange(...)``) and return the raw reply.
+
+        Args:
+            message: A message object that encodes a request.
+
+        Returns:
+            The reply's payload, as it came.
+        """
         return self.request(message.COMMAND, message.encode())
 
     def multiple(self, commands: Sequence[int]) -> tuple[bytes, ...]:
         """Several parameterless v1 reads in one MSP_MULTIPLE_MSP round trip.
 
-        A command the FC cannot answer comes back as an empty payload.
+        Args:
+            commands: MSP v1 command ids that take no payload.
+
+        Returns:
+            One payload per command, in order; empty for one the FC cannot answer.
         """
         request = msg.MultipleMspRequest(tuple(commands))
         reply = msg.MultipleMspReply.decode(self.request(request.COMMAND, request.encode()))
@@ -265,7 +306,14 @@ class MspClient:
         return reply.payloads
 
     def box_ids(self, refresh: bool = False) -> tuple[int, ...]:
-        """The FC's active boxes (permanent ids) in STATUS flight-mode bit order; cached."""
+        """The FC's active boxes (permanent ids) in STATUS flight-mode bit order; cached.
+
+        Args:
+            refresh: Ask the FC again instead of answering from the cache.
+
+        Returns:
+            The permanent box ids.
+        """
         if self._box_ids is None or refresh:
             self._box_ids = self.get(msg.BoxIds).ids
         return self._box_ids
@@ -282,7 +330,14 @@ class MspClient:
         return MspRequest(request.COMMAND, request.encode())
 
     def decode_telemetry(self, payload: bytes) -> Telemetry:
-        """Decode the reply to :meth:`telemetry_request`."""
+        """Decode the reply to :meth:`telemetry_request`.
+
+        Args:
+            payload: The MSP_MULTIPLE_MSP reply's payload.
+
+        Returns:
+            The snapshot, as :meth:`telemetry` gives it.
+        """
         reply = msg.MultipleMspReply.decode(payload)
         return telemetry_from_payloads(reply.payloads, self._clock(), self._box_ids or ())
 
@@ -303,6 +358,12 @@ class MspClient:
         return self.get(msg.ModeRanges)
 
     def set_mode_range(self, index: int, mode_range: msg.ModeRange) -> None:
+        """Write one mode range slot; not saved until :meth:`eeprom_write`.
+
+        Args:
+            index: The slot, 0-based.
+            mode_range: The mode, its AUX channel and its pulse range.
+        """
         self.send(msg.SetModeRange(index, mode_range))
 
     def eeprom_write(self) -> None:

@@ -48,7 +48,21 @@ BOOT_ONLY_SETTINGS = frozenset({"serial_update_rate_hz", "blackbox_device",
 
 @dataclass(frozen=True, slots=True)
 class Profile:
-    """What to configure: mode ranges in slots 0, 1, ... and CLI lines after them."""
+    """What to configure: mode ranges in slots 0, 1, ... and CLI lines after them.
+
+    Attributes:
+        mode_ranges: Written to the FC's mode range slots 0, 1, ... in order; ARM on AUX1
+            (1700 to 2100 microseconds) by default.
+        cli_lines: CLI lines run after them (``set name = value``, ...); each is checked
+            when the profile is made.
+        reboot_when_changed: Reboot after saving whenever something changed: for lines the
+            firmware applies at boot without saying so (a feature, a serial port's
+            function).
+
+    Raises:
+        ProvisioningError: A CLI line the FC must not get (one that crashes, reboots or
+            hangs it).
+    """
 
     mode_ranges: tuple[msg.ModeRange, ...] = (ARM_ON_AUX1,)
     cli_lines: tuple[str, ...] = ()
@@ -64,7 +78,19 @@ class Profile:
     def from_file(cls, path: str | Path,
                   mode_ranges: tuple[msg.ModeRange, ...] = (ARM_ON_AUX1,)) -> Profile:
         """CLI lines from a file (``#`` comments and blank lines skipped); a file that cannot
-        be read, is not text or holds a line the FC must not get is one error naming it."""
+        be read, is not text or holds a line the FC must not get is one error naming it.
+
+        Args:
+            path: A text file of CLI lines.
+            mode_ranges: The profile's mode ranges; ARM on AUX1 by default.
+
+        Returns:
+            The profile.
+
+        Raises:
+            ProvisioningError: The file cannot be read or holds a line the FC must not get
+                (the message names the file and the line).
+        """
         from bfsitl.toml_file import read_text_file
 
         text = read_text_file(Path(path), "profile", ProvisioningError)
@@ -133,6 +159,20 @@ def provision(
     ``reboot`` is called when a CLI line needs a reboot to take effect (the FC reports it in
     STATUS); it must reboot the FC and reconnect (for a SITL: MSP_REBOOT, then
     ``SitlProcess.restart_after_reboot``, whose ``client`` is the new connection).
+
+    Args:
+        client: The FC's MSP client; its link carries the CLI lines too.
+        profile: What to configure; ARM on AUX1 by default.
+        reboot: Called with no arguments when a reboot is needed; None makes that an error.
+
+    Returns:
+        Whether anything was written and saved, how much, and whether the FC rebooted.
+
+    Raises:
+        ProvisioningError: More mode ranges than the FC has slots, a slot that reads back
+            otherwise, or a needed reboot without ``reboot``.
+        CliCommandError: A CLI line failed.
+        MspError: The FC stopped answering, or refused a write.
     """
     current = client.mode_ranges().ranges
     if len(profile.mode_ranges) > len(current):

@@ -80,15 +80,22 @@ SAFE_COMMAND = RcCommand()
 class RcFault:
     """An injected RC fault: what a link sends instead of its command while it lasts.
 
-    * ``silent``: nothing at all (master's UDP receiver raises RXLOSS 150 ms later; 4.6.0
-      holds the last channels forever, so this is no fault there);
-    * ``pulses_us``: (channel index, pulse) pairs sent as they are, unclamped: a pulse below
-      ``rx_min_usec`` (885) or above ``rx_max_usec`` (2115) is what a receiver reports for a
-      lost channel: a flight channel (AETR) invalid for 300 ms starts the failsafe on every
-      generation, but in stage 2 the firmware counts the frames as valid again and recovers
-      (rx/rx.c), so the loss comes and goes (measured on both);
-    * ``delay_s`` (plus up to ``jitter_s`` more, uniformly, per packet): the command that was
-      set that long ago, as a slow radio link delivers it.
+    Attributes:
+        silent: Send nothing at all (master's UDP receiver raises RXLOSS 150 ms later; 4.6.0
+            holds the last channels forever, so this is no fault there).
+        pulses_us: (channel index, pulse in microseconds) pairs sent as they are,
+            unclamped: a pulse below ``rx_min_usec`` (885) or above ``rx_max_usec`` (2115)
+            is what a receiver reports for a lost channel: a flight channel (AETR) invalid
+            for 300 ms starts the failsafe on every generation, but in stage 2 the firmware
+            counts the frames as valid again and recovers (rx/rx.c), so the loss comes and
+            goes (measured on both).  Channel indexes are 0 to 15, pulses 0 to 65535.
+        delay_s: Send the command that was set this many seconds ago, as a slow radio link
+            delivers it.
+        jitter_s: Up to this many seconds more delay, uniformly at random, per packet.
+
+    Raises:
+        BfsitlError: A channel or pulse the RC packet cannot carry, or a negative delay or
+            jitter.
     """
 
     silent: bool = False

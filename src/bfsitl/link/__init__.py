@@ -36,6 +36,20 @@ def open_link(
     ``tcp://127.0.0.1:5761`` is the SITL's UART1; ``serial:///dev/ttyACM0?baud=115200`` a real
     board (``baud`` defaults to 115200).  ``socket_factory`` makes the TCP socket, which lets a
     caller connect inside an isolated SITL's network namespace.
+
+    Args:
+        uri: ``tcp://HOST:PORT`` or ``serial:///dev/DEVICE?baud=N``; the SITL's UART1 on this
+            machine by default.
+        timeout_s: Seconds a read waits for bytes (a TCP connection has 2 s to connect).
+        socket_factory: Makes the TCP socket; None makes an ordinary one.
+
+    Returns:
+        The open link.
+
+    Raises:
+        LinkError: An unknown scheme or a malformed URI, or the connection or port cannot
+            be opened (``LinkTimeoutError`` when nothing answers in time).
+        ExtraMissingError: A serial URI without pyserial (``pip install 'bfsitl[serial]'``).
     """
     parts = urlsplit(uri)
     if parts.scheme == "tcp":

@@ -47,8 +47,21 @@ BOARD_MSP_TIMEOUT_S = 1.0
 
 class BoardVehicle(Vehicle):
     """A flight controller reached at ``uri``, flown with RC by MSP (see the module
-    docstring).  ``profile``: the mode ranges (and CLI lines) to provision, None to fly with
-    what the board holds."""
+    docstring).  Nothing is opened when it is made: :meth:`start` (or entering the ``with``
+    block) does.
+
+    Args:
+        uri: The board's link: ``serial:///dev/ttyACM0?baud=115200`` or ``tcp://HOST:PORT``.
+        profile: The mode ranges (and CLI lines) to provision; None flies with what the
+            board holds.
+        rc_rate_hz: RC frames per second sent by MSP (MSP_SET_RAW_RC).
+        timeout_s: Seconds an MSP request may take before it is retried or given up.
+        arm_timeout_s: Seconds :meth:`arm` waits by default for the FC to arm.
+        angle_mode: Hold AUX2 on while armed (ANGLE, when the profile puts ANGLE there).
+        progress: Called with one line of text at each step of the start.
+        link_opener: Opens the link from ``uri`` (called with ``timeout_s=``); None is
+            :func:`~bfsitl.link.open_link`.  Tests pass anything that speaks MSP.
+    """
 
     #: What the default serial task (100 Hz) leaves room for next to RC and the GPS.
     control_rate_hz = 25.0
@@ -74,7 +87,17 @@ class BoardVehicle(Vehicle):
         self._has_gps = False
 
     def start(self) -> Self:
-        """Connect, check, provision, start RC; a started vehicle is returned as it is."""
+        """Connect, check, provision, start RC; a started vehicle is returned as it is.
+
+        Returns:
+            This vehicle, started.
+
+        Raises:
+            LinkError: The link cannot be opened.
+            MspError: The board does not answer MSP.
+            BoardSetupError: Its receiver is not MSP, or a setting needs a reboot first.
+            ProvisioningError: The profile could not be written or read back.
+        """
         if self._client is not None:
             return self
         try:

@@ -64,6 +64,20 @@ class Mission(PositionSteering):
 
     >>> mission = Mission(session, CascadedAltitudeController())   # doctest: +SKIP
     >>> mission.arm(); mission.takeoff(2.0); mission.hold(10); mission.land()
+
+    Making one raises :class:`MissionError` for a rate outside 1 to 200 Hz.  Manoeuvres raise
+    :class:`CrashDetectedError`, :class:`MissionTimeoutError`, :class:`SitlExitedError`, and
+    :class:`MissionError` when the FC disarms (or, after a landing, does not).
+
+    Args:
+        session: A started vehicle: a :class:`FlightSession` or a board's.
+        controller: The altitude controller of every manoeuvre but the landing.
+        landing: The landing's controller; None is the usual ``LandingController``.
+        rate_hz: Control steps per second of the vehicle's clock, 1 to 200.
+        log: Where each row is written as it is recorded; None writes none.
+        on_row: Called with each row and its sample; short for ``hooks`` with ``on_step``.
+        on_event: Called with each line of progress; short for ``hooks`` with ``on_event``.
+        hooks: Every hook, the stop condition included; the two above fill its gaps.
     """
 
     def __init__(
@@ -78,8 +92,6 @@ class Mission(PositionSteering):
         on_event: EventCallback | None = None,
         hooks: FlightHooks | None = None,
     ) -> None:
-        """``hooks`` (or, for short, ``on_row`` and ``on_event``): see
-        :class:`~bfsitl.mission.hooks.FlightHooks`."""
         if not 1.0 <= rate_hz <= 200.0:
             raise MissionError(f"control rate {rate_hz} Hz is outside 1..200 Hz")
         self.session = session
@@ -134,7 +146,11 @@ class Mission(PositionSteering):
     def wait_on_ground(self, seconds: float) -> None:
         """Stay armed at idle for ``seconds``: the FC's altitude filter, which restarts from
         zero at arming, settles, and a controller with ``observe_ground`` (the fused one) learns
-        the barometer's zero error from the vehicle at rest, where the truth is known."""
+        the barometer's zero error from the vehicle at rest, where the truth is known.
+
+        Args:
+            seconds: Seconds of the vehicle's clock.
+        """
         if self.stopped:
             return
         self._on_event(f"on the ground for {seconds:g} s (the barometer settles)")
@@ -150,8 +166,15 @@ class Mission(PositionSteering):
                 hold_position: bool = False) -> float:
         """Climb to ``altitude_m`` above the take-off point; returns the sim time it took.
 
-        ``hold_position`` (GPS builds) holds the take-off point on the way up: without it,
-        wind carries the vehicle off while it climbs."""
+        Args:
+            altitude_m: Metres above the take-off point.
+            timeout_s: Seconds of simulation time to reach the height and settle there.
+            hold_position: (GPS builds) Hold the take-off point on the way up: without it,
+                wind carries the vehicle off while it climbs.
+
+        Returns:
+            Seconds of simulation time the climb took.
+        """
         if self.stopped:
             return 0.0
         self._on_event(f"take-off to {altitude_m:.2f} m"
@@ -169,8 +192,15 @@ class Mission(PositionSteering):
 
     def climb_to(self, altitude_m: float, *, timeout_s: float = 20.0) -> float:
         """Climb or descend to ``altitude_m`` where the vehicle is (an altitude step; a leg
-        to a position is :meth:`fly_to`); returns the sim time it took.  Logged as a
-        :attr:`Phase.GOTO`, as before."""
+        to a position is :meth:`fly_to`).  Logged as a :attr:`Phase.GOTO`, as before.
+
+        Args:
+            altitude_m: Metres above the take-off point.
+            timeout_s: Seconds of simulation time to reach the height and settle there.
+
+        Returns:
+            Seconds of simulation time the step took.
+        """
         if self.stopped:
             return 0.0
         self._on_event(f"go to {altitude_m:.2f} m")
@@ -183,6 +213,12 @@ class Mission(PositionSteering):
         Off-centre ``roll_us`` / ``pitch_us`` / ``yaw_us`` are held for the whole time (a stick
         step: in ANGLE mode roll and pitch set an angle, yaw a rate) and centred again at the
         end; the altitude controller keeps working throughout.
+
+        Args:
+            seconds: Seconds of simulation time.
+            roll_us: The roll stick, microseconds of pulse width (1500 is centred).
+            pitch_us: The pitch stick, microseconds of pulse width (1500 is centred).
+            yaw_us: The yaw stick, microseconds of pulse width (1500 is centred).
         """
         if self.stopped:
             return
@@ -207,7 +243,14 @@ class Mission(PositionSteering):
                       east_m: float | None = None, *, waypoint: int = 0) -> None:
         """Hold the altitude and a position (metres from the take-off point; default: the
         last position target, else where the FC's GPS is now) for ``seconds``, steering
-        through ANGLE mode and holding the heading."""
+        through ANGLE mode and holding the heading.
+
+        Args:
+            seconds: Seconds of simulation time.
+            north_m: Metres north of the take-off point; None as said above.
+            east_m: Metres east of the take-off point; None as said above.
+            waypoint: The waypoint's number in the log (0: none).
+        """
         if self.stopped:
             return
         target = self._position_target(north_m, east_m)
@@ -220,15 +263,25 @@ class Mission(PositionSteering):
     def fly_to(self, north_m: float, east_m: float, alt_m: float | None = None, *,
                speed_m_s: float | None = None, tolerance_m: float = 0.15,
                timeout_s: float | None = None, waypoint: int = 0) -> float:
-        """Fly a straight leg to a position (metres from the take-off point) and altitude
-        (default: the one held), at ``speed_m_s`` (default: the position gains' top speed).
+        """Fly a straight leg to a position and altitude at ``speed_m_s``.
 
         The leg starts at the last position target (where the previous leg ended) or, before
         any, where the FC's GPS is.  It is reached once the travelling reference has stopped
         at the end and the FC's GPS puts the vehicle within ``tolerance_m`` of it, slower than
-        0.3 m/s (tight, because the GPS's own error adds to it).  Returns the simulation time
-        it took; the leg's figures (arrival error and cross-track, from the truth) are
-        appended to :attr:`legs`.
+        0.3 m/s (tight, because the GPS's own error adds to it).  The leg's figures (arrival
+        error and cross-track, from the truth) are appended to :attr:`legs`.
+
+        Args:
+            north_m: Metres north of the take-off point.
+            east_m: Metres east of the take-off point.
+            alt_m: Metres above the take-off point; None keeps the altitude held.
+            speed_m_s: Metres per second along the leg; None is the gains' top speed.
+            tolerance_m: Metres from the end, by the FC's GPS, that count as arrived.
+            timeout_s: Seconds of simulation time; None: 20 plus 3 times the leg's plan.
+            waypoint: The waypoint's number, for the log and the leg (0: the next one).
+
+        Returns:
+            Seconds of simulation time the leg took.
         """
         if self.stopped:
             return 0.0
@@ -268,9 +321,17 @@ class Mission(PositionSteering):
 
     def yaw_to(self, heading_deg: float, *, tolerance_deg: float = 2.0,
                timeout_s: float = 30.0) -> float:
-        """Turn to ``heading_deg`` (clockwise from north), holding the altitude, and the
-        position on a GPS build; reached when the FC's heading stays within ``tolerance_deg``
-        for half a second.  Returns the simulation time it took."""
+        """Turn to ``heading_deg``, holding the altitude, and the position on a GPS build;
+        reached when the FC's heading stays within ``tolerance_deg`` for half a second.
+
+        Args:
+            heading_deg: Degrees clockwise from north (taken modulo 360).
+            tolerance_deg: Degrees off the heading that count as there.
+            timeout_s: Seconds of simulation time for the turn.
+
+        Returns:
+            Seconds of simulation time the turn took.
+        """
         if self.stopped:
             return 0.0
         target_deg = heading_deg % 360.0
@@ -313,7 +374,14 @@ class Mission(PositionSteering):
         ``switches`` (0-based: 2 is AUX3) on, roll, pitch and yaw centred, the throttle held
         at ``throttle_us`` (ALTHOLD reads it as a climb-rate stick around its hover value).
         Rows are recorded as usual; the switches go off again at the end.  For comparing
-        bfsitl's control with the firmware's ALTHOLD / POSHOLD on the same vehicle."""
+        bfsitl's control with the firmware's ALTHOLD / POSHOLD on the same vehicle.
+
+        Args:
+            seconds: Seconds of simulation time.
+            switches: The AUX channels to switch on, 0-based (2 is AUX3).
+            throttle_us: The throttle held meanwhile, microseconds of pulse width.
+            phase: The phase the rows are recorded under.
+        """
         if self.stopped:
             return
         self._on_event(f"handing over to the FC's modes (AUX "
@@ -337,8 +405,13 @@ class Mission(PositionSteering):
                 phase: Phase = Phase.OBSERVE) -> None:
         """Record rows without flying: the sticks stay as they are, because something else
         has the vehicle (an injected RC fault, the FC's failsafe).  Nothing is judged here (a
-        disarm or a crash is what a scenario watches for); ends when ``done`` says so or
-        after ``timeout_s`` of simulation time."""
+        disarm or a crash is what a scenario watches for).
+
+        Args:
+            done: Asked with each sample; True ends the watch.
+            timeout_s: Seconds of simulation time at most; reaching it is no error.
+            phase: The phase the rows are recorded under.
+        """
         self.phase = phase
         clock = self.session.clock
         period_s = 1.0 / self.rate_hz
@@ -353,7 +426,11 @@ class Mission(PositionSteering):
             next_s = next_step(clock, next_s, period_s)
 
     def land(self, *, timeout_s: float = 30.0) -> None:
-        """Descend, touch down, cut the throttle, disarm."""
+        """Descend, touch down, cut the throttle, disarm.
+
+        Args:
+            timeout_s: Seconds of simulation time to touch down.
+        """
         if self.stopped:
             return
         self._on_event("landing")
@@ -509,7 +586,11 @@ class Mission(PositionSteering):
         return row
 
     def abort(self, ending: Outcome) -> None:
-        """Sticks to disarm now (the RC link repeats it on close) and record the final row."""
+        """Sticks to disarm now (the RC link repeats it on close) and record the final row.
+
+        Args:
+            ending: How the flight ended; the final row's phase carries its value.
+        """
         session = self.session
         if session.rc is None:
             return

@@ -40,7 +40,21 @@ def _check_range(what: str, value: float, low: float, high: float, unit: str) ->
 
 @dataclass(frozen=True, slots=True)
 class Waypoint:
-    """A point to fly to, metres from the take-off point (north, east, up)."""
+    """A point to fly to, metres from the take-off point (north, east, up).
+
+    Every value is checked when it is made.
+
+    Attributes:
+        north_m: Metres north of the take-off point, within 10 km.
+        east_m: Metres east of the take-off point, within 10 km.
+        alt_m: Metres above the take-off point, 0.3 to 100.
+        hold_s: Seconds to hold the position there, 0 to 3600.
+        heading_deg: Turn to this heading on arrival, degrees clockwise from north (0 to
+            360); None keeps the heading.
+
+    Raises:
+        MissionError: A value is out of its range or no number.
+    """
 
     north_m: float
     east_m: float
@@ -62,7 +76,29 @@ class Waypoint:
 @dataclass(frozen=True, slots=True)
 class MissionPlan:
     """Take off to ``target_alt_m``, hold ``hold_s``, fly the ``waypoints`` in order (each a
-    leg at ``speed_m_s``, then its own hold), land and disarm (``land``)."""
+    leg at ``speed_m_s``, then its own hold), land and disarm (``land``).
+
+    Every value is checked when it is made; :func:`load_mission` reads one from a file.
+
+    Attributes:
+        target_alt_m: The take-off's height, metres above the take-off point (0.3 to 100).
+        hold_s: Seconds to hold after the take-off (0 to 3600).
+        takeoff_timeout_s: Seconds of simulation time allowed for the climb to be reached
+            and settled.
+        land_timeout_s: Seconds of simulation time allowed for the landing to touch down.
+        ground_s: Seconds armed at idle before the take-off, while the barometer settles
+            (:meth:`~bfsitl.mission.loop.Mission.wait_on_ground`; 0 to 60).
+        waypoints: The points to fly to, in order; they need a GPS build.
+        speed_m_s: Speed along the legs, metres per second (0.1 to 20).
+        land: Land and disarm at the end; False ends the mission in the air (the session's
+            close then disarms: in a simulation the vehicle falls).
+        hold_position: On a firmware with GPS, hold the take-off point during the take-off,
+            the hold and the landing even without waypoints (wind would carry the vehicle
+            off); False flies the altitude alone, sticks centred.
+
+    Raises:
+        MissionError: A value is out of its range, or a waypoint is no :class:`Waypoint`.
+    """
 
     target_alt_m: float = 2.0
     hold_s: float = DEFAULT_HOLD_S
@@ -156,7 +192,19 @@ def _check_types(where: str, values: dict[str, Any]) -> None:
 
 
 def load_mission(path: str | Path) -> MissionPlan:
-    """Read a mission TOML file (see the module docstring)."""
+    """Read a mission TOML file (see the module docstring).
+
+    Args:
+        path: The mission file.
+
+    Returns:
+        The plan, every value checked.
+
+    Raises:
+        MissionError: The file cannot be read, is no TOML, or holds an unknown key, a
+            missing one or a value out of range (the message names the file, the waypoint
+            and the key).
+    """
     path = Path(path)
     data = read_toml_file(path, "mission", MissionError)
     return plan_from_dict(data, source=str(path))

@@ -100,6 +100,25 @@ def run_mission(
 
     Ctrl-C becomes :attr:`Outcome.INTERRUPTED` (the sticks go to disarm at once and a last
     row records them); the caller still closes the session.
+
+    Args:
+        session: A started vehicle (a :class:`~bfsitl.mission.session.FlightSession` or a
+            :class:`~bfsitl.mission.board.BoardVehicle`).
+        plan: What to fly.
+        controller: The altitude controller that flies it
+            (:func:`~bfsitl.control.make_controller` makes one by name).
+        landing: The controller of the landing; None is the usual one.
+        log: Where each row is written as it is recorded; None writes none.
+        on_row: Called with each row and the sample it was made from.
+        on_event: Called with each line of progress.
+        rate_hz: Control steps per second of simulation time (wall time on a board), 1 to
+            200.
+
+    Returns:
+        How it ended and its figures; a failed flight is an outcome, not an exception.
+
+    Raises:
+        MissionError: ``rate_hz`` is outside 1 to 200 (nothing has flown then).
     """
     mission = Mission(session, controller, landing=landing, rate_hz=rate_hz, log=log,
                       on_row=on_row, on_event=on_event)

@@ -20,6 +20,19 @@ from bfsitl.mission.plan import MissionPlan
 
 
 class Outcome(enum.Enum):
+    """How a mission ended; :attr:`succeeded` for the first two.
+
+    Attributes:
+        LANDED: Flown to its end, landed and disarmed.
+        COMPLETED: Flown to its end in the air (a plan with ``land = false``).
+        ARMING_BLOCKED: The FC would not arm; :attr:`MissionResult.blockers` says why.
+        SITL_EXITED: The SITL process ended during the flight.
+        TIMEOUT: A phase did not finish within its time limit.
+        CRASHED: The vehicle tipped over or hit the ground too fast.
+        INTERRUPTED: Ctrl-C, SIGTERM or SIGHUP stopped it.
+        ERROR: Any other bfsitl error; :attr:`MissionResult.reason` says which.
+    """
+
     LANDED = "landed"
     COMPLETED = "completed"       # a plan with land = false: ended in the air
     ARMING_BLOCKED = "arming-blocked"
@@ -36,6 +49,27 @@ class Outcome(enum.Enum):
 
 @dataclass
 class MissionResult:
+    """What a flown mission comes to: how it ended, why, and its figures.
+
+    Attributes:
+        outcome: How it ended.
+        reason: One line saying why ("landed and disarmed", the error's first line).
+        controller: The altitude controller's name.
+        plan: The plan flown.
+        rows: One row per control step, in order.
+        blockers: The FC's arming blockers, when it would not arm.
+        armed_after_s: Wall seconds from the vehicle's creation to the FC reporting armed;
+            None if it never armed.
+        hold: How well the altitude was held (the truth against the target), or None.
+        attitude: How well the FC's roll and pitch followed the truth in the air, or None.
+        metrics: The take-off's step response (a
+            :class:`~bfsitl.control.metrics.StepMetrics`), when the plan holds long enough
+            after it to judge one; else None.
+        legs: One entry per waypoint reached: arrival error and cross-track.
+        extra: Anything else worth keeping, by name: ``firmware`` (version and
+            conventions), ``rc_link`` and ``physics`` (how the links kept up).
+    """
+
     outcome: Outcome
     reason: str
     controller: str

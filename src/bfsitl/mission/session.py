@@ -95,7 +95,59 @@ def fly_sensors(*, baro_noise_std_pa: float | None = None,
 
 @dataclass(frozen=True, slots=True)
 class SessionConfig:
-    """Everything a session needs to know before it starts; all of it has a default."""
+    """Everything a session needs to know before it starts; all of it has a default.
+
+    Attributes:
+        firmware: A SITL binary's path or a cached build's name; None searches as
+            :func:`~bfsitl.sitl.firmware.find_firmware` does.
+        workdir: The SITL's run directory; its ``eeprom.bin`` persists.  None: a fresh
+            temporary one.
+        isolate: Run the SITL in a private network namespace, so a stale SITL cannot share
+            its ports.
+        speed: Simulation speed as a multiple of wall time.  None: real time (1.0) with a
+            stock SITL, as fast as possible with a lockstep build.  Real time allows 0.05 to
+            4 (0.5 is the faithful speed on a busy 2-core machine); lockstep any positive
+            speed, ``math.inf`` the most.
+        lockstep: Step the firmware's clock with the physics (a ``--lockstep`` build is
+            needed).  None: whenever the firmware is a lockstep build.
+        profile: What to provision (mode ranges and CLI lines); None flies with whatever the
+            FC already holds.  The default is ARM on AUX1 and ANGLE on AUX2.
+        angle_mode: Hold AUX2 on while armed (ANGLE, when the profile puts ANGLE there).
+        sensors: The simulated sensors' errors; by default half a pascal of barometer noise
+            and 0.05 metres per second squared of accelerometer noise
+            (:func:`fly_sensors`), which dither the steps 4.6.0 truncates its readings to.
+        arm_timeout_s: Seconds :meth:`FlightSession.arm` waits for the FC's blockers to
+            clear and for it to arm.
+        physics: ``"embedded"`` (bfsitl's simulator and bridge) or ``"gazebo"`` (``gz sim``
+            with the BetaflightPlugin, started in the SITL's namespace; no simulated truth is
+            then known).
+        gz_plugin_dir: Where libBetaflightPlugin.so is, for ``physics="gazebo"``; None
+            uses Gazebo's search path.
+        wind: Wind and gusts of the embedded physics; None is still air.
+        quad: The simulated quad of the embedded physics: Gazebo's IRIS unless told
+            otherwise.
+        seed: Seeds the sensor noise and the gusts: the same seed gives the same
+            disturbances.
+        initial_heading_deg: The quad's heading when the flight starts, degrees clockwise
+            from north (the embedded physics).  A firmware without a compass believes north
+            at boot whatever it is.
+        rc_link: Send RC over UDP (the SITL's usual receiver).  False leaves RC to someone
+            else: a :class:`~bfsitl.mission.board.BoardVehicle` sending MSP_SET_RAW_RC
+            through the serial bridge (real time only).
+        configurator_port: Serve the Configurator during the flight: a WebSocket bridge on
+            127.0.0.1 at this port relays to the FC's UART2.  None: no bridge; 0: any free
+            port (:attr:`FlightSession.configurator_url` says which).
+        allow_origins: Web page origins the Configurator bridge accepts beyond the
+            Configurator's own.
+        lockstep_spin: Lockstep: busy-wait for each other's packets instead of sleeping;
+            fastest when the run has cores to itself, off when runs share the cores.
+        lockstep_exchange: Lockstep: how packets pass between the physics and the firmware:
+            ``"auto"`` (shared memory where the build and the machine have it, else UDP),
+            ``"shm"`` or ``"udp"``.  Either gives the same flight.
+        physics_kernel: How the embedded physics steps: ``"auto"`` (the compiled kernel
+            where it helps and a C compiler builds it, else pure Python), ``"compiled"`` or
+            ``"python"``.  Either gives the same flight, bit for bit.
+    """
 
     firmware: str | Path | None = None
     #: Run directory of the SITL; its ``eeprom.bin`` persists.  None: a fresh temporary one.
@@ -165,7 +217,26 @@ class SessionConfig:
         scenario runs): ``profile`` with the serial task at 1 kHz when the control loop runs
         above 50 Hz (:data:`FAST_SERIAL_LINE`), the default sensor errors
         (:func:`fly_sensors`, plus a typical receiver's GPS errors with ``gps_noise``), and
-        any other field as given."""
+        any other field as given.
+
+        Args:
+            control_rate_hz: The rate the autopilot's loop will run at, steps per second;
+                above 50 the serial task is set to 1 kHz.
+            gps_noise: Put a typical receiver's errors on the GPS.
+            baro_noise_std_pa: Barometer noise, standard deviation in pascals; None is the
+                default half a pascal.
+            accel_noise_std_m_s2: Accelerometer noise, standard deviation in metres per
+                second squared; None is the default 0.05.
+            profile: What to provision; None flies with what the FC holds (and sets no
+                serial rate).
+            **fields: Any other :class:`SessionConfig` field, by name.
+
+        Returns:
+            The configuration.
+
+        Raises:
+            TypeError: A name in ``fields`` is no field of :class:`SessionConfig`.
+        """
         sensors = fly_sensors(baro_noise_std_pa=baro_noise_std_pa,
                               accel_noise_std_m_s2=accel_noise_std_m_s2)
         if gps_noise:
@@ -182,6 +253,16 @@ class FlightSession(Vehicle):
     ...     session.arm()
     ...     session.set_throttle(1550)
     ...     print(session.sample().sim_alt_m)
+
+    Nothing starts when it is made: :meth:`start` (or entering the ``with`` block) does.
+
+    Args:
+        config: What to fly and how; None takes every default of :class:`SessionConfig`.
+        progress: Called with one line of text at each step of the start.
+
+    Raises:
+        BfsitlError: The speed is no positive number, or ``configurator_port`` is given
+            without a profile to provision.
     """
 
     #: With the serial task at 1 kHz (``with_fast_serial``, what launch_sitl provisions).
@@ -207,7 +288,19 @@ class FlightSession(Vehicle):
     # -- lifecycle ---------------------------------------------------------------------------
     def start(self) -> Self:
         """Start everything (see the module docstring); a started session is returned as it
-        is (``with launch_sitl(...) as vehicle`` enters a started one)."""
+        is (``with launch_sitl(...) as vehicle`` enters a started one).
+
+        Returns:
+            This session, started; on any error everything started so far is stopped first.
+
+        Raises:
+            FirmwareNotFoundError: No SITL binary by that name or anywhere searched.
+            SitlError: The SITL would not start or answer (``SitlNotReadyError``,
+                ``SitlExitedError``, ``PortInUseError`` are kinds of it).
+            ProvisioningError: The FC's configuration could not be applied.
+            BfsitlError: A backend this firmware or machine cannot have (Gazebo missing, a
+                speed out of range for a stock build, the Configurator's port taken).
+        """
         if self.sitl is not None:
             return self
         config = self.config

@@ -109,6 +109,14 @@ class Vehicle:
     disturbances and the accelerometer's scale come from it.  Subclasses start the FC side
     (:meth:`start`), set :attr:`rc` once RC flows, and say whether the FC has a GPS
     (:attr:`has_gps`).
+
+    Args:
+        backend: What is under the FC; None is a board's: wall time, no truth, nothing to
+            disturb.
+        progress: Called with one line of text at each step (arming waits, provisioning).
+        arm_timeout_s: Seconds :meth:`arm` waits by default for the FC's blockers to clear
+            and for it to arm.
+        angle_mode: Hold AUX2 on while armed (ANGLE, when the profile puts ANGLE there).
     """
 
     def __init__(self, *, backend: Backend | None = None, progress: Progress | None = None,
@@ -216,7 +224,11 @@ class Vehicle:
 
     def on_close(self, callback: Callable[[], object]) -> None:
         """Call ``callback`` when the session closes (before the RC link, bridge and SITL
-        stop): an autopilot's log is closed with the vehicle it records."""
+        stop): an autopilot's log is closed with the vehicle it records.
+
+        Args:
+            callback: Called with no arguments; what it returns is ignored.
+        """
         self._stack.callback(callback)
 
     # -- parts ------------------------------------------------------------------------
@@ -231,21 +243,44 @@ class Vehicle:
         return self.rc.command if self.rc is not None else self._base
 
     def set_rc(self, command: RcCommand) -> None:
+        """Send ``command`` from now on, until the next call.
+
+        Args:
+            command: The sticks and switches, in microseconds of pulse width.
+
+        Raises:
+            SitlError: The vehicle is not started (no RC link yet).
+        """
         if self.rc is None:
             raise SitlError("the session is not started")
         self.rc.set(command)
 
     def set_throttle(self, throttle_us: float) -> None:
-        """Throttle only; the switches stay as :meth:`arm` / :meth:`disarm` left them."""
+        """Throttle only; the switches stay as :meth:`arm` / :meth:`disarm` left them.
+
+        Args:
+            throttle_us: The throttle channel's pulse width, microseconds; clamped to 1000
+                to 2000 when sent.
+
+        Raises:
+            SitlError: The vehicle is not started (no RC link yet).
+        """
         self.set_rc(replace(self.rc_command, throttle_us=throttle_us))
 
     # -- arming ------------------------------------------------------------------------------
     def arm(self, timeout_s: float | None = None) -> None:
         """Wait until nothing blocks arming, raise the ARM switch, wait for ARMED.
 
-        Raises :class:`ArmingBlockedError` naming the blockers if it does not arm in time,
-        and at once if no ARM mode range would react to the switch (a case the firmware has
-        no flag for: it simply never arms).
+        Args:
+            timeout_s: Seconds of the vehicle's clock to wait, for the blockers and the
+                arming together; None takes ``arm_timeout_s`` (15 by default).
+
+        Raises:
+            ArmingBlockedError: It did not arm in time (``blockers`` names what blocked it),
+                or at once when no ARM mode range would react to the switch (a case the
+                firmware has no flag for: it simply never arms).
+            SitlExitedError: The SITL ended while waiting.
+            MspError: The FC stopped answering.
         """
         timeout_s = self.arm_timeout_s if timeout_s is None else timeout_s
         client = self.client
@@ -312,7 +347,18 @@ class Vehicle:
                                   f"{explained}", names)
 
     def disarm(self, timeout_s: float = 3.0) -> bool:
-        """Throttle low, both switches off; True once the FC reports disarmed."""
+        """Throttle low, both switches off, and wait for the FC to report it.
+
+        Args:
+            timeout_s: Seconds of the vehicle's clock to wait for the FC to disarm.
+
+        Returns:
+            True once the FC reports disarmed; False if it still reports armed at the end.
+
+        Raises:
+            SitlExitedError: The SITL ended while waiting.
+            MspError: The FC stopped answering.
+        """
         self.set_rc(replace(self.rc_command, throttle_us=RC_MIN_US,
                             aux_us=(SWITCH_OFF_US, SWITCH_OFF_US)))
         deadline = self.clock.now_s() + timeout_s
@@ -367,7 +413,15 @@ class Vehicle:
 
     def local_gps(self, gps: msg.RawGps) -> GpsPosition:
         """An MSP_RAW_GPS reply made local, as :meth:`gps_position` does (for a caller that
-        asked for it in a batch of its own); its first fix becomes the origin."""
+        asked for it in a batch of its own); its first fix becomes the origin.
+
+        Args:
+            gps: The decoded MSP_RAW_GPS reply.
+
+        Returns:
+            Metres north and east of the origin, the ground velocity, the fix and the
+            satellites.
+        """
         if self._gps_origin_e7 is None and gps.has_fix:
             self._gps_origin_e7 = (gps.lat_e7, gps.lon_e7)
         lat0, lon0 = self._gps_origin_e7 or (gps.lat_e7, gps.lon_e7)

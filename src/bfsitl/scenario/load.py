@@ -12,7 +12,18 @@ from bfsitl.toml_file import read_toml_file
 
 
 def load_scenario(path: str | Path) -> Scenario:
-    """Read one scenario file, checked, faults and expectations included."""
+    """Read one scenario file, checked, faults and expectations included.
+
+    Args:
+        path: The scenario's TOML file.
+
+    Returns:
+        The scenario, named after the file's stem unless it names itself.
+
+    Raises:
+        ScenarioError: The file cannot be read, is no TOML, or holds something that cannot
+            be run as written (the message names the file, the table and the key).
+    """
     path = Path(path)
     data = read_toml_file(path, "scenario", ScenarioError)
     scenario = scenario_from_dict(data, name=path.stem, source=path)

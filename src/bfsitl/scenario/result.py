@@ -53,7 +53,35 @@ class TimedEvent:
 
 @dataclass(slots=True)
 class ScenarioResult:
-    """One scenario on one firmware."""
+    """One scenario on one firmware.
+
+    Attributes:
+        name: The scenario's name (its file's stem unless it names itself).
+        firmware: The firmware as asked for (a cached build's name or a path).
+        verdict: Passed, failed, error or skipped.
+        reason: One line: the first failed check, the error, or "all N expectations met".
+        source: The scenario file, when it came from one.
+        firmware_version: As the FC reported it (MSP_FC_VERSION); "" when it never
+            answered.
+        description: The scenario's one line saying what it tests.
+        checks: Each expectation, judged.
+        events: What happened during the run, in time order (faults injected, modes seen,
+            a disarm).
+        sim_time_s: Simulation seconds flown.
+        wall_time_s: Wall seconds the run took.
+        artifacts: Files the run wrote, by kind: "log" (CSV), "plot" (PNG), "blackbox" (the
+            FC's own log), "sitl_log" (the firmware's output), "summary" (JSON).
+        retried: Why earlier attempts of this run were lost (a Ray worker or node gone),
+            oldest first; empty when it ran once.
+        findings: What the analysers that watch every run found (:mod:`bfsitl.analysis`),
+            worst first, whether or not an expectation asked.
+        watched: The analysers that watched this run.
+        unwatched: The analysers that could not, each with why.
+        metrics: The run's figures (:mod:`bfsitl.scenario.metrics`; None: not applicable):
+            what ``bfsitl scenario compare`` compares.
+        behaviour: The run's behaviour in words (failsafe phases, modes, how it ended,
+            findings), also compared.
+    """
 
     #: The scenario's name (its file's stem unless it names itself).
     name: str

@@ -124,7 +124,23 @@ def scenario_profile(scenario: Scenario, profile: FirmwareProfile,
 
 @dataclass(frozen=True, slots=True)
 class RunOptions:
-    """How to run (not what: that is the scenario)."""
+    """How to run (not what: that is the scenario).
+
+    Attributes:
+        out_dir: This run's directory: its CSV, plot, summary, blackbox and the SITL's run
+            directory.  Made if missing.
+        speed: Simulation speed as a multiple of real time; None: as fast as it goes on a
+            lockstep build, real time otherwise.
+        plot: Draw the flight to a PNG.
+        mcap: Write the flight as MCAP too (Foxglove's schemas, ``flight.mcap``; needs the
+            foxglove extra).
+        shares_cores: Other runs share this machine's cores: no busy-waiting in lockstep
+            (see ``SessionConfig.lockstep_spin``).
+        session_factory: Makes the flight's vehicle from its configuration (``progress=``
+            too); a fake in unit tests.  Picklable as it is, for Ray.
+        controller: The autopilot's altitude controller, by name (see ``bfsitl fly
+            --list-gains``).
+    """
 
     #: This run's directory: its CSV, plot, summary, blackbox and the SITL's run directory.
     out_dir: Path
@@ -222,7 +238,23 @@ class _Injector:
 def run_scenario(scenario: Scenario, firmware: str, options: RunOptions, *,
                  progress: Progress | None = None) -> ScenarioResult:
     """Fly ``scenario`` on ``firmware`` (a cached build's name or a path); never raises for
-    a failed flight (only for Ctrl-C)."""
+    a failed flight (only for Ctrl-C).
+
+    Args:
+        scenario: What to fly, as :func:`~bfsitl.scenario.load.load_scenario` reads it.
+        firmware: A cached build's name or a SITL binary's path.
+        options: How to run: where the files go, the speed, the outputs.
+        progress: Called with one line of text at each step of the run.
+
+    Returns:
+        The verdict, the checks behind it, the events and the files written.  A firmware
+        that cannot fly it gives a skipped result, a flight that could not be flown an
+        error result; neither raises.
+
+    Raises:
+        KeyboardInterrupt: Ctrl-C, SIGTERM or SIGHUP, after the session has stopped and the
+            summary is written.
+    """
     say = progress or (lambda _line: None)
     started = time.monotonic()
     result = ScenarioResult(scenario.name, firmware, Verdict.ERROR, "", source=scenario.source,

@@ -68,7 +68,34 @@ _WIND_KEYS = {"north_m_s", "east_m_s", "down_m_s", "gust_std_m_s", "gust_time_co
 
 @dataclass(frozen=True, slots=True)
 class Scenario:
-    """A scenario as read from its file (or built in Python)."""
+    """A scenario as read from its file (or built in Python).
+
+    Attributes:
+        name: The scenario's name (its file's stem unless it names itself).
+        plan: What bfsitl's autopilot flies (the ``[flight]`` table).
+        duration_s: Simulation seconds from arming; the run ends then at the latest.
+        faults: What is done to the flight and when (``[[fault]]``), seconds after arming.
+        expect: ``[expect]`` as written: key and value pairs, checked by
+            :mod:`bfsitl.scenario.expectations`.
+        description: One line saying what it tests.
+        cli: CLI lines provisioned before the flight.
+        cli_for: ``[cli_for]``: lines for one firmware generation only, after ``cli``
+            (settings the other does not have): ``(("master", (...)), ("4.6", (...)))``.
+        wind: Wind and gusts (``[wind]``); None is still air.
+        quad: The simulated quad (``[vehicle]``); Gazebo's IRIS by default.
+        initial_heading_deg: Where the nose points at the start (``[vehicle]
+            heading_deg``), degrees clockwise from north.
+        seed: Seeds the gusts and the sensor noise: the same seed, the same disturbances.
+        firmware: Builds to run on when the command line names none.
+        requires_gps: Only firmware with a GPS can fly it (a GPS Rescue); others skip it.
+        requires: Build features it needs (``flight_plan``, ``geofence``, ...: the names of
+            :data:`bfsitl.build.binary_scan.FEATURE_MARKERS`); a build without one skips it.
+        fc_waypoints: The FC's own mission (``[[fc_waypoint]]``, master's flight plans),
+            written to it as ``waypoint`` CLI lines before the scenario's own lines.
+        settle_s: The run ends early once the FC is disarmed and the vehicle at rest this
+            many seconds.
+        source: The file it was read from; None when built in Python.
+    """
 
     name: str
     plan: MissionPlan

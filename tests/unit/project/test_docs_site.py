@@ -75,6 +75,10 @@ def test_the_docs_site_builds_strictly(tmp_path: Path) -> None:
     api = (tmp_path / "site" / "api" / "index.html").read_text()
     # The API reference is generated from the docstrings, not written by hand.
     assert "launch_sitl" in api and "fetch_git_source" in api
+    # With their Args sections as tables (docstring_style: google): one row per parameter.
+    start = api.index('id="bfsitl.autopilot.launch_sitl"')
+    table = api[api.index("<table", start):api.index("</table>", start)]
+    assert re.search(r"<td>\s*<code>gps_noise</code>\s*</td>", table), table
 
 
 def test_the_sites_home_page_is_the_readme() -> None:

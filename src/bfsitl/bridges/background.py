@@ -7,7 +7,7 @@ import asyncio
 import contextlib
 import errno
 import threading
-from collections.abc import Callable, Coroutine, Iterator
+from collections.abc import Awaitable, Callable, Coroutine, Iterator
 from typing import Any
 
 from bfsitl.bridges import describe_listener
@@ -63,3 +63,54 @@ def serving_in_thread(serve: Serve, stop: Callable[[], None], *, name: str,
         thread.join(timeout=15.0)
     if failure:  # it failed while the block ran (reached only if the block did not raise)
         raise failure[0]
+
+
+class StoppableServer:
+    """The life of each of bfsitl's WebSocket servers: listen (a taken port is a clear
+    error), say where, serve until :meth:`stop` from any thread, or serve in a thread of its
+    own while a block runs (:meth:`running`).  A subclass sets ``host``, ``port``,
+    ``port_option`` and ``thread_name``, and its ``serve`` opens its server through
+    :meth:`_serve_until_stopped`."""
+
+    host: str
+    port: int
+    #: The command-line option that moves the port, named when the port is taken.
+    port_option: str
+    thread_name: str = "bfsitl-server"
+
+    def __init__(self) -> None:
+        self._loop: asyncio.AbstractEventLoop | None = None
+        self._stop: asyncio.Event | None = None
+
+    @property
+    def url(self) -> str:
+        """What a client connects to (for the relay: what to type into the Configurator's
+        manual connection field)."""
+        return f"ws://{self.host}:{self.port}"
+
+    async def serve(self, started: Callable[[str], None] | None = None) -> None:
+        raise NotImplementedError
+
+    async def _serve_until_stopped(self, open_server: Callable[[], Awaitable[Any]],
+                                   started: Callable[[str], None] | None) -> None:
+        self._loop = asyncio.get_running_loop()
+        self._stop = asyncio.Event()
+        try:
+            server = await open_server()
+        except OSError as exc:
+            raise listen_error(self.host, self.port, self.port_option, exc) from exc
+        async with server:
+            self.port = server.sockets[0].getsockname()[1]  # the one picked for port 0
+            if started is not None:
+                started(self.url)
+            await self._stop.wait()
+
+    def stop(self) -> None:
+        """Ask :meth:`serve` to finish; callable from any thread."""
+        if self._loop is not None and self._stop is not None:
+            self._loop.call_soon_threadsafe(self._stop.set)
+
+    def running(self, start_timeout_s: float = 10.0) -> contextlib.AbstractContextManager[str]:
+        """Serve from a background thread while the block runs; yields :attr:`url`."""
+        return serving_in_thread(self.serve, self.stop, name=self.thread_name,
+                                 start_timeout_s=start_timeout_s)

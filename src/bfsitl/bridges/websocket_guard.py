@@ -20,7 +20,7 @@ import contextlib
 from collections.abc import Callable, Sequence
 from typing import Any
 
-from bfsitl.bridges.background import listen_error, serving_in_thread
+from bfsitl.bridges.background import StoppableServer
 from bfsitl.bridges.origin_policy import CLOSE_POLICY_VIOLATION, OriginPolicy
 
 LISTEN_HOST = "127.0.0.1"
@@ -30,7 +30,7 @@ CLOSE_TIMEOUT_S = 2.0
 CLOSE_UPSTREAM_ERROR = 1011
 
 
-class OriginGuard:
+class OriginGuard(StoppableServer):
     """A WebSocket server on ``LISTEN_HOST:port`` passing accepted clients to ``upstream_url``.
 
     ``subprotocols`` are the ones the server behind speaks, in order of preference; a client
@@ -38,11 +38,15 @@ class OriginGuard:
     port, for the error when it is taken.
     """
 
+    thread_name = "bfsitl-origin-guard"
+
     def __init__(self, upstream_url: str, *, port: int, subprotocols: Sequence[str],
                  origins: OriginPolicy | None = None,
                  on_event: Callable[[str], None] | None = None,
                  port_option: str = "--port") -> None:
+        super().__init__()
         self.upstream_url = upstream_url
+        self.host = LISTEN_HOST
         self.port = port
         self.subprotocols = tuple(subprotocols)
         self.origins = origins or OriginPolicy()
@@ -50,40 +54,15 @@ class OriginGuard:
         self.refused_origins = 0
         self.clients_served = 0
         self._on_event = on_event or (lambda _line: None)
-        self._loop: asyncio.AbstractEventLoop | None = None
-        self._stop: asyncio.Event | None = None
-
-    @property
-    def url(self) -> str:
-        return f"ws://{LISTEN_HOST}:{self.port}"
 
     async def serve(self, started: Callable[[str], None] | None = None) -> None:
         from websockets.asyncio.server import serve
         from websockets.typing import Subprotocol
 
-        self._loop = asyncio.get_running_loop()
-        self._stop = asyncio.Event()
-        try:
-            server = await serve(self._handle, LISTEN_HOST, self.port,
-                                 subprotocols=[Subprotocol(name) for name in self.subprotocols],
-                                 compression=None,
-                                 max_size=None, close_timeout=CLOSE_TIMEOUT_S)
-        except OSError as exc:
-            raise listen_error(LISTEN_HOST, self.port, self.port_option, exc) from exc
-        async with server:
-            self.port = server.sockets[0].getsockname()[1]
-            if started is not None:
-                started(self.url)
-            await self._stop.wait()
-
-    def stop(self) -> None:
-        if self._loop is not None and self._stop is not None:
-            self._loop.call_soon_threadsafe(self._stop.set)
-
-    def running(self, start_timeout_s: float = 10.0) -> contextlib.AbstractContextManager[str]:
-        """Serve from a background thread while the block runs; yields :attr:`url`."""
-        return serving_in_thread(self.serve, self.stop, name="bfsitl-origin-guard",
-                                 start_timeout_s=start_timeout_s)
+        await self._serve_until_stopped(lambda: serve(
+            self._handle, LISTEN_HOST, self.port,
+            subprotocols=[Subprotocol(name) for name in self.subprotocols],
+            compression=None, max_size=None, close_timeout=CLOSE_TIMEOUT_S), started)
 
     async def _handle(self, connection: Any) -> None:
         from websockets.asyncio.client import connect

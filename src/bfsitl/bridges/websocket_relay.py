@@ -35,7 +35,7 @@ from dataclasses import dataclass
 from typing import TYPE_CHECKING
 
 from bfsitl.bridges import RequestWatch, SessionStats, Upstream, connect_upstream
-from bfsitl.bridges.background import listen_error, serving_in_thread
+from bfsitl.bridges.background import StoppableServer
 from bfsitl.bridges.origin_policy import CLOSE_POLICY_VIOLATION, OriginPolicy
 from bfsitl.errors import BfsitlError, ExtraMissingError, UpstreamBusyError
 
@@ -106,7 +106,7 @@ def pick_subprotocol(offered: Sequence[str]) -> str | None:
     return None
 
 
-class WebSocketRelay:
+class WebSocketRelay(StoppableServer):
     """A WebSocket server on ``LISTEN_HOST:port`` relaying each client to the SITL's UART.
 
     ``port=0`` picks a free port (tests); :attr:`url` is known once the server listens.
@@ -114,6 +114,8 @@ class WebSocketRelay:
     ``on_event`` receives one line per noteworthy event (client in and out, refusals,
     warnings); :attr:`sessions` keeps the statistics of every finished client.
     """
+
+    thread_name = "bfsitl-ws-relay"
 
     def __init__(
         self,
@@ -126,9 +128,9 @@ class WebSocketRelay:
         port_option: str = "--port",
     ) -> None:
         _import_websockets()  # fail now, with the install hint, not at the first client
+        super().__init__()
         self.upstream = upstream
         self.origins = origins or OriginPolicy()
-        #: The command-line option that moves the port, named when the port is taken.
         self.port_option = port_option
         self.host = host
         self.port = port
@@ -137,13 +139,6 @@ class WebSocketRelay:
         self.refused_origins = 0
         self._on_event = on_event or (lambda _line: None)
         self._active: SessionStats | None = None
-        self._stop: asyncio.Event | None = None
-        self._loop: asyncio.AbstractEventLoop | None = None
-
-    @property
-    def url(self) -> str:
-        """What to type into the Configurator's manual connection field."""
-        return f"ws://{self.host}:{self.port}"
 
     # -- serving ---------------------------------------------------------------------------
     async def serve(self, started: Callable[[str], None] | None = None) -> None:
@@ -167,32 +162,12 @@ class WebSocketRelay:
                                f"WebSocket server; enter {self.url} in the Configurator's "
                                f"manual connection, not in the address bar")
 
-        self._loop = asyncio.get_running_loop()
-        self._stop = asyncio.Event()
-        try:
-            server = await server_module.serve(
-                self._handle, self.host, self.port,
-                subprotocols=list(SUBPROTOCOLS), select_subprotocol=select_subprotocol,
-                compression=None, max_size=MAX_MESSAGE_BYTES, process_request=note_plain_http,
-                close_timeout=CLOSE_TIMEOUT_S,
-            )
-        except OSError as exc:
-            raise listen_error(self.host, self.port, self.port_option, exc) from exc
-        async with server:
-            self.port = server.sockets[0].getsockname()[1]
-            if started is not None:
-                started(self.url)
-            await self._stop.wait()
-
-    def stop(self) -> None:
-        """Ask :meth:`serve` to finish; callable from any thread."""
-        if self._loop is not None and self._stop is not None:
-            self._loop.call_soon_threadsafe(self._stop.set)
-
-    def running(self, start_timeout_s: float = 10.0) -> contextlib.AbstractContextManager[str]:
-        """Serve from a background thread while the block runs; yields :attr:`url`."""
-        return serving_in_thread(self.serve, self.stop, name="bfsitl-ws-relay",
-                                 start_timeout_s=start_timeout_s)
+        await self._serve_until_stopped(lambda: server_module.serve(
+            self._handle, self.host, self.port,
+            subprotocols=list(SUBPROTOCOLS), select_subprotocol=select_subprotocol,
+            compression=None, max_size=MAX_MESSAGE_BYTES, process_request=note_plain_http,
+            close_timeout=CLOSE_TIMEOUT_S,
+        ), started)
 
     # -- one client ------------------------------------------------------------------------
     async def _handle(self, connection: ServerConnection) -> None:

@@ -8,7 +8,7 @@ from __future__ import annotations
 from dataclasses import dataclass, replace
 
 from bfsitl.fc.rc_link import RcCommand, RcLinkStats
-from bfsitl.mission.loop import Mission
+from bfsitl.mission.loop import FlightLoop
 from bfsitl.mission.vehicle import SWITCH_ON_US, FlightSample, Vehicle
 
 HOVER_US = 1500.0
@@ -189,7 +189,7 @@ class PlanarSession(FakeSession):
         return GpsPosition(self.north_m, self.east_m, self.v_north, self.v_east, True, 12)
 
 
-def planar_mission(session: PlanarSession, log=None) -> Mission:  # type: ignore[no-untyped-def]
-    mission = Mission(session, PController(), log=log)  # type: ignore[arg-type]
-    mission.sticks = session.sticks  # the FC's curve would be read over MSP
-    return mission
+def planar_loop(session: PlanarSession, log=None) -> FlightLoop:  # type: ignore[no-untyped-def]
+    loop = FlightLoop(session, PController(), log=log)  # type: ignore[arg-type]
+    loop.sticks = session.sticks  # the FC's curve would be read over MSP
+    return loop

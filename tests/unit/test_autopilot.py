@@ -70,7 +70,7 @@ class NoGps(FakeSession):
 def pilot_for(session: FakeSession, controller: Any = None, **options: Any) -> Autopilot:
     pilot = Autopilot(session, controller or PController(), **options)
     if isinstance(session, PlanarSession):
-        pilot.mission.sticks = session.sticks  # the FC's stick curve would be read over MSP
+        pilot.loop.sticks = session.sticks  # the FC's stick curve would be read over MSP
     return pilot
 
 
@@ -339,8 +339,8 @@ def test_a_log_written_only_at_the_end_is_refused_with_the_formats_that_stream(t
 def test_the_loop_rate_and_the_controller_come_from_the_vehicle_and_the_caller() -> None:
     session = FakeSession()
     session.control_rate_hz = 40.0
-    assert Autopilot(session, PController()).mission.rate_hz == 40.0
-    assert Autopilot(session, PController(), rate_hz=20.0).mission.rate_hz == 20.0
+    assert Autopilot(session, PController()).loop.rate_hz == 40.0
+    assert Autopilot(session, PController(), rate_hz=20.0).loop.rate_hz == 20.0
     with pytest.raises(MissionError, match="outside 1..200 Hz"):
         Autopilot(session, PController(), rate_hz=500.0)
     assert Autopilot(session).controller.name == "fused"            # the default
@@ -350,8 +350,8 @@ def test_the_loop_rate_and_the_controller_come_from_the_vehicle_and_the_caller()
 
 
 def test_fusing_the_accelerometer_changes_the_position_loops_estimate_and_lead_only() -> None:
-    plain = Autopilot(FakeSession(), PController()).mission
-    fused = Autopilot(FakeSession(), PController(), fuse_accelerometer=True).mission
+    plain = Autopilot(FakeSession(), PController()).loop
+    fused = Autopilot(FakeSession(), PController(), fuse_accelerometer=True).loop
     assert plain.horizontal is None and plain.position.gains.lead_s > 0.0
     assert isinstance(fused.horizontal, HorizontalEstimator)
     assert fused.position.gains == PositionGains(**{

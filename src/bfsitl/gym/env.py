@@ -62,7 +62,7 @@ from bfsitl.gym.tasks import (
     failure,
     step_reward,
 )
-from bfsitl.mission.loop import Mission
+from bfsitl.mission.loop import FlightLoop
 from bfsitl.mission.session import FlightSession, SessionConfig
 from bfsitl.physics.wind import Wind
 from bfsitl.sitl.core_claim import CoreClaim, claim_core
@@ -178,11 +178,11 @@ class FlightEnv(gymnasium.Env[np.ndarray, np.ndarray]):
         session = self._new_session(episode_seed).start()
         self._session = session
         if self.start == "air":
-            mission = Mission(session, make_controller("fused"), rate_hz=self.control_hz)
-            mission.arm()
+            loop = FlightLoop(session, make_controller("fused"), rate_hz=self.control_hz)
+            loop.arm()
             self._mark_arming(session)
-            mission.wait_on_ground(_GROUND_S)
-            mission.takeoff(self.start_alt_m, hold_position=session.has_gps)
+            loop.wait_on_ground(_GROUND_S)
+            loop.takeoff(self.start_alt_m, hold_position=session.has_gps)
         else:
             session.arm()
             self._mark_arming(session)

@@ -1,4 +1,4 @@
-"""The flight loop: :class:`Mission`, closed-loop manoeuvres over a started vehicle.
+"""The flight loop: :class:`FlightLoop`, closed-loop manoeuvres over a started vehicle.
 
 The loop (``rate_hz`` in simulation time): sample the FC and the truth, estimate the climb
 rate from the FC's altitude, ask the controller for a throttle (and, in position control, the
@@ -6,7 +6,7 @@ position loop for the sticks), send it, record a row, call the hooks
 (:class:`~bfsitl.mission.hooks.FlightHooks`).  The controllers see only what a real board
 would report (FC altitude, not the simulated truth); the truth is recorded next to it to
 judge them.  Manoeuvres raise on trouble (a crash, a disarm, a timeout);
-:func:`~bfsitl.mission.plan_driver.run_mission` turns that into an outcome.
+:func:`~bfsitl.mission.plan_driver.fly` turns that into an outcome.
 """
 
 from __future__ import annotations
@@ -58,12 +58,12 @@ CRASH_TILT_DEG = 70.0
 CRASH_TOUCHDOWN_M_S = 2.5
 
 
-class Mission(PositionSteering):
+class FlightLoop(PositionSteering):
     """Closed-loop manoeuvres on a started vehicle: a simulated :class:`FlightSession` or a
     board (:class:`~bfsitl.mission.board.BoardVehicle`).
 
-    >>> mission = Mission(session, CascadedAltitudeController())   # doctest: +SKIP
-    >>> mission.arm(); mission.takeoff(2.0); mission.hold(10); mission.land()
+    >>> loop = FlightLoop(session, CascadedAltitudeController())   # doctest: +SKIP
+    >>> loop.arm(); loop.takeoff(2.0); loop.hold(10); loop.land()
     """
 
     def __init__(

@@ -1,7 +1,7 @@
 """Position and heading control inside the flight loop: the FC's GPS made local, the ANGLE
 stick curve, the position loop's sticks and the heading hold.
 
-:class:`PositionSteering` is the part of :class:`~bfsitl.mission.loop.Mission` that steers;
+:class:`PositionSteering` is the part of :class:`~bfsitl.mission.loop.FlightLoop` that steers;
 the loop calls :meth:`PositionSteering._position_steer` once per step of a position
 manoeuvre and records the columns it leaves in :attr:`_position_columns`.
 """

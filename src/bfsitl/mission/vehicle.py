@@ -6,7 +6,7 @@ flight (:class:`FlightSample`: the FC's view over MSP, next to the truth when it
 the FC's GPS made local, a clock.  :class:`~bfsitl.mission.session.FlightSession` is the
 simulated one (SITL, physics, UDP or lockstep RC, simulation time, the truth);
 :class:`~bfsitl.mission.board.BoardVehicle` a flight controller on a serial port (RC by MSP,
-wall time, no truth).  A :class:`~bfsitl.mission.loop.Mission` flies either.
+wall time, no truth).  A :class:`~bfsitl.mission.loop.FlightLoop` flies either.
 """
 
 from __future__ import annotations

@@ -45,9 +45,9 @@ from bfsitl.fc.firmware_detect import profile_of_binary
 from bfsitl.fc.provisioning import Profile
 from bfsitl.mission.flight_row import FlightRow
 from bfsitl.mission.hooks import FlightHooks
-from bfsitl.mission.loop import Mission
+from bfsitl.mission.loop import FlightLoop
 from bfsitl.mission.phase import Phase
-from bfsitl.mission.plan_driver import fly_plan
+from bfsitl.mission.plan_driver import fly_steps
 from bfsitl.mission.session import (
     FLY_PROFILE,
     FlightSession,
@@ -319,18 +319,18 @@ def _fly(scenario: Scenario, binary: Path, profile: FirmwareProfile, faults: tup
                                        if session.firmware else result.firmware_version)
             if session.sitl is not None:
                 result.artifacts["sitl_log"] = session.sitl.log_path
-            mission = Mission(session, make_controller(options.controller),
+            loop = FlightLoop(session, make_controller(options.controller),
                               rate_hz=session.control_rate_hz,
                               hooks=FlightHooks(on_step=on_row, stop=injector.stop))
             try:
-                mission.arm()
+                loop.arm()
             except ArmingBlockedError as exc:
                 result.verdict, result.reason = Verdict.ERROR, str(exc)
                 return
             injector.armed_at_s = session.time_s
             injector.note(0.0, "armed")
-            _autopilot_flight(scenario, mission, injector, trace)
-            _watch(scenario, mission, injector)
+            _autopilot_flight(scenario, loop, injector, trace)
+            _watch(scenario, loop, injector)
     finally:
         outputs.close()
     result.sim_time_s = round(trace.end_s, 3)
@@ -358,14 +358,14 @@ def _fly(scenario: Scenario, binary: Path, profile: FirmwareProfile, faults: tup
             trace, out / "plot.png", title=f"{scenario.name} on {result.firmware}")
 
 
-def _autopilot_flight(scenario: Scenario, mission: Mission, injector: _Injector,
+def _autopilot_flight(scenario: Scenario, loop: FlightLoop, injector: _Injector,
                       trace: Trace) -> None:
     """The ``[flight]`` table flown (the session is armed) until it ends, a fault takes the
-    sticks (the mission's stop condition), or it fails."""
+    sticks (the loop's stop condition), or it fails."""
     armed_at_s = injector.armed_at_s or 0.0
 
     def t() -> float:
-        return mission.session.time_s - armed_at_s
+        return loop.session.time_s - armed_at_s
 
     def step_done(step: Phase) -> None:
         if step is Phase.TAKEOFF:
@@ -374,9 +374,9 @@ def _autopilot_flight(scenario: Scenario, mission: Mission, injector: _Injector,
             injector.note(t(), "the autopilot landed")
 
     try:
-        fly_plan(mission, scenario.plan, arm=False,
-                 time_left_s=lambda: scenario.duration_s - t(), after_step=step_done)
-        if mission.stopped:
+        fly_steps(loop, scenario.plan, arm=False,
+                  time_left_s=lambda: scenario.duration_s - t(), after_step=step_done)
+        if loop.stopped:
             injector.note(t(), "the sticks are the FC's now: watching")
     except CrashDetectedError as exc:
         trace.crash = (round(t(), 3), str(exc))
@@ -387,9 +387,9 @@ def _autopilot_flight(scenario: Scenario, mission: Mission, injector: _Injector,
         injector.note(t(), f"the autopilot stopped: {exc}")
 
 
-def _watch(scenario: Scenario, mission: Mission, injector: _Injector) -> None:
+def _watch(scenario: Scenario, loop: FlightLoop, injector: _Injector) -> None:
     """Record until ``duration_s``, or until disarmed and at rest for ``settle_s``."""
-    session = mission.session
+    session = loop.session
     resting_since: list[float] = []
 
     def done(sample: FlightSample) -> bool:
@@ -405,7 +405,7 @@ def _watch(scenario: Scenario, mission: Mission, injector: _Injector) -> None:
 
     left_s = scenario.duration_s - (session.time_s - (injector.armed_at_s or 0.0))
     if left_s > 0:
-        mission.observe(done, timeout_s=left_s + 1.0, phase=Phase.WATCH)
+        loop.observe(done, timeout_s=left_s + 1.0, phase=Phase.WATCH)
 
 
 def _analyse(watch: FlightWatch, trace: Trace, result: ScenarioResult) -> None:

@@ -97,8 +97,8 @@ def test_a_warm_reset_keeps_the_firmware_and_a_seeded_one_boots_it_afresh(
     env = HoverEnv(firmware=lockstep_gps_46_firmware, workdir=tmp_path / "run")
     try:
         first, _info = env.reset(seed=3)
-        assert env._session is not None and env._session.sitl is not None
-        pid = env._session.sitl.pid
+        assert env._vehicle is not None and env._vehicle.sitl is not None
+        pid = env._vehicle.sitl.pid
         for _ in range(400):  # full throttle, rolled: it crashes within a few seconds
             *_rest, terminated, truncated, info = env.step(
                 np.array([0.8, 0.0, 1.0, 0.0], dtype=np.float32))
@@ -109,14 +109,14 @@ def test_a_warm_reset_keeps_the_firmware_and_a_seeded_one_boots_it_afresh(
         began = time.monotonic()
         observation, info = env.reset()
         assert time.monotonic() - began < 0.25            # no boot: a hand puts it back
-        assert env._session.sitl.pid == pid and info["armed"]
+        assert env._vehicle.sitl.pid == pid and info["armed"]
         assert abs(info["truth"]["alt_m"] - 1.5) < 0.05 and info["truth"]["tilt_deg"] < 1.0
         for _ in range(600):                               # and it flies as well as before
             observation, _r, terminated, _t, info = env.step(hand_policy(observation))
             assert not terminated, info["ended_because"]
         assert info["distance_m"] < 0.5
         again, _info = env.reset(seed=3)                   # a seed boots afresh: the same start
-        assert env._session.sitl.pid != pid
+        assert env._vehicle.sitl.pid != pid
         assert again.tobytes() == first.tobytes()
     finally:
         env.close()

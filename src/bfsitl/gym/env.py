@@ -156,7 +156,7 @@ class FlightEnv(gymnasium.Env[np.ndarray, np.ndarray]):
         self._own_workdir = workdir is None
         self.workdir = Path(tempfile.mkdtemp(prefix="bfsitl-gym-") if workdir is None
                             else workdir)
-        self._session: FlightSession | None = None
+        self._vehicle: FlightSession | None = None
         self._prepared = False
         self._arm_ned: Vec3 = (0.0, 0.0, 0.0)
         self._started_s = 0.0
@@ -170,31 +170,31 @@ class FlightEnv(gymnasium.Env[np.ndarray, np.ndarray]):
         super().reset(seed=seed)
         if seed is None and self.warm_resets and self.start == "air" and self._can_go_on():
             return self._warm_reset()
-        self._end_session()
+        self._close_vehicle()
         if not self._prepared:
             self._prepare()
         episode_seed = int(self.np_random.integers(0, 2**31 - 1))
         self.task.reset(self.np_random)
-        session = self._new_session(episode_seed).start()
-        self._session = session
+        vehicle = self._new_session(episode_seed).start()
+        self._vehicle = vehicle
         if self.start == "air":
-            loop = FlightLoop(session, make_controller("fused"), rate_hz=self.control_hz)
+            loop = FlightLoop(vehicle, make_controller("fused"), rate_hz=self.control_hz)
             loop.arm()
-            self._mark_arming(session)
+            self._mark_arming(vehicle)
             loop.wait_on_ground(_GROUND_S)
-            loop.takeoff(self.start_alt_m, hold_position=session.has_gps)
+            loop.takeoff(self.start_alt_m, hold_position=vehicle.has_gps)
         else:
-            session.arm()
-            self._mark_arming(session)
-        self._started_s = self._next_s = session.time_s
+            vehicle.arm()
+            self._mark_arming(vehicle)
+        self._started_s = self._next_s = vehicle.time_s
         self._has_flown = self.start == "air"
-        self._snapshot = read_snapshot(session, arm_ned_m=self._arm_ned)
+        self._snapshot = read_snapshot(vehicle, arm_ned_m=self._arm_ned)
         return self._observe(), self._info(None)
 
     def step(self, action: np.ndarray) -> tuple[np.ndarray, float, bool, bool,
                                                  dict[str, Any]]:
-        session = self._session
-        if session is None:
+        vehicle = self._vehicle
+        if vehicle is None:
             raise EnvironmentConfigError("step() before reset(): call env.reset() first")
         action = np.asarray(action, dtype=np.float32)
         if action.shape != (4,):
@@ -202,19 +202,19 @@ class FlightEnv(gymnasium.Env[np.ndarray, np.ndarray]):
                 f"an action is 4 sticks (roll, pitch, throttle, yaw), got shape {action.shape}")
         try:
             if self.disturbances is not None:
-                self.disturbances(session.disturbances, session.time_s - self._started_s)
-            session.set_rc(sticks_to_rc(action.tolist(), session.rc_command))
+                self.disturbances(vehicle.disturbances, vehicle.time_s - self._started_s)
+            vehicle.set_rc(sticks_to_rc(action.tolist(), vehicle.rc_command))
             self._next_s += 1.0 / self.control_hz
-            wait_s = self._next_s - session.time_s
+            wait_s = self._next_s - vehicle.time_s
             if wait_s > 0:
-                session.clock.sleep_s(wait_s)
+                vehicle.clock.sleep_s(wait_s)
             else:
-                self._next_s = session.time_s  # late: the schedule restarts here
-            self._snapshot = snapshot = read_snapshot(session, arm_ned_m=self._arm_ned)
+                self._next_s = vehicle.time_s  # late: the schedule restarts here
+            self._snapshot = snapshot = read_snapshot(vehicle, arm_ned_m=self._arm_ned)
         except (SitlError, LinkError, MspError) as exc:
             # The firmware died or stopped answering: the episode ends, the next reset boots
             # a fresh one; training goes on.
-            self._end_session()
+            self._close_vehicle()
             assert self._snapshot is not None
             return (self._observe(), FAILURE_REWARD, True, False,
                     self._info(f"the SITL failed: {exc}".splitlines()[0]))
@@ -227,41 +227,41 @@ class FlightEnv(gymnasium.Env[np.ndarray, np.ndarray]):
                       has_flown=self._has_flown)
         reward += bonus + (FAILURE_REWARD if why is not None else 0.0)
         terminated = finished or why is not None
-        truncated = not terminated and (session.time_s - self._started_s
+        truncated = not terminated and (vehicle.time_s - self._started_s
                                         >= self.episode_s - 0.5 / self.control_hz)
         return self._observe(), float(reward), terminated, truncated, self._info(why)
 
     def _can_go_on(self) -> bool:
         """The firmware is alive, armed and out of failsafe: a warm reset can use it."""
-        session, snapshot = self._session, self._snapshot
-        return (session is not None and snapshot is not None and not session.has_exited()
+        vehicle, snapshot = self._vehicle, self._snapshot
+        return (vehicle is not None and snapshot is not None and not vehicle.has_exited()
                 and snapshot.fc.armed and "FAILSAFE" not in snapshot.fc.flight_modes)
 
     def _warm_reset(self) -> tuple[np.ndarray, dict[str, Any]]:
         """A hand puts the vehicle back at the start, level, rotors at hover speed, and holds
         it there while the FC settles: sticks centred, throttle low first (the FC resets its
         I-terms at low throttle), then about the hover point; then lets go."""
-        session = self._session
-        assert session is not None and session.simulator is not None
+        vehicle = self._vehicle
+        assert vehicle is not None and vehicle.simulator is not None
         self.task.reset(self.np_random)
-        hands = session.disturbances
+        hands = vehicle.disturbances
         north, east, down = self._arm_ned
         start = (north, east, down - self.start_alt_m)
-        hover_rad_s = session.simulator.params.hover_rotor_speed_rad_s
+        hover_rad_s = vehicle.simulator.params.hover_rotor_speed_rad_s
         hands.place(start, motor_speeds_rad_s=(hover_rad_s,) * 4)
         hands.hold_still(True)
         for throttle in (-1.0, HOVER_THROTTLE):
-            session.set_rc(sticks_to_rc([0.0, 0.0, throttle, 0.0], session.rc_command))
-            session.clock.sleep_s(WARM_SETTLE_S / 2)
+            vehicle.set_rc(sticks_to_rc([0.0, 0.0, throttle, 0.0], vehicle.rc_command))
+            vehicle.clock.sleep_s(WARM_SETTLE_S / 2)
         hands.place(start, motor_speeds_rad_s=(hover_rad_s,) * 4)
         hands.hold_still(False)
-        self._started_s = self._next_s = session.time_s
+        self._started_s = self._next_s = vehicle.time_s
         self._has_flown = True
-        self._snapshot = read_snapshot(session, arm_ned_m=self._arm_ned)
+        self._snapshot = read_snapshot(vehicle, arm_ned_m=self._arm_ned)
         return self._observe(), self._info(None)
 
     def close(self) -> None:
-        self._end_session()
+        self._close_vehicle()
         if self._core is not None:
             self._core.release()
             self._core = None
@@ -277,7 +277,7 @@ class FlightEnv(gymnasium.Env[np.ndarray, np.ndarray]):
     @property
     def rc_command(self) -> RcCommand | None:
         """What the RC link sends now (the last action's sticks and the switches)."""
-        return self._session.rc_command if self._session is not None else None
+        return self._vehicle.rc_command if self._vehicle is not None else None
 
     # -- parts ---------------------------------------------------------------------------------
     def _new_session(self, seed: int) -> FlightSession:
@@ -297,16 +297,16 @@ class FlightEnv(gymnasium.Env[np.ndarray, np.ndarray]):
             session.start()
         self._prepared = True
 
-    def _mark_arming(self, session: FlightSession) -> None:
-        simulator = session.simulator
+    def _mark_arming(self, vehicle: FlightSession) -> None:
+        simulator = vehicle.simulator
         assert simulator is not None
         north, east, down = simulator.state.position_ned_m
         self._arm_ned = (north, east, down)
 
-    def _end_session(self) -> None:
-        session, self._session = self._session, None
-        if session is not None:
-            session.close()
+    def _close_vehicle(self) -> None:
+        vehicle, self._vehicle = self._vehicle, None
+        if vehicle is not None:
+            vehicle.close()
 
     def _observe(self) -> np.ndarray:
         assert self._snapshot is not None

@@ -62,13 +62,13 @@ class FlightLoop(PositionSteering):
     """Closed-loop manoeuvres on a started vehicle: a simulated :class:`FlightSession` or a
     board (:class:`~bfsitl.mission.board.BoardVehicle`).
 
-    >>> loop = FlightLoop(session, CascadedAltitudeController())   # doctest: +SKIP
+    >>> loop = FlightLoop(vehicle, CascadedAltitudeController())   # doctest: +SKIP
     >>> loop.arm(); loop.takeoff(2.0); loop.hold(10); loop.land()
     """
 
     def __init__(
         self,
-        session: Vehicle,
+        vehicle: Vehicle,
         controller: AltitudeController,
         *,
         landing: AltitudeController | None = None,
@@ -82,7 +82,7 @@ class FlightLoop(PositionSteering):
         :class:`~bfsitl.mission.hooks.FlightHooks`."""
         if not 1.0 <= rate_hz <= 200.0:
             raise MissionError(f"control rate {rate_hz} Hz is outside 1..200 Hz")
-        self.session = session
+        self.vehicle = vehicle
         self.controller = controller
         if landing is None:
             from bfsitl.control.landing import LandingController
@@ -104,7 +104,7 @@ class FlightLoop(PositionSteering):
         self._on_event = self.hooks.on_event or (lambda _message: None)
         self._climb = ClimbRateEstimator()
         self._started_wall_s = time.monotonic()
-        self._init_steering(session, rate_hz)
+        self._init_steering(vehicle, rate_hz)
         #: One entry per leg flown by :meth:`fly_to`.
         self.legs: list[LegStats] = []
 
@@ -123,13 +123,13 @@ class FlightLoop(PositionSteering):
     def arm(self) -> None:
         self.phase = Phase.ARMING
         self._on_event("arming: waiting for the FC's blockers to clear")
-        self.session.arm()
+        self.vehicle.arm()
         self._climb.reset()
-        self.position.reset(self.session.time_s)  # nothing learnt of the wind yet
+        self.position.reset(self.vehicle.time_s)  # nothing learnt of the wind yet
         if self.horizontal is not None:
             self.horizontal.started = False
-        self.controller.reset(self.session.time_s)
-        self._on_event(f"armed {self.session.armed_after_s:.1f} s after start")
+        self.controller.reset(self.vehicle.time_s)
+        self._on_event(f"armed {self.vehicle.armed_after_s:.1f} s after start")
 
     def wait_on_ground(self, seconds: float) -> None:
         """Stay armed at idle for ``seconds``: the FC's altitude filter, which restarts from
@@ -138,13 +138,13 @@ class FlightLoop(PositionSteering):
         if self.stopped:
             return
         self._on_event(f"on the ground for {seconds:g} s (the barometer settles)")
-        end_s = self.session.time_s + seconds
+        end_s = self.vehicle.time_s + seconds
         self._fly(Phase.GROUND, 0.0, lambda s: s.time_s >= end_s, timeout_s=seconds + 5,
                   controller=GroundObserver(self.controller))
         if not isinstance(self.controller, ObservesGround):
             # It saw nothing of the wait: start its clock now, as if it had just been armed
             # (a PID would otherwise integrate the whole wait in its first step).
-            self.controller.reset(self.session.time_s)
+            self.controller.reset(self.vehicle.time_s)
 
     def takeoff(self, altitude_m: float, *, timeout_s: float = 20.0,
                 hold_position: bool = False) -> float:
@@ -161,7 +161,7 @@ class FlightLoop(PositionSteering):
         here = self._position_target(0.0, 0.0)
         self._target_ne = here
         steer = self._position_steer(self._fixed(here, alt_m=altitude_m), 0)
-        self.position.resume(self.session.time_s)
+        self.position.resume(self.vehicle.time_s)
         try:
             return self._reach(Phase.TAKEOFF, altitude_m, timeout_s, steer=steer)
         finally:
@@ -191,15 +191,15 @@ class FlightLoop(PositionSteering):
         what = (f" with sticks roll {roll_us:.0f}, pitch {pitch_us:.0f}, yaw {yaw_us:.0f} us"
                 if stepped else "")
         self._on_event(f"hold {self.target_alt_m:.2f} m for {seconds:g} s{what}")
-        end_s = self.session.time_s + seconds
-        self.session.set_rc(replace(self.session.rc_command, roll_us=roll_us,
+        end_s = self.vehicle.time_s + seconds
+        self.vehicle.set_rc(replace(self.vehicle.rc_command, roll_us=roll_us,
                                     pitch_us=pitch_us, yaw_us=yaw_us))
         try:
             self._fly(Phase.HOLD, self.target_alt_m, lambda s: s.time_s >= end_s,
                       timeout_s=seconds + 5)
         finally:
             if stepped:
-                self.session.set_rc(replace(self.session.rc_command, roll_us=RC_MID_US,
+                self.vehicle.set_rc(replace(self.vehicle.rc_command, roll_us=RC_MID_US,
                                             pitch_us=RC_MID_US, yaw_us=RC_MID_US))
 
     # -- position and heading ----------------------------------------------------------------
@@ -213,7 +213,7 @@ class FlightLoop(PositionSteering):
         target = self._position_target(north_m, east_m)
         self._on_event(f"hold {target[0]:+.1f} m N {target[1]:+.1f} m E, "
                        f"{self.target_alt_m:.2f} m up, for {seconds:g} s")
-        end_s = self.session.time_s + seconds
+        end_s = self.vehicle.time_s + seconds
         self._fly_position(Phase.HOLD, self._fixed(target), lambda s: s.time_s >= end_s,
                            seconds + 5, waypoint=waypoint)
 
@@ -242,7 +242,7 @@ class FlightLoop(PositionSteering):
         label = f"waypoint {waypoint}: " if waypoint else ""
         self._on_event(f"{label}fly to {north_m:+.1f} m N {east_m:+.1f} m E, {end[2]:.2f} m "
                        f"up ({reference.length_m:.1f} m at {speed:g} m/s)")
-        started_s = self.session.time_s
+        started_s = self.vehicle.time_s
         first_row = len(self.rows)
         finished = [False]
 
@@ -259,9 +259,9 @@ class FlightLoop(PositionSteering):
 
         self._fly_position(Phase.GOTO, target, arrived, timeout_s, waypoint=waypoint)
         if self.stopped:
-            return self.session.time_s - started_s  # not arrived: no leg to judge
+            return self.vehicle.time_s - started_s  # not arrived: no leg to judge
         self._target_ne = (north_m, east_m)
-        took_s = self.session.time_s - started_s
+        took_s = self.vehicle.time_s - started_s
         self.legs.append(leg_stats(waypoint or len(self.legs) + 1, start, end,
                                    [judged_position(r) for r in self.rows[first_row:]], took_s))
         return took_s
@@ -276,7 +276,7 @@ class FlightLoop(PositionSteering):
         target_deg = heading_deg % 360.0
         self._on_event(f"turn to heading {target_deg:.0f} deg")
         self.target_heading_deg = target_deg
-        started_s = self.session.time_s
+        started_s = self.vehicle.time_s
         within_since: list[float] = []
 
         def turned(sample: FlightSample) -> bool:
@@ -287,20 +287,20 @@ class FlightLoop(PositionSteering):
                 within_since.append(sample.time_s)
             return sample.time_s - within_since[0] >= REACHED_HOLD_S
 
-        if self.session.has_gps:
+        if self.vehicle.has_gps:
             here = self._position_target(None, None)
             self._fly_position(Phase.YAW, self._fixed(here), turned, timeout_s)
         else:
             self._fly(Phase.YAW, self.target_alt_m, turned, timeout_s=timeout_s,
                       steer=self._steer_heading)
             self._set_sticks(yaw_us=RC_MID_US)
-        return self.session.time_s - started_s
+        return self.vehicle.time_s - started_s
 
     def _fly_position(self, phase: Phase, target: PositionTarget,
                       done: Callable[[FlightSample], bool], timeout_s: float, *,
                       waypoint: int = 0, controller: AltitudeController | None = None) -> None:
         steer = self._position_steer(target, waypoint)
-        self.position.resume(self.session.time_s)
+        self.position.resume(self.vehicle.time_s)
         try:
             self._fly(phase, target(0.0).alt_m, done, timeout_s=timeout_s, steer=steer,
                       controller=controller)
@@ -319,19 +319,19 @@ class FlightLoop(PositionSteering):
         self._on_event(f"handing over to the FC's modes (AUX "
                        f"{', '.join(str(i + 1) for i in switches)}) for {seconds:g} s")
         self._set_sticks(roll_us=RC_MID_US, pitch_us=RC_MID_US, yaw_us=RC_MID_US)
-        command = self.session.rc_command
+        command = self.vehicle.rc_command
         for index in switches:
             command = command.with_aux(index, SWITCH_ON_US)
-        self.session.set_rc(command)
-        end_s = self.session.time_s + seconds
+        self.vehicle.set_rc(command)
+        end_s = self.vehicle.time_s + seconds
         try:
             self._fly(phase, self.target_alt_m, lambda s: s.time_s >= end_s,
                       timeout_s=seconds + 5, controller=FixedThrottle(throttle_us))
         finally:
-            command = self.session.rc_command
+            command = self.vehicle.rc_command
             for index in switches:
                 command = command.with_aux(index, SWITCH_OFF_US)
-            self.session.set_rc(command)
+            self.vehicle.set_rc(command)
 
     def observe(self, done: Callable[[FlightSample], bool], *, timeout_s: float,
                 phase: Phase = Phase.OBSERVE) -> None:
@@ -340,12 +340,12 @@ class FlightLoop(PositionSteering):
         disarm or a crash is what a scenario watches for); ends when ``done`` says so or
         after ``timeout_s`` of simulation time."""
         self.phase = phase
-        clock = self.session.clock
+        clock = self.vehicle.clock
         period_s = 1.0 / self.rate_hz
-        deadline_s = self.session.time_s + timeout_s
+        deadline_s = self.vehicle.time_s + timeout_s
         next_s = clock.now_s()
         while True:
-            sample = self.session.sample()
+            sample = self.vehicle.sample()
             climb_m_s = self._climb.update(sample.time_s, sample.fc_alt_m)
             self._record(phase, self.target_alt_m, sample, climb_m_s)
             if done(sample) or sample.time_s >= deadline_s:
@@ -364,7 +364,7 @@ class FlightLoop(PositionSteering):
         # Start the descent from the flying controller's hover estimate, not a guess.
         if isinstance(self.controller, KnowsHover) and isinstance(landing, TakesHoverEstimate):
             landing.set_hover_estimate(self.controller.hover_throttle_us)
-        landing.reset(self.session.time_s)
+        landing.reset(self.vehicle.time_s)
 
         def touched_down(_sample: FlightSample) -> bool:
             return bool(landing.touched_down)
@@ -380,16 +380,16 @@ class FlightLoop(PositionSteering):
             return  # the sticks are not ours to disarm with
         self._on_event("touched down; disarming")
         self.phase = Phase.LANDED
-        if not self.session.disarm():
+        if not self.vehicle.disarm():
             raise MissionError("the FC did not disarm after touch-down")
-        sample = self.session.sample()
+        sample = self.vehicle.sample()
         self._record(Phase.LANDED, 0.0, sample, self._climb.update(sample.time_s, sample.fc_alt_m))
         self._on_event("disarmed")
 
     # -- the loop --------------------------------------------------------------------------
     def _reach(self, phase: Phase, altitude_m: float, timeout_s: float, *,
                steer: Callable[[FlightSample], float | None] | None = None) -> float:
-        start_s = self.session.time_s
+        start_s = self.vehicle.time_s
         settled_since: list[float] = []
 
         def reached(sample: FlightSample) -> bool:
@@ -411,7 +411,7 @@ class FlightLoop(PositionSteering):
             return sample.time_s - settled_since[0] >= REACHED_HOLD_S
 
         self._fly(phase, altitude_m, reached, timeout_s=timeout_s, steer=steer)
-        took_s = self.session.time_s - start_s
+        took_s = self.vehicle.time_s - start_s
         if self.stopped:
             return took_s
         self._on_event(f"reached {altitude_m:.2f} m after {took_s:.1f} s")
@@ -426,12 +426,12 @@ class FlightLoop(PositionSteering):
             return
         controller = controller or self.controller
         self.phase, self.target_alt_m = phase, target_alt_m
-        clock = self.session.clock
+        clock = self.vehicle.clock
         period_s = 1.0 / self.rate_hz  # in simulation time, whatever the pace
-        deadline_s = self.session.time_s + timeout_s
+        deadline_s = self.vehicle.time_s + timeout_s
         next_s = clock.now_s()
         while True:
-            sample = self.session.sample()
+            sample = self.vehicle.sample()
             climb_m_s = self._climb.update(sample.time_s, sample.fc_alt_m)
             self._check(sample)
             if steer is not None:
@@ -444,7 +444,7 @@ class FlightLoop(PositionSteering):
             if not math.isfinite(throttle_us):
                 raise MissionError(f"controller {getattr(controller, 'name', controller)} "
                                    f"returned throttle {throttle_us}")
-            self.session.set_throttle(throttle_us)
+            self.vehicle.set_throttle(throttle_us)
             self._record(phase, target_alt_m, sample, climb_m_s)
             if self._stop_asked(sample) or done(sample):
                 return
@@ -482,7 +482,7 @@ class FlightLoop(PositionSteering):
                 climb_m_s: float) -> FlightRow:
         """One row of the log; ``phase`` is a :class:`Phase`, or an :class:`Outcome`'s value
         for the last row of a flight that did not land."""
-        rc = self.session.rc_command  # what goes out from this step on
+        rc = self.vehicle.rc_command  # what goes out from this step on
         aux = tuple(rc.aux_us) + (SWITCH_OFF_US, SWITCH_OFF_US)
         row = FlightRow(
             time_s=sample.time_s, phase=phase, target_alt_m=target_alt_m,
@@ -510,12 +510,12 @@ class FlightLoop(PositionSteering):
 
     def abort(self, ending: Outcome) -> None:
         """Sticks to disarm now (the RC link repeats it on close) and record the final row."""
-        session = self.session
-        if session.rc is None:
+        vehicle = self.vehicle
+        if vehicle.rc is None:
             return
-        safe = replace(session.rc_command, throttle_us=RC_MIN_US,
+        safe = replace(vehicle.rc_command, throttle_us=RC_MIN_US,
                        aux_us=(SWITCH_OFF_US, SWITCH_OFF_US))
-        session.set_rc(safe)
+        vehicle.set_rc(safe)
         if self.last_sample is not None:
             self._record(ending.value, self.target_alt_m, self.last_sample,
                          self._climb.rate_m_s)

@@ -52,7 +52,7 @@ def fly_steps(loop: FlightLoop, plan: MissionPlan, *, arm: bool = True,
         loop.arm()
     if plan.ground_s > 0:
         loop.wait_on_ground(plan.ground_s)
-    position = plan.needs_position or (plan.hold_position and loop.session.has_gps)
+    position = plan.needs_position or (plan.hold_position and loop.vehicle.has_gps)
     loop.takeoff(plan.target_alt_m, timeout_s=plan.takeoff_timeout_s,
                     hold_position=position)
     if loop.stopped:
@@ -90,7 +90,7 @@ def fly_waypoint(loop: FlightLoop, waypoint: Waypoint, number: int, speed_m_s: f
 
 
 def fly(
-    session: Vehicle,
+    vehicle: Vehicle,
     plan: MissionPlan,
     controller: AltitudeController,
     *,
@@ -100,12 +100,12 @@ def fly(
     on_event: EventCallback | None = None,
     rate_hz: float = DEFAULT_RATE_HZ,
 ) -> MissionResult:
-    """Fly ``plan`` on a started session; every ending becomes an :class:`Outcome`.
+    """Fly ``plan`` on a started vehicle; every ending becomes an :class:`Outcome`.
 
     Ctrl-C becomes :attr:`Outcome.INTERRUPTED` (the sticks go to disarm at once and a last
-    row records them); the caller still closes the session.
+    row records them); the caller still closes the vehicle.
     """
-    loop = FlightLoop(session, controller, landing=landing, rate_hz=rate_hz, log=log,
+    loop = FlightLoop(vehicle, controller, landing=landing, rate_hz=rate_hz, log=log,
                       on_row=on_row, on_event=on_event)
     return fly_plan(loop, plan)
 
@@ -119,14 +119,14 @@ def fly_plan(loop: FlightLoop, plan: MissionPlan, *,
     A plan that does not land (``land = false``) ends with the sticks at disarm, as every
     other ending but a landing does, unless ``keep_flying``: then the loop is still
     flying it, and its next manoeuvre (``land()``) goes on from there."""
-    session = loop.session
+    vehicle = loop.vehicle
     first_row, first_leg = len(loop.rows), len(loop.legs)
     controller = loop.controller
     name = getattr(controller, "name", type(controller).__name__)
     outcome, reason = Outcome.LANDED, "landed and disarmed"
     blockers: tuple[str, ...] = ()
     try:
-        if plan.needs_position and not session.has_gps:
+        if plan.needs_position and not vehicle.has_gps:
             raise MissionError(
                 "this mission has waypoints, flown from the FC's GPS, and this firmware has "
                 "no GPS: fly a GPS build (`bfsitl firmware build --gps`, add --lockstep for "
@@ -150,16 +150,16 @@ def fly_plan(loop: FlightLoop, plan: MissionPlan, *,
         try:
             loop.abort(outcome)
         except (BfsitlError, OSError):
-            pass  # the session's close still sends disarm through the RC link
-    if outcome is Outcome.ERROR and session.has_exited():
+            pass  # the vehicle's close still sends disarm through the RC link
+    if outcome is Outcome.ERROR and vehicle.has_exited():
         outcome = Outcome.SITL_EXITED
     rows = loop.rows[first_row:]
     result = MissionResult(outcome, reason.splitlines()[0] if reason else "", name, plan,
-                           rows, blockers, session.armed_after_s)
+                           rows, blockers, vehicle.armed_after_s)
     result.hold = hold_stats(rows)
     result.legs = list(loop.legs[first_leg:])
     result.attitude = attitude_tracking(rows)
-    profile = session.firmware
+    profile = vehicle.firmware
     if profile is not None:
         result.extra["firmware"] = {
             "version": profile.firmware_version, "api": profile.api_version,
@@ -167,12 +167,12 @@ def fly_plan(loop: FlightLoop, plan: MissionPlan, *,
     if not plan.waypoints or plan.hold_s >= STEP_STEADY_WINDOW_S:
         # A step response needs the hold after it: straight into a leg, there is none.
         result.metrics = takeoff_metrics(rows, plan.target_alt_m)
-    rc_stats, bridge_stats = session.rc_stats(), session.bridge_stats()
+    rc_stats, bridge_stats = vehicle.rc_stats(), vehicle.bridge_stats()
     if rc_stats is not None:
         result.extra["rc_link"] = rc_stats
     if bridge_stats is not None:
         result.extra["physics"] = {
             "answered_ratio": bridge_stats.answered_ratio, "speed": bridge_stats.speed,
-            "steps": bridge_stats.steps, "lockstep": session.lockstep,
-            "exchange": session.backend.exchange, "step": session.backend.physics_step}
+            "steps": bridge_stats.steps, "lockstep": vehicle.lockstep,
+            "exchange": vehicle.backend.exchange, "step": vehicle.backend.physics_step}
     return result

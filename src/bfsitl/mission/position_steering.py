@@ -32,12 +32,12 @@ PositionTarget = Callable[[float], LegPoint]
 class PositionSteering:
     """Steering state and steps (see the module docstring)."""
 
-    session: Vehicle
+    vehicle: Vehicle
     target_alt_m: float
     _waypoint: int
 
-    def _init_steering(self, session: Vehicle, rate_hz: float) -> None:
-        self.session = session
+    def _init_steering(self, vehicle: Vehicle, rate_hz: float) -> None:
+        self.vehicle = vehicle
         self.position = PositionController(PositionGains.for_loop_rate(rate_hz))
         #: Fuses the FC's accelerometer with its GPS for the position loop (None: the GPS
         #: alone, extrapolated by the gains' lead).
@@ -72,7 +72,7 @@ class PositionSteering:
 
     def _gps(self) -> GpsPosition:
         try:
-            gps = self.session.gps_position()
+            gps = self.vehicle.gps_position()
         except MspErrorReply as exc:
             raise MissionError(
                 "position control needs the FC's GPS, and this firmware has none (it refused "
@@ -86,15 +86,15 @@ class PositionSteering:
 
     def _stick_map(self) -> AngleStickMap:
         if self.sticks is None:
-            client = self.session.client
+            client = self.vehicle.client
             self.sticks = AngleStickMap.from_replies(client.get(msg.RcTuning),
                                                      client.get(msg.PidAdvanced))
         return self.sticks
 
     def _set_sticks(self, *, roll_us: float | None = None, pitch_us: float | None = None,
                     yaw_us: float | None = None) -> None:
-        rc = self.session.rc_command
-        self.session.set_rc(replace(
+        rc = self.vehicle.rc_command
+        self.vehicle.set_rc(replace(
             rc, roll_us=rc.roll_us if roll_us is None else roll_us,
             pitch_us=rc.pitch_us if pitch_us is None else pitch_us,
             yaw_us=rc.yaw_us if yaw_us is None else yaw_us))
@@ -112,7 +112,7 @@ class PositionSteering:
         """One step of position and heading control towards ``target``: sets the roll,
         pitch and yaw sticks, returns the altitude target."""
         sticks = self._stick_map()
-        started_s = self.session.time_s
+        started_s = self.vehicle.time_s
 
         def steer(sample: FlightSample) -> float | None:
             gps = self._gps()

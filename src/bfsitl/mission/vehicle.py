@@ -215,7 +215,7 @@ class Vehicle:
         self.close()
 
     def on_close(self, callback: Callable[[], object]) -> None:
-        """Call ``callback`` when the session closes (before the RC link, bridge and SITL
+        """Call ``callback`` when the vehicle closes (before the RC link, bridge and SITL
         stop): an autopilot's log is closed with the vehicle it records."""
         self._stack.callback(callback)
 
@@ -232,7 +232,7 @@ class Vehicle:
 
     def set_rc(self, command: RcCommand) -> None:
         if self.rc is None:
-            raise SitlError("the session is not started")
+            raise SitlError("the vehicle is not started")
         self.rc.set(command)
 
     def set_throttle(self, throttle_us: float) -> None:
@@ -357,7 +357,7 @@ class Vehicle:
         )
 
     def gps_position(self) -> GpsPosition:
-        """The FC's GPS, local to its first reading in this session (one MSP round trip).
+        """The FC's GPS, local to its first reading since the vehicle started (one MSP round trip).
 
         Only GPS builds answer (``bfsitl firmware build --gps`` for 4.6.0; master has it):
         others raise :class:`MspErrorReply`.  The conversion is the FC's flat-earth one, good

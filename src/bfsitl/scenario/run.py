@@ -146,10 +146,10 @@ class RunOptions:
 class _Injector:
     """Injects each fault when it is due and undoes it when it ends; keeps the trace."""
 
-    def __init__(self, session: FlightSession, faults: tuple[Fault, ...], trace: Trace,
+    def __init__(self, vehicle: FlightSession, faults: tuple[Fault, ...], trace: Trace,
                  events: list[TimedEvent], progress: Progress, record: Progress,
                  watch: FlightWatch | None = None) -> None:
-        self.session = session
+        self.vehicle = vehicle
         #: The analysers' record of the run, on the trace's clock (seconds from arming).
         self.watch = watch or FlightWatch()
         #: Events go to the flight's outputs as well (the MCAP file's /events log).
@@ -181,7 +181,7 @@ class _Injector:
                 self.note(t, f"{fault.title}: over")
         while self.pending and t >= self.pending[0].spec.at_s:
             fault = self.pending.pop(0)
-            undo = fault.apply(self.session)
+            undo = fault.apply(self.vehicle)
             lasts = fault.spec.duration_s
             self.active.append((t + lasts if lasts is not None else math.inf, fault, undo))
             self.trace.fault_times_s.append(round(t, 4))
@@ -198,7 +198,7 @@ class _Injector:
 
     def _row(self, t: float, sample: FlightSample) -> TraceRow:
         try:
-            debug = self.session.client.get(msg.Debug).values
+            debug = self.vehicle.client.get(msg.Debug).values
             phase: int | None = debug[FAILSAFE_PHASE_DEBUG_INDEX] \
                 if len(debug) > FAILSAFE_PHASE_DEBUG_INDEX else None
         except BfsitlError:
@@ -360,12 +360,12 @@ def _fly(scenario: Scenario, binary: Path, profile: FirmwareProfile, faults: tup
 
 def _autopilot_flight(scenario: Scenario, loop: FlightLoop, injector: _Injector,
                       trace: Trace) -> None:
-    """The ``[flight]`` table flown (the session is armed) until it ends, a fault takes the
+    """The ``[flight]`` table flown (the vehicle is armed) until it ends, a fault takes the
     sticks (the loop's stop condition), or it fails."""
     armed_at_s = injector.armed_at_s or 0.0
 
     def t() -> float:
-        return loop.session.time_s - armed_at_s
+        return loop.vehicle.time_s - armed_at_s
 
     def step_done(step: Phase) -> None:
         if step is Phase.TAKEOFF:
@@ -389,7 +389,7 @@ def _autopilot_flight(scenario: Scenario, loop: FlightLoop, injector: _Injector,
 
 def _watch(scenario: Scenario, loop: FlightLoop, injector: _Injector) -> None:
     """Record until ``duration_s``, or until disarmed and at rest for ``settle_s``."""
-    session = loop.session
+    vehicle = loop.vehicle
     resting_since: list[float] = []
 
     def done(sample: FlightSample) -> bool:
@@ -403,7 +403,7 @@ def _watch(scenario: Scenario, loop: FlightLoop, injector: _Injector) -> None:
             resting_since.append(t)
         return t - resting_since[0] >= scenario.settle_s
 
-    left_s = scenario.duration_s - (session.time_s - (injector.armed_at_s or 0.0))
+    left_s = scenario.duration_s - (vehicle.time_s - (injector.armed_at_s or 0.0))
     if left_s > 0:
         loop.observe(done, timeout_s=left_s + 1.0, phase=Phase.WATCH)
 

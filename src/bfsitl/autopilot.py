@@ -124,9 +124,9 @@ class Autopilot:
             # The GPS fused with the FC's accelerometer for the position loop: as good as the
             # GPS alone in SITL, where the fix is fresh; better with a slow, late receiver
             # (control/horizontal_estimator.py).
-            self.loop.horizontal = HorizontalEstimator()
-            self.loop.position = PositionController(replace(
-                self.loop.position.gains, lead_s=0.0))
+            self.loop.steering.horizontal = HorizontalEstimator()
+            self.loop.steering.position = PositionController(replace(
+                self.loop.steering.position.gains, lead_s=0.0))
 
     # -- the record ---------------------------------------------------------------------------
     @property

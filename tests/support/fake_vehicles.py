@@ -191,5 +191,5 @@ class PlanarVehicle(FakeVehicle):
 
 def planar_loop(vehicle: PlanarVehicle, log=None) -> FlightLoop:  # type: ignore[no-untyped-def]
     loop = FlightLoop(vehicle, PController(), log=log)  # type: ignore[arg-type]
-    loop.sticks = vehicle.sticks  # the FC's curve would be read over MSP
+    loop.steering.sticks = vehicle.sticks  # the FC's curve would be read over MSP
     return loop

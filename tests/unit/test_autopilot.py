@@ -70,7 +70,7 @@ class NoGps(FakeVehicle):
 def pilot_for(vehicle: FakeVehicle, controller: Any = None, **options: Any) -> Autopilot:
     pilot = Autopilot(vehicle, controller or PController(), **options)
     if isinstance(vehicle, PlanarVehicle):
-        pilot.loop.sticks = vehicle.sticks  # the FC's stick curve would be read over MSP
+        pilot.loop.steering.sticks = vehicle.sticks  # the FC's stick curve would be read over MSP
     return pilot
 
 
@@ -350,8 +350,8 @@ def test_the_loop_rate_and_the_controller_come_from_the_vehicle_and_the_caller()
 
 
 def test_fusing_the_accelerometer_changes_the_position_loops_estimate_and_lead_only() -> None:
-    plain = Autopilot(FakeVehicle(), PController()).loop
-    fused = Autopilot(FakeVehicle(), PController(), fuse_accelerometer=True).loop
+    plain = Autopilot(FakeVehicle(), PController()).loop.steering
+    fused = Autopilot(FakeVehicle(), PController(), fuse_accelerometer=True).loop.steering
     assert plain.horizontal is None and plain.position.gains.lead_s > 0.0
     assert isinstance(fused.horizontal, HorizontalEstimator)
     assert fused.position.gains == PositionGains(**{

@@ -58,7 +58,7 @@ CRASH_TILT_DEG = 70.0
 CRASH_TOUCHDOWN_M_S = 2.5
 
 
-class FlightLoop(PositionSteering):
+class FlightLoop:
     """Closed-loop manoeuvres on a started vehicle: a simulated :class:`FlightSession` or a
     board (:class:`~bfsitl.mission.board.BoardVehicle`).
 
@@ -104,7 +104,8 @@ class FlightLoop(PositionSteering):
         self._on_event = self.hooks.on_event or (lambda _message: None)
         self._climb = ClimbRateEstimator()
         self._started_wall_s = time.monotonic()
-        self._init_steering(vehicle, rate_hz)
+        #: Position and heading control (GPS builds): the loop asks it for the sticks.
+        self.steering = PositionSteering(vehicle, rate_hz)
         #: One entry per leg flown by :meth:`fly_to`.
         self.legs: list[LegStats] = []
 
@@ -125,9 +126,7 @@ class FlightLoop(PositionSteering):
         self._on_event("arming: waiting for the FC's blockers to clear")
         self.vehicle.arm()
         self._climb.reset()
-        self.position.reset(self.vehicle.time_s)  # nothing learnt of the wind yet
-        if self.horizontal is not None:
-            self.horizontal.started = False
+        self.steering.reset(self.vehicle.time_s)
         self.controller.reset(self.vehicle.time_s)
         self._on_event(f"armed {self.vehicle.armed_after_s:.1f} s after start")
 
@@ -158,14 +157,13 @@ class FlightLoop(PositionSteering):
                        + (", holding the take-off point" if hold_position else ""))
         if not hold_position:
             return self._reach(Phase.TAKEOFF, altitude_m, timeout_s)
-        here = self._position_target(0.0, 0.0)
-        self._target_ne = here
-        steer = self._position_steer(self._fixed(here, alt_m=altitude_m), 0)
-        self.position.resume(self.vehicle.time_s)
+        here = self.steering.position_target(0.0, 0.0)
+        self.steering.target_ne = here
+        steer = self.steering.steer_to(self.steering.fixed(here, altitude_m), 0)
         try:
             return self._reach(Phase.TAKEOFF, altitude_m, timeout_s, steer=steer)
         finally:
-            self._end_position_control()
+            self.steering.end()
 
     def climb_to(self, altitude_m: float, *, timeout_s: float = 20.0) -> float:
         """Climb or descend to ``altitude_m`` where the vehicle is (an altitude step; a leg
@@ -210,7 +208,7 @@ class FlightLoop(PositionSteering):
         through ANGLE mode and holding the heading."""
         if self.stopped:
             return
-        target = self._position_target(north_m, east_m)
+        target = self.steering.position_target(north_m, east_m)
         self._on_event(f"hold {target[0]:+.1f} m N {target[1]:+.1f} m E, "
                        f"{self.target_alt_m:.2f} m up, for {seconds:g} s")
         end_s = self.vehicle.time_s + seconds
@@ -232,10 +230,10 @@ class FlightLoop(PositionSteering):
         """
         if self.stopped:
             return 0.0
-        start = self._position_target(None, None)
+        start = self.steering.position_target(None, None)
         start_alt_m = self.target_alt_m
         end = (north_m, east_m, start_alt_m if alt_m is None else alt_m)
-        speed = self.position.gains.max_speed_m_s if speed_m_s is None else speed_m_s
+        speed = self.steering.position.gains.max_speed_m_s if speed_m_s is None else speed_m_s
         reference = LegReference((start[0], start[1], start_alt_m), end, speed)
         if timeout_s is None:
             timeout_s = 20.0 + 3.0 * reference.duration_s
@@ -252,7 +250,7 @@ class FlightLoop(PositionSteering):
             return point
 
         def arrived(_sample: FlightSample) -> bool:
-            gps = self.last_gps
+            gps = self.steering.last_gps
             return finished[0] and gps is not None and math.hypot(
                 gps.north_m - north_m, gps.east_m - east_m) <= tolerance_m \
                 and math.hypot(gps.v_north_m_s, gps.v_east_m_s) < 0.3
@@ -260,7 +258,7 @@ class FlightLoop(PositionSteering):
         self._fly_position(Phase.GOTO, target, arrived, timeout_s, waypoint=waypoint)
         if self.stopped:
             return self.vehicle.time_s - started_s  # not arrived: no leg to judge
-        self._target_ne = (north_m, east_m)
+        self.steering.target_ne = (north_m, east_m)
         took_s = self.vehicle.time_s - started_s
         self.legs.append(leg_stats(waypoint or len(self.legs) + 1, start, end,
                                    [judged_position(r) for r in self.rows[first_row:]], took_s))
@@ -275,7 +273,7 @@ class FlightLoop(PositionSteering):
             return 0.0
         target_deg = heading_deg % 360.0
         self._on_event(f"turn to heading {target_deg:.0f} deg")
-        self.target_heading_deg = target_deg
+        self.steering.target_heading_deg = target_deg
         started_s = self.vehicle.time_s
         within_since: list[float] = []
 
@@ -288,24 +286,27 @@ class FlightLoop(PositionSteering):
             return sample.time_s - within_since[0] >= REACHED_HOLD_S
 
         if self.vehicle.has_gps:
-            here = self._position_target(None, None)
+            here = self.steering.position_target(None, None)
             self._fly_position(Phase.YAW, self._fixed(here), turned, timeout_s)
         else:
             self._fly(Phase.YAW, self.target_alt_m, turned, timeout_s=timeout_s,
-                      steer=self._steer_heading)
-            self._set_sticks(yaw_us=RC_MID_US)
+                      steer=self.steering.steer_heading)
+            self.steering.set_sticks(yaw_us=RC_MID_US)
         return self.vehicle.time_s - started_s
 
     def _fly_position(self, phase: Phase, target: PositionTarget,
                       done: Callable[[FlightSample], bool], timeout_s: float, *,
                       waypoint: int = 0, controller: AltitudeController | None = None) -> None:
-        steer = self._position_steer(target, waypoint)
-        self.position.resume(self.vehicle.time_s)
+        steer = self.steering.steer_to(target, waypoint)
         try:
             self._fly(phase, target(0.0).alt_m, done, timeout_s=timeout_s, steer=steer,
                       controller=controller)
         finally:
-            self._end_position_control()
+            self.steering.end()
+
+    def _fixed(self, north_east: tuple[float, float]) -> PositionTarget:
+        """A position target that stays put at the altitude held."""
+        return self.steering.fixed(north_east, self.target_alt_m)
 
     def hand_over(self, seconds: float, *, switches: tuple[int, ...], throttle_us: float,
                   phase: Phase = Phase.FC_MODE) -> None:
@@ -318,7 +319,7 @@ class FlightLoop(PositionSteering):
             return
         self._on_event(f"handing over to the FC's modes (AUX "
                        f"{', '.join(str(i + 1) for i in switches)}) for {seconds:g} s")
-        self._set_sticks(roll_us=RC_MID_US, pitch_us=RC_MID_US, yaw_us=RC_MID_US)
+        self.steering.set_sticks(roll_us=RC_MID_US, pitch_us=RC_MID_US, yaw_us=RC_MID_US)
         command = self.vehicle.rc_command
         for index in switches:
             command = command.with_aux(index, SWITCH_ON_US)
@@ -369,11 +370,11 @@ class FlightLoop(PositionSteering):
         def touched_down(_sample: FlightSample) -> bool:
             return bool(landing.touched_down)
 
-        if self._target_ne is not None:
+        if self.steering.target_ne is not None:
             # After position control the descent holds the position too: wind would
             # otherwise carry the vehicle off while it sinks.
-            self._fly_position(Phase.LAND, self._fixed(self._target_ne, alt_m=0.0), touched_down,
-                               timeout_s, controller=self.landing)
+            self._fly_position(Phase.LAND, self.steering.fixed(self.steering.target_ne, 0.0),
+                               touched_down, timeout_s, controller=self.landing)
         else:
             self._fly(Phase.LAND, 0.0, touched_down, timeout_s=timeout_s, controller=self.landing)
         if self.stopped:
@@ -498,7 +499,7 @@ class FlightLoop(PositionSteering):
             motor4=sample.motors[3], armed=sample.armed,
             wall_s=sample.wall_s - self._started_wall_s,
             sim_north_m=sample.sim_north_m, sim_east_m=sample.sim_east_m,
-            waypoint=self._waypoint, **self._position_columns,
+            waypoint=self.steering.waypoint, **self.steering.row_columns,
         )
         self.rows.append(row)
         self.last_sample = sample

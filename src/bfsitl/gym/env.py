@@ -38,19 +38,24 @@ import shutil
 import tempfile
 from collections.abc import Callable
 from pathlib import Path
-from typing import Any
+from typing import Any, Literal, get_args
 
 import gymnasium
 import numpy as np
 from gymnasium import spaces
 
 from bfsitl.backend.disturbances import Disturbances
-from bfsitl.backend.factory import LOCKSTEP_EXCHANGES, PHYSICS_KERNELS
+from bfsitl.backend.factory import LOCKSTEP_EXCHANGES, PHYSICS_KERNELS, LockstepExchange
 from bfsitl.control import make_controller
 from bfsitl.errors import EnvironmentConfigError, LinkError, MspError, SitlError
 from bfsitl.fc.rc_link import RcCommand
 from bfsitl.gym.baseline import HOVER_THROTTLE
-from bfsitl.gym.observation import OBSERVATIONS, observation_space, observe
+from bfsitl.gym.observation import (
+    OBSERVATIONS,
+    ObservationSource,
+    observation_space,
+    observe,
+)
 from bfsitl.gym.snapshot import Snapshot, Vec3, read_snapshot
 from bfsitl.gym.sticks import sticks_to_rc
 from bfsitl.gym.tasks import (
@@ -68,8 +73,13 @@ from bfsitl.physics.wind import Wind
 from bfsitl.sitl.core_claim import CoreClaim, claim_core
 from bfsitl.sitl.firmware import find_firmware
 
-MODES = ("angle", "acro")
-STARTS = ("air", "ground")
+#: The FC's mode the policy's sticks fly in: ANGLE (roll and pitch set an angle) or ACRO
+#: (every stick sets a rate).
+FlightMode = Literal["angle", "acro"]
+MODES: tuple[FlightMode, ...] = get_args(FlightMode)
+#: Where an episode starts: in the air, after bfsitl's own take-off, or armed on the ground.
+EpisodeStart = Literal["air", "ground"]
+STARTS: tuple[EpisodeStart, ...] = get_args(EpisodeStart)
 #: The control rates a lockstep SITL's MSP budget sustains (the serial task runs at 1 kHz).
 CONTROL_HZ_RANGE = (1.0, 200.0)
 DEFAULT_FIRMWARE = "4.6.0-gps-lockstep"
@@ -89,11 +99,13 @@ class FlightEnv(gymnasium.Env[np.ndarray, np.ndarray]):
     metadata: dict[str, Any] = {"render_modes": []}
 
     def __init__(self, task: Hover, *, firmware: str | Path = DEFAULT_FIRMWARE,
-                 control_hz: float = 100.0, mode: str = "angle", observation: str = "fc",
-                 wind: float = 0.0, wind_from_deg: float = 0.0, gusts: float = 0.0,
+                 control_hz: float = 100.0, mode: FlightMode = "angle",
+                 observation: ObservationSource = "fc", wind: float = 0.0,
+                 wind_from_deg: float = 0.0, gusts: float = 0.0,
                  disturbances: DisturbanceHook | None = None, episode_s: float = 10.0,
-                 start: str = "air", start_alt_m: float = 1.5, spin: bool | None = None,
-                 pin_core: bool | None = None, lockstep_exchange: str = "auto",
+                 start: EpisodeStart = "air", start_alt_m: float = 1.5,
+                 spin: bool | None = None, pin_core: bool | None = None,
+                 lockstep_exchange: LockstepExchange = "auto",
                  physics_kernel: str = "auto", warm_resets: bool = True,
                  workdir: str | Path | None = None) -> None:
         _check_choice("mode", mode, MODES)
@@ -348,5 +360,7 @@ class WaypointsEnv(FlightEnv):
 
 
 def _check_choice(name: str, value: str, choices: tuple[str, ...]) -> None:
+    # The types say it to a type checker; this says it to everyone else (a string from a
+    # config file, gymnasium.make's keywords).
     if value not in choices:
         raise EnvironmentConfigError(f"{name} must be one of {', '.join(choices)}, not {value!r}")

@@ -127,7 +127,7 @@ def test_what_the_fc_reports_follows_the_truth_in_wind_and_stick_steps(
     """Roll right, pitch forward, yaw right, in a 3 m/s wind from the east: the FC's attitude,
     gyro, climb and GPS in the observation against the same slots filled from the truth."""
     env = HoverEnv(firmware=lockstep_gps_46_firmware, workdir=tmp_path / "run", wind=3.0,
-                   wind_from_deg=90.0, episode_s=60.0)
+                   wind_from_deg=90.0, max_episode_steps=6000)
     try:
         _obs, info = env.reset(seed=2)
         hover = 0.12
@@ -228,9 +228,9 @@ def test_bfsitls_own_vector_environment_pins_each_firmware_and_flies_as_one_alon
         lockstep_gps_46_firmware: Path, tmp_path: Path) -> None:
     envs = gymnasium.make_vec("bfsitl/Hover-v0", num_envs=2,
                               vectorization_mode="vector_entry_point",
-                              firmware=lockstep_gps_46_firmware, episode_s=0.5,
+                              firmware=lockstep_gps_46_firmware, max_episode_steps=50,
                               workdir=tmp_path / "vector")
-    single = HoverEnv(firmware=lockstep_gps_46_firmware, episode_s=0.5,
+    single = HoverEnv(firmware=lockstep_gps_46_firmware, max_episode_steps=50,
                       workdir=tmp_path / "single")
     try:
         def pinned_a_core_each() -> None:
@@ -311,7 +311,7 @@ def test_environments_as_ray_actors_fly_as_one_alone_and_leave_nothing(
     cluster = Cluster(initialize_head=True, head_node_args={
         "num_cpus": 0, "include_dashboard": False, "object_store_memory": 100_000_000})
     caches = [tmp_path / f"node{index}-cache" for index in range(2)]
-    single = HoverEnv(firmware=lockstep_gps_46_firmware, episode_s=0.5,
+    single = HoverEnv(firmware=lockstep_gps_46_firmware, max_episode_steps=50,
                       workdir=tmp_path / "single")
     envs = None
     try:
@@ -320,7 +320,7 @@ def test_environments_as_ray_actors_fly_as_one_alone_and_leave_nothing(
                              env_vars={"BFSITL_CACHE_DIR": str(cache)})
         cluster.wait_for_nodes()
         envs = RayVectorEnv("bfsitl.gym.env:HoverEnv", 2, address=cluster.address,
-                            firmware=str(lockstep_gps_46_firmware), episode_s=0.5)
+                            firmware=str(lockstep_gps_46_firmware), max_episode_steps=50)
         assert all(list(cache.glob("received/*/*_SITL")) for cache in caches)
         env0_flies_as_alone(envs, single)
     finally:

@@ -82,6 +82,11 @@ EpisodeStart = Literal["air", "ground"]
 STARTS: tuple[EpisodeStart, ...] = get_args(EpisodeStart)
 #: The control rates a lockstep SITL's MSP budget sustains (the serial task runs at 1 kHz).
 CONTROL_HZ_RANGE = (1.0, 200.0)
+DEFAULT_CONTROL_HZ = 100.0
+#: The episodes' lengths in steps (Gymnasium's ``max_episode_steps``, registered with the
+#: ids): 10 s of Hover and 20 s of Waypoints at the default control rate.
+HOVER_MAX_EPISODE_STEPS = round(10.0 * DEFAULT_CONTROL_HZ)
+WAYPOINTS_MAX_EPISODE_STEPS = round(20.0 * DEFAULT_CONTROL_HZ)
 DEFAULT_FIRMWARE = "4.6.0-gps-lockstep"
 #: Armed on the ground before an "air" start's take-off (the FC's altitude settles).
 _GROUND_S = 1.0
@@ -99,10 +104,11 @@ class FlightEnv(gymnasium.Env[np.ndarray, np.ndarray]):
     metadata: dict[str, Any] = {"render_modes": []}
 
     def __init__(self, task: Hover, *, firmware: str | Path = DEFAULT_FIRMWARE,
-                 control_hz: float = 100.0, mode: FlightMode = "angle",
+                 control_hz: float = DEFAULT_CONTROL_HZ, mode: FlightMode = "angle",
                  observation: ObservationSource = "fc", wind: float = 0.0,
                  wind_from_deg: float = 0.0, gusts: float = 0.0,
-                 disturbances: DisturbanceHook | None = None, episode_s: float = 10.0,
+                 disturbances: DisturbanceHook | None = None,
+                 max_episode_steps: int | None = HOVER_MAX_EPISODE_STEPS,
                  start: EpisodeStart = "air", start_alt_m: float = 1.5,
                  spin: bool | None = None, pin_core: bool | None = None,
                  lockstep_exchange: LockstepExchange = "auto",
@@ -117,8 +123,10 @@ class FlightEnv(gymnasium.Env[np.ndarray, np.ndarray]):
         if not low <= control_hz <= high:
             raise EnvironmentConfigError(
                 f"control_hz {control_hz} is outside {low:g}..{high:g} Hz")
-        if not 0.1 <= episode_s <= 3600.0:
-            raise EnvironmentConfigError(f"episode_s {episode_s} is outside 0.1..3600 s")
+        if max_episode_steps is not None and max_episode_steps < 1:
+            raise EnvironmentConfigError(
+                f"max_episode_steps {max_episode_steps} is not a number of steps (1 or more; "
+                f"None: no limit)")
         if not 0.5 <= start_alt_m <= 15.0:
             raise EnvironmentConfigError(f"start_alt_m {start_alt_m} is outside 0.5..15 m")
         in_worker = multiprocessing.parent_process() is not None
@@ -150,7 +158,12 @@ class FlightEnv(gymnasium.Env[np.ndarray, np.ndarray]):
         self.wind = (Wind.from_direction(wind, wind_from_deg, gusts)
                      if wind or gusts else None)
         self.disturbances = disturbances
-        self.episode_s = episode_s
+        #: Truncate the episode after this many steps (None: never), when the environment is
+        #: made directly (``HoverEnv(...)``, a vector environment's workers, a Ray actor).
+        #: Made by ``gymnasium.make``, Gymnasium's TimeLimit counts its own
+        #: ``max_episode_steps`` (registered, or given to ``make``) and this one is not
+        #: counted: one limit, never two that disagree (see :meth:`_step_limit`).
+        self.max_episode_steps = max_episode_steps
         self.start = start
         self.start_alt_m = start_alt_m
         self._core: CoreClaim | None = None
@@ -174,6 +187,7 @@ class FlightEnv(gymnasium.Env[np.ndarray, np.ndarray]):
         self._started_s = 0.0
         self._next_s = 0.0
         self._has_flown = False
+        self._steps = 0  # in this episode
         self._snapshot: Snapshot | None = None
 
     # -- the episode -------------------------------------------------------------------------
@@ -199,6 +213,7 @@ class FlightEnv(gymnasium.Env[np.ndarray, np.ndarray]):
             vehicle.arm()
             self._mark_arming(vehicle)
         self._started_s = self._next_s = vehicle.time_s
+        self._steps = 0
         self._has_flown = self.start == "air"
         self._snapshot = read_snapshot(vehicle, arm_ned_m=self._arm_ned)
         return self._observe(), self._info(None)
@@ -239,9 +254,17 @@ class FlightEnv(gymnasium.Env[np.ndarray, np.ndarray]):
                       has_flown=self._has_flown)
         reward += bonus + (FAILURE_REWARD if why is not None else 0.0)
         terminated = finished or why is not None
-        truncated = not terminated and (vehicle.time_s - self._started_s
-                                        >= self.episode_s - 0.5 / self.control_hz)
+        self._steps += 1
+        limit = self._step_limit()
+        truncated = not terminated and limit is not None and self._steps >= limit
         return self._observe(), float(reward), terminated, truncated, self._info(why)
+
+    def _step_limit(self) -> int | None:
+        """Where this environment truncates an episode itself: :attr:`max_episode_steps`,
+        unless ``gymnasium.make`` made it (it sets ``spec``), whose TimeLimit wrapper then
+        counts the steps; counting here as well would end the episode at two limits when
+        ``make`` was given another ``max_episode_steps`` than the default."""
+        return None if self.spec is not None else self.max_episode_steps
 
     def _can_go_on(self) -> bool:
         """The firmware is alive, armed and out of failsafe: a warm reset can use it."""
@@ -268,6 +291,7 @@ class FlightEnv(gymnasium.Env[np.ndarray, np.ndarray]):
         hands.place(start, motor_speeds_rad_s=(hover_rad_s,) * 4)
         hands.hold_still(False)
         self._started_s = self._next_s = vehicle.time_s
+        self._steps = 0
         self._has_flown = True
         self._snapshot = read_snapshot(vehicle, arm_ned_m=self._arm_ned)
         return self._observe(), self._info(None)
@@ -353,10 +377,13 @@ class WaypointsEnv(FlightEnv):
     """``bfsitl/Waypoints-v0``: three points in turn, the next one in the observation (see
     :class:`~bfsitl.gym.tasks.Waypoints`); 20 s by default."""
 
-    def __init__(self, *, count: int = 3, episode_s: float = 20.0, **options: Any) -> None:
+    def __init__(self, *, count: int = 3,
+                 max_episode_steps: int | None = WAYPOINTS_MAX_EPISODE_STEPS,
+                 **options: Any) -> None:
         if not 1 <= count <= 50:
             raise EnvironmentConfigError(f"count {count} is outside 1..50 waypoints")
-        super().__init__(Waypoints(count=count), episode_s=episode_s, **options)
+        super().__init__(Waypoints(count=count), max_episode_steps=max_episode_steps,
+                         **options)
 
 
 def _check_choice(name: str, value: str, choices: tuple[str, ...]) -> None:

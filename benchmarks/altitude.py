@@ -2,7 +2,7 @@
 
 For each controller (default: the tutorial's PID, then the cascade) a fresh isolated SITL with
 the embedded physics is started (:class:`bfsitl.mission.FlightSession`), the default mission is
-flown (:func:`bfsitl.mission.run_mission`: arm, take off to ``--target``, hold ``--hold``
+flown (:func:`bfsitl.mission.fly`: arm, take off to ``--target``, hold ``--hold``
 seconds, land, disarm) and the step response of the take-off and hold is measured on the
 simulated truth (:func:`bfsitl.control.metrics.step_response`):
 
@@ -32,7 +32,7 @@ from dataclasses import asdict, dataclass, field
 
 from bfsitl.control import LandingController, make_controller
 from bfsitl.control.metrics import StepMetrics, step_response
-from bfsitl.mission import FlightRow, FlightSession, MissionPlan, SessionConfig, run_mission
+from bfsitl.mission import FlightRow, FlightSession, MissionPlan, SessionConfig, fly
 from bfsitl.mission.session import DEFAULT_BARO_NOISE_PA, fly_sensors
 
 DEFAULT_CONTROLLERS = ("tutorial-pid", "cascade", "fused")
@@ -60,7 +60,7 @@ def fly_once(controller_name: str, plan: MissionPlan, band_m: float, speed: floa
     config = SessionConfig(speed=speed, sensors=fly_sensors(baro_noise_std_pa=baro_noise_pa),
                            firmware=firmware)
     with FlightSession(config, progress=_progress) as session:
-        result = run_mission(session, plan, controller, landing=landing)
+        result = fly(session, plan, controller, landing=landing)
         assert session.sitl is not None
         firmware_name = session.sitl.profile.firmware_version
     flown = [r for r in result.rows if r.phase in ("takeoff", "hold")]

@@ -13,7 +13,7 @@ to 2 m, hold ``--hold`` s, land) is flown with the fused controller and ``--seed
   (:mod:`bfsitl.kernel`: the same flight bit for bit, steps that never enter Python).
 
 Per flight: wall time from the session's start to its end, simulated time, their ratio (and
-the mission's alone: ``run_mission``'s simulated time over its wall time, no start-up), the
+the mission's alone: ``bfsitl.fly``'s simulated time over its wall time, no start-up), the
 share of fdm packets answered, the FC clock against the simulated clock (MSP_RTC, over 2 s of
 simulated time after landing), the PID cycle in FC time, and the altitude metrics (rise,
 settling, hold RMS/max) so that the two modes can be compared.  For lockstep, the per-step
@@ -48,7 +48,7 @@ from bfsitl.control import make_controller
 from bfsitl.errors import BfsitlError
 from bfsitl.kernel.compiler import kernel_available
 from bfsitl.link.shm_exchange import shm_exchange_supported
-from bfsitl.mission import FlightSession, MissionPlan, SessionConfig, run_mission
+from bfsitl.mission import FlightSession, MissionPlan, SessionConfig, fly
 from bfsitl.sim.health import HealthMonitor
 from bfsitl.sitl.core_claim import claim_core
 from bfsitl.sitl.firmware import find_firmware
@@ -103,8 +103,8 @@ LOCKSTEP_MODES = (("udp", False, "python"), ("shm", False, "python"), ("shm", Fa
                   ("udp", True, "python"), ("shm", True, "python"), ("shm", True, "compiled"))
 
 
-def fly(name: str, path: str, lockstep: bool, hold_s: float, seed: int,
-        exchange: str = "udp", one_core: bool = False, kernel: str = "python") -> Flight:
+def fly_firmware(name: str, path: str, lockstep: bool, hold_s: float, seed: int,
+                 exchange: str = "udp", one_core: bool = False, kernel: str = "python") -> Flight:
     config = SessionConfig(firmware=path, seed=seed, lockstep=lockstep,
                            lockstep_exchange=exchange, lockstep_spin=not one_core,
                            physics_kernel=kernel)
@@ -126,7 +126,7 @@ def _fly(config: SessionConfig, name: str, lockstep: bool, hold_s: float, mode: 
          ) -> Flight:
     with FlightSession(config) as session:
         began_sim_s, began_s = session.time_s, time.perf_counter()
-        result = run_mission(session, MissionPlan(hold_s=hold_s), make_controller("fused"))
+        result = fly(session, MissionPlan(hold_s=hold_s), make_controller("fused"))
         mission_x = (session.time_s - began_sim_s) / (time.perf_counter() - began_s)
         assert session.bridge is not None
         monitor = HealthMonitor(session.bridge, session.client)  # type: ignore[arg-type]
@@ -250,8 +250,8 @@ def main() -> None:
             if (exchange == "udp" or shm_exchange_supported())
             and (kernel == "python" or kernel_available())]
         for path, is_lockstep, exchange, one_core, kernel in modes:
-            flights = [fly(generation, path, is_lockstep, args.hold, args.seed, exchange,
-                           one_core, kernel) for _ in range(args.repeats)]
+            flights = [fly_firmware(generation, path, is_lockstep, args.hold, args.seed, exchange,
+                                        one_core, kernel) for _ in range(args.repeats)]
             flights.sort(key=lambda f: f.wall_s)
             rows.append(flights[len(flights) // 2])
             print(f"flew {generation} {rows[-1].mode}: {rows[-1].wall_s:.1f} s",

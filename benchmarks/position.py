@@ -41,10 +41,10 @@ from firmware_cache import MASTER_SOURCE, cached_firmware
 from bfsitl.build import FirmwareBuildOptions
 from bfsitl.control import make_controller
 from bfsitl.fc.provisioning import ANGLE_ON_AUX2, ARM_ON_AUX1, Profile
-from bfsitl.mission import FlightSession, Mission, SessionConfig
+from bfsitl.mission import FlightLoop, FlightSession, SessionConfig
 from bfsitl.mission.flight_metrics import cross_track_rms, landed_from_start_m
 from bfsitl.mission.plan import MissionPlan, Waypoint
-from bfsitl.mission.plan_driver import fly_plan
+from bfsitl.mission.plan_driver import fly_steps
 from bfsitl.mission.session import FAST_SERIAL_LINE, FLY_PROFILE, fly_sensors, with_fast_serial
 from bfsitl.physics.wind import Wind
 from bfsitl.protocol import messages as msg
@@ -115,14 +115,14 @@ def hold(name: str, path: str, seed: int, hold_s: float, gps_noise: bool = True)
     started = time.perf_counter()
     try:
         with session_for(path, seed, WIND, hold_profile(name), gps_noise) as session:
-            mission = Mission(session, make_controller("fused"), rate_hz=RATE_HZ)
-            mission.arm()
-            mission.wait_on_ground(2.0)
-            mission.takeoff(2.0, hold_position=True)
-            first = len(mission.rows)
-            mission.hold_position(hold_s, 0.0, 0.0)
-            rows = mission.rows[first:]
-            mission.land()
+            loop = FlightLoop(session, make_controller("fused"), rate_hz=RATE_HZ)
+            loop.arm()
+            loop.wait_on_ground(2.0)
+            loop.takeoff(2.0, hold_position=True)
+            first = len(loop.rows)
+            loop.hold_position(hold_s, 0.0, 0.0)
+            rows = loop.rows[first:]
+            loop.land()
     except Exception as exc:  # a benchmark reports a failed flight and goes on
         result.outcome = f"{type(exc).__name__}: {str(exc).splitlines()[0]}"
         return result
@@ -130,7 +130,7 @@ def hold(name: str, path: str, seed: int, hold_s: float, gps_noise: bool = True)
     gps = [math.hypot(r.fc_north_m, r.fc_east_m) for r in rows]
     result.figures = {"rms_m": rms(truth), "max_m": max(truth), "gps_rms_m": rms(gps),
                       "alt_rms_m": rms([r.sim_alt_m - 2.0 for r in rows]),
-                      "hover_us": mission.controller.hover_throttle_us}  # type: ignore[attr-defined]
+                      "hover_us": loop.controller.hover_throttle_us}  # type: ignore[attr-defined]
     result.wall_s = time.perf_counter() - started
     return result
 
@@ -143,16 +143,16 @@ def firmware_hold(name: str, path: str, seed: int, hold_s: float, hover_us: floa
     modes: set[str] = set()
     try:
         with session_for(path, seed, WIND, hold_profile(name, hover)) as session:
-            mission = Mission(session, make_controller("fused"), rate_hz=RATE_HZ,
+            loop = FlightLoop(session, make_controller("fused"), rate_hz=RATE_HZ,
                               on_row=lambda _row, sample: modes.update(sample.flight_modes))
-            mission.arm()
-            mission.wait_on_ground(2.0)
-            mission.takeoff(2.0, hold_position=True)
-            first = len(mission.rows)
+            loop.arm()
+            loop.wait_on_ground(2.0)
+            loop.takeoff(2.0, hold_position=True)
+            first = len(loop.rows)
             modes.clear()
-            mission.hand_over(hold_s, switches=(2, 3) if poshold else (2,), throttle_us=hover)
-            rows = mission.rows[first:]
-            mission.land()
+            loop.hand_over(hold_s, switches=(2, 3) if poshold else (2,), throttle_us=hover)
+            rows = loop.rows[first:]
+            loop.land()
     except Exception as exc:
         result.outcome = f"{type(exc).__name__}: {str(exc).splitlines()[0]}"
         return result
@@ -176,17 +176,17 @@ def square(name: str, path: str, seed: int, wind: Wind | None) -> Result:
     plan = MissionPlan(target_alt_m=2.0, hold_s=0.0, waypoints=SQUARE, speed_m_s=2.0)
     try:
         with session_for(path, seed, wind, gps_noise=wind is not None) as session:
-            mission = Mission(session, make_controller("fused"), rate_hz=RATE_HZ)
-            fly_plan(mission, plan)
+            loop = FlightLoop(session, make_controller("fused"), rate_hz=RATE_HZ)
+            fly_steps(loop, plan)
     except Exception as exc:
         result.outcome = f"{type(exc).__name__}: {str(exc).splitlines()[0]}"
         return result
-    legs = mission.legs
+    legs = loop.legs
     result.figures = {
         "arrival_max_m": max(leg.arrival_error_m for leg in legs),
         "cross_track_rms_m": cross_track_rms(legs) or math.nan,
         "cross_track_max_m": max(leg.cross_track_max_m for leg in legs),
-        "landed_m": landed_from_start_m(mission.rows) or math.nan,
+        "landed_m": landed_from_start_m(loop.rows) or math.nan,
         "legs_s": sum(leg.took_s for leg in legs)}
     result.wall_s = time.perf_counter() - started
     return result

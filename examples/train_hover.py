@@ -39,6 +39,9 @@ from bfsitl.gym.recording import EpisodeRecorder
 #: The evaluation's verdict: the distance to the target over its last seconds.
 HOLD_WINDOW_S = 10.0
 HOLD_WITHIN_M = 0.3
+#: The training episodes' length: Hover-v0's 10 s, whatever the control rate (the
+#: environment's limit counts steps).
+TRAINING_EPISODE_S = 10.0
 
 
 def make_env(firmware: str, control_hz: float, rank: int, out: Path) -> Callable[[], object]:
@@ -48,6 +51,7 @@ def make_env(firmware: str, control_hz: float, rank: int, out: Path) -> Callable
         # In a SubprocVecEnv worker each environment claims a core of its own for itself and
         # its SITL (HoverEnv's pin_core): the workers do not take each other's time.
         return Monitor(HoverEnv(firmware=firmware, control_hz=control_hz,
+                                max_episode_steps=round(TRAINING_EPISODE_S * control_hz),
                                 workdir=out / "sitl" / f"env{rank}"))
 
     return make
@@ -156,7 +160,7 @@ def fly(policy: Callable[[np.ndarray], np.ndarray], firmware: str, control_hz: f
         ) -> dict[str, object]:
     """One evaluation flight; the distances over its last HOLD_WINDOW_S seconds."""
     env = HoverEnv(firmware=firmware, control_hz=control_hz, workdir=workdir,
-                   episode_s=seconds)
+                   max_episode_steps=round(seconds * control_hz))
     try:
         observation, info = env.reset(seed=seed)
         distances: list[tuple[float, float]] = []

@@ -27,11 +27,11 @@ _EXPORTS: dict[str, str] = {
     "FlightSession": "bfsitl.mission.session",
     "SessionConfig": "bfsitl.mission.session",
     "FLY_PROFILE": "bfsitl.mission.session",
-    "Mission": "bfsitl.mission.loop",
+    "FlightLoop": "bfsitl.mission.loop",
     "MissionPlan": "bfsitl.mission.plan",
     "MissionResult": "bfsitl.mission.results",
     "Outcome": "bfsitl.mission.results",
-    "run_mission": "bfsitl.mission.plan_driver",
+    "fly": "bfsitl.mission.plan_driver",
     "Waypoint": "bfsitl.mission.plan",
     "load_mission": "bfsitl.mission.plan",
     "Autopilot": "bfsitl.autopilot",
@@ -67,12 +67,12 @@ _EXPORTS: dict[str, str] = {
 
 __all__ = [
     "Autopilot", "BfsitlError", "BoardVehicle", "CliSession", "FLY_PROFILE", "FirmwareBinary",
-    "FlightSession", "GeoPoint", "Mission", "MissionPlan", "MissionResult", "MspClient",
+    "FlightLoop", "FlightSession", "GeoPoint", "MissionPlan", "MissionResult", "MspClient",
     "Outcome", "Profile", "RcFault", "RunOptions", "Scenario", "ScenarioResult",
     "SensorConfig", "SessionConfig", "Simulator", "SitlProcess", "Vehicle", "Waypoint", "Wind",
-    "__version__", "connect", "decode_blackbox", "find_firmware", "launch_sitl",
+    "__version__", "connect", "decode_blackbox", "find_firmware", "fly", "launch_sitl",
     "load_mission", "load_scenario", "make_controller", "open_link", "provision",
-    "run_mission", "run_scenario",
+    "run_scenario",
 ]
 
 
@@ -99,9 +99,9 @@ if TYPE_CHECKING:  # what type checkers and IDEs see; nothing is imported at run
     from bfsitl.fc.rc_link import RcFault
     from bfsitl.link import open_link
     from bfsitl.mission.board import BoardVehicle
-    from bfsitl.mission.loop import Mission
+    from bfsitl.mission.loop import FlightLoop
     from bfsitl.mission.plan import MissionPlan, Waypoint, load_mission
-    from bfsitl.mission.plan_driver import run_mission
+    from bfsitl.mission.plan_driver import fly
     from bfsitl.mission.results import MissionResult, Outcome
     from bfsitl.mission.session import FLY_PROFILE, FlightSession, SessionConfig
     from bfsitl.mission.vehicle import Vehicle

@@ -18,7 +18,7 @@ the ``with`` block disarms and stops everything, on an exception or Ctrl-C too.
 :class:`Autopilot` owns the sticks: one altitude controller, the position and heading loops
 (on a GPS build), every manoeuvre a closed loop on the vehicle's clock.  :func:`connect`
 gives the same autopilot a flight controller on a serial port (RC by MSP, wall time).  It
-is a thin layer over :class:`~bfsitl.mission.loop.Mission`, which holds the loops and the
+is a thin layer over :class:`~bfsitl.mission.loop.FlightLoop`, which holds the loops and the
 record.
 """
 
@@ -37,10 +37,10 @@ from bfsitl.errors import MissionError
 from bfsitl.mission.board import BoardVehicle
 from bfsitl.mission.flight_row import FlightRow
 from bfsitl.mission.legs import LegStats
-from bfsitl.mission.loop import Mission
+from bfsitl.mission.loop import FlightLoop
 from bfsitl.mission.phase import Phase
 from bfsitl.mission.plan import MissionPlan
-from bfsitl.mission.plan_driver import fly_mission
+from bfsitl.mission.plan_driver import fly_plan
 from bfsitl.mission.results import MissionResult
 from bfsitl.mission.session import (
     FLY_PROFILE,
@@ -164,7 +164,7 @@ class Autopilot:
         if rate_hz is None:
             rate_hz = vehicle.control_rate_hz
         # Made before the log is opened: a bad rate opens no file.
-        self.mission = Mission(vehicle, self.controller, rate_hz=rate_hz,
+        self.loop = FlightLoop(vehicle, self.controller, rate_hz=rate_hz,
                                on_row=self._outputs.on_row, on_event=self._event)
         self._outputs.start()
         if any(not sink.streams for sink in self._outputs.sinks):
@@ -177,23 +177,23 @@ class Autopilot:
             # The GPS fused with the FC's accelerometer for the position loop: as good as the
             # GPS alone in SITL, where the fix is fresh; better with a slow, late receiver
             # (control/horizontal_estimator.py).
-            self.mission.horizontal = HorizontalEstimator()
-            self.mission.position = PositionController(replace(
-                self.mission.position.gains, lead_s=0.0))
+            self.loop.steering.horizontal = HorizontalEstimator()
+            self.loop.steering.position = PositionController(replace(
+                self.loop.steering.position.gains, lead_s=0.0))
 
     # -- the record ---------------------------------------------------------------------------
     @property
     def rows(self) -> list[FlightRow]:
-        return self.mission.rows
+        return self.loop.rows
 
     @property
     def legs(self) -> list[LegStats]:
         """One entry per :meth:`goto`: arrival error and cross-track, from the truth."""
-        return self.mission.legs
+        return self.loop.legs
 
     @property
     def armed(self) -> bool:
-        return self.mission.phase not in (Phase.ARMING, Phase.LANDED)
+        return self.loop.phase not in (Phase.ARMING, Phase.LANDED)
 
     # -- manoeuvres ---------------------------------------------------------------------------
     def takeoff(self, height_m: float, *, timeout_s: float = 20.0) -> float:
@@ -216,9 +216,9 @@ class Autopilot:
             SitlExitedError: The SITL ended during the climb.
         """
         if not self.armed:
-            self.mission.arm()
-            self.mission.wait_on_ground(GROUND_WAIT_S)
-        return self.mission.takeoff(height_m, timeout_s=timeout_s,
+            self.loop.arm()
+            self.loop.wait_on_ground(GROUND_WAIT_S)
+        return self.loop.takeoff(height_m, timeout_s=timeout_s,
                                     hold_position=self.vehicle.has_gps)
 
     def goto(self, north_m: float, east_m: float, alt_m: float | None = None, *,
@@ -244,9 +244,9 @@ class Autopilot:
             CrashDetectedError: The vehicle tipped over or hit the ground.
         """
         self._require_airborne("goto")
-        self.mission.fly_to(north_m, east_m, alt_m, speed_m_s=speed_m_s, timeout_s=timeout_s,
-                            waypoint=len(self.mission.legs) + 1)
-        return self.mission.legs[-1]
+        self.loop.fly_to(north_m, east_m, alt_m, speed_m_s=speed_m_s, timeout_s=timeout_s,
+                            waypoint=len(self.loop.legs) + 1)
+        return self.loop.legs[-1]
 
     def hold(self, duration_s: float) -> None:
         """Hold the position (GPS builds) and the altitude for ``duration_s``.
@@ -260,9 +260,9 @@ class Autopilot:
         """
         self._require_airborne("hold")
         if self.vehicle.has_gps:
-            self.mission.hold_position(duration_s)
+            self.loop.hold_position(duration_s)
         else:
-            self.mission.hold(duration_s)
+            self.loop.hold(duration_s)
 
     def yaw_to(self, heading_deg: float, *, tolerance_deg: float = 2.0) -> float:
         """Turn to ``heading_deg`` (clockwise from north) where the vehicle is.
@@ -283,7 +283,7 @@ class Autopilot:
         self._require_airborne("yaw_to")
         if not math.isfinite(heading_deg):
             raise MissionError(f"heading {heading_deg} is not a number")
-        return self.mission.yaw_to(heading_deg, tolerance_deg=tolerance_deg)
+        return self.loop.yaw_to(heading_deg, tolerance_deg=tolerance_deg)
 
     def land(self, *, timeout_s: float = 30.0) -> None:
         """Descend (holding the position after position control), touch down, disarm.
@@ -298,7 +298,7 @@ class Autopilot:
             CrashDetectedError: It hit the ground too fast.
         """
         self._require_airborne("land")
-        self.mission.land(timeout_s=timeout_s)
+        self.loop.land(timeout_s=timeout_s)
 
     def fly(self, plan: MissionPlan) -> MissionResult:
         """A whole plan from the ground, every ending turned into an outcome (never raises
@@ -316,7 +316,7 @@ class Autopilot:
         """
         if self.armed:
             raise MissionError("fly(plan) starts from the ground: land first")
-        return fly_mission(self.mission, plan, keep_flying=True)
+        return fly_plan(self.loop, plan, keep_flying=True)
 
     def _event(self, text: str) -> None:
         self._outputs.on_event(text)

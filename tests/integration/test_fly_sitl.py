@@ -157,20 +157,20 @@ def test_interrupt_leaves_no_process_a_complete_log_and_rc_at_disarm(lockstep_46
 def test_scripted_mission_from_python_goes_to_a_second_altitude(lockstep_46_firmware,
                                                                 tmp_path):
     from bfsitl.control import make_controller
-    from bfsitl.mission import FlightSession, Mission, SessionConfig
+    from bfsitl.mission import FlightLoop, FlightSession, SessionConfig
 
     config = SessionConfig(firmware=lockstep_46_firmware, workdir=tmp_path / "run")
     with FlightSession(config) as s:
-        mission = Mission(s, make_controller("cascade"))
-        mission.arm()
-        mission.takeoff(1.0)
-        mission.climb_to(2.5)
-        mission.hold(1.0)
-        held = [r.sim_alt_m for r in mission.rows if r.phase == "hold"]
+        loop = FlightLoop(s, make_controller("cascade"))
+        loop.arm()
+        loop.takeoff(1.0)
+        loop.climb_to(2.5)
+        loop.hold(1.0)
+        held = [r.sim_alt_m for r in loop.rows if r.phase == "hold"]
         assert held and all(abs(alt - 2.5) <= HOLD_TOLERANCE_M for alt in held)
-        mission.land()
+        loop.land()
         assert not s.client.status().armed
-    assert mission.rows[-1].phase == "landed"
+    assert loop.rows[-1].phase == "landed"
     # The take-off ended at its own target, not on the way to the next one.  (Its overshoot
     # on a 1 m step was measured at 1-21 %: the README's controller section says why.)
-    assert max(r.sim_alt_m for r in mission.rows if r.phase == "takeoff") < 1.5
+    assert max(r.sim_alt_m for r in loop.rows if r.phase == "takeoff") < 1.5

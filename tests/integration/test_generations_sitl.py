@@ -31,7 +31,7 @@ import pytest
 
 from bfsitl.control import make_controller
 from bfsitl.fc.cli_session import CliSession
-from bfsitl.mission import FlightSession, Mission, SessionConfig
+from bfsitl.mission import FlightLoop, FlightSession, SessionConfig
 from bfsitl.physics import GeoPoint, Simulator
 from bfsitl.physics.frames import betaflight_attitude_deg, quat_from_euler_deg
 from bfsitl.protocol import messages as msg
@@ -101,19 +101,19 @@ def test_stick_steps_move_the_truth_the_right_way_and_the_fc_agrees(lockstep_fir
     config = SessionConfig(firmware=lockstep_firmware, workdir=tmp_path / "run")
     with FlightSession(config) as session:
         estimated = session.sitl.profile.fdm.attitude_estimated
-        mission = Mission(session, make_controller("fused", {}))
-        mission.arm()
-        mission.wait_on_ground(2.0)
-        mission.takeoff(1.5)
+        loop = FlightLoop(session, make_controller("fused", {}))
+        loop.arm()
+        loop.wait_on_ground(2.0)
+        loop.takeoff(1.5)
         steps = {"roll": {"roll_us": 1600.0}, "pitch": {"pitch_us": 1600.0},
                  "yaw": {"yaw_us": 1600.0}}
         seen = {}
         for axis, sticks in steps.items():
-            start = len(mission.rows)
-            mission.hold(1.5, **sticks)
-            seen[axis] = mission.rows[start:]
-            mission.hold(2.0)
-        mission.land()
+            start = len(loop.rows)
+            loop.hold(1.5, **sticks)
+            seen[axis] = loop.rows[start:]
+            loop.hold(2.0)
+        loop.land()
     roll_row, pitch_row, yaw_rows = seen["roll"][-1], seen["pitch"][-1], seen["yaw"]
     # Roll right = right wing down = positive; pitch forward = nose down = positive.
     assert roll_row.sim_roll_deg > 2.0 and roll_row.roll_deg > 2.0, roll_row
@@ -126,7 +126,7 @@ def test_stick_steps_move_the_truth_the_right_way_and_the_fc_agrees(lockstep_fir
     turned_deg = math.remainder(yaw_rows[-1].sim_yaw_deg - yaw_rows[0].sim_yaw_deg, 360.0)
     assert turned_deg > 20.0, f"a yaw-right step turned the truth by {turned_deg:+.1f} deg"
     assert angle_error_deg(yaw_rows[-1].yaw_deg, yaw_rows[-1].sim_yaw_deg) < 3.0
-    assert max(abs(r.sim_roll_deg) for r in mission.rows if r.phase == "hold") < 15.0
+    assert max(abs(r.sim_roll_deg) for r in loop.rows if r.phase == "hold") < 15.0
 
 
 def fly_in_wind(firmware: Path, tmp_path: Path, *extra: str) -> dict:

@@ -97,8 +97,8 @@ def test_a_warm_reset_keeps_the_firmware_and_a_seeded_one_boots_it_afresh(
     env = HoverEnv(firmware=lockstep_gps_46_firmware, workdir=tmp_path / "run")
     try:
         first, _info = env.reset(seed=3)
-        assert env._session is not None and env._session.sitl is not None
-        pid = env._session.sitl.pid
+        assert env._vehicle is not None and env._vehicle.sitl is not None
+        pid = env._vehicle.sitl.pid
         for _ in range(400):  # full throttle, rolled: it crashes within a few seconds
             *_rest, terminated, truncated, info = env.step(
                 np.array([0.8, 0.0, 1.0, 0.0], dtype=np.float32))
@@ -109,14 +109,14 @@ def test_a_warm_reset_keeps_the_firmware_and_a_seeded_one_boots_it_afresh(
         began = time.monotonic()
         observation, info = env.reset()
         assert time.monotonic() - began < 0.25            # no boot: a hand puts it back
-        assert env._session.sitl.pid == pid and info["armed"]
+        assert env._vehicle.sitl.pid == pid and info["armed"]
         assert abs(info["truth"]["alt_m"] - 1.5) < 0.05 and info["truth"]["tilt_deg"] < 1.0
         for _ in range(600):                               # and it flies as well as before
             observation, _r, terminated, _t, info = env.step(hand_policy(observation))
             assert not terminated, info["ended_because"]
         assert info["distance_m"] < 0.5
         again, _info = env.reset(seed=3)                   # a seed boots afresh: the same start
-        assert env._session.sitl.pid != pid
+        assert env._vehicle.sitl.pid != pid
         assert again.tobytes() == first.tobytes()
     finally:
         env.close()
@@ -127,7 +127,7 @@ def test_what_the_fc_reports_follows_the_truth_in_wind_and_stick_steps(
     """Roll right, pitch forward, yaw right, in a 3 m/s wind from the east: the FC's attitude,
     gyro, climb and GPS in the observation against the same slots filled from the truth."""
     env = HoverEnv(firmware=lockstep_gps_46_firmware, workdir=tmp_path / "run", wind=3.0,
-                   wind_from_deg=90.0, episode_s=60.0)
+                   wind_from_deg=90.0, max_episode_steps=6000)
     try:
         _obs, info = env.reset(seed=2)
         hover = 0.12
@@ -228,9 +228,9 @@ def test_bfsitls_own_vector_environment_pins_each_firmware_and_flies_as_one_alon
         lockstep_gps_46_firmware: Path, tmp_path: Path) -> None:
     envs = gymnasium.make_vec("bfsitl/Hover-v0", num_envs=2,
                               vectorization_mode="vector_entry_point",
-                              firmware=lockstep_gps_46_firmware, episode_s=0.5,
+                              firmware=lockstep_gps_46_firmware, max_episode_steps=50,
                               workdir=tmp_path / "vector")
-    single = HoverEnv(firmware=lockstep_gps_46_firmware, episode_s=0.5,
+    single = HoverEnv(firmware=lockstep_gps_46_firmware, max_episode_steps=50,
                       workdir=tmp_path / "single")
     try:
         def pinned_a_core_each() -> None:
@@ -311,7 +311,7 @@ def test_environments_as_ray_actors_fly_as_one_alone_and_leave_nothing(
     cluster = Cluster(initialize_head=True, head_node_args={
         "num_cpus": 0, "include_dashboard": False, "object_store_memory": 100_000_000})
     caches = [tmp_path / f"node{index}-cache" for index in range(2)]
-    single = HoverEnv(firmware=lockstep_gps_46_firmware, episode_s=0.5,
+    single = HoverEnv(firmware=lockstep_gps_46_firmware, max_episode_steps=50,
                       workdir=tmp_path / "single")
     envs = None
     try:
@@ -320,7 +320,7 @@ def test_environments_as_ray_actors_fly_as_one_alone_and_leave_nothing(
                              env_vars={"BFSITL_CACHE_DIR": str(cache)})
         cluster.wait_for_nodes()
         envs = RayVectorEnv("bfsitl.gym.env:HoverEnv", 2, address=cluster.address,
-                            firmware=str(lockstep_gps_46_firmware), episode_s=0.5)
+                            firmware=str(lockstep_gps_46_firmware), max_episode_steps=50)
         assert all(list(cache.glob("received/*/*_SITL")) for cache in caches)
         env0_flies_as_alone(envs, single)
     finally:

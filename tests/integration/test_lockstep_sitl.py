@@ -26,7 +26,7 @@ from bfsitl.fc.provisioning import Profile
 from bfsitl.fc.rc_link import RC_MID_US
 from bfsitl.kernel.compiler import kernel_available
 from bfsitl.link.shm_exchange import shm_exchange_supported
-from bfsitl.mission.loop import Mission
+from bfsitl.mission.loop import FlightLoop
 from bfsitl.mission.session import FLY_PROFILE, FlightSession, SessionConfig, with_fast_serial
 from bfsitl.physics.wind import Wind
 from bfsitl.sitl.process import SitlProcess
@@ -98,20 +98,20 @@ def test_a_disturbed_lockstep_flight_keeps_the_fc_on_the_truth(
 
     with FlightSession(config) as session:
         assert session.lockstep
-        mission = Mission(session, make_controller("fused"))
-        mission.arm()
-        mission.wait_on_ground(1.0)
-        mission.takeoff(2.0)
-        mission.hold(1.5)
-        held = len(mission.rows)
-        mission.hold(2.0, roll_us=RC_MID_US + 150)     # roll right
-        rolled = mission.rows[held:]
-        mission.hold(2.0)
-        recentred = len(mission.rows)
-        mission.hold(2.0, pitch_us=RC_MID_US - 150)    # stick back: nose up
-        pitched = mission.rows[recentred:]
-        mission.land()
-    flown = [r for r in mission.rows if r.phase in ("hold", "takeoff") and r.sim_alt_m > 0.3]
+        loop = FlightLoop(session, make_controller("fused"))
+        loop.arm()
+        loop.wait_on_ground(1.0)
+        loop.takeoff(2.0)
+        loop.hold(1.5)
+        held = len(loop.rows)
+        loop.hold(2.0, roll_us=RC_MID_US + 150)     # roll right
+        rolled = loop.rows[held:]
+        loop.hold(2.0)
+        recentred = len(loop.rows)
+        loop.hold(2.0, pitch_us=RC_MID_US - 150)    # stick back: nose up
+        pitched = loop.rows[recentred:]
+        loop.land()
+    flown = [r for r in loop.rows if r.phase in ("hold", "takeoff") and r.sim_alt_m > 0.3]
     # The FC's attitude is the truth's (4.6.0 copies it; master estimates it from the IMU).
     worst = max(max(abs(r.roll_deg - r.sim_roll_deg), abs(r.pitch_deg - r.sim_pitch_deg))
                 for r in flown)
@@ -130,13 +130,13 @@ def control_steps_per_s(lockstep_firmware: Path, workdir: Path, profile: Profile
 
     config = SessionConfig(firmware=lockstep_firmware, workdir=workdir, profile=profile)
     with FlightSession(config) as session:
-        mission = Mission(session, make_controller("fused"), rate_hz=200.0)
-        mission.arm()
-        mission.takeoff(2.0)
-        held = len(mission.rows)
-        mission.hold(2.0)
-        rows = mission.rows[held:]
-        mission.land()
+        loop = FlightLoop(session, make_controller("fused"), rate_hz=200.0)
+        loop.arm()
+        loop.takeoff(2.0)
+        held = len(loop.rows)
+        loop.hold(2.0)
+        rows = loop.rows[held:]
+        loop.land()
     return (len(rows) - 1) / (rows[-1].time_s - rows[0].time_s)
 
 

@@ -13,7 +13,7 @@ from pathlib import Path
 
 import pytest
 
-from bfsitl import FlightSession, Mission, SessionConfig, make_controller
+from bfsitl import FlightLoop, FlightSession, SessionConfig, make_controller
 from bfsitl.errors import MissionError
 from bfsitl.mission.session import FLY_PROFILE, with_fast_serial
 from bfsitl.physics.wind import Wind
@@ -36,21 +36,21 @@ def position_session(firmware: Path, tmp_path: Path, wind: Wind | None = None,
 
 def test_legs_north_and_east_end_where_they_should(gps_lockstep_firmware, tmp_path):
     with position_session(gps_lockstep_firmware, tmp_path) as session:
-        mission = Mission(session, make_controller("fused"), rate_hz=100)
-        mission.arm()
-        mission.takeoff(2.0)
+        loop = FlightLoop(session, make_controller("fused"), rate_hz=100)
+        loop.arm()
+        loop.takeoff(2.0)
         ends = []
         for north, east in ((6.0, 0.0), (6.0, 6.0)):
-            took_s = mission.fly_to(north, east)
-            row = mission.rows[-1]
+            took_s = loop.fly_to(north, east)
+            row = loop.rows[-1]
             ends.append((row.sim_north_m, row.sim_east_m, row.fc_north_m, row.fc_east_m))
             assert took_s < 12.0, f"{took_s:.1f} s for a 6 m leg"
-        mission.land()
+        loop.land()
     for (north, east), (sim_n, sim_e, fc_n, fc_e) in zip(((6.0, 0.0), (6.0, 6.0)), ends,
                                                            strict=True):
         assert math.hypot(sim_n - north, sim_e - east) < 0.4, (sim_n, sim_e)
         assert math.hypot(fc_n - sim_n, fc_e - sim_e) < 0.3  # the FC's GPS is the truth's
-    assert max(abs(r.sim_alt_m - 2.0) for r in mission.rows if r.phase == "goto") < 0.5
+    assert max(abs(r.sim_alt_m - 2.0) for r in loop.rows if r.phase == "goto") < 0.5
 
 
 def test_in_wind_it_flies_back_and_holds_its_start(gps_lockstep_firmware, tmp_path):
@@ -58,15 +58,15 @@ def test_in_wind_it_flies_back_and_holds_its_start(gps_lockstep_firmware, tmp_pa
     # Seed 2's gusts sank the vehicle to the ground when the height was estimated from body z
     # alone: a test that can fail.
     with position_session(gps_lockstep_firmware, tmp_path, wind, seed=2) as session:
-        mission = Mission(session, make_controller("fused"), rate_hz=100)
-        mission.arm()
-        mission.takeoff(2.0)  # altitude only: the wind carries it off meanwhile
-        drifted_m = math.hypot(mission.rows[-1].sim_north_m, mission.rows[-1].sim_east_m)
-        mission.fly_to(0.0, 0.0, timeout_s=40.0)
-        held = len(mission.rows)
-        mission.hold_position(20.0, 0.0, 0.0)
-        rows = mission.rows[held:]
-        mission.land()
+        loop = FlightLoop(session, make_controller("fused"), rate_hz=100)
+        loop.arm()
+        loop.takeoff(2.0)  # altitude only: the wind carries it off meanwhile
+        drifted_m = math.hypot(loop.rows[-1].sim_north_m, loop.rows[-1].sim_east_m)
+        loop.fly_to(0.0, 0.0, timeout_s=40.0)
+        held = len(loop.rows)
+        loop.hold_position(20.0, 0.0, 0.0)
+        rows = loop.rows[held:]
+        loop.land()
     errors = [math.hypot(r.sim_north_m, r.sim_east_m) for r in rows]
     rms_m = math.sqrt(sum(e * e for e in errors) / len(errors))
     assert drifted_m > 1.0  # the wind did push it (the test can tell holding from drifting)
@@ -78,12 +78,12 @@ def test_in_wind_it_flies_back_and_holds_its_start(gps_lockstep_firmware, tmp_pa
 
 def test_a_build_without_gps_is_told_what_to_fly(lockstep_46_firmware, tmp_path):
     with position_session(lockstep_46_firmware, tmp_path) as session:
-        mission = Mission(session, make_controller("fused"))
-        mission.arm()
-        mission.takeoff(1.0)
+        loop = FlightLoop(session, make_controller("fused"))
+        loop.arm()
+        loop.takeoff(1.0)
         with pytest.raises(MissionError, match="firmware build --gps"):
-            mission.fly_to(1.0, 0.0)
-        mission.land()
+            loop.fly_to(1.0, 0.0)
+        loop.land()
 
 
 SQUARE_TOML = """

@@ -1,5 +1,5 @@
 """A stand-in for bfsitl.gym's environments, without a SITL: the observation counts steps,
-the reward is the action's first stick, an episode ends after ``episode_steps`` steps, and an
+the reward is the action's first stick, an episode ends after ``max_episode_steps`` steps, and an
 action of NaN raises, so a vector environment's plumbing can be tested in milliseconds."""
 
 from __future__ import annotations
@@ -15,10 +15,10 @@ from bfsitl.gym.observation import observation_space
 
 
 class FakeFlightEnv(gymnasium.Env[np.ndarray, np.ndarray]):
-    def __init__(self, *, episode_steps: int = 3, marker: float = 0.0, pin_core: bool = False,
+    def __init__(self, *, max_episode_steps: int = 3, marker: float = 0.0, pin_core: bool = False,
                  spin: bool = False) -> None:
         options = {"pin_core": pin_core, "spin": spin}
-        self.episode_steps = episode_steps
+        self.max_episode_steps = max_episode_steps
         self.marker = marker
         self.options = options
         self.observation_space = observation_space()
@@ -60,6 +60,6 @@ class FakeFlightEnv(gymnasium.Env[np.ndarray, np.ndarray]):
             os._exit(3)  # a worker that dies without a word
         self.steps += 1
         terminated = action[2] < -0.9
-        truncated = not terminated and self.steps >= self.episode_steps
+        truncated = not terminated and self.steps >= self.max_episode_steps
         why = "crashed: asked to" if terminated else None
         return self._observation(), float(action[0]), terminated, truncated, self._info(why)

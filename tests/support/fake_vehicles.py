@@ -1,5 +1,5 @@
-"""Vehicles without a SITL for the flight loop: :class:`FakeSession`, a point mass whose climb
-rate follows the throttle (an FC altitude that lags it), :class:`PlanarSession`, the same
+"""Vehicles without a SITL for the flight loop: :class:`FakeVehicle`, a point mass whose climb
+rate follows the throttle (an FC altitude that lags it), :class:`PlanarVehicle`, the same
 with a horizontal point mass steered by the sticks through the ANGLE-mode curve, and the
 controllers that fly them."""
 
@@ -8,7 +8,7 @@ from __future__ import annotations
 from dataclasses import dataclass, replace
 
 from bfsitl.fc.rc_link import RcCommand, RcLinkStats
-from bfsitl.mission.loop import Mission
+from bfsitl.mission.loop import FlightLoop
 from bfsitl.mission.vehicle import SWITCH_ON_US, FlightSample, Vehicle
 
 HOVER_US = 1500.0
@@ -22,18 +22,18 @@ class _Config:
 class FakeClock:
     """The mission clock of the fake: sampling moves time; waits are only counted."""
 
-    def __init__(self, session: FakeSession) -> None:
-        self.session = session
+    def __init__(self, vehicle: FakeVehicle) -> None:
+        self.vehicle = vehicle
         self.slept_s = 0.0
 
     def now_s(self) -> float:
-        return self.session.time_s
+        return self.vehicle.time_s
 
     def sleep_s(self, seconds: float) -> None:
         self.slept_s += seconds
 
 
-class FakeSession(Vehicle):
+class FakeVehicle(Vehicle):
     """Time advances 20 ms per sample; climb rate = (throttle - hover) / 200 m/s.
 
     A :class:`Vehicle` whose FC is this point mass: what the base class does over MSP
@@ -142,8 +142,8 @@ class Descend:
         return HOVER_US - 100.0
 
 
-class PlanarSession(FakeSession):
-    """FakeSession plus a horizontal point mass driven by the roll/pitch sticks through the
+class PlanarVehicle(FakeVehicle):
+    """FakeVehicle plus a horizontal point mass driven by the roll/pitch sticks through the
     ANGLE-mode stick map, a heading driven by the yaw stick, and a GPS that reports the truth.
 
     A steady wind pushes it ``wind_push_m_s2`` north, so a controller that ignores position
@@ -189,7 +189,7 @@ class PlanarSession(FakeSession):
         return GpsPosition(self.north_m, self.east_m, self.v_north, self.v_east, True, 12)
 
 
-def planar_mission(session: PlanarSession, log=None) -> Mission:  # type: ignore[no-untyped-def]
-    mission = Mission(session, PController(), log=log)  # type: ignore[arg-type]
-    mission.sticks = session.sticks  # the FC's curve would be read over MSP
-    return mission
+def planar_loop(vehicle: PlanarVehicle, log=None) -> FlightLoop:  # type: ignore[no-untyped-def]
+    loop = FlightLoop(vehicle, PController(), log=log)  # type: ignore[arg-type]
+    loop.steering.sticks = vehicle.sticks  # the FC's curve would be read over MSP
+    return loop

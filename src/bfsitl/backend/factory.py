@@ -18,7 +18,7 @@ from __future__ import annotations
 import math
 from collections.abc import Callable
 from pathlib import Path
-from typing import TYPE_CHECKING, Protocol, cast
+from typing import TYPE_CHECKING, Literal, Protocol, cast, get_args
 
 from bfsitl.backend.base import SitlBackend
 from bfsitl.errors import BfsitlError, KernelUnavailableError
@@ -49,7 +49,7 @@ class BackendOptions(Protocol):
     @property
     def lockstep_spin(self) -> bool: ...
     @property
-    def lockstep_exchange(self) -> str: ...
+    def lockstep_exchange(self) -> LockstepExchange: ...
     @property
     def physics_kernel(self) -> str: ...
     @property
@@ -93,10 +93,13 @@ def wants_lockstep(firmware: FirmwareBinary, asked: bool | None) -> bool:
     return firmware.lockstep if asked is None else asked
 
 
-LOCKSTEP_EXCHANGES = ("auto", "shm", "udp")
+#: How packets pass between the physics and a lockstep firmware: shared memory where the
+#: build and the machine have it (``auto``), always (``shm``), or UDP.
+LockstepExchange = Literal["auto", "shm", "udp"]
+LOCKSTEP_EXCHANGES: tuple[LockstepExchange, ...] = get_args(LockstepExchange)
 
 
-def uses_shm_exchange(firmware: FirmwareBinary, asked: str) -> bool:
+def uses_shm_exchange(firmware: FirmwareBinary, asked: LockstepExchange) -> bool:
     """Whether a lockstep run of ``firmware`` takes the shared-memory exchange."""
     from bfsitl.link.shm_exchange import shm_exchange_supported
 

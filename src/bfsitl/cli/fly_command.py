@@ -286,7 +286,7 @@ def cmd_fly(args: argparse.Namespace) -> int:
     from bfsitl.control import gain_names, make_controller
     from bfsitl.fc.provisioning import ARM_ON_AUX1, Profile
     from bfsitl.mission import FLY_PROFILE, FlightSession, SessionConfig
-    from bfsitl.mission.plan_driver import run_mission
+    from bfsitl.mission.plan_driver import fly
     from bfsitl.mission.results import Outcome
     from bfsitl.records.outputs import FlightOutputs, OutputOptions, plan_waypoints
 
@@ -342,8 +342,8 @@ def cmd_fly(args: argparse.Namespace) -> int:
         try:
             outputs.start()
             session.start()
-            result = run_mission(session, plan, controller, on_row=on_row,
-                                 on_event=on_event, rate_hz=args.rate)
+            result = fly(session, plan, controller, on_row=on_row,
+                         on_event=on_event, rate_hz=args.rate)
         except KeyboardInterrupt:
             result = None
     finally:

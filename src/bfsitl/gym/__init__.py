@@ -12,8 +12,14 @@ in turn (the next one in the observation).  Options of both: ``firmware`` (a ``-
 build), ``control_hz``, ``mode`` (``"angle"`` or ``"acro"``), ``observation`` (``"fc"``: what
 the FC reports; ``"truth"``: the simulation), ``wind``, ``wind_from_deg``, ``gusts``,
 ``disturbances`` (a hook called before every step with the flight's disturbance surface),
-``episode_s``, ``start`` (``"air"`` or ``"ground"``), ``start_alt_m``.  Needs the ``gym``
-extra: ``pip install 'bfsitl[gym]'``.
+``start`` (``"air"`` or ``"ground"``), ``start_alt_m``.  Needs the ``gym`` extra:
+``pip install 'bfsitl[gym]'``.
+
+An episode is truncated after ``max_episode_steps`` steps, Gymnasium's own limit, registered
+with each id (1000 for Hover, 2000 for Waypoints: 10 s and 20 s at the default 100 Hz) and
+changed the Gymnasium way, ``gymnasium.make(id, max_episode_steps=N)`` (also at another
+``control_hz``: the limit counts steps, not seconds).  An environment made directly
+(``HoverEnv(max_episode_steps=N)``) counts the same option itself.
 
 Many at once: ``gymnasium.make_vec(id, num_envs=N)`` gives
 :class:`~bfsitl.gym.vector.FlightVectorEnv` (a worker per environment, each pinned to a core
@@ -32,7 +38,13 @@ except ImportError as exc:  # pragma: no cover - depends on the installation
     raise ExtraMissingError(
         "bfsitl.gym needs Gymnasium: pip install 'bfsitl[gym]'") from exc
 
-from bfsitl.gym.env import FlightEnv, HoverEnv, WaypointsEnv
+from bfsitl.gym.env import (
+    HOVER_MAX_EPISODE_STEPS,
+    WAYPOINTS_MAX_EPISODE_STEPS,
+    FlightEnv,
+    HoverEnv,
+    WaypointsEnv,
+)
 
 ENVIRONMENTS = {"bfsitl/Hover-v0": "bfsitl.gym.env:HoverEnv",
                 "bfsitl/Waypoints-v0": "bfsitl.gym.env:WaypointsEnv"}
@@ -41,10 +53,16 @@ ENVIRONMENTS = {"bfsitl/Hover-v0": "bfsitl.gym.env:HoverEnv",
 #: ``vectorization_mode="async"`` or ``"sync"`` asks for Gymnasium's own.
 VECTOR_ENVIRONMENTS = {"bfsitl/Hover-v0": "bfsitl.gym.vector:HoverVectorEnv",
                        "bfsitl/Waypoints-v0": "bfsitl.gym.vector:WaypointsVectorEnv"}
+#: Gymnasium's TimeLimit ends each episode after this many steps (``make_vec`` passes it to
+#: the vector environments, whose workers count it).
+MAX_EPISODE_STEPS = {"bfsitl/Hover-v0": HOVER_MAX_EPISODE_STEPS,
+                     "bfsitl/Waypoints-v0": WAYPOINTS_MAX_EPISODE_STEPS}
 
 for _id, _entry_point in ENVIRONMENTS.items():
     if _id not in registry:
         register(id=_id, entry_point=_entry_point,
-                 vector_entry_point=VECTOR_ENVIRONMENTS[_id])
+                 vector_entry_point=VECTOR_ENVIRONMENTS[_id],
+                 max_episode_steps=MAX_EPISODE_STEPS[_id])
 
-__all__ = ["ENVIRONMENTS", "VECTOR_ENVIRONMENTS", "FlightEnv", "HoverEnv", "WaypointsEnv"]
+__all__ = ["ENVIRONMENTS", "MAX_EPISODE_STEPS", "VECTOR_ENVIRONMENTS", "FlightEnv", "HoverEnv",
+           "WaypointsEnv"]

@@ -38,19 +38,24 @@ import shutil
 import tempfile
 from collections.abc import Callable
 from pathlib import Path
-from typing import Any
+from typing import Any, Literal, get_args
 
 import gymnasium
 import numpy as np
 from gymnasium import spaces
 
 from bfsitl.backend.disturbances import Disturbances
-from bfsitl.backend.factory import LOCKSTEP_EXCHANGES, PHYSICS_KERNELS
+from bfsitl.backend.factory import LOCKSTEP_EXCHANGES, PHYSICS_KERNELS, LockstepExchange
 from bfsitl.control import make_controller
 from bfsitl.errors import EnvironmentConfigError, LinkError, MspError, SitlError
 from bfsitl.fc.rc_link import RcCommand
 from bfsitl.gym.baseline import HOVER_THROTTLE
-from bfsitl.gym.observation import OBSERVATIONS, observation_space, observe
+from bfsitl.gym.observation import (
+    OBSERVATIONS,
+    ObservationSource,
+    observation_space,
+    observe,
+)
 from bfsitl.gym.snapshot import Snapshot, Vec3, read_snapshot
 from bfsitl.gym.sticks import sticks_to_rc
 from bfsitl.gym.tasks import (
@@ -62,16 +67,26 @@ from bfsitl.gym.tasks import (
     failure,
     step_reward,
 )
-from bfsitl.mission.loop import Mission
+from bfsitl.mission.loop import FlightLoop
 from bfsitl.mission.session import FlightSession, SessionConfig
 from bfsitl.physics.wind import Wind
 from bfsitl.sitl.core_claim import CoreClaim, claim_core
 from bfsitl.sitl.firmware import find_firmware
 
-MODES = ("angle", "acro")
-STARTS = ("air", "ground")
+#: The FC's mode the policy's sticks fly in: ANGLE (roll and pitch set an angle) or ACRO
+#: (every stick sets a rate).
+FlightMode = Literal["angle", "acro"]
+MODES: tuple[FlightMode, ...] = get_args(FlightMode)
+#: Where an episode starts: in the air, after bfsitl's own take-off, or armed on the ground.
+EpisodeStart = Literal["air", "ground"]
+STARTS: tuple[EpisodeStart, ...] = get_args(EpisodeStart)
 #: The control rates a lockstep SITL's MSP budget sustains (the serial task runs at 1 kHz).
 CONTROL_HZ_RANGE = (1.0, 200.0)
+DEFAULT_CONTROL_HZ = 100.0
+#: The episodes' lengths in steps (Gymnasium's ``max_episode_steps``, registered with the
+#: ids): 10 s of Hover and 20 s of Waypoints at the default control rate.
+HOVER_MAX_EPISODE_STEPS = round(10.0 * DEFAULT_CONTROL_HZ)
+WAYPOINTS_MAX_EPISODE_STEPS = round(20.0 * DEFAULT_CONTROL_HZ)
 DEFAULT_FIRMWARE = "4.6.0-gps-lockstep"
 #: Armed on the ground before an "air" start's take-off (the FC's altitude settles).
 _GROUND_S = 1.0
@@ -89,11 +104,14 @@ class FlightEnv(gymnasium.Env[np.ndarray, np.ndarray]):
     metadata: dict[str, Any] = {"render_modes": []}
 
     def __init__(self, task: Hover, *, firmware: str | Path = DEFAULT_FIRMWARE,
-                 control_hz: float = 100.0, mode: str = "angle", observation: str = "fc",
-                 wind: float = 0.0, wind_from_deg: float = 0.0, gusts: float = 0.0,
-                 disturbances: DisturbanceHook | None = None, episode_s: float = 10.0,
-                 start: str = "air", start_alt_m: float = 1.5, spin: bool | None = None,
-                 pin_core: bool | None = None, lockstep_exchange: str = "auto",
+                 control_hz: float = DEFAULT_CONTROL_HZ, mode: FlightMode = "angle",
+                 observation: ObservationSource = "fc", wind: float = 0.0,
+                 wind_from_deg: float = 0.0, gusts: float = 0.0,
+                 disturbances: DisturbanceHook | None = None,
+                 max_episode_steps: int | None = HOVER_MAX_EPISODE_STEPS,
+                 start: EpisodeStart = "air", start_alt_m: float = 1.5,
+                 spin: bool | None = None, pin_core: bool | None = None,
+                 lockstep_exchange: LockstepExchange = "auto",
                  physics_kernel: str = "auto", warm_resets: bool = True,
                  workdir: str | Path | None = None) -> None:
         _check_choice("mode", mode, MODES)
@@ -105,8 +123,10 @@ class FlightEnv(gymnasium.Env[np.ndarray, np.ndarray]):
         if not low <= control_hz <= high:
             raise EnvironmentConfigError(
                 f"control_hz {control_hz} is outside {low:g}..{high:g} Hz")
-        if not 0.1 <= episode_s <= 3600.0:
-            raise EnvironmentConfigError(f"episode_s {episode_s} is outside 0.1..3600 s")
+        if max_episode_steps is not None and max_episode_steps < 1:
+            raise EnvironmentConfigError(
+                f"max_episode_steps {max_episode_steps} is not a number of steps (1 or more; "
+                f"None: no limit)")
         if not 0.5 <= start_alt_m <= 15.0:
             raise EnvironmentConfigError(f"start_alt_m {start_alt_m} is outside 0.5..15 m")
         in_worker = multiprocessing.parent_process() is not None
@@ -138,7 +158,12 @@ class FlightEnv(gymnasium.Env[np.ndarray, np.ndarray]):
         self.wind = (Wind.from_direction(wind, wind_from_deg, gusts)
                      if wind or gusts else None)
         self.disturbances = disturbances
-        self.episode_s = episode_s
+        #: Truncate the episode after this many steps (None: never), when the environment is
+        #: made directly (``HoverEnv(...)``, a vector environment's workers, a Ray actor).
+        #: Made by ``gymnasium.make``, Gymnasium's TimeLimit counts its own
+        #: ``max_episode_steps`` (registered, or given to ``make``) and this one is not
+        #: counted: one limit, never two that disagree (see :meth:`_step_limit`).
+        self.max_episode_steps = max_episode_steps
         self.start = start
         self.start_alt_m = start_alt_m
         self._core: CoreClaim | None = None
@@ -156,12 +181,13 @@ class FlightEnv(gymnasium.Env[np.ndarray, np.ndarray]):
         self._own_workdir = workdir is None
         self.workdir = Path(tempfile.mkdtemp(prefix="bfsitl-gym-") if workdir is None
                             else workdir)
-        self._session: FlightSession | None = None
+        self._vehicle: FlightSession | None = None
         self._prepared = False
         self._arm_ned: Vec3 = (0.0, 0.0, 0.0)
         self._started_s = 0.0
         self._next_s = 0.0
         self._has_flown = False
+        self._steps = 0  # in this episode
         self._snapshot: Snapshot | None = None
 
     # -- the episode -------------------------------------------------------------------------
@@ -170,31 +196,32 @@ class FlightEnv(gymnasium.Env[np.ndarray, np.ndarray]):
         super().reset(seed=seed)
         if seed is None and self.warm_resets and self.start == "air" and self._can_go_on():
             return self._warm_reset()
-        self._end_session()
+        self._close_vehicle()
         if not self._prepared:
             self._prepare()
         episode_seed = int(self.np_random.integers(0, 2**31 - 1))
         self.task.reset(self.np_random)
-        session = self._new_session(episode_seed).start()
-        self._session = session
+        vehicle = self._new_session(episode_seed).start()
+        self._vehicle = vehicle
         if self.start == "air":
-            mission = Mission(session, make_controller("fused"), rate_hz=self.control_hz)
-            mission.arm()
-            self._mark_arming(session)
-            mission.wait_on_ground(_GROUND_S)
-            mission.takeoff(self.start_alt_m, hold_position=session.has_gps)
+            loop = FlightLoop(vehicle, make_controller("fused"), rate_hz=self.control_hz)
+            loop.arm()
+            self._mark_arming(vehicle)
+            loop.wait_on_ground(_GROUND_S)
+            loop.takeoff(self.start_alt_m, hold_position=vehicle.has_gps)
         else:
-            session.arm()
-            self._mark_arming(session)
-        self._started_s = self._next_s = session.time_s
+            vehicle.arm()
+            self._mark_arming(vehicle)
+        self._started_s = self._next_s = vehicle.time_s
+        self._steps = 0
         self._has_flown = self.start == "air"
-        self._snapshot = read_snapshot(session, arm_ned_m=self._arm_ned)
+        self._snapshot = read_snapshot(vehicle, arm_ned_m=self._arm_ned)
         return self._observe(), self._info(None)
 
     def step(self, action: np.ndarray) -> tuple[np.ndarray, float, bool, bool,
                                                  dict[str, Any]]:
-        session = self._session
-        if session is None:
+        vehicle = self._vehicle
+        if vehicle is None:
             raise EnvironmentConfigError("step() before reset(): call env.reset() first")
         action = np.asarray(action, dtype=np.float32)
         if action.shape != (4,):
@@ -202,19 +229,19 @@ class FlightEnv(gymnasium.Env[np.ndarray, np.ndarray]):
                 f"an action is 4 sticks (roll, pitch, throttle, yaw), got shape {action.shape}")
         try:
             if self.disturbances is not None:
-                self.disturbances(session.disturbances, session.time_s - self._started_s)
-            session.set_rc(sticks_to_rc(action.tolist(), session.rc_command))
+                self.disturbances(vehicle.disturbances, vehicle.time_s - self._started_s)
+            vehicle.set_rc(sticks_to_rc(action.tolist(), vehicle.rc_command))
             self._next_s += 1.0 / self.control_hz
-            wait_s = self._next_s - session.time_s
+            wait_s = self._next_s - vehicle.time_s
             if wait_s > 0:
-                session.clock.sleep_s(wait_s)
+                vehicle.clock.sleep_s(wait_s)
             else:
-                self._next_s = session.time_s  # late: the schedule restarts here
-            self._snapshot = snapshot = read_snapshot(session, arm_ned_m=self._arm_ned)
+                self._next_s = vehicle.time_s  # late: the schedule restarts here
+            self._snapshot = snapshot = read_snapshot(vehicle, arm_ned_m=self._arm_ned)
         except (SitlError, LinkError, MspError) as exc:
             # The firmware died or stopped answering: the episode ends, the next reset boots
             # a fresh one; training goes on.
-            self._end_session()
+            self._close_vehicle()
             assert self._snapshot is not None
             return (self._observe(), FAILURE_REWARD, True, False,
                     self._info(f"the SITL failed: {exc}".splitlines()[0]))
@@ -227,41 +254,50 @@ class FlightEnv(gymnasium.Env[np.ndarray, np.ndarray]):
                       has_flown=self._has_flown)
         reward += bonus + (FAILURE_REWARD if why is not None else 0.0)
         terminated = finished or why is not None
-        truncated = not terminated and (session.time_s - self._started_s
-                                        >= self.episode_s - 0.5 / self.control_hz)
+        self._steps += 1
+        limit = self._step_limit()
+        truncated = not terminated and limit is not None and self._steps >= limit
         return self._observe(), float(reward), terminated, truncated, self._info(why)
+
+    def _step_limit(self) -> int | None:
+        """Where this environment truncates an episode itself: :attr:`max_episode_steps`,
+        unless ``gymnasium.make`` made it (it sets ``spec``), whose TimeLimit wrapper then
+        counts the steps; counting here as well would end the episode at two limits when
+        ``make`` was given another ``max_episode_steps`` than the default."""
+        return None if self.spec is not None else self.max_episode_steps
 
     def _can_go_on(self) -> bool:
         """The firmware is alive, armed and out of failsafe: a warm reset can use it."""
-        session, snapshot = self._session, self._snapshot
-        return (session is not None and snapshot is not None and not session.has_exited()
+        vehicle, snapshot = self._vehicle, self._snapshot
+        return (vehicle is not None and snapshot is not None and not vehicle.has_exited()
                 and snapshot.fc.armed and "FAILSAFE" not in snapshot.fc.flight_modes)
 
     def _warm_reset(self) -> tuple[np.ndarray, dict[str, Any]]:
         """A hand puts the vehicle back at the start, level, rotors at hover speed, and holds
         it there while the FC settles: sticks centred, throttle low first (the FC resets its
         I-terms at low throttle), then about the hover point; then lets go."""
-        session = self._session
-        assert session is not None and session.simulator is not None
+        vehicle = self._vehicle
+        assert vehicle is not None and vehicle.simulator is not None
         self.task.reset(self.np_random)
-        hands = session.disturbances
+        hands = vehicle.disturbances
         north, east, down = self._arm_ned
         start = (north, east, down - self.start_alt_m)
-        hover_rad_s = session.simulator.params.hover_rotor_speed_rad_s
+        hover_rad_s = vehicle.simulator.params.hover_rotor_speed_rad_s
         hands.place(start, motor_speeds_rad_s=(hover_rad_s,) * 4)
         hands.hold_still(True)
         for throttle in (-1.0, HOVER_THROTTLE):
-            session.set_rc(sticks_to_rc([0.0, 0.0, throttle, 0.0], session.rc_command))
-            session.clock.sleep_s(WARM_SETTLE_S / 2)
+            vehicle.set_rc(sticks_to_rc([0.0, 0.0, throttle, 0.0], vehicle.rc_command))
+            vehicle.clock.sleep_s(WARM_SETTLE_S / 2)
         hands.place(start, motor_speeds_rad_s=(hover_rad_s,) * 4)
         hands.hold_still(False)
-        self._started_s = self._next_s = session.time_s
+        self._started_s = self._next_s = vehicle.time_s
+        self._steps = 0
         self._has_flown = True
-        self._snapshot = read_snapshot(session, arm_ned_m=self._arm_ned)
+        self._snapshot = read_snapshot(vehicle, arm_ned_m=self._arm_ned)
         return self._observe(), self._info(None)
 
     def close(self) -> None:
-        self._end_session()
+        self._close_vehicle()
         if self._core is not None:
             self._core.release()
             self._core = None
@@ -277,7 +313,7 @@ class FlightEnv(gymnasium.Env[np.ndarray, np.ndarray]):
     @property
     def rc_command(self) -> RcCommand | None:
         """What the RC link sends now (the last action's sticks and the switches)."""
-        return self._session.rc_command if self._session is not None else None
+        return self._vehicle.rc_command if self._vehicle is not None else None
 
     # -- parts ---------------------------------------------------------------------------------
     def _new_session(self, seed: int) -> FlightSession:
@@ -297,16 +333,16 @@ class FlightEnv(gymnasium.Env[np.ndarray, np.ndarray]):
             session.start()
         self._prepared = True
 
-    def _mark_arming(self, session: FlightSession) -> None:
-        simulator = session.simulator
+    def _mark_arming(self, vehicle: FlightSession) -> None:
+        simulator = vehicle.simulator
         assert simulator is not None
         north, east, down = simulator.state.position_ned_m
         self._arm_ned = (north, east, down)
 
-    def _end_session(self) -> None:
-        session, self._session = self._session, None
-        if session is not None:
-            session.close()
+    def _close_vehicle(self) -> None:
+        vehicle, self._vehicle = self._vehicle, None
+        if vehicle is not None:
+            vehicle.close()
 
     def _observe(self) -> np.ndarray:
         assert self._snapshot is not None
@@ -341,12 +377,17 @@ class WaypointsEnv(FlightEnv):
     """``bfsitl/Waypoints-v0``: three points in turn, the next one in the observation (see
     :class:`~bfsitl.gym.tasks.Waypoints`); 20 s by default."""
 
-    def __init__(self, *, count: int = 3, episode_s: float = 20.0, **options: Any) -> None:
+    def __init__(self, *, count: int = 3,
+                 max_episode_steps: int | None = WAYPOINTS_MAX_EPISODE_STEPS,
+                 **options: Any) -> None:
         if not 1 <= count <= 50:
             raise EnvironmentConfigError(f"count {count} is outside 1..50 waypoints")
-        super().__init__(Waypoints(count=count), episode_s=episode_s, **options)
+        super().__init__(Waypoints(count=count), max_episode_steps=max_episode_steps,
+                         **options)
 
 
 def _check_choice(name: str, value: str, choices: tuple[str, ...]) -> None:
+    # The types say it to a type checker; this says it to everyone else (a string from a
+    # config file, gymnasium.make's keywords).
     if value not in choices:
         raise EnvironmentConfigError(f"{name} must be one of {', '.join(choices)}, not {value!r}")

@@ -22,6 +22,7 @@ from the simulation, for comparison.
 from __future__ import annotations
 
 import math
+from typing import Literal, get_args
 
 import numpy as np
 from gymnasium import spaces
@@ -29,7 +30,9 @@ from gymnasium import spaces
 from bfsitl.gym.snapshot import FcView, Snapshot, TrueView, Vec3
 
 OBSERVATION_SIZE = 20
-OBSERVATIONS = ("fc", "truth")
+#: What fills the observation: what the FC reports (``fc``) or the simulation (``truth``).
+ObservationSource = Literal["fc", "truth"]
+OBSERVATIONS: tuple[ObservationSource, ...] = get_args(ObservationSource)
 
 #: Bounds of each slot, far outside a flight (a 2000 deg/s gyro is 35 rad/s, a 16 g
 #: accelerometer 157 m/s^2); a value beyond them is clipped, so every observation is inside
@@ -44,7 +47,7 @@ def observation_space() -> spaces.Box:
     return spaces.Box(_LOW, _HIGH, dtype=np.float32)
 
 
-def observe(snapshot: Snapshot, target: Vec3, which: str) -> np.ndarray:
+def observe(snapshot: Snapshot, target: Vec3, which: ObservationSource) -> np.ndarray:
     """The observation of ``snapshot`` towards ``target`` (north, east, up)."""
     view: FcView | TrueView = snapshot.fc if which == "fc" else snapshot.truth
     # The FC's climb rate is MSP_ALTITUDE's vario; the truth's is its vertical velocity.

@@ -79,20 +79,20 @@ class Snapshot:
     truth: TrueView
 
 
-def read_snapshot(session: FlightSession, *, arm_ned_m: Vec3) -> Snapshot:
+def read_snapshot(vehicle: FlightSession, *, arm_ned_m: Vec3) -> Snapshot:
     """The FC's view and the truth now; ``arm_ned_m`` is where the vehicle stood at arming
     (the truth's origin)."""
-    client = session.client
-    with_gps = session.has_gps
+    client = vehicle.client
+    with_gps = vehicle.has_gps
     commands = TELEMETRY_COMMANDS + ((MspCommand.RAW_GPS,) if with_gps else ())
     payloads = client.multiple(commands)
-    telemetry = telemetry_from_payloads(payloads[:len(TELEMETRY_COMMANDS)], session.time_s,
+    telemetry = telemetry_from_payloads(payloads[:len(TELEMETRY_COMMANDS)], vehicle.time_s,
                                         client.box_ids())
-    imu = session.backend.imu
+    imu = vehicle.backend.imu
     gx, gy, gz = telemetry.imu.gyro_dps()
     north = east = v_north = v_east = 0.0
     if with_gps:
-        gps = session.local_gps(msg.RawGps.decode(payloads[-1]))
+        gps = vehicle.local_gps(msg.RawGps.decode(payloads[-1]))
         north, east, v_north, v_east = (gps.north_m, gps.east_m, gps.v_north_m_s,
                                         gps.v_east_m_s)
     attitude = telemetry.attitude
@@ -111,17 +111,17 @@ def read_snapshot(session: FlightSession, *, arm_ned_m: Vec3) -> Snapshot:
                      for us in telemetry.motors.motors_us[:4]),
         armed=telemetry.armed, arming_blockers=telemetry.arming_blockers,
         flight_modes=telemetry.flight_modes)
-    return Snapshot(session.time_s, fc, true_view(session, arm_ned_m))
+    return Snapshot(vehicle.time_s, fc, true_view(vehicle, arm_ned_m))
 
 
-def true_view(session: FlightSession, arm_ned_m: Vec3) -> TrueView:
+def true_view(vehicle: FlightSession, arm_ned_m: Vec3) -> TrueView:
     """The simulator's state in the snapshot's frames (no sensor is read: the physics' noise
     generators are the bridge's alone, so watching does not change the flight)."""
-    simulator = session.simulator
+    simulator = vehicle.simulator
     if simulator is None:
         raise RuntimeError("the environment needs bfsitl's embedded physics")
     state = simulator.state
-    truth = session.backend.truth()
+    truth = vehicle.backend.truth()
     assert truth is not None
     north, east, down = state.position_ned_m
     vn, ve, vd = state.velocity_ned_m_s

@@ -1,26 +1,26 @@
 """Flights: a session (SITL + physics + provisioning + RC), missions and their records.
 
     from bfsitl.control import make_controller
-    from bfsitl.mission import FlightSession, MissionPlan, run_mission
+    from bfsitl.mission import FlightSession, MissionPlan, fly
 
     with FlightSession() as session:
-        result = run_mission(session, MissionPlan(target_alt_m=2.0, hold_s=10),
-                             make_controller("cascade"))
+        result = fly(session, MissionPlan(target_alt_m=2.0, hold_s=10),
+                     make_controller("cascade"))
     print(result.outcome, result.hold)
 """
 
 from bfsitl.mission.flight_metrics import HoldStats
 from bfsitl.mission.flight_row import FlightRow
 from bfsitl.mission.legs import LegStats
-from bfsitl.mission.loop import Mission
+from bfsitl.mission.loop import FlightLoop
 from bfsitl.mission.plan import MissionPlan, Waypoint, load_mission
-from bfsitl.mission.plan_driver import run_mission
+from bfsitl.mission.plan_driver import fly
 from bfsitl.mission.results import MissionResult, Outcome
 from bfsitl.mission.session import FLY_PROFILE, FlightSession, SessionConfig
 from bfsitl.mission.vehicle import FlightSample
 
 __all__ = [
-    "FLY_PROFILE", "FlightRow", "FlightSample", "FlightSession", "HoldStats",
-    "LegStats", "Mission", "MissionPlan", "MissionResult", "Outcome", "SessionConfig",
-    "Waypoint", "load_mission", "run_mission",
+    "FLY_PROFILE", "FlightLoop", "FlightRow", "FlightSample", "FlightSession", "HoldStats",
+    "LegStats", "MissionPlan", "MissionResult", "Outcome", "SessionConfig", "Waypoint",
+    "fly", "load_mission",
 ]

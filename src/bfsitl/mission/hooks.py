@@ -2,9 +2,9 @@
 progress, and a stop condition.
 
 Missions, the :class:`~bfsitl.autopilot.Autopilot`, scenarios and tests all drive the same
-:class:`~bfsitl.mission.loop.Mission`; what they add goes in here instead of into copies of
+:class:`~bfsitl.mission.loop.FlightLoop`; what they add goes in here instead of into copies of
 the loop.  A stop condition ends the flying (the manoeuvre under way returns, the ones after
-it do nothing, :attr:`Mission.stopped` says why) without an exception: a scenario uses it
+it do nothing, :attr:`FlightLoop.stopped` says why) without an exception: a scenario uses it
 when a fault has taken the autopilot's sticks, and then only watches.
 """
 

@@ -1,4 +1,4 @@
-"""The flight loop: :class:`Mission`, closed-loop manoeuvres over a started vehicle.
+"""The flight loop: :class:`FlightLoop`, closed-loop manoeuvres over a started vehicle.
 
 The loop (``rate_hz`` in simulation time): sample the FC and the truth, estimate the climb
 rate from the FC's altitude, ask the controller for a throttle (and, in position control, the
@@ -6,7 +6,7 @@ position loop for the sticks), send it, record a row, call the hooks
 (:class:`~bfsitl.mission.hooks.FlightHooks`).  The controllers see only what a real board
 would report (FC altitude, not the simulated truth); the truth is recorded next to it to
 judge them.  Manoeuvres raise on trouble (a crash, a disarm, a timeout);
-:func:`~bfsitl.mission.plan_driver.run_mission` turns that into an outcome.
+:func:`~bfsitl.mission.plan_driver.fly` turns that into an outcome.
 """
 
 from __future__ import annotations
@@ -58,19 +58,19 @@ CRASH_TILT_DEG = 70.0
 CRASH_TOUCHDOWN_M_S = 2.5
 
 
-class Mission(PositionSteering):
+class FlightLoop:
     """Closed-loop manoeuvres on a started vehicle: a simulated :class:`FlightSession` or a
     board (:class:`~bfsitl.mission.board.BoardVehicle`).
 
-    >>> mission = Mission(session, CascadedAltitudeController())   # doctest: +SKIP
-    >>> mission.arm(); mission.takeoff(2.0); mission.hold(10); mission.land()
+    >>> loop = FlightLoop(vehicle, CascadedAltitudeController())   # doctest: +SKIP
+    >>> loop.arm(); loop.takeoff(2.0); loop.hold(10); loop.land()
 
     Making one raises :class:`MissionError` for a rate outside 1 to 200 Hz.  Manoeuvres raise
     :class:`CrashDetectedError`, :class:`MissionTimeoutError`, :class:`SitlExitedError`, and
     :class:`MissionError` when the FC disarms (or, after a landing, does not).
 
     Args:
-        session: A started vehicle: a :class:`FlightSession` or a board's.
+        vehicle: A started vehicle: a :class:`FlightSession` or a board's.
         controller: The altitude controller of every manoeuvre but the landing.
         landing: The landing's controller; None is the usual ``LandingController``.
         rate_hz: Control steps per second of the vehicle's clock, 1 to 200.
@@ -82,7 +82,7 @@ class Mission(PositionSteering):
 
     def __init__(
         self,
-        session: Vehicle,
+        vehicle: Vehicle,
         controller: AltitudeController,
         *,
         landing: AltitudeController | None = None,
@@ -94,7 +94,7 @@ class Mission(PositionSteering):
     ) -> None:
         if not 1.0 <= rate_hz <= 200.0:
             raise MissionError(f"control rate {rate_hz} Hz is outside 1..200 Hz")
-        self.session = session
+        self.vehicle = vehicle
         self.controller = controller
         if landing is None:
             from bfsitl.control.landing import LandingController
@@ -116,7 +116,8 @@ class Mission(PositionSteering):
         self._on_event = self.hooks.on_event or (lambda _message: None)
         self._climb = ClimbRateEstimator()
         self._started_wall_s = time.monotonic()
-        self._init_steering(session, rate_hz)
+        #: Position and heading control (GPS builds): the loop asks it for the sticks.
+        self.steering = PositionSteering(vehicle, rate_hz)
         #: One entry per leg flown by :meth:`fly_to`.
         self.legs: list[LegStats] = []
 
@@ -135,13 +136,11 @@ class Mission(PositionSteering):
     def arm(self) -> None:
         self.phase = Phase.ARMING
         self._on_event("arming: waiting for the FC's blockers to clear")
-        self.session.arm()
+        self.vehicle.arm()
         self._climb.reset()
-        self.position.reset(self.session.time_s)  # nothing learnt of the wind yet
-        if self.horizontal is not None:
-            self.horizontal.started = False
-        self.controller.reset(self.session.time_s)
-        self._on_event(f"armed {self.session.armed_after_s:.1f} s after start")
+        self.steering.reset(self.vehicle.time_s)
+        self.controller.reset(self.vehicle.time_s)
+        self._on_event(f"armed {self.vehicle.armed_after_s:.1f} s after start")
 
     def wait_on_ground(self, seconds: float) -> None:
         """Stay armed at idle for ``seconds``: the FC's altitude filter, which restarts from
@@ -154,13 +153,13 @@ class Mission(PositionSteering):
         if self.stopped:
             return
         self._on_event(f"on the ground for {seconds:g} s (the barometer settles)")
-        end_s = self.session.time_s + seconds
+        end_s = self.vehicle.time_s + seconds
         self._fly(Phase.GROUND, 0.0, lambda s: s.time_s >= end_s, timeout_s=seconds + 5,
                   controller=GroundObserver(self.controller))
         if not isinstance(self.controller, ObservesGround):
             # It saw nothing of the wait: start its clock now, as if it had just been armed
             # (a PID would otherwise integrate the whole wait in its first step).
-            self.controller.reset(self.session.time_s)
+            self.controller.reset(self.vehicle.time_s)
 
     def takeoff(self, altitude_m: float, *, timeout_s: float = 20.0,
                 hold_position: bool = False) -> float:
@@ -181,14 +180,13 @@ class Mission(PositionSteering):
                        + (", holding the take-off point" if hold_position else ""))
         if not hold_position:
             return self._reach(Phase.TAKEOFF, altitude_m, timeout_s)
-        here = self._position_target(0.0, 0.0)
-        self._target_ne = here
-        steer = self._position_steer(self._fixed(here, alt_m=altitude_m), 0)
-        self.position.resume(self.session.time_s)
+        here = self.steering.position_target(0.0, 0.0)
+        self.steering.target_ne = here
+        steer = self.steering.steer_to(self.steering.fixed(here, altitude_m), 0)
         try:
             return self._reach(Phase.TAKEOFF, altitude_m, timeout_s, steer=steer)
         finally:
-            self._end_position_control()
+            self.steering.end()
 
     def climb_to(self, altitude_m: float, *, timeout_s: float = 20.0) -> float:
         """Climb or descend to ``altitude_m`` where the vehicle is (an altitude step; a leg
@@ -227,15 +225,15 @@ class Mission(PositionSteering):
         what = (f" with sticks roll {roll_us:.0f}, pitch {pitch_us:.0f}, yaw {yaw_us:.0f} us"
                 if stepped else "")
         self._on_event(f"hold {self.target_alt_m:.2f} m for {seconds:g} s{what}")
-        end_s = self.session.time_s + seconds
-        self.session.set_rc(replace(self.session.rc_command, roll_us=roll_us,
+        end_s = self.vehicle.time_s + seconds
+        self.vehicle.set_rc(replace(self.vehicle.rc_command, roll_us=roll_us,
                                     pitch_us=pitch_us, yaw_us=yaw_us))
         try:
             self._fly(Phase.HOLD, self.target_alt_m, lambda s: s.time_s >= end_s,
                       timeout_s=seconds + 5)
         finally:
             if stepped:
-                self.session.set_rc(replace(self.session.rc_command, roll_us=RC_MID_US,
+                self.vehicle.set_rc(replace(self.vehicle.rc_command, roll_us=RC_MID_US,
                                             pitch_us=RC_MID_US, yaw_us=RC_MID_US))
 
     # -- position and heading ----------------------------------------------------------------
@@ -253,10 +251,10 @@ class Mission(PositionSteering):
         """
         if self.stopped:
             return
-        target = self._position_target(north_m, east_m)
+        target = self.steering.position_target(north_m, east_m)
         self._on_event(f"hold {target[0]:+.1f} m N {target[1]:+.1f} m E, "
                        f"{self.target_alt_m:.2f} m up, for {seconds:g} s")
-        end_s = self.session.time_s + seconds
+        end_s = self.vehicle.time_s + seconds
         self._fly_position(Phase.HOLD, self._fixed(target), lambda s: s.time_s >= end_s,
                            seconds + 5, waypoint=waypoint)
 
@@ -285,17 +283,17 @@ class Mission(PositionSteering):
         """
         if self.stopped:
             return 0.0
-        start = self._position_target(None, None)
+        start = self.steering.position_target(None, None)
         start_alt_m = self.target_alt_m
         end = (north_m, east_m, start_alt_m if alt_m is None else alt_m)
-        speed = self.position.gains.max_speed_m_s if speed_m_s is None else speed_m_s
+        speed = self.steering.position.gains.max_speed_m_s if speed_m_s is None else speed_m_s
         reference = LegReference((start[0], start[1], start_alt_m), end, speed)
         if timeout_s is None:
             timeout_s = 20.0 + 3.0 * reference.duration_s
         label = f"waypoint {waypoint}: " if waypoint else ""
         self._on_event(f"{label}fly to {north_m:+.1f} m N {east_m:+.1f} m E, {end[2]:.2f} m "
                        f"up ({reference.length_m:.1f} m at {speed:g} m/s)")
-        started_s = self.session.time_s
+        started_s = self.vehicle.time_s
         first_row = len(self.rows)
         finished = [False]
 
@@ -305,16 +303,16 @@ class Mission(PositionSteering):
             return point
 
         def arrived(_sample: FlightSample) -> bool:
-            gps = self.last_gps
+            gps = self.steering.last_gps
             return finished[0] and gps is not None and math.hypot(
                 gps.north_m - north_m, gps.east_m - east_m) <= tolerance_m \
                 and math.hypot(gps.v_north_m_s, gps.v_east_m_s) < 0.3
 
         self._fly_position(Phase.GOTO, target, arrived, timeout_s, waypoint=waypoint)
         if self.stopped:
-            return self.session.time_s - started_s  # not arrived: no leg to judge
-        self._target_ne = (north_m, east_m)
-        took_s = self.session.time_s - started_s
+            return self.vehicle.time_s - started_s  # not arrived: no leg to judge
+        self.steering.target_ne = (north_m, east_m)
+        took_s = self.vehicle.time_s - started_s
         self.legs.append(leg_stats(waypoint or len(self.legs) + 1, start, end,
                                    [judged_position(r) for r in self.rows[first_row:]], took_s))
         return took_s
@@ -336,8 +334,8 @@ class Mission(PositionSteering):
             return 0.0
         target_deg = heading_deg % 360.0
         self._on_event(f"turn to heading {target_deg:.0f} deg")
-        self.target_heading_deg = target_deg
-        started_s = self.session.time_s
+        self.steering.target_heading_deg = target_deg
+        started_s = self.vehicle.time_s
         within_since: list[float] = []
 
         def turned(sample: FlightSample) -> bool:
@@ -348,25 +346,28 @@ class Mission(PositionSteering):
                 within_since.append(sample.time_s)
             return sample.time_s - within_since[0] >= REACHED_HOLD_S
 
-        if self.session.has_gps:
-            here = self._position_target(None, None)
+        if self.vehicle.has_gps:
+            here = self.steering.position_target(None, None)
             self._fly_position(Phase.YAW, self._fixed(here), turned, timeout_s)
         else:
             self._fly(Phase.YAW, self.target_alt_m, turned, timeout_s=timeout_s,
-                      steer=self._steer_heading)
-            self._set_sticks(yaw_us=RC_MID_US)
-        return self.session.time_s - started_s
+                      steer=self.steering.steer_heading)
+            self.steering.set_sticks(yaw_us=RC_MID_US)
+        return self.vehicle.time_s - started_s
 
     def _fly_position(self, phase: Phase, target: PositionTarget,
                       done: Callable[[FlightSample], bool], timeout_s: float, *,
                       waypoint: int = 0, controller: AltitudeController | None = None) -> None:
-        steer = self._position_steer(target, waypoint)
-        self.position.resume(self.session.time_s)
+        steer = self.steering.steer_to(target, waypoint)
         try:
             self._fly(phase, target(0.0).alt_m, done, timeout_s=timeout_s, steer=steer,
                       controller=controller)
         finally:
-            self._end_position_control()
+            self.steering.end()
+
+    def _fixed(self, north_east: tuple[float, float]) -> PositionTarget:
+        """A position target that stays put at the altitude held."""
+        return self.steering.fixed(north_east, self.target_alt_m)
 
     def hand_over(self, seconds: float, *, switches: tuple[int, ...], throttle_us: float,
                   phase: Phase = Phase.FC_MODE) -> None:
@@ -386,20 +387,20 @@ class Mission(PositionSteering):
             return
         self._on_event(f"handing over to the FC's modes (AUX "
                        f"{', '.join(str(i + 1) for i in switches)}) for {seconds:g} s")
-        self._set_sticks(roll_us=RC_MID_US, pitch_us=RC_MID_US, yaw_us=RC_MID_US)
-        command = self.session.rc_command
+        self.steering.set_sticks(roll_us=RC_MID_US, pitch_us=RC_MID_US, yaw_us=RC_MID_US)
+        command = self.vehicle.rc_command
         for index in switches:
             command = command.with_aux(index, SWITCH_ON_US)
-        self.session.set_rc(command)
-        end_s = self.session.time_s + seconds
+        self.vehicle.set_rc(command)
+        end_s = self.vehicle.time_s + seconds
         try:
             self._fly(phase, self.target_alt_m, lambda s: s.time_s >= end_s,
                       timeout_s=seconds + 5, controller=FixedThrottle(throttle_us))
         finally:
-            command = self.session.rc_command
+            command = self.vehicle.rc_command
             for index in switches:
                 command = command.with_aux(index, SWITCH_OFF_US)
-            self.session.set_rc(command)
+            self.vehicle.set_rc(command)
 
     def observe(self, done: Callable[[FlightSample], bool], *, timeout_s: float,
                 phase: Phase = Phase.OBSERVE) -> None:
@@ -413,12 +414,12 @@ class Mission(PositionSteering):
             phase: The phase the rows are recorded under.
         """
         self.phase = phase
-        clock = self.session.clock
+        clock = self.vehicle.clock
         period_s = 1.0 / self.rate_hz
-        deadline_s = self.session.time_s + timeout_s
+        deadline_s = self.vehicle.time_s + timeout_s
         next_s = clock.now_s()
         while True:
-            sample = self.session.sample()
+            sample = self.vehicle.sample()
             climb_m_s = self._climb.update(sample.time_s, sample.fc_alt_m)
             self._record(phase, self.target_alt_m, sample, climb_m_s)
             if done(sample) or sample.time_s >= deadline_s:
@@ -441,32 +442,32 @@ class Mission(PositionSteering):
         # Start the descent from the flying controller's hover estimate, not a guess.
         if isinstance(self.controller, KnowsHover) and isinstance(landing, TakesHoverEstimate):
             landing.set_hover_estimate(self.controller.hover_throttle_us)
-        landing.reset(self.session.time_s)
+        landing.reset(self.vehicle.time_s)
 
         def touched_down(_sample: FlightSample) -> bool:
             return bool(landing.touched_down)
 
-        if self._target_ne is not None:
+        if self.steering.target_ne is not None:
             # After position control the descent holds the position too: wind would
             # otherwise carry the vehicle off while it sinks.
-            self._fly_position(Phase.LAND, self._fixed(self._target_ne, alt_m=0.0), touched_down,
-                               timeout_s, controller=self.landing)
+            self._fly_position(Phase.LAND, self.steering.fixed(self.steering.target_ne, 0.0),
+                               touched_down, timeout_s, controller=self.landing)
         else:
             self._fly(Phase.LAND, 0.0, touched_down, timeout_s=timeout_s, controller=self.landing)
         if self.stopped:
             return  # the sticks are not ours to disarm with
         self._on_event("touched down; disarming")
         self.phase = Phase.LANDED
-        if not self.session.disarm():
+        if not self.vehicle.disarm():
             raise MissionError("the FC did not disarm after touch-down")
-        sample = self.session.sample()
+        sample = self.vehicle.sample()
         self._record(Phase.LANDED, 0.0, sample, self._climb.update(sample.time_s, sample.fc_alt_m))
         self._on_event("disarmed")
 
     # -- the loop --------------------------------------------------------------------------
     def _reach(self, phase: Phase, altitude_m: float, timeout_s: float, *,
                steer: Callable[[FlightSample], float | None] | None = None) -> float:
-        start_s = self.session.time_s
+        start_s = self.vehicle.time_s
         settled_since: list[float] = []
 
         def reached(sample: FlightSample) -> bool:
@@ -488,7 +489,7 @@ class Mission(PositionSteering):
             return sample.time_s - settled_since[0] >= REACHED_HOLD_S
 
         self._fly(phase, altitude_m, reached, timeout_s=timeout_s, steer=steer)
-        took_s = self.session.time_s - start_s
+        took_s = self.vehicle.time_s - start_s
         if self.stopped:
             return took_s
         self._on_event(f"reached {altitude_m:.2f} m after {took_s:.1f} s")
@@ -503,12 +504,12 @@ class Mission(PositionSteering):
             return
         controller = controller or self.controller
         self.phase, self.target_alt_m = phase, target_alt_m
-        clock = self.session.clock
+        clock = self.vehicle.clock
         period_s = 1.0 / self.rate_hz  # in simulation time, whatever the pace
-        deadline_s = self.session.time_s + timeout_s
+        deadline_s = self.vehicle.time_s + timeout_s
         next_s = clock.now_s()
         while True:
-            sample = self.session.sample()
+            sample = self.vehicle.sample()
             climb_m_s = self._climb.update(sample.time_s, sample.fc_alt_m)
             self._check(sample)
             if steer is not None:
@@ -521,7 +522,7 @@ class Mission(PositionSteering):
             if not math.isfinite(throttle_us):
                 raise MissionError(f"controller {getattr(controller, 'name', controller)} "
                                    f"returned throttle {throttle_us}")
-            self.session.set_throttle(throttle_us)
+            self.vehicle.set_throttle(throttle_us)
             self._record(phase, target_alt_m, sample, climb_m_s)
             if self._stop_asked(sample) or done(sample):
                 return
@@ -559,7 +560,7 @@ class Mission(PositionSteering):
                 climb_m_s: float) -> FlightRow:
         """One row of the log; ``phase`` is a :class:`Phase`, or an :class:`Outcome`'s value
         for the last row of a flight that did not land."""
-        rc = self.session.rc_command  # what goes out from this step on
+        rc = self.vehicle.rc_command  # what goes out from this step on
         aux = tuple(rc.aux_us) + (SWITCH_OFF_US, SWITCH_OFF_US)
         row = FlightRow(
             time_s=sample.time_s, phase=phase, target_alt_m=target_alt_m,
@@ -575,7 +576,7 @@ class Mission(PositionSteering):
             motor4=sample.motors[3], armed=sample.armed,
             wall_s=sample.wall_s - self._started_wall_s,
             sim_north_m=sample.sim_north_m, sim_east_m=sample.sim_east_m,
-            waypoint=self._waypoint, **self._position_columns,
+            waypoint=self.steering.waypoint, **self.steering.row_columns,
         )
         self.rows.append(row)
         self.last_sample = sample
@@ -591,12 +592,12 @@ class Mission(PositionSteering):
         Args:
             ending: How the flight ended; the final row's phase carries its value.
         """
-        session = self.session
-        if session.rc is None:
+        vehicle = self.vehicle
+        if vehicle.rc is None:
             return
-        safe = replace(session.rc_command, throttle_us=RC_MIN_US,
+        safe = replace(vehicle.rc_command, throttle_us=RC_MIN_US,
                        aux_us=(SWITCH_OFF_US, SWITCH_OFF_US))
-        session.set_rc(safe)
+        vehicle.set_rc(safe)
         if self.last_sample is not None:
             self._record(ending.value, self.target_alt_m, self.last_sample,
                          self._climb.rate_m_s)

@@ -11,7 +11,8 @@ from enum import StrEnum
 
 class Phase(StrEnum):
     """The mission's phase.  The last row of a flight that did not land carries how it ended
-    instead (an :class:`~bfsitl.mission.results.Outcome`'s value, written by ``Mission.abort``)."""
+    instead (an :class:`~bfsitl.mission.results.Outcome`'s value, written by
+    ``FlightLoop.abort``)."""
 
     ARMING = "arming"
     GROUND = "ground"          # armed on the ground while the barometer settles
@@ -21,7 +22,7 @@ class Phase(StrEnum):
     YAW = "yaw"
     LAND = "land"
     LANDED = "landed"
-    FC_MODE = "fc-mode"        # the firmware's own mode flies (Mission.hand_over)
+    FC_MODE = "fc-mode"        # the firmware's own mode flies (FlightLoop.hand_over)
     OBSERVE = "observe"        # nobody flies; the mission only watches
     WATCH = "watch"            # a scenario watches after a fault took the sticks
 

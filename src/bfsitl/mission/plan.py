@@ -105,7 +105,7 @@ class MissionPlan:
     #: Simulation seconds allowed for the climb to be reached and settled.
     takeoff_timeout_s: float = 20.0
     land_timeout_s: float = 30.0
-    #: Armed at idle before the take-off (:meth:`Mission.wait_on_ground`), seconds.
+    #: Armed at idle before the take-off (:meth:`FlightLoop.wait_on_ground`), seconds.
     ground_s: float = 2.0
     waypoints: tuple[Waypoint, ...] = ()
     speed_m_s: float = DEFAULT_SPEED_M_S

@@ -1,8 +1,12 @@
-"""Flying a plan: :func:`fly_plan` drives a :class:`~bfsitl.mission.loop.Mission` through a
-:class:`~bfsitl.mission.plan.MissionPlan` (``bfsitl fly``, the Autopilot and scenarios all use
-it), and :func:`fly_mission` (:func:`run_mission` on a new mission) turns every way a flight
-can end into an :class:`~bfsitl.mission.results.Outcome` with a reason, so callers get data,
-not exceptions.
+"""Flying a plan, one verb at three depths:
+
+* :func:`fly` (public): a plan on a started vehicle with a controller, in one call;
+* :func:`fly_plan`: a plan on a :class:`~bfsitl.mission.loop.FlightLoop` the caller holds
+  (the :class:`~bfsitl.autopilot.Autopilot` flies its own loop); both turn every way a
+  flight can end into an :class:`~bfsitl.mission.results.Outcome` with a reason, so callers
+  get data, not exceptions;
+* :func:`fly_steps`: the plan's steps on the loop (arm, take off, hold, waypoints, land),
+  raising on trouble, for a caller that handles the ending itself (a scenario watches on).
 """
 
 from __future__ import annotations
@@ -21,7 +25,7 @@ from bfsitl.errors import (
 from bfsitl.mission.flight_metrics import attitude_tracking, hold_stats, takeoff_metrics
 from bfsitl.mission.flight_row import RowWriter
 from bfsitl.mission.hooks import EventCallback, RowCallback
-from bfsitl.mission.loop import DEFAULT_RATE_HZ, Mission
+from bfsitl.mission.loop import DEFAULT_RATE_HZ, FlightLoop
 from bfsitl.mission.phase import Phase
 from bfsitl.mission.plan import MissionPlan, Waypoint
 from bfsitl.mission.results import MissionResult, Outcome
@@ -32,61 +36,61 @@ from bfsitl.stop_signals import how_stopped
 STEP_STEADY_WINDOW_S = 5.0
 
 
-def fly_plan(mission: Mission, plan: MissionPlan, *, arm: bool = True,
-             time_left_s: Callable[[], float] | None = None,
-             after_step: Callable[[Phase], None] | None = None) -> None:
-    """Arm, take off, hold, fly the waypoints, land: ``plan`` on ``mission``, raising on
-    trouble (:func:`run_mission` turns that into an outcome).
+def fly_steps(loop: FlightLoop, plan: MissionPlan, *, arm: bool = True,
+              time_left_s: Callable[[], float] | None = None,
+              after_step: Callable[[Phase], None] | None = None) -> None:
+    """Arm, take off, hold, fly the waypoints, land: ``plan`` on ``loop``, raising on
+    trouble (:func:`fly_plan` turns that into an outcome).
 
     ``arm=False`` when the caller has armed already; ``time_left_s`` (what the caller's run
     has left) cuts the hold short so that it does not outlast the run; ``after_step`` is
     told each step that ended (TAKEOFF, HOLD, GOTO for each waypoint, LANDED).  Once the
-    mission's stop condition has ended the flying, the rest of the plan is not flown.
+    loop's stop condition has ended the flying, the rest of the plan is not flown.
     """
     done = after_step or (lambda _step: None)
     if arm:
-        mission.arm()
+        loop.arm()
     if plan.ground_s > 0:
-        mission.wait_on_ground(plan.ground_s)
-    position = plan.needs_position or (plan.hold_position and mission.session.has_gps)
-    mission.takeoff(plan.target_alt_m, timeout_s=plan.takeoff_timeout_s,
+        loop.wait_on_ground(plan.ground_s)
+    position = plan.needs_position or (plan.hold_position and loop.vehicle.has_gps)
+    loop.takeoff(plan.target_alt_m, timeout_s=plan.takeoff_timeout_s,
                     hold_position=position)
-    if mission.stopped:
+    if loop.stopped:
         return
     done(Phase.TAKEOFF)
     hold_s = plan.hold_s if time_left_s is None else min(plan.hold_s, max(0.0, time_left_s()))
     if hold_s > 0:
         if position:
-            mission.hold_position(hold_s)
+            loop.hold_position(hold_s)
         else:
-            mission.hold(hold_s)
-        if mission.stopped:
+            loop.hold(hold_s)
+        if loop.stopped:
             return
         done(Phase.HOLD)
     for number, waypoint in enumerate(plan.waypoints, start=1):
-        fly_waypoint(mission, waypoint, number, plan.speed_m_s)
-        if mission.stopped:
+        fly_waypoint(loop, waypoint, number, plan.speed_m_s)
+        if loop.stopped:
             return
         done(Phase.GOTO)
     if plan.land:
-        mission.land(timeout_s=plan.land_timeout_s)
-        if mission.stopped:
+        loop.land(timeout_s=plan.land_timeout_s)
+        if loop.stopped:
             return
         done(Phase.LANDED)
 
 
-def fly_waypoint(mission: Mission, waypoint: Waypoint, number: int, speed_m_s: float) -> None:
+def fly_waypoint(loop: FlightLoop, waypoint: Waypoint, number: int, speed_m_s: float) -> None:
     """The leg to ``waypoint``, the turn to its heading, its hold."""
-    mission.fly_to(waypoint.north_m, waypoint.east_m, waypoint.alt_m, speed_m_s=speed_m_s,
+    loop.fly_to(waypoint.north_m, waypoint.east_m, waypoint.alt_m, speed_m_s=speed_m_s,
                    waypoint=number)
     if waypoint.heading_deg is not None:
-        mission.yaw_to(waypoint.heading_deg)
+        loop.yaw_to(waypoint.heading_deg)
     if waypoint.hold_s > 0:
-        mission.hold_position(waypoint.hold_s, waypoint=number)
+        loop.hold_position(waypoint.hold_s, waypoint=number)
 
 
-def run_mission(
-    session: Vehicle,
+def fly(
+    vehicle: Vehicle,
     plan: MissionPlan,
     controller: AltitudeController,
     *,
@@ -96,13 +100,13 @@ def run_mission(
     on_event: EventCallback | None = None,
     rate_hz: float = DEFAULT_RATE_HZ,
 ) -> MissionResult:
-    """Fly ``plan`` on a started session; every ending becomes an :class:`Outcome`.
+    """Fly ``plan`` on a started vehicle; every ending becomes an :class:`Outcome`.
 
     Ctrl-C becomes :attr:`Outcome.INTERRUPTED` (the sticks go to disarm at once and a last
-    row records them); the caller still closes the session.
+    row records them); the caller still closes the vehicle.
 
     Args:
-        session: A started vehicle (a :class:`~bfsitl.mission.session.FlightSession` or a
+        vehicle: A started vehicle (a :class:`~bfsitl.mission.session.FlightSession` or a
             :class:`~bfsitl.mission.board.BoardVehicle`).
         plan: What to fly.
         controller: The altitude controller that flies it
@@ -120,33 +124,33 @@ def run_mission(
     Raises:
         MissionError: ``rate_hz`` is outside 1 to 200 (nothing has flown then).
     """
-    mission = Mission(session, controller, landing=landing, rate_hz=rate_hz, log=log,
+    loop = FlightLoop(vehicle, controller, landing=landing, rate_hz=rate_hz, log=log,
                       on_row=on_row, on_event=on_event)
-    return fly_mission(mission, plan)
+    return fly_plan(loop, plan)
 
 
-def fly_mission(mission: Mission, plan: MissionPlan, *,
-                keep_flying: bool = False) -> MissionResult:
-    """Fly ``plan`` from the ground on ``mission`` (a new one, or one that has flown and
+def fly_plan(loop: FlightLoop, plan: MissionPlan, *,
+             keep_flying: bool = False) -> MissionResult:
+    """Fly ``plan`` from the ground on ``loop`` (a new one, or one that has flown and
     landed before: the :class:`~bfsitl.autopilot.Autopilot` flies on its own); every ending
     becomes an :class:`Outcome`, and the result covers the rows and legs of this plan only.
 
     A plan that does not land (``land = false``) ends with the sticks at disarm, as every
-    other ending but a landing does, unless ``keep_flying``: then the mission is still
+    other ending but a landing does, unless ``keep_flying``: then the loop is still
     flying it, and its next manoeuvre (``land()``) goes on from there."""
-    session = mission.session
-    first_row, first_leg = len(mission.rows), len(mission.legs)
-    controller = mission.controller
+    vehicle = loop.vehicle
+    first_row, first_leg = len(loop.rows), len(loop.legs)
+    controller = loop.controller
     name = getattr(controller, "name", type(controller).__name__)
     outcome, reason = Outcome.LANDED, "landed and disarmed"
     blockers: tuple[str, ...] = ()
     try:
-        if plan.needs_position and not session.has_gps:
+        if plan.needs_position and not vehicle.has_gps:
             raise MissionError(
                 "this mission has waypoints, flown from the FC's GPS, and this firmware has "
                 "no GPS: fly a GPS build (`bfsitl firmware build --gps`, add --lockstep for "
                 "lockstep; master always has it)")
-        fly_plan(mission, plan)
+        fly_steps(loop, plan)
         if not plan.land:
             outcome, reason = Outcome.COMPLETED, "mission completed in the air (land = false)"
     except KeyboardInterrupt as exc:
@@ -163,18 +167,18 @@ def fly_mission(mission: Mission, plan: MissionPlan, *,
         outcome, reason = Outcome.ERROR, str(exc)
     if outcome is not Outcome.LANDED and not (keep_flying and outcome is Outcome.COMPLETED):
         try:
-            mission.abort(outcome)
+            loop.abort(outcome)
         except (BfsitlError, OSError):
-            pass  # the session's close still sends disarm through the RC link
-    if outcome is Outcome.ERROR and session.has_exited():
+            pass  # the vehicle's close still sends disarm through the RC link
+    if outcome is Outcome.ERROR and vehicle.has_exited():
         outcome = Outcome.SITL_EXITED
-    rows = mission.rows[first_row:]
+    rows = loop.rows[first_row:]
     result = MissionResult(outcome, reason.splitlines()[0] if reason else "", name, plan,
-                           rows, blockers, session.armed_after_s)
+                           rows, blockers, vehicle.armed_after_s)
     result.hold = hold_stats(rows)
-    result.legs = list(mission.legs[first_leg:])
+    result.legs = list(loop.legs[first_leg:])
     result.attitude = attitude_tracking(rows)
-    profile = session.firmware
+    profile = vehicle.firmware
     if profile is not None:
         result.extra["firmware"] = {
             "version": profile.firmware_version, "api": profile.api_version,
@@ -182,12 +186,12 @@ def fly_mission(mission: Mission, plan: MissionPlan, *,
     if not plan.waypoints or plan.hold_s >= STEP_STEADY_WINDOW_S:
         # A step response needs the hold after it: straight into a leg, there is none.
         result.metrics = takeoff_metrics(rows, plan.target_alt_m)
-    rc_stats, bridge_stats = session.rc_stats(), session.bridge_stats()
+    rc_stats, bridge_stats = vehicle.rc_stats(), vehicle.bridge_stats()
     if rc_stats is not None:
         result.extra["rc_link"] = rc_stats
     if bridge_stats is not None:
         result.extra["physics"] = {
             "answered_ratio": bridge_stats.answered_ratio, "speed": bridge_stats.speed,
-            "steps": bridge_stats.steps, "lockstep": session.lockstep,
-            "exchange": session.backend.exchange, "step": session.backend.physics_step}
+            "steps": bridge_stats.steps, "lockstep": vehicle.lockstep,
+            "exchange": vehicle.backend.exchange, "step": vehicle.backend.physics_step}
     return result

@@ -1,9 +1,11 @@
-"""Position and heading control inside the flight loop: the FC's GPS made local, the ANGLE
+"""Position and heading control for the flight loop: the FC's GPS made local, the ANGLE
 stick curve, the position loop's sticks and the heading hold.
 
-:class:`PositionSteering` is the part of :class:`~bfsitl.mission.loop.Mission` that steers;
-the loop calls :meth:`PositionSteering._position_steer` once per step of a position
-manoeuvre and records the columns it leaves in :attr:`_position_columns`.
+A :class:`~bfsitl.mission.loop.FlightLoop` holds one :class:`PositionSteering` (its
+``steering``) and asks it, once per step of a position manoeuvre, for the sticks
+(:meth:`PositionSteering.steer_to`); the steering owns its state (the position and heading
+controllers, the last target, the columns it adds to the loop's rows) and knows nothing of
+the loop.
 """
 
 from __future__ import annotations
@@ -30,49 +32,54 @@ PositionTarget = Callable[[float], LegPoint]
 
 
 class PositionSteering:
-    """Steering state and steps (see the module docstring)."""
+    """Steers a vehicle to position targets through ANGLE mode, holding a heading."""
 
-    session: Vehicle
-    target_alt_m: float
-    _waypoint: int
-
-    def _init_steering(self, session: Vehicle, rate_hz: float) -> None:
-        self.session = session
+    def __init__(self, vehicle: Vehicle, rate_hz: float) -> None:
+        """``rate_hz``: the loop's control rate (the position gains are tuned for it)."""
+        self.vehicle = vehicle
         self.position = PositionController(PositionGains.for_loop_rate(rate_hz))
         #: Fuses the FC's accelerometer with its GPS for the position loop (None: the GPS
         #: alone, extrapolated by the gains' lead).
         self.horizontal: HorizontalEstimator | None = None
         #: The FC's ANGLE-mode stick curve, read from it at the first position manoeuvre.
         self.sticks: AngleStickMap | None = None
-        #: The FC's GPS and the target of the step being recorded (position control only).
-        self._position_columns: dict[str, float] = {}
         self.last_gps: GpsPosition | None = None
         self.heading = HeadingController()
         #: The heading held during position control and turned to by ``yaw_to``.
         self.target_heading_deg: float | None = None
-        #: The last position target (north, east): where the next leg starts.
-        self._target_ne: tuple[float, float] | None = None
-        self._waypoint = 0  # the waypoint being flown to or held (a log column)
+        #: The last position target (north, east): where the next leg starts (None before
+        #: the first position manoeuvre).
+        self.target_ne: tuple[float, float] | None = None
+        #: What the step being recorded adds to its row: the FC's GPS and the target (position
+        #: control only), and the waypoint being flown to or held (0: none).
+        self.row_columns: dict[str, float] = {}
+        self.waypoint = 0
 
-    def _fixed(self, north_east: tuple[float, float], *, alt_m: float | None = None
-               ) -> PositionTarget:
-        """A position target that stays put, at ``alt_m`` (default: the altitude held)."""
-        point = LegPoint(north_east[0], north_east[1],
-                         self.target_alt_m if alt_m is None else alt_m, 0.0, 0.0, 0.0, 0.0, True)
+    def reset(self, time_s: float) -> None:
+        """At arming: nothing learnt of the wind yet, the estimator starts again."""
+        self.position.reset(time_s)
+        if self.horizontal is not None:
+            self.horizontal.started = False
+
+    @staticmethod
+    def fixed(north_east: tuple[float, float], alt_m: float) -> PositionTarget:
+        """A position target that stays put at ``alt_m``."""
+        point = LegPoint(north_east[0], north_east[1], alt_m, 0.0, 0.0, 0.0, 0.0, True)
         return lambda _elapsed_s: point
 
-    def _position_target(self, north_m: float | None, east_m: float | None
-                         ) -> tuple[float, float]:
+    def position_target(self, north_m: float | None, east_m: float | None
+                        ) -> tuple[float, float]:
         """The given coordinates, else the last target, else where the FC's GPS is now."""
-        if self._target_ne is None:
-            gps = self._gps()
-            self._target_ne = (gps.north_m, gps.east_m)
-        return (self._target_ne[0] if north_m is None else north_m,
-                self._target_ne[1] if east_m is None else east_m)
+        if self.target_ne is None:
+            gps = self.read_gps()
+            self.target_ne = (gps.north_m, gps.east_m)
+        return (self.target_ne[0] if north_m is None else north_m,
+                self.target_ne[1] if east_m is None else east_m)
 
-    def _gps(self) -> GpsPosition:
+    def read_gps(self) -> GpsPosition:
+        """The FC's GPS now (kept in :attr:`last_gps`); raises without a GPS or a fix."""
         try:
-            gps = self.session.gps_position()
+            gps = self.vehicle.gps_position()
         except MspErrorReply as exc:
             raise MissionError(
                 "position control needs the FC's GPS, and this firmware has none (it refused "
@@ -84,38 +91,41 @@ class PositionSteering:
         self.last_gps = gps
         return gps
 
-    def _stick_map(self) -> AngleStickMap:
+    def stick_map(self) -> AngleStickMap:
         if self.sticks is None:
-            client = self.session.client
+            client = self.vehicle.client
             self.sticks = AngleStickMap.from_replies(client.get(msg.RcTuning),
                                                      client.get(msg.PidAdvanced))
         return self.sticks
 
-    def _set_sticks(self, *, roll_us: float | None = None, pitch_us: float | None = None,
-                    yaw_us: float | None = None) -> None:
-        rc = self.session.rc_command
-        self.session.set_rc(replace(
+    def set_sticks(self, *, roll_us: float | None = None, pitch_us: float | None = None,
+                   yaw_us: float | None = None) -> None:
+        """Roll, pitch and yaw (those given); the throttle and switches stay as they are."""
+        rc = self.vehicle.rc_command
+        self.vehicle.set_rc(replace(
             rc, roll_us=rc.roll_us if roll_us is None else roll_us,
             pitch_us=rc.pitch_us if pitch_us is None else pitch_us,
             yaw_us=rc.yaw_us if yaw_us is None else yaw_us))
 
-    def _steer_heading(self, sample: FlightSample) -> None:
+    def steer_heading(self, sample: FlightSample) -> None:
         """Yaw towards :attr:`target_heading_deg` (set to the heading now if there is none)."""
         if self.target_heading_deg is None:
             self.target_heading_deg = sample.yaw_deg % 360.0
         rate = self.heading.rate_deg_s(sample.yaw_deg, self.target_heading_deg)
-        self._set_sticks(yaw_us=self._stick_map().yaw_stick_us(rate))
-        self._position_columns["target_heading_deg"] = self.target_heading_deg
+        self.set_sticks(yaw_us=self.stick_map().yaw_stick_us(rate))
+        self.row_columns["target_heading_deg"] = self.target_heading_deg
 
-    def _position_steer(self, target: PositionTarget, waypoint: int
-                        ) -> Callable[[FlightSample], float | None]:
-        """One step of position and heading control towards ``target``: sets the roll,
-        pitch and yaw sticks, returns the altitude target."""
-        sticks = self._stick_map()
-        started_s = self.session.time_s
+    def steer_to(self, target: PositionTarget, waypoint: int
+                 ) -> Callable[[FlightSample], float | None]:
+        """Position and heading control towards ``target`` from now on (the position loop
+        resumes here): the step it returns sets the roll, pitch and yaw sticks and returns the
+        altitude target.  :meth:`end` ends it."""
+        sticks = self.stick_map()
+        started_s = self.vehicle.time_s
+        self.position.resume(started_s)
 
         def steer(sample: FlightSample) -> float | None:
-            gps = self._gps()
+            gps = self.read_gps()
             point = target(sample.time_s - started_s)
             north, east = point.north_m, point.east_m
             here = (gps.north_m, gps.east_m, gps.v_north_m_s, gps.v_east_m_s)
@@ -129,17 +139,18 @@ class PositionSteering:
             tilt = self.position.update(PositionInput(
                 sample.time_s, *here, sample.yaw_deg, north, east, point.v_north_m_s,
                 point.v_east_m_s, point.a_north_m_s2, point.a_east_m_s2))
-            self._set_sticks(roll_us=sticks.stick_us("roll", tilt.roll_deg),
-                             pitch_us=sticks.stick_us("pitch", tilt.pitch_deg))
-            self._position_columns = {
+            self.set_sticks(roll_us=sticks.stick_us("roll", tilt.roll_deg),
+                            pitch_us=sticks.stick_us("pitch", tilt.pitch_deg))
+            self.row_columns = {
                 "fc_north_m": gps.north_m, "fc_east_m": gps.east_m,
                 "target_north_m": north, "target_east_m": east}
-            self._waypoint = waypoint
-            self._steer_heading(sample)
+            self.waypoint = waypoint
+            self.steer_heading(sample)
             return point.alt_m
 
         return steer
 
-    def _end_position_control(self) -> None:
-        self._position_columns, self._waypoint = {}, 0
-        self._set_sticks(roll_us=RC_MID_US, pitch_us=RC_MID_US, yaw_us=RC_MID_US)
+    def end(self) -> None:
+        """Position control is over: no columns, no waypoint, roll, pitch and yaw centred."""
+        self.row_columns, self.waypoint = {}, 0
+        self.set_sticks(roll_us=RC_MID_US, pitch_us=RC_MID_US, yaw_us=RC_MID_US)

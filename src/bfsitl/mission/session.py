@@ -30,7 +30,7 @@ from pathlib import Path
 from typing import Any, Self
 
 from bfsitl.backend.base import SitlBackend
-from bfsitl.backend.factory import check_speed, make_backend
+from bfsitl.backend.factory import LockstepExchange, check_speed, make_backend
 from bfsitl.errors import BfsitlError, MspErrorReply, SitlError, SitlExitedError
 from bfsitl.fc.msp_client import MspClient
 from bfsitl.fc.provisioning import (
@@ -202,7 +202,7 @@ class SessionConfig:
     #: Lockstep: how packets pass between the physics and the firmware: ``"auto"`` (shared
     #: memory where the build and the machine have it, else UDP), ``"shm"`` or ``"udp"``.
     #: Either gives the same flight (bfsitl.link.shm_exchange).
-    lockstep_exchange: str = "auto"
+    lockstep_exchange: LockstepExchange = "auto"
     #: How the embedded physics steps: ``"auto"`` (the compiled kernel for a lockstep run
     #: through shared memory where a C compiler builds it, else pure Python), ``"compiled"`` or
     #: ``"python"``.  Either gives the same flight, bit for bit (bfsitl.kernel).

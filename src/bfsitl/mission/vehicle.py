@@ -6,7 +6,7 @@ flight (:class:`FlightSample`: the FC's view over MSP, next to the truth when it
 the FC's GPS made local, a clock.  :class:`~bfsitl.mission.session.FlightSession` is the
 simulated one (SITL, physics, UDP or lockstep RC, simulation time, the truth);
 :class:`~bfsitl.mission.board.BoardVehicle` a flight controller on a serial port (RC by MSP,
-wall time, no truth).  A :class:`~bfsitl.mission.loop.Mission` flies either.
+wall time, no truth).  A :class:`~bfsitl.mission.loop.FlightLoop` flies either.
 """
 
 from __future__ import annotations
@@ -223,7 +223,7 @@ class Vehicle:
         self.close()
 
     def on_close(self, callback: Callable[[], object]) -> None:
-        """Call ``callback`` when the session closes (before the RC link, bridge and SITL
+        """Call ``callback`` when the vehicle closes (before the RC link, bridge and SITL
         stop): an autopilot's log is closed with the vehicle it records.
 
         Args:
@@ -252,7 +252,7 @@ class Vehicle:
             SitlError: The vehicle is not started (no RC link yet).
         """
         if self.rc is None:
-            raise SitlError("the session is not started")
+            raise SitlError("the vehicle is not started")
         self.rc.set(command)
 
     def set_throttle(self, throttle_us: float) -> None:
@@ -403,7 +403,7 @@ class Vehicle:
         )
 
     def gps_position(self) -> GpsPosition:
-        """The FC's GPS, local to its first reading in this session (one MSP round trip).
+        """The FC's GPS, local to its first reading since the vehicle started (one MSP round trip).
 
         Only GPS builds answer (``bfsitl firmware build --gps`` for 4.6.0; master has it):
         others raise :class:`MspErrorReply`.  The conversion is the FC's flat-earth one, good

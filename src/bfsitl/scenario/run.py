@@ -45,9 +45,9 @@ from bfsitl.fc.firmware_detect import profile_of_binary
 from bfsitl.fc.provisioning import Profile
 from bfsitl.mission.flight_row import FlightRow
 from bfsitl.mission.hooks import FlightHooks
-from bfsitl.mission.loop import Mission
+from bfsitl.mission.loop import FlightLoop
 from bfsitl.mission.phase import Phase
-from bfsitl.mission.plan_driver import fly_plan
+from bfsitl.mission.plan_driver import fly_steps
 from bfsitl.mission.session import (
     FLY_PROFILE,
     FlightSession,
@@ -162,10 +162,10 @@ class RunOptions:
 class _Injector:
     """Injects each fault when it is due and undoes it when it ends; keeps the trace."""
 
-    def __init__(self, session: FlightSession, faults: tuple[Fault, ...], trace: Trace,
+    def __init__(self, vehicle: FlightSession, faults: tuple[Fault, ...], trace: Trace,
                  events: list[TimedEvent], progress: Progress, record: Progress,
                  watch: FlightWatch | None = None) -> None:
-        self.session = session
+        self.vehicle = vehicle
         #: The analysers' record of the run, on the trace's clock (seconds from arming).
         self.watch = watch or FlightWatch()
         #: Events go to the flight's outputs as well (the MCAP file's /events log).
@@ -197,7 +197,7 @@ class _Injector:
                 self.note(t, f"{fault.title}: over")
         while self.pending and t >= self.pending[0].spec.at_s:
             fault = self.pending.pop(0)
-            undo = fault.apply(self.session)
+            undo = fault.apply(self.vehicle)
             lasts = fault.spec.duration_s
             self.active.append((t + lasts if lasts is not None else math.inf, fault, undo))
             self.trace.fault_times_s.append(round(t, 4))
@@ -214,7 +214,7 @@ class _Injector:
 
     def _row(self, t: float, sample: FlightSample) -> TraceRow:
         try:
-            debug = self.session.client.get(msg.Debug).values
+            debug = self.vehicle.client.get(msg.Debug).values
             phase: int | None = debug[FAILSAFE_PHASE_DEBUG_INDEX] \
                 if len(debug) > FAILSAFE_PHASE_DEBUG_INDEX else None
         except BfsitlError:
@@ -351,18 +351,18 @@ def _fly(scenario: Scenario, binary: Path, profile: FirmwareProfile, faults: tup
                                        if session.firmware else result.firmware_version)
             if session.sitl is not None:
                 result.artifacts["sitl_log"] = session.sitl.log_path
-            mission = Mission(session, make_controller(options.controller),
+            loop = FlightLoop(session, make_controller(options.controller),
                               rate_hz=session.control_rate_hz,
                               hooks=FlightHooks(on_step=on_row, stop=injector.stop))
             try:
-                mission.arm()
+                loop.arm()
             except ArmingBlockedError as exc:
                 result.verdict, result.reason = Verdict.ERROR, str(exc)
                 return
             injector.armed_at_s = session.time_s
             injector.note(0.0, "armed")
-            _autopilot_flight(scenario, mission, injector, trace)
-            _watch(scenario, mission, injector)
+            _autopilot_flight(scenario, loop, injector, trace)
+            _watch(scenario, loop, injector)
     finally:
         outputs.close()
     result.sim_time_s = round(trace.end_s, 3)
@@ -390,14 +390,14 @@ def _fly(scenario: Scenario, binary: Path, profile: FirmwareProfile, faults: tup
             trace, out / "plot.png", title=f"{scenario.name} on {result.firmware}")
 
 
-def _autopilot_flight(scenario: Scenario, mission: Mission, injector: _Injector,
+def _autopilot_flight(scenario: Scenario, loop: FlightLoop, injector: _Injector,
                       trace: Trace) -> None:
-    """The ``[flight]`` table flown (the session is armed) until it ends, a fault takes the
-    sticks (the mission's stop condition), or it fails."""
+    """The ``[flight]`` table flown (the vehicle is armed) until it ends, a fault takes the
+    sticks (the loop's stop condition), or it fails."""
     armed_at_s = injector.armed_at_s or 0.0
 
     def t() -> float:
-        return mission.session.time_s - armed_at_s
+        return loop.vehicle.time_s - armed_at_s
 
     def step_done(step: Phase) -> None:
         if step is Phase.TAKEOFF:
@@ -406,9 +406,9 @@ def _autopilot_flight(scenario: Scenario, mission: Mission, injector: _Injector,
             injector.note(t(), "the autopilot landed")
 
     try:
-        fly_plan(mission, scenario.plan, arm=False,
-                 time_left_s=lambda: scenario.duration_s - t(), after_step=step_done)
-        if mission.stopped:
+        fly_steps(loop, scenario.plan, arm=False,
+                  time_left_s=lambda: scenario.duration_s - t(), after_step=step_done)
+        if loop.stopped:
             injector.note(t(), "the sticks are the FC's now: watching")
     except CrashDetectedError as exc:
         trace.crash = (round(t(), 3), str(exc))
@@ -419,9 +419,9 @@ def _autopilot_flight(scenario: Scenario, mission: Mission, injector: _Injector,
         injector.note(t(), f"the autopilot stopped: {exc}")
 
 
-def _watch(scenario: Scenario, mission: Mission, injector: _Injector) -> None:
+def _watch(scenario: Scenario, loop: FlightLoop, injector: _Injector) -> None:
     """Record until ``duration_s``, or until disarmed and at rest for ``settle_s``."""
-    session = mission.session
+    vehicle = loop.vehicle
     resting_since: list[float] = []
 
     def done(sample: FlightSample) -> bool:
@@ -435,9 +435,9 @@ def _watch(scenario: Scenario, mission: Mission, injector: _Injector) -> None:
             resting_since.append(t)
         return t - resting_since[0] >= scenario.settle_s
 
-    left_s = scenario.duration_s - (session.time_s - (injector.armed_at_s or 0.0))
+    left_s = scenario.duration_s - (vehicle.time_s - (injector.armed_at_s or 0.0))
     if left_s > 0:
-        mission.observe(done, timeout_s=left_s + 1.0, phase=Phase.WATCH)
+        loop.observe(done, timeout_s=left_s + 1.0, phase=Phase.WATCH)
 
 
 def _analyse(watch: FlightWatch, trace: Trace, result: ScenarioResult) -> None:

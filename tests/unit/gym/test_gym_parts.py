@@ -142,7 +142,7 @@ def test_waypoints_advance_when_reached_pay_a_bonus_and_finish_at_the_last() -> 
     ({"observation": "camera"}, "observation must be one of fc, truth"),
     ({"start": "orbit"}, "start must be one of air, ground"),
     ({"control_hz": 500.0}, r"control_hz 500.0 is outside 1..200 Hz"),
-    ({"episode_s": 0.0}, "episode_s 0.0 is outside"),
+    ({"max_episode_steps": 0}, "max_episode_steps 0 is not a number of steps"),
     ({"start_alt_m": 40.0}, "start_alt_m 40.0 is outside 0.5..15 m"),
     ({"lockstep_exchange": "pigeon"}, "lockstep_exchange must be one of auto, shm, udp"),
     ({"spin": True, "pin_core": True}, "spin=True with pin_core=True"),
@@ -170,6 +170,30 @@ def test_pinning_and_spin_default_by_where_the_environment_runs(tmp_path: Path) 
     pinned = HoverEnv(firmware=build, pin_core=True)  # it shares the core with its SITL
     assert pinned.pin_core and not pinned.spin
     for env in (here, pinned):
+        env.close()
+
+
+def test_the_episode_limit_is_gymnasiums_max_episode_steps_counted_once(
+        tmp_path: Path) -> None:
+    import gymnasium
+
+    import bfsitl.gym
+    from bfsitl.gym.env import DEFAULT_CONTROL_HZ
+
+    # Registered with the ids: the default episodes (10 s, 20 s) at the default control rate.
+    assert bfsitl.gym.MAX_EPISODE_STEPS == {"bfsitl/Hover-v0": 10 * DEFAULT_CONTROL_HZ,
+                                            "bfsitl/Waypoints-v0": 20 * DEFAULT_CONTROL_HZ}
+    for env_id, steps in bfsitl.gym.MAX_EPISODE_STEPS.items():
+        assert gymnasium.spec(env_id).max_episode_steps == steps
+    build = fake_lockstep_build(tmp_path)
+    alone = HoverEnv(firmware=build, max_episode_steps=50)   # made directly: it counts
+    assert alone._step_limit() == 50
+    assert WaypointsEnv(firmware=build)._step_limit() == 2000
+    made = gymnasium.make("bfsitl/Hover-v0", firmware=build, max_episode_steps=70)
+    # Made by Gymnasium: its TimeLimit counts make's max_episode_steps, the environment not.
+    assert made.spec is not None and made.spec.max_episode_steps == 70
+    assert made.unwrapped._step_limit() is None  # type: ignore[attr-defined]
+    for env in (alone, made):
         env.close()
 
 

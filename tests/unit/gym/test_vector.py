@@ -21,7 +21,7 @@ def actions(*rows: tuple[float, float, float, float]) -> np.ndarray:
 
 
 def test_each_step_comes_back_for_its_own_environment() -> None:
-    envs = FlightVectorEnv(FAKE, 2, episode_steps=5)
+    envs = FlightVectorEnv(FAKE, 2, max_episode_steps=5)
     try:
         observations, info = envs.reset(seed=7)
         assert observations.shape == (2, 20) and observations.dtype == np.float32
@@ -43,7 +43,7 @@ def test_each_step_comes_back_for_its_own_environment() -> None:
 
 
 def test_an_ended_episode_is_reset_in_the_same_step_with_its_end_beside_it() -> None:
-    envs = FlightVectorEnv(FAKE, 2, episode_steps=2)
+    envs = FlightVectorEnv(FAKE, 2, max_episode_steps=2)
     try:
         envs.reset(seed=[1, 2])
         envs.step(actions((0, 0, 0, 0), (0, 0, 0, 0)))
@@ -82,7 +82,7 @@ def test_an_option_no_environment_takes_is_raised_when_it_is_made() -> None:
 
 
 def test_only_some_endings_fill_the_final_masks() -> None:
-    envs = FlightVectorEnv(FAKE, 2, episode_steps=5)
+    envs = FlightVectorEnv(FAKE, 2, max_episode_steps=5)
     try:
         envs.reset(seed=0)
         _o, _r, terminated, _t, info = envs.step(actions((0, 0, 0, 0), (0, 0, -1, 0)))

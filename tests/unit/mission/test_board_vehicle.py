@@ -276,7 +276,7 @@ def test_connect_provisions_the_autopilots_switches_unless_told_not_to(plug_in) 
     with connect(URI, provision=False, rc_rate_hz=50.0) as vehicle:
         assert vehicle.profile is None and vehicle.rc is not None and vehicle.rc.rate_hz == 50.0
         # The autopilot's loop runs at what the board's serial budget allows by default.
-        assert Autopilot(vehicle).mission.rate_hz == BoardVehicle.control_rate_hz == 25.0
+        assert Autopilot(vehicle).loop.rate_hz == BoardVehicle.control_rate_hz == 25.0
     assert fc.slots[0] == msg.ModeRange(0, 0, 0, 0)
     with connect(URI) as vehicle:
         assert vehicle.profile == FLY_PROFILE

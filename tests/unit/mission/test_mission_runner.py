@@ -1,4 +1,4 @@
-"""The mission loop against a fake session: phases, outcomes, rows, the disarm on abort.
+"""The flight loop against a fake vehicle: phases, outcomes, rows, the disarm on abort.
 
 The fake vehicle is a point mass whose climb rate follows the throttle, with an FC altitude
 that lags it; enough to drive every branch of the runner without a SITL.  The real flights
@@ -13,27 +13,27 @@ import pytest
 from support.fake_vehicles import (
     HOVER_US,
     Descend,
-    FakeSession,
+    FakeVehicle,
     PController,
-    PlanarSession,
-    planar_mission,
+    PlanarVehicle,
+    planar_loop,
 )
 
 from bfsitl.errors import ArmingBlockedError, MissionError, SitlExitedError
 from bfsitl.mission.flight_metrics import hold_stats
-from bfsitl.mission.loop import Mission
+from bfsitl.mission.loop import FlightLoop
 from bfsitl.mission.plan import MissionPlan
-from bfsitl.mission.plan_driver import run_mission
+from bfsitl.mission.plan_driver import fly
 from bfsitl.mission.results import Outcome
 from bfsitl.mission.vehicle import FlightSample
 from bfsitl.records.csv_log import CsvFlightLog, read_flight_log
 
 
 def test_default_plan_takes_off_holds_lands_and_records_every_step(tmp_path):
-    session = FakeSession()
+    vehicle = FakeVehicle()
     log = CsvFlightLog(tmp_path / "f.csv")
-    result = run_mission(session, MissionPlan(target_alt_m=2.0, hold_s=1.0), PController(),
-                         landing=Descend(), log=log)
+    result = fly(vehicle, MissionPlan(target_alt_m=2.0, hold_s=1.0), PController(),
+                 landing=Descend(), log=log)
     log.close()
     assert result.outcome is Outcome.LANDED and result.succeeded
     phases = [row.phase for row in result.rows]
@@ -65,19 +65,19 @@ def test_the_ground_phase_idles_feeds_observe_ground_and_restarts_a_plain_contro
             super().reset(time_s)
 
     plan = MissionPlan(target_alt_m=1.0, hold_s=0.2, ground_s=0.5)
-    session = FakeSession()
-    result = run_mission(session, plan, Observing(), landing=Descend())
+    vehicle = FakeVehicle()
+    result = fly(vehicle, plan, Observing(), landing=Descend())
     ground = [r for r in result.rows if r.phase == "ground"]
     assert result.outcome is Outcome.LANDED
     assert len(ground) >= 20 and all(r.rc_throttle_us == 1000 for r in ground)
     assert len(observed) == len(ground)
     assert ground[-1].time_s - ground[0].time_s >= 0.5 - 0.021
-    result = run_mission(FakeSession(), plan, Plain(), landing=Descend())
+    result = fly(FakeVehicle(), plan, Plain(), landing=Descend())
     first_takeoff = next(r for r in result.rows if r.phase == "takeoff")
     assert len(resets) == 2 and resets[1] < first_takeoff.time_s
     # No ground phase at all when it is 0; a bad value is refused.
-    result = run_mission(FakeSession(), MissionPlan(target_alt_m=1.0, hold_s=0.2, ground_s=0.0),
-                         PController(), landing=Descend())
+    result = fly(FakeVehicle(), MissionPlan(target_alt_m=1.0, hold_s=0.2, ground_s=0.0),
+                 PController(), landing=Descend())
     assert result.rows[0].phase == "takeoff"
     with pytest.raises(MissionError, match="ground time"):
         MissionPlan(ground_s=-1.0)
@@ -98,8 +98,8 @@ def test_controllers_get_the_fc_acceleration_and_the_log_records_it(tmp_path):
             return super().update(sample)
 
     log = CsvFlightLog(tmp_path / "f.csv")
-    result = run_mission(FakeSession(), MissionPlan(target_alt_m=1.0, hold_s=0.5), Recording(),
-                         landing=RecordingDescend(), log=log)
+    result = fly(FakeVehicle(), MissionPlan(target_alt_m=1.0, hold_s=0.5), Recording(),
+                 landing=RecordingDescend(), log=log)
     log.close()
     assert result.outcome is Outcome.LANDED
     by_time = {row.time_s: row.fc_accel_up_m_s2 for row in result.rows}
@@ -111,26 +111,26 @@ def test_controllers_get_the_fc_acceleration_and_the_log_records_it(tmp_path):
 
 
 def test_hold_lasts_its_simulation_time():
-    session = FakeSession()
-    mission = Mission(session, PController(), landing=Descend())
-    mission.arm()
-    mission.takeoff(1.0)
-    start_s = session.time_s
-    mission.hold(2.0)
-    assert 2.0 <= session.time_s - start_s <= 2.05
+    vehicle = FakeVehicle()
+    loop = FlightLoop(vehicle, PController(), landing=Descend())
+    loop.arm()
+    loop.takeoff(1.0)
+    start_s = vehicle.time_s
+    loop.hold(2.0)
+    assert 2.0 <= vehicle.time_s - start_s <= 2.05
 
 
 def test_arming_blocked_is_an_outcome_with_the_blockers():
-    session = FakeSession(arm_error=ArmingBlockedError("blocked by RXLOSS", ("RXLOSS",)))
-    result = run_mission(session, MissionPlan(), PController(), landing=Descend())
+    vehicle = FakeVehicle(arm_error=ArmingBlockedError("blocked by RXLOSS", ("RXLOSS",)))
+    result = fly(vehicle, MissionPlan(), PController(), landing=Descend())
     assert result.outcome is Outcome.ARMING_BLOCKED
     assert result.blockers == ("RXLOSS",)
     assert result.rows == [] and result.metrics is None
 
 
 def test_tipping_over_is_a_crash():
-    result = run_mission(FakeSession(tilt_deg=85.0), MissionPlan(), PController(),
-                         landing=Descend())
+    result = fly(FakeVehicle(tilt_deg=85.0), MissionPlan(), PController(),
+                 landing=Descend())
     assert result.outcome is Outcome.CRASHED
     assert "tipped over" in result.reason
 
@@ -141,7 +141,7 @@ def test_a_slow_controller_times_out_with_the_altitude_in_the_reason():
             return HOVER_US + 1.0
 
     plan = MissionPlan(target_alt_m=2.0, takeoff_timeout_s=1.0)
-    result = run_mission(FakeSession(), plan, Weak(), landing=Descend())
+    result = fly(FakeVehicle(), plan, Weak(), landing=Descend())
     assert result.outcome is Outcome.TIMEOUT
     assert "target 2.00 m" in result.reason
 
@@ -151,15 +151,15 @@ def test_a_slow_controller_times_out_with_the_altitude_in_the_reason():
     (SitlExitedError("the SITL exited with code 139"), Outcome.SITL_EXITED),
 ])
 def test_interrupt_and_sitl_exit_end_with_the_sticks_at_disarm(failure, outcome, tmp_path):
-    session = FakeSession(fail_after=40, failure=failure)
+    vehicle = FakeVehicle(fail_after=40, failure=failure)
     log = CsvFlightLog(tmp_path / "f.csv")
-    result = run_mission(session, MissionPlan(), PController(), landing=Descend(), log=log)
+    result = fly(vehicle, MissionPlan(), PController(), landing=Descend(), log=log)
     log.close()
     assert result.outcome is outcome
     last = read_flight_log(tmp_path / "f.csv")[-1]
     assert last["phase"] == outcome.value
     assert last["rc_throttle_us"] == "1000" and last["rc_aux1_us"] == "1000"
-    assert session.command.aux_us == (1000, 1000)
+    assert vehicle.command.aux_us == (1000, 1000)
 
 
 def test_a_non_finite_throttle_is_refused():
@@ -167,19 +167,19 @@ def test_a_non_finite_throttle_is_refused():
         def update(self, sample):  # type: ignore[no-untyped-def]
             return float("nan")
 
-    result = run_mission(FakeSession(), MissionPlan(), Broken(), landing=Descend())
+    result = fly(FakeVehicle(), MissionPlan(), Broken(), landing=Descend())
     assert result.outcome is Outcome.ERROR and "throttle nan" in result.reason
 
 
 def test_hold_stats_use_the_truth_in_the_hold_phase_only():
-    session = FakeSession()
-    mission = Mission(session, PController(), landing=Descend())
-    mission.arm()
-    mission.takeoff(1.0)
-    mission.hold(0.5)
-    stats = hold_stats(mission.rows)
+    vehicle = FakeVehicle()
+    loop = FlightLoop(vehicle, PController(), landing=Descend())
+    loop.arm()
+    loop.takeoff(1.0)
+    loop.hold(0.5)
+    stats = hold_stats(loop.rows)
     assert stats is not None
-    assert stats.samples == sum(1 for r in mission.rows if r.phase == "hold")
+    assert stats.samples == sum(1 for r in loop.rows if r.phase == "hold")
 
 
 def test_plan_rejects_nonsense():
@@ -192,23 +192,23 @@ def test_plan_rejects_nonsense():
 
 
 def test_a_stick_step_is_held_for_the_hold_and_centred_afterwards():
-    session = FakeSession()
-    mission = Mission(session, PController())
-    mission.arm()
-    mission.takeoff(1.0)
-    start = len(mission.rows)
-    mission.hold(0.5, roll_us=1600, yaw_us=1400)
-    stepped = mission.rows[start:]
+    vehicle = FakeVehicle()
+    loop = FlightLoop(vehicle, PController())
+    loop.arm()
+    loop.takeoff(1.0)
+    start = len(loop.rows)
+    loop.hold(0.5, roll_us=1600, yaw_us=1400)
+    stepped = loop.rows[start:]
     assert stepped and all(r.rc_roll_us == 1600 and r.rc_yaw_us == 1400 for r in stepped)
     assert all(r.rc_pitch_us == 1500 for r in stepped)
-    assert (session.command.roll_us, session.command.pitch_us, session.command.yaw_us) == (
+    assert (vehicle.command.roll_us, vehicle.command.pitch_us, vehicle.command.yaw_us) == (
         1500, 1500, 1500)
 
 
 def test_reached_also_counts_the_controllers_estimate_when_it_keeps_one():
     """The FC reads 8 cm high (its zero error); a controller that knows it says 'there'."""
 
-    class Offset(FakeSession):
+    class Offset(FakeVehicle):
         def sample(self) -> FlightSample:
             sample = super().sample()
             return replace(sample, fc_alt_m=sample.fc_alt_m + 0.08)
@@ -216,32 +216,32 @@ def test_reached_also_counts_the_controllers_estimate_when_it_keeps_one():
     class FliesTheTruth(PController):
         """Regulates the true altitude (as the fused controller does with its estimate)."""
 
-        def __init__(self, session: FakeSession) -> None:
+        def __init__(self, vehicle: FakeVehicle) -> None:
             super().__init__()
-            self.session = session
+            self.vehicle = vehicle
 
         def update(self, sample) -> float:  # type: ignore[no-untyped-def]
-            return HOVER_US + 150.0 * (sample.target_alt_m - self.session.altitude_m)
+            return HOVER_US + 150.0 * (sample.target_alt_m - self.vehicle.altitude_m)
 
     class Estimating(FliesTheTruth):
         @property
         def altitude_estimate_m(self) -> float:
-            return self.session.altitude_m
+            return self.vehicle.altitude_m
 
-    session = Offset()
-    mission = Mission(session, Estimating(session))
-    mission.arm()
-    took_s = mission.takeoff(1.0, timeout_s=10.0)  # reached: the estimate says so
+    vehicle = Offset()
+    loop = FlightLoop(vehicle, Estimating(vehicle))
+    loop.arm()
+    took_s = loop.takeoff(1.0, timeout_s=10.0)  # reached: the estimate says so
     assert took_s < 10.0
     # The same flight without the estimate: the FC's reading stays 8 cm off, never "reached".
-    session = Offset()
-    mission = Mission(session, FliesTheTruth(session))
-    mission.arm()
+    vehicle = Offset()
+    loop = FlightLoop(vehicle, FliesTheTruth(vehicle))
+    loop.arm()
     with pytest.raises(MissionError, match="did not finish"):
-        mission.takeoff(1.0, timeout_s=3.0)
+        loop.takeoff(1.0, timeout_s=3.0)
 
 
-class GustySession(FakeSession):
+class GustyVehicle(FakeVehicle):
     """The FC's altitude jumps 6 cm above and below the truth on alternate samples: gusts
     through the rotors, seen by the barometer (never within 5 cm, always within 10 cm)."""
 
@@ -255,16 +255,16 @@ def test_a_take_off_in_gusts_is_reached_with_a_wider_band_after_a_while(monkeypa
     from bfsitl.errors import MissionTimeoutError
     from bfsitl.mission import loop as runner
 
-    mission = Mission(GustySession(), PController())  # type: ignore[arg-type]
-    mission.arm()
-    took_s = mission.takeoff(1.0, timeout_s=20.0)
+    loop = FlightLoop(GustyVehicle(), PController())  # type: ignore[arg-type]
+    loop.arm()
+    took_s = loop.takeoff(1.0, timeout_s=20.0)
     assert runner.REACHED_PATIENCE_S <= took_s < runner.REACHED_PATIENCE_S + 3.0
     # The control: with the band never widening, the same take-off times out.
     monkeypatch.setattr(runner, "REACHED_PATIENCE_S", 1e9)
-    mission = Mission(GustySession(), PController())  # type: ignore[arg-type]
-    mission.arm()
+    loop = FlightLoop(GustyVehicle(), PController())  # type: ignore[arg-type]
+    loop.arm()
     with pytest.raises(MissionTimeoutError):
-        mission.takeoff(1.0, timeout_s=20.0)
+        loop.takeoff(1.0, timeout_s=20.0)
 
 
 # -- position control on the planar fake ----------------------------------------------------
@@ -273,57 +273,57 @@ def test_a_square_mission_flies_its_legs_turns_and_lands_at_its_start(tmp_path):
 
     from bfsitl.mission.flight_metrics import cross_track_rms, landed_from_start_m
     from bfsitl.mission.plan import Waypoint
-    from bfsitl.mission.plan_driver import fly_plan
+    from bfsitl.mission.plan_driver import fly_steps
 
-    session = PlanarSession()
+    vehicle = PlanarVehicle()
     log = CsvFlightLog(tmp_path / "square.csv")
-    mission = planar_mission(session, log)
+    loop = planar_loop(vehicle, log)
     square = (Waypoint(10, 0, 1.0), Waypoint(10, 10, 1.0, heading_deg=90.0),
               Waypoint(0, 10, 1.5, hold_s=1.0), Waypoint(0, 0, 1.0))
-    fly_plan(mission, MissionPlan(target_alt_m=1.0, hold_s=0.0, ground_s=0.0,
-                                  waypoints=square))
+    fly_steps(loop, MissionPlan(target_alt_m=1.0, hold_s=0.0, ground_s=0.0,
+                                waypoints=square))
     log.close()
-    assert [leg.waypoint for leg in mission.legs] == [1, 2, 3, 4]
-    assert all(leg.arrival_error_m < 0.35 for leg in mission.legs)
-    assert cross_track_rms(mission.legs) < 0.5
-    assert landed_from_start_m(mission.rows) < 0.5
+    assert [leg.waypoint for leg in loop.legs] == [1, 2, 3, 4]
+    assert all(leg.arrival_error_m < 0.35 for leg in loop.legs)
+    assert cross_track_rms(loop.legs) < 0.5
+    assert landed_from_start_m(loop.rows) < 0.5
     # The turn at waypoint 2 happened and was kept: the heading ends east.
-    assert abs(session.heading_deg - 90.0) < 3.0
+    assert abs(vehicle.heading_deg - 90.0) < 3.0
     # Waypoint 3 is 0.5 m higher: the altitude target moved with the leg.
-    assert max(r.target_alt_m for r in mission.rows if r.waypoint == 3) == pytest.approx(1.5)
+    assert max(r.target_alt_m for r in loop.rows if r.waypoint == 3) == pytest.approx(1.5)
     rows = read_flight_log(tmp_path / "square.csv")
     assert {"sim_north_m", "fc_east_m", "target_north_m", "target_heading_deg", "waypoint"} \
         <= set(rows[0])
     assert {r["waypoint"] for r in rows} == {"0", "1", "2", "3", "4"}
-    assert not math.isnan(mission.rows[-1].sim_north_m)
+    assert not math.isnan(loop.rows[-1].sim_north_m)
 
 
 def test_without_the_position_loop_the_wind_carries_the_planar_fake_away():
     """The control of the test above: the same take-off without holding the position
     drifts with the wind, so the square's result is the controller's doing."""
-    session = PlanarSession()
-    mission = planar_mission(session)
-    mission.arm()
-    mission.takeoff(1.0)
-    mission.hold(5.0)
-    assert session.north_m > 2.0
-    session = PlanarSession()
-    mission = planar_mission(session)
-    mission.arm()
-    mission.takeoff(1.0, hold_position=True)
-    mission.hold_position(5.0)
-    assert abs(session.north_m) < 0.3
+    vehicle = PlanarVehicle()
+    loop = planar_loop(vehicle)
+    loop.arm()
+    loop.takeoff(1.0)
+    loop.hold(5.0)
+    assert vehicle.north_m > 2.0
+    vehicle = PlanarVehicle()
+    loop = planar_loop(vehicle)
+    loop.arm()
+    loop.takeoff(1.0, hold_position=True)
+    loop.hold_position(5.0)
+    assert abs(vehicle.north_m) < 0.3
 
 
 def test_yaw_to_turns_the_short_way_and_settles(tmp_path):
-    session = PlanarSession(wind_push_m_s2=0.0)
-    session.heading_deg = 350.0
-    mission = planar_mission(session)
-    mission.arm()
-    mission.takeoff(1.0)
-    took_s = mission.yaw_to(20.0)
-    assert abs(session.heading_deg - 20.0) < 2.5
-    headings = [r.yaw_deg for r in mission.rows if r.phase == "yaw"]
+    vehicle = PlanarVehicle(wind_push_m_s2=0.0)
+    vehicle.heading_deg = 350.0
+    loop = planar_loop(vehicle)
+    loop.arm()
+    loop.takeoff(1.0)
+    took_s = loop.yaw_to(20.0)
+    assert abs(vehicle.heading_deg - 20.0) < 2.5
+    headings = [r.yaw_deg for r in loop.rows if r.phase == "yaw"]
     assert all(h >= 340.0 or h <= 25.0 for h in headings)  # through north, not round south
     assert took_s < 5.0
 
@@ -331,13 +331,13 @@ def test_yaw_to_turns_the_short_way_and_settles(tmp_path):
 def test_waypoints_on_a_firmware_without_gps_end_before_arming_with_the_fix():
     from bfsitl.mission.plan import Waypoint
 
-    session = FakeSession()
-    session.has_gps = False
-    result = run_mission(session, MissionPlan(waypoints=(Waypoint(5, 0, 2),)),  # type: ignore[arg-type]
+    vehicle = FakeVehicle()
+    vehicle.has_gps = False
+    result = fly(vehicle, MissionPlan(waypoints=(Waypoint(5, 0, 2),)),  # type: ignore[arg-type]
                          PController())  # type: ignore[arg-type]
     assert result.outcome is Outcome.ERROR
     assert "GPS build" in result.reason and "--gps" in result.reason
-    assert not session.armed and session.samples == 0
+    assert not vehicle.armed and vehicle.samples == 0
 
 
 @pytest.mark.parametrize(("hold_position", "stays"), [(True, True), (False, False)])
@@ -345,12 +345,12 @@ def test_the_default_plan_on_a_gps_vehicle_holds_its_take_off_point(hold_positio
     """No waypoints: with a GPS the take-off, hold and landing hold the take-off point
     against the fake's wind; ``hold_position=False`` drifts (the control)."""
     from bfsitl.mission.flight_metrics import landed_from_start_m
-    from bfsitl.mission.plan_driver import fly_plan
+    from bfsitl.mission.plan_driver import fly_steps
 
-    session = PlanarSession()
-    mission = planar_mission(session)
-    fly_plan(mission, MissionPlan(target_alt_m=1.0, hold_s=4.0, ground_s=0.0,
-                                  hold_position=hold_position))
-    landed_m = landed_from_start_m(mission.rows)
+    vehicle = PlanarVehicle()
+    loop = planar_loop(vehicle)
+    fly_steps(loop, MissionPlan(target_alt_m=1.0, hold_s=4.0, ground_s=0.0,
+                                hold_position=hold_position))
+    landed_m = landed_from_start_m(loop.rows)
     assert landed_m is not None
     assert (landed_m < 0.3) == stays, landed_m

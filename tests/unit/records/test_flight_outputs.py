@@ -136,11 +136,11 @@ def test_a_registered_format_is_written_like_the_built_in_ones(tmp_path):
 
 
 def test_the_autopilot_records_in_the_format_its_log_names(tmp_path):
-    from support.fake_vehicles import FakeSession, PController
+    from support.fake_vehicles import FakeVehicle, PController
 
     from bfsitl.autopilot import Autopilot
 
-    vehicle = FakeSession()
+    vehicle = FakeVehicle()
     pilot = Autopilot(vehicle, PController(), log=tmp_path / "flight.mcap")  # type: ignore[arg-type]
     pilot.takeoff(1.0)
     vehicle.close()  # the log is closed with the vehicle
@@ -150,13 +150,13 @@ def test_the_autopilot_records_in_the_format_its_log_names(tmp_path):
 
 def test_the_autopilot_log_carries_its_events_and_refuses_a_format_written_only_at_the_end(
         tmp_path):
-    from support.fake_vehicles import FakeSession, PController
+    from support.fake_vehicles import FakeVehicle, PController
 
     from bfsitl.autopilot import Autopilot
     from bfsitl.errors import MissionError
 
     heard: list[str] = []
-    vehicle = FakeSession()
+    vehicle = FakeVehicle()
     pilot = Autopilot(vehicle, PController(), log=tmp_path / "flight.mcap",  # type: ignore[arg-type]
                       on_event=heard.append)
     pilot.takeoff(1.0)
@@ -166,5 +166,5 @@ def test_the_autopilot_log_carries_its_events_and_refuses_a_format_written_only_
     assert heard and all(line in logged for line in heard)
     for name in ("flight.png", "flight.json"):
         with pytest.raises(MissionError, match="written as it flies; name a .csv or .mcap"):
-            Autopilot(FakeSession(), PController(), log=tmp_path / name)  # type: ignore[arg-type]
+            Autopilot(FakeVehicle(), PController(), log=tmp_path / name)  # type: ignore[arg-type]
         assert not (tmp_path / name).exists()

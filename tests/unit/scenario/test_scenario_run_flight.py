@@ -24,7 +24,7 @@ from typing import Any
 
 import pytest
 from support.fake_fc import FakeFcLink
-from support.fake_vehicles import HOVER_US, FakeSession, PController
+from support.fake_vehicles import HOVER_US, FakeVehicle, PController
 from support.scenario_files import V46, fake_binary, scenario
 
 from bfsitl.backend.embedded import RealTimeBackend
@@ -54,7 +54,7 @@ RC_LOST_AT_8 = {"kind": "rc_loss", "at_s": 8.0}     # on 4.6.0: the FAILSAFE swi
 FLIGHT = {"takeoff_alt_m": 2.0, "hold_s": 30.0, "ground_s": 0.5}
 
 
-class FailsafeSession(FakeSession):
+class FailsafeSession(FakeVehicle):
     """The session a scenario run starts, made from the run's :class:`SessionConfig`: the
     runner tests' point mass whose FC lands it when the FAILSAFE switch (AUX3) is on, as
     4.6.0's failsafe does: RX_LOSS_DETECTED, then LANDING at 1 m/s whatever the throttle,

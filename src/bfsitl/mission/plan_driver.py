@@ -169,5 +169,5 @@ def fly_mission(mission: Mission, plan: MissionPlan, *,
         result.extra["physics"] = {
             "answered_ratio": bridge_stats.answered_ratio, "speed": bridge_stats.speed,
             "steps": bridge_stats.steps, "lockstep": session.lockstep,
-            "exchange": session.backend.exchange, "step": session.backend.physics_step}
+            "exchange": session.backend.exchange}
     return result

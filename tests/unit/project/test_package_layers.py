@@ -9,8 +9,10 @@ import ast
 from pathlib import Path
 
 PACKAGE = Path(__file__).resolve().parents[3] / "src" / "bfsitl"
-#: What the pure physics may import of bfsitl: itself, and the one exception tree.
-PHYSICS_MAY_IMPORT = ("bfsitl.physics", "bfsitl.errors")
+#: What the physics may import of bfsitl: itself, the one exception tree, and the model it is
+#: the face of (its C source's ctypes layout and the loader that builds it).
+PHYSICS_MAY_IMPORT = ("bfsitl.physics", "bfsitl.errors", "bfsitl.kernel.compiler",
+                      "bfsitl.kernel.layout")
 
 
 def _module_name(path: Path) -> str:
@@ -34,6 +36,16 @@ def test_the_physics_imports_nothing_above_it() -> None:
                  for path in sorted((PACKAGE / "physics").glob("*.py"))
                  for name in _imports(path)
                  if not name.startswith(PHYSICS_MAY_IMPORT)]
+    assert not offenders, offenders
+
+
+def test_what_the_physics_loads_imports_nothing_above_it() -> None:
+    # The loader and the layout stand under the physics too: only the exception tree and the
+    # cache's location (where the built library is kept).
+    allowed = ("bfsitl.errors", "bfsitl.build.cache", "bfsitl.build.metadata")
+    offenders = [f"{name}: {imported}" for name in ("compiler", "layout")
+                 for imported in _imports(PACKAGE / "kernel" / f"{name}.py")
+                 if not imported.startswith(allowed)]
     assert not offenders, offenders
 
 

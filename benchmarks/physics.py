@@ -1,7 +1,7 @@
 """Cost of the embedded physics alone (no SITL, no sockets), per step and as a real-time factor.
 
-Scenarios, each run ``--repeats`` times on a fresh :class:`bfsitl.sim.Simulator` (median shown;
-this 2-core VM is noisy):
+Scenarios, each run ``--repeats`` times on a fresh :class:`bfsitl.physics.Simulator` (median
+shown; this 2-core VM is noisy):
 
 * ``airborne``: hovering with commands that change every step (motors, rotors, drag, rigid
   body; no contact);
@@ -11,8 +11,11 @@ this 2-core VM is noisy):
 * ``contact``: upside down on the ground, where every step runs the sub-stepped spring-damper
   contact (the worst case: the cost during landings, crashes and take-offs).
 
-The real-time factor is simulated time over wall time at the given step.  Target: >= 25x at
-1 ms in plain CPython (i.e. <= 40 us per step), leaving the bridge its budget.
+The real-time factor is simulated time over wall time at the given step.  The model is C
+(``bfsitl/kernel/physics.c``): each step here is one call through its Python face, what a
+real-time or UDP lockstep run pays per step (the compiled lockstep loop, through shared
+memory, pays far less: ``docs/lockstep.md``).  Target: >= 25x at 1 ms (<= 40 us per step),
+leaving the bridge its budget.
 
 Then, unless ``--no-bridge``, the bridge against the real SITL per exchange mode and speed
 (``bridge_modes.py`` beside this file): firmware time / sim time, PID cycle, share of fdm

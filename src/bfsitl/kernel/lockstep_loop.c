@@ -2,7 +2,7 @@
  * bfsitl's compiled lockstep loop: the steps of bfsitl.sim.lockstep.LockstepBridge between two
  * of the mission's decisions, without returning to Python.
  *
- * One step is what the bridge's pure-Python step does, in the same order and with the same
+ * One step is what the bridge's step in Python does, in the same order and with the same
  * bytes: read the sensors, encode the fdm packet for the firmware's generation (mirroring
  * bfsitl.sim.fdm_encoding.FdmEncoder), append the RC packet the caller packed, hand the
  * datagram to the FC through the shared region (bfsitl.sim.shm_exchange: the request word is
@@ -10,7 +10,7 @@
  * for the reply (polling the reply word for spin_s, then FUTEX_WAIT), check that it answers
  * this packet's timestamp, put the motors in Betaflight's order and integrate the physics.
  *
- * Anything unusual goes back to Python with a status, where the reference code handles it
+ * Anything unusual goes back to Python with a status, where the bridge's code handles it
  * the one way it always does: a reply that has not come within wait_s (resends, the check
  * that the SITL still runs), a reading or motors that are not finite (the errors that name
  * the field), a reply for another timestamp.

@@ -142,8 +142,8 @@ class Simulator:
         sim, projection = self._sim, GeodeticProjection(home)
         sim.home_lon, sim.home_lat = float(home.lon_deg), float(home.lat_deg)
         sim.home_alt = float(home.alt_m)
-        sim.deg_per_east = projection._deg_per_east_m
-        sim.deg_per_north = projection._deg_per_north_m
+        sim.deg_per_east = projection.deg_per_east_m
+        sim.deg_per_north = projection.deg_per_north_m
 
     def _start_wind(self, wind: Wind | None) -> None:
         sim = self._sim

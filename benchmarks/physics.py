@@ -6,7 +6,7 @@ shown; this 2-core VM is noisy):
 * ``airborne``: hovering with commands that change every step (motors, rotors, drag, rigid
   body; no contact);
 * ``airborne + fdm``: the same plus what the bridge adds per step: ``read_sensors()``,
-  ``to_fdm_packet()`` and ``FdmPacket.pack()``;
+  the fdm packet (``FdmEncoder.pack``);
 * ``parked``: resting on the skids with armed-idle motors (static friction: body frozen);
 * ``contact``: upside down on the ground, where every step runs the sub-stepped spring-damper
   contact (the worst case: the cost during landings, crashes and take-offs).
@@ -34,6 +34,8 @@ import sys
 import time
 
 from bfsitl.physics import IRIS, Simulator
+from bfsitl.protocol.firmware_profile import DEFAULT_PROFILE
+from bfsitl.sim.fdm_encoding import FdmEncoder
 
 SCENARIOS = ("airborne", "airborne + fdm", "parked", "contact")
 TARGET_REAL_TIME_FACTOR = 25.0
@@ -66,11 +68,11 @@ def _run_once(step_s: float, steps: int, scenario: str) -> float:
     commands = _prepare(sim, scenario)
     step = sim.step
     if scenario == "airborne + fdm":
-        read = sim.read_sensors
+        read, pack = sim.read_sensors, FdmEncoder(DEFAULT_PROFILE, sim.home).pack
         start = time.perf_counter()
         for k in range(steps):
             step(commands[k & 7], step_s)
-            read().to_fdm_packet(1024.0 + k * 0.0625).pack()
+            pack(read(), 1024.0 + k * 0.0625)
         return time.perf_counter() - start
     start = time.perf_counter()
     for k in range(steps):

@@ -1,17 +1,19 @@
 """What exists in two languages is the same in both: the C structures and their ctypes
 mirrors (every field's name, type, length and order), the lockstep loop's status codes, and
-the constants the physics and its Python face both use.  Each is read from the C source."""
+the constants the physics and its Python face both use, each read from the C source; and every
+vehicle parameter of QuadParams reaches the C model."""
 
 from __future__ import annotations
 
 import ctypes
+import dataclasses
 import re
 from pathlib import Path
 
 import pytest
 
 from bfsitl.kernel import layout, lockstep_stepper
-from bfsitl.physics import atmosphere, constants, multirotor
+from bfsitl.physics import IRIS, QuadParams, Simulator, atmosphere, constants, multirotor
 
 SOURCES = Path(layout.__file__).parent
 C_TYPES: dict[str, object] = {
@@ -103,3 +105,38 @@ def test_the_library_and_the_mirrors_agree_in_size() -> None:
     library = load_kernel()
     assert library.bk_sim_size() == ctypes.sizeof(layout.Sim)
     assert library.bk_lockstep_size() == ctypes.sizeof(lockstep_stepper._Lockstep)
+
+
+def _vehicle_bytes(params: QuadParams) -> bytes:
+    """The C structure's vehicle block (mass_kg up to the step's cache) as the face wrote it."""
+    sim = Simulator(params)
+    start, end = layout.Sim.mass_kg.offset, layout.Sim.dt.offset
+    return bytes(memoryview(sim._sim).cast("B")[start:end])
+
+
+def _perturbed(value: object) -> object:
+    if isinstance(value, bool):
+        return not value
+    if isinstance(value, float):
+        return value * 1.01 if value else 0.01
+    if isinstance(value, tuple):
+        return (_perturbed(value[0]), *value[1:])
+    raise TypeError(value)
+
+
+#: What the model leaves out on purpose: the name, and the rotor hubs' height (thrust is along
+#: body z and no in-plane rotor force is modelled, so it moves nothing; physics.c, bk_init).
+NOT_IN_THE_MODEL = {"name"}
+
+
+@pytest.mark.parametrize("field", [f.name for f in dataclasses.fields(QuadParams)
+                                   if f.name not in NOT_IN_THE_MODEL])
+def test_every_vehicle_parameter_reaches_the_c_model(field: str) -> None:
+    # A parameter added to QuadParams but not written into bk_sim would change nothing.
+    value = getattr(IRIS, field)
+    if field == "rotor_positions_frd_m":
+        x, y, z = value[0]
+        changed: object = ((x * 1.01, y, z), *value[1:])
+    else:
+        changed = _perturbed(value)
+    assert _vehicle_bytes(dataclasses.replace(IRIS, **{field: changed})) != _vehicle_bytes(IRIS)

@@ -124,8 +124,9 @@ def _perturbed(value: object) -> object:
     raise TypeError(value)
 
 
-#: What the model leaves out on purpose: the name, and the rotor hubs' height (thrust is along
-#: body z and no in-plane rotor force is modelled, so it moves nothing; physics.c, bk_init).
+#: What the model leaves out on purpose: the name.  (Also the rotor hubs' height: thrust is
+#: along body z and no in-plane rotor force is modelled, so only x and y of a rotor's position
+#: are perturbed below; physics.c, bk_init.)
 NOT_IN_THE_MODEL = {"name"}
 
 

@@ -41,15 +41,14 @@ import bfsitl.gym  # noqa: F401  (registers the environments)
 from bfsitl.gym.baseline import hand_policy
 from bfsitl.gym.env import DEFAULT_FIRMWARE, HoverEnv
 from bfsitl.gym.sticks import sticks_to_rc
-from bfsitl.kernel.compiler import kernel_available
 from bfsitl.link.shm_exchange import shm_exchange_supported
 from bfsitl.mission.session import FlightSession, SessionConfig
 
 
 def single(firmware: str, control_hz: float, seconds: float, *, spin: bool, pin: bool,
-           exchange: str, kernel: str) -> tuple[dict[str, float], list[float]]:
+           exchange: str) -> tuple[dict[str, float], list[float]]:
     env = HoverEnv(firmware=firmware, control_hz=control_hz, spin=spin, pin_core=pin,
-                   lockstep_exchange=exchange, physics_kernel=kernel)
+                   lockstep_exchange=exchange)
     resets: list[float] = []
     steps, sim_s = 0, 0.0
     try:
@@ -170,17 +169,14 @@ def main() -> None:
     baseline = wall_clock_baseline(args.control_hz, min(args.seconds, 10.0))
     rows.append(("wall-clock SITL (stock, real time)", 1, baseline))
     resets: list[float] = []
-    ways = [("udp", "python")]
-    if shm_exchange_supported():
-        ways[:0] = [("shm", "compiled"), ("shm", "python")] if kernel_available() else \
-            [("shm", "python")]
-    for exchange, kernel in ways:
+    exchanges = ["shm", "udp"] if shm_exchange_supported() else ["udp"]
+    for exchange in exchanges:
         for spin, pin, how in ((True, False, "spin, 2 cores"), (False, True, "pinned, 1 core")):
-            print(f"[gym bench] 1 environment, {how}, {exchange}, {kernel}", flush=True)
+            print(f"[gym bench] 1 environment, {how}, {exchange}", flush=True)
             one, resets_here = single(args.firmware, args.control_hz, args.seconds, spin=spin,
-                                      pin=pin, exchange=exchange, kernel=kernel)
+                                      pin=pin, exchange=exchange)
             resets += resets_here
-            rows.append((f"Hover-v0, {how}, {exchange}, {kernel} step", 1, one))
+            rows.append((f"Hover-v0, {how}, {exchange}", 1, one))
     for count in (2, 4):
         for own, name in ((False, "AsyncVectorEnv"), (True, "FlightVectorEnv")):
             print(f"[gym bench] {count} environments, {name}", flush=True)

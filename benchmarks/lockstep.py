@@ -9,8 +9,9 @@ to 2 m, hold ``--hold`` s, land) is flown with the fused controller and ``--seed
   the machine: on two cores, each side busy-waiting for the other (``spin``), and on one core
   (``1 core``: bfsitl and its SITL pinned to one core, taking turns without spinning, as
   the learning environment's vector workers and ``--jobs`` runs side by side do);
-* through shared memory, once with the pure-Python step and once with the compiled kernel
-  (:mod:`bfsitl.kernel`: the same flight bit for bit, steps that never enter Python).
+* the physics is C (:mod:`bfsitl.kernel`) in every mode; through shared memory its steps run
+  in the compiled lockstep loop and never enter Python, over UDP each step is driven from
+  Python.
 
 Per flight: wall time from the session's start to its end, simulated time, their ratio (and
 the mission's alone: ``bfsitl.fly``'s simulated time over its wall time, no start-up), the
@@ -46,7 +47,6 @@ from firmware_cache import MASTER_SOURCE, cached_firmware
 from bfsitl.build import FirmwareBuildOptions
 from bfsitl.control import make_controller
 from bfsitl.errors import BfsitlError
-from bfsitl.kernel.compiler import kernel_available
 from bfsitl.link.shm_exchange import shm_exchange_supported
 from bfsitl.mission import FlightSession, MissionPlan, SessionConfig, fly
 from bfsitl.sim.health import HealthMonitor
@@ -98,22 +98,19 @@ def sitl_cpu_s(pid: int | None) -> float | None:
     return (int(fields[11]) + int(fields[12])) / os.sysconf("SC_CLK_TCK")
 
 
-#: The lockstep rows: (exchange, one core, physics kernel).
-LOCKSTEP_MODES = (("udp", False, "python"), ("shm", False, "python"), ("shm", False, "compiled"),
-                  ("udp", True, "python"), ("shm", True, "python"), ("shm", True, "compiled"))
+#: The lockstep rows: (exchange, one core).
+LOCKSTEP_MODES = (("udp", False), ("shm", False), ("udp", True), ("shm", True))
 
 
 def fly_firmware(name: str, path: str, lockstep: bool, hold_s: float, seed: int,
-                 exchange: str = "udp", one_core: bool = False, kernel: str = "python") -> Flight:
+                 exchange: str = "udp", one_core: bool = False) -> Flight:
     config = SessionConfig(firmware=path, seed=seed, lockstep=lockstep,
-                           lockstep_exchange=exchange, lockstep_spin=not one_core,
-                           physics_kernel=kernel)
+                           lockstep_exchange=exchange, lockstep_spin=not one_core)
     claim = claim_core() if one_core else None  # the SITL started below inherits it
     started_s = time.perf_counter()
     try:
         flight = _fly(config, name, lockstep, hold_s,
                       f"lockstep max, {exchange}, {'1 core' if one_core else 'spin'}"
-                      + (", compiled" if kernel == "compiled" else "")
                       if lockstep else "real time 1x")
     finally:
         if claim is not None:
@@ -167,12 +164,11 @@ class Idle:
     sitl_cpu_us: float | None
 
 
-def idle(name: str, path: str, seconds: float, exchange: str, one_core: bool,
-         kernel: str) -> Idle:
+def idle(name: str, path: str, seconds: float, exchange: str, one_core: bool) -> Idle:
     """Step ``seconds`` of simulated time with nothing else going on: what the exchange, the
     firmware's passes and the physics cost per step, in each mode."""
     config = SessionConfig(firmware=path, lockstep=True, lockstep_exchange=exchange,
-                           lockstep_spin=not one_core, physics_kernel=kernel)
+                           lockstep_spin=not one_core)
     claim = claim_core() if one_core else None
     try:
         with FlightSession(config) as session:
@@ -190,7 +186,7 @@ def idle(name: str, path: str, seconds: float, exchange: str, one_core: bool,
     steps = max(after.steps - before.steps, 1)
     cpu = None if cpu_before is None or cpu_after is None else \
         (cpu_after - cpu_before) / steps * 1e6
-    mode = f"{exchange}, {'1 core' if one_core else 'spin'}, {kernel} step"
+    mode = f"{exchange}, {'1 core' if one_core else 'spin'}"
     return Idle(name, mode, wall_s / steps * 1e6,
                 (after.exchange_s - before.exchange_s) / steps * 1e6,
                 (after.physics_s - before.physics_s) / steps * 1e6, cpu)
@@ -244,14 +240,12 @@ def main() -> None:
     for generation in [] if args.no_flights else args.generations.split(","):
         stock = firmware_path(generation, args.build)
         lockstep = firmware_path(f"{generation}-lockstep", args.build)
-        modes = [(stock, False, "udp", False, "python")] + [
-            (lockstep, True, exchange, one_core, kernel)
-            for exchange, one_core, kernel in LOCKSTEP_MODES
-            if (exchange == "udp" or shm_exchange_supported())
-            and (kernel == "python" or kernel_available())]
-        for path, is_lockstep, exchange, one_core, kernel in modes:
-            flights = [fly_firmware(generation, path, is_lockstep, args.hold, args.seed, exchange,
-                                        one_core, kernel) for _ in range(args.repeats)]
+        modes = [(stock, False, "udp", False)] + [
+            (lockstep, True, exchange, one_core) for exchange, one_core in LOCKSTEP_MODES
+            if exchange == "udp" or shm_exchange_supported()]
+        for path, is_lockstep, exchange, one_core in modes:
+            flights = [fly_firmware(generation, path, is_lockstep, args.hold, args.seed,
+                                    exchange, one_core) for _ in range(args.repeats)]
             flights.sort(key=lambda f: f.wall_s)
             rows.append(flights[len(flights) // 2])
             print(f"flew {generation} {rows[-1].mode}: {rows[-1].wall_s:.1f} s",
@@ -284,11 +278,10 @@ def main() -> None:
         idles = []
         for generation in args.generations.split(","):
             lockstep = firmware_path(f"{generation}-lockstep", args.build)
-            for exchange, one_core, kernel in LOCKSTEP_MODES:
-                if (exchange == "shm" and not shm_exchange_supported()) or \
-                        (kernel == "compiled" and not kernel_available()):
+            for exchange, one_core in LOCKSTEP_MODES:
+                if exchange == "shm" and not shm_exchange_supported():
                     continue
-                idles.append(idle(generation, lockstep, args.idle, exchange, one_core, kernel))
+                idles.append(idle(generation, lockstep, args.idle, exchange, one_core))
                 print(f"stepped {generation} {idles[-1].mode}", file=sys.stderr)
         print()
         print(f"The stepping alone ({args.idle:g} s simulated, parked, no mission, no MSP), "

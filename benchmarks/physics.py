@@ -1,18 +1,21 @@
 """Cost of the embedded physics alone (no SITL, no sockets), per step and as a real-time factor.
 
-Scenarios, each run ``--repeats`` times on a fresh :class:`bfsitl.sim.Simulator` (median shown;
-this 2-core VM is noisy):
+Scenarios, each run ``--repeats`` times on a fresh :class:`bfsitl.physics.Simulator` (median
+shown; this 2-core VM is noisy):
 
 * ``airborne``: hovering with commands that change every step (motors, rotors, drag, rigid
   body; no contact);
 * ``airborne + fdm``: the same plus what the bridge adds per step: ``read_sensors()``,
-  ``to_fdm_packet()`` and ``FdmPacket.pack()``;
+  the fdm packet (``FdmEncoder.pack``);
 * ``parked``: resting on the skids with armed-idle motors (static friction: body frozen);
 * ``contact``: upside down on the ground, where every step runs the sub-stepped spring-damper
   contact (the worst case: the cost during landings, crashes and take-offs).
 
-The real-time factor is simulated time over wall time at the given step.  Target: >= 25x at
-1 ms in plain CPython (i.e. <= 40 us per step), leaving the bridge its budget.
+The real-time factor is simulated time over wall time at the given step.  The model is C
+(``bfsitl/kernel/physics.c``): each step here is one call through its Python face, what a
+real-time or UDP lockstep run pays per step (the compiled lockstep loop, through shared
+memory, pays far less: ``docs/lockstep.md``).  Target: >= 25x at 1 ms (<= 40 us per step),
+leaving the bridge its budget.
 
 Then, unless ``--no-bridge``, the bridge against the real SITL per exchange mode and speed
 (``bridge_modes.py`` beside this file): firmware time / sim time, PID cycle, share of fdm
@@ -31,6 +34,8 @@ import sys
 import time
 
 from bfsitl.physics import IRIS, Simulator
+from bfsitl.protocol.fdm_encoding import FdmEncoder
+from bfsitl.protocol.firmware_profile import DEFAULT_PROFILE
 
 SCENARIOS = ("airborne", "airborne + fdm", "parked", "contact")
 TARGET_REAL_TIME_FACTOR = 25.0
@@ -63,11 +68,11 @@ def _run_once(step_s: float, steps: int, scenario: str) -> float:
     commands = _prepare(sim, scenario)
     step = sim.step
     if scenario == "airborne + fdm":
-        read = sim.read_sensors
+        read, pack = sim.read_sensors, FdmEncoder(DEFAULT_PROFILE, sim.home).pack
         start = time.perf_counter()
         for k in range(steps):
             step(commands[k & 7], step_s)
-            read().to_fdm_packet(1024.0 + k * 0.0625).pack()
+            pack(read(), 1024.0 + k * 0.0625)
         return time.perf_counter() - start
     start = time.perf_counter()
     for k in range(steps):

@@ -45,7 +45,7 @@ Messages are written for the person at the terminal: what went wrong, then what 
     ├── DisturbanceUnavailableError    this backend cannot do that to a flight (Gazebo, a board)
     ├── BlackboxError                  a blackbox log that cannot be read
     ├── TrackDataMissingError          a flight record lacks what an analyser reads (it is skipped)
-    ├── KernelUnavailableError         the optional compiled step cannot be built or loaded here
+    ├── KernelUnavailableError         the compiled physics cannot be built here (no C compiler)
     └── SitlError                      the SITL process
         ├── FirmwareNotFoundError      no SITL binary anywhere we looked
         ├── FirmwareBuildError         `bfsitl firmware build` could not make a SITL binary
@@ -260,8 +260,9 @@ class TrackDataMissingError(BfsitlError):
 
 
 class KernelUnavailableError(BfsitlError):
-    """The optional compiled kernel (:mod:`bfsitl.kernel`) cannot be built or loaded here: no C
-    compiler, or it failed.  The pure-Python step does the same work, only slower."""
+    """The compiled physics (:mod:`bfsitl.kernel`: the embedded physics is C, built once per
+    machine) cannot be built or loaded here: no C compiler, or it failed.  The message says
+    what to install."""
 
 
 class SitlError(BfsitlError):

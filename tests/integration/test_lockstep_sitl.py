@@ -1,7 +1,8 @@
 """Lockstep against the real firmware: both generations built with ``--lockstep``.
 
 What is checked: the same seed gives the same flight to the byte (and another seed does
-not), whichever exchange and whichever step (compiled or pure Python) carried it; a disturbed
+not), whichever exchange carried it (shared memory, stepped by the compiled loop, or UDP,
+stepped from Python); a disturbed
 flight in lockstep still has the FC's attitude follow the truth, with the right signs; MSP and
 the CLI work while the simulation steps, and a ``save`` that ends the process is followed by a
 new process locked again; a lockstep SITL without a simulator free-runs and answers like a
@@ -24,7 +25,6 @@ from bfsitl.cli.target import LOCKSTEP_FREE_RUN_NOTE
 from bfsitl.fc.cli_session import CliSession
 from bfsitl.fc.provisioning import Profile
 from bfsitl.fc.rc_link import RC_MID_US
-from bfsitl.kernel.compiler import kernel_available
 from bfsitl.link.shm_exchange import shm_exchange_supported
 from bfsitl.mission.loop import FlightLoop
 from bfsitl.mission.session import FLY_PROFILE, FlightSession, SessionConfig, with_fast_serial
@@ -60,29 +60,25 @@ def test_the_builds_are_lockstep(lockstep_firmware: Path) -> None:
 def test_the_same_seed_flies_the_same_flight_and_another_seed_does_not(
         lockstep_firmware: Path, tmp_path: Path) -> None:
     logs = []
-    # Flights a and c take the defaults: shared memory where the machine has it, and the
-    # compiled step where it builds. b takes UDP and the pure-Python step, d shared memory
-    # and pure Python: neither the exchange nor the step may change a thing the firmware does.
+    # Flights a and c take the default: shared memory where the machine has it, each step in
+    # the compiled loop. b takes UDP, each step from Python: the exchange and the loop may
+    # change nothing the firmware does.
     shared = "shm" if shm_exchange_supported() else "udp"
-    compiled = "compiled" if shared == "shm" and kernel_available() else "python"
-    for name, seed, exchange, kernel in (("a", "1", "auto", "auto"), ("b", "1", "udp", "python"),
-                                         ("c", "2", "auto", "auto"), ("d", "1", shared, "python")):
+    for name, seed, exchange in (("a", "1", "auto"), ("b", "1", "udp"), ("c", "2", "auto")):
         log, summary = tmp_path / f"{name}.csv", tmp_path / f"{name}.json"
         done = fly(tmp_path, lockstep_firmware, "--seed", seed, "--hold", "3", "--log",
-                   str(log), "--summary", str(summary), "--lockstep-exchange", exchange,
-                   "--physics-kernel", kernel)
+                   str(log), "--summary", str(summary), "--lockstep-exchange", exchange)
         assert done.returncode == 0, done.stdout + done.stderr
         assert "lockstep: the FC's clock follows the physics" in done.stderr
         result = json.loads(summary.read_text())
         assert result["outcome"] == "landed" and result["physics"]["lockstep"] is True
         assert result["physics"]["answered_ratio"] == 1.0
         assert result["physics"]["exchange"] == (shared if exchange == "auto" else exchange)
-        assert result["physics"]["step"] == (compiled if kernel == "auto" else kernel)
         logs.append(simulated_columns(log))
-    first, again, other, python = logs
+    first, again, other = logs
     assert len(first) > 300
     # Byte for byte: every FC reading, every motor output, every RC value, every time.
-    assert first == again == python
+    assert first == again
     # ... and the comparison can tell: other noise and gusts give another flight.
     assert first != other
     assert [r["time_s"] for r in first[:5]] == [r["time_s"] for r in other[:5]]

@@ -112,14 +112,12 @@ def test_installed_bfsitl_runs_from_its_own_files(installed, tmp_path):
 
 def test_a_lockstep_flight_from_the_installed_wheel(installed, lockstep_46_firmware, tmp_path):
     _wheel, bin_dir = installed
-    # A cache of its own: the compiled step is built from the wheel's sources, not found.
+    # A cache of its own: the physics is built from the wheel's C sources, not found.
     env = {**_clean_env(), "BFSITL_CACHE_DIR": str(tmp_path / "cache")}
     flown = _bfsitl(bin_dir, tmp_path, "fly", "--firmware", str(lockstep_46_firmware),
-                    "--hold", "2", "--json", "--log", "flight.csv", "--physics-kernel",
-                    "compiled", timeout_s=180, env=env)
+                    "--hold", "2", "--json", "--log", "flight.csv", timeout_s=180, env=env)
     assert flown.returncode == 0, flown.stderr[-3000:]
     summary = json.loads(flown.stdout)
     assert summary["outcome"] == "landed", summary
-    assert summary["physics"]["step"] == "compiled"
     assert list((tmp_path / "cache" / "kernel").glob("bfsitl-kernel-*.so"))
     assert (tmp_path / "flight.csv").stat().st_size > 1000

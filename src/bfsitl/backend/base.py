@@ -140,12 +140,6 @@ class Backend:
         physics is not ours."""
         return None
 
-    @property
-    def physics_step(self) -> str | None:
-        """What steps the physics: ``"compiled"`` (bfsitl.kernel) or ``"python"``; None
-        when the physics is not ours."""
-        return None
-
 
 class SitlBackend(Backend):
     """A backend under a SITL process: it starts the process its own way, supplies its RC

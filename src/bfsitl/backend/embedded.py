@@ -60,10 +60,6 @@ class _EmbeddedPhysics(SitlBackend):
     def exchange(self) -> str | None:
         return "udp"
 
-    @property
-    def physics_step(self) -> str | None:
-        return "compiled" if hasattr(self._simulator, "kernel_pointer") else "python"
-
     def _set_gps_lost(self, lost: bool) -> None:
         if self.bridge is not None:
             self.bridge.set_gps_lost(lost)

@@ -18,10 +18,10 @@ from __future__ import annotations
 import math
 from collections.abc import Callable
 from pathlib import Path
-from typing import TYPE_CHECKING, Literal, Protocol, cast, get_args
+from typing import TYPE_CHECKING, Literal, Protocol, get_args
 
 from bfsitl.backend.base import SitlBackend
-from bfsitl.errors import BfsitlError, KernelUnavailableError
+from bfsitl.errors import BfsitlError
 from bfsitl.physics.params import QuadParams
 from bfsitl.physics.sensors import SensorConfig
 from bfsitl.physics.wind import Wind
@@ -50,8 +50,6 @@ class BackendOptions(Protocol):
     def lockstep_spin(self) -> bool: ...
     @property
     def lockstep_exchange(self) -> LockstepExchange: ...
-    @property
-    def physics_kernel(self) -> str: ...
     @property
     def quad(self) -> QuadParams: ...
     @property
@@ -117,40 +115,13 @@ def uses_shm_exchange(firmware: FirmwareBinary, asked: LockstepExchange) -> bool
     return possible
 
 
-#: How the embedded physics steps: ``auto`` (the compiled kernel for lockstep runs through
-#: shared memory, where it builds), ``compiled`` (always, or an error saying why not), ``python``.
-PHYSICS_KERNELS = ("auto", "compiled", "python")
-
-
-def make_simulator(options: BackendOptions, *, lockstep_shm: bool,
-                   progress: Callable[[str], None] = lambda _line: None) -> Simulator:
-    """The embedded physics: the pure-Python reference, or the compiled kernel (the same
-    numbers, bit for bit: bfsitl.kernel) where it is asked for or pays (a lockstep run through
-    shared memory, whose steps then never enter Python)."""
+def make_simulator(options: BackendOptions) -> Simulator:
+    """The embedded physics for ``options`` (its C library is built on first use: without a C
+    compiler, the KernelUnavailableError says what to install)."""
     from bfsitl.physics import Simulator
 
-    asked = options.physics_kernel
-    if asked not in PHYSICS_KERNELS:
-        raise BfsitlError(f"physics kernel {asked!r}: one of {', '.join(PHYSICS_KERNELS)}")
-    compiled = asked == "compiled"
-    if asked == "auto" and lockstep_shm:
-        from bfsitl.kernel.compiler import load_kernel
-
-        try:
-            load_kernel()
-            compiled = True
-        except KernelUnavailableError as exc:
-            progress(f"the compiled step is not available, stepping in Python (the same "
-                     f"flight, slower): {str(exc).splitlines()[0]}")
-    if compiled:
-        from bfsitl.kernel.simulator import KernelSimulator
-
-        # The same public API as the reference (not a subclass: its private state is C's).
-        simulator = cast("Simulator", KernelSimulator(options.quad, sensors=options.sensors,
-                                                      wind=options.wind, seed=options.seed))
-    else:
-        simulator = Simulator(options.quad, sensors=options.sensors, wind=options.wind,
-                              seed=options.seed)
+    simulator = Simulator(options.quad, sensors=options.sensors, wind=options.wind,
+                          seed=options.seed)
     heading_deg = getattr(options, "initial_heading_deg", 0.0)
     if heading_deg:
         simulator.reset(yaw_deg=heading_deg)
@@ -187,9 +158,9 @@ def make_backend(options: BackendOptions, firmware: FirmwareBinary, *,
                               "in the fdm packets bfsitl steps it with; use a stock build")
         speed = options.speed
         shared = uses_shm_exchange(firmware, options.lockstep_exchange)
-        simulator = make_simulator(options, lockstep_shm=shared, progress=progress)
+        simulator = make_simulator(options)
         return LockstepBackend(simulator, speed=None if speed is None or math.isinf(speed)
                                else speed, spin=options.lockstep_spin, progress=progress,
                                alive=alive, shared_memory=shared)
-    return RealTimeBackend(make_simulator(options, lockstep_shm=False),
+    return RealTimeBackend(make_simulator(options),
                            speed=real_time_speed(options.speed), progress=progress)

@@ -99,22 +99,21 @@ def static_checks(firmware: str | None) -> list[Finding]:
         findings.append(Finding(
             "WARN", "isolation",
             "unshare missing (apt-get install util-linux): SITLs would share host ports"))
-    findings.append(compiled_step_check())
+    findings.append(physics_check())
     return findings
 
 
-def compiled_step_check() -> Finding:
-    """Whether lockstep runs get the compiled step here (it is built now if it must be)."""
+def physics_check() -> Finding:
+    """Whether the embedded physics (C, built once per machine) builds and loads here: without
+    it nothing can be flown but Gazebo's physics."""
     from bfsitl.errors import KernelUnavailableError
     from bfsitl.kernel.compiler import kernel_path, load_kernel
 
     try:
         load_kernel()
     except KernelUnavailableError as exc:
-        return Finding("WARN", "compiled step",
-                       f"{str(exc).splitlines()[0]} (lockstep flights are the same in Python, "
-                       f"about half as fast)")
-    return Finding("ok", "compiled step", f"built ({kernel_path()}): lockstep runs use it")
+        return Finding("FAIL", "physics", str(exc).splitlines()[0])
+    return Finding("ok", "physics", f"built ({kernel_path()})")
 
 
 def live_probe(firmware: str | None, report: Callable[[str], None]) -> list[Finding]:

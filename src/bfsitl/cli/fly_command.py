@@ -148,12 +148,6 @@ def add_fly_parser(sub: argparse._SubParsersAction) -> None:  # type: ignore[typ
                       help="how lockstep packets pass: shared memory (shm, on builds made by "
                            "this bfsitl, x86-64 Linux) or UDP; both fly the same flight "
                            "(default auto: shm where it can)")
-    sitl.add_argument("--physics-kernel", choices=("auto", "compiled", "python"),
-                      default="auto",
-                      help="step the embedded physics in the compiled kernel (built once with "
-                           "the machine's C compiler) or in pure Python; both fly the same "
-                           "flight, bit for bit (default auto: compiled for lockstep runs "
-                           "through shared memory)")
     sitl.add_argument("--baro-noise-pa", type=number_in(0, None, "Pa"), default=None, metavar="PA",
                       help="barometer noise std of the embedded physics (default 0.5: dithers "
                            "the SITL's whole-pascal pressure; 0 for a noiseless barometer)")
@@ -318,7 +312,7 @@ def cmd_fly(args: argparse.Namespace) -> int:
         baro_noise_std_pa=args.baro_noise_pa, accel_noise_std_m_s2=args.accel_noise,
         firmware=args.firmware, workdir=args.workdir, isolate=not args.no_isolate,
         speed=speed, lockstep=args.lockstep, lockstep_exchange=args.lockstep_exchange,
-        physics_kernel=args.physics_kernel, angle_mode=not args.no_angle,
+        angle_mode=not args.no_angle,
         physics=args.physics, gz_plugin_dir=args.gz_plugin_dir, wind=wind, seed=args.seed,
         configurator_port=args.configurator_port if args.configurator else None,
         allow_origins=tuple(args.allow_origin))
@@ -427,8 +421,6 @@ def render_summary(summary: dict) -> str:
         if physics.get("lockstep"):
             through = {"shm": "shared memory", "udp": "UDP"}.get(physics.get("exchange"), "")
             mode = f"lockstep through {through}, " if through else "lockstep, "
-            if physics.get("step") == "compiled":
-                mode += "compiled step, "
         lines.append(f"physics        {mode}{physics['answered_ratio'] * 100:.1f} % of fdm "
                      f"packets answered at {physics['speed']:.2f}x real time")
     if "findings" in summary:

@@ -267,7 +267,7 @@ class MspClient:
         """Request a message by its type and decode the reply: ``client.get(Attitude)``.
 
         Args:
-            message_type: A message class of :mod:`bfsitl.protocol.msp_messages`.
+            message_type: A message class of :mod:`bfsitl.protocol.messages`.
             payload: The request's payload, for messages that take one.
 
         Returns:

@@ -45,7 +45,7 @@ import numpy as np
 from gymnasium import spaces
 
 from bfsitl.backend.disturbances import Disturbances
-from bfsitl.backend.factory import LOCKSTEP_EXCHANGES, PHYSICS_KERNELS, LockstepExchange
+from bfsitl.backend.factory import LOCKSTEP_EXCHANGES, LockstepExchange
 from bfsitl.control import make_controller
 from bfsitl.errors import EnvironmentConfigError, LinkError, MspError, SitlError
 from bfsitl.fc.rc_link import RcCommand
@@ -111,14 +111,12 @@ class FlightEnv(gymnasium.Env[np.ndarray, np.ndarray]):
                  max_episode_steps: int | None = HOVER_MAX_EPISODE_STEPS,
                  start: EpisodeStart = "air", start_alt_m: float = 1.5,
                  spin: bool | None = None, pin_core: bool | None = None,
-                 lockstep_exchange: LockstepExchange = "auto",
-                 physics_kernel: str = "auto", warm_resets: bool = True,
+                 lockstep_exchange: LockstepExchange = "auto", warm_resets: bool = True,
                  workdir: str | Path | None = None) -> None:
         _check_choice("mode", mode, MODES)
         _check_choice("observation", observation, OBSERVATIONS)
         _check_choice("start", start, STARTS)
         _check_choice("lockstep_exchange", lockstep_exchange, LOCKSTEP_EXCHANGES)
-        _check_choice("physics_kernel", physics_kernel, PHYSICS_KERNELS)
         low, high = CONTROL_HZ_RANGE
         if not low <= control_hz <= high:
             raise EnvironmentConfigError(
@@ -170,9 +168,6 @@ class FlightEnv(gymnasium.Env[np.ndarray, np.ndarray]):
         #: How packets pass to the firmware (SessionConfig.lockstep_exchange): shared memory
         #: where the build has it, or UDP; the flights are the same.
         self.lockstep_exchange = lockstep_exchange
-        #: What steps the physics (SessionConfig.physics_kernel): the compiled kernel where it
-        #: builds, or pure Python; the flights are the same, bit for bit.
-        self.physics_kernel = physics_kernel
         #: A reset without a seed keeps the firmware running when it can (see the module
         #: docstring); False boots a fresh one every time.
         self.warm_resets = warm_resets
@@ -321,7 +316,7 @@ class FlightEnv(gymnasium.Env[np.ndarray, np.ndarray]):
             control_rate_hz=self.control_hz, firmware=self.binary.path,
             workdir=self.workdir / "sitl", seed=seed, wind=self.wind, lockstep=True,
             angle_mode=self.mode == "angle", lockstep_spin=self.spin,
-            lockstep_exchange=self.lockstep_exchange, physics_kernel=self.physics_kernel)
+            lockstep_exchange=self.lockstep_exchange)
         return FlightSession(config)
 
     def _prepare(self) -> None:

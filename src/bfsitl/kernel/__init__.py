@@ -1,9 +1,9 @@
-"""The optional compiled kernel: the same physics and lockstep step as the pure-Python
-reference, in C, with bit-identical results.
+"""The compiled code: the physics (``physics.c``, the model's only implementation) and the
+lockstep loop (``lockstep_loop.c``), in one library built on first use with the machine's C
+compiler (:mod:`bfsitl.kernel.compiler`, the compiler the firmware build needs anyway).
 
-Pure Python stays the reference (``bfsitl.physics``, ``bfsitl.sim.lockstep``); the kernel is
-a second implementation of its hot path for lockstep flights, built on first use with the
-machine's C compiler (:mod:`bfsitl.kernel.compiler`) and chosen with ``--physics-kernel``
-(``SessionConfig.physics_kernel``).  Its parity tests compare every float of every step with
-the reference.
+A change to the model is made in ``physics.c`` (and, when it adds a parameter, in
+:class:`~bfsitl.physics.QuadParams`, ``physics.h`` and :mod:`bfsitl.kernel.layout`, which a
+test keeps in step with the header).  :class:`bfsitl.physics.Simulator` is the typed Python
+face; :mod:`bfsitl.sim.lockstep_stepper` runs its lockstep loop for the bridge.
 """

@@ -1,4 +1,4 @@
-"""Build the compiled kernel once per machine and load it.
+"""Build the compiled code (the physics and the lockstep loop) once per machine and load it.
 
 Every ``*.c`` file of this package goes into one shared library, compiled with the system's C
 compiler (the one ``bfsitl firmware build`` needs anyway) the first time a process asks for
@@ -6,9 +6,12 @@ it, and kept in the cache under a name made from the sources' and the flags' has
 bfsitl builds a new one, two processes building at once each write their own temporary file
 and the last rename wins (both are the same bytes).
 
-The flags keep the arithmetic the pure-Python reference's: IEEE doubles in program order, no
-fused multiply-add (``-ffp-contract=off``), no fast-math; the libm functions are the ones
-CPython's ``math`` calls.  That is what makes the kernel's results bit-identical.
+The flags keep the arithmetic as written: IEEE doubles in program order, no fused
+multiply-add (``-ffp-contract=off``), no fast-math; the libm functions are the ones CPython's
+``math`` calls.  That is what keeps the flights the model flew when it was written in Python
+(``tests/data/physics_golden.json``) the same, bit for bit.  Without a C compiler there is no
+embedded physics: the error says what to install, where a user first meets it (``bfsitl
+fly``, ``bfsitl doctor``, any flight).
 """
 
 from __future__ import annotations
@@ -73,9 +76,9 @@ def build_kernel(target: Path) -> None:
     compiler = find_compiler()
     if compiler is None:
         raise KernelUnavailableError(
-            "no C compiler for the compiled kernel (looked for $CC, cc, gcc, clang): install "
-            "one (Debian/Ubuntu: apt install gcc), or keep the pure-Python step "
-            "(--physics-kernel python)")
+            "no C compiler for the embedded physics, which is C built once per machine "
+            "(looked for $CC, cc, gcc, clang): install one (Debian/Ubuntu: apt-get install "
+            "gcc; the firmware build needs it too), or set $CC to yours")
     target.parent.mkdir(parents=True, exist_ok=True)
     scratch = target.with_name(f".{target.name}.{os.getpid()}.tmp")
     sources = [str(p) for p in kernel_sources() if p.suffix == ".c"]
@@ -85,18 +88,18 @@ def build_kernel(target: Path) -> None:
                               check=False)
         if done.returncode != 0:
             raise KernelUnavailableError(
-                f"the compiled kernel did not build ({Path(compiler).name} exited "
-                f"{done.returncode}); the pure-Python step works without it:\n"
+                f"the embedded physics did not build ({Path(compiler).name} exited "
+                f"{done.returncode}; set $CC to another C compiler):\n"
                 f"{done.stderr.strip()[-2000:]}")
         os.replace(scratch, target)
     except (OSError, subprocess.TimeoutExpired) as exc:
-        raise KernelUnavailableError(f"the compiled kernel did not build: {exc}") from exc
+        raise KernelUnavailableError(f"the embedded physics did not build: {exc}") from exc
     finally:
         scratch.unlink(missing_ok=True)
 
 
 def load_kernel() -> ctypes.CDLL:
-    """The kernel library, built first if this machine has none for this bfsitl.
+    """The compiled library, built first if this machine has none for this bfsitl.
 
     Raises KernelUnavailableError (and remembers it for the process) when it cannot be had.
     """
@@ -114,8 +117,8 @@ def load_kernel() -> ctypes.CDLL:
                 _library = ctypes.CDLL(str(target))
             except OSError as exc:
                 raise KernelUnavailableError(
-                    f"the compiled kernel {target} would not load ({exc}): delete it to "
-                    f"rebuild, or use --physics-kernel python") from exc
+                    f"the compiled physics {target} would not load ({exc}): delete it to "
+                    f"rebuild") from exc
         except KernelUnavailableError as exc:
             _failure = str(exc)
             raise

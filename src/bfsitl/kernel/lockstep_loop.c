@@ -2,15 +2,15 @@
  * bfsitl's compiled lockstep loop: the steps of bfsitl.sim.lockstep.LockstepBridge between two
  * of the mission's decisions, without returning to Python.
  *
- * One step is what the bridge's pure-Python step does, in the same order and with the same
+ * One step is what the bridge's step in Python does, in the same order and with the same
  * bytes: read the sensors, encode the fdm packet for the firmware's generation (mirroring
- * bfsitl.sim.fdm_encoding.FdmEncoder), append the RC packet the caller packed, hand the
- * datagram to the FC through the shared region (bfsitl.sim.shm_exchange: the request word is
+ * bfsitl.protocol.fdm_encoding.FdmEncoder), append the RC packet the caller packed, hand the
+ * datagram to the FC through the shared region (bfsitl.link.shm_exchange: the request word is
  * 0 while the datagram is written, then the new sequence number, then one FUTEX_WAKE), wait
  * for the reply (polling the reply word for spin_s, then FUTEX_WAIT), check that it answers
  * this packet's timestamp, put the motors in Betaflight's order and integrate the physics.
  *
- * Anything unusual goes back to Python with a status, where the reference code handles it
+ * Anything unusual goes back to Python with a status, where the bridge's code handles it
  * the one way it always does: a reply that has not come within wait_s (resends, the check
  * that the SITL still runs), a reading or motors that are not finite (the errors that name
  * the field), a reply for another timestamp.
@@ -40,7 +40,7 @@ enum {
     BK_LOCKSTEP_NO_FUTEX = 6,    /* not built for Linux */
 };
 
-/* The header's words (bfsitl.sim.shm_exchange). */
+/* The header's words (bfsitl.link.shm_exchange). */
 #define REQUEST_WORD 2
 #define REPLY_WORD 3
 #define BYTES_WORD 4

@@ -1,34 +1,81 @@
 /*
- * bfsitl.physics.Simulator in C, bit for bit (see physics.h).
+ * The embedded physics (see physics.h for how Python drives it).
  *
- * Rules that keep it exact:
- *   - each expression is the Python one with the same grouping: C, like Python, evaluates
- *     a + b + c as (a + b) + c and a * b / c as (a * b) / c; -x * y is (-x) * y in both;
+ * The model is Gazebo-IRIS parity (docs/firmware-facts.md#iris-model,
+ * docs/firmware-facts.md#iris-motors) with these choices, each made for the 1 ms step
+ * (docs/firmware-facts.md#model-choices):
+ *
+ * - Motors: first-order lag towards the speed the Gazebo joint P controller settles at,
+ *   updated exactly (1 - exp(-h/tau), tau = 0.82 ms) and slew-limited by the +-2.5 N m motor
+ *   torque clamp.  The rotor's spin-up reaction I_r dOmega/dt is applied to the frame (on IRIS
+ *   it dominates transient yaw), as is the rotor gyroscopic torque.
+ * - Rotors: T = k_T Omega^2, Q = k_Q Omega^2, with the LiftDrag elements' axial-inflow
+ *   term linearised: climbing at v through the disc lowers the angle of attack by v / (Omega r),
+ *   so T = k_T Omega (Omega - v / (r a0)), capped at stall.
+ * - Integrator: one force evaluation per step.  Symplectic Euler for translation (v first,
+ *   then p with the new v: no drift in a hover or on the contact springs); an explicit midpoint
+ *   step for Euler's equations (plain Euler pumps energy into a free rotation); the exponential
+ *   map of the step's mean body rate for the quaternion, renormalised.  RK4 would cost four
+ *   force evaluations and buys nothing: the motors, the only fast states, are integrated
+ *   exactly.  Measured: energy 2e-7 and angular momentum 1e-6 relative over a minute of
+ *   tumbling, |q| - 1 below 1e-15.
+ * - Ground contact: spring-dampers at the eight corners of the Gazebo collision box (the
+ *   four bottom ones are the skids), with Coulomb friction.  The ground only pushes; the
+ *   vertical mode is damped at 1.5 x critical so that no landing rebounds.  While a corner
+ *   touches, the step is split into sub-steps (the contact's rotational modes are ~30x lighter
+ *   than the vertical one).  Below the sliding limit friction is a stiff viscous "stick" sized
+ *   to the sub-step, so it can neither chatter nor go unstable at impact.
+ * - Rest: a spring-damper alone holds a resting quad only approximately, so when the vehicle
+ *   sits on all four skids, slow and unaccelerated, and the ground can carry the applied force
+ *   and torque, the body is frozen: velocities exactly zero, the accelerometer exactly
+ *   R^T (0, 0, -g).  It is released the moment those conditions fail (static friction).
+ * - Sensors: a constant bias plus white Gaussian noise per reading on the gyro, accelerometer
+ *   and barometer; a drifting barometer; the GPS's slow wander (first-order Gauss-Markov),
+ *   noise, velocity noise and offset.  Wind: a constant part plus first-order Gauss-Markov
+ *   gusts per NED axis, discretised exactly.
+ *
+ * Rules that keep the flights repeatable across versions (tests/data/physics_golden.json holds
+ * the flights this model flew when it was written in Python, and the tests replay them):
  *   - doubles only; no fused multiply-add (built with -ffp-contract=off), no fast-math;
- *   - the libm functions CPython's math module calls (exp, expm1, sqrt, log, sin, cos, pow for
- *     float ** float); sin and cos go through pointers the compiler cannot see through, so it
- *     never fuses a sin and a cos of the same angle into one sincos call;
- *   - every function call that draws a random number is its own statement, in the Python's
- *     order (C leaves the order of calls inside one expression open).
+ *     expressions keep their grouping (a + b + c is (a + b) + c);
+ *   - the libm functions CPython's math module calls (exp, expm1, sqrt, log, sin, cos, pow);
+ *     sin and cos go through pointers the compiler cannot see through, so it never fuses a sin
+ *     and a cos of the same angle into one sincos call;
+ *   - the random draws are CPython's random.random and random.gauss on its Mersenne Twister,
+ *     started from the states Python seeds (so a seed gives the noise it always gave); every
+ *     call that draws is its own statement (C leaves the order of calls in an expression open).
  */
 #include "physics.h"
 
 #include <math.h>
 #include <string.h>
 
-/* ---- constants of the Python modules (the same literals give the same doubles) ---- */
+/* ---- the model's constants ---- */
 
-/* multirotor.py */
+/* Explicit contact sub-steps are sized so (damping rate x sub-step) stays below this, and the
+   friction stick takes at most as much again: together under 1, so contact velocities decay
+   without changing sign from one sub-step to the next (IRIS at 1 ms: 4 sub-steps). */
 #define CONTACT_RATE_STEP 0.5
+/* Longest step accepted (bfsitl.physics.multirotor.MAX_STEP_S says the same: tested). */
 #define MAX_STEP_S 0.02
-/* contact.py */
+/* When a vehicle on all four skids counts as at rest (and is then frozen exactly).  The
+   motions the contact springs carry (vertical, roll, pitch) must have settled: slow *and*
+   unaccelerated, or a landing could freeze at the bottom of its compression.  These limits
+   bound the offset from the static sag a freeze can trap: acceleration / omega^2 (0.5 / 6900
+   ~ 70 um) plus speed / slow pole of the overdamped contact (~27 /s: 40 um).  Tilt needs no
+   acceleration limit: the roll and pitch modes ring at ~230 rad/s.  The motions only friction
+   resists (sliding, yaw) store nothing: they merely have to be slow.  Loose enough to freeze
+   under gusts and a flight controller still fiddling with the motors. */
 #define REST_VERTICAL_SPEED_M_S 0.001
 #define REST_VERTICAL_ACCEL_M_S2 0.5
 #define REST_TILT_RATE_RAD_S 0.002
 #define REST_SLIDE_SPEED_M_S 0.02
 #define REST_YAW_RATE_RAD_S 0.02
+/* To freeze, the centre of pressure must be this far inside the skid rectangle and the
+   friction needed this far below mu N; once frozen, only the true limits release it (the
+   hysteresis keeps it from flickering, and from creeping on the viscous stick in between). */
 #define REST_MARGIN 0.95
-/* atmosphere.py and constants.py */
+/* The ISA troposphere (bfsitl.physics.atmosphere and constants say the same: tested). */
 #define SEA_LEVEL_PRESSURE_PA 101325.0
 #define LAPSE_OVER_T0_PER_M 2.25577e-5
 #define PRESSURE_EXPONENT 5.25588
@@ -95,7 +142,7 @@ static double rng_gauss(bk_rng *rng, double mu, double sigma)
     return mu + z * sigma;
 }
 
-/* ---- frames.py ---- */
+/* ---- quaternions and rotations (the conventions of bfsitl.physics.frames) ---- */
 
 /* quat_integrate: q after turning at body rate om for dt, renormalised. */
 static void quat_integrate(const double q[4], double wx, double wy, double wz, double dt,
@@ -126,7 +173,7 @@ static void quat_integrate(const double q[4], double wx, double wy, double wz, d
     out[3] = nz * inv;
 }
 
-/* multirotor._rotate: R(q) (v * scale). */
+/* R(q) (v * scale): body FRD to world NED. */
 static void rotate(const double q[4], const double v[3], double scale, double out[3])
 {
     double w = q[0], x = q[1], y = q[2], z = q[3];
@@ -139,7 +186,7 @@ static void rotate(const double q[4], const double v[3], double scale, double ou
              + (1.0 - 2.0 * (x * x + y * y)) * c;
 }
 
-/* multirotor._rotate_inverse: R(q)^T v. */
+/* R(q)^T v: world NED to body FRD. */
 static void rotate_inverse(const double q[4], const double v[3], double out[3])
 {
     double w = q[0], x = q[1], y = q[2], z = q[3];
@@ -152,13 +199,14 @@ static void rotate_inverse(const double q[4], const double v[3], double out[3])
              + (1.0 - 2.0 * (x * x + y * y)) * c;
 }
 
-/* Python's max(a, b) of two floats: the first unless the second is larger. */
+/* max(a, b) as the model was first written (Python's): the first unless the second is
+   larger. */
 static double py_max(double a, double b)
 {
     return b > a ? b : a;
 }
 
-/* ---- contact.py ---- */
+/* ---- ground contact and rest ---- */
 
 static double lowest_corner(const bk_sim *s, const double q[4])
 {
@@ -198,7 +246,7 @@ static void corners_touching(const bk_sim *s, int *bottom_out, int *top_out)
     *top_out = top;
 }
 
-/* GroundContact._contact: ground force (world, out[0..2]) and torque (body, out[3..5]). */
+/* Ground force (world, out[0..2]) and torque (body, out[3..5]). */
 static void contact(bk_sim *s, double r00, double r01, double r02, double r10, double r11,
                     double r12, double r20, double r21, double r22, double out[6])
 {
@@ -293,6 +341,8 @@ static int rest_holds(const bk_sim *s, const double fb[3], const double mb[3], d
 static int at_rest_now(const bk_sim *s, const double fb[3], const double mb[3])
 {
     const double *v = s->v, *w = s->w, *f = s->sf_world;
+    if (!s->freeze_at_rest)
+        return 0;
     if (fabs(v[2]) >= REST_VERTICAL_SPEED_M_S)
         return 0;
     if (fabs(f[2] + s->g) >= REST_VERTICAL_ACCEL_M_S2)
@@ -307,12 +357,12 @@ static int at_rest_now(const bk_sim *s, const double fb[3], const double mb[3])
     return rest_holds(s, fb, mb, REST_MARGIN);
 }
 
-/* ---- multirotor.py ---- */
+/* ---- the rigid body, motors and rotors ---- */
 
 static void set_step(bk_sim *s, double dt)
 {
     s->dt = dt;
-    s->alpha = -expm1(-dt / s->motor_tau);
+    s->alpha = -expm1(-dt / s->motor_time_constant_s);
     double n = ceil(dt * s->rate / CONTACT_RATE_STEP);
     s->n_sub = n > 1.0 ? (int32_t)n : 1;
     double h_sub = dt / (double)s->n_sub;
@@ -390,7 +440,7 @@ static void applied_wrench(const bk_sim *s, const double wind[3], double fb[3], 
     mb[2] = mz;
 }
 
-/* Simulator._substep: integrates over h; the world specific force applied goes to acc. */
+/* Integrates the rigid body over h; the world specific force applied goes to acc. */
 static void substep(bk_sim *s, double h, const double fb[3], const double mb[3], int with_contact,
                     double acc[3])
 {
@@ -453,7 +503,7 @@ static void substep(bk_sim *s, double h, const double fb[3], const double mb[3],
     acc[2] = az;
 }
 
-/* WindField.advance */
+/* The gusts over dt: exact discretisation of dg = -g/tau dt + sigma sqrt(2/tau) dW. */
 static void wind_advance(bk_sim *s, double dt)
 {
     if (s->wind_std == 0.0)
@@ -481,20 +531,71 @@ size_t bk_sim_size(void)
     return sizeof(bk_sim);
 }
 
-size_t bk_sim_offset(int index)
+void bk_init(bk_sim *s)
 {
-    static const size_t offsets[] = {
-        offsetof(bk_sim, t), offsetof(bk_sim, om_dot), offsetof(bk_sim, thrust_scale),
-        offsetof(bk_sim, resting), offsetof(bk_sim, reading_gen), offsetof(bk_sim, dt),
-        offsetof(bk_sim, m), offsetof(bk_sim, rotors), offsetof(bk_sim, motor_tau),
-        offsetof(bk_sim, inflow), offsetof(bk_sim, home_lon), offsetof(bk_sim, wind_base),
-        offsetof(bk_sim, ideal), offsetof(bk_sim, gyro_std), offsetof(bk_sim, gps_drift),
-        offsetof(bk_sim, wind_rng), offsetof(bk_sim, rng), offsetof(bk_sim, gps_rng),
-        offsetof(bk_sim, reading),
-    };
-    if (index < 0 || (size_t)index >= sizeof offsets / sizeof offsets[0])
-        return (size_t)-1;
-    return offsets[index];
+    double mass = s->mass_kg;
+    s->m = mass;
+    s->inv_m = 1.0 / mass;
+    memcpy(s->j, s->inertia_kg_m2, sizeof s->j);
+    s->g = s->gravity_m_s2;
+    /* Per rotor: x, y, spin sign (+1 CCW).  The hub height does not enter the model (thrust
+       is along body z, and no in-plane rotor force is modelled). */
+    for (int i = 0; i < 4; i++) {
+        s->rotors[i][0] = s->rotor_xy_frd_m[i][0];
+        s->rotors[i][1] = s->rotor_xy_frd_m[i][1];
+        s->rotors[i][2] = s->rotor_spin_ccw[i] ? 1.0 : -1.0;
+    }
+    s->kf = s->thrust_coefficient;
+    s->kq = s->torque_coefficient;
+    s->ir = s->rotor_inertia_kg_m2;
+    s->inflow = s->axial_inflow != 0;
+    s->inflow_inv_m = 1.0 / (s->blade_radius_m * s->blade_pitch_rad);
+    s->stall_ratio = s->blade_stall_rad / s->blade_pitch_rad;
+    s->drive = s->motor_p_gain_nm_s_per_rad * s->motor_command_speed_rad_s;
+    s->b_motor = s->motor_p_gain_nm_s_per_rad + s->rotor_damping_nm_s_per_rad;
+    s->damp = s->rotor_damping_nm_s_per_rad;
+    s->tau_max = s->motor_torque_limit_nm;
+    memcpy(s->lin, s->drag_linear_n_s_per_m, sizeof s->lin);
+    memcpy(s->quad, s->drag_quadratic_n_s2_per_m2, sizeof s->quad);
+    memcpy(s->box, s->contact_box_m, sizeof s->box);
+    double ax = s->box[0], ay = s->box[1], zb = s->box[2], zt = s->box[3];
+    s->k = s->contact_stiffness_n_per_m;
+    s->c = s->contact_damping_n_s_per_m;
+    s->mu = s->friction_coefficient;
+    s->reach = sqrt(ax * ax + ay * ay + pow(py_max(zb, -zt), 2.0));
+    double jx = s->j[0], jy = s->j[1], jz = s->j[2];
+    /* Fastest contact damping rate (1/s): vertical, roll and pitch modes on four corners. */
+    double c4 = 4.0 * s->c;
+    s->rate = py_max(py_max(c4 / mass, c4 * ay * ay / jx), c4 * ax * ax / jy);
+    /* Largest inverse effective mass of a corner pushed sideways (1/kg): sets the stick. */
+    s->w_t = 1.0 / mass + py_max(zb * zb / jy + ay * ay / jz, zb * zb / jx + ax * ax / jz);
+    s->dt = -1.0;
+    s->n_sub = 1;
+    s->freeze_at_rest = 1;
+}
+
+void bk_start_wind(bk_sim *s)
+{
+    double std = s->wind_std;
+    if (std != 0.0) {
+        double g0 = rng_gauss(&s->wind_rng, 0.0, std);
+        double g1 = rng_gauss(&s->wind_rng, 0.0, std);
+        double g2 = rng_gauss(&s->wind_rng, 0.0, std);
+        s->gust[0] = g0;
+        s->gust[1] = g1;
+        s->gust[2] = g2;
+    } else {
+        s->gust[0] = s->gust[1] = s->gust[2] = 0.0;
+    }
+    s->wind_dt = -1.0;
+    s->wind_decay = 0.0;
+    s->wind_kick = 0.0;
+    s->wind_on = 1;
+}
+
+double bk_lowest_corner_m(const bk_sim *sim, const double q[4])
+{
+    return lowest_corner(sim, q);
 }
 
 double bk_time_s(const bk_sim *sim)
@@ -616,9 +717,9 @@ int bk_step4(bk_sim *sim, double m1, double m2, double m3, double m4, double dt_
     return bk_step(sim, motors, dt_s);
 }
 
-/* ---- sensors.py ---- */
+/* ---- sensors ---- */
 
-/* SensorModel.corrupt (gyro, f and pressure in place). */
+/* Measured gyro, specific force and pressure from true ones (in place). */
 static void corrupt(bk_sim *s, double gyro[3], double f[3], double *pressure, double time_s)
 {
     if (s->ideal)
@@ -655,7 +756,8 @@ static void corrupt(bk_sim *s, double gyro[3], double f[3], double *pressure, do
     *pressure = *pressure + s->baro_bias + noise;
 }
 
-/* SensorModel.gps_error: (north m, east m, north m/s, east m/s). */
+/* What the GPS adds at time_s: (north m, east m, north m/s, east m/s).  The wander starts
+   anywhere in its spread, as a receiver that has been on a while. */
 static void gps_error(bk_sim *s, double time_s, double out[4])
 {
     if (!s->gps_errors) {
@@ -718,7 +820,8 @@ const bk_reading *bk_read_sensors(bk_sim *s)
     r->pressure_pa = pressure;
     memcpy(r->position_ned_m, p, sizeof r->position_ned_m);
     memcpy(r->velocity_ned_m_s, v, sizeof r->velocity_ned_m_s);
-    /* GeodeticProjection.lon_lat_alt((p0 + dn, p1 + de, p2)) */
+    /* The flat-earth projection of bfsitl.physics.frames.GeodeticProjection: the GPS's error
+       moves only its own fields (the truth, position_ned_m, stays true). */
     double north = p[0] + e[0], east = p[1] + e[1];
     r->geodetic[0] = s->home_lon + east * s->deg_per_east;
     r->geodetic[1] = s->home_lat + north * s->deg_per_north;

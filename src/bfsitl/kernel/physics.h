@@ -1,14 +1,14 @@
 /*
- * bfsitl's compiled physics: bfsitl.physics.Simulator (multirotor.py, contact.py, sensors.py,
- * wind.py and the parts of frames.py and atmosphere.py it uses) ported to C with bit-identical
- * results.  Every expression keeps the Python's operation order and parenthesisation, in
- * doubles, with the same libm functions; the random draws are CPython's Mersenne Twister and
- * random.gauss, started from the Python generators' own states.
+ * bfsitl's embedded physics: the quadrotor's rigid body, motors, rotors, drag, ground contact
+ * and rest, wind and gusts, and its sensors' errors (physics.c; the model's choices are in its
+ * opening comment).  This is the only implementation of the model: a change to it is made here.
  *
- * The Python face is bfsitl.kernel.simulator.KernelSimulator: it validates every input with
- * the reference's own code, mirrors struct bk_sim field for field in ctypes (keep the two in
- * step: it checks the size and the offsets below when it loads), and writes the constants the
- * reference computes (_cache_constants) so they are the same doubles.
+ * The Python face is bfsitl.physics.Simulator (physics/multirotor.py): it checks every input,
+ * writes the vehicle's parameters (QuadParams) and the sensor configuration into the structure
+ * below, seeds the random generators (CPython's Mersenne Twister states, so a seed gives the
+ * noise and gusts it always gave) and reads the state back.  Its ctypes mirror of these
+ * structures is bfsitl.kernel.layout; tests/unit/kernel/test_layout.py fails when the two
+ * differ in a field's name, type, length or order.
  */
 #ifndef BFSITL_KERNEL_PHYSICS_H
 #define BFSITL_KERNEL_PHYSICS_H
@@ -16,7 +16,7 @@
 #include <stddef.h>
 #include <stdint.h>
 
-/* What Simulator.read_sensors() returns, in SensorReading's order. */
+/* What the sensors report (bfsitl.physics.SensorReading's fields, in its order). */
 typedef struct bk_reading {
     double time_s;
     double gyro_frd_rad_s[3];
@@ -57,11 +57,38 @@ typedef struct bk_sim {
     int32_t n_sub;
     int32_t reading_valid;          /* the reading below is the one for now */
     uint64_t reading_gen;           /* +1 each time a reading is computed */
-    /* ---- Simulator._set_step's cache (bk_step refreshes it when dt changes) ---- */
+    int32_t freeze_at_rest;         /* 1: settle into the static-friction rest (tests: 0) */
+    int32_t padding;
+    /* ---- the vehicle (QuadParams), written by Python before bk_init ---- */
+    double mass_kg;
+    double inertia_kg_m2[3];
+    double rotor_xy_frd_m[4][2];
+    int32_t rotor_spin_ccw[4];
+    double thrust_coefficient;      /* N per (rad/s)^2 */
+    double torque_coefficient;      /* N m per (rad/s)^2 */
+    double rotor_inertia_kg_m2;
+    double motor_command_speed_rad_s;
+    double motor_p_gain_nm_s_per_rad;
+    double motor_torque_limit_nm;
+    double rotor_damping_nm_s_per_rad;
+    double motor_time_constant_s;
+    double blade_radius_m;
+    double blade_pitch_rad;
+    double blade_stall_rad;
+    int32_t axial_inflow;
+    int32_t padding2;
+    double drag_linear_n_s_per_m[3];
+    double drag_quadratic_n_s2_per_m2[3];
+    double contact_box_m[4];        /* half x, half y, bottom z, top z */
+    double contact_stiffness_n_per_m;
+    double contact_damping_n_s_per_m;
+    double friction_coefficient;
+    double gravity_m_s2;
+    /* ---- the step's cache (bk_step refreshes it when dt changes) ---- */
     double dt;
     double alpha;
     double stick;
-    /* ---- Simulator._cache_constants, copied from the reference ---- */
+    /* ---- derived from the vehicle by bk_init ---- */
     double m;
     double inv_m;
     double j[3];
@@ -85,16 +112,15 @@ typedef struct bk_sim {
     double reach;
     double rate;
     double w_t;
-    double motor_tau;               /* QuadParams.motor_time_constant_s */
     int32_t inflow;
-    int32_t wind_on;                /* 0: no WindField (still air) */
-    /* ---- GeodeticProjection and home ---- */
+    int32_t wind_on;                /* 0: still air (no wind given) */
+    /* ---- home and its flat-earth projection (bfsitl.physics.frames) ---- */
     double home_lon;
     double home_lat;
     double home_alt;
     double deg_per_east;
     double deg_per_north;
-    /* ---- WindField ---- */
+    /* ---- wind: base, gusts and their state ---- */
     double wind_base[3];
     double wind_std;
     double wind_tau;
@@ -102,11 +128,11 @@ typedef struct bk_sim {
     double wind_dt;
     double wind_decay;
     double wind_kick;
-    /* ---- SensorModel: the configuration ---- */
+    /* ---- sensor errors: the configuration (bfsitl.physics.SensorConfig) ---- */
     int32_t ideal;
     int32_t gps_errors;
-    int32_t has_gps_time;           /* SensorModel._gps_time_s is not None */
-    int32_t has_drift_origin;       /* SensorModel._drift_origin_s is not None */
+    int32_t has_gps_time;           /* the GPS error was drawn before */
+    int32_t has_drift_origin;       /* the barometer's drift has started */
     double gyro_std;
     double gyro_bias[3];
     double accel_std;
@@ -119,7 +145,7 @@ typedef struct bk_sim {
     double gps_noise_std;
     double gps_vel_std;
     double gps_offset[2];
-    /* ---- SensorModel: the state ---- */
+    /* ---- sensor errors: the state ---- */
     double gps_drift[2];
     double gps_time;
     double drift_origin;
@@ -131,9 +157,17 @@ typedef struct bk_sim {
 
 size_t bk_sim_size(void);
 
-/* Offsets of some fields, for the ctypes mirror's check: index 0.. until it returns
-   (size_t)-1. */
-size_t bk_sim_offset(int index);
+/* Work out everything the step needs from the vehicle's fields (after Python wrote them). */
+void bk_init(bk_sim *sim);
+
+/* Start the wind: the base, gust_std and gust_tau fields and the wind generator are set; this
+   draws the first gust from the gusts' stationary spread (so their statistics hold from the
+   start) and switches the wind on. */
+void bk_start_wind(bk_sim *sim);
+
+/* The largest world "down" offset of a contact-box corner from the centre of mass at the
+   attitude q (where a reset parks the vehicle, and how deep it may put it). */
+double bk_lowest_corner_m(const bk_sim *sim, const double q[4]);
 
 /* Advance dt_s with the 4 motor commands (Betaflight order M1..M4) held.  Returns 0 when it
    stepped; nonzero when the input is invalid (a non-finite motor, dt outside (0, 0.02]) and
@@ -151,12 +185,12 @@ const bk_reading *bk_read_sensors(bk_sim *sim);
 
 double bk_time_s(const bk_sim *sim);
 
-/* Simulator.reset after its checks: the pose, velocities and rotor speeds are given (q
+/* A reset after Python's checks: the pose, velocities and rotor speeds are given (q
    normalised), everything derived (touching corners, rest, specific force) is worked out. */
 void bk_reset(bk_sim *sim, const double q[4], const double p[3], const double v[3],
               const double w[3], const double om[4]);
 
-/* Simulator.hold. */
+/* Freeze the pose (a test stand) or let it go. */
 void bk_hold(bk_sim *sim, int enabled);
 
 

@@ -193,5 +193,5 @@ def fly_plan(loop: FlightLoop, plan: MissionPlan, *,
         result.extra["physics"] = {
             "answered_ratio": bridge_stats.answered_ratio, "speed": bridge_stats.speed,
             "steps": bridge_stats.steps, "lockstep": vehicle.lockstep,
-            "exchange": vehicle.backend.exchange, "step": vehicle.backend.physics_step}
+            "exchange": vehicle.backend.exchange}
     return result

@@ -144,9 +144,6 @@ class SessionConfig:
         lockstep_exchange: Lockstep: how packets pass between the physics and the firmware:
             ``"auto"`` (shared memory where the build and the machine have it, else UDP),
             ``"shm"`` or ``"udp"``.  Either gives the same flight.
-        physics_kernel: How the embedded physics steps: ``"auto"`` (the compiled kernel
-            where it helps and a C compiler builds it, else pure Python), ``"compiled"`` or
-            ``"python"``.  Either gives the same flight, bit for bit.
     """
 
     firmware: str | Path | None = None
@@ -203,10 +200,6 @@ class SessionConfig:
     #: memory where the build and the machine have it, else UDP), ``"shm"`` or ``"udp"``.
     #: Either gives the same flight (bfsitl.link.shm_exchange).
     lockstep_exchange: LockstepExchange = "auto"
-    #: How the embedded physics steps: ``"auto"`` (the compiled kernel for a lockstep run
-    #: through shared memory where a C compiler builds it, else pure Python), ``"compiled"`` or
-    #: ``"python"``.  Either gives the same flight, bit for bit (bfsitl.kernel).
-    physics_kernel: str = "auto"
 
     @classmethod
     def for_autopilot(cls, *, control_rate_hz: float = 100.0, gps_noise: bool = False,

@@ -3,9 +3,11 @@
 Nothing here knows about the firmware, the network or a flight: :class:`Simulator` steps a
 Gazebo-IRIS-equivalent quad (:data:`IRIS`) in a NED world and reports what its sensors read;
 the exchange with a SITL lives in :mod:`bfsitl.sim`, the flight above that in
-:mod:`bfsitl.mission`.  This package imports nothing of bfsitl but :mod:`bfsitl.errors`.
-Frame conventions are in :mod:`bfsitl.physics.frames`, parameters and their sources in
-:mod:`bfsitl.physics.params`, constants in :mod:`bfsitl.physics.constants`.
+:mod:`bfsitl.mission`.  The model itself is C, written once (``bfsitl/kernel/physics.c``,
+built with the machine's C compiler by :mod:`bfsitl.kernel`); this package is its typed face
+and imports nothing else of bfsitl but :mod:`bfsitl.errors`.  Frame conventions are in
+:mod:`bfsitl.physics.frames`, parameters and their sources in :mod:`bfsitl.physics.params`,
+constants in :mod:`bfsitl.physics.constants`.
 """
 
 from bfsitl.physics.atmosphere import betaflight_altitude_m, isa_pressure_pa

@@ -220,14 +220,15 @@ class GeodeticProjection:
     """The flat-earth projection of :func:`ned_to_geodetic`, with its scales computed once.
 
     The simulator converts every step; this saves the trigonometry and the GeoPoint checks.
+    Its scales (degrees per metre north and east) are what the physics' C projection uses.
     """
 
-    __slots__ = ("home", "_deg_per_north_m", "_deg_per_east_m")
+    __slots__ = ("home", "deg_per_north_m", "deg_per_east_m")
 
     def __init__(self, home: GeoPoint) -> None:
         self.home = home
-        self._deg_per_north_m = math.degrees(1.0 / EARTH_RADIUS_M)
-        self._deg_per_east_m = math.degrees(
+        self.deg_per_north_m = math.degrees(1.0 / EARTH_RADIUS_M)
+        self.deg_per_east_m = math.degrees(
             1.0 / (EARTH_RADIUS_M * math.cos(math.radians(home.lat_deg)))
         )
 
@@ -235,8 +236,8 @@ class GeodeticProjection:
         """(longitude deg, latitude deg, altitude m MSL): the order a -DUSE_GPS SITL reads."""
         home = self.home
         return (
-            home.lon_deg + position_ned_m[1] * self._deg_per_east_m,
-            home.lat_deg + position_ned_m[0] * self._deg_per_north_m,
+            home.lon_deg + position_ned_m[1] * self.deg_per_east_m,
+            home.lat_deg + position_ned_m[0] * self.deg_per_north_m,
             home.alt_m - position_ned_m[2],
         )
 

@@ -1,7 +1,7 @@
 """The virtual IMU and barometer, and how their readings become an fdm_packet.
 
 Readings are in the physics' frames (``docs/firmware-facts.md#fdm-frames``); how each firmware
-generation wants them in the fdm packet is :mod:`bfsitl.sim.fdm_encoding`'s job:
+generation wants them in the fdm packet is :mod:`bfsitl.protocol.fdm_encoding`'s job:
 
 * gyro: body rates in FRD, rad/s;
 * accelerometer: **specific force** in FRD, m/s^2 (the sum of non-gravitational forces over
@@ -12,13 +12,13 @@ generation wants them in the fdm packet is :mod:`bfsitl.sim.fdm_encoding`'s job:
   ENU m/s for the firmware's virtual GPS.
 
 Noise and bias are off by default (Gazebo's IRIS has none) and, when configured, come from a
-seeded generator so that a run is repeatable.
+seeded generator so that a run is repeatable.  This module describes the errors and the
+readings; the physics (``bfsitl/kernel/physics.c``) draws and adds them.
 """
 
 from __future__ import annotations
 
 import math
-import random
 from dataclasses import dataclass
 
 from bfsitl.physics.params import Quat, SimInputError, Vec3
@@ -140,93 +140,3 @@ class SensorReading:
     #: (longitude deg, latitude deg, altitude m MSL): the order the -DUSE_GPS SITL reads.
     geodetic: Vec3
     velocity_enu_m_s: Vec3
-
-
-#: What the GPS error adds without one.
-_NO_GPS_ERROR = (0.0, 0.0, 0.0, 0.0)
-
-
-class SensorModel:
-    """Adds the configured bias and noise to true values; ideal sensors pass them through.
-
-    The generator is seeded from the simulator's seed (a string seed is hashed with SHA-512 by
-    :mod:`random`, so the sequence does not depend on ``PYTHONHASHSEED``).
-    """
-
-    __slots__ = ("config", "_ideal", "_gps_errors", "_rng", "_gps_rng", "_gps_drift",
-                 "_gps_time_s", "_drift_origin_s")
-
-    def __init__(self, config: SensorConfig, seed: int) -> None:
-        self.config = config
-        self._ideal = config.is_ideal
-        # Read every step: the configuration's properties are worked out once.
-        self._gps_errors = config.has_gps_error
-        # The seed strings keep the module's first name (bfsitl.sim): a rename must not change
-        # the noise a seed gives, or no run would repeat across versions.
-        self._rng = random.Random(f"bfsitl.sim.sensors:{seed}")
-        # Its own generator: switching the GPS error on leaves the IMU's noise as it was.
-        self._gps_rng = random.Random(f"bfsitl.sim.sensors.gps:{seed}")
-        self._gps_drift = (0.0, 0.0)
-        self._gps_time_s: float | None = None
-        self._drift_origin_s: float | None = None
-
-    def reconfigure(self, config: SensorConfig, time_s: float) -> None:
-        """New errors from ``time_s`` on (a fault injected mid-flight); the generators go on
-        where they were, so a run stays repeatable, and a drift starts from zero then."""
-        self.config = config
-        self._ideal = config.is_ideal
-        self._gps_errors = config.has_gps_error
-        self._drift_origin_s = time_s
-
-    def gps_error(self, time_s: float) -> tuple[float, float, float, float]:
-        """(north m, east m, north m/s, east m/s) to add to the GPS at ``time_s``."""
-        if not self._gps_errors:
-            return _NO_GPS_ERROR
-        c = self.config
-        gauss = self._gps_rng.gauss
-        if c.gps_drift_std_m == 0.0:
-            self._gps_drift = (0.0, 0.0)
-        elif self._gps_time_s is None:
-            # Start anywhere in the wander's spread, as a receiver that has been on a while.
-            self._gps_drift = (gauss(0.0, c.gps_drift_std_m), gauss(0.0, c.gps_drift_std_m))
-        elif time_s > self._gps_time_s:
-            keep = math.exp(-(time_s - self._gps_time_s) / c.gps_drift_time_s)
-            kick = c.gps_drift_std_m * math.sqrt(1.0 - keep * keep)
-            self._gps_drift = (keep * self._gps_drift[0] + kick * gauss(0.0, 1.0),
-                               keep * self._gps_drift[1] + kick * gauss(0.0, 1.0))
-        self._gps_time_s = time_s
-        pn, vn = c.gps_noise_std_m, c.gps_velocity_noise_std_m_s
-        on, oe = c.gps_offset_ne_m
-        return (self._gps_drift[0] + on + (gauss(0.0, pn) if pn else 0.0),
-                self._gps_drift[1] + oe + (gauss(0.0, pn) if pn else 0.0),
-                gauss(0.0, vn) if vn else 0.0, gauss(0.0, vn) if vn else 0.0)
-
-    def corrupt(self, gyro: Vec3, specific_force: Vec3, pressure_pa: float,
-                time_s: float = 0.0) -> tuple[Vec3, Vec3, float]:
-        """Measured (gyro, specific force, pressure) from true ones at ``time_s``."""
-        if self._ideal:
-            return gyro, specific_force, pressure_pa
-        c = self.config
-        if c.baro_drift_pa_s:
-            if self._drift_origin_s is None:
-                self._drift_origin_s = time_s
-            pressure_pa += c.baro_drift_pa_s * (time_s - self._drift_origin_s)
-        gauss = self._rng.gauss
-        gs, acs, ps = c.gyro_noise_std_rad_s, c.accel_noise_std_m_s2, c.baro_noise_std_pa
-        gb, ab = c.gyro_bias_rad_s, c.accel_bias_m_s2
-        if gs > 0.0:
-            gyro = (gyro[0] + gb[0] + gauss(0.0, gs), gyro[1] + gb[1] + gauss(0.0, gs),
-                    gyro[2] + gb[2] + gauss(0.0, gs))
-        else:
-            gyro = (gyro[0] + gb[0], gyro[1] + gb[1], gyro[2] + gb[2])
-        if acs > 0.0:
-            specific_force = (
-                specific_force[0] + ab[0] + gauss(0.0, acs),
-                specific_force[1] + ab[1] + gauss(0.0, acs),
-                specific_force[2] + ab[2] + gauss(0.0, acs),
-            )
-        else:
-            specific_force = (specific_force[0] + ab[0], specific_force[1] + ab[1],
-                              specific_force[2] + ab[2])
-        pressure_pa = pressure_pa + c.baro_bias_pa + (gauss(0.0, ps) if ps > 0.0 else 0.0)
-        return gyro, specific_force, pressure_pa

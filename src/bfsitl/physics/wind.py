@@ -1,14 +1,13 @@
 """Wind: a constant air velocity plus first-order Gauss-Markov gusts per NED axis.
 
 :class:`Wind` is the description (what a user, a scenario's ``[wind]`` or a ``wind`` fault
-gives); :class:`WindField` is its state in one simulator, seeded so a run repeats.  Wind acts on
-the vehicle through body drag and rotor inflow (:mod:`bfsitl.physics.multirotor`).
+gives); the physics (``bfsitl/kernel/physics.c``) draws its gusts from the run's seed, so a run
+repeats, and acts on the vehicle through body drag and rotor inflow.
 """
 
 from __future__ import annotations
 
 import math
-import random
 from dataclasses import dataclass
 
 from bfsitl.physics.params import SimInputError, Vec3
@@ -63,36 +62,3 @@ class Wind:
         heading = math.radians(from_deg)
         return cls((-speed_m_s * math.cos(heading), -speed_m_s * math.sin(heading), 0.0),
                    gust_std_m_s)
-
-
-class WindField:
-    """Constant wind plus a first-order Gauss-Markov gust per NED axis, seeded."""
-
-    __slots__ = ("_base", "_std", "_tau", "_rng", "_gust", "_dt", "_decay", "_kick")
-
-    def __init__(self, wind: Wind, seed: int) -> None:
-        self._base = wind.velocity_ned_m_s
-        self._std = wind.gust_std_m_s
-        self._tau = wind.gust_time_constant_s
-        self._rng = random.Random(f"bfsitl.sim.wind:{seed}")
-        gauss, std = self._rng.gauss, self._std
-        # Start in the stationary distribution, so gust statistics hold from t = 0.
-        self._gust = (gauss(0.0, std), gauss(0.0, std), gauss(0.0, std)) if std else (0.0,) * 3
-        self._dt = -1.0
-        self._decay = self._kick = 0.0
-
-    def current(self) -> Vec3:
-        b, g = self._base, self._gust
-        return (b[0] + g[0], b[1] + g[1], b[2] + g[2])
-
-    def advance(self, dt_s: float) -> None:
-        """Exact discretisation of dg = -g/tau dt + sigma sqrt(2/tau) dW."""
-        if not self._std:
-            return
-        if dt_s != self._dt:
-            self._dt = dt_s
-            self._decay = math.exp(-dt_s / self._tau)
-            self._kick = self._std * math.sqrt(1.0 - self._decay * self._decay)
-        a, k, gauss, g = self._decay, self._kick, self._rng.gauss, self._gust
-        self._gust = (a * g[0] + k * gauss(0.0, 1.0), a * g[1] + k * gauss(0.0, 1.0),
-                      a * g[2] + k * gauss(0.0, 1.0))

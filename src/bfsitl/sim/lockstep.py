@@ -36,14 +36,13 @@ from typing import Protocol, TypeVar
 
 from bfsitl.errors import PacketError, SitlError, SitlExitedError
 from bfsitl.fc.rc_link import SAFE_COMMAND, RcCommand, RcFault, RcFaultState, RcLinkStats
-from bfsitl.kernel import lockstep_stepper as outcome
-from bfsitl.kernel.lockstep_stepper import KernelRun, KernelStepper
 from bfsitl.link.base import Link
 from bfsitl.link.shm_exchange import ShmExchange
 from bfsitl.physics.frames import GeoPoint
 from bfsitl.protocol.fdm_encoding import FdmEncoder
 from bfsitl.protocol.firmware_profile import DEFAULT_PROFILE, FirmwareProfile
 from bfsitl.protocol.sitl_packets import RcPacket, ServoPacket
+from bfsitl.sim import lockstep_stepper as outcome
 from bfsitl.sim.bridge import (
     FDM_PORT,
     SITL_HOST,
@@ -52,6 +51,7 @@ from bfsitl.sim.bridge import (
     SensorSource,
     bind_motor_port,
 )
+from bfsitl.sim.lockstep_stepper import KernelRun, KernelStepper
 
 T = TypeVar("T")
 
@@ -127,6 +127,7 @@ class LockstepBridge:
         sleep: Callable[[float], None] = time.sleep,
         spin_s: float = REPLY_SPIN_S,
         exchange: ShmExchange | None = None,
+        compiled_loop: bool = True,
     ) -> None:
         if not 0.0001 <= step_s <= 0.01:
             raise ValueError(f"step_s {step_s} outside 0.1..10 ms")
@@ -164,10 +165,12 @@ class LockstepBridge:
         self._exchange_s = self._physics_s = 0.0
         self._sim_start_s = 0.0
         self._wall_start_s = 0.0
-        #: The compiled loop (bfsitl.kernel), made on first use when the simulator is the
-        #: compiled one and the exchange is shared memory; None: every step in Python.
+        #: The compiled loop (bfsitl.kernel), made on first use when the exchange is shared
+        #: memory (and ``compiled_loop``: False steps every step in Python, the reference the
+        #: loop is tested against); None: every step in Python.  A stand-in simulator without
+        #: a C structure (tests) is always stepped in Python.
         self._kernel: KernelStepper | None = None
-        self._kernel_possible = hasattr(simulator, "kernel_pointer")
+        self._kernel_possible = compiled_loop and hasattr(simulator, "kernel_pointer")
 
     # -- what a session needs from any bridge ------------------------------------------------
     @property
@@ -347,7 +350,7 @@ class LockstepBridge:
 
     # -- the compiled loop -----------------------------------------------------------------
     def _kernel_stepper(self) -> KernelStepper | None:
-        """The compiled loop, when it may take the next steps: a compiled simulator, the
+        """The compiled loop, when it may take the next steps: the simulator's C structure, the
         shared-memory exchange ready, a locked SITL, and nothing that needs Python at every
         step (a callback, a pace, an RC fault whose channels follow the clock)."""
         if not self._kernel_possible or self.on_step is not None or self.speed is not None \

@@ -1,6 +1,6 @@
-"""Building the compiled kernel: a missing or failing C compiler is a KernelUnavailableError
-that says what to do (and the pure-Python step goes on without it); a build lands whole
-under its hash's name in the cache."""
+"""Building the compiled physics: a missing or failing C compiler is a KernelUnavailableError
+that says what to install, where a user meets it (a simulator, bfsitl fly, bfsitl doctor); a
+build lands whole under its hash's name in the cache."""
 
 from __future__ import annotations
 
@@ -17,9 +17,38 @@ def test_no_compiler_says_what_to_install(monkeypatch: pytest.MonkeyPatch,
                                           tmp_path: Path) -> None:
     monkeypatch.delenv("CC", raising=False)
     monkeypatch.setenv("PATH", str(tmp_path))  # nothing to run in it
-    with pytest.raises(KernelUnavailableError, match=r"no C compiler.*apt install gcc.*python"):
+    with pytest.raises(KernelUnavailableError, match=r"no C compiler.*apt-get install gcc"):
         compiler.build_kernel(tmp_path / "kernel.so")
     assert not list(tmp_path.iterdir())
+
+
+def no_compiler_anywhere(monkeypatch: pytest.MonkeyPatch, tmp_path: Path) -> None:
+    """A machine without a C compiler and without a built library in its cache."""
+    monkeypatch.delenv("CC", raising=False)
+    monkeypatch.setenv("PATH", str(tmp_path / "empty"))
+    monkeypatch.setenv("BFSITL_CACHE_DIR", str(tmp_path / "cache"))
+    monkeypatch.setattr(compiler, "_library", None)
+    monkeypatch.setattr(compiler, "_failure", None)
+
+
+def test_a_simulator_without_a_compiler_says_what_to_install(
+        monkeypatch: pytest.MonkeyPatch, tmp_path: Path) -> None:
+    from bfsitl.physics import Simulator
+
+    no_compiler_anywhere(monkeypatch, tmp_path)
+    with pytest.raises(KernelUnavailableError, match=r"apt-get install gcc"):
+        Simulator()
+
+
+def test_a_session_without_a_compiler_says_what_to_install(
+        monkeypatch: pytest.MonkeyPatch, tmp_path: Path) -> None:
+    from bfsitl.backend.factory import make_simulator
+    from bfsitl.mission.session import SessionConfig
+
+    no_compiler_anywhere(monkeypatch, tmp_path)
+    # What `bfsitl fly` and every session build first for the embedded physics.
+    with pytest.raises(KernelUnavailableError, match=r"no C compiler.*apt-get install gcc"):
+        make_simulator(SessionConfig())
 
 
 def test_a_compiler_that_fails_is_reported_with_its_words(monkeypatch: pytest.MonkeyPatch,
@@ -50,17 +79,13 @@ def test_the_sources_are_shipped_beside_the_loader() -> None:
     assert {"physics.c", "physics.h", "lockstep_loop.c"} <= names
 
 
-def test_doctor_says_whether_lockstep_runs_get_the_compiled_step(
-        monkeypatch: pytest.MonkeyPatch) -> None:
-    from bfsitl.cli.doctor import compiled_step_check
+def test_doctor_fails_without_a_compiler_and_says_what_to_install(
+        monkeypatch: pytest.MonkeyPatch, tmp_path: Path) -> None:
+    from bfsitl.cli.doctor import physics_check
 
-    def no_compiler() -> None:
-        raise KernelUnavailableError("no C compiler for the compiled kernel (looked for $CC)")
-
-    monkeypatch.setattr(compiler, "load_kernel", no_compiler)
-    finding = compiled_step_check()
-    assert finding.status == "WARN" and "no C compiler" in finding.detail
-    assert "the same in Python" in finding.detail
+    no_compiler_anywhere(monkeypatch, tmp_path)
+    finding = physics_check()
+    assert finding.status == "FAIL" and "apt-get install gcc" in finding.detail
     monkeypatch.setattr(compiler, "load_kernel", lambda: None)
-    finding = compiled_step_check()
+    finding = physics_check()
     assert finding.status == "ok" and "kernel" in finding.detail

@@ -1,5 +1,5 @@
 """The compiled lockstep loop against a stand-in FC (tests/support/shared_fake_fc.py): the
-same datagrams, motors and vehicle states as the pure-Python bridge, step for step, on both
+same datagrams, motors and vehicle states as the bridge stepping in Python, step for step, on both
 firmware generations' encodings; a late reply handed over to Python's wait; a reply for
 another packet refused; RC changes, the GPS-loss sentinel and RC faults in between."""
 
@@ -14,7 +14,7 @@ from typing import Any
 import pytest
 from support.shared_fake_fc import SharedFakeFc, assert_a_silent_fc_is_asked_about, bridge_on
 
-from bfsitl.errors import KernelUnavailableError, SitlError
+from bfsitl.errors import SitlError
 from bfsitl.fc.rc_link import RcCommand, RcFault
 from bfsitl.link.shm_exchange import ShmExchange, shm_exchange_supported
 from bfsitl.physics import Simulator
@@ -24,14 +24,6 @@ from bfsitl.physics.wind import Wind
 from bfsitl.protocol.firmware_profile import FirmwareProfile, profile_for
 from bfsitl.protocol.sitl_packets import FdmPacket
 from bfsitl.sim.lockstep import LockstepBridge, LockstepClock, LockstepRc
-
-try:
-    from bfsitl.kernel.compiler import load_kernel
-    from bfsitl.kernel.simulator import KernelSimulator
-
-    load_kernel()
-except KernelUnavailableError as exc:  # no C compiler here
-    pytest.skip(f"the compiled kernel is not available: {exc}", allow_module_level=True)
 
 pytestmark = pytest.mark.skipif(not shm_exchange_supported(),
                                 reason="the shared-memory exchange is x86-64 Linux only")
@@ -57,13 +49,13 @@ def hover_motors(data: bytes) -> tuple[float, float, float, float]:
             min(1.0, max(0.0, base - roll - pitch - yaw)))
 
 
-def fly(simulator: Simulator, tmp_path: Path, profile: FirmwareProfile, name: str
-        ) -> tuple[list[bytes], LockstepBridge, object]:
+def fly(simulator: Simulator, tmp_path: Path, profile: FirmwareProfile, name: str,
+        compiled_loop: bool) -> tuple[list[bytes], LockstepBridge, object]:
     (tmp_path / name).mkdir()
     region = ShmExchange(tmp_path / name)
     fc = SharedFakeFc(region.path, motors=hover_motors)
     try:
-        bridge = bridge_on(region, simulator, profile=profile)
+        bridge = bridge_on(region, simulator, profile=profile, compiled_loop=compiled_loop)
         rc, clock = LockstepRc(bridge), LockstepClock(bridge)
         rc.set(RcCommand(throttle_us=1300, aux_us=(1800, 1000)))
         bridge.lock()
@@ -90,13 +82,13 @@ def fly(simulator: Simulator, tmp_path: Path, profile: FirmwareProfile, name: st
 @pytest.mark.parametrize("generation", sorted(PROFILES))
 def test_the_compiled_loop_sends_and_flies_what_python_does(tmp_path: Path,
                                                             generation: str) -> None:
-    def make(kind: type) -> Simulator:
-        return kind(sensors=SensorConfig.typical_mems().with_typical_gps(),
-                    wind=Wind((2.0, -1.0, 0.0), gust_std_m_s=1.0), home=HOME, seed=7)
+    def make() -> Simulator:
+        return Simulator(sensors=SensorConfig.typical_mems().with_typical_gps(),
+                         wind=Wind((2.0, -1.0, 0.0), gust_std_m_s=1.0), home=HOME, seed=7)
 
     profile = PROFILES[generation]
-    python_sent, python_bridge, python_end = fly(make(Simulator), tmp_path, profile, "p")
-    kernel_sent, kernel_bridge, kernel_end = fly(make(KernelSimulator), tmp_path, profile, "k")
+    python_sent, python_bridge, python_end = fly(make(), tmp_path, profile, "p", False)
+    kernel_sent, kernel_bridge, kernel_end = fly(make(), tmp_path, profile, "k", True)
     assert not python_bridge.compiled and kernel_bridge.compiled
     assert len(kernel_sent) == len(python_sent) > 1500
     pairs = enumerate(zip(python_sent, kernel_sent, strict=True))
@@ -108,12 +100,12 @@ def test_the_compiled_loop_sends_and_flies_what_python_does(tmp_path: Path,
 @contextmanager
 def compiled_bridge(tmp_path: Path, **fc_options: Any) -> Iterator[
         tuple[LockstepBridge, SharedFakeFc, ShmExchange]]:
-    """A compiled simulator's bridge on a region a stand-in FC answers, locked and stepped
+    """A bridge on a region a stand-in FC answers, locked and stepped
     once (so the compiled loop has taken over); the FC and the region are closed after."""
     region = ShmExchange(tmp_path)
     fc = SharedFakeFc(region.path, **fc_options)
     try:
-        bridge = bridge_on(region, KernelSimulator(seed=1), spin_s=0.0)
+        bridge = bridge_on(region, Simulator(seed=1), spin_s=0.0)
         bridge.lock()
         bridge.step()
         assert bridge.compiled

@@ -13,7 +13,7 @@ from bfsitl.control.heading import HeadingController, heading_error_deg
 from bfsitl.errors import BfsitlError, MissionError
 from bfsitl.mission.legs import LegReference, cross_track_m, leg_stats
 from bfsitl.mission.plan import MissionPlan, Waypoint, load_mission, plan_from_dict
-from bfsitl.physics.sensors import SensorConfig, SensorModel
+from bfsitl.physics.sensors import SensorConfig
 
 SQUARE = """
 takeoff_alt_m = 2.0
@@ -163,20 +163,34 @@ def test_the_yaw_stick_asks_for_the_rate_on_the_fcs_curve():
 
 
 # -- the GPS's errors ---------------------------------------------------------------------------
+def _gps_errors(config: SensorConfig, seed: int, readings: int) -> list[tuple[float, float]]:
+    """(north m, north m/s) the GPS reports, every 10 ms, of a quad parked at home: with the
+    vehicle still, all of it is error."""
+    from bfsitl.physics import Simulator
+    from bfsitl.physics.frames import EARTH_RADIUS_M
+
+    sim = Simulator(sensors=config, seed=seed)
+    errors = []
+    for _ in range(readings):
+        sim.step((0.0, 0.0, 0.0, 0.0), 0.01)
+        reading = sim.read_sensors()
+        errors.append((math.radians(reading.geodetic[1]) * EARTH_RADIUS_M,
+                       reading.velocity_enu_m_s[1]))
+    return errors
+
+
 def test_an_exact_gps_has_no_error_and_the_typical_one_wanders_within_its_spread():
-    assert SensorModel(SensorConfig(), seed=1).gps_error(3.0) == (0.0, 0.0, 0.0, 0.0)
+    assert _gps_errors(SensorConfig(), 1, 10) == [(0.0, 0.0)] * 10
     config = SensorConfig().with_typical_gps()
     assert not config.is_ideal
-    model = SensorModel(config, seed=4)
-    errors = [model.gps_error(k * 0.01) for k in range(60_000)]  # 10 minutes at 100 Hz
+    errors = _gps_errors(config, 4, 60_000)  # 10 minutes at 100 Hz
     north = [e[0] for e in errors]
     assert 0.05 < statistics.pstdev(north) < 0.3  # about gps_drift_std_m over 20 drift times
     # Correlated: a second apart the wander has hardly moved; white noise alone would have.
     steps = [abs(north[k + 100] - north[k]) for k in range(0, len(north) - 100, 100)]
     assert statistics.mean(steps) < 0.08
-    assert statistics.pstdev([e[2] for e in errors]) == pytest.approx(0.05, rel=0.1)
-    again = SensorModel(config, seed=4)
-    assert [again.gps_error(k * 0.01) for k in range(100)] == errors[:100]  # seeded
+    assert statistics.pstdev([e[1] for e in errors]) == pytest.approx(0.05, rel=0.1)
+    assert _gps_errors(config, 4, 100) == errors[:100]  # seeded
 
 
 def test_the_gps_error_moves_the_gps_fields_only():

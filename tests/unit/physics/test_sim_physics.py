@@ -330,12 +330,10 @@ def test_a_slide_never_tips_a_box_wider_than_mu_times_its_height():
     assert sim.state.position_ned_m[1] > 5.0 and abs(roll) < 1.0
 
 
-def test_ground_spring_alone_settles_exactly_without_the_rest_freeze(monkeypatch):
+def test_ground_spring_alone_settles_exactly_without_the_rest_freeze():
     # With the rest freeze disabled, the contact springs themselves must hold still too.
-    import bfsitl.physics.contact as contact
-
-    monkeypatch.setattr(contact, "REST_VERTICAL_SPEED_M_S", 0.0)
     sim = Simulator()
+    sim._sim.freeze_at_rest = 0  # the C structure's switch (physics.h)
     sim.reset((0.0, 0.0, -0.5))
     run(sim, OFF, 3.0)
     assert not sim.at_rest and sim.on_ground

@@ -9,8 +9,10 @@ import ast
 from pathlib import Path
 
 PACKAGE = Path(__file__).resolve().parents[3] / "src" / "bfsitl"
-#: What the pure physics may import of bfsitl: itself, and the one exception tree.
-PHYSICS_MAY_IMPORT = ("bfsitl.physics", "bfsitl.errors")
+#: What the physics may import of bfsitl: itself, the one exception tree, and the model it is
+#: the face of (its C source's ctypes layout and the loader that builds it).
+PHYSICS_MAY_IMPORT = ("bfsitl.physics", "bfsitl.errors", "bfsitl.kernel.compiler",
+                      "bfsitl.kernel.layout")
 
 
 def _imports(path: Path) -> list[str]:

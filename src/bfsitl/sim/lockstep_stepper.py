@@ -4,8 +4,9 @@
 are, the encoder's settings for the firmware's generation, the totals) in a ctypes structure
 laid out as ``bk_lockstep``, and runs the loop for a :class:`~bfsitl.sim.lockstep.LockstepBridge`:
 many steps per call, so a step costs no Python at all.  The bridge decides when it may be used
-(a :class:`~bfsitl.kernel.simulator.KernelSimulator`, the shared-memory exchange, no callback
-or pace per step, no RC fault) and handles every status but "done" with its own code.
+(the shared-memory exchange, no callback or pace per step, no RC fault) and handles every
+status but "done" with its own code.  The structure and the statuses are lockstep_loop.c's:
+``tests/unit/kernel/test_layout.py`` reads them there and fails when the two differ.
 """
 
 from __future__ import annotations
@@ -14,6 +15,7 @@ import ctypes
 from dataclasses import dataclass
 from typing import TYPE_CHECKING
 
+from bfsitl.errors import KernelUnavailableError
 from bfsitl.kernel.compiler import load_kernel
 from bfsitl.physics.constants import SEA_LEVEL_PRESSURE_PA
 from bfsitl.protocol import fdm_encoding
@@ -23,7 +25,14 @@ if TYPE_CHECKING:
     from bfsitl.link.shm_exchange import ShmExchange
     from bfsitl.protocol.fdm_encoding import FdmEncoder
 
-DONE, PENDING, OUT_OF_STEP, BAD_READING, BAD_MOTORS, TOO_BIG, NO_FUTEX = range(7)
+#: Why a run of the loop stopped (lockstep_loop.c's BK_LOCKSTEP_* values).
+DONE = 0
+PENDING = 1
+OUT_OF_STEP = 2
+BAD_READING = 3
+BAD_MOTORS = 4
+TOO_BIG = 5
+NO_FUTEX = 6
 
 _D3 = ctypes.c_double * 3
 _D4 = ctypes.c_double * 4
@@ -87,7 +96,8 @@ class KernelStepper:
                  wait_s: float) -> None:
         library = load_kernel()
         if ctypes.sizeof(_Lockstep) != library.bk_lockstep_size():
-            raise RuntimeError("bk_lockstep and its ctypes mirror differ in size")
+            raise KernelUnavailableError("the compiled loop's bk_lockstep and its ctypes "
+                                         "mirror differ in size: the two were changed apart")
         self._run = library.bk_lockstep_run
         self._run.restype = ctypes.c_long
         self._run.argtypes = [ctypes.c_void_p, ctypes.c_void_p, ctypes.c_char_p,

@@ -2,8 +2,9 @@
 
 The model itself is C, in one place: ``bfsitl/kernel/physics.c`` (its opening comment gives
 each choice and where it comes from, ``docs/firmware-facts.md#iris-model``).  It is built on
-first use with the machine's C compiler, the one the firmware build needs anyway (:mod:`bfsitl.kernel.compiler`), and the
-compiled lockstep loop steps the same structure without returning to Python.
+first use with the machine's C compiler, the one the firmware build needs anyway
+(:mod:`bfsitl.kernel.compiler`), and the compiled lockstep loop steps the same structure
+without returning to Python.
 
 This module is its typed face: :class:`Simulator` checks every input and raises
 :class:`SimInputError` naming what is wrong, writes the vehicle (:class:`QuadParams`), the

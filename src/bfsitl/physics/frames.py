@@ -40,7 +40,17 @@ BETAFLIGHT_ACC_LSB_PER_M_S2 = 256.0 / STANDARD_GRAVITY_M_S2
 
 @dataclass(frozen=True, slots=True)
 class GeoPoint:
-    """A geodetic position: latitude and longitude in degrees, altitude above mean sea level."""
+    """A geodetic position: latitude and longitude in degrees, altitude above mean sea level.
+
+    Attributes:
+        lat_deg: Latitude in degrees, north positive; within +-89 (the flat-earth conversion
+            between NED metres and degrees breaks down at the poles).
+        lon_deg: Longitude in degrees, east positive; within +-180.
+        alt_m: Altitude above mean sea level in metres.
+
+    Raises:
+        SimInputError: A value is not finite or out of its range.
+    """
 
     lat_deg: float
     lon_deg: float

@@ -70,8 +70,21 @@ class Simulator:
     and barometer report at the new time.  ``seed`` makes sensor noise and gusts repeatable.
     ``kernel_pointer`` is the address of the C structure (for C code that steps it, such as
     the compiled lockstep loop): every property reads that structure, so whoever stepped it,
-    Python sees the same vehicle.  Raises :class:`~bfsitl.errors.KernelUnavailableError`
-    (saying what to install) when the physics cannot be built here.
+    Python sees the same vehicle.
+
+    Args:
+        params: The vehicle: mass, inertia, rotors, motors, drag and contact (Gazebo's IRIS
+            unless told otherwise).
+        sensors: The sensors' errors; None is exact sensors.
+        wind: The wind and its gusts; None is still air.
+        home: Where the take-off point is on the earth (the GPS and the barometer's altitude
+            are reckoned from it); None is 0 deg, 0 deg at sea level.
+        seed: Seeds the sensor noise and the gusts: the same seed gives the same flight.
+
+    Raises:
+        KernelUnavailableError: The physics cannot be built here (no C compiler); the
+            message says what to install.
+        SimInputError: A parameter the model cannot use.
     """
 
     __slots__ = ("params", "sensor_config", "wind", "home", "_seed", "_kernel", "_sim",
@@ -250,6 +263,9 @@ class Simulator:
         While held, readings report the pose and the velocities last given to :meth:`reset`
         (zero unless set), and the accelerometer reads R^T (0, 0, -g) as if a hand held the
         vehicle.  Releasing continues the dynamics from that state.
+
+        Args:
+            enabled: True holds, False releases.
         """
         self._kernel.hold(self._ptr, bool(enabled))
 
@@ -272,6 +288,21 @@ class Simulator:
         The attitude is ``quaternion_wxyz`` (FRD -> NED, normalised here) or Euler angles in
         degrees (roll right, pitch nose up, yaw from north), not both.  Time is unchanged;
         :meth:`hold` stays as it was.
+
+        Args:
+            position_ned_m: The centre of mass, metres north, east and down of home; None
+                parks it on the ground as said above.
+            quaternion_wxyz: The attitude as a quaternion from the body (FRD) to NED.
+            roll_deg: Roll, degrees, right wing down positive.
+            pitch_deg: Pitch, degrees, nose up positive.
+            yaw_deg: Heading, degrees clockwise from north.
+            velocity_ned_m_s: Velocity in NED, metres per second.
+            angular_velocity_frd_rad_s: Body rates (roll, pitch, yaw), radians per second.
+            motor_speeds_rad_s: Each rotor's speed, radians per second (M1..M4).
+
+        Raises:
+            SimInputError: Both attitudes given, a value not finite, a negative motor speed,
+                or a position that puts the vehicle into the ground.
         """
         if quaternion_wxyz is not None:
             if roll_deg or pitch_deg or yaw_deg:
@@ -304,7 +335,16 @@ class Simulator:
     # ---- the step -----------------------------------------------------------------------------
 
     def step(self, motors: Motors, dt_s: float) -> None:
-        """Advance ``dt_s`` seconds with the motor commands held (zero-order hold, as Gazebo)."""
+        """Advance ``dt_s`` seconds with the motor commands held (zero-order hold, as Gazebo).
+
+        Args:
+            motors: The four commands of a servo packet, Betaflight order M1..M4, 0 to 1
+                (clamped).
+            dt_s: Seconds to advance; positive and at most the model's longest step.
+
+        Raises:
+            SimInputError: The commands or the step are not numbers it can use.
+        """
         try:
             u1, u2, u3, u4 = motors
             refused = self._step(self._ptr, u1, u2, u3, u4, dt_s)
@@ -330,8 +370,16 @@ class Simulator:
         return (a, b, c, d)
 
     def set_motor_thrust(self, motor: int, fraction: float) -> None:
-        """Motor ``motor`` (1..4, Betaflight's numbering) gives ``fraction`` of its thrust and
-        drag torque at any speed: a damaged propeller or a weak motor."""
+        """Motor ``motor`` gives ``fraction`` of its thrust and drag torque at any speed: a
+        damaged propeller or a weak motor.
+
+        Args:
+            motor: The motor, 1 to 4 in Betaflight's numbering.
+            fraction: Its share of a healthy motor's thrust, 0 (dead) to 1 (healthy).
+
+        Raises:
+            SimInputError: No such motor, or a fraction outside 0 to 1.
+        """
         if motor not in (1, 2, 3, 4):
             raise SimInputError(f"motor {motor} does not exist: a quad has motors 1 to 4")
         if not (math.isfinite(fraction) and 0.0 <= fraction <= 1.0):
@@ -339,14 +387,22 @@ class Simulator:
         self._sim.thrust_scale[motor - 1] = float(fraction)
 
     def set_wind(self, wind: Wind | None) -> None:
-        """The wind from now on (None: still air); its gusts are drawn afresh from the run's
-        seed, so a run stays repeatable."""
+        """The wind from now on; its gusts are drawn afresh from the run's seed, so a run
+        stays repeatable.
+
+        Args:
+            wind: The wind and its gusts; None is still air.
+        """
         self.wind = wind
         self._start_wind(wind)
 
     def set_sensors(self, config: SensorConfig) -> None:
         """The sensor errors from now on (the noise generators go on where they were, and a
-        drift starts from zero now)."""
+        drift starts from zero now).
+
+        Args:
+            config: The errors to apply.
+        """
         self.sensor_config = config
         sim = self._sim
         self._write_sensor_config(config)

@@ -30,6 +30,29 @@ class SensorConfig:
 
     Standard deviations are per sample (per physics step), not densities; see
     :meth:`typical_mems` for a conversion from datasheet-style densities.
+
+    Attributes:
+        gyro_noise_std_rad_s: The gyro's white noise, radians per second, one standard
+            deviation per reading.
+        gyro_bias_rad_s: The gyro's constant bias on each body axis (forward, right, down),
+            radians per second.
+        accel_noise_std_m_s2: The accelerometer's white noise, metres per second squared.
+        accel_bias_m_s2: The accelerometer's constant bias on each body axis, metres per
+            second squared.
+        baro_noise_std_pa: The barometer's white noise, pascals.
+        baro_bias_pa: The barometer's constant bias, pascals (negative reads as higher).
+        gps_drift_std_m: The GPS position's slow wander per horizontal axis, metres (one
+            standard deviation of a first-order Gauss-Markov process).
+        gps_drift_time_s: The wander's correlation time, seconds.
+        gps_noise_std_m: The GPS position's white noise per horizontal axis, metres.
+        gps_velocity_noise_std_m_s: The GPS velocity's white noise, metres per second.
+        baro_drift_pa_s: How fast the barometer's bias grows, pascals per second, from when
+            the configuration takes effect.
+        gps_offset_ne_m: A fixed error on the GPS position, metres north and east.
+
+    Raises:
+        SimInputError: A deviation is negative, a value is not finite, or a vector has the
+            wrong length.
     """
 
     gyro_noise_std_rad_s: float = 0.0
@@ -117,6 +140,12 @@ class SensorConfig:
         (docs/firmware-facts.md#px4-iris);
         white noise per sample = density * sqrt(rate).  Baro: 3 Pa (~25 cm), a typical MEMS
         barometer's RMS noise.  No bias: Betaflight calibrates neither in SITL.
+
+        Args:
+            sample_rate_hz: Readings per second (the physics' step rate).
+
+        Returns:
+            Noise only: no bias and no GPS error.
         """
         root = math.sqrt(sample_rate_hz)
         return cls(

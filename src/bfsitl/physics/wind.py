@@ -27,6 +27,17 @@ class Wind:
     The gust of each NED axis is an exponentially correlated random process with standard
     deviation ``gust_std_m_s`` and correlation time ``gust_time_constant_s``, drawn from the
     simulator's seed, so a run is repeatable.  Wind acts through body drag and rotor inflow.
+
+    Attributes:
+        velocity_ned_m_s: The constant part: the air's velocity north, east and down, metres
+            per second (each within +-50).
+        gust_std_m_s: The gusts' standard deviation on each axis, metres per second (0 to
+            20; 0 is no gusts).
+        gust_time_constant_s: How long a gust lasts: the correlation time, seconds (0.1 to
+            60).
+
+    Raises:
+        SimInputError: A value outside its range or not finite.
     """
 
     velocity_ned_m_s: Vec3 = (0.0, 0.0, 0.0)
@@ -53,8 +64,20 @@ class Wind:
     @classmethod
     def from_direction(cls, speed_m_s: float, from_deg: float = 0.0,
                        gust_std_m_s: float = 0.0) -> Wind:
-        """A horizontal wind of ``speed_m_s`` blowing FROM ``from_deg`` (the meteorological
-        convention: 0 = from the north, so the air moves south; 90 = from the east)."""
+        """A horizontal wind blowing FROM a direction (the meteorological convention).
+
+        Args:
+            speed_m_s: The wind's speed, metres per second.
+            from_deg: Where it blows from, degrees clockwise from north: 0 is from the north
+                (the air moves south), 90 from the east.
+            gust_std_m_s: The gusts' standard deviation on each axis, metres per second.
+
+        Returns:
+            The wind, with the default gust time constant.
+
+        Raises:
+            SimInputError: A negative speed, or a value that is not finite.
+        """
         if not (math.isfinite(speed_m_s) and speed_m_s >= 0):
             raise SimInputError(f"Wind: speed must be >= 0 m/s, got {speed_m_s}")
         if not math.isfinite(from_deg):

@@ -19,9 +19,6 @@ import pytest
 
 import bfsitl
 
-#: Documented once the physics rewrite lands: src/bfsitl/physics is being rewritten, and its
-#: docstrings would be written twice.  Remove a name here when its docstring has the sections.
-AWAITING_PHYSICS_REWRITE = ("GeoPoint", "SensorConfig", "Simulator", "Wind")
 #: Plain values: nothing takes a parameter.
 CONSTANTS = ("FLY_PROFILE", "__version__")
 
@@ -92,7 +89,7 @@ def public_methods(cls: type) -> Iterator[tuple[str, Callable[..., Any]]]:
 
 
 def _documented_names() -> list[str]:
-    return sorted(set(bfsitl.__all__) - set(AWAITING_PHYSICS_REWRITE) - set(CONSTANTS))
+    return sorted(set(bfsitl.__all__) - set(CONSTANTS))
 
 
 def _problems_of_function(label: str, function: Callable[..., Any],
@@ -153,9 +150,7 @@ def test_every_parameter_of_the_public_surface_is_documented(name: str) -> None:
 
 
 def test_the_names_left_out_are_still_public() -> None:
-    """The gap stays visible: each name waiting for the physics rewrite is still exported
-    (drop it from the list when it is documented, or when it leaves the API)."""
-    assert set(AWAITING_PHYSICS_REWRITE) <= set(bfsitl.__all__)
+    """The only names left out are plain values, and they are still exported."""
     assert set(CONSTANTS) <= set(bfsitl.__all__)
 
 

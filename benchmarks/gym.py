@@ -38,6 +38,7 @@ import gymnasium.vector
 import numpy as np
 
 import bfsitl.gym  # noqa: F401  (registers the environments)
+from bfsitl.backend.options import Timing
 from bfsitl.gym.baseline import hand_policy
 from bfsitl.gym.env import DEFAULT_FIRMWARE, HoverEnv
 from bfsitl.gym.sticks import sticks_to_rc
@@ -136,7 +137,7 @@ def ray_vector(firmware: str, control_hz: float, seconds: float, count: int
 
 def wall_clock_baseline(control_hz: float, seconds: float) -> dict[str, float]:
     """The stock SITL at real time: the same loop, paced by the wall clock."""
-    config = SessionConfig.for_autopilot(control_rate_hz=control_hz, firmware=None, speed=1.0)
+    config = SessionConfig.for_autopilot(control_rate_hz=control_hz, timing=Timing(speed=1.0))
     period_s = 1.0 / control_hz
     steps = 0
     with FlightSession(config) as session:

@@ -45,7 +45,7 @@ import numpy as np
 from gymnasium import spaces
 
 from bfsitl.backend.disturbances import Disturbances
-from bfsitl.backend.factory import LOCKSTEP_EXCHANGES, LockstepExchange
+from bfsitl.backend.options import LOCKSTEP_EXCHANGES, LockstepExchange, Timing, World
 from bfsitl.control import make_controller
 from bfsitl.errors import EnvironmentConfigError, LinkError, MspError, SitlError
 from bfsitl.fc.rc_link import RcCommand
@@ -68,7 +68,7 @@ from bfsitl.gym.tasks import (
     step_reward,
 )
 from bfsitl.mission.loop import FlightLoop
-from bfsitl.mission.session import FlightSession, SessionConfig
+from bfsitl.mission.session import FcSetup, FlightSession, SessionConfig, SitlLaunch
 from bfsitl.physics.wind import Wind
 from bfsitl.sitl.core_claim import CoreClaim, claim_core
 from bfsitl.sitl.firmware import find_firmware
@@ -313,10 +313,12 @@ class FlightEnv(gymnasium.Env[np.ndarray, np.ndarray]):
     # -- parts ---------------------------------------------------------------------------------
     def _new_session(self, seed: int) -> FlightSession:
         config = SessionConfig.for_autopilot(
-            control_rate_hz=self.control_hz, firmware=self.binary.path,
-            workdir=self.workdir / "sitl", seed=seed, wind=self.wind, lockstep=True,
-            angle_mode=self.mode == "angle", lockstep_spin=self.spin,
-            lockstep_exchange=self.lockstep_exchange)
+            control_rate_hz=self.control_hz,
+            sitl=SitlLaunch(firmware=self.binary.path, workdir=self.workdir / "sitl"),
+            timing=Timing(lockstep=True, lockstep_spin=self.spin,
+                          lockstep_exchange=self.lockstep_exchange),
+            fc=FcSetup(angle_mode=self.mode == "angle"),
+            world=World(seed=seed, wind=self.wind))
         return FlightSession(config)
 
     def _prepare(self) -> None:

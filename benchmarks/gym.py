@@ -43,13 +43,13 @@ from bfsitl.gym.baseline import hand_policy
 from bfsitl.gym.env import DEFAULT_FIRMWARE, HoverEnv
 from bfsitl.gym.sticks import sticks_to_rc
 from bfsitl.link.shm_exchange import shm_exchange_supported
-from bfsitl.mission.session import FlightSession, SessionConfig
+from bfsitl.mission.session import FlightSession, SessionConfig, SitlLaunch
 
 
 def single(firmware: str, control_hz: float, seconds: float, *, spin: bool, pin: bool,
            exchange: str) -> tuple[dict[str, float], list[float]]:
-    env = HoverEnv(firmware=firmware, control_hz=control_hz, spin=spin, pin_core=pin,
-                   lockstep_exchange=exchange)
+    env = HoverEnv(sitl=SitlLaunch(firmware=firmware), control_hz=control_hz, pin_core=pin,
+                   timing=Timing(lockstep_spin=spin, lockstep_exchange=exchange))
     resets: list[float] = []
     steps, sim_s = 0, 0.0
     try:
@@ -79,10 +79,10 @@ def vector(firmware: str, control_hz: float, seconds: float, count: int, *, own:
     if own:
         envs = gymnasium.make_vec("bfsitl/Hover-v0", num_envs=count,
                                   vectorization_mode="vector_entry_point",
-                                  firmware=firmware, control_hz=control_hz)
+                                  sitl=SitlLaunch(firmware=firmware), control_hz=control_hz)
     else:
         envs = gymnasium.vector.AsyncVectorEnv(
-            [lambda: HoverEnv(firmware=firmware, control_hz=control_hz)
+            [lambda: HoverEnv(sitl=SitlLaunch(firmware=firmware), control_hz=control_hz)
              for _ in range(count)])
     return _drive(envs, count, seconds, final_info=own)
 
@@ -129,7 +129,7 @@ def ray_vector(firmware: str, control_hz: float, seconds: float, count: int
         "num_cpus": count, "include_dashboard": False, "object_store_memory": 100_000_000})
     try:
         envs = RayVectorEnv("bfsitl.gym.env:HoverEnv", count, address=cluster.address,
-                            firmware=firmware, control_hz=control_hz)
+                            sitl=SitlLaunch(firmware=firmware), control_hz=control_hz)
         return _drive(envs, count, seconds, final_info=True)
     finally:
         cluster.shutdown()

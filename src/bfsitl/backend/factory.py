@@ -1,12 +1,14 @@
-"""The one place that picks a backend: from the firmware's build record and the options.
+"""The one place that picks a backend: from the firmware's build record, the session's
+:class:`~bfsitl.backend.options.World` (the physics) and its
+:class:`~bfsitl.backend.options.Timing` (the pace and the lockstep).
 
 ===========================  ==================  =============================================
-physics                      firmware            backend
+``World.physics``            firmware            backend
 ===========================  ==================  =============================================
 ``embedded``                 stock build         :class:`RealTimeBackend` (0.05..4 x real time)
 ``embedded``                 ``--lockstep``      :class:`LockstepBackend` (any pace, max by
-                                                 default); ``lockstep=False`` flies it on the
-                                                 wall clock instead
+                                                 default); ``Timing(lockstep=False)`` flies it
+                                                 on the wall clock instead
 ``gazebo``                   stock build         :class:`GazeboBackend`
 ===========================  ==================  =============================================
 

@@ -138,7 +138,7 @@ class RunOptions:
         mcap: Write the flight as MCAP too (Foxglove's schemas, ``flight.mcap``; needs the
             foxglove extra).
         shares_cores: Other runs share this machine's cores: no busy-waiting in lockstep
-            (see ``SessionConfig.lockstep_spin``).
+            (see ``Timing.lockstep_spin``).
         session_factory: Makes the flight's vehicle from its configuration (``progress=``
             too); a fake in unit tests.  Picklable as it is, for Ray.
         controller: The autopilot's altitude controller, by name (see ``bfsitl fly
@@ -153,7 +153,7 @@ class RunOptions:
     #: Write the flight as MCAP too (Foxglove's schemas, ``flight.mcap``; the foxglove extra).
     mcap: bool = False
     #: Other runs share this machine's cores: no busy-waiting in lockstep (see
-    #: SessionConfig.lockstep_spin).
+    #: Timing.lockstep_spin).
     shares_cores: bool = False
     #: Makes the flight's vehicle from its configuration (``progress=`` too); a fake in unit
     #: tests.  Picklable as it is, for Ray.

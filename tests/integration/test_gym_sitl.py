@@ -97,7 +97,7 @@ def test_a_warm_reset_keeps_the_firmware_and_a_seeded_one_boots_it_afresh(
         lockstep_gps_46_firmware: Path, tmp_path: Path) -> None:
     from bfsitl.gym.baseline import hand_policy
 
-    env = HoverEnv(firmware=lockstep_gps_46_firmware, workdir=tmp_path / "run")
+    env = HoverEnv(sitl=SitlLaunch(firmware=lockstep_gps_46_firmware, workdir=tmp_path / "run"))
     try:
         first, _info = env.reset(seed=3)
         assert env._vehicle is not None and env._vehicle.sitl is not None

@@ -184,7 +184,8 @@ class FlightEnv(gymnasium.Env[np.ndarray, np.ndarray]):
         self.control_hz = control_hz
         self.mode = mode
         self.observation = observation
-        #: Each session's: the firmware found, the run directory below, spin as decided.
+        # What every episode's session is made from: the lockstep always on, the spin as
+        # decided above; the session's SITL takes the firmware found and the run directory.
         self.sitl = sitl
         self.timing = dataclasses.replace(timing, lockstep=True, lockstep_spin=self.spin)
         self.world = world

@@ -30,10 +30,11 @@ import sys
 import time
 from dataclasses import asdict, dataclass, field
 
+from bfsitl.backend.options import DEFAULT_BARO_NOISE_PA, Timing, World, fly_sensors
 from bfsitl.control import LandingController, make_controller
 from bfsitl.control.metrics import StepMetrics, step_response
 from bfsitl.mission import FlightRow, FlightSession, MissionPlan, SessionConfig, fly
-from bfsitl.mission.session import DEFAULT_BARO_NOISE_PA, fly_sensors
+from bfsitl.mission.session import SitlLaunch
 
 DEFAULT_CONTROLLERS = ("tutorial-pid", "cascade", "fused")
 STEADY_WINDOW_S = 5.0
@@ -57,8 +58,8 @@ def fly_once(controller_name: str, plan: MissionPlan, band_m: float, speed: floa
     controller = make_controller(controller_name, {})
     landing = LandingController(hover_from=controller)
     started = time.monotonic()
-    config = SessionConfig(speed=speed, sensors=fly_sensors(baro_noise_std_pa=baro_noise_pa),
-                           firmware=firmware)
+    config = SessionConfig(timing=Timing(speed=speed), sitl=SitlLaunch(firmware=firmware),
+                           world=World(sensors=fly_sensors(baro_noise_std_pa=baro_noise_pa)))
     with FlightSession(config, progress=_progress) as session:
         result = fly(session, plan, controller, landing=landing)
         assert session.sitl is not None

@@ -38,17 +38,18 @@ import gymnasium.vector
 import numpy as np
 
 import bfsitl.gym  # noqa: F401  (registers the environments)
+from bfsitl.backend.options import Timing
 from bfsitl.gym.baseline import hand_policy
 from bfsitl.gym.env import DEFAULT_FIRMWARE, HoverEnv
 from bfsitl.gym.sticks import sticks_to_rc
 from bfsitl.link.shm_exchange import shm_exchange_supported
-from bfsitl.mission.session import FlightSession, SessionConfig
+from bfsitl.mission.session import FlightSession, SessionConfig, SitlLaunch
 
 
 def single(firmware: str, control_hz: float, seconds: float, *, spin: bool, pin: bool,
            exchange: str) -> tuple[dict[str, float], list[float]]:
-    env = HoverEnv(firmware=firmware, control_hz=control_hz, spin=spin, pin_core=pin,
-                   lockstep_exchange=exchange)
+    env = HoverEnv(sitl=SitlLaunch(firmware=firmware), control_hz=control_hz, pin_core=pin,
+                   timing=Timing(lockstep_spin=spin, lockstep_exchange=exchange))
     resets: list[float] = []
     steps, sim_s = 0, 0.0
     try:
@@ -78,10 +79,10 @@ def vector(firmware: str, control_hz: float, seconds: float, count: int, *, own:
     if own:
         envs = gymnasium.make_vec("bfsitl/Hover-v0", num_envs=count,
                                   vectorization_mode="vector_entry_point",
-                                  firmware=firmware, control_hz=control_hz)
+                                  sitl=SitlLaunch(firmware=firmware), control_hz=control_hz)
     else:
         envs = gymnasium.vector.AsyncVectorEnv(
-            [lambda: HoverEnv(firmware=firmware, control_hz=control_hz)
+            [lambda: HoverEnv(sitl=SitlLaunch(firmware=firmware), control_hz=control_hz)
              for _ in range(count)])
     return _drive(envs, count, seconds, final_info=own)
 
@@ -128,7 +129,7 @@ def ray_vector(firmware: str, control_hz: float, seconds: float, count: int
         "num_cpus": count, "include_dashboard": False, "object_store_memory": 100_000_000})
     try:
         envs = RayVectorEnv("bfsitl.gym.env:HoverEnv", count, address=cluster.address,
-                            firmware=firmware, control_hz=control_hz)
+                            sitl=SitlLaunch(firmware=firmware), control_hz=control_hz)
         return _drive(envs, count, seconds, final_info=True)
     finally:
         cluster.shutdown()
@@ -136,7 +137,7 @@ def ray_vector(firmware: str, control_hz: float, seconds: float, count: int
 
 def wall_clock_baseline(control_hz: float, seconds: float) -> dict[str, float]:
     """The stock SITL at real time: the same loop, paced by the wall clock."""
-    config = SessionConfig.for_autopilot(control_rate_hz=control_hz, firmware=None, speed=1.0)
+    config = SessionConfig.for_autopilot(control_rate_hz=control_hz, timing=Timing(speed=1.0))
     period_s = 1.0 / control_hz
     steps = 0
     with FlightSession(config) as session:

@@ -44,11 +44,12 @@ from pathlib import Path
 
 from firmware_cache import MASTER_SOURCE, cached_firmware
 
+from bfsitl.backend.options import Timing, World
 from bfsitl.build import FirmwareBuildOptions
 from bfsitl.control import make_controller
 from bfsitl.errors import BfsitlError
 from bfsitl.link.shm_exchange import shm_exchange_supported
-from bfsitl.mission import FlightSession, MissionPlan, SessionConfig, fly
+from bfsitl.mission import FcSetup, FlightSession, MissionPlan, SessionConfig, SitlLaunch, fly
 from bfsitl.sim.health import HealthMonitor
 from bfsitl.sitl.core_claim import claim_core
 from bfsitl.sitl.firmware import find_firmware
@@ -104,8 +105,9 @@ LOCKSTEP_MODES = (("udp", False), ("shm", False), ("udp", True), ("shm", True))
 
 def fly_firmware(name: str, path: str, lockstep: bool, hold_s: float, seed: int,
                  exchange: str = "udp", one_core: bool = False) -> Flight:
-    config = SessionConfig(firmware=path, seed=seed, lockstep=lockstep,
-                           lockstep_exchange=exchange, lockstep_spin=not one_core)
+    config = SessionConfig(sitl=SitlLaunch(firmware=path), world=World(seed=seed),
+                           timing=Timing(lockstep=lockstep, lockstep_exchange=exchange,
+                                         lockstep_spin=not one_core))
     claim = claim_core() if one_core else None  # the SITL started below inherits it
     started_s = time.perf_counter()
     try:
@@ -167,8 +169,9 @@ class Idle:
 def idle(name: str, path: str, seconds: float, exchange: str, one_core: bool) -> Idle:
     """Step ``seconds`` of simulated time with nothing else going on: what the exchange, the
     firmware's passes and the physics cost per step, in each mode."""
-    config = SessionConfig(firmware=path, lockstep=True, lockstep_exchange=exchange,
-                           lockstep_spin=not one_core)
+    config = SessionConfig(sitl=SitlLaunch(firmware=path),
+                           timing=Timing(lockstep=True, lockstep_exchange=exchange,
+                                         lockstep_spin=not one_core))
     claim = claim_core() if one_core else None
     try:
         with FlightSession(config) as session:
@@ -206,8 +209,9 @@ def starts(path: str, count: int, busy: int) -> tuple[int, list[str], float]:
     try:
         for index in range(count):
             try:
-                with FlightSession(SessionConfig(firmware=path, profile=None, lockstep=True)) \
-                        as session:
+                config = SessionConfig(sitl=SitlLaunch(firmware=path), fc=FcSetup(profile=None),
+                                       timing=Timing(lockstep=True))
+                with FlightSession(config) as session:
                     session.client.status()
             except BfsitlError as exc:
                 failures.append(f"start {index + 1}: {str(exc).splitlines()[0]}")

@@ -38,6 +38,7 @@ from dataclasses import dataclass, field
 
 from firmware_cache import MASTER_SOURCE, cached_firmware
 
+from bfsitl.backend.options import World, fly_sensors
 from bfsitl.build import FirmwareBuildOptions
 from bfsitl.control import make_controller
 from bfsitl.fc.provisioning import ANGLE_ON_AUX2, ARM_ON_AUX1, Profile
@@ -45,7 +46,13 @@ from bfsitl.mission import FlightLoop, FlightSession, SessionConfig
 from bfsitl.mission.flight_metrics import cross_track_rms, landed_from_start_m
 from bfsitl.mission.plan import MissionPlan, Waypoint
 from bfsitl.mission.plan_driver import fly_steps
-from bfsitl.mission.session import FAST_SERIAL_LINE, FLY_PROFILE, fly_sensors, with_fast_serial
+from bfsitl.mission.session import (
+    FAST_SERIAL_LINE,
+    FLY_PROFILE,
+    FcSetup,
+    SitlLaunch,
+    with_fast_serial,
+)
 from bfsitl.physics.wind import Wind
 from bfsitl.protocol import messages as msg
 from bfsitl.protocol.boxes import BoxId
@@ -91,9 +98,10 @@ FIRMWARE_POSHOLD = {"master-lockstep": True, "4.6.0-gps-lockstep": False}
 
 def session_for(path: str, seed: int, wind: Wind | None,
                 profile: Profile | None = None, gps_noise: bool = True) -> FlightSession:
-    sensors = fly_sensors().with_typical_gps() if gps_noise else fly_sensors()
-    return FlightSession(SessionConfig(firmware=path, seed=seed, wind=wind, sensors=sensors,
-                                       profile=profile or with_fast_serial(FLY_PROFILE)))
+    return FlightSession(SessionConfig(
+        sitl=SitlLaunch(firmware=path),
+        world=World(seed=seed, wind=wind, sensors=fly_sensors(gps_noise=gps_noise)),
+        fc=FcSetup(profile=profile or with_fast_serial(FLY_PROFILE))))
 
 
 def hold_profile(name: str, hover_us: float | None = None) -> Profile:

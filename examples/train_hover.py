@@ -35,6 +35,7 @@ import bfsitl.gym  # noqa: F401  (registers the environments)
 from bfsitl.gym.baseline import hand_policy
 from bfsitl.gym.env import DEFAULT_FIRMWARE, HoverEnv
 from bfsitl.gym.recording import EpisodeRecorder
+from bfsitl.mission.session import SitlLaunch
 
 #: The evaluation's verdict: the distance to the target over its last seconds.
 HOLD_WINDOW_S = 10.0
@@ -50,9 +51,10 @@ def make_env(firmware: str, control_hz: float, rank: int, out: Path) -> Callable
 
         # In a SubprocVecEnv worker each environment claims a core of its own for itself and
         # its SITL (HoverEnv's pin_core): the workers do not take each other's time.
-        return Monitor(HoverEnv(firmware=firmware, control_hz=control_hz,
-                                max_episode_steps=round(TRAINING_EPISODE_S * control_hz),
-                                workdir=out / "sitl" / f"env{rank}"))
+        return Monitor(HoverEnv(sitl=SitlLaunch(firmware=firmware,
+                                                workdir=out / "sitl" / f"env{rank}"),
+                                control_hz=control_hz,
+                                max_episode_steps=round(TRAINING_EPISODE_S * control_hz)))
 
     return make
 
@@ -159,7 +161,7 @@ def fly(policy: Callable[[np.ndarray], np.ndarray], firmware: str, control_hz: f
         seconds: float, workdir: Path, recorder: EpisodeRecorder | None = None
         ) -> dict[str, object]:
     """One evaluation flight; the distances over its last HOLD_WINDOW_S seconds."""
-    env = HoverEnv(firmware=firmware, control_hz=control_hz, workdir=workdir,
+    env = HoverEnv(sitl=SitlLaunch(firmware=firmware, workdir=workdir), control_hz=control_hz,
                    max_episode_steps=round(seconds * control_hz))
     try:
         observation, info = env.reset(seed=seed)
@@ -229,8 +231,9 @@ def main() -> int:
     from stable_baselines3.common.vec_env import DummyVecEnv, VecNormalize
 
     scaling = VecNormalize.load(str(policy_dir / "vecnormalize.pkl"),
-                                DummyVecEnv([lambda: HoverEnv(firmware=args.firmware,
-                                                              control_hz=args.control_hz)]))
+                                DummyVecEnv([lambda: HoverEnv(
+                                    sitl=SitlLaunch(firmware=args.firmware),
+                                    control_hz=args.control_hz)]))
     scaling.training = False
     scaling.venv.close()
 

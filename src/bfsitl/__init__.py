@@ -26,6 +26,11 @@ _EXPORTS: dict[str, str] = {
     # flights
     "FlightSession": "bfsitl.mission.session",
     "SessionConfig": "bfsitl.mission.session",
+    "SitlLaunch": "bfsitl.mission.session",
+    "Timing": "bfsitl.backend.options",
+    "FcSetup": "bfsitl.mission.session",
+    "World": "bfsitl.backend.options",
+    "ConfiguratorBridge": "bfsitl.mission.session",
     "FLY_PROFILE": "bfsitl.mission.session",
     "FlightLoop": "bfsitl.mission.loop",
     "MissionPlan": "bfsitl.mission.plan",
@@ -66,10 +71,11 @@ _EXPORTS: dict[str, str] = {
 }
 
 __all__ = [
-    "Autopilot", "BfsitlError", "BoardVehicle", "CliSession", "FLY_PROFILE", "FirmwareBinary",
-    "FlightLoop", "FlightSession", "GeoPoint", "MissionPlan", "MissionResult", "MspClient",
-    "Outcome", "Profile", "RcFault", "RunOptions", "Scenario", "ScenarioResult",
-    "SensorConfig", "SessionConfig", "Simulator", "SitlProcess", "Vehicle", "Waypoint", "Wind",
+    "Autopilot", "BfsitlError", "BoardVehicle", "CliSession", "ConfiguratorBridge",
+    "FLY_PROFILE", "FcSetup", "FirmwareBinary", "FlightLoop", "FlightSession", "GeoPoint",
+    "MissionPlan", "MissionResult", "MspClient", "Outcome", "Profile", "RcFault", "RunOptions",
+    "Scenario", "ScenarioResult", "SensorConfig", "SessionConfig", "Simulator", "SitlLaunch",
+    "SitlProcess", "Timing", "Vehicle", "Waypoint", "Wind", "World",
     "__version__", "connect", "decode_blackbox", "find_firmware", "fly", "launch_sitl",
     "load_mission", "load_scenario", "make_controller", "open_link", "provision",
     "run_scenario",
@@ -91,6 +97,7 @@ def __dir__() -> list[str]:
 
 if TYPE_CHECKING:  # what type checkers and IDEs see; nothing is imported at run time
     from bfsitl.autopilot import Autopilot, connect, launch_sitl
+    from bfsitl.backend.options import Timing, World
     from bfsitl.blackbox import decode_blackbox
     from bfsitl.control import make_controller
     from bfsitl.fc.cli_session import CliSession
@@ -103,7 +110,14 @@ if TYPE_CHECKING:  # what type checkers and IDEs see; nothing is imported at run
     from bfsitl.mission.plan import MissionPlan, Waypoint, load_mission
     from bfsitl.mission.plan_driver import fly
     from bfsitl.mission.results import MissionResult, Outcome
-    from bfsitl.mission.session import FLY_PROFILE, FlightSession, SessionConfig
+    from bfsitl.mission.session import (
+        FLY_PROFILE,
+        ConfiguratorBridge,
+        FcSetup,
+        FlightSession,
+        SessionConfig,
+        SitlLaunch,
+    )
     from bfsitl.mission.vehicle import Vehicle
     from bfsitl.physics import GeoPoint, SensorConfig, Simulator
     from bfsitl.physics.wind import Wind

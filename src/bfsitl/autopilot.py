@@ -29,6 +29,7 @@ from collections.abc import Callable
 from dataclasses import replace
 from pathlib import Path
 
+from bfsitl.backend.options import Timing, World, fly_sensors
 from bfsitl.control import DEFAULT_CONTROLLER, make_controller
 from bfsitl.control.base import AltitudeController
 from bfsitl.control.horizontal_estimator import HorizontalEstimator
@@ -42,11 +43,7 @@ from bfsitl.mission.phase import Phase
 from bfsitl.mission.plan import MissionPlan
 from bfsitl.mission.plan_driver import fly_plan
 from bfsitl.mission.results import MissionResult
-from bfsitl.mission.session import (
-    FLY_PROFILE,
-    FlightSession,
-    SessionConfig,
-)
+from bfsitl.mission.session import FLY_PROFILE, FlightSession, SessionConfig, SitlLaunch
 from bfsitl.mission.vehicle import Vehicle
 from bfsitl.physics.wind import Wind
 from bfsitl.records.outputs import FlightOutputs, OutputOptions
@@ -88,8 +85,10 @@ def launch_sitl(firmware: str | Path | None = None, *, physics: str = "embedded"
         BfsitlError: Anything else bfsitl refuses (a speed out of range, a missing extra).
     """
     config = SessionConfig.for_autopilot(
-        control_rate_hz=FlightSession.control_rate_hz, gps_noise=gps_noise, firmware=firmware,
-        physics=physics, wind=wind, speed=speed, seed=seed, workdir=workdir)
+        control_rate_hz=FlightSession.control_rate_hz,
+        sitl=SitlLaunch(firmware=firmware, workdir=workdir), timing=Timing(speed=speed),
+        world=World(physics=physics, wind=wind, seed=seed,
+                    sensors=fly_sensors(gps_noise=gps_noise)))
     return FlightSession(config, progress=progress).start()
 
 

@@ -14,7 +14,16 @@ from collections.abc import Iterator
 
 import pytest
 
-from bfsitl import Autopilot, FlightSession, SessionConfig, connect
+from bfsitl import (
+    Autopilot,
+    FcSetup,
+    FlightSession,
+    SessionConfig,
+    SitlLaunch,
+    Timing,
+    World,
+    connect,
+)
 from bfsitl.bridges.pty_relay import PtyEndpoint, PtyRelay
 from bfsitl.cli.bridge_commands import sitl_upstream
 from bfsitl.errors import BoardSetupError
@@ -30,8 +39,9 @@ SPEED = 1.0
 
 @pytest.fixture
 def board(gps_firmware, tmp_path) -> Iterator[tuple[FlightSession, PtyEndpoint]]:
-    config = SessionConfig(firmware=gps_firmware, workdir=tmp_path / "run", rc_link=False,
-                           speed=SPEED, profile=with_fast_serial(FLY_PROFILE), seed=5)
+    config = SessionConfig(sitl=SitlLaunch(firmware=gps_firmware, workdir=tmp_path / "run"),
+                           timing=Timing(speed=SPEED), world=World(seed=5),
+                           fc=FcSetup(profile=with_fast_serial(FLY_PROFILE), rc_link=False))
     with FlightSession(config) as simulated:
         assert simulated.sitl is not None and simulated.sitl.client is not None
         # UART1 serves one client: the bridge takes it from here on.

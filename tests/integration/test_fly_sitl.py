@@ -157,9 +157,9 @@ def test_interrupt_leaves_no_process_a_complete_log_and_rc_at_disarm(lockstep_46
 def test_scripted_mission_from_python_goes_to_a_second_altitude(lockstep_46_firmware,
                                                                 tmp_path):
     from bfsitl.control import make_controller
-    from bfsitl.mission import FlightLoop, FlightSession, SessionConfig
+    from bfsitl.mission import FlightLoop, FlightSession, SessionConfig, SitlLaunch
 
-    config = SessionConfig(firmware=lockstep_46_firmware, workdir=tmp_path / "run")
+    config = SessionConfig(sitl=SitlLaunch(firmware=lockstep_46_firmware, workdir=tmp_path / "run"))
     with FlightSession(config) as s:
         loop = FlightLoop(s, make_controller("cascade"))
         loop.arm()

@@ -31,7 +31,7 @@ import pytest
 
 from bfsitl.control import make_controller
 from bfsitl.fc.cli_session import CliSession
-from bfsitl.mission import FlightLoop, FlightSession, SessionConfig
+from bfsitl.mission import FlightLoop, FlightSession, SessionConfig, SitlLaunch
 from bfsitl.physics import GeoPoint, Simulator
 from bfsitl.physics.frames import betaflight_attitude_deg, quat_from_euler_deg
 from bfsitl.protocol import messages as msg
@@ -98,7 +98,7 @@ def test_a_held_vehicle_reads_the_same_attitude_on_the_fc(generation_firmware, t
 def test_stick_steps_move_the_truth_the_right_way_and_the_fc_agrees(lockstep_firmware,
                                                                     tmp_path):
     """Roll right, pitch forward and yaw right in ANGLE mode, each for 1.5 s in a hover."""
-    config = SessionConfig(firmware=lockstep_firmware, workdir=tmp_path / "run")
+    config = SessionConfig(sitl=SitlLaunch(firmware=lockstep_firmware, workdir=tmp_path / "run"))
     with FlightSession(config) as session:
         estimated = session.sitl.profile.fdm.attitude_estimated
         loop = FlightLoop(session, make_controller("fused", {}))

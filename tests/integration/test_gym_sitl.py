@@ -20,7 +20,10 @@ import pytest
 gymnasium = pytest.importorskip("gymnasium")
 
 import bfsitl.gym  # noqa: E402, F401  (registers the environments)
+from bfsitl.backend.options import World  # noqa: E402
 from bfsitl.gym.env import HoverEnv  # noqa: E402
+from bfsitl.mission.session import SitlLaunch  # noqa: E402
+from bfsitl.physics.wind import Wind  # noqa: E402
 
 pytestmark = pytest.mark.sitl
 
@@ -47,8 +50,8 @@ def test_gymnasiums_checker_passes_for_every_registered_environment(
     from gymnasium.utils.env_checker import check_env
 
     for number, env_id in enumerate(bfsitl.gym.ENVIRONMENTS):
-        env = gymnasium.make(env_id, firmware=lockstep_gps_46_firmware,
-                             workdir=tmp_path / str(number))
+        env = gymnasium.make(env_id, sitl=SitlLaunch(firmware=lockstep_gps_46_firmware,
+                                                     workdir=tmp_path / str(number)))
         try:
             check_env(env.unwrapped, skip_render_check=True)
         finally:
@@ -60,7 +63,7 @@ def rollout(firmware: Path, workdir: Path, seed: int, steps: int = 500
             ) -> tuple[np.ndarray, np.ndarray, int]:
     """Observations and rewards of ``steps`` steps of the same action sequence; an episode
     that ends is reset (without a seed: the environment's generator goes on)."""
-    env = HoverEnv(firmware=firmware, workdir=workdir)
+    env = HoverEnv(sitl=SitlLaunch(firmware=firmware, workdir=workdir))
     actions = np.random.default_rng(99).uniform(-0.25, 0.25, size=(steps, 4)).astype(np.float32)
     actions[:, 2] += 0.12  # about the hover throttle: the episodes last
     try:
@@ -94,7 +97,7 @@ def test_a_warm_reset_keeps_the_firmware_and_a_seeded_one_boots_it_afresh(
         lockstep_gps_46_firmware: Path, tmp_path: Path) -> None:
     from bfsitl.gym.baseline import hand_policy
 
-    env = HoverEnv(firmware=lockstep_gps_46_firmware, workdir=tmp_path / "run")
+    env = HoverEnv(sitl=SitlLaunch(firmware=lockstep_gps_46_firmware, workdir=tmp_path / "run"))
     try:
         first, _info = env.reset(seed=3)
         assert env._vehicle is not None and env._vehicle.sitl is not None
@@ -126,8 +129,8 @@ def test_what_the_fc_reports_follows_the_truth_in_wind_and_stick_steps(
         lockstep_gps_46_firmware: Path, tmp_path: Path) -> None:
     """Roll right, pitch forward, yaw right, in a 3 m/s wind from the east: the FC's attitude,
     gyro, climb and GPS in the observation against the same slots filled from the truth."""
-    env = HoverEnv(firmware=lockstep_gps_46_firmware, workdir=tmp_path / "run", wind=3.0,
-                   wind_from_deg=90.0, max_episode_steps=6000)
+    env = HoverEnv(sitl=SitlLaunch(firmware=lockstep_gps_46_firmware, workdir=tmp_path / "run"),
+                   world=World(wind=Wind.from_direction(3.0, 90.0)), max_episode_steps=6000)
     try:
         _obs, info = env.reset(seed=2)
         hover = 0.12
@@ -181,8 +184,8 @@ def test_a_vector_of_environments_runs_side_by_side_and_leaves_nothing(
     from gymnasium.vector import AsyncVectorEnv
 
     def make(number: int):  # type: ignore[no-untyped-def]
-        return lambda: HoverEnv(firmware=lockstep_gps_46_firmware,
-                                workdir=tmp_path / f"env{number}")
+        return lambda: HoverEnv(sitl=SitlLaunch(firmware=lockstep_gps_46_firmware,
+                                                workdir=tmp_path / f"env{number}"))
 
     envs = AsyncVectorEnv([make(0), make(1)])
     try:
@@ -228,10 +231,11 @@ def test_bfsitls_own_vector_environment_pins_each_firmware_and_flies_as_one_alon
         lockstep_gps_46_firmware: Path, tmp_path: Path) -> None:
     envs = gymnasium.make_vec("bfsitl/Hover-v0", num_envs=2,
                               vectorization_mode="vector_entry_point",
-                              firmware=lockstep_gps_46_firmware, max_episode_steps=50,
-                              workdir=tmp_path / "vector")
-    single = HoverEnv(firmware=lockstep_gps_46_firmware, max_episode_steps=50,
-                      workdir=tmp_path / "single")
+                              sitl=SitlLaunch(firmware=lockstep_gps_46_firmware,
+                                              workdir=tmp_path / "vector"),
+                              max_episode_steps=50)
+    single = HoverEnv(sitl=SitlLaunch(firmware=lockstep_gps_46_firmware,
+                                      workdir=tmp_path / "single"), max_episode_steps=50)
     try:
         def pinned_a_core_each() -> None:
             pinned = [os.sched_getaffinity(pid)
@@ -253,12 +257,15 @@ import os, sys, numpy as np
 from gymnasium.vector import AsyncVectorEnv
 from bfsitl.gym.env import HoverEnv
 from bfsitl.gym.vector import FlightVectorEnv
+from bfsitl.mission.session import SitlLaunch
 firmware, folder, kind = sys.argv[1], sys.argv[2], sys.argv[3]
 if kind == "async":
-    envs = AsyncVectorEnv([lambda n=n: HoverEnv(firmware=firmware, workdir=f"{folder}/env{n}")
+    envs = AsyncVectorEnv([lambda n=n: HoverEnv(sitl=SitlLaunch(firmware=firmware,
+                                                                workdir=f"{folder}/env{n}"))
                            for n in range(2)])
 else:
-    envs = FlightVectorEnv("bfsitl.gym.env:HoverEnv", 2, firmware=firmware, workdir=folder)
+    envs = FlightVectorEnv("bfsitl.gym.env:HoverEnv", 2,
+                           sitl=SitlLaunch(firmware=firmware, workdir=folder))
 envs.reset(seed=0)
 envs.step(np.zeros((2, 4), dtype=np.float32))
 print("flying", flush=True)
@@ -283,7 +290,7 @@ def test_a_crashed_parent_leaves_no_firmware_running(lockstep_gps_46_firmware: P
 def test_step_before_reset_says_to_reset(lockstep_gps_46_firmware: Path) -> None:
     from bfsitl.errors import EnvironmentConfigError
 
-    env = HoverEnv(firmware=lockstep_gps_46_firmware)
+    env = HoverEnv(sitl=SitlLaunch(firmware=lockstep_gps_46_firmware))
     try:
         with pytest.raises(EnvironmentConfigError, match=r"call env.reset\(\) first"):
             env.step(np.zeros(4, dtype=np.float32))
@@ -311,8 +318,8 @@ def test_environments_as_ray_actors_fly_as_one_alone_and_leave_nothing(
     cluster = Cluster(initialize_head=True, head_node_args={
         "num_cpus": 0, "include_dashboard": False, "object_store_memory": 100_000_000})
     caches = [tmp_path / f"node{index}-cache" for index in range(2)]
-    single = HoverEnv(firmware=lockstep_gps_46_firmware, max_episode_steps=50,
-                      workdir=tmp_path / "single")
+    single = HoverEnv(sitl=SitlLaunch(firmware=lockstep_gps_46_firmware,
+                                      workdir=tmp_path / "single"), max_episode_steps=50)
     envs = None
     try:
         for cache in caches:
@@ -320,7 +327,8 @@ def test_environments_as_ray_actors_fly_as_one_alone_and_leave_nothing(
                              env_vars={"BFSITL_CACHE_DIR": str(cache)})
         cluster.wait_for_nodes()
         envs = RayVectorEnv("bfsitl.gym.env:HoverEnv", 2, address=cluster.address,
-                            firmware=str(lockstep_gps_46_firmware), max_episode_steps=50)
+                            sitl=SitlLaunch(firmware=str(lockstep_gps_46_firmware)),
+                            max_episode_steps=50)
         assert all(list(cache.glob("received/*/*_SITL")) for cache in caches)
         env0_flies_as_alone(envs, single)
     finally:

@@ -20,6 +20,7 @@ from pathlib import Path
 
 import pytest
 
+from bfsitl.backend.options import World
 from bfsitl.build.binary_scan import binary_traits
 from bfsitl.cli.target import LOCKSTEP_FREE_RUN_NOTE
 from bfsitl.fc.cli_session import CliSession
@@ -27,7 +28,14 @@ from bfsitl.fc.provisioning import Profile
 from bfsitl.fc.rc_link import RC_MID_US
 from bfsitl.link.shm_exchange import shm_exchange_supported
 from bfsitl.mission.loop import FlightLoop
-from bfsitl.mission.session import FLY_PROFILE, FlightSession, SessionConfig, with_fast_serial
+from bfsitl.mission.session import (
+    FLY_PROFILE,
+    FcSetup,
+    FlightSession,
+    SessionConfig,
+    SitlLaunch,
+    with_fast_serial,
+)
 from bfsitl.physics.wind import Wind
 from bfsitl.sitl.process import SitlProcess
 
@@ -88,8 +96,8 @@ def test_the_same_seed_flies_the_same_flight_and_another_seed_does_not(
 def test_a_disturbed_lockstep_flight_keeps_the_fc_on_the_truth(
         lockstep_firmware: Path, tmp_path: Path) -> None:
     """Wind from the north and stick steps: FC attitude vs the simulated truth, and signs."""
-    config = SessionConfig(firmware=lockstep_firmware, workdir=tmp_path / "run",
-                           wind=Wind.from_direction(2.0, 0.0, 0.5), seed=3)
+    config = SessionConfig(sitl=SitlLaunch(firmware=lockstep_firmware, workdir=tmp_path / "run"),
+                           world=World(wind=Wind.from_direction(2.0, 0.0, 0.5), seed=3))
     from bfsitl.control import make_controller
 
     with FlightSession(config) as session:
@@ -124,7 +132,8 @@ def control_steps_per_s(lockstep_firmware: Path, workdir: Path, profile: Profile
     """Steps per second of simulation time of a 200 Hz control loop holding 2 m for 2 s."""
     from bfsitl.control import make_controller
 
-    config = SessionConfig(firmware=lockstep_firmware, workdir=workdir, profile=profile)
+    config = SessionConfig(sitl=SitlLaunch(firmware=lockstep_firmware, workdir=workdir),
+                           fc=FcSetup(profile=profile))
     with FlightSession(config) as session:
         loop = FlightLoop(session, make_controller("fused"), rate_hz=200.0)
         loop.arm()
@@ -148,7 +157,8 @@ def test_the_fast_serial_task_lifts_the_control_loop_past_100_hz(
 @pytest.mark.timeout(200)
 def test_cli_works_while_stepping_and_a_save_relocks_the_new_process(
         lockstep_firmware: Path, tmp_path: Path) -> None:
-    config = SessionConfig(firmware=lockstep_firmware, workdir=tmp_path / "run", profile=None)
+    config = SessionConfig(sitl=SitlLaunch(firmware=lockstep_firmware, workdir=tmp_path / "run"),
+                           fc=FcSetup(profile=None))
     with FlightSession(config) as session:
         sitl = session.sitl
         assert sitl is not None

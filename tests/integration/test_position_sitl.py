@@ -13,7 +13,15 @@ from pathlib import Path
 
 import pytest
 
-from bfsitl import FlightLoop, FlightSession, SessionConfig, make_controller
+from bfsitl import (
+    FcSetup,
+    FlightLoop,
+    FlightSession,
+    SessionConfig,
+    SitlLaunch,
+    World,
+    make_controller,
+)
 from bfsitl.errors import MissionError
 from bfsitl.mission.session import FLY_PROFILE, with_fast_serial
 from bfsitl.physics.wind import Wind
@@ -30,8 +38,9 @@ def gps_lockstep_firmware(request: pytest.FixtureRequest) -> Path:
 
 def position_session(firmware: Path, tmp_path: Path, wind: Wind | None = None,
                      seed: int = 1) -> FlightSession:
-    return FlightSession(SessionConfig(firmware=firmware, workdir=tmp_path / "run", seed=seed,
-                                       wind=wind, profile=with_fast_serial(FLY_PROFILE)))
+    return FlightSession(SessionConfig(sitl=SitlLaunch(firmware=firmware, workdir=tmp_path / "run"),
+                                       world=World(seed=seed, wind=wind),
+                                       fc=FcSetup(profile=with_fast_serial(FLY_PROFILE))))
 
 
 def test_legs_north_and_east_end_where_they_should(gps_lockstep_firmware, tmp_path):

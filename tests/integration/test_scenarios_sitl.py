@@ -29,7 +29,14 @@ from bfsitl.build import FirmwareCache
 from bfsitl.cli.doctor import stale_sitl_processes
 from bfsitl.fc.rc_link import RcFault
 from bfsitl.library import scenarios_dir
-from bfsitl.mission.session import FLY_PROFILE, FlightSession, SessionConfig, with_fast_serial
+from bfsitl.mission.session import (
+    FLY_PROFILE,
+    FcSetup,
+    FlightSession,
+    SessionConfig,
+    SitlLaunch,
+    with_fast_serial,
+)
 from bfsitl.protocol import messages as msg
 from bfsitl.scenario.load import find_scenarios
 
@@ -163,8 +170,8 @@ def test_faults_reach_the_fc_where_they_should(
     glitch moves the FC's GPS and not the truth (right axis and sign); a delayed RC command
     arrives that much later; RC silence is a lost link on master and nothing on 4.6.0."""
     firmware = request.getfixturevalue(FIXTURE_OF[build])
-    config = SessionConfig(firmware=firmware, workdir=tmp_path / "sitl",
-                           profile=with_fast_serial(FLY_PROFILE))
+    config = SessionConfig(sitl=SitlLaunch(firmware=firmware, workdir=tmp_path / "sitl"),
+                           fc=FcSetup(profile=with_fast_serial(FLY_PROFILE)))
     with FlightSession(config) as vehicle:
         pilot = Autopilot(vehicle)
         pilot.takeoff(3.0)

@@ -11,13 +11,15 @@ import gymnasium
 import numpy as np
 from gymnasium import spaces
 
+from bfsitl.backend.options import Timing
 from bfsitl.gym.observation import observation_space
 
 
 class FakeFlightEnv(gymnasium.Env[np.ndarray, np.ndarray]):
     def __init__(self, *, max_episode_steps: int = 3, marker: float = 0.0, pin_core: bool = False,
-                 spin: bool = False) -> None:
-        options = {"pin_core": pin_core, "spin": spin}
+                 timing: Timing | None = None) -> None:
+        options = {"pin_core": pin_core,
+                   "spin": timing is not None and bool(timing.lockstep_spin)}
         self.max_episode_steps = max_episode_steps
         self.marker = marker
         self.options = options

@@ -1,12 +1,14 @@
-"""The one place that picks a backend: from the firmware's build record and the options.
+"""The one place that picks a backend: from the firmware's build record, the session's
+:class:`~bfsitl.backend.options.World` (the physics) and its
+:class:`~bfsitl.backend.options.Timing` (the pace and the lockstep).
 
 ===========================  ==================  =============================================
-physics                      firmware            backend
+``World.physics``            firmware            backend
 ===========================  ==================  =============================================
 ``embedded``                 stock build         :class:`RealTimeBackend` (0.05..4 x real time)
 ``embedded``                 ``--lockstep``      :class:`LockstepBackend` (any pace, max by
-                                                 default); ``lockstep=False`` flies it on the
-                                                 wall clock instead
+                                                 default); ``Timing(lockstep=False)`` flies it
+                                                 on the wall clock instead
 ``gazebo``                   stock build         :class:`GazeboBackend`
 ===========================  ==================  =============================================
 
@@ -17,14 +19,11 @@ from __future__ import annotations
 
 import math
 from collections.abc import Callable
-from pathlib import Path
-from typing import TYPE_CHECKING, Literal, Protocol, get_args
+from typing import TYPE_CHECKING
 
 from bfsitl.backend.base import SitlBackend
+from bfsitl.backend.options import LOCKSTEP_EXCHANGES, PHYSICS, LockstepExchange, Timing, World
 from bfsitl.errors import BfsitlError
-from bfsitl.physics.params import QuadParams
-from bfsitl.physics.sensors import SensorConfig
-from bfsitl.physics.wind import Wind
 from bfsitl.sitl.firmware import FirmwareBinary
 
 if TYPE_CHECKING:
@@ -32,36 +31,6 @@ if TYPE_CHECKING:
 
 #: A stock SITL runs on the wall clock; outside this range it cannot keep up or crawls.
 REAL_TIME_SPEEDS = (0.05, 4.0)
-PHYSICS = ("embedded", "gazebo")
-
-
-class BackendOptions(Protocol):
-    """What the factory reads of a session's configuration (``SessionConfig`` has it)."""
-
-    @property
-    def physics(self) -> str: ...
-    @property
-    def speed(self) -> float | None: ...
-    @property
-    def lockstep(self) -> bool | None: ...
-    @property
-    def rc_link(self) -> bool: ...
-    @property
-    def lockstep_spin(self) -> bool: ...
-    @property
-    def lockstep_exchange(self) -> LockstepExchange: ...
-    @property
-    def quad(self) -> QuadParams: ...
-    @property
-    def sensors(self) -> SensorConfig: ...
-    @property
-    def wind(self) -> Wind | None: ...
-    @property
-    def seed(self) -> int: ...
-    @property
-    def initial_heading_deg(self) -> float: ...
-    @property
-    def gz_plugin_dir(self) -> str | Path | None: ...
 
 
 def check_speed(speed: float | None) -> None:
@@ -91,12 +60,6 @@ def wants_lockstep(firmware: FirmwareBinary, asked: bool | None) -> bool:
     return firmware.lockstep if asked is None else asked
 
 
-#: How packets pass between the physics and a lockstep firmware: shared memory where the
-#: build and the machine have it (``auto``), always (``shm``), or UDP.
-LockstepExchange = Literal["auto", "shm", "udp"]
-LOCKSTEP_EXCHANGES: tuple[LockstepExchange, ...] = get_args(LockstepExchange)
-
-
 def uses_shm_exchange(firmware: FirmwareBinary, asked: LockstepExchange) -> bool:
     """Whether a lockstep run of ``firmware`` takes the shared-memory exchange."""
     from bfsitl.link.shm_exchange import shm_exchange_supported
@@ -115,52 +78,53 @@ def uses_shm_exchange(firmware: FirmwareBinary, asked: LockstepExchange) -> bool
     return possible
 
 
-def make_simulator(options: BackendOptions) -> Simulator:
-    """The embedded physics for ``options`` (its C library is built on first use: without a C
+def make_simulator(world: World) -> Simulator:
+    """The embedded physics of ``world`` (its C library is built on first use: without a C
     compiler, the KernelUnavailableError says what to install)."""
     from bfsitl.physics import Simulator
 
-    simulator = Simulator(options.quad, sensors=options.sensors, wind=options.wind,
-                          seed=options.seed)
-    heading_deg = getattr(options, "initial_heading_deg", 0.0)
-    if heading_deg:
-        simulator.reset(yaw_deg=heading_deg)
+    simulator = Simulator(world.quad, sensors=world.sensors, wind=world.wind, seed=world.seed)
+    if world.initial_heading_deg:
+        simulator.reset(yaw_deg=world.initial_heading_deg)
     return simulator
 
 
-def make_backend(options: BackendOptions, firmware: FirmwareBinary, *,
-                 progress: Callable[[str], None],
+def make_backend(world: World, timing: Timing, firmware: FirmwareBinary, *,
+                 progress: Callable[[str], None], rc_link: bool = True,
                  alive: Callable[[], None] | None = None) -> SitlBackend:
-    """The backend for ``firmware`` under ``options`` (see the module table).  ``alive`` is
-    asked during a lockstep wait that runs long (it raises if the SITL has ended)."""
+    """The backend for ``firmware`` in ``world`` on ``timing`` (see the module table).
+    ``rc_link`` False (RC from elsewhere) needs a real-time SITL.  ``alive`` is asked during a
+    lockstep wait that runs long (it raises if the SITL has ended)."""
     from bfsitl.backend.embedded import LockstepBackend, RealTimeBackend
     from bfsitl.backend.gazebo import GazeboBackend
 
-    check_speed(options.speed)
-    if options.physics == "gazebo":
-        if options.speed not in (None, 1.0):
+    speed = timing.speed
+    check_speed(speed)
+    if world.physics == "gazebo":
+        if speed not in (None, 1.0):
             raise BfsitlError("--speed applies to the embedded physics only; Gazebo sets "
                               "its own pace")
-        backend = GazeboBackend(options.gz_plugin_dir, progress=progress)
+        backend = GazeboBackend(world.gz_plugin_dir, progress=progress)
         if firmware.lockstep:
             raise BfsitlError(
                 f"{firmware.path} is a lockstep build: its clock follows bfsitl's own "
                 f"physics, and Gazebo's plugin reads only stock motor packets. Use a stock "
                 f"build with --physics gazebo")
         return backend
-    if options.physics != "embedded":
-        raise BfsitlError(f"unknown physics {options.physics!r}: "
+    if world.physics != "embedded":
+        raise BfsitlError(f"unknown physics {world.physics!r}: "
                           f"{' or '.join(PHYSICS)}")
-    if wants_lockstep(firmware, options.lockstep):
-        if not options.rc_link:
+    if wants_lockstep(firmware, timing.lockstep):
+        if not rc_link:
             raise BfsitlError("rc_link=False (RC from elsewhere, e.g. MSP through the serial "
                               "bridge) needs a real-time SITL: a lockstep build takes its RC "
                               "in the fdm packets bfsitl steps it with; use a stock build")
-        speed = options.speed
-        shared = uses_shm_exchange(firmware, options.lockstep_exchange)
-        simulator = make_simulator(options)
+        shared = uses_shm_exchange(firmware, timing.lockstep_exchange)
+        simulator = make_simulator(world)
+        # Unsaid, a session spins: its run has the cores unless its runner says otherwise.
+        spin = True if timing.lockstep_spin is None else timing.lockstep_spin
         return LockstepBackend(simulator, speed=None if speed is None or math.isinf(speed)
-                               else speed, spin=options.lockstep_spin, progress=progress,
+                               else speed, spin=spin, progress=progress,
                                alive=alive, shared_memory=shared)
-    return RealTimeBackend(make_simulator(options),
-                           speed=real_time_speed(options.speed), progress=progress)
+    return RealTimeBackend(make_simulator(world), speed=real_time_speed(speed),
+                           progress=progress)

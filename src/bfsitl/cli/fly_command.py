@@ -277,11 +277,13 @@ def process_age_s() -> float | None:
 
 
 def cmd_fly(args: argparse.Namespace) -> int:
+    from bfsitl.backend.options import Timing, World, fly_sensors
     from bfsitl.control import gain_names, make_controller
     from bfsitl.fc.provisioning import ARM_ON_AUX1, Profile
     from bfsitl.mission import FLY_PROFILE, FlightSession, SessionConfig
     from bfsitl.mission.plan_driver import fly
     from bfsitl.mission.results import Outcome
+    from bfsitl.mission.session import ConfiguratorBridge, FcSetup, SitlLaunch
     from bfsitl.records.outputs import FlightOutputs, OutputOptions, plan_waypoints
 
     if args.list_gains:
@@ -307,15 +309,22 @@ def cmd_fly(args: argparse.Namespace) -> int:
     speed = args.speed
     if speed is None and (args.configurator or args.foxglove):
         speed = 1.0  # someone watches: a lockstep build would otherwise fly at full speed
+    # The flags, flat on the command line, map onto the session's groups here.
     config = SessionConfig.for_autopilot(
-        control_rate_hz=args.rate, gps_noise=args.gps_noise, profile=profile,
-        baro_noise_std_pa=args.baro_noise_pa, accel_noise_std_m_s2=args.accel_noise,
-        firmware=args.firmware, workdir=args.workdir, isolate=not args.no_isolate,
-        speed=speed, lockstep=args.lockstep, lockstep_exchange=args.lockstep_exchange,
-        angle_mode=not args.no_angle,
-        physics=args.physics, gz_plugin_dir=args.gz_plugin_dir, wind=wind, seed=args.seed,
-        configurator_port=args.configurator_port if args.configurator else None,
-        allow_origins=tuple(args.allow_origin))
+        control_rate_hz=args.rate,
+        sitl=SitlLaunch(firmware=args.firmware, workdir=args.workdir,
+                        isolate=not args.no_isolate),
+        timing=Timing(speed=speed, lockstep=args.lockstep,
+                      lockstep_exchange=args.lockstep_exchange),
+        fc=FcSetup(profile=profile, angle_mode=not args.no_angle),
+        world=World(physics=args.physics, gz_plugin_dir=args.gz_plugin_dir, wind=wind,
+                    seed=args.seed,
+                    sensors=fly_sensors(baro_noise_std_pa=args.baro_noise_pa,
+                                        accel_noise_std_m_s2=args.accel_noise,
+                                        gps_noise=args.gps_noise)),
+        configurator=(ConfiguratorBridge(port=args.configurator_port,
+                                         allow_origins=tuple(args.allow_origin))
+                      if args.configurator else None))
     outputs = FlightOutputs(OutputOptions(
         csv_path=args.log, plot_path=args.plot, summary_path=args.summary,
         mcap_path=args.mcap, foxglove_port=args.foxglove_port if args.foxglove else None,

@@ -2,17 +2,23 @@
 
     import gymnasium
     import bfsitl.gym  # registers the environments
+    from bfsitl import SitlLaunch, Wind, World
 
-    env = gymnasium.make("bfsitl/Hover-v0", firmware="4.6.0-gps-lockstep", control_hz=100)
+    env = gymnasium.make("bfsitl/Hover-v0", sitl=SitlLaunch(firmware="4.6.0-gps-lockstep"),
+                         world=World(wind=Wind.from_direction(3.0, 90.0)), control_hz=100)
     observation, info = env.reset(seed=1)
     observation, reward, terminated, truncated, info = env.step(env.action_space.sample())
 
 ``bfsitl/Hover-v0`` reaches and holds a point, ``bfsitl/Waypoints-v0`` flies through points
-in turn (the next one in the observation).  Options of both: ``firmware`` (a ``--lockstep``
-build), ``control_hz``, ``mode`` (``"angle"`` or ``"acro"``), ``observation`` (``"fc"``: what
-the FC reports; ``"truth"``: the simulation), ``wind``, ``wind_from_deg``, ``gusts``,
-``disturbances`` (a hook called before every step with the flight's disturbance surface),
-``start`` (``"air"`` or ``"ground"``), ``start_alt_m``.  Needs the ``gym`` extra:
+in turn (the next one in the observation).  Options of both, the session's groups
+(:class:`~bfsitl.mission.session.SessionConfig`) where they mean the same: ``sitl``
+(:class:`~bfsitl.mission.session.SitlLaunch`: a ``--lockstep`` build and the run directory),
+``timing`` (:class:`~bfsitl.backend.options.Timing`: the lockstep exchange and spinning) and
+``world`` (:class:`~bfsitl.backend.options.World`: wind, quad, sensors, heading); and the
+environment's own: ``control_hz``, ``mode`` (``"angle"`` or ``"acro"``), ``observation``
+(``"fc"``: what the FC reports; ``"truth"``: the simulation), ``disturbances`` (a hook called
+before every step with the flight's disturbance surface), ``start`` (``"air"`` or
+``"ground"``), ``start_alt_m``, ``pin_core``, ``warm_resets``.  Needs the ``gym`` extra:
 ``pip install 'bfsitl[gym]'``.
 
 An episode is truncated after ``max_episode_steps`` steps, Gymnasium's own limit, registered

@@ -33,6 +33,7 @@ The observation (:mod:`~bfsitl.gym.observation`), the reward and the endings
 
 from __future__ import annotations
 
+import dataclasses
 import multiprocessing
 import shutil
 import tempfile
@@ -45,7 +46,7 @@ import numpy as np
 from gymnasium import spaces
 
 from bfsitl.backend.disturbances import Disturbances
-from bfsitl.backend.factory import LOCKSTEP_EXCHANGES, LockstepExchange
+from bfsitl.backend.options import LOCKSTEP_EXCHANGES, Timing, World
 from bfsitl.control import make_controller
 from bfsitl.errors import EnvironmentConfigError, LinkError, MspError, SitlError
 from bfsitl.fc.rc_link import RcCommand
@@ -68,8 +69,7 @@ from bfsitl.gym.tasks import (
     step_reward,
 )
 from bfsitl.mission.loop import FlightLoop
-from bfsitl.mission.session import FlightSession, SessionConfig
-from bfsitl.physics.wind import Wind
+from bfsitl.mission.session import FcSetup, FlightSession, SessionConfig, SitlLaunch
 from bfsitl.sitl.core_claim import CoreClaim, claim_core
 from bfsitl.sitl.firmware import find_firmware
 
@@ -98,25 +98,55 @@ WARM_SETTLE_S = 0.5
 DisturbanceHook = Callable[[Disturbances, float], object]
 
 
+#: The SITL an environment starts by default: the GPS lockstep build of 4.6.0, in a
+#: temporary run directory the environment removes when it closes.
+DEFAULT_SITL = SitlLaunch(firmware=DEFAULT_FIRMWARE)
+#: As fast as the lockstep goes, spinning where the environment has the cores (see spin).
+DEFAULT_TIMING = Timing()
+#: Still air, IRIS, the default sensor errors; each episode brings its own seed.
+DEFAULT_WORLD = World()
+
+
 class FlightEnv(gymnasium.Env[np.ndarray, np.ndarray]):
-    """See the module docstring; :class:`HoverEnv` and :class:`WaypointsEnv` choose the task."""
+    """See the module docstring; :class:`HoverEnv` and :class:`WaypointsEnv` choose the task.
+
+    The options that configure the flight are the session's groups
+    (:class:`~bfsitl.mission.session.SessionConfig`), as keywords: ``sitl`` (the firmware,
+    a lockstep build, and the SITL's run directory: None is a temporary one, removed on
+    close), ``timing`` (the lockstep: always on here; ``lockstep_spin`` None spins unless the
+    environment is pinned to a core or in a vector environment's worker) and ``world`` (the
+    quad, wind, sensors and heading of the embedded physics; its seed is replaced by each
+    episode's).  The rest are the environment's own: the policy's rate, mode and
+    observation, the episode's start and length, the disturbances, the core pinning and the
+    warm resets.
+    """
 
     metadata: dict[str, Any] = {"render_modes": []}
 
-    def __init__(self, task: Hover, *, firmware: str | Path = DEFAULT_FIRMWARE,
+    def __init__(self, task: Hover, *, sitl: SitlLaunch = DEFAULT_SITL,
+                 timing: Timing = DEFAULT_TIMING, world: World = DEFAULT_WORLD,
                  control_hz: float = DEFAULT_CONTROL_HZ, mode: FlightMode = "angle",
-                 observation: ObservationSource = "fc", wind: float = 0.0,
-                 wind_from_deg: float = 0.0, gusts: float = 0.0,
+                 observation: ObservationSource = "fc",
                  disturbances: DisturbanceHook | None = None,
                  max_episode_steps: int | None = HOVER_MAX_EPISODE_STEPS,
                  start: EpisodeStart = "air", start_alt_m: float = 1.5,
-                 spin: bool | None = None, pin_core: bool | None = None,
-                 lockstep_exchange: LockstepExchange = "auto", warm_resets: bool = True,
-                 workdir: str | Path | None = None) -> None:
+                 pin_core: bool | None = None, warm_resets: bool = True) -> None:
+        check_group("sitl", sitl, SitlLaunch)
+        check_group("timing", timing, Timing)
+        check_group("world", world, World)
         _check_choice("mode", mode, MODES)
         _check_choice("observation", observation, OBSERVATIONS)
         _check_choice("start", start, STARTS)
-        _check_choice("lockstep_exchange", lockstep_exchange, LOCKSTEP_EXCHANGES)
+        _check_choice("timing.lockstep_exchange", timing.lockstep_exchange, LOCKSTEP_EXCHANGES)
+        if timing.lockstep is False:
+            raise EnvironmentConfigError(
+                "timing.lockstep=False: the environment steps the firmware with the physics; "
+                "leave it None or True")
+        if world.physics != "embedded":
+            raise EnvironmentConfigError(
+                f"world.physics={world.physics!r}: the environment flies bfsitl's own "
+                f"(embedded) physics, whose steps the lockstep follows")
+        spin = timing.lockstep_spin
         low, high = CONTROL_HZ_RANGE
         if not low <= control_hz <= high:
             raise EnvironmentConfigError(
@@ -134,27 +164,31 @@ class FlightEnv(gymnasium.Env[np.ndarray, np.ndarray]):
         self.pin_core = in_worker if pin_core is None else pin_core
         if self.pin_core and spin:
             raise EnvironmentConfigError(
-                "spin=True with pin_core=True: the SITL and the environment share the pinned "
-                "core, so a busy-wait would starve the firmware it waits for; choose one")
-        #: Busy-wait for the firmware's replies (SessionConfig.lockstep_spin): the SITL and
-        #: bfsitl each keep a core busy, which makes one environment faster and several
-        #: sharing the cores slower (benchmarks/gym.py).  None: spin when not pinned and not
-        #: in the worker of a vector environment.
+                "timing.lockstep_spin=True with pin_core=True: the SITL and the environment "
+                "share the pinned core, so a busy-wait would starve the firmware it waits for; "
+                "choose one")
+        #: Busy-wait for the firmware's replies (Timing.lockstep_spin): the SITL and bfsitl
+        #: each keep a core busy, which makes one environment faster and several sharing the
+        #: cores slower (benchmarks/gym.py).  None: spin when not pinned and not in the
+        #: worker of a vector environment.
         self.spin = (not in_worker and not self.pin_core) if spin is None else spin
         # Every option is checked before the firmware is looked up: a wrong option is said
         # as such, whatever builds this machine holds.
-        self.binary = find_firmware(firmware)
+        self.binary = find_firmware(sitl.firmware)
         if not self.binary.lockstep:
             raise EnvironmentConfigError(
-                f"{firmware}: not a lockstep build; the environment steps the firmware with "
-                f"the physics. Build one: `bfsitl firmware build --gps --lockstep` (makes "
+                f"{sitl.firmware}: not a lockstep build; the environment steps the firmware "
+                f"with the physics. Build one: `bfsitl firmware build --gps --lockstep` (makes "
                 f"{DEFAULT_FIRMWARE})")
         self.task = task
         self.control_hz = control_hz
         self.mode = mode
         self.observation = observation
-        self.wind = (Wind.from_direction(wind, wind_from_deg, gusts)
-                     if wind or gusts else None)
+        # What every episode's session is made from: the lockstep always on, the spin as
+        # decided above; the session's SITL takes the firmware found and the run directory.
+        self.sitl = sitl
+        self.timing = dataclasses.replace(timing, lockstep=True, lockstep_spin=self.spin)
+        self.world = world
         self.disturbances = disturbances
         #: Truncate the episode after this many steps (None: never), when the environment is
         #: made directly (``HoverEnv(...)``, a vector environment's workers, a Ray actor).
@@ -165,17 +199,15 @@ class FlightEnv(gymnasium.Env[np.ndarray, np.ndarray]):
         self.start = start
         self.start_alt_m = start_alt_m
         self._core: CoreClaim | None = None
-        #: How packets pass to the firmware (SessionConfig.lockstep_exchange): shared memory
-        #: where the build has it, or UDP; the flights are the same.
-        self.lockstep_exchange = lockstep_exchange
         #: A reset without a seed keeps the firmware running when it can (see the module
         #: docstring); False boots a fresh one every time.
         self.warm_resets = warm_resets
         self.action_space = spaces.Box(-1.0, 1.0, shape=(4,), dtype=np.float32)
         self.observation_space = observation_space()
-        self._own_workdir = workdir is None
-        self.workdir = Path(tempfile.mkdtemp(prefix="bfsitl-gym-") if workdir is None
-                            else workdir)
+        self._own_workdir = sitl.workdir is None
+        #: The SITL's run directory (its EEPROM, provisioned once, boots every episode).
+        self.workdir = Path(tempfile.mkdtemp(prefix="bfsitl-gym-") if sitl.workdir is None
+                            else sitl.workdir)
         self._vehicle: FlightSession | None = None
         self._prepared = False
         self._arm_ned: Vec3 = (0.0, 0.0, 0.0)
@@ -313,10 +345,11 @@ class FlightEnv(gymnasium.Env[np.ndarray, np.ndarray]):
     # -- parts ---------------------------------------------------------------------------------
     def _new_session(self, seed: int) -> FlightSession:
         config = SessionConfig.for_autopilot(
-            control_rate_hz=self.control_hz, firmware=self.binary.path,
-            workdir=self.workdir / "sitl", seed=seed, wind=self.wind, lockstep=True,
-            angle_mode=self.mode == "angle", lockstep_spin=self.spin,
-            lockstep_exchange=self.lockstep_exchange)
+            control_rate_hz=self.control_hz,
+            sitl=dataclasses.replace(self.sitl, firmware=self.binary.path,
+                                     workdir=self.workdir),
+            timing=self.timing, fc=FcSetup(angle_mode=self.mode == "angle"),
+            world=dataclasses.replace(self.world, seed=seed))
         return FlightSession(config)
 
     def _prepare(self) -> None:
@@ -379,6 +412,17 @@ class WaypointsEnv(FlightEnv):
             raise EnvironmentConfigError(f"count {count} is outside 1..50 waypoints")
         super().__init__(Waypoints(count=count), max_episode_steps=max_episode_steps,
                          **options)
+
+
+def check_group(name: str, value: object, group: type) -> None:
+    """Raise EnvironmentConfigError, saying what it takes, unless ``value`` is a ``group``."""
+    # A group given as something else (a dict from a config file, a number for the old
+    # ``wind``) is said with what it takes, not as an AttributeError deep in the start.
+    if not isinstance(value, group):
+        names = ", ".join(f.name for f in dataclasses.fields(group))
+        raise EnvironmentConfigError(
+            f"{name} must be a {group.__name__} (bfsitl.{group.__name__}({names}), all "
+            f"optional), not {type(value).__name__}")
 
 
 def _check_choice(name: str, value: str, choices: tuple[str, ...]) -> None:

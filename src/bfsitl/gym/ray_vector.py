@@ -20,6 +20,7 @@ new vector environment to go on.
 
 from __future__ import annotations
 
+import dataclasses
 import traceback
 from importlib import import_module
 from typing import Any
@@ -27,7 +28,7 @@ from typing import Any
 import numpy as np
 
 from bfsitl.errors import EnvironmentConfigError
-from bfsitl.gym.env import DEFAULT_FIRMWARE
+from bfsitl.gym.env import DEFAULT_FIRMWARE, DEFAULT_SITL, check_group
 from bfsitl.gym.vector import (
     _DONE,
     _FAILED,
@@ -38,6 +39,7 @@ from bfsitl.gym.vector import (
     _sort_answer,
     handle_command,
 )
+from bfsitl.mission.session import SitlLaunch
 from bfsitl.sitl.firmware_parcel import FirmwareParcel, pack_firmware, unpack_firmware
 
 #: How long close() waits for the actors to close their SITLs.
@@ -55,8 +57,9 @@ class EnvironmentActor:
         binary = unpack_firmware(parcel, ray.get)
         module_name, class_name = entry_point.split(":")
         self.index = index
+        sitl = options.get("sitl", DEFAULT_SITL)
         self.env = getattr(import_module(module_name), class_name)(
-            **{**options, "firmware": str(binary)})
+            **{**options, "sitl": dataclasses.replace(sitl, firmware=str(binary))})
         self.shared = _Shared(1, bytearray(_Shared.size(1)))
 
     def ready(self) -> bytes:
@@ -81,15 +84,18 @@ class RayVectorEnv(FlightVectorEnv):
     at ``address``; every other keyword goes to each copy (module docstring)."""
 
     def __init__(self, entry_point: str, num_envs: int = 2, *, address: str = "auto",
-                 firmware: str = DEFAULT_FIRMWARE, **options: Any) -> None:
+                 **options: Any) -> None:
         try:
             import ray
         except ImportError as exc:
             raise EnvironmentConfigError("RayVectorEnv needs Ray: pip install "
                                          "'bfsitl[ray]'") from exc
-        if "workdir" in options:
-            raise EnvironmentConfigError("workdir: a Ray actor's SITL runs in a temporary "
+        sitl = options.get("sitl", DEFAULT_SITL)
+        check_group("sitl", sitl, SitlLaunch)
+        if sitl.workdir is not None:
+            raise EnvironmentConfigError("sitl.workdir: a Ray actor's SITL runs in a temporary "
                                          "directory of its node")
+        firmware = str(DEFAULT_FIRMWARE if sitl.firmware is None else sitl.firmware)
         self._set_up(num_envs, options)
         self._ray = ray
         self._shared = _Shared(num_envs, bytearray(_Shared.size(num_envs)))

@@ -18,7 +18,8 @@ for an ended episode is the first of the next, as Stable-Baselines3 also expects
 ``final_info`` is batched key by key with ``_key`` masks, as Gymnasium's own vector
 environments batch it.
 
-A ``workdir`` option becomes one folder per environment below it (``env0``, ``env1``, ...).
+A run directory (``sitl=SitlLaunch(workdir=...)``) becomes one folder per environment below it
+(``env0``, ``env1``, ...).
 Each step's ``info`` holds, per environment, ``time_s``, ``distance_m``, ``waypoint``,
 ``armed``, ``failsafe``, the ``target`` (north, east, up) and the truth's ``position_m`` and
 ``velocity_m_s`` (north, east, up), each with Gymnasium's ``_key`` mask.
@@ -34,6 +35,7 @@ interrupts a step in the parent (Ctrl-C, a worker's failure) closes the vector e
 
 from __future__ import annotations
 
+import dataclasses
 import multiprocessing
 import multiprocessing.connection
 import pickle
@@ -48,8 +50,10 @@ from gymnasium import spaces
 from gymnasium.vector import AutoresetMode, VectorEnv
 from gymnasium.vector.utils import batch_space
 
+from bfsitl.backend.options import Timing
 from bfsitl.errors import EnvironmentConfigError
 from bfsitl.gym.observation import OBSERVATION_SIZE, observation_space
+from bfsitl.mission.session import SitlLaunch
 
 #: The numbers of each step's info, in their slots of the shared block.
 INFO_NUMBERS = ("time_s", "distance_m", "waypoint", "armed", "failsafe")
@@ -144,9 +148,11 @@ def _worker(index: int, entry_point: str, options: dict[str, Any], block: Any, c
     signal.signal(signal.SIGTERM, _end_on_terminate)
     shared = _Shared(count, block)
     env = None
-    if options.get("workdir") is not None:
+    sitl = options.get("sitl")
+    if isinstance(sitl, SitlLaunch) and sitl.workdir is not None:
         # One run directory each: two SITLs must not share an EEPROM file.
-        options = {**options, "workdir": Path(options["workdir"]) / f"env{index}"}
+        options = {**options, "sitl": dataclasses.replace(
+            sitl, workdir=Path(sitl.workdir) / f"env{index}")}
     try:
         module_name, class_name = entry_point.split(":")
         env = getattr(import_module(module_name), class_name)(**options)
@@ -209,7 +215,11 @@ class FlightVectorEnv(VectorEnv[np.ndarray, np.ndarray, np.ndarray]):
         if not 1 <= num_envs <= 256:
             raise EnvironmentConfigError(f"num_envs {num_envs} is outside 1..256")
         options.setdefault("pin_core", True)
-        options.setdefault("spin", False)
+        # Workers share the cores: no spinning unless told (a group given as something else
+        # is left for the environment to refuse, with what it takes).
+        timing = options.get("timing", Timing())
+        if isinstance(timing, Timing) and timing.lockstep_spin is None:
+            options["timing"] = dataclasses.replace(timing, lockstep_spin=False)
         self.num_envs = num_envs
         self.single_observation_space = observation_space()
         self.observation_space = batch_space(self.single_observation_space, num_envs)

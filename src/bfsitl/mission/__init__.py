@@ -16,11 +16,18 @@ from bfsitl.mission.loop import FlightLoop
 from bfsitl.mission.plan import MissionPlan, Waypoint, load_mission
 from bfsitl.mission.plan_driver import fly
 from bfsitl.mission.results import MissionResult, Outcome
-from bfsitl.mission.session import FLY_PROFILE, FlightSession, SessionConfig
+from bfsitl.mission.session import (
+    FLY_PROFILE,
+    ConfiguratorBridge,
+    FcSetup,
+    FlightSession,
+    SessionConfig,
+    SitlLaunch,
+)
 from bfsitl.mission.vehicle import FlightSample
 
 __all__ = [
-    "FLY_PROFILE", "FlightLoop", "FlightRow", "FlightSample", "FlightSession", "HoldStats",
-    "LegStats", "MissionPlan", "MissionResult", "Outcome", "SessionConfig", "Waypoint",
-    "fly", "load_mission",
+    "FLY_PROFILE", "ConfiguratorBridge", "FcSetup", "FlightLoop", "FlightRow", "FlightSample",
+    "FlightSession", "HoldStats", "LegStats", "MissionPlan", "MissionResult", "Outcome",
+    "SessionConfig", "SitlLaunch", "Waypoint", "fly", "load_mission",
 ]

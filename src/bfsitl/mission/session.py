@@ -25,12 +25,13 @@ That happens on success, on any exception and on Ctrl-C alike.
 from __future__ import annotations
 
 import dataclasses
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, Self
 
 from bfsitl.backend.base import SitlBackend
-from bfsitl.backend.factory import LockstepExchange, check_speed, make_backend
+from bfsitl.backend.factory import check_speed, make_backend
+from bfsitl.backend.options import Timing, World
 from bfsitl.errors import BfsitlError, MspErrorReply, SitlError, SitlExitedError
 from bfsitl.fc.msp_client import MspClient
 from bfsitl.fc.provisioning import (
@@ -42,9 +43,6 @@ from bfsitl.fc.provisioning import (
 )
 from bfsitl.mission.vehicle import DEFAULT_ARM_TIMEOUT_S, Progress, Vehicle
 from bfsitl.physics import Simulator
-from bfsitl.physics.params import IRIS, QuadParams
-from bfsitl.physics.sensors import SensorConfig
-from bfsitl.physics.wind import Wind
 from bfsitl.protocol import messages as msg
 from bfsitl.protocol.firmware_profile import FirmwareProfile
 from bfsitl.sim.bridge import SitlBridge
@@ -73,29 +71,9 @@ def with_fast_serial(profile: Profile) -> Profile:
     return dataclasses.replace(profile, cli_lines=(*profile.cli_lines, FAST_SERIAL_LINE))
 
 
-#: See SessionConfig.sensors; measured: FC altitude within 1-2 cm of the truth on average.
-DEFAULT_BARO_NOISE_PA = 0.5
-#: Accelerometer noise by default, m/s^2 per physics step.  sitl.c truncates the fdm's
-#: acceleration to whole LSB (0.038 m/s^2); without noise a hovering vehicle's reading sits
-#: on one side of a step, an error of up to one LSB that integrating it turns into drift (it
-#: was 2-3 cm/s after a few seconds of hover).  0.05 m/s^2 (about 5 mg, less than a real MEMS
-#: accelerometer shows) dithers the steps so they average out.
-DEFAULT_ACCEL_NOISE_M_S2 = 0.05
-
-
-def fly_sensors(*, baro_noise_std_pa: float | None = None,
-                accel_noise_std_m_s2: float | None = None) -> SensorConfig:
-    """The sensor errors ``bfsitl fly`` simulates by default; a value given replaces one."""
-    return SensorConfig(
-        baro_noise_std_pa=(DEFAULT_BARO_NOISE_PA if baro_noise_std_pa is None
-                           else baro_noise_std_pa),
-        accel_noise_std_m_s2=(DEFAULT_ACCEL_NOISE_M_S2 if accel_noise_std_m_s2 is None
-                              else accel_noise_std_m_s2))
-
-
 @dataclass(frozen=True, slots=True)
-class SessionConfig:
-    """Everything a session needs to know before it starts; all of it has a default.
+class SitlLaunch:
+    """How the SITL process is launched: which binary, where it runs, in which network.
 
     Attributes:
         firmware: A SITL binary's path or a cached build's name; None searches as
@@ -104,139 +82,97 @@ class SessionConfig:
             temporary one.
         isolate: Run the SITL in a private network namespace, so a stale SITL cannot share
             its ports.
-        speed: Simulation speed as a multiple of wall time.  None: real time (1.0) with a
-            stock SITL, as fast as possible with a lockstep build.  Real time allows 0.05 to
-            4 (0.5 is the faithful speed on a busy 2-core machine); lockstep any positive
-            speed, ``math.inf`` the most.
-        lockstep: Step the firmware's clock with the physics (a ``--lockstep`` build is
-            needed).  None: whenever the firmware is a lockstep build.
-        profile: What to provision (mode ranges and CLI lines); None flies with whatever the
-            FC already holds.  The default is ARM on AUX1 and ANGLE on AUX2.
-        angle_mode: Hold AUX2 on while armed (ANGLE, when the profile puts ANGLE there).
-        sensors: The simulated sensors' errors; by default half a pascal of barometer noise
-            and 0.05 metres per second squared of accelerometer noise
-            (:func:`fly_sensors`), which dither the steps 4.6.0 truncates its readings to.
-        arm_timeout_s: Seconds :meth:`FlightSession.arm` waits for the FC's blockers to
-            clear and for it to arm.
-        physics: ``"embedded"`` (bfsitl's simulator and bridge) or ``"gazebo"`` (``gz sim``
-            with the BetaflightPlugin, started in the SITL's namespace; no simulated truth is
-            then known).
-        gz_plugin_dir: Where libBetaflightPlugin.so is, for ``physics="gazebo"``; None
-            uses Gazebo's search path.
-        wind: Wind and gusts of the embedded physics; None is still air.
-        quad: The simulated quad of the embedded physics: Gazebo's IRIS unless told
-            otherwise.
-        seed: Seeds the sensor noise and the gusts: the same seed gives the same
-            disturbances.
-        initial_heading_deg: The quad's heading when the flight starts, degrees clockwise
-            from north (the embedded physics).  A firmware without a compass believes north
-            at boot whatever it is.
-        rc_link: Send RC over UDP (the SITL's usual receiver).  False leaves RC to someone
-            else: a :class:`~bfsitl.mission.board.BoardVehicle` sending MSP_SET_RAW_RC
-            through the serial bridge (real time only).
-        configurator_port: Serve the Configurator during the flight: a WebSocket bridge on
-            127.0.0.1 at this port relays to the FC's UART2.  None: no bridge; 0: any free
-            port (:attr:`FlightSession.configurator_url` says which).
-        allow_origins: Web page origins the Configurator bridge accepts beyond the
-            Configurator's own.
-        lockstep_spin: Lockstep: busy-wait for each other's packets instead of sleeping;
-            fastest when the run has cores to itself, off when runs share the cores.
-        lockstep_exchange: Lockstep: how packets pass between the physics and the firmware:
-            ``"auto"`` (shared memory where the build and the machine have it, else UDP),
-            ``"shm"`` or ``"udp"``.  Either gives the same flight.
     """
 
     firmware: str | Path | None = None
-    #: Run directory of the SITL; its ``eeprom.bin`` persists.  None: a fresh temporary one.
     workdir: str | Path | None = None
-    #: Run the SITL in a private network namespace (so a stale SITL cannot share its ports).
     isolate: bool = True
-    #: Simulation speed, x wall time.  None: real time (1.0) with a stock SITL, as fast as
-    #: possible with a lockstep build.  Real time allows 0.05..4 (0.5 is the faithful speed on
-    #: a busy 2-core machine, see the README); lockstep any positive speed, ``math.inf`` = max.
-    speed: float | None = None
-    #: Lockstep (a ``--lockstep`` build is needed).  None: whenever the firmware is one.
-    lockstep: bool | None = None
-    #: What to provision.  None flies with whatever the FC already holds.
+
+
+@dataclass(frozen=True, slots=True)
+class FcSetup:
+    """What the flight controller is given: its provisioning, its switches and its RC.
+
+    Attributes:
+        profile: What to provision (mode ranges and CLI lines); None flies with whatever the
+            FC already holds.  The default is ARM on AUX1 and ANGLE on AUX2.
+        angle_mode: Hold AUX2 on while armed (ANGLE, when the profile puts ANGLE there).
+        arm_timeout_s: Seconds :meth:`FlightSession.arm` waits for the FC's blockers to
+            clear and for it to arm.
+        rc_link: Send RC over UDP (the SITL's usual receiver).  False leaves RC to someone
+            else: a :class:`~bfsitl.mission.board.BoardVehicle` sending MSP_SET_RAW_RC
+            through the serial bridge (real time only).
+    """
+
     profile: Profile | None = FLY_PROFILE
-    #: Hold AUX2 on while armed (ANGLE, when the profile puts ANGLE there).
     angle_mode: bool = True
-    #: Barometer and accelerometer noise by default (:func:`fly_sensors`): 4.6.0 SITL
-    #: truncates the fdm pressure to whole pascals (~8.3 cm of altitude), so a noiseless
-    #: barometer gives the FC a staircase it cannot resolve inside a step.  Half a pascal of
-    #: noise (about what a board's barometer shows) dithers it: the FC's own filter then
-    #: averages to the true sub-pascal value.  The accelerometer likewise.
-    sensors: SensorConfig = field(default_factory=fly_sensors)
     arm_timeout_s: float = DEFAULT_ARM_TIMEOUT_S
-    #: "embedded" (bfsitl's simulator and bridge) or "gazebo" (``gz sim`` with the
-    #: BetaflightPlugin, started in the SITL's namespace; no simulated truth is then known).
-    physics: str = "embedded"
-    #: Where libBetaflightPlugin.so is, for ``physics="gazebo"`` (default: the search path).
-    gz_plugin_dir: str | Path | None = None
-    #: Wind and gusts of the embedded physics (None: still air).
-    wind: Wind | None = None
-    #: The simulated quad (the embedded physics): Gazebo's IRIS unless told otherwise.
-    quad: QuadParams = IRIS
-    #: Seeds the sensor noise and the gusts: the same seed gives the same disturbances.
-    seed: int = 0
-    #: The quad's heading when the flight starts (the embedded physics), degrees clockwise
-    #: from north.  A firmware without a compass believes north at boot whatever it is.
-    initial_heading_deg: float = 0.0
-    #: Send RC over UDP (the SITL's usual receiver).  False leaves RC to someone else: a
-    #: :class:`~bfsitl.mission.board.BoardVehicle` sending MSP_SET_RAW_RC through the serial
-    #: bridge, as to a real board (real time only: a lockstep SITL takes RC in its fdm).
+    #: Real time only: a lockstep SITL takes RC in its fdm packets.
     rc_link: bool = True
-    #: Serve the Configurator during the flight: provisioning puts MSP on UART2 (TCP 5762)
-    #: as well, and a WebSocket bridge on 127.0.0.1 at this port relays to it, while bfsitl
-    #: keeps UART1.  None: no bridge.  0: any free port (:attr:`FlightSession.configurator_url`).
-    configurator_port: int | None = None
-    #: Web page origins the Configurator bridge accepts beyond the Configurator's own.
+
+
+@dataclass(frozen=True, slots=True)
+class ConfiguratorBridge:
+    """Serving the Configurator during the flight: provisioning puts MSP on UART2 (TCP 5762)
+    as well, and a WebSocket bridge on 127.0.0.1 relays to it, while bfsitl keeps UART1.
+
+    Attributes:
+        port: The bridge's port; 0 is any free port (:attr:`FlightSession.configurator_url`
+            says which).
+        allow_origins: Web page origins the bridge accepts beyond the Configurator's own.
+    """
+
+    port: int = 0
     allow_origins: tuple[str, ...] = ()
-    #: Lockstep: busy-wait for each other's packets (bfsitl and the SITL) instead of
-    #: sleeping: fastest when the run has cores to itself; off when runs share the cores
-    #: (``bfsitl scenario run --jobs 2`` on two cores), where spinning steals time slices.
-    lockstep_spin: bool = True
-    #: Lockstep: how packets pass between the physics and the firmware: ``"auto"`` (shared
-    #: memory where the build and the machine have it, else UDP), ``"shm"`` or ``"udp"``.
-    #: Either gives the same flight (bfsitl.link.shm_exchange).
-    lockstep_exchange: LockstepExchange = "auto"
+
+
+@dataclass(frozen=True, slots=True)
+class SessionConfig:
+    """Everything a session needs to know before it starts, grouped by what it configures;
+    every group has its defaults.
+
+    >>> SessionConfig(sitl=SitlLaunch(firmware="master"), world=World(seed=3))
+    ... # doctest: +SKIP
+
+    Attributes:
+        sitl: The SITL process: its binary, run directory and network namespace.
+        timing: The simulation's pace and the lockstep with the firmware's clock.
+        fc: The flight controller's provisioning, switches and RC link.
+        world: The simulated world: physics, quad, wind, sensor errors, seed, heading.
+        configurator: Serve the Configurator during the flight; None serves nothing.
+    """
+
+    sitl: SitlLaunch = SitlLaunch()
+    timing: Timing = Timing()
+    fc: FcSetup = FcSetup()
+    world: World = World()
+    configurator: ConfiguratorBridge | None = None
 
     @classmethod
-    def for_autopilot(cls, *, control_rate_hz: float = 100.0, gps_noise: bool = False,
-                      baro_noise_std_pa: float | None = None,
-                      accel_noise_std_m_s2: float | None = None,
-                      profile: Profile | None = FLY_PROFILE, **fields: Any) -> SessionConfig:
+    def for_autopilot(cls, *, control_rate_hz: float = 100.0, **groups: Any) -> SessionConfig:
         """What bfsitl's own flights use (``bfsitl fly``, :func:`~bfsitl.launch_sitl`,
-        scenario runs): ``profile`` with the serial task at 1 kHz when the control loop runs
-        above 50 Hz (:data:`FAST_SERIAL_LINE`), the default sensor errors
-        (:func:`fly_sensors`, plus a typical receiver's GPS errors with ``gps_noise``), and
-        any other field as given.
+        scenario runs, the gym environments): the groups as given, with the serial task at
+        1 kHz in the profile when the control loop runs above 50 Hz
+        (:data:`FAST_SERIAL_LINE`).
 
         Args:
             control_rate_hz: The rate the autopilot's loop will run at, steps per second;
-                above 50 the serial task is set to 1 kHz.
-            gps_noise: Put a typical receiver's errors on the GPS.
-            baro_noise_std_pa: Barometer noise, standard deviation in pascals; None is the
-                default half a pascal.
-            accel_noise_std_m_s2: Accelerometer noise, standard deviation in metres per
-                second squared; None is the default 0.05.
-            profile: What to provision; None flies with what the FC holds (and sets no
-                serial rate).
-            **fields: Any other :class:`SessionConfig` field, by name.
+                above 50 the serial task is set to 1 kHz (unless ``fc.profile`` is None).
+            **groups: Any group of :class:`SessionConfig`, by name (``sitl``, ``timing``,
+                ``fc``, ``world``, ``configurator``).
 
         Returns:
             The configuration.
 
         Raises:
-            TypeError: A name in ``fields`` is no field of :class:`SessionConfig`.
+            TypeError: A name in ``groups`` is no field of :class:`SessionConfig`.
         """
-        sensors = fly_sensors(baro_noise_std_pa=baro_noise_std_pa,
-                              accel_noise_std_m_s2=accel_noise_std_m_s2)
-        if gps_noise:
-            sensors = sensors.with_typical_gps()
-        if profile is not None and control_rate_hz > FAST_SERIAL_ABOVE_HZ:
-            profile = with_fast_serial(profile)
-        return cls(sensors=sensors, profile=profile, **fields)
+        config = cls(**groups)
+        profile = config.fc.profile
+        if profile is None or control_rate_hz <= FAST_SERIAL_ABOVE_HZ:
+            return config
+        return dataclasses.replace(
+            config, fc=dataclasses.replace(config.fc, profile=with_fast_serial(profile)))
 
 
 class FlightSession(Vehicle):
@@ -254,7 +190,7 @@ class FlightSession(Vehicle):
         progress: Called with one line of text at each step of the start.
 
     Raises:
-        BfsitlError: The speed is no positive number, or ``configurator_port`` is given
+        BfsitlError: The speed is no positive number, or the Configurator is to be served
             without a profile to provision.
     """
 
@@ -264,17 +200,17 @@ class FlightSession(Vehicle):
     def __init__(self, config: SessionConfig | None = None, *,
                  progress: Progress | None = None) -> None:
         config = config or SessionConfig()
-        super().__init__(progress=progress, arm_timeout_s=config.arm_timeout_s,
-                         angle_mode=config.angle_mode)
+        super().__init__(progress=progress, arm_timeout_s=config.fc.arm_timeout_s,
+                         angle_mode=config.fc.angle_mode)
         self.config = config
-        check_speed(config.speed)
+        check_speed(config.timing.speed)
         self.sitl: SitlProcess | None = None
         #: Chosen at start, from the firmware's build record (bfsitl.backend.factory).
         self.sitl_backend: SitlBackend | None = None
         self.provisioned: ProvisionResult | None = None
-        #: The Configurator bridge's ws:// URL while one serves (``configurator_port``).
+        #: The Configurator bridge's ws:// URL while one serves (``config.configurator``).
         self.configurator_url: str | None = None
-        if config.configurator_port is not None and config.profile is None:
+        if config.configurator is not None and config.fc.profile is None:
             raise BfsitlError("the Configurator bridge needs provisioning (it puts MSP on "
                               "UART2 as well): drop --no-provision, or leave out --configurator")
 
@@ -297,22 +233,23 @@ class FlightSession(Vehicle):
         if self.sitl is not None:
             return self
         config = self.config
-        if config.configurator_port:
+        if config.configurator is not None and config.configurator.port:
             from bfsitl.bridges import check_listen_port
 
-            check_listen_port(SITL_HOST, config.configurator_port, "--configurator-port")
+            check_listen_port(SITL_HOST, config.configurator.port, "--configurator-port")
         try:
-            firmware = find_firmware(config.firmware)
-            backend = make_backend(config, firmware, progress=self._progress,
+            firmware = find_firmware(config.sitl.firmware)
+            backend = make_backend(config.world, config.timing, firmware,
+                                   progress=self._progress, rc_link=config.fc.rc_link,
                                    alive=self.check_alive)
             self.backend = self.sitl_backend = backend
-            self.sitl = SitlProcess(firmware, workdir=config.workdir, isolate=config.isolate,
-                                    progress=self._progress, env=backend.sitl_env,
-                                    hooks=backend.hooks)
+            self.sitl = SitlProcess(firmware, workdir=config.sitl.workdir,
+                                    isolate=config.sitl.isolate, progress=self._progress,
+                                    env=backend.sitl_env, hooks=backend.hooks)
             backend.start(self.sitl, self._stack)
             self.clock = backend.clock
             self._provision()
-            if config.rc_link:
+            if config.fc.rc_link:
                 # Only now: an RC packet during boot leaves 4.6.0 in RXLOSS for good.
                 self._start_rc(backend.rc_sender(self.sitl))
         except BaseException:
@@ -373,17 +310,17 @@ class FlightSession(Vehicle):
     def _provision(self) -> None:
         """Apply the configured profile; then serve the Configurator if asked."""
         config = self.config
-        if config.profile is None:
+        if config.fc.profile is None:
             return
-        self.provisioned = provision(self.client, self._flight_profile(config.profile),
+        self.provisioned = provision(self.client, self._flight_profile(config.fc.profile),
                                      reboot=self._reboot)
         self._progress("provisioned: " + (
             "written and saved" + (", rebooted" if self.provisioned.rebooted else "")
             if self.provisioned.changed else "already configured, nothing written"))
-        if config.configurator_port is not None:
-            self._serve_configurator(config.configurator_port)
+        if config.configurator is not None:
+            self._serve_configurator(config.configurator)
 
-    def _serve_configurator(self, port: int) -> None:
+    def _serve_configurator(self, bridge: ConfiguratorBridge) -> None:
         """The WebSocket bridge to UART2 (TCP 5762), in the SITL's network, until close."""
         from bfsitl.bridges import Upstream
         from bfsitl.bridges.origin_policy import OriginPolicy
@@ -391,8 +328,8 @@ class FlightSession(Vehicle):
 
         assert self.sitl is not None and self.sitl.network is not None
         upstream = Upstream(SITL_HOST, SECOND_MSP_PORT, socket_factory=self.sitl.network.socket)
-        relay = WebSocketRelay(upstream, port=port,
-                               origins=OriginPolicy.with_extra(self.config.allow_origins),
+        relay = WebSocketRelay(upstream, port=bridge.port,
+                               origins=OriginPolicy.with_extra(bridge.allow_origins),
                                on_event=lambda line: self._progress(f"configurator: {line}"),
                                port_option="--configurator-port")
         self.configurator_url = self._stack.enter_context(relay.running())
@@ -414,7 +351,7 @@ class FlightSession(Vehicle):
                         if line not in profile.cli_lines)
         if compass:
             profile = dataclasses.replace(profile, cli_lines=(*profile.cli_lines, *compass))
-        if self.config.configurator_port is not None:
+        if self.config.configurator is not None:
             # Read at boot only; provisioning compares them, so this reboots once per run
             # directory.
             profile = dataclasses.replace(

@@ -39,7 +39,7 @@ def fly_one(scenario: Scenario, firmware: str, out_dir: Path, speed: float | Non
             mcap: bool) -> ScenarioResult:
     """A worker's job: the run's progress goes to a file in its directory (several runs'
     lines interleaved on one terminal would be unreadable).  Workers share the machine's
-    cores, so a lockstep run does not busy-wait (SessionConfig.lockstep_spin); it claims a
+    cores, so a lockstep run does not busy-wait (Timing.lockstep_spin); it claims a
     core for itself and its SITL instead (bfsitl.sitl.core_claim), so that runs side by side
     neither take each other's time nor wake each other's cores."""
     out_dir.mkdir(parents=True, exist_ok=True)

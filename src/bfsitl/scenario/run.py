@@ -32,6 +32,7 @@ from pathlib import Path
 
 from bfsitl.analysis import FlightWatch, analyse, combine, track_from_blackbox
 from bfsitl.atomic_file import write_atomically
+from bfsitl.backend.options import Timing, World
 from bfsitl.control import DEFAULT_CONTROLLER, make_controller
 from bfsitl.errors import (
     ArmingBlockedError,
@@ -50,8 +51,10 @@ from bfsitl.mission.phase import Phase
 from bfsitl.mission.plan_driver import fly_steps
 from bfsitl.mission.session import (
     FLY_PROFILE,
+    FcSetup,
     FlightSession,
     SessionConfig,
+    SitlLaunch,
     with_fast_serial,
 )
 from bfsitl.mission.vehicle import FlightSample
@@ -135,7 +138,7 @@ class RunOptions:
         mcap: Write the flight as MCAP too (Foxglove's schemas, ``flight.mcap``; needs the
             foxglove extra).
         shares_cores: Other runs share this machine's cores: no busy-waiting in lockstep
-            (see ``SessionConfig.lockstep_spin``).
+            (see ``Timing.lockstep_spin``).
         session_factory: Makes the flight's vehicle from its configuration (``progress=``
             too); a fake in unit tests.  Picklable as it is, for Ray.
         controller: The autopilot's altitude controller, by name (see ``bfsitl fly
@@ -150,7 +153,7 @@ class RunOptions:
     #: Write the flight as MCAP too (Foxglove's schemas, ``flight.mcap``; the foxglove extra).
     mcap: bool = False
     #: Other runs share this machine's cores: no busy-waiting in lockstep (see
-    #: SessionConfig.lockstep_spin).
+    #: Timing.lockstep_spin).
     shares_cores: bool = False
     #: Makes the flight's vehicle from its configuration (``progress=`` too); a fake in unit
     #: tests.  Picklable as it is, for Ray.
@@ -322,10 +325,11 @@ def _fly(scenario: Scenario, binary: Path, profile: FirmwareProfile, faults: tup
     trace = Trace()
     config = SessionConfig.for_autopilot(
         control_rate_hz=FlightSession.control_rate_hz,
-        profile=scenario_profile(scenario, profile, faults), firmware=binary,
-        workdir=out / "sitl", quad=scenario.quad, wind=scenario.wind, seed=scenario.seed,
-        initial_heading_deg=scenario.initial_heading_deg,
-        speed=options.speed, lockstep_spin=not options.shares_cores)
+        sitl=SitlLaunch(firmware=binary, workdir=out / "sitl"),
+        timing=Timing(speed=options.speed, lockstep_spin=not options.shares_cores),
+        fc=FcSetup(profile=scenario_profile(scenario, profile, faults)),
+        world=World(quad=scenario.quad, wind=scenario.wind, seed=scenario.seed,
+                    initial_heading_deg=scenario.initial_heading_deg))
     # The analysers watch through the injector (on the trace's clock, with the failsafe
     # phase), so the outputs do not keep a second copy of every row for them.
     outputs = FlightOutputs(OutputOptions(

@@ -13,6 +13,7 @@ from bfsitl.backend import BOARD_IMU, SITL_IMU, Backend, SitlBackend
 from bfsitl.backend.board import BoardBackend, imu_scale_at_rest
 from bfsitl.backend.embedded import LockstepBackend, RealTimeBackend
 from bfsitl.backend.factory import make_backend
+from bfsitl.backend.options import Timing, World
 from bfsitl.build.binary_scan import clear_cache
 from bfsitl.build.lockstep import MARKER
 from bfsitl.errors import (
@@ -49,8 +50,10 @@ def lockstep(tmp_path) -> FirmwareBinary:
     return FirmwareBinary(path, "test")
 
 
-def make(firmware: FirmwareBinary, **options) -> SitlBackend:
-    return make_backend(SessionConfig(**options), firmware, progress=lambda _line: None)
+def make(firmware: FirmwareBinary, *, world: World | None = None, rc_link: bool = True,
+         **timing) -> SitlBackend:
+    return make_backend(world or World(), Timing(**timing), firmware, rc_link=rc_link,
+                        progress=lambda _line: None)
 
 
 # -- the factory -------------------------------------------------------------------------------
@@ -73,11 +76,11 @@ def test_impossible_combinations_are_refused_before_anything_starts(stock, locks
     with pytest.raises(BfsitlError, match="rc_link=False"):
         make(lockstep, rc_link=False)
     with pytest.raises(BfsitlError, match="embedded or gazebo"):
-        make(stock, physics="bullet")
+        make(stock, world=World(physics="bullet"))
     with pytest.raises(BfsitlError, match="Gazebo sets its own pace"):
-        make(stock, physics="gazebo", speed=2.0)
+        make(stock, world=World(physics="gazebo"), speed=2.0)
     with pytest.raises(GazeboNotFoundError):  # not installed here: refused with the fix
-        make(stock, physics="gazebo")
+        make(stock, world=World(physics="gazebo"))
 
 
 def test_a_lockstep_backend_paces_as_asked(lockstep) -> None:
@@ -99,7 +102,7 @@ def test_a_lockstep_backend_hooks_every_link_into_the_steps(lockstep) -> None:
 
 def test_a_session_checks_its_speed_when_made_and_has_no_backend_before_start() -> None:
     with pytest.raises(BfsitlError, match="positive"):
-        FlightSession(SessionConfig(speed=-1.0))
+        FlightSession(SessionConfig(timing=Timing(speed=-1.0)))
     session = FlightSession()
     assert session.sitl_backend is None and not session.lockstep and session.truth is None
 

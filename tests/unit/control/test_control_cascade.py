@@ -13,12 +13,12 @@ import math
 import pytest
 from support.altitude_plant import AltitudePlant
 
+from bfsitl.backend.options import DEFAULT_BARO_NOISE_PA
 from bfsitl.control.base import AltitudeInput
 from bfsitl.control.cascade import CascadedAltitudeController, CascadeGains
 from bfsitl.control.metrics import step_response
 from bfsitl.control.tutorial import TutorialPid
 from bfsitl.errors import ControllerConfigError
-from bfsitl.mission.session import DEFAULT_BARO_NOISE_PA
 
 TARGET_M = 2.0
 BARO_STEP_M = 0.083

@@ -12,6 +12,7 @@ import math
 import pytest
 from support.altitude_plant import AltitudePlant, FcModel
 
+from bfsitl.backend.options import DEFAULT_ACCEL_NOISE_M_S2, DEFAULT_BARO_NOISE_PA
 from bfsitl.control.altitude_estimator import AltitudeEstimator
 from bfsitl.control.base import AltitudeInput
 from bfsitl.control.cascade import SensorLag
@@ -20,7 +21,6 @@ from bfsitl.control.metrics import step_response
 from bfsitl.control.tutorial import TutorialPid
 from bfsitl.errors import ControllerConfigError
 from bfsitl.mission.plan import MissionPlan
-from bfsitl.mission.session import DEFAULT_ACCEL_NOISE_M_S2, DEFAULT_BARO_NOISE_PA
 
 TARGET_M = 2.0
 

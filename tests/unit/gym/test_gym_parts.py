@@ -11,6 +11,7 @@ import pytest
 
 pytest.importorskip("gymnasium")
 
+from bfsitl.backend.options import Timing, World  # noqa: E402
 from bfsitl.build.binary_scan import LOCKSTEP_MARKER  # noqa: E402
 from bfsitl.errors import EnvironmentConfigError  # noqa: E402
 from bfsitl.fc.rc_link import RcCommand  # noqa: E402
@@ -27,6 +28,7 @@ from bfsitl.gym.tasks import (  # noqa: E402
     failure,
     step_reward,
 )
+from bfsitl.mission.session import SitlLaunch  # noqa: E402
 
 
 # -- sticks -------------------------------------------------------------------------------------
@@ -144,8 +146,19 @@ def test_waypoints_advance_when_reached_pay_a_bonus_and_finish_at_the_last() -> 
     ({"control_hz": 500.0}, r"control_hz 500.0 is outside 1..200 Hz"),
     ({"max_episode_steps": 0}, "max_episode_steps 0 is not a number of steps"),
     ({"start_alt_m": 40.0}, "start_alt_m 40.0 is outside 0.5..15 m"),
-    ({"lockstep_exchange": "pigeon"}, "lockstep_exchange must be one of auto, shm, udp"),
-    ({"spin": True, "pin_core": True}, "spin=True with pin_core=True"),
+    ({"timing": Timing(lockstep_exchange="pigeon")},  # type: ignore[arg-type]
+     "timing.lockstep_exchange must be one of auto, shm, udp"),
+    ({"timing": Timing(lockstep_spin=True), "pin_core": True},
+     "lockstep_spin=True with pin_core=True"),
+    ({"timing": Timing(lockstep=False)}, "timing.lockstep=False: the environment steps"),
+    ({"world": World(physics="gazebo")}, "world.physics='gazebo': the environment flies"),
+    # A group given as something else: what it takes, before anything is looked up.
+    ({"timing": {"lockstep_exchange": "udp"}},
+     r"timing must be a Timing \(bfsitl.Timing\(speed, lockstep, lockstep_spin, "
+     r"lockstep_exchange\), all optional\), not dict"),
+    ({"world": 3.0}, r"world must be a World \(bfsitl.World\(physics, .*\), not float"),
+    ({"sitl": "4.6.0-gps-lockstep"}, r"sitl must be a SitlLaunch \(bfsitl.SitlLaunch\("
+                                     r"firmware, workdir, isolate\), all optional\), not str"),
 ])
 def test_an_option_the_environment_cannot_take_is_refused_with_what_it_takes(
         options: dict, fix: str) -> None:
@@ -164,10 +177,10 @@ def fake_lockstep_build(directory: Path) -> Path:
 
 
 def test_pinning_and_spin_default_by_where_the_environment_runs(tmp_path: Path) -> None:
-    build = fake_lockstep_build(tmp_path)
-    here = HoverEnv(firmware=build)        # a main process: spin on two cores, no pinning
+    sitl = SitlLaunch(firmware=fake_lockstep_build(tmp_path))
+    here = HoverEnv(sitl=sitl)        # a main process: spin on two cores, no pinning
     assert here.spin and not here.pin_core
-    pinned = HoverEnv(firmware=build, pin_core=True)  # it shares the core with its SITL
+    pinned = HoverEnv(sitl=sitl, pin_core=True)  # it shares the core with its SITL
     assert pinned.pin_core and not pinned.spin
     for env in (here, pinned):
         env.close()
@@ -186,10 +199,11 @@ def test_the_episode_limit_is_gymnasiums_max_episode_steps_counted_once(
     for env_id, steps in bfsitl.gym.MAX_EPISODE_STEPS.items():
         assert gymnasium.spec(env_id).max_episode_steps == steps
     build = fake_lockstep_build(tmp_path)
-    alone = HoverEnv(firmware=build, max_episode_steps=50)   # made directly: it counts
+    alone = HoverEnv(sitl=SitlLaunch(firmware=build), max_episode_steps=50)  # made directly
     assert alone._step_limit() == 50
-    assert WaypointsEnv(firmware=build)._step_limit() == 2000
-    made = gymnasium.make("bfsitl/Hover-v0", firmware=build, max_episode_steps=70)
+    assert WaypointsEnv(sitl=SitlLaunch(firmware=build))._step_limit() == 2000
+    made = gymnasium.make("bfsitl/Hover-v0", sitl=SitlLaunch(firmware=build),
+                          max_episode_steps=70)
     # Made by Gymnasium: its TimeLimit counts make's max_episode_steps, the environment not.
     assert made.spec is not None and made.spec.max_episode_steps == 70
     assert made.unwrapped._step_limit() is None  # type: ignore[attr-defined]
@@ -203,7 +217,7 @@ def test_a_stock_build_is_refused_with_the_command_that_makes_a_lockstep_one(tmp
     stock.chmod(0o755)
     with pytest.raises(EnvironmentConfigError,
                        match=r"not a lockstep build.*bfsitl firmware build --gps --lockstep"):
-        FlightEnv(Hover(), firmware=stock)
+        FlightEnv(Hover(), sitl=SitlLaunch(firmware=stock))
 
 
 # -- the hand-written policy ------------------------------------------------------------------

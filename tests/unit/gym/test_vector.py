@@ -10,6 +10,7 @@ import pytest
 
 pytest.importorskip("gymnasium")
 
+from bfsitl.backend.options import Timing  # noqa: E402
 from bfsitl.errors import EnvironmentConfigError  # noqa: E402
 from bfsitl.gym.vector import FlightVectorEnv  # noqa: E402
 
@@ -67,7 +68,9 @@ def test_an_ended_episode_is_reset_in_the_same_step_with_its_end_beside_it() -> 
 
 
 def test_workers_ask_for_a_core_each_and_no_spin_unless_told_otherwise() -> None:
-    for options, expected in (({}, [1.0, 0.0]), ({"pin_core": False}, [0.0, 0.0])):
+    for options, expected in (({}, [1.0, 0.0]), ({"pin_core": False}, [0.0, 0.0]),
+                              ({"timing": Timing(lockstep_spin=True), "pin_core": False},
+                               [0.0, 1.0])):
         envs = FlightVectorEnv(FAKE, 2, **options)
         try:
             observations, _info = envs.reset()

@@ -43,12 +43,12 @@ def test_a_simulator_without_a_compiler_says_what_to_install(
 def test_a_session_without_a_compiler_says_what_to_install(
         monkeypatch: pytest.MonkeyPatch, tmp_path: Path) -> None:
     from bfsitl.backend.factory import make_simulator
-    from bfsitl.mission.session import SessionConfig
+    from bfsitl.backend.options import World
 
     no_compiler_anywhere(monkeypatch, tmp_path)
     # What `bfsitl fly` and every session build first for the embedded physics.
     with pytest.raises(KernelUnavailableError, match=r"no C compiler.*apt-get install gcc"):
-        make_simulator(SessionConfig())
+        make_simulator(World())
 
 
 def test_a_compiler_that_fails_is_reported_with_its_words(monkeypatch: pytest.MonkeyPatch,

@@ -130,13 +130,13 @@ def test_missing_features_are_read_from_the_binarys_setting_names(tmp_path: Path
 
 def test_a_vehicle_may_start_facing_another_way() -> None:
     from bfsitl.backend.factory import make_simulator
-    from bfsitl.mission.session import SessionConfig
+    from bfsitl.backend.options import World
     from bfsitl.physics.frames import euler_from_quat_rad
 
     east = scenario(vehicle={"heading_deg": 90.0})
     assert east.initial_heading_deg == 90.0 and scenario().initial_heading_deg == 0.0
     with pytest.raises(ScenarioError, match=r"vehicle.heading_deg = 400.0 must be"):
         scenario(vehicle={"heading_deg": 400.0})
-    simulator = make_simulator(SessionConfig(initial_heading_deg=90.0))
+    simulator = make_simulator(World(initial_heading_deg=90.0))
     _roll, _pitch, yaw = euler_from_quat_rad(simulator.state.quaternion_wxyz)
     assert math.degrees(yaw) == pytest.approx(90.0)

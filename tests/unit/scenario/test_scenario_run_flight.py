@@ -224,11 +224,12 @@ def test_rc_lost_in_a_hover_the_fc_lands_disarms_and_the_run_passes(fly, tmp_pat
     # The session it started: this run's directory, the scenario's quad, wind and seed.
     config = session.session_config
     out = tmp_path / "out"
-    assert (config.workdir, config.seed, config.wind, config.quad) == (
+    world = config.world
+    assert (config.sitl.workdir, world.seed, world.wind, world.quad) == (
         out / "sitl", 7, spec.wind, spec.quad)
-    assert config.firmware == tmp_path / "betaflight_4.6.0_SITL"
-    assert config.profile == scenario_profile(spec, V46, make_faults(spec.faults, V46))
-    assert config.lockstep_spin and session.closed
+    assert config.sitl.firmware == tmp_path / "betaflight_4.6.0_SITL"
+    assert config.fc.profile == scenario_profile(spec, V46, make_faults(spec.faults, V46))
+    assert config.timing.lockstep_spin and session.closed
     # The fault at 8 s after arming (not after boot), then the FC's own landing.
     fault_s = at(result, "RC lost (failsafe switch on AUX3)")
     assert 8.0 <= fault_s < 8.03
@@ -384,4 +385,5 @@ def test_runs_that_share_the_cores_do_not_spin(fly, tmp_path) -> None:
     spec = scenario(flight={**FLIGHT, "hold_s": 1.0})
     run_options = RunOptions(tmp_path / "out", plot=False, shares_cores=True, speed=3.0)
     _result, session = fly(spec, options=run_options)
-    assert not session.session_config.lockstep_spin and session.session_config.speed == 3.0
+    timing = session.session_config.timing
+    assert not timing.lockstep_spin and timing.speed == 3.0

@@ -262,7 +262,9 @@ def test_poller_lets_other_users_of_the_client_in(running: list[TelemetryPoller]
     assert poller.wait_next(0, timeout_s=2.0) is not None
     start = time.monotonic()
     assert msg.Altitude.decode(client.request(MspCommand.ALTITUDE)) == msg.Altitude(100, 0)
-    assert time.monotonic() - start < 1.0
+    # A liveness bound, not a speed one: a starved request would wait for ever (the fake
+    # answers at once); a loaded 2-core machine once took 1.03 s here.
+    assert time.monotonic() - start < 5.0
     assert poller.wait_next(poller.sequence, timeout_s=2.0) is not None
 
 

@@ -77,8 +77,12 @@ def main() -> int:
         left = _children()
     Path(report_path).write_text(json.dumps(
         {"returncode": returncode, "left": [_describe(pid) for pid in left]}))
-    for _round in range(50):                  # the test fails; still leave nothing behind
+    # The test fails; still leave nothing behind.  A resource tracker is given a moment to
+    # go by itself once the others are gone: killed, it would leave its semaphores behind.
+    for round_number in range(50):
         for pid in _children():
+            if round_number < 20 and "resource_tracker" in _describe(pid):
+                continue
             try:
                 os.kill(pid, signal.SIGKILL)
             except ProcessLookupError:

@@ -19,9 +19,10 @@ import os
 import signal
 import sys
 import threading
-from collections.abc import Iterator
-from contextlib import contextmanager
+from collections.abc import Callable, Iterator
+from contextlib import AbstractContextManager, contextmanager
 from types import FrameType
+from typing import NoReturn
 
 from bfsitl.errors import Interrupted
 
@@ -42,33 +43,29 @@ def _raise_interrupted(signum: int, _frame: FrameType | None) -> None:
 
 
 @contextmanager
-def stop_signals_interrupt() -> Iterator[None]:
-    """While inside: SIGTERM and SIGHUP raise :class:`Interrupted` like Ctrl-C does.  Outside
-    the main thread (where Python cannot take signals) it changes nothing."""
+def _handling(signums: tuple[int, ...], handler: signal.Handlers | Callable[..., None]
+              ) -> Iterator[None]:
+    """While inside: ``signums`` go to ``handler``; the previous handlers come back on the way
+    out.  Outside the main thread (where Python cannot take signals) it changes nothing."""
     if threading.current_thread() is not threading.main_thread():
         yield
         return
-    previous = {signum: signal.signal(signum, _raise_interrupted)
-                for signum in (signal.SIGTERM, signal.SIGHUP)}
+    previous = {signum: signal.signal(signum, handler) for signum in signums}
     try:
         yield
     finally:
-        for signum, handler in previous.items():
-            signal.signal(signum, handler)
+        for signum, before in previous.items():
+            signal.signal(signum, before)
 
 
-@contextmanager
-def stop_signals_ignored() -> Iterator[None]:
+def stop_signals_interrupt() -> AbstractContextManager[None]:
+    """While inside: SIGTERM and SIGHUP raise :class:`Interrupted` like Ctrl-C does."""
+    return _handling((signal.SIGTERM, signal.SIGHUP), _raise_interrupted)
+
+
+def stop_signals_ignored() -> AbstractContextManager[None]:
     """While inside: stop signals are ignored, so a bounded cleanup runs to its end."""
-    if threading.current_thread() is not threading.main_thread():
-        yield
-        return
-    previous = {signum: signal.signal(signum, signal.SIG_IGN) for signum in STOP_SIGNALS}
-    try:
-        yield
-    finally:
-        for signum, handler in previous.items():
-            signal.signal(signum, handler)
+    return _handling(STOP_SIGNALS, signal.SIG_IGN)
 
 
 def die_with_parent(parent_pid: int, signum: int = signal.SIGTERM) -> None:
@@ -106,9 +103,9 @@ class WorkerStop:
 
     @contextmanager
     def job(self) -> Iterator[None]:
-        """Around one job.  A job that starts after a stop signal raises at once."""
+        """Around one job.  A job that starts after a stop signal ends the worker at once."""
         if self.stopping:
-            raise Interrupted(self.signal_name)
+            self._end()
         self._busy = True
         try:
             yield
@@ -117,9 +114,7 @@ class WorkerStop:
             if self.stopping:
                 # The job has cleaned up; its result has nowhere to go (the parent is gone
                 # or stopping and counts it as not run).
-                sys.stdout.flush()
-                sys.stderr.flush()
-                os._exit(0)
+                self._end()
 
     def _on_signal(self, signum: int, _frame: FrameType | None) -> None:
         if self.stopping:
@@ -127,5 +122,11 @@ class WorkerStop:
         self.stopping = True
         self.signal_name = signal.Signals(signum).name
         if not self._busy:
-            raise SystemExit(0)
+            self._end()  # idle: nothing to clean up, wherever the worker waits
         raise Interrupted(self.signal_name)
+
+    @staticmethod
+    def _end() -> NoReturn:
+        sys.stdout.flush()
+        sys.stderr.flush()
+        os._exit(0)

@@ -50,20 +50,24 @@ OnResult = Callable[[ScenarioResult], None]
 
 @dataclass(frozen=True, slots=True)
 class SuiteResult:
-    """Every run's result in plan order; ``interrupted`` when a stop signal ended the suite,
-    ``stopped_by`` saying which (``Ctrl-C``, ``SIGTERM``, ``SIGHUP``)."""
+    """Every run's result in plan order; ``stopped_by`` names the stop signal that ended the
+    suite (``Ctrl-C``, ``SIGTERM``, ``SIGHUP``), empty when it ran to its end, and then
+    ``finished`` runs had a result of their own and the others are marked not run."""
 
     results: list[ScenarioResult]
-    interrupted: bool = False
     stopped_by: str = ""
+    finished: int = 0
+
+    @property
+    def interrupted(self) -> bool:
+        return bool(self.stopped_by)
 
     def stop_line(self) -> str:
         """What a user is told when the suite was stopped (empty when it was not)."""
         if not self.interrupted:
             return ""
-        finished = sum(1 for r in self.results if not r.reason.startswith("not run"))
-        return (f"interrupted ({self.stopped_by}): {finished} of {len(self.results)} runs "
-                f"finished; the others are marked not run")
+        return (f"interrupted ({self.stopped_by}): {self.finished} of {len(self.results)} "
+                f"runs finished; the others are marked not run")
 
 
 def dir_name(text: str) -> str:
@@ -155,12 +159,12 @@ def run_suite(runs: Sequence[PlannedRun], *, jobs: int = 1, speed: float | None 
         else:
             _run_parallel(runs, jobs, speed, plot, mcap, results, done, say)
     except KeyboardInterrupt as exc:
-        how = how_stopped(exc)
+        how, finished = how_stopped(exc), len(results)
         results.update({i: _interrupted(run, how) for i, run in enumerate(runs)
                         if i not in results})
-        return SuiteResult([results[i] for i in sorted(results)], interrupted=True,
-                           stopped_by=how)
-    return SuiteResult([results[i] for i in sorted(results)])
+        return SuiteResult([results[i] for i in sorted(results)], stopped_by=how,
+                           finished=finished)
+    return SuiteResult([results[i] for i in sorted(results)], finished=len(results))
 
 
 def _prefixed(say: Progress, prefix: str) -> Progress:
@@ -183,23 +187,24 @@ def _run_parallel(runs: Sequence[PlannedRun], jobs: int, speed: float | None, pl
         while pending:
             finished, pending = wait(pending, return_when=FIRST_COMPLETED)
             for future in finished:
-                _take(future, runs[futures[future]], futures[future], results, done)
+                _take(future, futures[future], runs, results, done)
     except BaseException:
         _stop_workers(pool)
         # A run that ended while the workers stopped is kept, not reported as not run.
         for future, index in futures.items():
             if index not in results and future.done() and not future.cancelled() \
                     and future.exception() is None:
-                _take(future, runs[index], index, results, done)
+                _take(future, index, runs, results, done)
         raise
     pool.shutdown(wait=True)
 
 
-def _take(future: Future[ScenarioResult], run: PlannedRun, index: int,
+def _take(future: Future[ScenarioResult], index: int, runs: Sequence[PlannedRun],
           results: dict[int, ScenarioResult], done: OnResult) -> None:
     try:
         result = future.result()
     except Exception as exc:  # noqa: BLE001 - a worker died: the run errs
+        run = runs[index]
         result = ScenarioResult(run.scenario.name, run.firmware, Verdict.ERROR,
                                 f"the worker process failed: {exc!r}",
                                 source=run.scenario.source)

@@ -11,8 +11,8 @@ from __future__ import annotations
 
 import math
 
+from bfsitl.errors import SimInputError
 from bfsitl.physics.constants import SEA_LEVEL_PRESSURE_PA
-from bfsitl.physics.params import SimInputError
 
 #: ISA sea-level pressure (Pa).
 #: Troposphere lapse rate over sea-level temperature: 0.0065 K/m / 288.15 K.

@@ -22,8 +22,9 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
+from bfsitl.errors import SimInputError
 from bfsitl.physics.constants import STANDARD_GRAVITY_M_S2
-from bfsitl.physics.params import Quat, SimInputError, Vec3
+from bfsitl.physics.params import Quat, Vec3
 
 #: Matrix as nine floats, row-major: (R00, R01, R02, R10, ..., R22).
 Matrix3 = tuple[float, float, float, float, float, float, float, float, float]

@@ -21,6 +21,7 @@ import ctypes
 import math
 from dataclasses import dataclass
 
+from bfsitl.errors import SimInputError
 from bfsitl.kernel.compiler import load_kernel
 from bfsitl.kernel.layout import D3, D4, READING, READING_OFFSET, STATE, Sim, kernel, seed_rng
 from bfsitl.physics.atmosphere import isa_pressure_pa
@@ -31,7 +32,7 @@ from bfsitl.physics.frames import (
     quat_from_euler_deg,
     quat_normalize,
 )
-from bfsitl.physics.params import IRIS, Motors, QuadParams, Quat, SimInputError, Vec3
+from bfsitl.physics.params import IRIS, Motors, QuadParams, Quat, Vec3
 from bfsitl.physics.sensors import SensorConfig, SensorReading
 from bfsitl.physics.wind import Wind
 

@@ -19,9 +19,7 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
-from bfsitl.errors import (
-    SimInputError,  # noqa: F401 - defined in errors.py, importable here too
-)
+from bfsitl.errors import SimInputError
 from bfsitl.physics.constants import STANDARD_GRAVITY_M_S2
 
 Vec3 = tuple[float, float, float]

@@ -21,7 +21,8 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
-from bfsitl.physics.params import Quat, SimInputError, Vec3
+from bfsitl.errors import SimInputError
+from bfsitl.physics.params import Quat, Vec3
 
 
 @dataclass(frozen=True, slots=True)

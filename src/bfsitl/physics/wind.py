@@ -10,7 +10,8 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
-from bfsitl.physics.params import SimInputError, Vec3
+from bfsitl.errors import SimInputError
+from bfsitl.physics.params import Vec3
 
 #: The one range every way of giving a wind accepts: ``bfsitl fly --wind/--gusts``, a scenario's
 #: ``[wind]`` table and the ``wind`` fault all check against these (through :class:`Wind`).

@@ -7,7 +7,8 @@ import math
 
 import pytest
 
-from bfsitl.physics import IRIS, GeoPoint, SimInputError, Simulator, isa_pressure_pa
+from bfsitl.errors import SimInputError
+from bfsitl.physics import IRIS, GeoPoint, Simulator, isa_pressure_pa
 from bfsitl.physics.frames import (
     EARTH_RADIUS_M,
     betaflight_acc_raw,

@@ -7,8 +7,8 @@ import math
 
 import pytest
 
-from bfsitl.errors import BfsitlError
-from bfsitl.physics import IRIS, QuadParams, SimInputError, Simulator, Wind
+from bfsitl.errors import BfsitlError, SimInputError
+from bfsitl.physics import IRIS, QuadParams, Simulator, Wind
 from bfsitl.physics.frames import betaflight_attitude_deg, body_to_world, euler_from_quat_rad
 
 G = 9.80665

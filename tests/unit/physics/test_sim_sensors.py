@@ -7,12 +7,12 @@ import statistics
 
 import pytest
 
+from bfsitl.errors import SimInputError
 from bfsitl.physics import (
     IRIS,
     GeoPoint,
     SensorConfig,
     SensorReading,
-    SimInputError,
     Simulator,
     betaflight_altitude_m,
     isa_pressure_pa,

@@ -190,10 +190,6 @@ class Simulator:
         """Address of the C ``bk_sim`` (alive as long as this object)."""
         return self._ptr
 
-    @property
-    def kernel_library(self) -> ctypes.CDLL:
-        return self._kernel.library
-
     # ---- public state ---------------------------------------------------------------------
 
     @property

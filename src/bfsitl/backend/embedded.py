@@ -34,10 +34,8 @@ from bfsitl.sim.lockstep import (
     REPLY_SPIN_S,
     SITL_SPIN_ENV,
     LockstepBridge,
-    LockstepClock,
-    LockstepRc,
-    SteppedLink,
 )
+from bfsitl.sim.lockstep_io import LockstepClock, LockstepRc, SteppedLink
 from bfsitl.sitl.process import SitlHooks
 
 if TYPE_CHECKING:

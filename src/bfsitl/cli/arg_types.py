@@ -71,3 +71,16 @@ def whole_number_at_least(low: int) -> Callable[[str], int]:
 
     parse.__name__ = "whole number"
     return parse
+
+
+def parse_speed(text: str) -> float:
+    """``--speed``: a positive number, or ``max`` (as fast as a lockstep build goes)."""
+    if text.strip().lower() == "max":
+        return math.inf
+    try:
+        value = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"{text!r} is not a number or 'max'") from None
+    if not (value > 0 and math.isfinite(value)):
+        raise argparse.ArgumentTypeError(f"{text!r} must be a positive number or 'max'")
+    return value

@@ -7,8 +7,7 @@ import argparse
 import time
 from pathlib import Path
 
-from bfsitl.cli.arg_types import whole_number_at_least
-from bfsitl.cli.fly_command import parse_speed
+from bfsitl.cli.arg_types import parse_speed, whole_number_at_least
 from bfsitl.cli.target import progress
 
 EXIT_OK = 0

@@ -20,7 +20,7 @@ from bfsitl.cli.arg_types import number_in
 from bfsitl.cli.bridge_commands import add_configurator_parser, add_serial_bridge_parser
 from bfsitl.cli.doctor import add_doctor_parser
 from bfsitl.cli.firmware_command import add_firmware_parser
-from bfsitl.cli.fly_command import add_fly_parser
+from bfsitl.cli.fly_parser import add_fly_parser
 from bfsitl.cli.log_command import add_log_parser
 from bfsitl.cli.scenario_command import add_scenario_parser
 from bfsitl.cli.sim_command import add_sim_parser

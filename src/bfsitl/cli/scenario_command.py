@@ -7,9 +7,8 @@ import sys
 import time
 from pathlib import Path
 
-from bfsitl.cli.arg_types import number_in, whole_number_at_least
+from bfsitl.cli.arg_types import number_in, parse_speed, whole_number_at_least
 from bfsitl.cli.compare_command import add_compare_parser
-from bfsitl.cli.fly_command import parse_speed
 from bfsitl.cli.scenario_inputs import check_builds, paths_or_library
 from bfsitl.cli.target import progress
 

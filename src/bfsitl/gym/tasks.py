@@ -23,8 +23,8 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from bfsitl.gym.snapshot import TrueView, Vec3
+from bfsitl.mission.crash_check import CRASH_TILT_DEG
 
-CRASH_TILT_DEG = 70.0
 MAX_DISTANCE_M = 10.0
 MAX_ALT_M = 20.0
 FAILURE_REWARD = -10.0

@@ -47,3 +47,8 @@ def check(key: str, value: Any, passed: bool, message: str, measured: float | st
     when = f" at t={at_s:.2f} s" if at_s is not None else ""
     return CheckResult(shown(key, value), passed, f"{shown(key, value)}: {message}{when}",
                        measured, at_s)
+
+
+def name_list(value: str | list[str]) -> list[str]:
+    """A key's value that is one name or a list of them, as a list."""
+    return [value] if isinstance(value, str) else list(value)

@@ -54,301 +54,15 @@ from typing import TYPE_CHECKING, Any
 
 from bfsitl.analysis import ANALYSERS, Severity
 from bfsitl.errors import ScenarioError
-from bfsitl.mission.loop import CRASH_TILT_DEG, CRASH_TOUCHDOWN_M_S
-from bfsitl.scenario import expect_path
-from bfsitl.scenario.expect_base import Limit
-from bfsitl.scenario.expect_base import check as _check
+from bfsitl.scenario import expect_flight, expect_log, expect_path
+from bfsitl.scenario.expect_base import Limit, name_list
 from bfsitl.scenario.expect_base import shown as _shown
+from bfsitl.scenario.expect_flight import extreme, in_the_air, whole_run
 from bfsitl.scenario.result import CheckResult
-from bfsitl.scenario.trace import FAILSAFE_PHASES, Trace, TraceRow, phase_name
+from bfsitl.scenario.trace import FAILSAFE_PHASES, Trace
 
 if TYPE_CHECKING:
     from bfsitl.scenario.spec import Scenario
-
-
-# -- judging -------------------------------------------------------------------------------------
-def _disarmed(key: str, value: bool, trace: Trace, _expect: dict[str, Any]) -> CheckResult:
-    last = trace.rows[-1]
-    state = "armed" if last.armed else "disarmed"
-    return _check(key, value, (not last.armed) == value, f"the FC was {state} at the end",
-                  state, last.time_s)
-
-
-def _first_disarm(trace: Trace, after_s: float) -> TraceRow | None:
-    return next((r for r in trace.rows if r.time_s >= after_s and not r.armed), None)
-
-
-def _disarmed_within(key: str, value: float, trace: Trace, _e: dict[str, Any]) -> CheckResult:
-    fault_s = trace.first_fault_s
-    if fault_s is None:
-        return _check(key, value, False, "no fault was injected", None, None)
-    row = _first_disarm(trace, fault_s)
-    if row is None:
-        return _check(key, value, False,
-                      f"still armed {trace.end_s - fault_s:.2f} s after the fault (the end)",
-                      None, trace.end_s)
-    after = row.time_s - fault_s
-    return _check(key, value, after <= value,
-                  f"disarmed {after:.2f} s after the fault (expected within {value:g} s)",
-                  round(after, 3), row.time_s)
-
-
-def _names(value: str | list[str]) -> list[str]:
-    return [value] if isinstance(value, str) else list(value)
-
-
-def _phase_sequence(seen: list[tuple[float, str]], wanted: list[str]
-                    ) -> tuple[list[tuple[float, str]], str | None]:
-    """The times the wanted phases were reached, in order; the first missing one."""
-    found: list[tuple[float, str]] = []
-    start = 0
-    for name in wanted:
-        index = next((i for i in range(start, len(seen)) if seen[i][1] == name), None)
-        if index is None:
-            return found, name
-        found.append(seen[index])
-        start = index
-    return found, None
-
-
-def _live_phases(trace: Trace) -> list[tuple[float, str]]:
-    changes: list[tuple[float, str]] = []
-    for row in trace.rows:
-        if row.failsafe_phase is None:
-            continue
-        name = phase_name(row.failsafe_phase)
-        if not changes or changes[-1][1] != name:
-            changes.append((row.time_s, name))
-    return changes
-
-
-def _failsafe_phase(key: str, value: str | list[str], trace: Trace,
-                    expect: dict[str, Any]) -> CheckResult:
-    seen = _live_phases(trace)
-    if not seen:
-        return _check(key, value, False, "the FC's failsafe phase was never read (MSP_DEBUG)",
-                      None, None)
-    found, missing = _phase_sequence(seen, _names(value))
-    path = " -> ".join(f"{name} ({t:.2f} s)" for t, name in seen)
-    if missing is not None:
-        return _check(key, value, False, f"never reached {missing} in order; the phases were "
-                      f"{path}", seen[-1][1], None)
-    within = expect.get("failsafe_within_s")
-    fault_s = trace.first_fault_s
-    if within is not None and fault_s is not None:
-        first_s = found[0][0]
-        after = first_s - fault_s
-        return _check(key, value, 0 <= after <= within,
-                      f"{found[0][1]} {after:.2f} s after the fault (expected within "
-                      f"{within:g} s); the phases were {path}", round(after, 3), first_s)
-    return _check(key, value, True, f"the phases were {path}", found[-1][1], found[-1][0])
-
-
-def _failsafe_never(key: str, value: str | list[str], trace: Trace,
-                    _e: dict[str, Any]) -> CheckResult:
-    banned = set(_names(value))
-    for t, name in _live_phases(trace):
-        if name in banned:
-            return _check(key, value, False, f"the FC entered {name}", name, t)
-    return _check(key, value, True, "never entered", None, None)
-
-
-def _landed_within(key: str, value: float, trace: Trace, _e: dict[str, Any]) -> CheckResult:
-    last = trace.rows[-1]
-    distance = last.distance_m
-    if last.armed or not last.on_ground:
-        where = "still armed" if last.armed else "not on the ground"
-        return _check(key, value, False, f"{where} at the end, {distance:.2f} m from the "
-                      f"take-off point", round(distance, 3), last.time_s)
-    return _check(key, value, distance <= value,
-                  f"landed {distance:.2f} m from the take-off point (expected within "
-                  f"{value:g} m)", round(distance, 3), last.time_s)
-
-
-def _touchdowns(trace: Trace) -> list[tuple[float, float]]:
-    """(time, downward speed) of each arrival on the ground after having been airborne."""
-    out: list[tuple[float, float]] = []
-    airborne = False
-    previous: TraceRow | None = None
-    for row in trace.rows:
-        if not row.on_ground and row.alt_m > 0.3:
-            airborne = True
-        elif row.on_ground and airborne:
-            speed = -min(row.climb_m_s, previous.climb_m_s if previous else 0.0)
-            out.append((row.time_s, max(0.0, speed)))
-            airborne = False
-        previous = row
-    return out
-
-
-def _max_touchdown(key: str, value: float, trace: Trace, _e: dict[str, Any]) -> CheckResult:
-    touchdowns = _touchdowns(trace)
-    if not touchdowns:
-        return _check(key, value, False, "it never came down", None, None)
-    t, speed = max(touchdowns, key=lambda item: item[1])
-    return _check(key, value, speed <= value,
-                  f"met the ground at {speed:.2f} m/s (expected at most {value:g} m/s)",
-                  round(speed, 3), t)
-
-
-def crash_of(trace: Trace) -> tuple[float, str] | None:
-    """The first crash: the autopilot's own detection, or (once nobody flies) the same
-    rules on the truth: tipped over, or met the ground too fast."""
-    if trace.crash is not None:
-        return trace.crash
-    for row in trace.rows:
-        if row.tilt_deg > CRASH_TILT_DEG:
-            return row.time_s, f"tipped over ({row.tilt_deg:.0f} deg from level)"
-    for t, speed in _touchdowns(trace):
-        if speed > CRASH_TOUCHDOWN_M_S:
-            return t, f"hit the ground at {speed:.1f} m/s"
-    return None
-
-
-def _crashed(key: str, value: bool, trace: Trace, _e: dict[str, Any]) -> CheckResult:
-    crash = crash_of(trace)
-    if crash is None:
-        return _check(key, value, not value, "no crash: never tipped over, never met the "
-                      f"ground faster than {CRASH_TOUCHDOWN_M_S:g} m/s", "no", None)
-    t, why = crash
-    return _check(key, value, value, f"crashed: {why}", "yes", t)
-
-
-def _mode_seen(key: str, value: str | list[str], trace: Trace,
-               _e: dict[str, Any]) -> CheckResult:
-    missing = []
-    first: dict[str, float] = {}
-    for name in _names(value):
-        row = next((r for r in trace.rows if name in r.modes), None)
-        if row is None:
-            missing.append(name)
-        else:
-            first[name] = row.time_s
-    every = sorted({m for r in trace.rows for m in r.modes})
-    if missing:
-        return _check(key, value, False, f"never saw {', '.join(missing)} (modes seen: "
-                      f"{', '.join(every) or 'none'})", None, None)
-    name, at = min(first.items(), key=lambda item: item[1])
-    return _check(key, value, True, f"first seen: {name}", name, at)
-
-
-def _mode_never(key: str, value: str | list[str], trace: Trace,
-                _e: dict[str, Any]) -> CheckResult:
-    banned = set(_names(value))
-    for row in trace.rows:
-        hit = banned.intersection(row.modes)
-        if hit:
-            return _check(key, value, False, f"the FC reported {', '.join(sorted(hit))}",
-                          sorted(hit)[0], row.time_s)
-    return _check(key, value, True, "never reported", None, None)
-
-
-def _extreme(measure: Callable[[TraceRow], float], *, lowest: bool, what: str, unit: str,
-             default_window: Callable[[Trace], tuple[float | None, float | None]]
-             ) -> Callable[[str, Limit, Trace, dict[str, Any]], CheckResult]:
-    def judge(key: str, limit: Limit, trace: Trace, _e: dict[str, Any]) -> CheckResult:
-        from_s, until_s = limit.from_s, limit.until_s
-        if from_s is None and until_s is None:
-            from_s, until_s = default_window(trace)
-        rows = [r for r in trace.window(from_s, until_s) if math.isfinite(measure(r))]
-        if not rows:
-            return _check(key, limit, False, "no samples in the window", None, None)
-        pick = min if lowest else max
-        row = pick(rows, key=measure)
-        value = measure(row)
-        passed = value >= limit.value if lowest else value <= limit.value
-        bound = "at least" if lowest else "at most"
-        return _check(key, limit, passed, f"{what} {value:.2f} {unit} (expected {bound} "
-                      f"{limit.value:g} {unit})", round(value, 3), row.time_s)
-    return judge
-
-
-def _whole_run(_trace: Trace) -> tuple[float | None, float | None]:
-    return None, None
-
-
-def _in_the_air(trace: Trace) -> tuple[float | None, float | None]:
-    start = trace.takeoff_done_s if trace.takeoff_done_s is not None else math.inf
-    return start, trace.first_fault_s
-
-
-def _blackbox_phase(key: str, value: str | list[str], trace: Trace,
-                    _e: dict[str, Any]) -> CheckResult:
-    if not trace.blackbox:
-        return _check(key, value, False, "no blackbox log was written or decoded", None, None)
-    seen: list[tuple[float, str]] = []
-    for log in trace.blackbox:
-        start = log.frames[0].time_s if log.frames else 0.0
-        seen.extend((t - start, phase_name(int(p))) for t, p in log.phase_changes())
-    found, missing = _phase_sequence(seen, _names(value))
-    path = " -> ".join(f"{name} ({t:.2f} s)" for t, name in seen) or "none"
-    if missing is not None:
-        return _check(key, value, False, f"the blackbox never shows {missing} in order; its "
-                      f"phases were {path}", seen[-1][1] if seen else None, None)
-    return _check(key, value, True, f"the blackbox's phases were {path} (seconds from its "
-                  f"first frame)", found[-1][1], found[-1][0])
-
-
-def _blackbox_link_lost(key: str, value: bool, trace: Trace,
-                        _e: dict[str, Any]) -> CheckResult:
-    if not trace.blackbox:
-        return _check(key, value, False, "no blackbox log was written or decoded", None, None)
-    for log in trace.blackbox:
-        start = log.frames[0].time_s if log.frames else 0.0
-        for frame in log.frames:
-            if frame.rx_flight_channels_valid is False:
-                at = frame.time_s - start
-                return _check(key, value, value, f"the blackbox shows the flight channels "
-                              f"invalid from {at:.2f} s after its first frame (receiver "
-                              f"signal {'on' if frame.rx_signal_received else 'lost'})",
-                              round(at, 3), None)
-    return _check(key, value, not value, "the blackbox shows the link valid throughout",
-                  None, None)
-
-
-def _blackbox_disarm(key: str, value: str, trace: Trace, _e: dict[str, Any]) -> CheckResult:
-    reasons = [log.disarm_reason_name for log in trace.blackbox
-               if log.disarm_reason_name is not None]
-    if not reasons:
-        return _check(key, value, False, "no disarm event in the blackbox", None, None)
-    return _check(key, value, value in reasons, f"the blackbox's disarm reason was "
-                  f"{', '.join(reasons)}", reasons[-1], None)
-
-
-def _found(trace: Trace, name: str) -> str:
-    finding = next((f for f in trace.findings if f.analyser == name), None)
-    return "nothing" if finding is None else f"{finding.severity.label}: {finding.summary}"
-
-
-def _finding(key: str, value: str | list[str], trace: Trace, _e: dict[str, Any]
-             ) -> CheckResult:
-    names = _names(value)
-    missing = [n for n in names if not any(f.analyser == n for f in trace.findings)]
-    seen = "; ".join(f"{n}: {_found(trace, n)}" for n in names)
-    first = next((f for f in trace.findings if f.analyser in names), None)
-    return _check(key, value, not missing,
-                  (f"{', '.join(missing)} found nothing; " if missing else "") + seen,
-                  first.severity.label if first else None, first.time_s if first else None)
-
-
-def _no_finding(key: str, value: str | list[str], trace: Trace, _e: dict[str, Any]
-                ) -> CheckResult:
-    found = [f for f in trace.findings if f.analyser in _names(value)]
-    if not found:
-        return _check(key, value, True, "none of them found anything", None, None)
-    return _check(key, value, False, "; ".join(f"{f.analyser}: {f.severity.label}: "
-                                               f"{f.summary}" for f in found),
-                  found[0].severity.label, found[0].time_s)
-
-
-def _worst_finding(key: str, value: str, trace: Trace, _e: dict[str, Any]) -> CheckResult:
-    allowed = 0 if value == "none" else int(Severity.parse(value))
-    worse = [f for f in trace.findings if f.severity > allowed]
-    if not worse:
-        worst = trace.findings[0].severity.label if trace.findings else "none"
-        return _check(key, value, True, f"the worst finding was {worst}", worst, None)
-    return _check(key, value, False, f"{worse[0].analyser} found {worse[0].severity.label}: "
-                  f"{worse[0].summary}", worse[0].severity.label, worse[0].time_s)
 
 
 _Judge = Callable[[str, Any, Trace, dict[str, Any]], CheckResult]
@@ -356,22 +70,22 @@ _Judge = Callable[[str, Any, Trace, dict[str, Any]], CheckResult]
 #: key -> (value kind, judge).  Kinds: "bool", "number", "names", "phases", "limit", "text",
 #: "analysers", "severity".
 _KEYS: dict[str, tuple[str, _Judge | None]] = {
-    "disarmed": ("bool", _disarmed),
-    "disarmed_within_s": ("number", _disarmed_within),
-    "failsafe_phase": ("phases", _failsafe_phase),
+    "disarmed": ("bool", expect_flight.disarmed),
+    "disarmed_within_s": ("number", expect_flight.disarmed_within),
+    "failsafe_phase": ("phases", expect_flight.failsafe_phase),
     "failsafe_within_s": ("number", None),  # read by failsafe_phase
-    "failsafe_phase_never": ("phases", _failsafe_never),
-    "landed_within_m": ("number", _landed_within),
-    "max_touchdown_m_s": ("number", _max_touchdown),
-    "crashed": ("bool", _crashed),
-    "mode_seen": ("names", _mode_seen),
-    "mode_never": ("names", _mode_never),
-    "max_tilt_deg": ("limit", _extreme(lambda r: r.tilt_deg, lowest=False, what="tilted",
-                                       unit="deg", default_window=_whole_run)),
-    "min_alt_m": ("limit", _extreme(lambda r: r.alt_m, lowest=True, what="down to",
-                                    unit="m", default_window=_in_the_air)),
-    "max_alt_m": ("limit", _extreme(lambda r: r.alt_m, lowest=False, what="up to", unit="m",
-                                    default_window=_whole_run)),
+    "failsafe_phase_never": ("phases", expect_flight.failsafe_never),
+    "landed_within_m": ("number", expect_flight.landed_within),
+    "max_touchdown_m_s": ("number", expect_flight.max_touchdown),
+    "crashed": ("bool", expect_flight.crashed),
+    "mode_seen": ("names", expect_flight.mode_seen),
+    "mode_never": ("names", expect_flight.mode_never),
+    "max_tilt_deg": ("limit", extreme(lambda r: r.tilt_deg, lowest=False, what="tilted",
+                                      unit="deg", default_window=whole_run)),
+    "min_alt_m": ("limit", extreme(lambda r: r.alt_m, lowest=True, what="down to",
+                                   unit="m", default_window=in_the_air)),
+    "max_alt_m": ("limit", extreme(lambda r: r.alt_m, lowest=False, what="up to", unit="m",
+                                   default_window=whole_run)),
     "max_distance_m": ("limit", expect_path.distance_bound(lowest=False)),
     "min_distance_m": ("limit", expect_path.distance_bound(lowest=True)),
     "reached": ("point", expect_path.reached),
@@ -379,12 +93,12 @@ _KEYS: dict[str, tuple[str, _Judge | None]] = {
     "max_ground_speed_m_s": ("limit", expect_path.max_ground_speed),
     "heading_deg": ("heading", expect_path.heading),
     "min_path_m": ("limit", expect_path.min_path),
-    "blackbox_phase": ("phases", _blackbox_phase),
-    "blackbox_disarm_reason": ("text", _blackbox_disarm),
-    "blackbox_link_lost": ("bool", _blackbox_link_lost),
-    "finding": ("analysers", _finding),
-    "no_finding": ("analysers", _no_finding),
-    "worst_finding": ("severity", _worst_finding),
+    "blackbox_phase": ("phases", expect_log.blackbox_phase),
+    "blackbox_disarm_reason": ("text", expect_log.blackbox_disarm),
+    "blackbox_link_lost": ("bool", expect_log.blackbox_link_lost),
+    "finding": ("analysers", expect_log.finding),
+    "no_finding": ("analysers", expect_log.no_finding),
+    "worst_finding": ("severity", expect_log.worst_finding),
 }
 ANALYSER_NAMES = tuple(a.name for a in ANALYSERS)
 #: Limits measured from a point (the take-off point unless north_m / east_m say).
@@ -413,7 +127,7 @@ def _parse(where: str, key: str, value: Any) -> Any:
                                 f"{', '.join(SEVERITY_NAMES)}")
         return value
     if kind == "analysers":
-        listed = _names(value) if isinstance(value, (str, list)) else []
+        listed = name_list(value) if isinstance(value, (str, list)) else []
         unknown = [n for n in listed if n not in ANALYSER_NAMES]
         if not listed or unknown:
             raise ScenarioError(f"{where}, [expect]: {key}: unknown analyser(s) "
@@ -421,7 +135,7 @@ def _parse(where: str, key: str, value: Any) -> Any:
                                 f"{', '.join(ANALYSER_NAMES)}")
         return value
     if kind in ("names", "phases", "text"):
-        names = _names(value) if isinstance(value, (str, list)) else None
+        names = name_list(value) if isinstance(value, (str, list)) else None
         if not names or not all(isinstance(n, str) and n for n in names):
             raise bad
         if kind == "phases":

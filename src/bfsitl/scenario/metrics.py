@@ -14,7 +14,7 @@ import math
 from dataclasses import dataclass, field
 from typing import TYPE_CHECKING
 
-from bfsitl.analysis.analysers import touchdowns
+from bfsitl.analysis.ground_contact import touchdowns
 from bfsitl.analysis.limits import Limits
 from bfsitl.analysis.series import held_points
 from bfsitl.analysis.track import Track

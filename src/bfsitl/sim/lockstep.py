@@ -15,9 +15,9 @@ process starts (``SitlProcess.on_spawn``), so the FC's first scheduler pass alre
 the simulator's time and the whole run, boot included, repeats exactly.
 
 Everything runs in the caller's thread: the mission loop, MSP telemetry and the physics take
-turns, so a flight is a pure function of its inputs and seed.  :class:`SteppedLink` makes the
-MSP client step the simulation while it waits for a reply (the FC only answers while its
-clock moves), and :class:`LockstepClock` is the mission's clock: waiting means stepping.
+turns, so a flight is a pure function of its inputs and seed.  The MSP client steps the
+simulation while it waits for a reply (the FC only answers while its clock moves), and the
+mission's clock steps while it waits (:mod:`bfsitl.sim.lockstep_io`).
 
 ``speed=None`` steps as fast as the machine allows (``--speed max``); a number paces the
 steps to that multiple of real time (a wall-clock sleep that only changes how long it takes).
@@ -34,9 +34,8 @@ from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Protocol, TypeVar
 
-from bfsitl.errors import PacketError, SitlError, SitlExitedError
-from bfsitl.fc.rc_link import SAFE_COMMAND, RcCommand, RcFault, RcFaultState, RcLinkStats
-from bfsitl.link.base import Link
+from bfsitl.errors import PacketError, SitlError
+from bfsitl.fc.rc_link import SAFE_COMMAND, RcCommand, RcFaultState
 from bfsitl.link.shm_exchange import ShmExchange
 from bfsitl.physics.frames import GeoPoint
 from bfsitl.protocol.fdm_encoding import FdmEncoder
@@ -480,116 +479,3 @@ class LockstepBridge:
                     speeds, self.encoder.profile.motor_slot_of_betaflight_motor)
             if self.alive is not None:
                 self.alive()  # a SITL that ended (a reboot, a crash) says so now
-
-
-class LockstepClock:
-    """The mission clock of a lockstep session: simulation time, and waiting steps it."""
-
-    def __init__(self, bridge: LockstepBridge) -> None:
-        self.bridge = bridge
-
-    def now_s(self) -> float:
-        return self.bridge.sim_time_s
-
-    def sleep_s(self, seconds: float) -> None:
-        if seconds > 0:
-            self.bridge.run_for(seconds)
-
-
-class LockstepRc:
-    """The RC command of a lockstep session: it rides in every fdm packet.
-
-    Offers what a session uses of an RC link (``set``, ``command``, ``stats``, ``close``);
-    closing centres the sticks, lowers the throttle and drops the switches, and steps a
-    tenth of a second so the FC has taken it.
-    """
-
-    FAREWELL_S = 0.1
-
-    def __init__(self, bridge: LockstepBridge) -> None:
-        self.bridge = bridge
-        self.closed = False
-
-    @property
-    def command(self) -> RcCommand:
-        return self.bridge.rc_command
-
-    def set(self, command: RcCommand) -> None:
-        command.channels_aetr()  # validated now, so errors surface here
-        self.bridge.rc_command = command
-
-    def start(self) -> LockstepRc:
-        return self
-
-    @property
-    def fault(self) -> RcFault | None:
-        return self.bridge.rc_fault.fault
-
-    @fault.setter
-    def fault(self, fault: RcFault | None) -> None:
-        """Inject ``fault`` from the next fdm packet on (None ends it)."""
-        self.bridge.rc_fault.inject(fault, self.bridge.rc_command)
-
-    def stats(self) -> RcLinkStats:
-        steps = self.bridge.lockstep_stats().steps
-        period_ms = self.bridge.step_s * 1000
-        return RcLinkStats(steps, period_ms, period_ms, period_ms, 0)
-
-    def close(self) -> None:
-        if self.closed:
-            return
-        self.closed = True
-        self.bridge.rc_fault.fault = None  # the farewell goes out whatever was injected
-        self.bridge.rc_command = self.bridge.rc_command.disarmed()
-        try:
-            self.bridge.run_for(self.FAREWELL_S)
-        except (SitlError, OSError):
-            pass  # the SITL is gone: nothing holds the sticks any more
-
-
-class SteppedLink(Link):
-    """A link whose waits step the simulation: the lockstep FC answers only as time moves.
-
-    Reads are non-blocking on the wrapped link; while nothing has come, one step at a time is
-    taken until the timeout, counted in *simulation* seconds, has passed.
-    """
-
-    #: The FC reads its TCP port at every step: waiting steps it, no wake bytes needed.
-    wants_wake_bytes = False
-
-    def __init__(self, inner: Link, bridge: LockstepBridge) -> None:
-        super().__init__(inner.uri, inner.timeout_s)
-        self.max_in_flight_bytes = inner.max_in_flight_bytes
-        self.inner = inner
-        self.bridge = bridge
-
-    def _write_bytes(self, data: bytes) -> None:
-        self.inner._write_bytes(data)
-
-    def _read_bytes(self, max_bytes: int, timeout_s: float) -> bytes | None:
-        data = self.inner._read_bytes(max_bytes, 0.0)
-        if data or data is None or timeout_s <= 0:
-            return data
-        until_s = self.bridge.sim_time_s + timeout_s
-        fd = self.inner.readable_fd
-        while self.bridge.sim_time_s < until_s:
-            try:
-                if fd < 0:
-                    self.bridge.step()
-                else:
-                    self.bridge.step_until_readable(fd, until_s)
-            except SitlExitedError:
-                return None  # the SITL ended (a reboot): to the reader, the peer closed
-            data = self.inner._read_bytes(max_bytes, 0.0)
-            if data or data is None:
-                return data
-        return b""
-
-    def pause(self, seconds: float) -> None:
-        try:
-            self.bridge.run_for(seconds)
-        except SitlExitedError:
-            pass  # nothing on the other side to wait for; the next read reports it
-
-    def _close(self) -> None:
-        self.inner.close()

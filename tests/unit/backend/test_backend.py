@@ -30,7 +30,8 @@ from bfsitl.mission.session import FlightSession, SessionConfig
 from bfsitl.mission.vehicle import Vehicle
 from bfsitl.physics import Simulator
 from bfsitl.physics.wind import Wind
-from bfsitl.sim.lockstep import SITL_SPIN_ENV, SteppedLink
+from bfsitl.sim.lockstep import SITL_SPIN_ENV
+from bfsitl.sim.lockstep_io import SteppedLink
 from bfsitl.sitl.firmware import FirmwareBinary
 
 

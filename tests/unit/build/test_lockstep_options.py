@@ -9,7 +9,7 @@ import pytest
 
 from bfsitl.build.binary_scan import LOCKSTEP_MARKER, binary_traits, clear_cache
 from bfsitl.build.lockstep import MARKER
-from bfsitl.cli.fly_command import parse_speed
+from bfsitl.cli.arg_types import parse_speed
 
 
 def test_speed_takes_a_positive_number_or_max() -> None:

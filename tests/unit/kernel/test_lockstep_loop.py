@@ -23,7 +23,8 @@ from bfsitl.physics.sensors import SensorConfig
 from bfsitl.physics.wind import Wind
 from bfsitl.protocol.firmware_profile import FirmwareProfile, profile_for
 from bfsitl.protocol.sitl_packets import FdmPacket
-from bfsitl.sim.lockstep import LockstepBridge, LockstepClock, LockstepRc
+from bfsitl.sim.lockstep import LockstepBridge
+from bfsitl.sim.lockstep_io import LockstepClock, LockstepRc
 
 pytestmark = pytest.mark.skipif(not shm_exchange_supported(),
                                 reason="the shared-memory exchange is x86-64 Linux only")

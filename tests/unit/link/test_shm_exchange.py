@@ -31,7 +31,7 @@ from bfsitl.link.shm_exchange import (
     ShmExchange,
     shm_exchange_supported,
 )
-from bfsitl.sim.lockstep import LockstepClock, LockstepRc
+from bfsitl.sim.lockstep_io import LockstepClock, LockstepRc
 from bfsitl.sitl.firmware import FirmwareBinary
 
 pytestmark = pytest.mark.skipif(not shm_exchange_supported(),

@@ -9,7 +9,8 @@ import pytest
 from bfsitl.analysis import Finding, Severity
 from bfsitl.errors import ScenarioError
 from bfsitl.library import scenarios_dir
-from bfsitl.scenario.expectations import crash_of, judge
+from bfsitl.scenario.expect_flight import crash_of
+from bfsitl.scenario.expectations import judge
 from bfsitl.scenario.load import find_scenarios, load_scenario
 from bfsitl.scenario.spec import scenario_from_dict
 from bfsitl.scenario.trace import Trace, TraceRow

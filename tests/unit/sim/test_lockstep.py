@@ -22,11 +22,9 @@ from bfsitl.sim.bridge import FDM_PORT
 from bfsitl.sim.lockstep import (
     REPLY_FORMAT,
     LockstepBridge,
-    LockstepClock,
-    LockstepRc,
-    SteppedLink,
     decode_reply,
 )
+from bfsitl.sim.lockstep_io import LockstepClock, LockstepRc, SteppedLink
 
 REPO = Path(__file__).resolve().parents[3]
 

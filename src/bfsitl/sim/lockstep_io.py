@@ -1,0 +1,124 @@
+"""What a lockstep session's parts see of the stepping (:mod:`bfsitl.sim.lockstep`): the
+mission's clock (:class:`LockstepClock`: waiting means stepping), the RC command that rides in
+every fdm packet (:class:`LockstepRc`) and the MSP link whose waits step the simulation
+(:class:`SteppedLink`: the lockstep FC answers only as its time moves)."""
+
+from __future__ import annotations
+
+from bfsitl.errors import SitlError, SitlExitedError
+from bfsitl.fc.rc_link import RcCommand, RcFault, RcLinkStats
+from bfsitl.link.base import Link
+from bfsitl.sim.lockstep import LockstepBridge
+
+
+class LockstepClock:
+    """The mission clock of a lockstep session: simulation time, and waiting steps it."""
+
+    def __init__(self, bridge: LockstepBridge) -> None:
+        self.bridge = bridge
+
+    def now_s(self) -> float:
+        return self.bridge.sim_time_s
+
+    def sleep_s(self, seconds: float) -> None:
+        if seconds > 0:
+            self.bridge.run_for(seconds)
+
+
+class LockstepRc:
+    """The RC command of a lockstep session: it rides in every fdm packet.
+
+    Offers what a session uses of an RC link (``set``, ``command``, ``stats``, ``close``);
+    closing centres the sticks, lowers the throttle and drops the switches, and steps a
+    tenth of a second so the FC has taken it.
+    """
+
+    FAREWELL_S = 0.1
+
+    def __init__(self, bridge: LockstepBridge) -> None:
+        self.bridge = bridge
+        self.closed = False
+
+    @property
+    def command(self) -> RcCommand:
+        return self.bridge.rc_command
+
+    def set(self, command: RcCommand) -> None:
+        command.channels_aetr()  # validated now, so errors surface here
+        self.bridge.rc_command = command
+
+    def start(self) -> LockstepRc:
+        return self
+
+    @property
+    def fault(self) -> RcFault | None:
+        return self.bridge.rc_fault.fault
+
+    @fault.setter
+    def fault(self, fault: RcFault | None) -> None:
+        """Inject ``fault`` from the next fdm packet on (None ends it)."""
+        self.bridge.rc_fault.inject(fault, self.bridge.rc_command)
+
+    def stats(self) -> RcLinkStats:
+        steps = self.bridge.lockstep_stats().steps
+        period_ms = self.bridge.step_s * 1000
+        return RcLinkStats(steps, period_ms, period_ms, period_ms, 0)
+
+    def close(self) -> None:
+        if self.closed:
+            return
+        self.closed = True
+        self.bridge.rc_fault.fault = None  # the farewell goes out whatever was injected
+        self.bridge.rc_command = self.bridge.rc_command.disarmed()
+        try:
+            self.bridge.run_for(self.FAREWELL_S)
+        except (SitlError, OSError):
+            pass  # the SITL is gone: nothing holds the sticks any more
+
+
+class SteppedLink(Link):
+    """A link whose waits step the simulation: the lockstep FC answers only as time moves.
+
+    Reads are non-blocking on the wrapped link; while nothing has come, one step at a time is
+    taken until the timeout, counted in *simulation* seconds, has passed.
+    """
+
+    #: The FC reads its TCP port at every step: waiting steps it, no wake bytes needed.
+    wants_wake_bytes = False
+
+    def __init__(self, inner: Link, bridge: LockstepBridge) -> None:
+        super().__init__(inner.uri, inner.timeout_s)
+        self.max_in_flight_bytes = inner.max_in_flight_bytes
+        self.inner = inner
+        self.bridge = bridge
+
+    def _write_bytes(self, data: bytes) -> None:
+        self.inner._write_bytes(data)
+
+    def _read_bytes(self, max_bytes: int, timeout_s: float) -> bytes | None:
+        data = self.inner._read_bytes(max_bytes, 0.0)
+        if data or data is None or timeout_s <= 0:
+            return data
+        until_s = self.bridge.sim_time_s + timeout_s
+        fd = self.inner.readable_fd
+        while self.bridge.sim_time_s < until_s:
+            try:
+                if fd < 0:
+                    self.bridge.step()
+                else:
+                    self.bridge.step_until_readable(fd, until_s)
+            except SitlExitedError:
+                return None  # the SITL ended (a reboot): to the reader, the peer closed
+            data = self.inner._read_bytes(max_bytes, 0.0)
+            if data or data is None:
+                return data
+        return b""
+
+    def pause(self, seconds: float) -> None:
+        try:
+            self.bridge.run_for(seconds)
+        except SitlExitedError:
+            pass  # nothing on the other side to wait for; the next read reports it
+
+    def _close(self) -> None:
+        self.inner.close()

@@ -53,23 +53,36 @@ class Run:
     trace: list[tuple[float, float, float]] = field(default_factory=list, repr=False)
 
 
-def fly_once(controller_name: str, plan: MissionPlan, band_m: float, speed: float,
-             baro_noise_pa: float = DEFAULT_BARO_NOISE_PA, firmware: str | None = None) -> Run:
+def fly_once(
+    controller_name: str,
+    plan: MissionPlan,
+    band_m: float,
+    speed: float,
+    baro_noise_pa: float = DEFAULT_BARO_NOISE_PA,
+    firmware: str | None = None,
+) -> Run:
     controller = make_controller(controller_name, {})
     landing = LandingController(hover_from=controller)
     started = time.monotonic()
-    config = SessionConfig(timing=Timing(speed=speed), sitl=SitlLaunch(firmware=firmware),
-                           world=World(sensors=fly_sensors(baro_noise_std_pa=baro_noise_pa)))
+    config = SessionConfig(
+        timing=Timing(speed=speed),
+        sitl=SitlLaunch(firmware=firmware),
+        world=World(sensors=fly_sensors(baro_noise_std_pa=baro_noise_pa)),
+    )
     with FlightSession(config, progress=_progress) as session:
         result = fly(session, plan, controller, landing=landing)
         assert session.sitl is not None
         firmware_name = session.sitl.profile.firmware_version
     flown = [r for r in result.rows if r.phase in ("takeoff", "hold")]
     return Run(
-        controller=controller_name, firmware=firmware_name, outcome=result.outcome.value,
+        controller=controller_name,
+        firmware=firmware_name,
+        outcome=result.outcome.value,
         reason=result.reason,
-        armed_after_s=result.armed_after_s, metrics=_metrics(flown, plan, band_m),
-        wall_s=time.monotonic() - started, trace=_trace(flown),
+        armed_after_s=result.armed_after_s,
+        metrics=_metrics(flown, plan, band_m),
+        wall_s=time.monotonic() - started,
+        trace=_trace(flown),
     )
 
 
@@ -77,9 +90,14 @@ def _metrics(rows: list[FlightRow], plan: MissionPlan, band_m: float) -> StepMet
     if len(rows) < 10:
         return None
     return step_response(
-        [r.time_s for r in rows], [r.sim_alt_m for r in rows], target_m=plan.target_alt_m,
-        band_m=band_m, steady_window_s=min(STEADY_WINDOW_S, plan.hold_s),
-        roll_deg=[r.roll_deg for r in rows], pitch_deg=[r.pitch_deg for r in rows])
+        [r.time_s for r in rows],
+        [r.sim_alt_m for r in rows],
+        target_m=plan.target_alt_m,
+        band_m=band_m,
+        steady_window_s=min(STEADY_WINDOW_S, plan.hold_s),
+        roll_deg=[r.roll_deg for r in rows],
+        pitch_deg=[r.pitch_deg for r in rows],
+    )
 
 
 def _trace(rows: list[FlightRow]) -> list[tuple[float, float, float]]:
@@ -99,9 +117,11 @@ def _median(values: list[float]) -> float:
 
 
 def table(runs: list[Run], band_m: float) -> str:
-    header = (f"{'firmware':<16} {'controller':<13} {'runs':>4} {'landed':>6} {'rise s':>7} "
-              f"{'overshoot %':>11} {'settle s':>8} {'RMS cm':>7} {'bias cm':>7} "
-              f"{'max att deg':>11} {'armed after s':>13}")
+    header = (
+        f"{'firmware':<16} {'controller':<13} {'runs':>4} {'landed':>6} {'rise s':>7} "
+        f"{'overshoot %':>11} {'settle s':>8} {'RMS cm':>7} {'bias cm':>7} "
+        f"{'max att deg':>11} {'armed after s':>13}"
+    )
     lines = [header, "-" * len(header)]
     for firmware, name in dict.fromkeys((r.firmware, r.controller) for r in runs):
         mine = [r for r in runs if r.controller == name and r.firmware == firmware]
@@ -117,10 +137,13 @@ def table(runs: list[Run], band_m: float) -> str:
             f"{med('overshoot_pct'):>11.1f} {med('settling_time_s'):>8.2f} "
             f"{med('steady_state_rms_m', 100):>7.1f} "
             f"{med('steady_state_mean_error_m', 100):>+7.1f} "
-            f"{med('max_attitude_deg'):>11.1f} {armed:>13.1f}")
-    lines.append(f"(medians over the runs; settle = inside +-{band_m * 100:.0f} cm for good, inf "
-                 f"= never; RMS and bias over the last {STEADY_WINDOW_S:.0f} s of the hold, "
-                 f"simulated truth vs target)")
+            f"{med('max_attitude_deg'):>11.1f} {armed:>13.1f}"
+        )
+    lines.append(
+        f"(medians over the runs; settle = inside +-{band_m * 100:.0f} cm for good, inf "
+        f"= never; RMS and bias over the last {STEADY_WINDOW_S:.0f} s of the hold, "
+        f"simulated truth vs target)"
+    )
     return "\n".join(lines)
 
 
@@ -138,20 +161,30 @@ def plot(runs: list[Run], plan: MissionPlan, band_m: float, path: str) -> None:
             continue
         key = (run.firmware, run.controller)
         colour = colours[names.index(key) % len(colours)]
-        label = f"{run.firmware} {run.controller}" if len({r.firmware for r in runs}) > 1 \
+        label = (
+            f"{run.firmware} {run.controller}"
+            if len({r.firmware for r in runs}) > 1
             else run.controller
+        )
         t = [p[0] for p in run.trace]
         axis.plot(t, [p[1] for p in run.trace], color=colour, label=f"{label} (truth)")
-        axis.plot(t, [p[2] for p in run.trace], ":", color=colour, alpha=0.8,
-                  label=f"{label} (FC reading)")
+        axis.plot(
+            t,
+            [p[2] for p in run.trace],
+            ":",
+            color=colour,
+            alpha=0.8,
+            label=f"{label} (FC reading)",
+        )
     axis.axhline(plan.target_alt_m, color="k", linestyle="--", linewidth=1, label="target")
     for edge in (plan.target_alt_m - band_m, plan.target_alt_m + band_m):
         axis.axhline(edge, color="grey", linewidth=0.5)
     axis.set_xlabel("time since the take-off command (s, simulation)")
     axis.set_ylabel("altitude above take-off (m)")
     firmwares = ", ".join(dict.fromkeys(r.firmware for r in runs))
-    axis.set_title(f"0 -> {plan.target_alt_m:g} m step and {plan.hold_s:g} s hold, "
-                   f"Betaflight {firmwares} SITL")
+    axis.set_title(
+        f"0 -> {plan.target_alt_m:g} m step and {plan.hold_s:g} s hold, Betaflight {firmwares} SITL"
+    )
     handles, labels = axis.get_legend_handles_labels()
     unique = dict(zip(labels, handles, strict=True))
     axis.legend(unique.values(), unique.keys(), loc="lower right", fontsize=8)
@@ -163,20 +196,31 @@ def plot(runs: list[Run], plan: MissionPlan, band_m: float, path: str) -> None:
 
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--controllers", default=",".join(DEFAULT_CONTROLLERS),
-                        help="comma-separated controller names (default: %(default)s)")
+    parser.add_argument(
+        "--controllers",
+        default=",".join(DEFAULT_CONTROLLERS),
+        help="comma-separated controller names (default: %(default)s)",
+    )
     parser.add_argument("--target", type=float, default=2.0, help="step height, m")
     parser.add_argument("--hold", type=float, default=12.0, help="hold time, s")
     parser.add_argument("--band", type=float, default=0.05, help="settling band, m")
     parser.add_argument("--repeats", type=int, default=1, help="flights per controller")
-    parser.add_argument("--speed", type=float, default=1.0,
-                        help="simulation speed x real time (default 1)")
-    parser.add_argument("--baro-noise-pa", type=float, default=DEFAULT_BARO_NOISE_PA,
-                        help="barometer noise std, Pa (default %(default)s, as `bfsitl fly`; "
-                             "0 gives the FC a whole-pascal staircase)")
-    parser.add_argument("--firmware", action="append", metavar="PATH_OR_NAME",
-                        help="SITL binary or cached build name, repeatable (default: the one "
-                             "`bfsitl fly` uses)")
+    parser.add_argument(
+        "--speed", type=float, default=1.0, help="simulation speed x real time (default 1)"
+    )
+    parser.add_argument(
+        "--baro-noise-pa",
+        type=float,
+        default=DEFAULT_BARO_NOISE_PA,
+        help="barometer noise std, Pa (default %(default)s, as `bfsitl fly`; "
+        "0 gives the FC a whole-pascal staircase)",
+    )
+    parser.add_argument(
+        "--firmware",
+        action="append",
+        metavar="PATH_OR_NAME",
+        help="SITL binary or cached build name, repeatable (default: the one `bfsitl fly` uses)",
+    )
     parser.add_argument("--plot", metavar="PATH", help="write the altitude traces as a PNG")
     parser.add_argument("--json", action="store_true", help="print the runs as JSON")
     args = parser.parse_args(argv)
@@ -185,16 +229,20 @@ def main(argv: list[str] | None = None) -> int:
     for firmware in args.firmware or [None]:
         for _ in range(max(1, args.repeats)):
             for name in args.controllers.split(","):
-                print(f"{name}: flying on {firmware or 'the default firmware'}",
-                      file=sys.stderr)
-                run = fly_once(name.strip(), plan, args.band, args.speed, args.baro_noise_pa,
-                               firmware)
-                print(f"{name}: {run.outcome} ({run.reason}), {run.wall_s:.0f} s",
-                      file=sys.stderr)
+                print(f"{name}: flying on {firmware or 'the default firmware'}", file=sys.stderr)
+                run = fly_once(
+                    name.strip(), plan, args.band, args.speed, args.baro_noise_pa, firmware
+                )
+                print(f"{name}: {run.outcome} ({run.reason}), {run.wall_s:.0f} s", file=sys.stderr)
                 runs.append(run)
     if args.json:
-        print(json.dumps([{k: v for k, v in asdict(r).items() if k != "trace"} for r in runs],
-                         indent=2, default=str))
+        print(
+            json.dumps(
+                [{k: v for k, v in asdict(r).items() if k != "trace"} for r in runs],
+                indent=2,
+                default=str,
+            )
+        )
     print(table(runs, args.band), file=sys.stderr if args.json else sys.stdout)
     if args.plot:
         plot(runs, plan, args.band, args.plot)

@@ -60,8 +60,14 @@ def measure_bridge(timestamps: str, speed: float, window_s: float) -> BridgeRow:
             cycles.append(monitor.fc_cycle_us(polls=3))
             time.sleep(0.3)
         sample = monitor.sample()  # answered/speed over the whole window
-        return BridgeRow(timestamps, speed, sample.fc_clock_ratio,
-                         statistics.median(cycles), sample.answered_ratio, sample.speed)
+        return BridgeRow(
+            timestamps,
+            speed,
+            sample.fc_clock_ratio,
+            statistics.median(cycles),
+            sample.answered_ratio,
+            sample.speed,
+        )
 
 
 def run_bridge_modes(speeds: tuple[float, ...], window_s: float) -> list[BridgeRow]:

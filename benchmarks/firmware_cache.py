@@ -23,15 +23,18 @@ def _source_path(source: Path | str | None, name: str) -> Path | None:
         return None if source is None else Path(source)
     named = os.environ.get(MASTER_SOURCE_ENV_VAR)
     if not named:
-        sys.exit(f"{name} is built from master, which is not part of bfsitl: set "
-                 f"{MASTER_SOURCE_ENV_VAR} to your betaflight tree or a tarball of one, or "
-                 f"build it once with `bfsitl firmware build --git "
-                 f"https://github.com/betaflight/betaflight --ref master ... --name {name}`")
+        sys.exit(
+            f"{name} is built from master, which is not part of bfsitl: set "
+            f"{MASTER_SOURCE_ENV_VAR} to your betaflight tree or a tarball of one, or "
+            f"build it once with `bfsitl firmware build --git "
+            f"https://github.com/betaflight/betaflight --ref master ... --name {name}`"
+        )
     return Path(named).expanduser()
 
 
-def cached_firmware(name: str, source: Path | str | None, options: FirmwareBuildOptions,
-                    build_missing: bool) -> str:
+def cached_firmware(
+    name: str, source: Path | str | None, options: FirmwareBuildOptions, build_missing: bool
+) -> str:
     """The binary of the cached build ``name``; built from ``source`` (a path, None for the
     4.6.0 package, or :data:`MASTER_SOURCE`) with ``options`` when missing and
     ``build_missing``, else the benchmark exits saying how to get it."""
@@ -40,10 +43,13 @@ def cached_firmware(name: str, source: Path | str | None, options: FirmwareBuild
     if entry is not None:
         return str(entry.binary_path)
     if not build_missing:
-        sys.exit(f"no cached build named {name!r}: run with --build (or `bfsitl firmware "
-                 f"build ... --name {name}`)")
+        sys.exit(
+            f"no cached build named {name!r}: run with --build (or `bfsitl firmware "
+            f"build ... --name {name}`)"
+        )
     path = _source_path(source, name)
     print(f"building {name} ...", file=sys.stderr)
-    result = build_firmware(path, options, name=name, cache=cache,
-                            progress=BuildProgress(live=False))
+    result = build_firmware(
+        path, options, name=name, cache=cache, progress=BuildProgress(live=False)
+    )
     return str(result.binary_path)

@@ -46,10 +46,15 @@ from bfsitl.link.shm_exchange import shm_exchange_supported
 from bfsitl.mission.session import FlightSession, SessionConfig, SitlLaunch
 
 
-def single(firmware: str, control_hz: float, seconds: float, *, spin: bool, pin: bool,
-           exchange: str) -> tuple[dict[str, float], list[float]]:
-    env = HoverEnv(sitl=SitlLaunch(firmware=firmware), control_hz=control_hz, pin_core=pin,
-                   timing=Timing(lockstep_spin=spin, lockstep_exchange=exchange))
+def single(
+    firmware: str, control_hz: float, seconds: float, *, spin: bool, pin: bool, exchange: str
+) -> tuple[dict[str, float], list[float]]:
+    env = HoverEnv(
+        sitl=SitlLaunch(firmware=firmware),
+        control_hz=control_hz,
+        pin_core=pin,
+        timing=Timing(lockstep_spin=spin, lockstep_exchange=exchange),
+    )
     resets: list[float] = []
     steps, sim_s = 0, 0.0
     try:
@@ -72,23 +77,32 @@ def single(firmware: str, control_hz: float, seconds: float, *, spin: bool, pin:
     return {"steps_per_s": steps / wall_s, "sim_per_wall": sim_s / wall_s}, resets
 
 
-def vector(firmware: str, control_hz: float, seconds: float, count: int, *, own: bool
-           ) -> dict[str, float]:
+def vector(
+    firmware: str, control_hz: float, seconds: float, count: int, *, own: bool
+) -> dict[str, float]:
     """``count`` environments in ``AsyncVectorEnv`` (its default autoreset: the step after
     an ending resets) or in bfsitl's ``FlightVectorEnv`` (resets in the same step)."""
     if own:
-        envs = gymnasium.make_vec("bfsitl/Hover-v0", num_envs=count,
-                                  vectorization_mode="vector_entry_point",
-                                  sitl=SitlLaunch(firmware=firmware), control_hz=control_hz)
+        envs = gymnasium.make_vec(
+            "bfsitl/Hover-v0",
+            num_envs=count,
+            vectorization_mode="vector_entry_point",
+            sitl=SitlLaunch(firmware=firmware),
+            control_hz=control_hz,
+        )
     else:
         envs = gymnasium.vector.AsyncVectorEnv(
-            [lambda: HoverEnv(sitl=SitlLaunch(firmware=firmware), control_hz=control_hz)
-             for _ in range(count)])
+            [
+                lambda: HoverEnv(sitl=SitlLaunch(firmware=firmware), control_hz=control_hz)
+                for _ in range(count)
+            ]
+        )
     return _drive(envs, count, seconds, final_info=own)
 
 
-def _drive(envs: gymnasium.vector.VectorEnv, count: int, seconds: float, *, final_info: bool
-           ) -> dict[str, float]:
+def _drive(
+    envs: gymnasium.vector.VectorEnv, count: int, seconds: float, *, final_info: bool
+) -> dict[str, float]:
     """Step ``envs`` with the hand-written policy for ``seconds`` of wall time, then close."""
     own = final_info
     steps = 0
@@ -117,19 +131,29 @@ def _drive(envs: gymnasium.vector.VectorEnv, count: int, seconds: float, *, fina
     return {"steps_per_s": steps / wall_s, "sim_per_wall": float(sim_s.sum()) / wall_s}
 
 
-def ray_vector(firmware: str, control_hz: float, seconds: float, count: int
-               ) -> dict[str, float]:
+def ray_vector(firmware: str, control_hz: float, seconds: float, count: int) -> dict[str, float]:
     """``count`` environments as Ray actors (bfsitl.gym.ray_vector) on a local cluster of one
     node with ``count`` CPUs: what the Ray calls cost against FlightVectorEnv's pipes."""
     from ray.cluster_utils import Cluster
 
     from bfsitl.gym.ray_vector import RayVectorEnv
 
-    cluster = Cluster(initialize_head=True, head_node_args={
-        "num_cpus": count, "include_dashboard": False, "object_store_memory": 100_000_000})
+    cluster = Cluster(
+        initialize_head=True,
+        head_node_args={
+            "num_cpus": count,
+            "include_dashboard": False,
+            "object_store_memory": 100_000_000,
+        },
+    )
     try:
-        envs = RayVectorEnv("bfsitl.gym.env:HoverEnv", count, address=cluster.address,
-                            sitl=SitlLaunch(firmware=firmware), control_hz=control_hz)
+        envs = RayVectorEnv(
+            "bfsitl.gym.env:HoverEnv",
+            count,
+            address=cluster.address,
+            sitl=SitlLaunch(firmware=firmware),
+            control_hz=control_hz,
+        )
         return _drive(envs, count, seconds, final_info=True)
     finally:
         cluster.shutdown()
@@ -162,8 +186,9 @@ def main() -> None:
     parser.add_argument("--seconds", type=float, default=20.0)
     parser.add_argument("--control-hz", type=float, default=100.0)
     parser.add_argument("--firmware", default=DEFAULT_FIRMWARE)
-    parser.add_argument("--ray", action="store_true",
-                        help="also 2 environments as Ray actors on a local cluster")
+    parser.add_argument(
+        "--ray", action="store_true", help="also 2 environments as Ray actors on a local cluster"
+    )
     args = parser.parse_args()
     rows = []
     print("[gym bench] wall-clock baseline (stock SITL, real time)", flush=True)
@@ -174,27 +199,43 @@ def main() -> None:
     for exchange in exchanges:
         for spin, pin, how in ((True, False, "spin, 2 cores"), (False, True, "pinned, 1 core")):
             print(f"[gym bench] 1 environment, {how}, {exchange}", flush=True)
-            one, resets_here = single(args.firmware, args.control_hz, args.seconds, spin=spin,
-                                      pin=pin, exchange=exchange)
+            one, resets_here = single(
+                args.firmware, args.control_hz, args.seconds, spin=spin, pin=pin, exchange=exchange
+            )
             resets += resets_here
             rows.append((f"Hover-v0, {how}, {exchange}", 1, one))
     for count in (2, 4):
         for own, name in ((False, "AsyncVectorEnv"), (True, "FlightVectorEnv")):
             print(f"[gym bench] {count} environments, {name}", flush=True)
-            rows.append((f"Hover-v0, {name} (pinned workers)", count,
-                         vector(args.firmware, args.control_hz, args.seconds, count, own=own)))
+            rows.append(
+                (
+                    f"Hover-v0, {name} (pinned workers)",
+                    count,
+                    vector(args.firmware, args.control_hz, args.seconds, count, own=own),
+                )
+            )
     if args.ray:
         print("[gym bench] 2 environments, RayVectorEnv (local cluster)", flush=True)
-        rows.append(("Hover-v0, RayVectorEnv (Ray actors, one node)", 2,
-                     ray_vector(args.firmware, args.control_hz, args.seconds, 2)))
-    print(f"\ncontrol at {args.control_hz:g} Hz, {args.seconds:g} s of wall time per row; "
-          f"reset: median {statistics.median(resets):.3f} s wall over {len(resets)} resets "
-          f"(max {max(resets):.2f} s)")
+        rows.append(
+            (
+                "Hover-v0, RayVectorEnv (Ray actors, one node)",
+                2,
+                ray_vector(args.firmware, args.control_hz, args.seconds, 2),
+            )
+        )
+    print(
+        f"\ncontrol at {args.control_hz:g} Hz, {args.seconds:g} s of wall time per row; "
+        f"reset: median {statistics.median(resets):.3f} s wall over {len(resets)} resets "
+        f"(max {max(resets):.2f} s)"
+    )
     print("| environment | envs | steps/s (all envs) | sim s per wall s | x the wall-clock SITL |")
     print("| --- | ---: | ---: | ---: | ---: |")
     for name, count, row in rows:
-        print(f"| {name} | {count} | {row['steps_per_s']:.0f} | {row['sim_per_wall']:.1f} | "
-              f"{row['sim_per_wall'] / baseline['sim_per_wall']:.1f}x |")
+        print(
+            f"| {name} | {count} | {row['steps_per_s']:.0f} | {row['sim_per_wall']:.1f} | "
+            f"{row['sim_per_wall'] / baseline['sim_per_wall']:.1f}x |"
+        )
+
 
 if __name__ == "__main__":
     main()

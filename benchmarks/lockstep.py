@@ -103,17 +103,32 @@ def sitl_cpu_s(pid: int | None) -> float | None:
 LOCKSTEP_MODES = (("udp", False), ("shm", False), ("udp", True), ("shm", True))
 
 
-def fly_firmware(name: str, path: str, lockstep: bool, hold_s: float, seed: int,
-                 exchange: str = "udp", one_core: bool = False) -> Flight:
-    config = SessionConfig(sitl=SitlLaunch(firmware=path), world=World(seed=seed),
-                           timing=Timing(lockstep=lockstep, lockstep_exchange=exchange,
-                                         lockstep_spin=not one_core))
+def fly_firmware(
+    name: str,
+    path: str,
+    lockstep: bool,
+    hold_s: float,
+    seed: int,
+    exchange: str = "udp",
+    one_core: bool = False,
+) -> Flight:
+    config = SessionConfig(
+        sitl=SitlLaunch(firmware=path),
+        world=World(seed=seed),
+        timing=Timing(lockstep=lockstep, lockstep_exchange=exchange, lockstep_spin=not one_core),
+    )
     claim = claim_core() if one_core else None  # the SITL started below inherits it
     started_s = time.perf_counter()
     try:
-        flight = _fly(config, name, lockstep, hold_s,
-                      f"lockstep max, {exchange}, {'1 core' if one_core else 'spin'}"
-                      if lockstep else "real time 1x")
+        flight = _fly(
+            config,
+            name,
+            lockstep,
+            hold_s,
+            f"lockstep max, {exchange}, {'1 core' if one_core else 'spin'}"
+            if lockstep
+            else "real time 1x",
+        )
     finally:
         if claim is not None:
             claim.release()
@@ -121,8 +136,7 @@ def fly_firmware(name: str, path: str, lockstep: bool, hold_s: float, seed: int,
     return flight
 
 
-def _fly(config: SessionConfig, name: str, lockstep: bool, hold_s: float, mode: str
-         ) -> Flight:
+def _fly(config: SessionConfig, name: str, lockstep: bool, hold_s: float, mode: str) -> Flight:
     with FlightSession(config) as session:
         began_sim_s, began_s = session.time_s, time.perf_counter()
         result = fly(session, MissionPlan(hold_s=hold_s), make_controller("fused"))
@@ -134,21 +148,28 @@ def _fly(config: SessionConfig, name: str, lockstep: bool, hold_s: float, mode: 
         health = monitor.sample()
         stats = session.bridge.stats()
         flight = Flight(
-            name, mode, result.outcome.value, 0.0,
-            stats.sim_time_s, stats.answered_ratio, health.fc_clock_ratio,
+            name,
+            mode,
+            result.outcome.value,
+            0.0,
+            stats.sim_time_s,
+            stats.answered_ratio,
+            health.fc_clock_ratio,
             health.fc_cycle_us or 0.0,
             getattr(result.metrics, "rise_time_s", None),
             getattr(result.metrics, "settling_time_s", None),
             result.hold.rms_error_m * 100 if result.hold else None,
-            result.hold.max_abs_error_m * 100 if result.hold else None)
+            result.hold.max_abs_error_m * 100 if result.hold else None,
+        )
         flight.mission_x = mission_x
         if lockstep:
             budget = session.bridge.lockstep_stats()  # type: ignore[union-attr]
             steps = max(budget.steps, 1)
             flight.exchange_us = budget.exchange_s / steps * 1e6
             flight.physics_us = budget.physics_s / steps * 1e6
-            flight.python_us = (budget.wall_time_s - budget.exchange_s - budget.physics_s) \
-                / steps * 1e6
+            flight.python_us = (
+                (budget.wall_time_s - budget.exchange_s - budget.physics_s) / steps * 1e6
+            )
             cpu_s = sitl_cpu_s(session.sitl.pid if session.sitl else None)
             flight.fc_cpu_us = cpu_s / steps * 1e6 if cpu_s is not None else None
     return flight
@@ -160,7 +181,7 @@ class Idle:
 
     firmware: str
     mode: str
-    wall_us: float      # per simulated millisecond
+    wall_us: float  # per simulated millisecond
     exchange_us: float
     physics_us: float
     sitl_cpu_us: float | None
@@ -169,17 +190,21 @@ class Idle:
 def idle(name: str, path: str, seconds: float, exchange: str, one_core: bool) -> Idle:
     """Step ``seconds`` of simulated time with nothing else going on: what the exchange, the
     firmware's passes and the physics cost per step, in each mode."""
-    config = SessionConfig(sitl=SitlLaunch(firmware=path),
-                           timing=Timing(lockstep=True, lockstep_exchange=exchange,
-                                         lockstep_spin=not one_core))
+    config = SessionConfig(
+        sitl=SitlLaunch(firmware=path),
+        timing=Timing(lockstep=True, lockstep_exchange=exchange, lockstep_spin=not one_core),
+    )
     claim = claim_core() if one_core else None
     try:
         with FlightSession(config) as session:
             bridge = session.bridge
             session.clock.sleep_s(0.5)  # past the boot
             pid = session.sitl.pid if session.sitl else None
-            before, cpu_before, began_s = bridge.lockstep_stats(), sitl_cpu_s(pid), \
-                time.perf_counter()
+            before, cpu_before, began_s = (
+                bridge.lockstep_stats(),
+                sitl_cpu_s(pid),
+                time.perf_counter(),
+            )
             session.clock.sleep_s(seconds)
             wall_s = time.perf_counter() - began_s
             after, cpu_after = bridge.lockstep_stats(), sitl_cpu_s(pid)
@@ -187,12 +212,18 @@ def idle(name: str, path: str, seconds: float, exchange: str, one_core: bool) ->
         if claim is not None:
             claim.release()
     steps = max(after.steps - before.steps, 1)
-    cpu = None if cpu_before is None or cpu_after is None else \
-        (cpu_after - cpu_before) / steps * 1e6
+    cpu = (
+        None if cpu_before is None or cpu_after is None else (cpu_after - cpu_before) / steps * 1e6
+    )
     mode = f"{exchange}, {'1 core' if one_core else 'spin'}"
-    return Idle(name, mode, wall_s / steps * 1e6,
-                (after.exchange_s - before.exchange_s) / steps * 1e6,
-                (after.physics_s - before.physics_s) / steps * 1e6, cpu)
+    return Idle(
+        name,
+        mode,
+        wall_s / steps * 1e6,
+        (after.exchange_s - before.exchange_s) / steps * 1e6,
+        (after.physics_s - before.physics_s) / steps * 1e6,
+        cpu,
+    )
 
 
 def spin() -> None:
@@ -209,8 +240,11 @@ def starts(path: str, count: int, busy: int) -> tuple[int, list[str], float]:
     try:
         for index in range(count):
             try:
-                config = SessionConfig(sitl=SitlLaunch(firmware=path), fc=FcSetup(profile=None),
-                                       timing=Timing(lockstep=True))
+                config = SessionConfig(
+                    sitl=SitlLaunch(firmware=path),
+                    fc=FcSetup(profile=None),
+                    timing=Timing(lockstep=True),
+                )
                 with FlightSession(config) as session:
                     session.client.status()
             except BfsitlError as exc:
@@ -234,10 +268,15 @@ def main() -> None:
     parser.add_argument("--starts", type=int, default=0, help="lockstep starts to count")
     parser.add_argument("--busy", type=int, default=2, help="busy loops during --starts")
     parser.add_argument("--generations", default="4.6.0,master")
-    parser.add_argument("--idle", type=float, default=10.0,
-                        help="simulated seconds of stepping alone per mode (0: none)")
-    parser.add_argument("--no-flights", action="store_true",
-                        help="only the stepping alone (and --starts)")
+    parser.add_argument(
+        "--idle",
+        type=float,
+        default=10.0,
+        help="simulated seconds of stepping alone per mode (0: none)",
+    )
+    parser.add_argument(
+        "--no-flights", action="store_true", help="only the stepping alone (and --starts)"
+    )
     args = parser.parse_args()
 
     rows: list[Flight] = []
@@ -245,39 +284,52 @@ def main() -> None:
         stock = firmware_path(generation, args.build)
         lockstep = firmware_path(f"{generation}-lockstep", args.build)
         modes = [(stock, False, "udp", False)] + [
-            (lockstep, True, exchange, one_core) for exchange, one_core in LOCKSTEP_MODES
-            if exchange == "udp" or shm_exchange_supported()]
+            (lockstep, True, exchange, one_core)
+            for exchange, one_core in LOCKSTEP_MODES
+            if exchange == "udp" or shm_exchange_supported()
+        ]
         for path, is_lockstep, exchange, one_core in modes:
-            flights = [fly_firmware(generation, path, is_lockstep, args.hold, args.seed,
-                                    exchange, one_core) for _ in range(args.repeats)]
+            flights = [
+                fly_firmware(
+                    generation, path, is_lockstep, args.hold, args.seed, exchange, one_core
+                )
+                for _ in range(args.repeats)
+            ]
             flights.sort(key=lambda f: f.wall_s)
             rows.append(flights[len(flights) // 2])
-            print(f"flew {generation} {rows[-1].mode}: {rows[-1].wall_s:.1f} s",
-                  file=sys.stderr)
+            print(f"flew {generation} {rows[-1].mode}: {rows[-1].wall_s:.1f} s", file=sys.stderr)
 
     if rows:
-        print("| firmware | mode | outcome | wall s | sim s | sim/wall | vs real time | answered "
-              "| FC clock / sim | PID cycle us | rise s | settle s | hold RMS cm | hold max cm |")
+        print(
+            "| firmware | mode | outcome | wall s | sim s | sim/wall | vs real time | answered "
+            "| FC clock / sim | PID cycle us | rise s | settle s | hold RMS cm | hold max cm |"
+        )
         print("|" + "---|" * 14)
         baseline = {r.firmware: r.wall_s for r in rows if r.mode.startswith("real")}
         for r in rows:
             speedup = baseline.get(r.firmware, r.wall_s) / r.wall_s
-            print(f"| {r.firmware} | {r.mode} | {r.outcome} | {r.wall_s:.1f} | {r.sim_s:.1f} | "
-                  f"{r.sim_s / r.wall_s:.2f}x | {speedup:.2f}x | {r.answered * 100:.1f} % | "
-                  f"{fmt(r.fc_clock_ratio, '.3f')} | {r.cycle_us:.0f} | {fmt(r.rise_s, '.2f')} | "
-                  f"{fmt(r.settle_s, '.2f')} | {fmt(r.hold_rms_cm, '.1f')} | "
-                  f"{fmt(r.hold_max_cm, '.1f')} |")
+            print(
+                f"| {r.firmware} | {r.mode} | {r.outcome} | {r.wall_s:.1f} | {r.sim_s:.1f} | "
+                f"{r.sim_s / r.wall_s:.2f}x | {speedup:.2f}x | {r.answered * 100:.1f} % | "
+                f"{fmt(r.fc_clock_ratio, '.3f')} | {r.cycle_us:.0f} | {fmt(r.rise_s, '.2f')} | "
+                f"{fmt(r.settle_s, '.2f')} | {fmt(r.hold_rms_cm, '.1f')} | "
+                f"{fmt(r.hold_max_cm, '.1f')} |"
+            )
         print()
-        print("| firmware | mode | mission alone: sim/wall | per step: exchange us | physics us | "
-              "Python rest us | total us | SITL CPU us |")
+        print(
+            "| firmware | mode | mission alone: sim/wall | per step: exchange us | physics us | "
+            "Python rest us | total us | SITL CPU us |"
+        )
         print("|---|---|---|---|---|---|---|---|")
         for r in rows:
             if r.exchange_us is None:
                 continue
             total = (r.exchange_us or 0) + (r.physics_us or 0) + (r.python_us or 0)
-            print(f"| {r.firmware} | {r.mode} | {fmt(r.mission_x, '.1f')}x | {r.exchange_us:.0f} | "
-                  f"{r.physics_us:.0f} | "
-                  f"{r.python_us:.0f} | {total:.0f} | {fmt(r.fc_cpu_us, '.0f')} |")
+            print(
+                f"| {r.firmware} | {r.mode} | {fmt(r.mission_x, '.1f')}x | {r.exchange_us:.0f} | "
+                f"{r.physics_us:.0f} | "
+                f"{r.python_us:.0f} | {total:.0f} | {fmt(r.fc_cpu_us, '.0f')} |"
+            )
     if args.idle:
         idles = []
         for generation in args.generations.split(","):
@@ -288,21 +340,26 @@ def main() -> None:
                 idles.append(idle(generation, lockstep, args.idle, exchange, one_core))
                 print(f"stepped {generation} {idles[-1].mode}", file=sys.stderr)
         print()
-        print(f"The stepping alone ({args.idle:g} s simulated, parked, no mission, no MSP), "
-              f"per simulated millisecond:")
-        print("| firmware | mode | wall us | exchange us | physics us | SITL CPU us | "
-              "at most |")
+        print(
+            f"The stepping alone ({args.idle:g} s simulated, parked, no mission, no MSP), "
+            f"per simulated millisecond:"
+        )
+        print("| firmware | mode | wall us | exchange us | physics us | SITL CPU us | at most |")
         print("|---|---|---|---|---|---|---|")
         for i in idles:
-            print(f"| {i.firmware} | {i.mode} | {i.wall_us:.1f} | {i.exchange_us:.1f} | "
-                  f"{i.physics_us:.1f} | {fmt(i.sitl_cpu_us, '.1f')} | "
-                  f"{1000.0 / i.wall_us:.0f}x |")
+            print(
+                f"| {i.firmware} | {i.mode} | {i.wall_us:.1f} | {i.exchange_us:.1f} | "
+                f"{i.physics_us:.1f} | {fmt(i.sitl_cpu_us, '.1f')} | "
+                f"{1000.0 / i.wall_us:.0f}x |"
+            )
     if args.starts:
         path = firmware_path(f"{args.generations.split(',')[0]}-lockstep", args.build)
         count, failures, took_s = starts(path, args.starts, args.busy)
         print()
-        print(f"lockstep starts with {args.busy} busy loops: {count - len(failures)}/{count} "
-              f"ready ({took_s / count:.2f} s each)")
+        print(
+            f"lockstep starts with {args.busy} busy loops: {count - len(failures)}/{count} "
+            f"ready ({took_s / count:.2f} s each)"
+        )
         for failure in failures[:10]:
             print("  " + failure)
     spread = [r.hold_rms_cm for r in rows if r.hold_rms_cm is not None]

@@ -49,8 +49,9 @@ class Row:
 
 
 def _git(*args: str) -> str:
-    return subprocess.run(["git", *args], cwd=REPO, capture_output=True, text=True,
-                          check=True).stdout
+    return subprocess.run(
+        ["git", *args], cwd=REPO, capture_output=True, text=True, check=True
+    ).stdout
 
 
 def old_source(rev: str | None) -> tuple[str, str]:
@@ -104,11 +105,19 @@ def measure(old: ModuleType, repeats: int) -> list[Row]:
         payload = msg.encode()
         old_cls, new_cls, old_msg = getattr(old, name), type(msg), old_msgs[name]
         assert old_cls.decode(payload).encode() == payload == old_msg.encode()
-        rows.append(Row(name, "decode",
-                        _ops_per_s(partial(old_cls.decode, payload), repeats),
-                        _ops_per_s(partial(new_cls.decode, payload), repeats)))
-        rows.append(Row(name, "encode",
-                        _ops_per_s(old_msg.encode, repeats), _ops_per_s(msg.encode, repeats)))
+        rows.append(
+            Row(
+                name,
+                "decode",
+                _ops_per_s(partial(old_cls.decode, payload), repeats),
+                _ops_per_s(partial(new_cls.decode, payload), repeats),
+            )
+        )
+        rows.append(
+            Row(
+                name, "encode", _ops_per_s(old_msg.encode, repeats), _ops_per_s(msg.encode, repeats)
+            )
+        )
     by_command = {type(msg).COMMAND: msg.encode() for msg in new_msgs.values()}
     batch = new.MultipleMspReply(tuple(by_command[c] for c in TELEMETRY_COMMANDS)).encode()
     commands = list(TELEMETRY_COMMANDS)
@@ -116,13 +125,25 @@ def measure(old: ModuleType, repeats: int) -> list[Row]:
     def batch_of(m: Any) -> Callable[[], object]:
         return lambda: m.MultipleMspReply.decode(batch).decode_replies(commands)
 
-    rows.append(Row("MultipleMspReply (telemetry)", "decode_replies",
-                    _ops_per_s(batch_of(old), repeats), _ops_per_s(batch_of(new), repeats)))
+    rows.append(
+        Row(
+            "MultipleMspReply (telemetry)",
+            "decode_replies",
+            _ops_per_s(batch_of(old), repeats),
+            _ops_per_s(batch_of(new), repeats),
+        )
+    )
     sticks = (1500, 1500, 1000, 1500, 1800, 1000, 1000, 1000)
     old_rc, new_rc = old.SetRawRc(sticks), new.SetRawRc(sticks)
     assert old_rc.encode() == new_rc.encode()
-    rows.append(Row("SetRawRc (8 channels)", "encode",
-                    _ops_per_s(old_rc.encode, repeats), _ops_per_s(new_rc.encode, repeats)))
+    rows.append(
+        Row(
+            "SetRawRc (8 channels)",
+            "encode",
+            _ops_per_s(old_rc.encode, repeats),
+            _ops_per_s(new_rc.encode, repeats),
+        )
+    )
     return rows
 
 
@@ -132,8 +153,10 @@ def print_table(rows: list[Row], rev: str) -> None:
     print(header)
     print("-" * len(header))
     for row in rows:
-        print(f"{row.message:<30} {row.operation:<15} {row.old_ops_per_s:>12,.0f} "
-              f"{row.new_ops_per_s:>12,.0f} {row.ratio:>8.2f}")
+        print(
+            f"{row.message:<30} {row.operation:<15} {row.old_ops_per_s:>12,.0f} "
+            f"{row.new_ops_per_s:>12,.0f} {row.ratio:>8.2f}"
+        )
 
 
 def main(argv: list[str] | None = None) -> int:

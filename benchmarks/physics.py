@@ -129,12 +129,17 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--seconds", type=float, default=2.0, help="simulated seconds per run")
     parser.add_argument("--repeats", type=int, default=5)
     parser.add_argument("--json", action="store_true")
-    parser.add_argument("--no-bridge", action="store_true",
-                        help="physics only: skip the runs against the real SITL")
-    parser.add_argument("--speeds", default="0.5,0.75,1.0,1.25",
-                        help="speeds to try with frozen timestamps (comma separated)")
-    parser.add_argument("--window", type=float, default=6.0,
-                        help="seconds of measurement per bridge mode")
+    parser.add_argument(
+        "--no-bridge", action="store_true", help="physics only: skip the runs against the real SITL"
+    )
+    parser.add_argument(
+        "--speeds",
+        default="0.5,0.75,1.0,1.25",
+        help="speeds to try with frozen timestamps (comma separated)",
+    )
+    parser.add_argument(
+        "--window", type=float, default=6.0, help="seconds of measurement per bridge mode"
+    )
     args = parser.parse_args(argv)
     rows = [
         measure_physics(args.step_ms / 1000, args.seconds, repeats=args.repeats, scenario=s)
@@ -147,12 +152,13 @@ def main(argv: list[str] | None = None) -> int:
         speeds = tuple(float(x) for x in args.speeds.split(","))
         bridge_rows = run_bridge_modes(speeds, args.window)
     if args.json:
-        print(json.dumps({"physics": rows, "bridge": [vars(r) for r in bridge_rows]},
-                         indent=2))
+        print(json.dumps({"physics": rows, "bridge": [vars(r) for r in bridge_rows]}, indent=2))
     else:
         print(markdown_table(rows))
-        print(f"\nPython {sys.version.split()[0]}; target >= {TARGET_REAL_TIME_FACTOR:.0f}x "
-              f"real time at 1 ms.")
+        print(
+            f"\nPython {sys.version.split()[0]}; target >= {TARGET_REAL_TIME_FACTOR:.0f}x "
+            f"real time at 1 ms."
+        )
         if bridge_rows:
             print()
             print(bridge_table(bridge_rows))

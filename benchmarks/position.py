@@ -62,8 +62,12 @@ BUILDS = {  # name: (source, options)
     "master-lockstep": (MASTER_SOURCE, FirmwareBuildOptions(lockstep=True)),
 }
 WIND = Wind.from_direction(3.0, 30.0, 1.5)
-SQUARE = (Waypoint(10.0, 0.0, 2.0), Waypoint(10.0, 10.0, 2.0), Waypoint(0.0, 10.0, 2.0),
-          Waypoint(0.0, 0.0, 2.0))
+SQUARE = (
+    Waypoint(10.0, 0.0, 2.0),
+    Waypoint(10.0, 10.0, 2.0),
+    Waypoint(0.0, 10.0, 2.0),
+    Waypoint(0.0, 0.0, 2.0),
+)
 RATE_HZ = 100.0
 
 
@@ -96,12 +100,16 @@ COMPASS_LINES = {"master-lockstep": ("set trust_mag = ON",), "4.6.0-gps-lockstep
 FIRMWARE_POSHOLD = {"master-lockstep": True, "4.6.0-gps-lockstep": False}
 
 
-def session_for(path: str, seed: int, wind: Wind | None,
-                profile: Profile | None = None, gps_noise: bool = True) -> FlightSession:
-    return FlightSession(SessionConfig(
-        sitl=SitlLaunch(firmware=path),
-        world=World(seed=seed, wind=wind, sensors=fly_sensors(gps_noise=gps_noise)),
-        fc=FcSetup(profile=profile or with_fast_serial(FLY_PROFILE))))
+def session_for(
+    path: str, seed: int, wind: Wind | None, profile: Profile | None = None, gps_noise: bool = True
+) -> FlightSession:
+    return FlightSession(
+        SessionConfig(
+            sitl=SitlLaunch(firmware=path),
+            world=World(seed=seed, wind=wind, sensors=fly_sensors(gps_noise=gps_noise)),
+            fc=FcSetup(profile=profile or with_fast_serial(FLY_PROFILE)),
+        )
+    )
 
 
 def hold_profile(name: str, hover_us: float | None = None) -> Profile:
@@ -110,8 +118,9 @@ def hold_profile(name: str, hover_us: float | None = None) -> Profile:
     lines = (FAST_SERIAL_LINE, *COMPASS_LINES.get(name, ()))
     if hover_us is not None:
         lines += (f"set ap_hover_throttle = {round(min(max(hover_us, 1100.0), 1700.0))}",)
-    return Profile(mode_ranges=(ARM_ON_AUX1, ANGLE_ON_AUX2, ALTHOLD_ON_AUX3, POSHOLD_ON_AUX4),
-                   cli_lines=lines)
+    return Profile(
+        mode_ranges=(ARM_ON_AUX1, ANGLE_ON_AUX2, ALTHOLD_ON_AUX3, POSHOLD_ON_AUX4), cli_lines=lines
+    )
 
 
 def rms(values: list[float]) -> float:
@@ -136,9 +145,13 @@ def hold(name: str, path: str, seed: int, hold_s: float, gps_noise: bool = True)
         return result
     truth = [math.hypot(r.sim_north_m, r.sim_east_m) for r in rows]
     gps = [math.hypot(r.fc_north_m, r.fc_east_m) for r in rows]
-    result.figures = {"rms_m": rms(truth), "max_m": max(truth), "gps_rms_m": rms(gps),
-                      "alt_rms_m": rms([r.sim_alt_m - 2.0 for r in rows]),
-                      "hover_us": loop.controller.hover_throttle_us}  # type: ignore[attr-defined]
+    result.figures = {
+        "rms_m": rms(truth),
+        "max_m": max(truth),
+        "gps_rms_m": rms(gps),
+        "alt_rms_m": rms([r.sim_alt_m - 2.0 for r in rows]),
+        "hover_us": loop.controller.hover_throttle_us,
+    }  # type: ignore[attr-defined]
     result.wall_s = time.perf_counter() - started
     return result
 
@@ -151,8 +164,12 @@ def firmware_hold(name: str, path: str, seed: int, hold_s: float, hover_us: floa
     modes: set[str] = set()
     try:
         with session_for(path, seed, WIND, hold_profile(name, hover)) as session:
-            loop = FlightLoop(session, make_controller("fused"), rate_hz=RATE_HZ,
-                              on_row=lambda _row, sample: modes.update(sample.flight_modes))
+            loop = FlightLoop(
+                session,
+                make_controller("fused"),
+                rate_hz=RATE_HZ,
+                on_row=lambda _row, sample: modes.update(sample.flight_modes),
+            )
             loop.arm()
             loop.wait_on_ground(2.0)
             loop.takeoff(2.0, hold_position=True)
@@ -169,9 +186,13 @@ def firmware_hold(name: str, path: str, seed: int, hold_s: float, hover_us: floa
         return result
     n0, e0, h0 = rows[0].sim_north_m, rows[0].sim_east_m, rows[0].sim_alt_m
     truth = [math.hypot(r.sim_north_m - n0, r.sim_east_m - e0) for r in rows]
-    result.figures = {"rms_m": rms(truth) if poshold else math.nan,
-                      "max_m": max(truth) if poshold else math.nan, "gps_rms_m": math.nan,
-                      "alt_rms_m": rms([r.sim_alt_m - h0 for r in rows]), "hover_us": hover}
+    result.figures = {
+        "rms_m": rms(truth) if poshold else math.nan,
+        "max_m": max(truth) if poshold else math.nan,
+        "gps_rms_m": math.nan,
+        "alt_rms_m": rms([r.sim_alt_m - h0 for r in rows]),
+        "hover_us": hover,
+    }
     result.wall_s = time.perf_counter() - started
     return result
 
@@ -195,7 +216,8 @@ def square(name: str, path: str, seed: int, wind: Wind | None) -> Result:
         "cross_track_rms_m": cross_track_rms(legs) or math.nan,
         "cross_track_max_m": max(leg.cross_track_max_m for leg in legs),
         "landed_m": landed_from_start_m(loop.rows) or math.nan,
-        "legs_s": sum(leg.took_s for leg in legs)}
+        "legs_s": sum(leg.took_s for leg in legs),
+    }
     result.wall_s = time.perf_counter() - started
     return result
 
@@ -203,19 +225,28 @@ def square(name: str, path: str, seed: int, wind: Wind | None) -> Result:
 def table(results: list[Result]) -> str:
     columns = {
         "firmware": [("rms_m", "RMS m"), ("max_m", "max m"), ("alt_rms_m", "height RMS m")],
-        "hold": [("rms_m", "RMS m"), ("max_m", "max m"), ("gps_rms_m", "GPS-seen RMS m"),
-                 ("alt_rms_m", "height RMS m")],
-        "square": [("arrival_max_m", "worst arrival m"), ("cross_track_rms_m", "cross-track RMS m"),
-                   ("cross_track_max_m", "cross-track max m"), ("landed_m", "landed from start m"),
-                   ("legs_s", "legs s")],
+        "hold": [
+            ("rms_m", "RMS m"),
+            ("max_m", "max m"),
+            ("gps_rms_m", "GPS-seen RMS m"),
+            ("alt_rms_m", "height RMS m"),
+        ],
+        "square": [
+            ("arrival_max_m", "worst arrival m"),
+            ("cross_track_rms_m", "cross-track RMS m"),
+            ("cross_track_max_m", "cross-track max m"),
+            ("landed_m", "landed from start m"),
+            ("legs_s", "legs s"),
+        ],
     }
     lines = []
     for test in dict.fromkeys(r.test for r in results):
         chosen = [r for r in results if r.test == test]
         names = columns[test.split()[0]]
         lines.append(f"\n{test}: medians over seeds (worst seed in brackets)")
-        lines.append("| firmware | flights ok | " + " | ".join(label for _k, label in names)
-                     + " | wall s |")
+        lines.append(
+            "| firmware | flights ok | " + " | ".join(label for _k, label in names) + " | wall s |"
+        )
         lines.append("| --- | --- | " + " | ".join("---" for _ in names) + " | --- |")
         for firmware in dict.fromkeys(r.firmware for r in chosen):
             mine = [r for r in chosen if r.firmware == firmware]
@@ -223,11 +254,15 @@ def table(results: list[Result]) -> str:
             cells = []
             for key, _label in names:
                 values = [r.figures[key] for r in good if math.isfinite(r.figures[key])]
-                cells.append(f"{statistics.median(values):.3f} ({max(values):.3f})"
-                             if values else "-")
+                cells.append(
+                    f"{statistics.median(values):.3f} ({max(values):.3f})" if values else "-"
+                )
             wall = statistics.median([r.wall_s for r in good]) if good else math.nan
-            lines.append(f"| {firmware} | {len(good)}/{len(mine)} | " + " | ".join(cells)
-                         + f" | {wall:.1f} |")
+            lines.append(
+                f"| {firmware} | {len(good)}/{len(mine)} | "
+                + " | ".join(cells)
+                + f" | {wall:.1f} |"
+            )
         for r in mine:
             if r.outcome != "ok":
                 lines.append(f"  seed {r.seed} ({r.firmware}): {r.outcome}")
@@ -239,8 +274,9 @@ def main() -> None:
     parser.add_argument("--seeds", type=int, default=3)
     parser.add_argument("--hold", type=float, default=30.0)
     parser.add_argument("--still", action="store_true", help="also fly the square in still air")
-    parser.add_argument("--no-firmware", action="store_true",
-                        help="skip the firmware's own POSHOLD / ALTHOLD")
+    parser.add_argument(
+        "--no-firmware", action="store_true", help="skip the firmware's own POSHOLD / ALTHOLD"
+    )
     parser.add_argument("--firmware", action="append", choices=sorted(BUILDS))
     parser.add_argument("--build", action="store_true", help="build missing firmware")
     args = parser.parse_args()
@@ -253,8 +289,7 @@ def main() -> None:
             results.append(ours)
             results.append(hold(name, path, seed, args.hold, gps_noise=False))
             if ours.outcome == "ok" and not args.no_firmware:
-                results.append(firmware_hold(name, path, seed, args.hold,
-                                             ours.figures["hover_us"]))
+                results.append(firmware_hold(name, path, seed, args.hold, ours.figures["hover_us"]))
             results.append(square(name, path, seed, WIND))
             if args.still:
                 results.append(square(name, path, seed, None))

@@ -40,37 +40,71 @@ from bfsitl.sitl.core_claim import PIN_ENV
 DEFAULT_BUILDS = ["master-lockstep", "4.6.0-gps-lockstep"]
 
 
-def measure(label: str, runs_dir: Path, paths: list[str], firmwares: list[str], *,
-            jobs: int = 1, ray_address: str | None = None) -> dict[str, object]:
+def measure(
+    label: str,
+    runs_dir: Path,
+    paths: list[str],
+    firmwares: list[str],
+    *,
+    jobs: int = 1,
+    ray_address: str | None = None,
+) -> dict[str, object]:
     runs = plan_runs(find_scenarios(paths), firmwares, runs_dir)
     started = time.monotonic()
     results = run_suite(runs, jobs=jobs, plot=False, ray_address=ray_address).results
     wall_s = time.monotonic() - started
     simulated_s = sum(r.sim_time_s for r in results)
     verdicts = {v.value: sum(1 for r in results if r.verdict is v) for v in Verdict}
-    return {"label": label, "runs": len(results), "simulated_s": simulated_s,
-            "wall_s": wall_s, "verdicts": verdicts}
+    return {
+        "label": label,
+        "runs": len(results),
+        "simulated_s": simulated_s,
+        "wall_s": wall_s,
+        "verdicts": verdicts,
+    }
 
 
-def ray_overhead(runs_dir: Path, paths: list[str], firmwares: list[str], address: str,
-                 count: int) -> list[RayTiming]:
+def ray_overhead(
+    runs_dir: Path, paths: list[str], firmwares: list[str], address: str, count: int
+) -> list[RayTiming]:
     """``count`` runs through Ray one at a time (no queueing): what Ray adds to each run, from
     the driver's submit to its files home, against the run's own time."""
     runs = plan_runs(find_scenarios(paths), firmwares, runs_dir)[:count]
     timings: list[RayTiming] = []
     for run in runs:
-        run_on_ray([run], address, speed=None, plot=True, mcap=False, results={},
-                   done=lambda _result: None, say=lambda _line: None, timings=timings)
+        run_on_ray(
+            [run],
+            address,
+            speed=None,
+            plot=True,
+            mcap=False,
+            results={},
+            done=lambda _result: None,
+            say=lambda _line: None,
+            timings=timings,
+        )
     return timings
 
 
 def start_ray(num_cpus: int) -> str:
     """A local Ray head with ``num_cpus`` CPUs and a small object store; its address."""
     out = subprocess.run(
-        [sys.executable, "-m", "ray.scripts.scripts", "start", "--head", "--port=0",
-         f"--num-cpus={num_cpus}", "--include-dashboard=false", "--disable-usage-stats",
-         "--object-store-memory=100000000"],
-        capture_output=True, text=True, check=True)
+        [
+            sys.executable,
+            "-m",
+            "ray.scripts.scripts",
+            "start",
+            "--head",
+            "--port=0",
+            f"--num-cpus={num_cpus}",
+            "--include-dashboard=false",
+            "--disable-usage-stats",
+            "--object-store-memory=100000000",
+        ],
+        capture_output=True,
+        text=True,
+        check=True,
+    )
     for line in (out.stdout + out.stderr).splitlines():
         if "--address=" in line:
             return line.split("--address=")[1].strip().strip("'\"")
@@ -78,8 +112,11 @@ def start_ray(num_cpus: int) -> str:
 
 
 def stop_ray() -> None:
-    subprocess.run([sys.executable, "-m", "ray.scripts.scripts", "stop", "--force"],
-                   capture_output=True, text=True)
+    subprocess.run(
+        [sys.executable, "-m", "ray.scripts.scripts", "stop", "--force"],
+        capture_output=True,
+        text=True,
+    )
 
 
 def main() -> None:
@@ -87,8 +124,11 @@ def main() -> None:
     parser.add_argument("paths", nargs="*", default=[str(scenarios_dir())])
     parser.add_argument("--firmware", action="append", default=[])
     parser.add_argument("--no-ray", action="store_true")
-    parser.add_argument("--only-ray", action="store_true",
-                        help="only the Ray rows (the cluster and its cost per run)")
+    parser.add_argument(
+        "--only-ray",
+        action="store_true",
+        help="only the Ray rows (the cluster and its cost per run)",
+    )
     args = parser.parse_args()
     firmwares = args.firmware or DEFAULT_BUILDS
     rows = []
@@ -100,50 +140,71 @@ def main() -> None:
             # The same without core claims (each run sleeping for its packets, as before).
             os.environ[PIN_ENV] = "0"
             try:
-                rows.append(measure("--jobs 2, runs not pinned", root / "j2u", args.paths,
-                                    firmwares, jobs=2))
+                rows.append(
+                    measure(
+                        "--jobs 2, runs not pinned", root / "j2u", args.paths, firmwares, jobs=2
+                    )
+                )
             finally:
                 del os.environ[PIN_ENV]
         timings: list[RayTiming] = []
         if not args.no_ray:
             address = start_ray(2)
             try:
-                rows.append(measure("--ray (local, 2 CPUs)", root / "ray", args.paths,
-                                    firmwares, ray_address=address))
+                rows.append(
+                    measure(
+                        "--ray (local, 2 CPUs)",
+                        root / "ray",
+                        args.paths,
+                        firmwares,
+                        ray_address=address,
+                    )
+                )
                 timings = ray_overhead(root / "ray1", args.paths, firmwares, address, 6)
             finally:
                 stop_ray()
-    print(f"\nScenario library on {', '.join(firmwares)}; baseline: the firmware's harness "
-          f"approach, real time (1.0x)\n")
-    print("| configuration | runs | simulated s | wall s | x real time (speed-up) | "
-          "passed / failed / error / skipped |")
+    print(
+        f"\nScenario library on {', '.join(firmwares)}; baseline: the firmware's harness "
+        f"approach, real time (1.0x)\n"
+    )
+    print(
+        "| configuration | runs | simulated s | wall s | x real time (speed-up) | "
+        "passed / failed / error / skipped |"
+    )
     print("| --- | --- | --- | --- | --- | --- |")
     for row in rows:
         v = row["verdicts"]
         assert isinstance(v, dict)
         ratio = float(row["simulated_s"]) / float(row["wall_s"])  # type: ignore[arg-type]
-        print(f"| {row['label']} | {row['runs']} | {row['simulated_s']:.0f} | "
-              f"{row['wall_s']:.0f} | {ratio:.1f}x | {v['passed']} / {v['failed']} / "
-              f"{v['error']} / {v['skipped']} |")
+        print(
+            f"| {row['label']} | {row['runs']} | {row['simulated_s']:.0f} | "
+            f"{row['wall_s']:.0f} | {ratio:.1f}x | {v['passed']} / {v['failed']} / "
+            f"{v['error']} / {v['skipped']} |"
+        )
     if timings:
         print_overhead(timings)
 
 
 def print_overhead(timings: list[RayTiming]) -> None:
     """What Ray adds per run, and the plan it gives for N machines."""
-    print("\nRay's cost per run, one run at a time (no queueing), the first run fetching the "
-          "build to its node:\n")
-    print("| run | run s | task on its node s | submit to files home s | Ray adds s | "
-          "archive MB |")
+    print(
+        "\nRay's cost per run, one run at a time (no queueing), the first run fetching the "
+        "build to its node:\n"
+    )
+    print("| run | run s | task on its node s | submit to files home s | Ray adds s | archive MB |")
     print("| --- | --- | --- | --- | --- | --- |")
     for t in timings:
-        print(f"| {t.test_id} | {t.run_s:.2f} | {t.task_s:.2f} | {t.latency_s:.2f} | "
-              f"{t.latency_s - t.run_s:.2f} | {t.archive_bytes / 1e6:.2f} |")
+        print(
+            f"| {t.test_id} | {t.run_s:.2f} | {t.task_s:.2f} | {t.latency_s:.2f} | "
+            f"{t.latency_s - t.run_s:.2f} | {t.archive_bytes / 1e6:.2f} |"
+        )
     added = statistics.median(t.latency_s - t.run_s for t in timings)
     run_s = statistics.mean(t.run_s for t in timings)
-    print(f"\nmedian added per run {added:.2f} s against a mean run of {run_s:.2f} s: a "
-          f"suite of R runs on N machines of C cores takes about R x ({run_s:.1f} + "
-          f"{added:.1f}) / (N x C) s, and each node fetches each build once.")
+    print(
+        f"\nmedian added per run {added:.2f} s against a mean run of {run_s:.2f} s: a "
+        f"suite of R runs on N machines of C cores takes about R x ({run_s:.1f} + "
+        f"{added:.1f}) / (N x C) s, and each node fetches each build once."
+    )
 
 
 if __name__ == "__main__":

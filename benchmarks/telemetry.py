@@ -40,7 +40,10 @@ from bfsitl.protocol.msp_frame import MspFrame, MspParser, encode_request
 from bfsitl.sitl.process import SitlProcess
 
 TUTORIAL_COMMANDS = (
-    MspCommand.ATTITUDE, MspCommand.ALTITUDE, MspCommand.STATUS, MspCommand.ANALOG,
+    MspCommand.ATTITUDE,
+    MspCommand.ALTITUDE,
+    MspCommand.STATUS,
+    MspCommand.ANALOG,
     MspCommand.RC,
 )
 TUTORIAL_SLEEP_S = 0.02
@@ -75,8 +78,7 @@ def tutorial_reader(client: MspClient, seconds: float) -> float:
             frames: list[MspFrame] = []
             deadline = time.monotonic() + 1.0
             while not frames and time.monotonic() < deadline:
-                frames = [f for f in parser.feed(link.read_some(0.05))
-                          if isinstance(f, MspFrame)]
+                frames = [f for f in parser.feed(link.read_some(0.05)) if isinstance(f, MspFrame)]
             msg.decode_reply(command, frames[0].payload)
         updates += 1
     return updates / (time.monotonic() - started)
@@ -138,47 +140,71 @@ def measure(
     # Let boot-time calibration settle so every method sees the same steady firmware.
     time.sleep(1.0)
     rows = []
-    methods = [("bfsitl sequential", sequential), ("bfsitl pipelined, 3 in flight", pipelined),
-               ("bfsitl pipelined, 8 in flight", pipelined_deep),
-               ("bfsitl pipelined, 3 in flight, no wake byte", pipelined_without_wake)]
+    methods = [
+        ("bfsitl sequential", sequential),
+        ("bfsitl pipelined, 3 in flight", pipelined),
+        ("bfsitl pipelined, 8 in flight", pipelined_deep),
+        ("bfsitl pipelined, 3 in flight, no wake byte", pipelined_without_wake),
+    ]
     if with_tutorial:
         methods.insert(0, ("tutorial (5 requests + sleeps)", tutorial_reader))
     for name, method in methods:
         log(f"{condition}: {name}, {repeats} x {seconds:.0f} s")
         timeouts_before = client.stats.timeouts
         runs = [method(client, seconds) for _ in range(repeats)]
-        rows.append(Row(condition, name, statistics.median(runs), [round(r, 1) for r in runs],
-                        client.stats.timeouts - timeouts_before, *task_rates_hz(client)))
+        rows.append(
+            Row(
+                condition,
+                name,
+                statistics.median(runs),
+                [round(r, 1) for r in runs],
+                client.stats.timeouts - timeouts_before,
+                *task_rates_hz(client),
+            )
+        )
     return rows
 
 
 def main() -> int:
-    parser = argparse.ArgumentParser(description=__doc__,
-                                     formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser = argparse.ArgumentParser(
+        description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter
+    )
     parser.add_argument("--seconds", type=float, default=3.0, help="per measurement")
-    parser.add_argument("--repeats", type=int, default=3,
-                        help="measurements per row; the table shows the median")
-    parser.add_argument("--raised-rate", type=int, default=1000,
-                        help="serial_update_rate_hz for condition 3 (100..2000)")
+    parser.add_argument(
+        "--repeats", type=int, default=3, help="measurements per row; the table shows the median"
+    )
+    parser.add_argument(
+        "--raised-rate",
+        type=int,
+        default=1000,
+        help="serial_update_rate_hz for condition 3 (100..2000)",
+    )
     parser.add_argument("--json", action="store_true", help="print rows as JSON")
     args = parser.parse_args()
 
     rows: list[Row] = []
     log("condition 1: SITL with the OS default timer slack")
     with SitlProcess(isolate=True, timer_slack_ns=None) as sitl:
-        rows += measure("default SITL, 100 Hz serial", sitl, args.seconds, args.repeats,
-                        with_tutorial=True)
+        rows += measure(
+            "default SITL, 100 Hz serial", sitl, args.seconds, args.repeats, with_tutorial=True
+        )
     log("condition 2: SITL as bfsitl starts it")
     with SitlProcess(isolate=True) as sitl:
-        rows += measure("bfsitl SITL, 100 Hz serial", sitl, args.seconds, args.repeats,
-                        with_tutorial=True)
+        rows += measure(
+            "bfsitl SITL, 100 Hz serial", sitl, args.seconds, args.repeats, with_tutorial=True
+        )
         log(f"condition 3: serial_update_rate_hz = {args.raised_rate}")
         assert sitl.client is not None
         with CliSession(sitl.client.link) as cli:
             cli.set("serial_update_rate_hz", args.raised_rate)
             cli.save(restart=sitl.restart_after_reboot)
-        rows += measure(f"bfsitl SITL, {args.raised_rate} Hz serial", sitl, args.seconds,
-                        args.repeats, with_tutorial=False)
+        rows += measure(
+            f"bfsitl SITL, {args.raised_rate} Hz serial",
+            sitl,
+            args.seconds,
+            args.repeats,
+            with_tutorial=False,
+        )
 
     baseline = rows[0].updates_per_s
     for row in rows:
@@ -186,14 +212,18 @@ def main() -> int:
     if args.json:
         print(json.dumps([asdict(r) for r in rows], indent=2))
         return 0
-    print("| condition | method | updates/s (median) | x tutorial | runs | timeouts "
-          "| FC SERIAL Hz | FC GYRO Hz |")
+    print(
+        "| condition | method | updates/s (median) | x tutorial | runs | timeouts "
+        "| FC SERIAL Hz | FC GYRO Hz |"
+    )
     print("| --- | --- | ---: | ---: | --- | ---: | ---: | ---: |")
     for r in rows:
         runs = " / ".join(f"{x:.0f}" for x in r.runs_per_s)
-        print(f"| {r.condition} | {r.method} | {r.updates_per_s:.1f} | "
-              f"{r.ratio_to_tutorial:.1f}x | {runs} | {r.timeouts} | {r.serial_task_hz} | "
-              f"{r.gyro_task_hz} |")
+        print(
+            f"| {r.condition} | {r.method} | {r.updates_per_s:.1f} | "
+            f"{r.ratio_to_tutorial:.1f}x | {runs} | {r.timeouts} | {r.serial_task_hz} | "
+            f"{r.gyro_task_hz} |"
+        )
     return 0
 
 

@@ -35,14 +35,42 @@ BFSITL = [sys.executable, "-m", "bfsitl.cli.main"]
 
 def sample_row(index: int) -> FlightRow:
     return FlightRow(
-        time_s=index * 0.01, phase="hold", target_alt_m=2.0, sim_alt_m=1.98, fc_alt_m=2.01,
-        climb_m_s=0.02, sim_climb_m_s=0.01, fc_accel_up_m_s2=0.05, roll_deg=1.5,
-        pitch_deg=-3.2, yaw_deg=12.5, sim_tilt_deg=3.4, sim_roll_deg=1.4, sim_pitch_deg=-3.1,
-        sim_yaw_deg=12.2, rc_roll_us=1492, rc_pitch_us=1530, rc_throttle_us=1544,
-        rc_yaw_us=1500, rc_aux1_us=1800, rc_aux2_us=1800, motor1=0.52, motor2=0.55,
-        motor3=0.5, motor4=0.51, armed=True, wall_s=index * 0.001, sim_north_m=0.1,
-        sim_east_m=-0.2, fc_north_m=0.12, fc_east_m=-0.18, target_north_m=0.0,
-        target_east_m=0.0, target_heading_deg=12.0, waypoint=1)
+        time_s=index * 0.01,
+        phase="hold",
+        target_alt_m=2.0,
+        sim_alt_m=1.98,
+        fc_alt_m=2.01,
+        climb_m_s=0.02,
+        sim_climb_m_s=0.01,
+        fc_accel_up_m_s2=0.05,
+        roll_deg=1.5,
+        pitch_deg=-3.2,
+        yaw_deg=12.5,
+        sim_tilt_deg=3.4,
+        sim_roll_deg=1.4,
+        sim_pitch_deg=-3.1,
+        sim_yaw_deg=12.2,
+        rc_roll_us=1492,
+        rc_pitch_us=1530,
+        rc_throttle_us=1544,
+        rc_yaw_us=1500,
+        rc_aux1_us=1800,
+        rc_aux2_us=1800,
+        motor1=0.52,
+        motor2=0.55,
+        motor3=0.5,
+        motor4=0.51,
+        armed=True,
+        wall_s=index * 0.001,
+        sim_north_m=0.1,
+        sim_east_m=-0.2,
+        fc_north_m=0.12,
+        fc_east_m=-0.18,
+        target_north_m=0.0,
+        target_east_m=0.0,
+        target_heading_deg=12.0,
+        waypoint=1,
+    )
 
 
 def per_row_us(rows: int, write_one, close) -> float:  # type: ignore[no-untyped-def]
@@ -70,8 +98,10 @@ def subscribed_client(url: str, stop: threading.Event, received: list[int]) -> t
                 if isinstance(data, str):
                     message = json.loads(data)
                     if message["op"] == "advertise":
-                        subs = [{"id": subscribed + i, "channelId": c["id"]}
-                                for i, c in enumerate(message["channels"])]
+                        subs = [
+                            {"id": subscribed + i, "channelId": c["id"]}
+                            for i, c in enumerate(message["channels"])
+                        ]
                         subscribed += len(subs)
                         ws.send(json.dumps({"op": "subscribe", "subscriptions": subs}))
                 elif data[0] == 1:
@@ -102,10 +132,19 @@ def sink_table(rows: int) -> str:
         stop.set()
         client.join(5)
         live.close()
-        results.append((f"MCAP + live, 1 client ({received[0]} frames received)", live_us,
-                        (folder / "live.mcap").stat().st_size))
-    lines = [f"{rows} rows each", "",
-             "| sink | us per row | x CSV | bytes per row |", "| --- | --- | --- | --- |"]
+        results.append(
+            (
+                f"MCAP + live, 1 client ({received[0]} frames received)",
+                live_us,
+                (folder / "live.mcap").stat().st_size,
+            )
+        )
+    lines = [
+        f"{rows} rows each",
+        "",
+        "| sink | us per row | x CSV | bytes per row |",
+        "| --- | --- | --- | --- |",
+    ]
     for name, us, size in results:
         lines.append(f"| {name} | {us:.1f} | {us / csv_us:.1f} | {size / rows:.0f} |")
     return "\n".join(lines)
@@ -114,9 +153,26 @@ def sink_table(rows: int) -> str:
 def fly(firmware: str, *extra: str) -> tuple[float, dict]:
     with tempfile.TemporaryDirectory() as directory:
         started = time.perf_counter()
-        done = subprocess.run([*BFSITL, "fly", "--firmware", firmware, "--wind", "2",
-                               "--seed", "1", "--hold", "10", "--json", *extra],
-                              capture_output=True, text=True, cwd=directory, timeout=300)
+        done = subprocess.run(
+            [
+                *BFSITL,
+                "fly",
+                "--firmware",
+                firmware,
+                "--wind",
+                "2",
+                "--seed",
+                "1",
+                "--hold",
+                "10",
+                "--json",
+                *extra,
+            ],
+            capture_output=True,
+            text=True,
+            cwd=directory,
+            timeout=300,
+        )
         wall_s = time.perf_counter() - started
     if done.returncode != 0:
         sys.exit(f"the flight failed: {done.stderr[-2000:]}")
@@ -124,10 +180,17 @@ def fly(firmware: str, *extra: str) -> tuple[float, dict]:
 
 
 def flight_table(firmware: str, flights: int) -> str:
-    variants = [("nothing written (baseline)", ()), ("--log", ("--log", "f.csv")),
-                ("--log --mcap", ("--log", "f.csv", "--mcap", "f.mcap"))]
-    lines = [f"lockstep at full speed, {firmware}, wind 2 m/s, 10 s hold; median of {flights}",
-             "", "| outputs | wall s | x baseline | hold RMS m |", "| --- | --- | --- | --- |"]
+    variants = [
+        ("nothing written (baseline)", ()),
+        ("--log", ("--log", "f.csv")),
+        ("--log --mcap", ("--log", "f.csv", "--mcap", "f.mcap")),
+    ]
+    lines = [
+        f"lockstep at full speed, {firmware}, wind 2 m/s, 10 s hold; median of {flights}",
+        "",
+        "| outputs | wall s | x baseline | hold RMS m |",
+        "| --- | --- | --- | --- |",
+    ]
     baseline_s = None
     for name, extra in variants:
         runs = [fly(firmware, *extra) for _ in range(flights)]
@@ -135,10 +198,21 @@ def flight_table(firmware: str, flights: int) -> str:
         baseline_s = baseline_s or wall_s
         rms = statistics.median(s["hold"]["rms_error_m"] for _, s in runs)
         lines.append(f"| {name} | {wall_s:.2f} | {wall_s / baseline_s:.2f} | {rms:.3f} |")
-    watched_s, watched = fly(firmware, "--configurator", "--configurator-port", "0",
-                             "--foxglove", "--foxglove-port", "0", "--mcap", "f.mcap")
-    lines.append(f"| --configurator --foxglove --mcap (paced to 1x) | {watched_s:.2f} | "
-                 f"{watched_s / baseline_s:.2f} | {watched['hold']['rms_error_m']:.3f} |")
+    watched_s, watched = fly(
+        firmware,
+        "--configurator",
+        "--configurator-port",
+        "0",
+        "--foxglove",
+        "--foxglove-port",
+        "0",
+        "--mcap",
+        "f.mcap",
+    )
+    lines.append(
+        f"| --configurator --foxglove --mcap (paced to 1x) | {watched_s:.2f} | "
+        f"{watched_s / baseline_s:.2f} | {watched['hold']['rms_error_m']:.3f} |"
+    )
     return "\n".join(lines)
 
 

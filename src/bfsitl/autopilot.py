@@ -53,10 +53,17 @@ from bfsitl.records.outputs import FlightOutputs, OutputOptions
 GROUND_WAIT_S = 2.0
 
 
-def launch_sitl(firmware: str | Path | None = None, *, physics: str = "embedded",
-                wind: Wind | None = None, speed: float | None = None, seed: int = 0,
-                gps_noise: bool = False, workdir: str | Path | None = None,
-                progress: Callable[[str], None] | None = None) -> FlightSession:
+def launch_sitl(
+    firmware: str | Path | None = None,
+    *,
+    physics: str = "embedded",
+    wind: Wind | None = None,
+    speed: float | None = None,
+    seed: int = 0,
+    gps_noise: bool = False,
+    workdir: str | Path | None = None,
+    progress: Callable[[str], None] | None = None,
+) -> FlightSession:
     """Start a SITL with its physics, provisioned for an :class:`Autopilot`; the started
     vehicle is returned (use it in a ``with`` block, or call ``close()``).
 
@@ -86,14 +93,22 @@ def launch_sitl(firmware: str | Path | None = None, *, physics: str = "embedded"
     """
     config = SessionConfig.for_autopilot(
         control_rate_hz=FlightSession.control_rate_hz,
-        sitl=SitlLaunch(firmware=firmware, workdir=workdir), timing=Timing(speed=speed),
-        world=World(physics=physics, wind=wind, seed=seed,
-                    sensors=fly_sensors(gps_noise=gps_noise)))
+        sitl=SitlLaunch(firmware=firmware, workdir=workdir),
+        timing=Timing(speed=speed),
+        world=World(
+            physics=physics, wind=wind, seed=seed, sensors=fly_sensors(gps_noise=gps_noise)
+        ),
+    )
     return FlightSession(config, progress=progress).start()
 
 
-def connect(uri: str, *, provision: bool = True, rc_rate_hz: float = 25.0,
-            progress: Callable[[str], None] | None = None) -> BoardVehicle:
+def connect(
+    uri: str,
+    *,
+    provision: bool = True,
+    rc_rate_hz: float = 25.0,
+    progress: Callable[[str], None] | None = None,
+) -> BoardVehicle:
     """A flight controller on a serial port (``serial:///dev/ttyACM0?baud=115200``), started
     as a vehicle: identified, checked for an MSP receiver, provisioned with ARM on AUX1 and
     ANGLE on AUX2 (``provision=False`` flies with what it holds), RC by MSP at ``rc_rate_hz``.
@@ -116,8 +131,9 @@ def connect(uri: str, *, provision: bool = True, rc_rate_hz: float = 25.0,
         BoardSetupError: Its receiver is not MSP, or a setting needs a reboot first.
         ProvisioningError: The mode ranges could not be written or read back.
     """
-    vehicle = BoardVehicle(uri, profile=FLY_PROFILE if provision else None,
-                           rc_rate_hz=rc_rate_hz, progress=progress)
+    vehicle = BoardVehicle(
+        uri, profile=FLY_PROFILE if provision else None, rc_rate_hz=rc_rate_hz, progress=progress
+    )
     return vehicle.start()
 
 
@@ -148,37 +164,49 @@ class Autopilot:
         ControllerConfigError: ``controller`` names no controller.
     """
 
-    def __init__(self, vehicle: Vehicle, controller: str | AltitudeController =
-                 DEFAULT_CONTROLLER, *, rate_hz: float | None = None,
-                 log: str | Path | None = None, fuse_accelerometer: bool = False,
-                 on_event: Callable[[str], None] | None = None) -> None:
+    def __init__(
+        self,
+        vehicle: Vehicle,
+        controller: str | AltitudeController = DEFAULT_CONTROLLER,
+        *,
+        rate_hz: float | None = None,
+        log: str | Path | None = None,
+        fuse_accelerometer: bool = False,
+        on_event: Callable[[str], None] | None = None,
+    ) -> None:
         self.vehicle = vehicle
-        self.controller = make_controller(controller) if isinstance(controller, str) \
-            else controller
+        self.controller = make_controller(controller) if isinstance(controller, str) else controller
         # The record format comes from the file's suffix (bfsitl.records.sinks): rows and
         # events stream to it as they are flown, and it is closed with the vehicle.
-        self._outputs = FlightOutputs(OutputOptions(
-            extra_paths=(log,) if log is not None else ()))
+        self._outputs = FlightOutputs(OutputOptions(extra_paths=(log,) if log is not None else ()))
         self._on_event = on_event
         if rate_hz is None:
             rate_hz = vehicle.control_rate_hz
         # Made before the log is opened: a bad rate opens no file.
-        self.loop = FlightLoop(vehicle, self.controller, rate_hz=rate_hz,
-                               on_row=self._outputs.on_row, on_event=self._event)
+        self.loop = FlightLoop(
+            vehicle,
+            self.controller,
+            rate_hz=rate_hz,
+            on_row=self._outputs.on_row,
+            on_event=self._event,
+        )
         self._outputs.start()
         if any(not sink.streams for sink in self._outputs.sinks):
             self._outputs.close()
-            raise MissionError(f"log {log}: the Autopilot's log is written as it flies; name "
-                               f"a .csv or .mcap file (plots and summaries come from "
-                               f"`bfsitl fly --plot/--summary`)")
+            raise MissionError(
+                f"log {log}: the Autopilot's log is written as it flies; name "
+                f"a .csv or .mcap file (plots and summaries come from "
+                f"`bfsitl fly --plot/--summary`)"
+            )
         vehicle.on_close(self._outputs.close)
         if fuse_accelerometer:
             # The GPS fused with the FC's accelerometer for the position loop: as good as the
             # GPS alone in SITL, where the fix is fresh; better with a slow, late receiver
             # (control/horizontal_estimator.py).
             self.loop.steering.horizontal = HorizontalEstimator()
-            self.loop.steering.position = PositionController(replace(
-                self.loop.steering.position.gains, lead_s=0.0))
+            self.loop.steering.position = PositionController(
+                replace(self.loop.steering.position.gains, lead_s=0.0)
+            )
 
     # -- the record ---------------------------------------------------------------------------
     @property
@@ -217,11 +245,17 @@ class Autopilot:
         if not self.armed:
             self.loop.arm()
             self.loop.wait_on_ground(GROUND_WAIT_S)
-        return self.loop.takeoff(height_m, timeout_s=timeout_s,
-                                    hold_position=self.vehicle.has_gps)
+        return self.loop.takeoff(height_m, timeout_s=timeout_s, hold_position=self.vehicle.has_gps)
 
-    def goto(self, north_m: float, east_m: float, alt_m: float | None = None, *,
-             speed_m_s: float | None = None, timeout_s: float | None = None) -> LegStats:
+    def goto(
+        self,
+        north_m: float,
+        east_m: float,
+        alt_m: float | None = None,
+        *,
+        speed_m_s: float | None = None,
+        timeout_s: float | None = None,
+    ) -> LegStats:
         """A straight leg to a position and altitude (default: the altitude held).
 
         Args:
@@ -243,8 +277,14 @@ class Autopilot:
             CrashDetectedError: The vehicle tipped over or hit the ground.
         """
         self._require_airborne("goto")
-        self.loop.fly_to(north_m, east_m, alt_m, speed_m_s=speed_m_s, timeout_s=timeout_s,
-                            waypoint=len(self.loop.legs) + 1)
+        self.loop.fly_to(
+            north_m,
+            east_m,
+            alt_m,
+            speed_m_s=speed_m_s,
+            timeout_s=timeout_s,
+            waypoint=len(self.loop.legs) + 1,
+        )
         return self.loop.legs[-1]
 
     def hold(self, duration_s: float) -> None:

@@ -42,11 +42,20 @@ FIRMWARE_OPTION = "--bfsitl-firmware"
 
 def pytest_addoption(parser: pytest.Parser) -> None:
     group = parser.getgroup("bfsitl", "bfsitl: Betaflight SITL scenarios")
-    group.addoption(FIRMWARE_OPTION, action="append", default=[], metavar="NAME",
-                    help="a SITL build (cached name or path) to fly scenarios and "
-                         "bfsitl_vehicle tests on; repeat for several")
-    group.addoption("--bfsitl-out", default=None, metavar="DIR",
-                    help="where scenario runs write their files (default: pytest's tmp dir)")
+    group.addoption(
+        FIRMWARE_OPTION,
+        action="append",
+        default=[],
+        metavar="NAME",
+        help="a SITL build (cached name or path) to fly scenarios and "
+        "bfsitl_vehicle tests on; repeat for several",
+    )
+    group.addoption(
+        "--bfsitl-out",
+        default=None,
+        metavar="DIR",
+        help="where scenario runs write their files (default: pytest's tmp dir)",
+    )
 
 
 def _firmwares(config: pytest.Config) -> list[str]:
@@ -58,16 +67,19 @@ def pytest_generate_tests(metafunc: pytest.Metafunc) -> None:
         firmwares = _firmwares(metafunc.config)
         if not firmwares:
             firmwares = [None]  # type: ignore[list-item]  # skipped in the fixture
-        metafunc.parametrize("bfsitl_firmware", firmwares, scope="function",
-                             ids=[str(f) for f in firmwares])
+        metafunc.parametrize(
+            "bfsitl_firmware", firmwares, scope="function", ids=[str(f) for f in firmwares]
+        )
 
 
 @pytest.fixture
 def bfsitl_firmware(request: pytest.FixtureRequest) -> str:
     firmware = request.param
     if firmware is None:
-        pytest.skip(f"no firmware to fly: give {FIRMWARE_OPTION} NAME (`bfsitl firmware "
-                    f"list` shows the builds)")
+        pytest.skip(
+            f"no firmware to fly: give {FIRMWARE_OPTION} NAME (`bfsitl firmware "
+            f"list` shows the builds)"
+        )
     return str(firmware)
 
 
@@ -86,21 +98,25 @@ def _out_dir(config: pytest.Config, name: str) -> Path:
     """``--bfsitl-out``, or one fresh temporary directory per pytest session."""
     if _OUT_ROOT not in config.stash:
         base = config.getoption("--bfsitl-out")
-        config.stash[_OUT_ROOT] = Path(base) if base else Path(
-            tempfile.mkdtemp(prefix="bfsitl-scenarios-"))
+        config.stash[_OUT_ROOT] = (
+            Path(base) if base else Path(tempfile.mkdtemp(prefix="bfsitl-scenarios-"))
+        )
     return config.stash[_OUT_ROOT] / name
 
 
 @pytest.fixture
-def bfsitl_scenario(bfsitl_firmware: str, tmp_path: Path
-                    ) -> Callable[[str | Path | Scenario], ScenarioResult]:
+def bfsitl_scenario(
+    bfsitl_firmware: str, tmp_path: Path
+) -> Callable[[str | Path | Scenario], ScenarioResult]:
     from bfsitl.scenario.run import RunOptions, run_scenario
 
     def run(scenario: str | Path | Scenario) -> ScenarioResult:
         if not isinstance(scenario, Scenario):
             scenario = load_scenario(scenario)
-        return run_scenario(scenario, bfsitl_firmware,
-                            RunOptions(tmp_path / scenario.name, plot=False))
+        return run_scenario(
+            scenario, bfsitl_firmware, RunOptions(tmp_path / scenario.name, plot=False)
+        )
+
     return run
 
 
@@ -127,8 +143,9 @@ class ScenarioFile(pytest.File):
     def collect(self) -> Iterator[pytest.Item]:
         scenario = load_scenario(self.path)  # a broken file is a collection error
         for firmware in _firmwares(self.config):
-            yield ScenarioItem.from_parent(self, name=f"{scenario.name}[{firmware}]",
-                                           scenario=scenario, firmware=firmware)
+            yield ScenarioItem.from_parent(
+                self, name=f"{scenario.name}[{firmware}]", scenario=scenario, firmware=firmware
+            )
 
 
 class ScenarioItem(pytest.Item):
@@ -150,8 +167,7 @@ class ScenarioItem(pytest.Item):
         if result.verdict is not Verdict.PASSED:
             raise ScenarioFailedError(result.reason)
 
-    def repr_failure(self, excinfo: pytest.ExceptionInfo[BaseException],
-                     style: Any = None) -> str:
+    def repr_failure(self, excinfo: pytest.ExceptionInfo[BaseException], style: Any = None) -> str:
         if isinstance(excinfo.value, ScenarioFailedError) and self.result is not None:
             result = self.result
             lines = [f"{result.verdict.value}: {result.reason}"]

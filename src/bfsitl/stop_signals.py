@@ -43,8 +43,9 @@ def _raise_interrupted(signum: int, _frame: FrameType | None) -> None:
 
 
 @contextmanager
-def _handling(signums: tuple[int, ...], handler: signal.Handlers | Callable[..., None]
-              ) -> Iterator[None]:
+def _handling(
+    signums: tuple[int, ...], handler: signal.Handlers | Callable[..., None]
+) -> Iterator[None]:
     """While inside: ``signums`` go to ``handler``; the previous handlers come back on the way
     out.  Outside the main thread (where Python cannot take signals) it changes nothing."""
     if threading.current_thread() is not threading.main_thread():

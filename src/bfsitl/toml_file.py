@@ -10,8 +10,9 @@ from typing import Any
 from bfsitl.errors import BfsitlError
 
 
-def read_text_file(path: Path, what: str, error: type[BfsitlError], *,
-                   kind: str = "text, one CLI line per line") -> str:
+def read_text_file(
+    path: Path, what: str, error: type[BfsitlError], *, kind: str = "text, one CLI line per line"
+) -> str:
     """The text of ``path``; ``error`` naming the file when it cannot be read or is not UTF-8
     text (a binary file given by mistake, a file saved in another encoding)."""
     try:
@@ -21,8 +22,10 @@ def read_text_file(path: Path, what: str, error: type[BfsitlError], *,
     try:
         return data.decode("utf-8")
     except UnicodeDecodeError as exc:
-        raise error(f"{path} is not UTF-8 text (byte {exc.start} is 0x{data[exc.start]:02x}): "
-                    f"a {what} file is {kind}") from None
+        raise error(
+            f"{path} is not UTF-8 text (byte {exc.start} is 0x{data[exc.start]:02x}): "
+            f"a {what} file is {kind}"
+        ) from None
 
 
 def read_toml_file(path: Path, what: str, error: type[BfsitlError]) -> dict[str, Any]:

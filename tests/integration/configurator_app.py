@@ -98,8 +98,10 @@ if TYPE_CHECKING:  # playwright is imported lazily: without it, the fixtures ski
 #: A built ``dist/`` (the directory holding index.html), or the directory above it.
 DIST_ENV_VAR = "BFSITL_CONFIGURATOR_DIST"
 #: The one line every app test is skipped with when no build is given.
-DIST_SKIP_REASON = (f"Configurator not given: set {DIST_ENV_VAR} to a built "
-                    f"betaflight-configurator dist/ to run the app tests")
+DIST_SKIP_REASON = (
+    f"Configurator not given: set {DIST_ENV_VAR} to a built "
+    f"betaflight-configurator dist/ to run the app tests"
+)
 REQUIRE_ENV_VAR = "BFSITL_REQUIRE_BROWSER"
 
 #: The Connect menu's built-in "Betaflight SITL" entry.
@@ -110,8 +112,13 @@ SITL_BOOKMARK = "Betaflight SITL"
 REBOOT_TIMER_MS = 1500
 
 CHROMIUM_ARGS = (
-    "--no-sandbox", "--disable-gpu", "--disable-quic", "--no-first-run",
-    "--disable-background-networking", "--disable-component-update", "--disable-sync",
+    "--no-sandbox",
+    "--disable-gpu",
+    "--disable-quic",
+    "--no-first-run",
+    "--disable-background-networking",
+    "--disable-component-update",
+    "--disable-sync",
     "--disable-dev-shm-usage",
 )
 #: Every http(s) request not to this machine: analytics, sponsors, icon CDNs.  Aborted at once,
@@ -125,6 +132,7 @@ class ConfiguratorAppError(AssertionError):
 
 
 # --- the build, served ----------------------------------------------------------------------
+
 
 def _unavailable(reason: str) -> None:
     if os.environ.get(REQUIRE_ENV_VAR) == "1":
@@ -142,8 +150,10 @@ def _dist_from_env() -> Path:
     for candidate in (path, path / "dist"):
         if (candidate / "index.html").is_file():
             return candidate.resolve()
-    pytest.fail(f"{DIST_ENV_VAR}={configured} holds no index.html (nor dist/index.html): "
-                f"point it at the Configurator's built dist/")
+    pytest.fail(
+        f"{DIST_ENV_VAR}={configured} holds no index.html (nor dist/index.html): "
+        f"point it at the Configurator's built dist/"
+    )
 
 
 class _QuietHandler(http.server.SimpleHTTPRequestHandler):
@@ -171,8 +181,9 @@ class StaticServer:
         self._server.daemon_threads = True
         self.port: int = self._server.server_address[1]
         self.url = f"http://{host}:{self.port}/index.html"
-        self._thread = threading.Thread(target=self._server.serve_forever,
-                                        name="configurator-http", daemon=True)
+        self._thread = threading.Thread(
+            target=self._server.serve_forever, name="configurator-http", daemon=True
+        )
 
     def __enter__(self) -> StaticServer:
         self._thread.start()
@@ -201,8 +212,9 @@ def launch_chromium(executable: str | None = None) -> Iterator[Browser]:
     if path is None:
         raise FileNotFoundError("chromium is not installed (apt-get install chromium)")
     with sync_playwright() as playwright:
-        browser = playwright.chromium.launch(executable_path=path, headless=True,
-                                             args=list(CHROMIUM_ARGS))
+        browser = playwright.chromium.launch(
+            executable_path=path, headless=True, args=list(CHROMIUM_ARGS)
+        )
         try:
             yield browser
         finally:
@@ -210,6 +222,7 @@ def launch_chromium(executable: str | None = None) -> Iterator[Browser]:
 
 
 # --- fixtures -------------------------------------------------------------------------------
+
 
 @pytest.fixture(scope="session")
 def configurator_dist() -> Path:
@@ -233,8 +246,10 @@ def configurator_chromium() -> str:
     try:
         import playwright.sync_api  # noqa: F401
     except ImportError:
-        _unavailable("the playwright package is not installed (pip install playwright; the "
-                     "system's chromium is used, no `playwright install`)")
+        _unavailable(
+            "the playwright package is not installed (pip install playwright; the "
+            "system's chromium is used, no `playwright install`)"
+        )
     assert path is not None
     return path
 
@@ -248,6 +263,7 @@ def configurator_browser(configurator_chromium: str) -> Iterator[Browser]:
 
 
 # --- the app --------------------------------------------------------------------------------
+
 
 @dataclass(frozen=True)
 class Attitude:
@@ -288,8 +304,9 @@ class ConfiguratorPage:
         self.console: deque[str] = deque(maxlen=200)
         self.sockets: list[_Socket] = []
         self._in_cli = False
-        page.on("console", lambda message: self.console.append(
-            f"{message.type}: {message.text[:300]}"))
+        page.on(
+            "console", lambda message: self.console.append(f"{message.type}: {message.text[:300]}")
+        )
         page.on("pageerror", lambda error: self.console.append(f"pageerror: {error}"))
         page.on("websocket", self._track_socket)
         page.set_default_timeout(timeout_s * 1000)
@@ -424,7 +441,8 @@ class ConfiguratorPage:
         if not item.is_visible():
             raise ConfiguratorAppError(
                 f"no {entry!r} in the Connect menu (Expert Mode off?): "
-                f"{[t.strip() for t in menu.get_by_role('menuitem').all_inner_texts()]}")
+                f"{[t.strip() for t in menu.get_by_role('menuitem').all_inner_texts()]}"
+            )
         sockets_before = len(self.sockets)
         item.click()
         if via == "manual":
@@ -464,11 +482,13 @@ class ConfiguratorPage:
                     f"the app's WebSocket to {opened[-1].url} closed before it was connected "
                     f"({len(opened[-1].received)} B received); the Connect control says "
                     f"{self.connect_label()!r}{self._console_tail()}\n(a SITL left in CLI mode "
-                    f"by an earlier client answers no MSP, and the app gives up after 10 s)")
+                    f"by an earlier client answers no MSP, and the app gives up after 10 s)"
+                )
             self.page.wait_for_timeout(100)
         raise ConfiguratorAppError(
             f"not connected within {timeout_s:.0f} s; the Connect control says "
-            f"{self.connect_label()!r}{self._console_tail()}")
+            f"{self.connect_label()!r}{self._console_tail()}"
+        )
 
     def wait_disconnected(self, *, timeout_s: float = 15.0) -> None:
         """Until the Connect control offers to connect again (after a reboot or a lost link)."""
@@ -477,7 +497,8 @@ class ConfiguratorPage:
         except _playwright_timeout() as exc:
             raise ConfiguratorAppError(
                 f"still connected after {timeout_s:.0f} s: {self.connect_label()!r}"
-                f"{self._console_tail()}") from exc
+                f"{self._console_tail()}"
+            ) from exc
         self._in_cli = False
         # Set after the app's own 1.5 s reboot timer (if a reboot started it), and longer.
         self.page.evaluate(f"""() => {{ window.__bfsitlRebootTimerPassed =
@@ -494,8 +515,7 @@ class ConfiguratorPage:
         return self.page.locator("nav").get_by_role("button", name=name, exact=True)
 
     def tabs(self) -> list[str]:
-        return [t.strip() for t in self.page.locator("nav").get_by_role("button")
-                .all_inner_texts()]
+        return [t.strip() for t in self.page.locator("nav").get_by_role("button").all_inner_texts()]
 
     def active_tab(self) -> str:
         return self.page.locator("nav [aria-current=page]").inner_text().strip()
@@ -510,7 +530,8 @@ class ConfiguratorPage:
         if self._in_cli:
             raise ConfiguratorAppError(
                 f"in the CLI tab, clicking {name!r} sends `exit` (the SITL reboots, the app "
-                f"disconnects): call leave_cli() for that")
+                f"disconnects): call leave_cli() for that"
+            )
         button = self._tab_button(name)
         button.click()
         _expect(button).to_have_attribute("aria-current", "page")
@@ -522,15 +543,18 @@ class ConfiguratorPage:
             if name in titles or (not titles and time.monotonic() - started > 1.0):
                 return
             self.page.wait_for_timeout(50)
-        raise ConfiguratorAppError(f"the {name!r} tab did not show; the content's title is "
-                                   f"{title.all_inner_texts()}{self._console_tail()}")
+        raise ConfiguratorAppError(
+            f"the {name!r} tab did not show; the content's title is "
+            f"{title.all_inner_texts()}{self._console_tail()}"
+        )
 
     # -- Setup ---------------------------------------------------------------------------------
 
     def _text(self, selector: str) -> str:
         """The element's text now, "" if there is none (no waiting)."""
         text = self.page.evaluate(
-            "(selector) => document.querySelector(selector)?.innerText ?? ''", selector)
+            "(selector) => document.querySelector(selector)?.innerText ?? ''", selector
+        )
         return str(text).strip()
 
     def _setup_value(self, element_id: str) -> str:
@@ -593,8 +617,10 @@ class ConfiguratorPage:
             """() => [...document.querySelectorAll('#content .bars li.name')]
                    .map((li) => [li.textContent, li.nextElementSibling?.innerText])"""
         )
-        return {re.sub(r"\s*\[\w\]\s*$", "", name.strip()): int(_number(value, name))
-                for name, value in pairs}
+        return {
+            re.sub(r"\s*\[\w\]\s*$", "", name.strip()): int(_number(value, name))
+            for name, value in pairs
+        }
 
     def _sample(self, read: Any, seconds: float, interval_s: float) -> list[Any]:
         read()  # the tab is there, with its data
@@ -608,8 +634,10 @@ class ConfiguratorPage:
 
     def sample_attitudes(self, seconds: float, interval_s: float = 0.2) -> list[Attitude]:
         """Readings of :meth:`attitude` every ``interval_s`` for ``seconds`` (``t`` set)."""
-        return [Attitude(a.heading, a.pitch, a.roll, round(t, 3))
-                for t, a in self._sample(self.attitude, seconds, interval_s)]
+        return [
+            Attitude(a.heading, a.pitch, a.roll, round(t, 3))
+            for t, a in self._sample(self.attitude, seconds, interval_s)
+        ]
 
     def sample_rc(self, seconds: float, interval_s: float = 0.2) -> list[dict[str, int]]:
         """Readings of :meth:`rc_channels` every ``interval_s`` for ``seconds``."""
@@ -652,7 +680,8 @@ class ConfiguratorPage:
         raise ConfiguratorAppError(
             f"the CLI tab was not ready within {timeout_s:.0f} s; it shows "
             f"{self._text('.cli-window .cli-wrapper')[-300:]!r}"
-            f"{self._console_tail()}")
+            f"{self._console_tail()}"
+        )
 
     def _cli_socket(self) -> _Socket:
         open_sockets = [s for s in self.sockets if not s.closed]
@@ -685,18 +714,20 @@ class ConfiguratorPage:
             settled = raw.endswith("\r\n# ") and prompt_at == len(raw)
             prompt_at = len(raw) if raw.endswith("\r\n# ") else -1
             if settled:
-                answer = [ln for ln in raw[:-len("\r\n# ")].split("\r\n") if ln.strip()]
-                shown = self.cli_text()[len(before):]
+                answer = [ln for ln in raw[: -len("\r\n# ")].split("\r\n") if ln.strip()]
+                shown = self.cli_text()[len(before) :]
                 if not answer or answer[-1].strip() in shown:
                     return _strip_echo(shown, command)
             if socket.closed:
                 raise ConfiguratorAppError(
                     f"the connection closed after {command!r} (a reboot?); the SITL sent "
-                    f"{raw[-300:]!r}")
+                    f"{raw[-300:]!r}"
+                )
             self.page.wait_for_timeout(80)
         raise ConfiguratorAppError(
             f"no prompt after {command!r} within {timeout_s:.0f} s; the CLI shows "
-            f"{self.cli_text()[len(before):][-300:]!r}")
+            f"{self.cli_text()[len(before) :][-300:]!r}"
+        )
 
     def cli_save(self, *, timeout_s: float = 15.0) -> str:
         """Type ``save`` in the CLI: the SITL writes eeprom.bin and reboots, which ends the
@@ -734,21 +765,26 @@ class ConfiguratorPage:
 
     def _console_tail(self, lines: int = 12) -> str:
         noise = ("Failed to load resource", "Loading progress", "[Sponsor]", "GL Driver")
-        tail = [line.splitlines()[0] for line in self.console
-                if line.strip() and not any(n in line for n in noise)][-lines:]
+        tail = [
+            line.splitlines()[0]
+            for line in self.console
+            if line.strip() and not any(n in line for n in noise)
+        ][-lines:]
         return "\n  app console:\n    " + "\n    ".join(tail) if tail else ""
 
 
 @contextlib.contextmanager
-def open_configurator(browser: Browser, app_url: str, *, timeout_s: float = 15.0,
-                      service_workers: str = "block") -> Iterator[ConfiguratorPage]:
+def open_configurator(
+    browser: Browser, app_url: str, *, timeout_s: float = 15.0, service_workers: str = "block"
+) -> Iterator[ConfiguratorPage]:
     """A new browser context (fresh settings, English UI, 1400x900) with the app loaded.
 
     Requests to anything but this machine are aborted at once.  ``service_workers="allow"``
     lets the app precache itself as it would for a user (slower; see the module's notes).
     """
-    context = browser.new_context(viewport={"width": 1400, "height": 900}, locale="en-US",
-                                  service_workers=service_workers)  # type: ignore[arg-type]
+    context = browser.new_context(
+        viewport={"width": 1400, "height": 900}, locale="en-US", service_workers=service_workers
+    )  # type: ignore[arg-type]
     context.route(_REMOTE_REQUEST, lambda route: route.abort())
     app = ConfiguratorPage(context.new_page(), app_url, timeout_s=timeout_s)
     try:
@@ -759,6 +795,7 @@ def open_configurator(browser: Browser, app_url: str, *, timeout_s: float = 15.0
 
 
 # --- watching a flight ----------------------------------------------------------------------
+
 
 @dataclass(frozen=True)
 class FlightWatch:
@@ -782,8 +819,10 @@ class FlightWatch:
         """The largest change of one attitude axis over the samples (heading wraps at 360)."""
         if len(self.attitudes) < 2:
             return 0.0
-        spans = [max(v) - min(v) for v in ([a.pitch for a in self.attitudes],
-                                           [a.roll for a in self.attitudes])]
+        spans = [
+            max(v) - min(v)
+            for v in ([a.pitch for a in self.attitudes], [a.roll for a in self.attitudes])
+        ]
         headings = [a.heading for a in self.attitudes]
         spans.append(max(_angle_diff(h, headings[0]) for h in headings))
         return max(spans)
@@ -793,10 +832,18 @@ class FlightWatch:
         return self.attitude_span_deg() > threshold_deg
 
 
-def watch_flight(ws_url: str, *, browser: Browser | None = None, app_url: str | None = None,
-                 dist: Path | None = None, seconds: float = 3.0, interval_s: float = 0.2,
-                 rc_seconds: float = 0.0, screenshot: Path | str | None = None,
-                 timeout_s: float = 20.0) -> FlightWatch:
+def watch_flight(
+    ws_url: str,
+    *,
+    browser: Browser | None = None,
+    app_url: str | None = None,
+    dist: Path | None = None,
+    seconds: float = 3.0,
+    interval_s: float = 0.2,
+    rc_seconds: float = 0.0,
+    screenshot: Path | str | None = None,
+    timeout_s: float = 20.0,
+) -> FlightWatch:
     """Connect the real Configurator to ``ws_url`` as a user would, while the quad flies, and
     report what it shows: Setup's firmware, API and board; Setup's attitude readout sampled
     every ``interval_s`` for ``seconds``; a screenshot of Setup (``screenshot``: a .png path);
@@ -834,6 +881,7 @@ def watch_flight(ws_url: str, *, browser: Browser | None = None, app_url: str | 
 
 # --- small helpers --------------------------------------------------------------------------
 
+
 def _playwright_timeout() -> type[Exception]:
     from playwright.sync_api import TimeoutError as PlaywrightTimeoutError
 
@@ -866,7 +914,7 @@ def _strip_echo(shown: str, command: str) -> str:
     lines = shown.split("\n")
     for index, line in enumerate(lines):
         if line.strip().lstrip("#").strip() == command.strip():
-            lines = lines[index + 1:]
+            lines = lines[index + 1 :]
             break
     return "\n".join(lines).rstrip()
 
@@ -877,4 +925,4 @@ def _xpath_string(text: str) -> str:
     if '"' not in text:
         return f'"{text}"'
     parts = text.split("'")
-    return "concat(" + ", \"'\", ".join(f"'{part}'" for part in parts) + ")"
+    return "concat(" + ', "\'", '.join(f"'{part}'" for part in parts) + ")"

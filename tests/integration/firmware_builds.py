@@ -46,8 +46,10 @@ from bfsitl.errors import FirmwareBuildError
 
 MASTER_SOURCE_ENV_VAR = "BFSITL_MASTER_SOURCE"
 #: The one line every master test is skipped with when no master source is given.
-MASTER_SKIP_REASON = (f"master not given: set {MASTER_SOURCE_ENV_VAR} to a betaflight/betaflight "
-                      f"tree, tarball or git URL (URL@REF) to run the master tests")
+MASTER_SKIP_REASON = (
+    f"master not given: set {MASTER_SOURCE_ENV_VAR} to a betaflight/betaflight "
+    f"tree, tarball or git URL (URL@REF) to run the master tests"
+)
 MASTER_NAME = "master"
 GPS_46_NAME = "4.6.0-gps"
 LOCKSTEP_46_NAME = "4.6.0-lockstep"
@@ -79,12 +81,19 @@ def firmware_build_cache(tmp_path_factory: pytest.TempPathFactory) -> FirmwareCa
     return FirmwareCache(root)
 
 
-def _build(cache: FirmwareCache, source: Path | None, options: FirmwareBuildOptions,
-           name: str) -> Path:
+def _build(
+    cache: FirmwareCache, source: Path | None, options: FirmwareBuildOptions, name: str
+) -> Path:
     _check_tools()
     try:
-        result = build_firmware(source, options, name=name, jobs=BUILD_JOBS, cache=cache,
-                                progress=BuildProgress(live=False))
+        result = build_firmware(
+            source,
+            options,
+            name=name,
+            jobs=BUILD_JOBS,
+            cache=cache,
+            progress=BuildProgress(live=False),
+        )
     except FirmwareBuildError as exc:
         pytest.fail(f"building the {name} SITL failed: {exc}")
     return result.binary_path
@@ -138,8 +147,9 @@ def master_firmware(firmware_build_cache: FirmwareCache) -> Path:
 def gps_firmware(firmware_build_cache: FirmwareCache) -> Path:
     """4.6.0 with ``--gps``, from the installed betaflight package (named ``4.6.0-gps``)."""
     if package_source_dir() is None:
-        _unavailable("the betaflight package (the sitl extra), whose 4.6.0 tree is built, "
-                     "is not installed")
+        _unavailable(
+            "the betaflight package (the sitl extra), whose 4.6.0 tree is built, is not installed"
+        )
     return _build(firmware_build_cache, None, FirmwareBuildOptions(gps=True), GPS_46_NAME)
 
 
@@ -147,28 +157,34 @@ def gps_firmware(firmware_build_cache: FirmwareCache) -> Path:
 def lockstep_46_firmware(firmware_build_cache: FirmwareCache) -> Path:
     """4.6.0 from the installed betaflight package with ``--lockstep``."""
     if package_source_dir() is None:
-        _unavailable("the betaflight package (the sitl extra), whose 4.6.0 tree is built, "
-                     "is not installed")
-    return _build(firmware_build_cache, None, FirmwareBuildOptions(lockstep=True),
-                  LOCKSTEP_46_NAME)
+        _unavailable(
+            "the betaflight package (the sitl extra), whose 4.6.0 tree is built, is not installed"
+        )
+    return _build(firmware_build_cache, None, FirmwareBuildOptions(lockstep=True), LOCKSTEP_46_NAME)
 
 
 @pytest.fixture(scope="session")
 def lockstep_gps_46_firmware(firmware_build_cache: FirmwareCache) -> Path:
     """4.6.0 with ``--gps --lockstep``: position control on 4.6.0 needs its GPS."""
     if package_source_dir() is None:
-        _unavailable("the betaflight package (the sitl extra), whose 4.6.0 tree is built, "
-                     "is not installed")
-    return _build(firmware_build_cache, None, FirmwareBuildOptions(gps=True, lockstep=True),
-                  LOCKSTEP_GPS_46_NAME)
+        _unavailable(
+            "the betaflight package (the sitl extra), whose 4.6.0 tree is built, is not installed"
+        )
+    return _build(
+        firmware_build_cache,
+        None,
+        FirmwareBuildOptions(gps=True, lockstep=True),
+        LOCKSTEP_GPS_46_NAME,
+    )
 
 
 @pytest.fixture(scope="session")
 def lockstep_master_firmware(firmware_build_cache: FirmwareCache) -> Path:
     """Master from ``BFSITL_MASTER_SOURCE`` with ``--lockstep`` (named ``master-lockstep``)."""
     source = master_source(firmware_build_cache)
-    return _build(firmware_build_cache, source, FirmwareBuildOptions(lockstep=True),
-                  LOCKSTEP_MASTER_NAME)
+    return _build(
+        firmware_build_cache, source, FirmwareBuildOptions(lockstep=True), LOCKSTEP_MASTER_NAME
+    )
 
 
 @pytest.fixture(scope="session")

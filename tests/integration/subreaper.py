@@ -64,8 +64,9 @@ def main() -> int:
     if libc.prctl(_PR_SET_CHILD_SUBREAPER, 1, 0, 0, 0) != 0:
         raise OSError(ctypes.get_errno(), "prctl(PR_SET_CHILD_SUBREAPER)")
     with open(out_path, "w") as out, open(err_path, "w") as err:
-        child = subprocess.Popen(command, stdout=out, stderr=err, stdin=subprocess.DEVNULL,
-                                 start_new_session=True)
+        child = subprocess.Popen(
+            command, stdout=out, stderr=err, stdin=subprocess.DEVNULL, start_new_session=True
+        )
     print(child.pid, flush=True)
     returncode = child.wait()
     deadline = time.monotonic() + float(grace_s)
@@ -75,8 +76,9 @@ def main() -> int:
         time.sleep(0.1)
         _reap()
         left = _children()
-    Path(report_path).write_text(json.dumps(
-        {"returncode": returncode, "left": [_describe(pid) for pid in left]}))
+    Path(report_path).write_text(
+        json.dumps({"returncode": returncode, "left": [_describe(pid) for pid in left]})
+    )
     # The test fails; still leave nothing behind.  A resource tracker is given a moment to
     # go by itself once the others are gone: killed, it would leave its semaphores behind.
     for round_number in range(50):

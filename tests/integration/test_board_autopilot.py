@@ -39,9 +39,12 @@ SPEED = 1.0
 
 @pytest.fixture
 def board(gps_firmware, tmp_path) -> Iterator[tuple[FlightSession, PtyEndpoint]]:
-    config = SessionConfig(sitl=SitlLaunch(firmware=gps_firmware, workdir=tmp_path / "run"),
-                           timing=Timing(speed=SPEED), world=World(seed=5),
-                           fc=FcSetup(profile=with_fast_serial(FLY_PROFILE), rc_link=False))
+    config = SessionConfig(
+        sitl=SitlLaunch(firmware=gps_firmware, workdir=tmp_path / "run"),
+        timing=Timing(speed=SPEED),
+        world=World(seed=5),
+        fc=FcSetup(profile=with_fast_serial(FLY_PROFILE), rc_link=False),
+    )
     with FlightSession(config) as simulated:
         assert simulated.sitl is not None and simulated.sitl.client is not None
         # UART1 serves one client: the bridge takes it from here on.
@@ -54,8 +57,7 @@ def board(gps_firmware, tmp_path) -> Iterator[tuple[FlightSession, PtyEndpoint]]
 def test_the_autopilot_flies_a_board_over_serial_with_rc_by_msp(board, tmp_path):
     simulated, _endpoint = board
     events: list[str] = []
-    with connect(f"serial://{tmp_path / 'ttyBF'}?baud=115200",
-                 progress=events.append) as vehicle:
+    with connect(f"serial://{tmp_path / 'ttyBF'}?baud=115200", progress=events.append) as vehicle:
         assert vehicle.truth is None and vehicle.has_gps
         assert vehicle.firmware is not None and vehicle.firmware.firmware_version == "4.6.0"
         pilot = Autopilot(vehicle, log=tmp_path / "board.csv")

@@ -121,19 +121,25 @@ def test_reboot_ends_the_client_and_the_started_sitl_comes_back(sitl, relay_url)
 
 # --- the commands, end to end ---------------------------------------------------------------
 
+
 @contextlib.contextmanager
 def run_bridge(*args: str) -> Iterator[tuple[subprocess.Popen[str], str]]:
     """Start a bridge command; yield it and the first line it prints (its URL or path)."""
     process = subprocess.Popen(
-        [sys.executable, "-c", _BRIDGE_MAIN, *args], stdout=subprocess.PIPE,
-        stderr=subprocess.PIPE, text=True, start_new_session=True,
+        [sys.executable, "-c", _BRIDGE_MAIN, *args],
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+        start_new_session=True,
     )
     try:
         line = process.stdout.readline().strip() if process.stdout else ""
         if not line:
             process.wait(timeout=10)
-            raise AssertionError(f"the bridge printed nothing; stderr:\n"
-                                 f"{process.stderr.read() if process.stderr else ''}")
+            raise AssertionError(
+                f"the bridge printed nothing; stderr:\n"
+                f"{process.stderr.read() if process.stderr else ''}"
+            )
         yield process, line
     finally:
         if process.poll() is None:
@@ -184,22 +190,36 @@ def test_configurator_command_errors_are_one_clear_line(tmp_path):
         port = str(taken.getsockname()[1])
         refused = subprocess.run(
             [sys.executable, "-c", _BRIDGE_MAIN, "configurator", "--uri", "tcp://127.0.0.1:1"],
-            capture_output=True, text=True, timeout=30,
+            capture_output=True,
+            text=True,
+            timeout=30,
         )
         assert refused.returncode == 1 and "connection refused" in refused.stderr
         assert len(refused.stderr.strip().splitlines()) == 1
         not_tcp = subprocess.run(
             [sys.executable, "-c", _BRIDGE_MAIN, "serial-bridge", "--uri", "serial:///dev/x"],
-            capture_output=True, text=True, timeout=30,
+            capture_output=True,
+            text=True,
+            timeout=30,
         )
         assert not_tcp.returncode == 1 and "tcp://HOST:PORT" in not_tcp.stderr
         regular = tmp_path / "file"
         regular.write_text("x")
         # A listening socket stands in for a SITL: the path check must come first anyway.
         occupied = subprocess.run(
-            [sys.executable, "-c", _BRIDGE_MAIN, "serial-bridge", "--uri",
-             f"tcp://127.0.0.1:{port}", "--link", str(regular)],
-            capture_output=True, text=True, timeout=30,
+            [
+                sys.executable,
+                "-c",
+                _BRIDGE_MAIN,
+                "serial-bridge",
+                "--uri",
+                f"tcp://127.0.0.1:{port}",
+                "--link",
+                str(regular),
+            ],
+            capture_output=True,
+            text=True,
+            timeout=30,
         )
         assert occupied.returncode == 1 and "refusing to overwrite" in occupied.stderr
         assert regular.read_text() == "x"

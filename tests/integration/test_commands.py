@@ -98,8 +98,12 @@ def test_telemetry_json_lines_for_a_duration(firmware):
 
 
 def test_ctrl_c_stops_the_sitl_and_exits_130(firmware):
-    process = subprocess.Popen([*BFSITL, "telemetry", "--start", "--rate", "10", "--json"],
-                               stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    process = subprocess.Popen(
+        [*BFSITL, "telemetry", "--start", "--rate", "10", "--json"],
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+    )
     assert process.stdout is not None
     process.stdout.readline()  # streaming: the SITL is up
     sitl_pids = _sitl_pids_of(process.pid)
@@ -119,8 +123,9 @@ def test_sitl_does_not_outlive_a_killed_host_process(firmware):
         print(sitl.pid, flush=True)
         os.kill(os.getpid(), signal.SIGKILL)   # no cleanup code runs
     """)
-    result = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True,
-                            timeout=60)
+    result = subprocess.run(
+        [sys.executable, "-c", script], capture_output=True, text=True, timeout=60
+    )
     sitl_pid = int(result.stdout.split()[0])
     deadline = time.monotonic() + 10
     while pid_alive(sitl_pid) and time.monotonic() < deadline:

@@ -18,26 +18,46 @@ from bfsitl.build.cache import FirmwareCache
 pytestmark = pytest.mark.sitl
 
 
-def compare(tmp_path: Path, cache: FirmwareCache, names: list[str], *options: str
-            ) -> tuple[subprocess.CompletedProcess[str], dict]:
+def compare(
+    tmp_path: Path, cache: FirmwareCache, names: list[str], *options: str
+) -> tuple[subprocess.CompletedProcess[str], dict]:
     out = tmp_path / "cmp"
     run = subprocess.run(
-        [sys.executable, "-m", "bfsitl.cli.main", "scenario", "compare",
-         *(str(LIBRARY / f"{name}.toml") for name in names), "--firmware", ALWAYS,
-         "--jobs", "2", "--out", str(out), "--junit", str(tmp_path / "cmp.xml"),
-         "--report", str(tmp_path / "report"), *options],
-        capture_output=True, text=True, timeout=900, cwd=tmp_path, env=env_for(cache))
-    data = json.loads((out / "compare.json").read_text()) if (out / "compare.json").exists() \
-        else {}
+        [
+            sys.executable,
+            "-m",
+            "bfsitl.cli.main",
+            "scenario",
+            "compare",
+            *(str(LIBRARY / f"{name}.toml") for name in names),
+            "--firmware",
+            ALWAYS,
+            "--jobs",
+            "2",
+            "--out",
+            str(out),
+            "--junit",
+            str(tmp_path / "cmp.xml"),
+            "--report",
+            str(tmp_path / "report"),
+            *options,
+        ],
+        capture_output=True,
+        text=True,
+        timeout=900,
+        cwd=tmp_path,
+        env=env_for(cache),
+    )
+    data = json.loads((out / "compare.json").read_text()) if (out / "compare.json").exists() else {}
     return run, data
 
 
 @pytest.mark.timeout(900)
 def test_a_build_against_itself_is_the_same_on_every_scenario_over_three_seeds(
-        lockstep_gps_46_firmware, firmware_build_cache: FirmwareCache, tmp_path: Path) -> None:
+    lockstep_gps_46_firmware, firmware_build_cache: FirmwareCache, tmp_path: Path
+) -> None:
     names = ["rc-loss-hover-drop", "gps-glitch-hold", "motor-weak"]
-    run, data = compare(tmp_path, firmware_build_cache, names, "--firmware", ALWAYS,
-                        "--seeds", "3")
+    run, data = compare(tmp_path, firmware_build_cache, names, "--firmware", ALWAYS, "--seeds", "3")
     assert run.returncode == 0, run.stdout + run.stderr[-3000:]
     assert [s["change"] for s in data["scenarios"]] == ["same"] * 3, run.stdout
     for scenario in data["scenarios"]:
@@ -54,14 +74,21 @@ def test_a_build_against_itself_is_the_same_on_every_scenario_over_three_seeds(
 
 @pytest.mark.timeout(900)
 def test_a_changed_default_changes_the_scenarios_it_reaches_and_only_those(
-        lockstep_gps_46_firmware, firmware_build_cache: FirmwareCache, tmp_path: Path) -> None:
+    lockstep_gps_46_firmware, firmware_build_cache: FirmwareCache, tmp_path: Path
+) -> None:
     """The firmware's own hover throttle (1275 us, a light racer's) instead of the IRIS's
     1545 that bfsitl provisions: the FC's AUTO-LAND starts from it and falls. A DROP does
     not use it, nor does bfsitl's autopilot in the gusts."""
-    names = ["rc-loss-hover-drop", "rc-loss-hover-autoland", "rc-loss-forward-autoland",
-             "gusts"]
-    run, data = compare(tmp_path, firmware_build_cache, names,
-                        "--b-cli", "set ap_hover_throttle = 1275", "--seeds", "2")
+    names = ["rc-loss-hover-drop", "rc-loss-hover-autoland", "rc-loss-forward-autoland", "gusts"]
+    run, data = compare(
+        tmp_path,
+        firmware_build_cache,
+        names,
+        "--b-cli",
+        "set ap_hover_throttle = 1275",
+        "--seeds",
+        "2",
+    )
     assert run.returncode == 1, run.stdout + run.stderr[-3000:]
     changes = {s["name"]: s["change"] for s in data["scenarios"]}
     assert changes["rc-loss-hover-drop"] == changes["gusts"] == "same", run.stdout
@@ -73,14 +100,26 @@ def test_a_changed_default_changes_the_scenarios_it_reaches_and_only_those(
     assert "2 same" in run.stdout and "--accept NAME" in run.stderr
     # JUnit: the two that changed fail; the report overlays both sides' runs.
     xml = JUnitXml.fromfile(str(tmp_path / "cmp.xml"))
-    failed = {case.name for suite in xml for case in suite
-              if any(isinstance(r, Failure) for r in case.result)}
+    failed = {
+        case.name
+        for suite in xml
+        for case in suite
+        if any(isinstance(r, Failure) for r in case.result)
+    }
     assert failed == {"rc-loss-hover-autoland", "rc-loss-forward-autoland"}
     page = (tmp_path / "report" / "index.html").read_text()
     assert page.count("<img") == 4 and "set ap_hover_throttle = 1275" in page
     # Accepted, the same comparison passes.
-    accepted, _ = compare(tmp_path, firmware_build_cache, ["rc-loss-hover-autoland"],
-                          "--b-cli", "set ap_hover_throttle = 1275", "--seeds", "1",
-                          "--accept", "rc-loss-hover-autoland")
+    accepted, _ = compare(
+        tmp_path,
+        firmware_build_cache,
+        ["rc-loss-hover-autoland"],
+        "--b-cli",
+        "set ap_hover_throttle = 1275",
+        "--seeds",
+        "1",
+        "--accept",
+        "rc-loss-hover-autoland",
+    )
     assert accepted.returncode == 0, accepted.stdout + accepted.stderr[-2000:]
     assert "(accepted)" in accepted.stdout

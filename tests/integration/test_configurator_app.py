@@ -63,14 +63,20 @@ class RunningBridge:
 
     def __init__(self, *args: str) -> None:
         self.process = subprocess.Popen(
-            [*BFSITL, "configurator", "--start", *args], stdin=subprocess.DEVNULL,
-            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, start_new_session=True,
+            [*BFSITL, "configurator", "--start", *args],
+            stdin=subprocess.DEVNULL,
+            stdout=subprocess.PIPE,
+            stderr=subprocess.PIPE,
+            text=True,
+            start_new_session=True,
         )
         self.lines: list[str] = []
         self._url: list[str] = []
         self._printed = threading.Event()
-        self._readers = [threading.Thread(target=self._read_stdout, daemon=True),
-                         threading.Thread(target=self._read_stderr, daemon=True)]
+        self._readers = [
+            threading.Thread(target=self._read_stdout, daemon=True),
+            threading.Thread(target=self._read_stderr, daemon=True),
+        ]
         for reader in self._readers:
             reader.start()
 
@@ -107,8 +113,9 @@ class RunningBridge:
             if match:
                 return match
             time.sleep(0.05)
-        raise AssertionError(f"no {pattern!r} from the bridge within {timeout_s} s; stderr:\n"
-                             f"{self.stderr()}")
+        raise AssertionError(
+            f"no {pattern!r} from the bridge within {timeout_s} s; stderr:\n{self.stderr()}"
+        )
 
     def ctrl_c(self, timeout_s: float = 15.0) -> int:
         """SIGINT, as Ctrl-C in its terminal; its exit code once it and its readers are done."""
@@ -274,8 +281,7 @@ def test_ctrl_c_stops_the_bridge_cleanly_while_the_app_is_connected(site, firmwa
 
 
 @pytest.mark.timeout(TEST_TIMEOUT_S)
-def test_on_the_default_port_the_built_in_betaflight_sitl_entry_connects(site, firmware,
-                                                                         tmp_path):
+def test_on_the_default_port_the_built_in_betaflight_sitl_entry_connects(site, firmware, tmp_path):
     """``bfsitl configurator --start`` without --port: the app's own "Betaflight SITL" entry
     (ws://127.0.0.1:6761), which is a manual entry too: Expert Mode first."""
     if not _port_free(DEFAULT_PORT):

@@ -34,7 +34,8 @@ def test_the_apps_connect_sequence_gets_what_the_app_needs(relay_url) -> None:
 
 
 def test_the_cli_round_trips_and_leaving_it_reconnects_to_the_restarted_sitl(
-        sitl, relay_url) -> None:
+    sitl, relay_url
+) -> None:
     cli = frames()["cli"]
     first_pid = sitl.pid
     with ConfiguratorLikeClient(relay_url) as app:
@@ -49,6 +50,7 @@ def test_the_cli_round_trips_and_leaving_it_reconnects_to_the_restarted_sitl(
     # a loaded machine) and the connect sequence is answered by the new process.
     with ConfiguratorLikeClient(relay_url, open_timeout_s=20.0) as app:
         api = frames()["connect"][0]
-        assert msg.ApiVersion.decode(app.request(api["hex"], api["command"],
-                                                 timeout_s=15.0).payload).api == (1, 47)
+        assert msg.ApiVersion.decode(
+            app.request(api["hex"], api["command"], timeout_s=15.0).payload
+        ).api == (1, 47)
     assert sitl.starts == 2 and sitl.pid != first_pid

@@ -48,8 +48,14 @@ def repository(tmp_path_factory: pytest.TempPathFactory) -> tuple[str, str]:
     shutil.copytree(tree, repo, ignore=shutil.ignore_patterns("obj", "__pycache__"))
 
     def git(*args: str) -> str:
-        return subprocess.run(["git", *GIT_ID, *args], cwd=repo, check=True, text=True,
-                              capture_output=True, timeout=300).stdout.strip()
+        return subprocess.run(
+            ["git", *GIT_ID, *args],
+            cwd=repo,
+            check=True,
+            text=True,
+            capture_output=True,
+            timeout=300,
+        ).stdout.strip()
 
     git("init", "--quiet", "--initial-branch", "master")
     git("add", "-A", "--force")  # the package's tree as it is, ignore rules or not
@@ -60,8 +66,9 @@ def repository(tmp_path_factory: pytest.TempPathFactory) -> tuple[str, str]:
 
 def _build(cache: Path, *args: str) -> subprocess.CompletedProcess[str]:
     env = {**os.environ, "BFSITL_CACHE_DIR": str(cache)}
-    return subprocess.run([*BFSITL, "firmware", "build", *args], capture_output=True, text=True,
-                          env=env, timeout=600)
+    return subprocess.run(
+        [*BFSITL, "firmware", "build", *args], capture_output=True, text=True, env=env, timeout=600
+    )
 
 
 @pytest.mark.timeout(900)
@@ -89,23 +96,32 @@ def test_a_tag_is_cloned_built_recorded_and_cached(repository, tmp_path: Path) -
     assert "fetching" not in again.stderr
     assert again.stdout.strip().splitlines()[-1] == str(binary)
 
-    listing = subprocess.run([*BFSITL, "firmware", "list", "--json"], capture_output=True,
-                             text=True, env={**os.environ, "BFSITL_CACHE_DIR": str(cache)},
-                             timeout=60)
+    listing = subprocess.run(
+        [*BFSITL, "firmware", "list", "--json"],
+        capture_output=True,
+        text=True,
+        env={**os.environ, "BFSITL_CACHE_DIR": str(cache)},
+        timeout=60,
+    )
     assert listing.returncode == 0, listing.stderr
     rows = json.loads(listing.stdout)
     assert any(row.get("source_url") == url for row in rows), rows
 
 
-def test_a_wrong_ref_and_a_missing_repository_are_one_line_each(repository,
-                                                                 tmp_path: Path) -> None:
+def test_a_wrong_ref_and_a_missing_repository_are_one_line_each(repository, tmp_path: Path) -> None:
     url, _commit = repository
     wrong = _build(tmp_path / "cache", "--git", url, "--ref", "v9.9.9")
     assert wrong.returncode == 1 and "Traceback" not in wrong.stderr
-    assert wrong.stderr.strip().splitlines()[-1].startswith(
-        f"bfsitl: error: {url} has no branch, tag or commit 'v9.9.9'")
+    assert (
+        wrong.stderr.strip()
+        .splitlines()[-1]
+        .startswith(f"bfsitl: error: {url} has no branch, tag or commit 'v9.9.9'")
+    )
     missing = _build(tmp_path / "cache", "--git", f"{url}-gone", "--ref", "master")
     assert missing.returncode == 1 and "Traceback" not in missing.stderr
-    assert missing.stderr.strip().splitlines()[-1].startswith(
-        f"bfsitl: error: listing {url}-gone failed: fatal:")
+    assert (
+        missing.stderr.strip()
+        .splitlines()[-1]
+        .startswith(f"bfsitl: error: listing {url}-gone failed: fatal:")
+    )
     assert not (tmp_path / "cache" / "git-sources").exists()

@@ -29,12 +29,14 @@ pytestmark = pytest.mark.sitl
 BFSITL = [sys.executable, "-m", "bfsitl.cli.main"]
 
 
-def run(cache: FirmwareCache, *args: str, timeout_s: float = 60.0
-        ) -> subprocess.CompletedProcess[str]:
+def run(
+    cache: FirmwareCache, *args: str, timeout_s: float = 60.0
+) -> subprocess.CompletedProcess[str]:
     env = {**os.environ, "BFSITL_CACHE_DIR": str(cache.root)}
     env.pop("BFSITL_FIRMWARE", None)
-    return subprocess.run([*BFSITL, *args], capture_output=True, text=True, env=env,
-                          timeout=timeout_s)
+    return subprocess.run(
+        [*BFSITL, *args], capture_output=True, text=True, env=env, timeout=timeout_s
+    )
 
 
 def require_unshare() -> None:
@@ -45,12 +47,14 @@ def require_unshare() -> None:
 
 
 def test_master_build_is_cached_and_probes_as_master(
-    master_firmware: Path, firmware_build_cache: FirmwareCache  # noqa: F811
+    master_firmware: Path,  # noqa: F811
+    firmware_build_cache: FirmwareCache,  # noqa: F811
 ) -> None:
     require_unshare()
     source = master_source(firmware_build_cache)
-    again = run(firmware_build_cache, "firmware", "build", "--source", str(source),
-                "--gps", "-j", "2")
+    again = run(
+        firmware_build_cache, "firmware", "build", "--source", str(source), "--gps", "-j", "2"
+    )
     assert again.returncode == 0, again.stderr
     assert "cached" in again.stderr  # --gps adds nothing to master: the same build
     assert again.stdout.strip().splitlines()[-1] == str(master_firmware)
@@ -70,13 +74,14 @@ def test_master_build_is_cached_and_probes_as_master(
     assert identity["firmware_version"] == meta.firmware_version
     assert identity["api_version"] == meta.msp_api_version
     if meta.git_revision:
-        assert identity["git_revision"] == meta.git_revision[:len(identity["git_revision"])]
+        assert identity["git_revision"] == meta.git_revision[: len(identity["git_revision"])]
     assert report["probe"]["gps"] is True
     assert report["binary"]["takes_ip_flag"] is True
 
 
 def test_46_gps_build_has_the_virtual_gps(
-    gps_firmware: Path, firmware_build_cache: FirmwareCache  # noqa: F811
+    gps_firmware: Path,  # noqa: F811
+    firmware_build_cache: FirmwareCache,  # noqa: F811
 ) -> None:
     require_unshare()
     meta = metadata_for_binary(gps_firmware)
@@ -92,8 +97,9 @@ def test_46_gps_build_has_the_virtual_gps(
     assert report["probe"]["gps"] is True
 
     # The name works as --firmware, and the firmware's GPS provider is the simulator's.
-    provider = run(firmware_build_cache, "cli", "--start", "--firmware", "4.6.0-gps",
-                   "get", "gps_provider")
+    provider = run(
+        firmware_build_cache, "cli", "--start", "--firmware", "4.6.0-gps", "get", "gps_provider"
+    )
     assert provider.returncode == 0, provider.stderr
     assert "gps_provider = VIRTUAL" in provider.stdout
 

@@ -28,8 +28,9 @@ STOCK_SPEED = 0.5
 
 
 def fly(tmp_path: Path, *args: str, timeout_s: float = 120.0) -> subprocess.CompletedProcess[str]:
-    return subprocess.run([*BFSITL, "fly", *args], capture_output=True, text=True,
-                          timeout=timeout_s, cwd=tmp_path)
+    return subprocess.run(
+        [*BFSITL, "fly", *args], capture_output=True, text=True, timeout=timeout_s, cwd=tmp_path
+    )
 
 
 def read_rows(path: Path) -> list[dict[str, str]]:
@@ -39,8 +40,9 @@ def read_rows(path: Path) -> list[dict[str, str]]:
         return list(reader)
 
 
-def read_until_line(process: subprocess.Popen[str], needle: str,
-                    timeout_s: float = 60.0) -> list[str]:
+def read_until_line(
+    process: subprocess.Popen[str], needle: str, timeout_s: float = 60.0
+) -> list[str]:
     """The process's stderr lines up to the first holding ``needle`` (asserted to come)."""
     assert process.stderr is not None
     deadline = time.monotonic() + timeout_s
@@ -73,16 +75,30 @@ def processes_in(directory: Path) -> list[str]:
 
 @pytest.mark.timeout(300)
 def test_default_mission_lands_and_holds_then_a_second_flight_in_the_same_workdir(
-        firmware, lockstep_46_firmware, tmp_path):
+    firmware, lockstep_46_firmware, tmp_path
+):
     """The first flight is the default one: the package's stock SITL on the wall clock, at
     half speed (the faithful speed on a busy 2-core machine: at 1x, during full test runs,
     it answered 55 % of fdm packets and oscillated past the take-off's time limit)."""
     lockstep = lockstep_46_firmware
     workdir = tmp_path / "quad"
     log, plot, summary_path = tmp_path / "f1.csv", tmp_path / "f1.png", tmp_path / "f1.json"
-    first = fly(tmp_path, "--workdir", str(workdir), "--hold", "4", "--speed", str(STOCK_SPEED),
-                "--log", str(log), "--plot", str(plot), "--summary", str(summary_path),
-                timeout_s=200)
+    first = fly(
+        tmp_path,
+        "--workdir",
+        str(workdir),
+        "--hold",
+        "4",
+        "--speed",
+        str(STOCK_SPEED),
+        "--log",
+        str(log),
+        "--plot",
+        str(plot),
+        "--summary",
+        str(summary_path),
+        timeout_s=200,
+    )
     assert first.returncode == 0, first.stdout + first.stderr
     summary = json.loads(summary_path.read_text())
     assert summary["outcome"] == "landed"
@@ -110,16 +126,18 @@ def test_default_mission_lands_and_holds_then_a_second_flight_in_the_same_workdi
     assert "outcome        landed" in first.stdout
 
     # The same run directory with 4.6.0's lockstep build: it reads the same eeprom.bin.
-    second = fly(tmp_path, "--workdir", str(workdir), "--hold", "1", "--json",
-                 "--firmware", str(lockstep))
+    second = fly(
+        tmp_path, "--workdir", str(workdir), "--hold", "1", "--json", "--firmware", str(lockstep)
+    )
     assert second.returncode == 0, second.stdout + second.stderr
     assert json.loads(second.stdout)["outcome"] == "landed"
     assert "already configured" in second.stderr  # the persisted eeprom.bin held the ranges
 
 
 def test_no_arm_range_ends_arming_blocked_naming_it(lockstep_46_firmware, tmp_path):
-    result = fly(tmp_path, "--no-provision", "--json", "--firmware",
-                 str(lockstep_46_firmware), timeout_s=60)
+    result = fly(
+        tmp_path, "--no-provision", "--json", "--firmware", str(lockstep_46_firmware), timeout_s=60
+    )
     assert result.returncode == 1, result.stderr
     summary = json.loads(result.stdout)
     assert summary["outcome"] == "arming-blocked"
@@ -127,15 +145,30 @@ def test_no_arm_range_ends_arming_blocked_naming_it(lockstep_46_firmware, tmp_pa
     assert "aux 0 0 0 1700 2100 0 0" in summary["reason"]
 
 
-def test_interrupt_leaves_no_process_a_complete_log_and_rc_at_disarm(lockstep_46_firmware,
-                                                                     tmp_path):
+def test_interrupt_leaves_no_process_a_complete_log_and_rc_at_disarm(
+    lockstep_46_firmware, tmp_path
+):
     """Ctrl-C in lockstep: the interrupt lands between two steps, the disarm is stepped in."""
     log = tmp_path / "flight.csv"
     workdir = tmp_path / "run"
     process = subprocess.Popen(
-        [*BFSITL, "fly", "--workdir", str(workdir), "--hold", "600", "--log", str(log),
-         "--firmware", str(lockstep_46_firmware)],
-        stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, cwd=tmp_path)
+        [
+            *BFSITL,
+            "fly",
+            "--workdir",
+            str(workdir),
+            "--hold",
+            "600",
+            "--log",
+            str(log),
+            "--firmware",
+            str(lockstep_46_firmware),
+        ],
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+        cwd=tmp_path,
+    )
     try:
         seen = read_until_line(process, "hold")
         time.sleep(0.5)
@@ -154,8 +187,7 @@ def test_interrupt_leaves_no_process_a_complete_log_and_rc_at_disarm(lockstep_46
     assert processes_in(tmp_path) == []
 
 
-def test_scripted_mission_from_python_goes_to_a_second_altitude(lockstep_46_firmware,
-                                                                tmp_path):
+def test_scripted_mission_from_python_goes_to_a_second_altitude(lockstep_46_firmware, tmp_path):
     from bfsitl.control import make_controller
     from bfsitl.mission import FlightLoop, FlightSession, SessionConfig, SitlLaunch
 

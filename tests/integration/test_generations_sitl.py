@@ -76,27 +76,30 @@ def test_a_held_vehicle_reads_the_same_attitude_on_the_fc(generation_firmware, t
             bridge.start()
             wait_for_replies(bridge)
             for roll_deg, pitch_deg in poses:
-                bridge.between_steps(lambda r=roll_deg, p=pitch_deg: (
-                    sim.reset((0.0, 0.0, -1.0), roll_deg=r, pitch_deg=p), sim.hold(True)))
+                bridge.between_steps(
+                    lambda r=roll_deg, p=pitch_deg: (
+                        sim.reset((0.0, 0.0, -1.0), roll_deg=r, pitch_deg=p),
+                        sim.hold(True),
+                    )
+                )
                 truth = betaflight_attitude_deg(quat_from_euler_deg(roll_deg, pitch_deg, 0.0))
                 deadline = time.monotonic() + 8.0
                 while True:
                     attitude = sitl.client.get(msg.Attitude)
-                    errors = (abs(attitude.roll_deg - truth[0]),
-                              abs(attitude.pitch_deg - truth[1]))
+                    errors = (abs(attitude.roll_deg - truth[0]), abs(attitude.pitch_deg - truth[1]))
                     if max(errors) < 1.0 or time.monotonic() > deadline:
                         break
                     time.sleep(0.2)
                 assert max(errors) < 1.0, (
                     f"held at roll {truth[0]:+.1f}, pitch {truth[1]:+.1f} (Betaflight "
                     f"convention), the FC reads roll {attitude.roll_deg:+.1f}, pitch "
-                    f"{attitude.pitch_deg:+.1f}")
+                    f"{attitude.pitch_deg:+.1f}"
+                )
     finally:
         bridge.close()
 
 
-def test_stick_steps_move_the_truth_the_right_way_and_the_fc_agrees(lockstep_firmware,
-                                                                    tmp_path):
+def test_stick_steps_move_the_truth_the_right_way_and_the_fc_agrees(lockstep_firmware, tmp_path):
     """Roll right, pitch forward and yaw right in ANGLE mode, each for 1.5 s in a hover."""
     config = SessionConfig(sitl=SitlLaunch(firmware=lockstep_firmware, workdir=tmp_path / "run"))
     with FlightSession(config) as session:
@@ -105,8 +108,11 @@ def test_stick_steps_move_the_truth_the_right_way_and_the_fc_agrees(lockstep_fir
         loop.arm()
         loop.wait_on_ground(2.0)
         loop.takeoff(1.5)
-        steps = {"roll": {"roll_us": 1600.0}, "pitch": {"pitch_us": 1600.0},
-                 "yaw": {"yaw_us": 1600.0}}
+        steps = {
+            "roll": {"roll_us": 1600.0},
+            "pitch": {"pitch_us": 1600.0},
+            "yaw": {"yaw_us": 1600.0},
+        }
         seen = {}
         for axis, sticks in steps.items():
             start = len(loop.rows)
@@ -132,15 +138,31 @@ def test_stick_steps_move_the_truth_the_right_way_and_the_fc_agrees(lockstep_fir
 def fly_in_wind(firmware: Path, tmp_path: Path, *extra: str) -> dict:
     summary_path = tmp_path / f"wind{len(extra)}.json"
     done = subprocess.run(
-        [*BFSITL, "fly", "--firmware", str(firmware), "--wind", "3", "--gusts", "1.5",
-         "--hold", "6", "--summary", str(summary_path), *extra],
-        capture_output=True, text=True, timeout=240, cwd=tmp_path)
+        [
+            *BFSITL,
+            "fly",
+            "--firmware",
+            str(firmware),
+            "--wind",
+            "3",
+            "--gusts",
+            "1.5",
+            "--hold",
+            "6",
+            "--summary",
+            str(summary_path),
+            *extra,
+        ],
+        capture_output=True,
+        text=True,
+        timeout=240,
+        cwd=tmp_path,
+    )
     assert done.returncode == 0, done.stderr[-2000:]
     return json.loads(summary_path.read_text())
 
 
-def test_a_flight_in_wind_and_gusts_lands_and_the_fc_follows_the_truth(lockstep_firmware,
-                                                                       tmp_path):
+def test_a_flight_in_wind_and_gusts_lands_and_the_fc_follows_the_truth(lockstep_firmware, tmp_path):
     """Issue 10's criterion: in 3 m/s wind with 1.5 m/s gusts it lands, holds within 15 cm
     and the FC's roll/pitch stay within 2 deg of the truth, on both generations."""
     summary = fly_in_wind(lockstep_firmware, tmp_path)
@@ -153,8 +175,7 @@ def test_a_flight_in_wind_and_gusts_lands_and_the_fc_follows_the_truth(lockstep_
     assert summary["hold"]["max_abs_error_m"] < 0.15, summary["hold"]
 
 
-def test_drifting_in_the_same_wind_fools_masters_estimator(lockstep_master_firmware,
-                                                            tmp_path):
+def test_drifting_in_the_same_wind_fools_masters_estimator(lockstep_master_firmware, tmp_path):
     """The control of the test above: without the position hold, master's attitude error
     in the same flight exceeds 2 deg, so holding the position is what keeps it small."""
     summary = fly_in_wind(lockstep_master_firmware, tmp_path, "--no-position-hold")
@@ -162,8 +183,7 @@ def test_drifting_in_the_same_wind_fools_masters_estimator(lockstep_master_firmw
     assert summary["attitude"]["max_abs_error_deg"] > 2.0, summary["attitude"]
 
 
-@pytest.mark.parametrize("build", ["gps_firmware", "master_firmware"],
-                         ids=["4.6.0-gps", "master"])
+@pytest.mark.parametrize("build", ["gps_firmware", "master_firmware"], ids=["4.6.0-gps", "master"])
 def test_the_gps_build_reports_a_3d_fix_at_the_simulated_position(build, request, tmp_path):
     gps_firmware = request.getfixturevalue(build)
     sim = Simulator(home=HOME)
@@ -192,10 +212,10 @@ def test_the_gps_build_reports_a_3d_fix_at_the_simulated_position(build, request
             while True:
                 gps = sitl.client.get(msg.RawGps)
                 north_m = (gps.lat_deg - truth_lat) * 111_319.5
-                east_m = ((gps.lon_deg - truth_lon) * 111_319.5
-                          * math.cos(math.radians(HOME.lat_deg)))
-                if gps.has_fix and math.hypot(north_m, east_m) < 1.0 or \
-                        time.monotonic() > deadline:
+                east_m = (
+                    (gps.lon_deg - truth_lon) * 111_319.5 * math.cos(math.radians(HOME.lat_deg))
+                )
+                if gps.has_fix and math.hypot(north_m, east_m) < 1.0 or time.monotonic() > deadline:
                     break
                 time.sleep(0.2)
     finally:
@@ -205,16 +225,23 @@ def test_the_gps_build_reports_a_3d_fix_at_the_simulated_position(build, request
     assert abs(gps.altitude_m - truth_alt) <= 1.5, (gps.altitude_m, truth_alt)
 
 
-@pytest.mark.parametrize("command", [
-    ["status", "--start", "--json"],
-    ["telemetry", "--start", "--rate", "20", "--duration", "1.5", "--json"],
-    ["cli", "--start", "get", "small_angle"],
-    ["top", "--start", "--once"],
-])
+@pytest.mark.parametrize(
+    "command",
+    [
+        ["status", "--start", "--json"],
+        ["telemetry", "--start", "--rate", "20", "--duration", "1.5", "--json"],
+        ["cli", "--start", "get", "small_angle"],
+        ["top", "--start", "--once"],
+    ],
+)
 def test_the_commands_work(generation_firmware, tmp_path, command):
-    done = subprocess.run([*BFSITL, command[0], "--firmware", str(generation_firmware),
-                           *command[1:]],
-                          capture_output=True, text=True, timeout=60, cwd=tmp_path)
+    done = subprocess.run(
+        [*BFSITL, command[0], "--firmware", str(generation_firmware), *command[1:]],
+        capture_output=True,
+        text=True,
+        timeout=60,
+        cwd=tmp_path,
+    )
     assert done.returncode == 0, done.stderr[-2000:]
     if command[0] == "status":
         status = json.loads(done.stdout)
@@ -229,9 +256,21 @@ def test_the_commands_work(generation_firmware, tmp_path, command):
 def test_the_bare_flight_lands_and_holds(lockstep_firmware, tmp_path):
     summary_path = tmp_path / "fly.json"
     done = subprocess.run(
-        [*BFSITL, "fly", "--firmware", str(lockstep_firmware), "--hold", "5",
-         "--summary", str(summary_path)],
-        capture_output=True, text=True, timeout=200, cwd=tmp_path)
+        [
+            *BFSITL,
+            "fly",
+            "--firmware",
+            str(lockstep_firmware),
+            "--hold",
+            "5",
+            "--summary",
+            str(summary_path),
+        ],
+        capture_output=True,
+        text=True,
+        timeout=200,
+        cwd=tmp_path,
+    )
     assert done.returncode == 0, done.stderr[-2000:]
     summary = json.loads(Path(summary_path).read_text())
     # The issue's target: within 10 cm. In lockstep no host load degrades the loop (real

@@ -49,14 +49,21 @@ WALL_COLUMNS = {"wall_s"}
 def fly(tmp_path: Path, firmware: Path, *args: str) -> subprocess.CompletedProcess[str]:
     env = {**os.environ}
     env.pop("BFSITL_FIRMWARE", None)
-    return subprocess.run([*BFSITL, "fly", "--firmware", str(firmware), *args],
-                          capture_output=True, text=True, timeout=180, cwd=tmp_path, env=env)
+    return subprocess.run(
+        [*BFSITL, "fly", "--firmware", str(firmware), *args],
+        capture_output=True,
+        text=True,
+        timeout=180,
+        cwd=tmp_path,
+        env=env,
+    )
 
 
 def simulated_columns(path: Path) -> list[dict[str, str]]:
     with path.open(newline="") as file:
-        return [{k: v for k, v in row.items() if k not in WALL_COLUMNS}
-                for row in csv.DictReader(file)]
+        return [
+            {k: v for k, v in row.items() if k not in WALL_COLUMNS} for row in csv.DictReader(file)
+        ]
 
 
 def test_the_builds_are_lockstep(lockstep_firmware: Path) -> None:
@@ -66,7 +73,8 @@ def test_the_builds_are_lockstep(lockstep_firmware: Path) -> None:
 
 @pytest.mark.timeout(400)
 def test_the_same_seed_flies_the_same_flight_and_another_seed_does_not(
-        lockstep_firmware: Path, tmp_path: Path) -> None:
+    lockstep_firmware: Path, tmp_path: Path
+) -> None:
     logs = []
     # Flights a and c take the default: shared memory where the machine has it, each step in
     # the compiled loop. b takes UDP, each step from Python: the exchange and the loop may
@@ -74,8 +82,20 @@ def test_the_same_seed_flies_the_same_flight_and_another_seed_does_not(
     shared = "shm" if shm_exchange_supported() else "udp"
     for name, seed, exchange in (("a", "1", "auto"), ("b", "1", "udp"), ("c", "2", "auto")):
         log, summary = tmp_path / f"{name}.csv", tmp_path / f"{name}.json"
-        done = fly(tmp_path, lockstep_firmware, "--seed", seed, "--hold", "3", "--log",
-                   str(log), "--summary", str(summary), "--lockstep-exchange", exchange)
+        done = fly(
+            tmp_path,
+            lockstep_firmware,
+            "--seed",
+            seed,
+            "--hold",
+            "3",
+            "--log",
+            str(log),
+            "--summary",
+            str(summary),
+            "--lockstep-exchange",
+            exchange,
+        )
         assert done.returncode == 0, done.stdout + done.stderr
         assert "lockstep: the FC's clock follows the physics" in done.stderr
         result = json.loads(summary.read_text())
@@ -94,10 +114,13 @@ def test_the_same_seed_flies_the_same_flight_and_another_seed_does_not(
 
 @pytest.mark.timeout(300)
 def test_a_disturbed_lockstep_flight_keeps_the_fc_on_the_truth(
-        lockstep_firmware: Path, tmp_path: Path) -> None:
+    lockstep_firmware: Path, tmp_path: Path
+) -> None:
     """Wind from the north and stick steps: FC attitude vs the simulated truth, and signs."""
-    config = SessionConfig(sitl=SitlLaunch(firmware=lockstep_firmware, workdir=tmp_path / "run"),
-                           world=World(wind=Wind.from_direction(2.0, 0.0, 0.5), seed=3))
+    config = SessionConfig(
+        sitl=SitlLaunch(firmware=lockstep_firmware, workdir=tmp_path / "run"),
+        world=World(wind=Wind.from_direction(2.0, 0.0, 0.5), seed=3),
+    )
     from bfsitl.control import make_controller
 
     with FlightSession(config) as session:
@@ -108,22 +131,23 @@ def test_a_disturbed_lockstep_flight_keeps_the_fc_on_the_truth(
         loop.takeoff(2.0)
         loop.hold(1.5)
         held = len(loop.rows)
-        loop.hold(2.0, roll_us=RC_MID_US + 150)     # roll right
+        loop.hold(2.0, roll_us=RC_MID_US + 150)  # roll right
         rolled = loop.rows[held:]
         loop.hold(2.0)
         recentred = len(loop.rows)
-        loop.hold(2.0, pitch_us=RC_MID_US - 150)    # stick back: nose up
+        loop.hold(2.0, pitch_us=RC_MID_US - 150)  # stick back: nose up
         pitched = loop.rows[recentred:]
         loop.land()
     flown = [r for r in loop.rows if r.phase in ("hold", "takeoff") and r.sim_alt_m > 0.3]
     # The FC's attitude is the truth's (4.6.0 copies it; master estimates it from the IMU).
-    worst = max(max(abs(r.roll_deg - r.sim_roll_deg), abs(r.pitch_deg - r.sim_pitch_deg))
-                for r in flown)
+    worst = max(
+        max(abs(r.roll_deg - r.sim_roll_deg), abs(r.pitch_deg - r.sim_pitch_deg)) for r in flown
+    )
     assert worst < 6.0
     # ANGLE mode: a right roll stick banks right, a back pitch stick raises the nose.
-    late_roll = [r.sim_roll_deg for r in rolled[len(rolled) // 2:]]
+    late_roll = [r.sim_roll_deg for r in rolled[len(rolled) // 2 :]]
     assert min(late_roll) > 5.0
-    late_pitch = [r.sim_pitch_deg for r in pitched[len(pitched) // 2:]]
+    late_pitch = [r.sim_pitch_deg for r in pitched[len(pitched) // 2 :]]
     assert max(late_pitch) < -5.0  # Betaflight's pitch is positive nose down
     assert all(abs(r.sim_alt_m - 2.0) < 0.5 for r in flown[-50:])
 
@@ -132,8 +156,9 @@ def control_steps_per_s(lockstep_firmware: Path, workdir: Path, profile: Profile
     """Steps per second of simulation time of a 200 Hz control loop holding 2 m for 2 s."""
     from bfsitl.control import make_controller
 
-    config = SessionConfig(sitl=SitlLaunch(firmware=lockstep_firmware, workdir=workdir),
-                           fc=FcSetup(profile=profile))
+    config = SessionConfig(
+        sitl=SitlLaunch(firmware=lockstep_firmware, workdir=workdir), fc=FcSetup(profile=profile)
+    )
     with FlightSession(config) as session:
         loop = FlightLoop(session, make_controller("fused"), rate_hz=200.0)
         loop.arm()
@@ -146,19 +171,24 @@ def control_steps_per_s(lockstep_firmware: Path, workdir: Path, profile: Profile
 
 
 def test_the_fast_serial_task_lifts_the_control_loop_past_100_hz(
-        lockstep_firmware: Path, tmp_path: Path) -> None:
+    lockstep_firmware: Path, tmp_path: Path
+) -> None:
     # One sample is one MSP round trip, answered by the serial task: at its default 100 Hz a
     # 200 Hz loop gets 100 steps/s; at 1 kHz (a boot-time setting: provisioning reboots) 200.
     assert control_steps_per_s(lockstep_firmware, tmp_path / "a", FLY_PROFILE) < 110
-    assert control_steps_per_s(lockstep_firmware, tmp_path / "b",
-                               with_fast_serial(FLY_PROFILE)) > 190
+    assert (
+        control_steps_per_s(lockstep_firmware, tmp_path / "b", with_fast_serial(FLY_PROFILE)) > 190
+    )
 
 
 @pytest.mark.timeout(200)
 def test_cli_works_while_stepping_and_a_save_relocks_the_new_process(
-        lockstep_firmware: Path, tmp_path: Path) -> None:
-    config = SessionConfig(sitl=SitlLaunch(firmware=lockstep_firmware, workdir=tmp_path / "run"),
-                           fc=FcSetup(profile=None))
+    lockstep_firmware: Path, tmp_path: Path
+) -> None:
+    config = SessionConfig(
+        sitl=SitlLaunch(firmware=lockstep_firmware, workdir=tmp_path / "run"),
+        fc=FcSetup(profile=None),
+    )
     with FlightSession(config) as session:
         sitl = session.sitl
         assert sitl is not None
@@ -181,8 +211,9 @@ def test_cli_works_while_stepping_and_a_save_relocks_the_new_process(
 
 
 @pytest.mark.timeout(120)
-def test_a_lockstep_sitl_without_a_simulator_free_runs(lockstep_firmware: Path,
-                                                        tmp_path: Path) -> None:
+def test_a_lockstep_sitl_without_a_simulator_free_runs(
+    lockstep_firmware: Path, tmp_path: Path
+) -> None:
     with SitlProcess(lockstep_firmware, workdir=tmp_path / "run", isolate=True) as sitl:
         assert sitl.client is not None
         first = sitl.client.status()
@@ -195,24 +226,42 @@ def test_a_lockstep_sitl_without_a_simulator_free_runs(lockstep_firmware: Path,
     assert "locked to the simulator" not in log
 
 
-def test_status_start_says_a_lockstep_build_free_runs(lockstep_firmware: Path,
-                                                      tmp_path: Path) -> None:
-    done = subprocess.run([*BFSITL, "status", "--start", "--firmware", str(lockstep_firmware),
-                           "--workdir", str(tmp_path / "run")],
-                          capture_output=True, text=True, timeout=60, cwd=tmp_path)
+def test_status_start_says_a_lockstep_build_free_runs(
+    lockstep_firmware: Path, tmp_path: Path
+) -> None:
+    done = subprocess.run(
+        [
+            *BFSITL,
+            "status",
+            "--start",
+            "--firmware",
+            str(lockstep_firmware),
+            "--workdir",
+            str(tmp_path / "run"),
+        ],
+        capture_output=True,
+        text=True,
+        timeout=60,
+        cwd=tmp_path,
+    )
     assert done.returncode == 0, done.stderr
     assert LOCKSTEP_FREE_RUN_NOTE in done.stderr
     assert "Arming" in done.stdout or "arming" in done.stdout
 
 
 @pytest.mark.timeout(120)
-def test_the_real_time_bridge_paces_a_lockstep_build_on_sim_time(lockstep_firmware: Path,
-                                                                   tmp_path: Path) -> None:
+def test_the_real_time_bridge_paces_a_lockstep_build_on_sim_time(
+    lockstep_firmware: Path, tmp_path: Path
+) -> None:
     """`bfsitl sim` (the real-time bridge) on a lockstep build: its clock is the timestamps,
     so they must be simulated time; the rate-frozen ones ran it about 60x fast."""
-    done = subprocess.run([*BFSITL, "sim", "--firmware", str(lockstep_firmware), "--duration",
-                           "3", "--json"], capture_output=True, text=True, timeout=60,
-                          cwd=tmp_path)
+    done = subprocess.run(
+        [*BFSITL, "sim", "--firmware", str(lockstep_firmware), "--duration", "3", "--json"],
+        capture_output=True,
+        text=True,
+        timeout=60,
+        cwd=tmp_path,
+    )
     assert done.returncode == 0, done.stderr
     last = json.loads(done.stdout.strip().splitlines()[-1])
     assert last["fc_clock_ratio"] == pytest.approx(1.0, abs=0.02)

@@ -31,16 +31,22 @@ pytestmark = pytest.mark.sitl
 
 @pytest.fixture(params=["4.6.0-gps", "master"])
 def gps_lockstep_firmware(request: pytest.FixtureRequest) -> Path:
-    name = ("lockstep_gps_46_firmware" if request.param == "4.6.0-gps"
-            else "lockstep_master_firmware")
+    name = (
+        "lockstep_gps_46_firmware" if request.param == "4.6.0-gps" else "lockstep_master_firmware"
+    )
     return request.getfixturevalue(name)
 
 
-def position_session(firmware: Path, tmp_path: Path, wind: Wind | None = None,
-                     seed: int = 1) -> FlightSession:
-    return FlightSession(SessionConfig(sitl=SitlLaunch(firmware=firmware, workdir=tmp_path / "run"),
-                                       world=World(seed=seed, wind=wind),
-                                       fc=FcSetup(profile=with_fast_serial(FLY_PROFILE))))
+def position_session(
+    firmware: Path, tmp_path: Path, wind: Wind | None = None, seed: int = 1
+) -> FlightSession:
+    return FlightSession(
+        SessionConfig(
+            sitl=SitlLaunch(firmware=firmware, workdir=tmp_path / "run"),
+            world=World(seed=seed, wind=wind),
+            fc=FcSetup(profile=with_fast_serial(FLY_PROFILE)),
+        )
+    )
 
 
 def test_legs_north_and_east_end_where_they_should(gps_lockstep_firmware, tmp_path):
@@ -55,8 +61,9 @@ def test_legs_north_and_east_end_where_they_should(gps_lockstep_firmware, tmp_pa
             ends.append((row.sim_north_m, row.sim_east_m, row.fc_north_m, row.fc_east_m))
             assert took_s < 12.0, f"{took_s:.1f} s for a 6 m leg"
         loop.land()
-    for (north, east), (sim_n, sim_e, fc_n, fc_e) in zip(((6.0, 0.0), (6.0, 6.0)), ends,
-                                                           strict=True):
+    for (north, east), (sim_n, sim_e, fc_n, fc_e) in zip(
+        ((6.0, 0.0), (6.0, 6.0)), ends, strict=True
+    ):
         assert math.hypot(sim_n - north, sim_e - east) < 0.4, (sim_n, sim_e)
         assert math.hypot(fc_n - sim_n, fc_e - sim_e) < 0.3  # the FC's GPS is the truth's
     assert max(abs(r.sim_alt_m - 2.0) for r in loop.rows if r.phase == "goto") < 0.5
@@ -122,8 +129,9 @@ alt_m = 2.0
 """
 
 
-def test_a_square_mission_file_flies_in_wind_and_lands_at_its_start(gps_lockstep_firmware,
-                                                                    tmp_path):
+def test_a_square_mission_file_flies_in_wind_and_lands_at_its_start(
+    gps_lockstep_firmware, tmp_path
+):
     """`bfsitl fly --mission` end to end, in a crosswind with gusts (a swapped axis or sign
     would end the legs elsewhere; drifting would show in the cross-track)."""
     import json
@@ -132,9 +140,27 @@ def test_a_square_mission_file_flies_in_wind_and_lands_at_its_start(gps_lockstep
 
     mission = tmp_path / "square.toml"
     mission.write_text(SQUARE_TOML)
-    result = fly(tmp_path, "--mission", str(mission), "--firmware", str(gps_lockstep_firmware),
-                 "--wind", "2", "--wind-from", "60", "--gusts", "0.5", "--seed", "3",
-                 "--log", "square.csv", "--plot", "square.png", "--json", timeout_s=150)
+    result = fly(
+        tmp_path,
+        "--mission",
+        str(mission),
+        "--firmware",
+        str(gps_lockstep_firmware),
+        "--wind",
+        "2",
+        "--wind-from",
+        "60",
+        "--gusts",
+        "0.5",
+        "--seed",
+        "3",
+        "--log",
+        "square.csv",
+        "--plot",
+        "square.png",
+        "--json",
+        timeout_s=150,
+    )
     assert result.returncode == 0, result.stdout + result.stderr
     summary = json.loads(result.stdout)
     assert summary["outcome"] == "landed"
@@ -148,8 +174,13 @@ def test_a_square_mission_file_flies_in_wind_and_lands_at_its_start(gps_lockstep
     rows = read_rows(tmp_path / "square.csv")
     legs_rows = [r for r in rows if r["phase"] == "goto"]
     # The FC's GPS (what the autopilot flew by) agrees with the truth along the way.
-    worst_m = max(math.hypot(float(r["fc_north_m"]) - float(r["sim_north_m"]),
-                             float(r["fc_east_m"]) - float(r["sim_east_m"])) for r in legs_rows)
+    worst_m = max(
+        math.hypot(
+            float(r["fc_north_m"]) - float(r["sim_north_m"]),
+            float(r["fc_east_m"]) - float(r["sim_east_m"]),
+        )
+        for r in legs_rows
+    )
     assert worst_m < 0.4
     # The climb on the second leg is flown (the altitude target moves with the leg).
     second = [float(r["sim_alt_m"]) for r in rows if r["waypoint"] == "2" and r["phase"] == "goto"]
@@ -163,8 +194,9 @@ def test_the_autopilot_turns_to_a_heading_from_python(gps_lockstep_firmware):
     held meanwhile from the fused estimate."""
     from bfsitl import Autopilot, Wind, launch_sitl
 
-    with launch_sitl(firmware=gps_lockstep_firmware, seed=4,
-                     wind=Wind.from_direction(2.0, 200.0, 0.3)) as vehicle:
+    with launch_sitl(
+        firmware=gps_lockstep_firmware, seed=4, wind=Wind.from_direction(2.0, 200.0, 0.3)
+    ) as vehicle:
         assert vehicle.truth is not None and vehicle.fc.api_version().api >= (1, 47)
         # The position loop on the GPS fused with the FC's accelerometer, on the real firmware
         # (its signs and axes: a wrong one would carry the vehicle off while it turns).
@@ -184,7 +216,8 @@ def test_the_autopilot_turns_to_a_heading_from_python(gps_lockstep_firmware):
 
 
 def test_ctrl_c_mid_mission_leaves_the_sticks_at_disarm_and_a_complete_log(
-        lockstep_gps_46_firmware, tmp_path):
+    lockstep_gps_46_firmware, tmp_path
+):
     import signal
     import subprocess
     import time
@@ -195,9 +228,25 @@ def test_ctrl_c_mid_mission_leaves_the_sticks_at_disarm_and_a_complete_log(
     mission.write_text(SQUARE_TOML)
     log = tmp_path / "flight.csv"
     process = subprocess.Popen(
-        [*BFSITL, "fly", "--mission", str(mission), "--workdir", str(tmp_path / "run"),
-         "--speed", "1", "--log", str(log), "--firmware", str(lockstep_gps_46_firmware)],
-        stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, cwd=tmp_path)
+        [
+            *BFSITL,
+            "fly",
+            "--mission",
+            str(mission),
+            "--workdir",
+            str(tmp_path / "run"),
+            "--speed",
+            "1",
+            "--log",
+            str(log),
+            "--firmware",
+            str(lockstep_gps_46_firmware),
+        ],
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+        cwd=tmp_path,
+    )
     try:
         read_until_line(process, "waypoint 2")
         time.sleep(1.0)  # a second into the second leg, tilted and moving

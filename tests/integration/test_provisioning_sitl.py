@@ -55,10 +55,12 @@ def test_a_boot_only_setting_reboots_and_then_runs(sitl):
         sitl.client.reboot()
         sitl.restart_after_reboot()
 
-    first = provision(sitl.client, Profile(cli_lines=("set serial_update_rate_hz = 1000",)),
-                      reboot=reboot)
+    first = provision(
+        sitl.client, Profile(cli_lines=("set serial_update_rate_hz = 1000",)), reboot=reboot
+    )
     assert first.changed and first.rebooted and sitl.pid != pid
     # Saving it raised no reboot flag, yet only the reboot made the serial task run at 1 kHz.
     assert serial_task_rate_hz(sitl) > max(2.0 * before_hz, 180.0)
-    assert not provision(sitl.client, Profile(
-        cli_lines=("set serial_update_rate_hz = 1000",))).changed
+    assert not provision(
+        sitl.client, Profile(cli_lines=("set serial_update_rate_hz = 1000",))
+    ).changed

@@ -48,8 +48,10 @@ WRONG = REPO / "tests" / "data" / "scenarios" / "wrong-expectation.toml"
 BUILDS = ("master-lockstep", "4.6.0-gps-lockstep")
 #: The build every run here uses when no master source is given (CI has none).
 ALWAYS = "4.6.0-gps-lockstep"
-FIXTURE_OF = {"master-lockstep": "lockstep_master_firmware",
-              "4.6.0-gps-lockstep": "lockstep_gps_46_firmware"}
+FIXTURE_OF = {
+    "master-lockstep": "lockstep_master_firmware",
+    "4.6.0-gps-lockstep": "lockstep_gps_46_firmware",
+}
 
 
 def available_builds(request: pytest.FixtureRequest) -> tuple[str, ...]:
@@ -73,17 +75,35 @@ def env_for(cache: FirmwareCache) -> dict[str, str]:
 
 @pytest.mark.timeout(1500)
 def test_the_shipped_library_passes_on_every_firmware(
-        request: pytest.FixtureRequest, firmware_build_cache: FirmwareCache,
-        tmp_path: Path) -> None:
+    request: pytest.FixtureRequest, firmware_build_cache: FirmwareCache, tmp_path: Path
+) -> None:
     """The whole library on 4.6.0-gps-lockstep, and on master-lockstep when one is given."""
     builds = available_builds(request)
     junit, report, out = tmp_path / "results.xml", tmp_path / "report", tmp_path / "runs"
     run = subprocess.run(
-        [sys.executable, "-m", "bfsitl.cli.main", "scenario", "run", str(LIBRARY),
-         *firmware_args(builds),
-         "--jobs", "2", "--junit", str(junit), "--report", str(report), "--out", str(out)],
-        capture_output=True, text=True, timeout=1400, cwd=tmp_path,
-        env=env_for(firmware_build_cache))
+        [
+            sys.executable,
+            "-m",
+            "bfsitl.cli.main",
+            "scenario",
+            "run",
+            str(LIBRARY),
+            *firmware_args(builds),
+            "--jobs",
+            "2",
+            "--junit",
+            str(junit),
+            "--report",
+            str(report),
+            "--out",
+            str(out),
+        ],
+        capture_output=True,
+        text=True,
+        timeout=1400,
+        cwd=tmp_path,
+        env=env_for(firmware_build_cache),
+    )
     assert run.returncode == 0, run.stdout + run.stderr[-3000:]
     names = {s.name for s in find_scenarios([LIBRARY])}
 
@@ -103,8 +123,11 @@ def test_the_shipped_library_passes_on_every_firmware(
     # Only what the firmware cannot express is skipped: on 4.6.0, GPS loss and master's
     # flight plans (the FC's own missions, its RC-loss policies, the geofence).
     scenarios = find_scenarios([LIBRARY])
-    cannot_46 = {s.name for s in scenarios if "flight_plan" in s.requires
-                 or any(f.kind == "gps_loss" for f in s.faults)}
+    cannot_46 = {
+        s.name
+        for s in scenarios
+        if "flight_plan" in s.requires or any(f.kind == "gps_loss" for f in s.faults)
+    }
     assert len(cannot_46) >= 15 and "gps-loss-during-rescue" in cannot_46
     assert sorted(skipped) == sorted(f"{name}[4.6.0-gps-lockstep]" for name in cannot_46)
 
@@ -116,8 +139,10 @@ def test_the_shipped_library_passes_on_every_firmware(
         for name in names - cannot_46 if build.startswith("4.6") else names:
             logs = list((out / build / name / "blackbox").glob("LOG*"))
             assert logs, f"no blackbox for {name}[{build}]"
-        assert "blackbox_disarm_reason = 'FAILSAFE'" in (
-            out / build / "rc-loss-hover-drop" / "result.json").read_text()
+        assert (
+            "blackbox_disarm_reason = 'FAILSAFE'"
+            in (out / build / "rc-loss-hover-drop" / "result.json").read_text()
+        )
         # The analysers watched every run, asked or not: the drop's crash is in result.json,
         # in the suite's JUnit properties and on the report.
         drop = json.loads((out / build / "rc-loss-hover-drop" / "result.json").read_text())
@@ -132,8 +157,8 @@ def test_the_shipped_library_passes_on_every_firmware(
 
 @pytest.mark.timeout(300)
 def test_a_wrong_expectation_fails_naming_the_value_and_the_time_and_python_tests_fly(
-        request: pytest.FixtureRequest, firmware_build_cache: FirmwareCache,
-        tmp_path: Path) -> None:
+    request: pytest.FixtureRequest, firmware_build_cache: FirmwareCache, tmp_path: Path
+) -> None:
     build = available_builds(request)[0]  # master when given, else 4.6.0
     (tmp_path / "test_weak_motor.py").write_text(
         "from bfsitl import Autopilot\n"
@@ -142,17 +167,37 @@ def test_a_wrong_expectation_fails_naming_the_value_and_the_time_and_python_test
         "    pilot.takeoff(2.0)\n"
         "    bfsitl_vehicle.disturbances.set_motor_thrust(3, 0.8)\n"
         "    pilot.hold(3.0)\n"
-        "    assert abs(bfsitl_vehicle.sample().sim_alt_m - 2.0) < 0.5\n")
+        "    assert abs(bfsitl_vehicle.sample().sim_alt_m - 2.0) < 0.5\n"
+    )
     (tmp_path / "wrong-expectation.toml").write_text(WRONG.read_text())
     # A file of the shipped library runs through the plugin too.
     (tmp_path / "rc-loss-hover-drop.toml").write_text(
-        (LIBRARY / "rc-loss-hover-drop.toml").read_text())
+        (LIBRARY / "rc-loss-hover-drop.toml").read_text()
+    )
     run = subprocess.run(
-        [sys.executable, "-m", "pytest", "-p", "bfsitl.pytest_plugin", "-p", "no:cacheprovider",
-         "--bfsitl-firmware", build, "--bfsitl-out", str(tmp_path / "runs"),
-         "-q", "--rootdir", str(tmp_path), str(tmp_path)],
-        capture_output=True, text=True, timeout=280, cwd=tmp_path,
-        env=env_for(firmware_build_cache))
+        [
+            sys.executable,
+            "-m",
+            "pytest",
+            "-p",
+            "bfsitl.pytest_plugin",
+            "-p",
+            "no:cacheprovider",
+            "--bfsitl-firmware",
+            build,
+            "--bfsitl-out",
+            str(tmp_path / "runs"),
+            "-q",
+            "--rootdir",
+            str(tmp_path),
+            str(tmp_path),
+        ],
+        capture_output=True,
+        text=True,
+        timeout=280,
+        cwd=tmp_path,
+        env=env_for(firmware_build_cache),
+    )
     output = run.stdout
     assert run.returncode == 1, output + run.stderr
     assert "1 failed, 2 passed" in output
@@ -165,19 +210,22 @@ def test_a_wrong_expectation_fails_naming_the_value_and_the_time_and_python_test
 @pytest.mark.parametrize("build", BUILDS)
 @pytest.mark.timeout(240)
 def test_faults_reach_the_fc_where_they_should(
-        build: str, request: pytest.FixtureRequest, tmp_path: Path) -> None:
+    build: str, request: pytest.FixtureRequest, tmp_path: Path
+) -> None:
     """A weak motor is made up for by that motor (right motor order under a fault); a GPS
     glitch moves the FC's GPS and not the truth (right axis and sign); a delayed RC command
     arrives that much later; RC silence is a lost link on master and nothing on 4.6.0."""
     firmware = request.getfixturevalue(FIXTURE_OF[build])
-    config = SessionConfig(sitl=SitlLaunch(firmware=firmware, workdir=tmp_path / "sitl"),
-                           fc=FcSetup(profile=with_fast_serial(FLY_PROFILE)))
+    config = SessionConfig(
+        sitl=SitlLaunch(firmware=firmware, workdir=tmp_path / "sitl"),
+        fc=FcSetup(profile=with_fast_serial(FLY_PROFILE)),
+    )
     with FlightSession(config) as vehicle:
         pilot = Autopilot(vehicle)
         pilot.takeoff(3.0)
         pilot.hold(2.0)
         before = vehicle.sample().motors
-        vehicle.disturbances.set_motor_thrust(3, 0.7)   # rear left
+        vehicle.disturbances.set_motor_thrust(3, 0.7)  # rear left
         pilot.hold(3.0)
         after = vehicle.sample()
         # The FC commands motor 3 up to make up its lost thrust: the others stay near hover.
@@ -190,12 +238,13 @@ def test_faults_reach_the_fc_where_they_should(
         sensors = vehicle.disturbances.change_sensors(gps_offset_ne_m=(6.0, -4.0))
         vehicle.clock.sleep_s(0.5)
         gps_after, truth_after = vehicle.gps_position(), vehicle.sample()
-        moved = (gps_after.north_m - gps_before.north_m) - (truth_after.sim_north_m
-                                                             - truth_before.sim_north_m)
-        moved_east = (gps_after.east_m - gps_before.east_m) - (truth_after.sim_east_m
-                                                               - truth_before.sim_east_m)
-        assert moved == pytest.approx(6.0, abs=0.5) and moved_east == pytest.approx(-4.0,
-                                                                                     abs=0.5)
+        moved = (gps_after.north_m - gps_before.north_m) - (
+            truth_after.sim_north_m - truth_before.sim_north_m
+        )
+        moved_east = (gps_after.east_m - gps_before.east_m) - (
+            truth_after.sim_east_m - truth_before.sim_east_m
+        )
+        assert moved == pytest.approx(6.0, abs=0.5) and moved_east == pytest.approx(-4.0, abs=0.5)
         vehicle.disturbances.set_sensors(sensors)
 
         assert vehicle.rc is not None
@@ -238,8 +287,14 @@ def three_nodes(tmp_path: Path):  # type: ignore[no-untyped-def]
     pytest.importorskip("ray")
     from ray.cluster_utils import Cluster
 
-    cluster = Cluster(initialize_head=True, head_node_args={
-        "num_cpus": 0, "include_dashboard": False, "object_store_memory": 100_000_000})
+    cluster = Cluster(
+        initialize_head=True,
+        head_node_args={
+            "num_cpus": 0,
+            "include_dashboard": False,
+            "object_store_memory": 100_000_000,
+        },
+    )
     try:
         caches, temps, workers = [], [], []
         for index in range(2):
@@ -247,23 +302,52 @@ def three_nodes(tmp_path: Path):  # type: ignore[no-untyped-def]
             temp.mkdir()
             caches.append(cache)
             temps.append(temp)
-            workers.append(cluster.add_node(
-                num_cpus=1, object_store_memory=100_000_000,
-                env_vars={"BFSITL_CACHE_DIR": str(cache), "TMPDIR": str(temp)}))
+            workers.append(
+                cluster.add_node(
+                    num_cpus=1,
+                    object_store_memory=100_000_000,
+                    env_vars={"BFSITL_CACHE_DIR": str(cache), "TMPDIR": str(temp)},
+                )
+            )
         cluster.wait_for_nodes()
         yield ThreeNodes(cluster, workers, caches, temps)
     finally:
         cluster.shutdown()
 
 
-def start_driver(names: Sequence[str], builds: Sequence[str], address: str, junit: Path,
-                 out: Path, cache: FirmwareCache, cwd: Path) -> subprocess.Popen[str]:
+def start_driver(
+    names: Sequence[str],
+    builds: Sequence[str],
+    address: str,
+    junit: Path,
+    out: Path,
+    cache: FirmwareCache,
+    cwd: Path,
+) -> subprocess.Popen[str]:
     """`bfsitl scenario run` of library scenarios on the cluster, running in the background."""
     return subprocess.Popen(
-        [sys.executable, "-m", "bfsitl.cli.main", "scenario", "run",
-         *(str(LIBRARY / f"{name}.toml") for name in names), *firmware_args(tuple(builds)),
-         "--ray", address, "--junit", str(junit), "--out", str(out), "--no-plot"],
-        stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, cwd=cwd, env=env_for(cache))
+        [
+            sys.executable,
+            "-m",
+            "bfsitl.cli.main",
+            "scenario",
+            "run",
+            *(str(LIBRARY / f"{name}.toml") for name in names),
+            *firmware_args(tuple(builds)),
+            "--ray",
+            address,
+            "--junit",
+            str(junit),
+            "--out",
+            str(out),
+            "--no-plot",
+        ],
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+        cwd=cwd,
+        env=env_for(cache),
+    )
 
 
 def sitl_pids() -> set[int]:
@@ -272,17 +356,39 @@ def sitl_pids() -> set[int]:
 
 @pytest.mark.timeout(600)
 def test_runs_on_a_three_node_cluster_bring_their_firmware_and_their_files_home(
-        request: pytest.FixtureRequest, firmware_build_cache: FirmwareCache,
-        three_nodes: ThreeNodes, tmp_path: Path) -> None:
+    request: pytest.FixtureRequest,
+    firmware_build_cache: FirmwareCache,
+    three_nodes: ThreeNodes,
+    tmp_path: Path,
+) -> None:
     builds = available_builds(request)
     junit, report, out = tmp_path / "ray.xml", tmp_path / "report", tmp_path / "runs"
     run = subprocess.run(
-        [sys.executable, "-m", "bfsitl.cli.main", "scenario", "run",
-         str(LIBRARY / "rc-loss-hover-drop.toml"), str(WRONG), *firmware_args(builds),
-         "--ray", three_nodes.address, "--junit", str(junit), "--report", str(report),
-         "--out", str(out), "--mcap"],
-        capture_output=True, text=True, timeout=500, cwd=tmp_path,
-        env=env_for(firmware_build_cache))
+        [
+            sys.executable,
+            "-m",
+            "bfsitl.cli.main",
+            "scenario",
+            "run",
+            str(LIBRARY / "rc-loss-hover-drop.toml"),
+            str(WRONG),
+            *firmware_args(builds),
+            "--ray",
+            three_nodes.address,
+            "--junit",
+            str(junit),
+            "--report",
+            str(report),
+            "--out",
+            str(out),
+            "--mcap",
+        ],
+        capture_output=True,
+        text=True,
+        timeout=500,
+        cwd=tmp_path,
+        env=env_for(firmware_build_cache),
+    )
     assert run.returncode == 1, run.stdout + run.stderr[-3000:]  # the wrong one fails
     assert f"{2 * len(builds)} runs on the Ray cluster" in run.stderr
     assert "travels as" in run.stderr
@@ -316,22 +422,28 @@ def test_runs_on_a_three_node_cluster_bring_their_firmware_and_their_files_home(
     with (run_dir / "flight.mcap").open("rb") as file:
         summary = make_reader(file).get_summary()
     assert summary is not None and summary.statistics is not None
-    counts = {c.topic: summary.statistics.channel_message_counts.get(c.id, 0)
-              for c in summary.channels.values()}
+    counts = {
+        c.topic: summary.statistics.channel_message_counts.get(c.id, 0)
+        for c in summary.channels.values()
+    }
     assert counts["/flight/altitude"] == rows > 100
     assert counts["/events"] >= 4  # armed, RC lost, the FC disarmed, its failsafe phase
 
 
 @pytest.mark.timeout(600)
 def test_a_node_lost_mid_suite_loses_no_run_and_leaves_no_sitl(
-        request: pytest.FixtureRequest, firmware_build_cache: FirmwareCache,
-        three_nodes: ThreeNodes, tmp_path: Path) -> None:
+    request: pytest.FixtureRequest,
+    firmware_build_cache: FirmwareCache,
+    three_nodes: ThreeNodes,
+    tmp_path: Path,
+) -> None:
     builds = available_builds(request)[:1]
     before = sitl_pids()
     junit, out = tmp_path / "lost.xml", tmp_path / "runs"
     names = ("rc-loss-hover-drop", "failsafe-switch", "motor-weak", "rc-loss-forward-drop")
-    driver = start_driver(names, builds, three_nodes.address, junit, out,
-                          firmware_build_cache, tmp_path)
+    driver = start_driver(
+        names, builds, three_nodes.address, junit, out, firmware_build_cache, tmp_path
+    )
     try:
         # Once worker 0 is flying a run (its run directory exists), the node goes: raylet,
         # workers and all, as a machine that is switched off.
@@ -351,8 +463,7 @@ def test_a_node_lost_mid_suite_loses_no_run_and_leaves_no_sitl(
     # Every planned run exactly once, none lost, none failed; the lost one says so.
     assert sorted(case.name for case in cases) == sorted(names)
     assert not any(case.result for case in cases)
-    retried = [case for case in cases if "retried: attempt 1 was lost" in
-               (case.system_out or "")]
+    retried = [case for case in cases if "retried: attempt 1 was lost" in (case.system_out or "")]
     assert retried
     for case in retried:
         summary = json.loads((out / builds[0] / case.name / "result.json").read_text())
@@ -366,14 +477,18 @@ def test_a_node_lost_mid_suite_loses_no_run_and_leaves_no_sitl(
 
 @pytest.mark.timeout(300)
 def test_ctrl_c_on_the_driver_cancels_the_clusters_runs_and_leaves_no_sitl(
-        request: pytest.FixtureRequest, firmware_build_cache: FirmwareCache,
-        three_nodes: ThreeNodes, tmp_path: Path) -> None:
+    request: pytest.FixtureRequest,
+    firmware_build_cache: FirmwareCache,
+    three_nodes: ThreeNodes,
+    tmp_path: Path,
+) -> None:
     builds = available_builds(request)[:1]
     before = sitl_pids()
     junit = tmp_path / "stopped.xml"
     names = ("failsafe-switch", "motor-weak", "gusts")
-    driver = start_driver(names, builds, three_nodes.address, junit, tmp_path / "runs",
-                          firmware_build_cache, tmp_path)
+    driver = start_driver(
+        names, builds, three_nodes.address, junit, tmp_path / "runs", firmware_build_cache, tmp_path
+    )
     try:
         deadline = time.monotonic() + 120
         while not (sitl_pids() - before):  # a run is flying on a node

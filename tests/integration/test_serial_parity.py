@@ -115,15 +115,20 @@ def _board_checks(link: Link, roll_us: int) -> dict[str, object]:
         with CliSession(link) as cli:
             small_angle = cli.get("small_angle")
         assert client.api_version().api == api  # the port is back in MSP mode
-        command = RcCommand(roll_us=roll_us, pitch_us=1400, throttle_us=1100, yaw_us=1550,
-                            aux_us=(1800,))
+        command = RcCommand(
+            roll_us=roll_us, pitch_us=1400, throttle_us=1100, yaw_us=1550, aux_us=(1800,)
+        )
         with MspRcLink(client) as rc:
             rc.set(command)
             # MSP_RC answers in the FC's internal order: roll, pitch, yaw, throttle, AUX1.
             rc_read = _wait_for_rc(client, (roll_us, 1400, 1550, 1100, 1800))
             stats = rc.stats()
-        return {"api": api, "small_angle": small_angle, "rc": rc_read,
-                "rc_errors": stats.send_errors}
+        return {
+            "api": api,
+            "small_angle": small_angle,
+            "rc": rc_read,
+            "rc_errors": stats.send_errors,
+        }
 
 
 def test_serial_uri_answers_like_tcp(sitl_behind_pty):

@@ -39,9 +39,9 @@ def test_attitude_signs_and_magnitudes(flight):
     sim, client = flight.sim, flight.client
     flight.bridge.between_steps(lambda: sim.hold(True))
     cases = [  # FRD body -> NED quaternion, expected (roll, pitch, yaw) as MSP reports them
-        (quat_about("x", 20.0), (20.0, 0.0, 0)),     # right wing down
-        (quat_about("y", -10.0), (0.0, 10.0, 0)),    # nose down: Betaflight pitch positive
-        (quat_about("z", 90.0), (0.0, 0.0, 90)),     # heading east: yaw clockwise from north
+        (quat_about("x", 20.0), (20.0, 0.0, 0)),  # right wing down
+        (quat_about("y", -10.0), (0.0, 10.0, 0)),  # nose down: Betaflight pitch positive
+        (quat_about("z", 90.0), (0.0, 0.0, 90)),  # heading east: yaw clockwise from north
     ]
     for quaternion, (roll_deg, pitch_deg, yaw_deg) in cases:
         flight.bridge.between_steps(lambda q=quaternion: sim.reset(quaternion_wxyz=q))
@@ -84,8 +84,9 @@ def test_climbing_ten_metres_reads_ten_metres_of_baro_altitude(flight):
     settle(3.0)  # the baro calibrates on its first 100 samples, at ground level
     before = client.get(msg.Altitude).altitude_cm
     flight.bridge.between_steps(lambda: sim.hold(True))
-    flight.bridge.between_steps(lambda: sim.reset(
-        position_ned_m=(0.0, 0.0, sim.state.position_ned_m[2] - 10.0)))
+    flight.bridge.between_steps(
+        lambda: sim.reset(position_ned_m=(0.0, 0.0, sim.state.position_ned_m[2] - 10.0))
+    )
     settle(2.0)  # the baro task runs at 40 Hz and filters
     climbed_cm = client.get(msg.Altitude).altitude_cm - before
     assert climbed_cm == pytest.approx(1000, abs=30)  # up positive, 1 Pa ~ 8 cm resolution

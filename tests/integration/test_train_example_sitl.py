@@ -18,18 +18,39 @@ pytestmark = pytest.mark.sitl
 EXAMPLE = Path(__file__).resolve().parents[2] / "examples" / "train_hover.py"
 
 
-@pytest.mark.skipif(importlib.util.find_spec("stable_baselines3") is None,
-                    reason="Stable-Baselines3 not installed: pip install torch "
-                           "'bfsitl[learn]' to run the training example's smoke test")
-def test_the_training_example_runs_and_writes_its_outputs(lockstep_gps_46_firmware: Path,
-                                                          tmp_path: Path) -> None:
-    run = subprocess.run([sys.executable, str(EXAMPLE), "--smoke", "--firmware",
-                          str(lockstep_gps_46_firmware), "--out", str(tmp_path / "run")],
-                         capture_output=True, text=True, timeout=300, cwd=tmp_path)
+@pytest.mark.skipif(
+    importlib.util.find_spec("stable_baselines3") is None,
+    reason="Stable-Baselines3 not installed: pip install torch "
+    "'bfsitl[learn]' to run the training example's smoke test",
+)
+def test_the_training_example_runs_and_writes_its_outputs(
+    lockstep_gps_46_firmware: Path, tmp_path: Path
+) -> None:
+    run = subprocess.run(
+        [
+            sys.executable,
+            str(EXAMPLE),
+            "--smoke",
+            "--firmware",
+            str(lockstep_gps_46_firmware),
+            "--out",
+            str(tmp_path / "run"),
+        ],
+        capture_output=True,
+        text=True,
+        timeout=300,
+        cwd=tmp_path,
+    )
     assert run.returncode == 0, run.stdout[-2000:] + run.stderr[-4000:]
     out = tmp_path / "run"
-    for name in ("policy.zip", "vecnormalize.pkl", "learning_curve.csv", "evaluation.csv",
-                 "evaluation.png", "evaluation.json"):
+    for name in (
+        "policy.zip",
+        "vecnormalize.pkl",
+        "learning_curve.csv",
+        "evaluation.csv",
+        "evaluation.png",
+        "evaluation.json",
+    ):
         assert (out / name).is_file(), name
     summary = json.loads((out / "evaluation.json").read_text())
     assert 256 <= summary["training"]["steps"] <= 512 and summary["training"]["envs"] == 2

@@ -52,16 +52,28 @@ pytestmark = pytest.mark.sitl
 
 API_OF = {"4.6.0-gps": (1, 47), "master": (1, 49)}
 #: Long enough a hold for the browser to connect and sample while the quad leans into the wind.
-FLIGHT_ARGS = ("--wind", "3", "--wind-from", "60", "--gusts", "1", "--seed", "3",
-               "--hold", "14", "--json")
+FLIGHT_ARGS = (
+    "--wind",
+    "3",
+    "--wind-from",
+    "60",
+    "--gusts",
+    "1",
+    "--seed",
+    "3",
+    "--hold",
+    "14",
+    "--json",
+)
 #: Where a run may keep the browser's screenshot (the README's picture is taken this way).
 SCREENSHOT_ENV = "BFSITL_SAVE_SCREENSHOT"
 
 
 @pytest.fixture(params=["4.6.0-gps", "master"])
 def generation(request: pytest.FixtureRequest) -> tuple[str, Path]:
-    name = ("lockstep_gps_46_firmware" if request.param == "4.6.0-gps"
-            else "lockstep_master_firmware")
+    name = (
+        "lockstep_gps_46_firmware" if request.param == "4.6.0-gps" else "lockstep_master_firmware"
+    )
     return request.param, request.getfixturevalue(name)
 
 
@@ -69,8 +81,13 @@ class RunningFly:
     """``bfsitl fly`` in the background, its stderr collected line by line."""
 
     def __init__(self, cwd: Path, *args: str) -> None:
-        self.process = subprocess.Popen([*BFSITL, "fly", *args], cwd=cwd, text=True,
-                                        stdout=subprocess.PIPE, stderr=subprocess.PIPE)
+        self.process = subprocess.Popen(
+            [*BFSITL, "fly", *args],
+            cwd=cwd,
+            text=True,
+            stdout=subprocess.PIPE,
+            stderr=subprocess.PIPE,
+        )
         self.lines: list[str] = []
         self._reader = threading.Thread(target=self._read, daemon=True)
         self._reader.start()
@@ -136,8 +153,14 @@ def foxglove_sees(url: str, topic: str, wanted: int = 5) -> tuple[set[str], list
                 if message["op"] == "advertise":
                     channels.update({c["topic"]: c["id"] for c in message["channels"]})
                     if topic in channels and not times:
-                        ws.send(json.dumps({"op": "subscribe", "subscriptions": [
-                            {"id": 1, "channelId": channels[topic]}]}))
+                        ws.send(
+                            json.dumps(
+                                {
+                                    "op": "subscribe",
+                                    "subscriptions": [{"id": 1, "channelId": channels[topic]}],
+                                }
+                            )
+                        )
             elif data[0] == 1:  # message data: opcode, subscription id, log time, payload
                 times.append(int.from_bytes(data[5:13], "little"))
     return set(channels), times
@@ -154,23 +177,41 @@ def _real_app(request: pytest.FixtureRequest) -> tuple[object, str] | None:
 def test_the_configurator_watches_a_flight_in_wind(generation, request, tmp_path):
     name, firmware = generation
     real_app = _real_app(request)  # before any flight: a broken build fails at once
-    baseline = subprocess.run([*BFSITL, "fly", "--firmware", str(firmware), *FLIGHT_ARGS],
-                              capture_output=True, text=True, timeout=120, cwd=tmp_path)
+    baseline = subprocess.run(
+        [*BFSITL, "fly", "--firmware", str(firmware), *FLIGHT_ARGS],
+        capture_output=True,
+        text=True,
+        timeout=120,
+        cwd=tmp_path,
+    )
     assert baseline.returncode == 0, baseline.stderr
     unwatched = json.loads(baseline.stdout)
 
-    flight = RunningFly(tmp_path, "--firmware", str(firmware), *FLIGHT_ARGS,
-                        "--configurator", "--configurator-port", "0",
-                        "--foxglove", "--foxglove-port", "0",
-                        "--log", "watched.csv", "--mcap", "watched.mcap")
+    flight = RunningFly(
+        tmp_path,
+        "--firmware",
+        str(firmware),
+        *FLIGHT_ARGS,
+        "--configurator",
+        "--configurator-port",
+        "0",
+        "--foxglove",
+        "--foxglove-port",
+        "0",
+        "--log",
+        "watched.csv",
+        "--mcap",
+        "watched.mcap",
+    )
     try:
         url = flight.wait_for(r"watch this flight at (ws://\S+)").group(1)
         foxglove_url = flight.wait_for(r"Foxglove WebSocket connection to (ws://\S+)").group(1)
         flight.wait_for(r"reached \d", timeout_s=60)  # airborne, leaning into the wind
         # A foreign page is refused by both servers, whoever else is connected.
         assert refused_code(url, "https://evil.example") == CLOSE_POLICY_VIOLATION
-        with connect(foxglove_url, subprotocols=["foxglove.sdk.v1"],
-                     origin="https://evil.example") as ws:
+        with connect(
+            foxglove_url, subprotocols=["foxglove.sdk.v1"], origin="https://evil.example"
+        ) as ws:
             with pytest.raises(ConnectionClosed):
                 ws.recv(timeout=5)
             assert ws.close_code == CLOSE_POLICY_VIOLATION
@@ -180,8 +221,9 @@ def test_the_configurator_watches_a_flight_in_wind(generation, request, tmp_path
         seen = None
         if real_app is not None:
             browser, app_url = real_app
-            seen = watch_flight(url, browser=browser, app_url=app_url, seconds=4.0,
-                                rc_seconds=1.5, screenshot=shot)
+            seen = watch_flight(
+                url, browser=browser, app_url=app_url, seconds=4.0, rc_seconds=1.5, screenshot=shot
+            )
         # Then a script on the same bridge, until the flight ends.
         seen_alt_m, seen_motors = [], []
         with connect(url, subprotocols=["binary"], origin="http://127.0.0.1:8000") as ws:
@@ -207,7 +249,8 @@ def test_the_configurator_watches_a_flight_in_wind(generation, request, tmp_path
     if seen is not None:
         version = {"4.6.0-gps": "4.6.0", "master": "2026.12.0"}[name]
         assert version in seen.firmware and seen.api_version.startswith(
-            ".".join(map(str, API_OF[name])))
+            ".".join(map(str, API_OF[name]))
+        )
         assert seen.moved(), seen.attitudes
         airborne = [r for r in rows if r["phase"] in ("takeoff", "hold")]
         leans = []
@@ -216,7 +259,11 @@ def test_the_configurator_watches_a_flight_in_wind(generation, request, tmp_path
             flown = [float(r[f"{axis}_deg"]) for r in airborne]
             # Every reading is one the FC went through (gusts move it; 4 s of 14 sampled).
             assert min(flown) - 1.0 <= min(shown) and max(shown) <= max(flown) + 1.0, (
-                axis, shown, min(flown), max(flown))
+                axis,
+                shown,
+                min(flown),
+                max(flown),
+            )
             leans.append(abs(statistics.fmean(shown)))
         assert max(leans) > 2.0, seen.attitudes  # leaning into the wind: idle reads level
         assert seen.rc and all(1400 < sample["Throttle"] < 1700 for sample in seen.rc), seen.rc
@@ -234,8 +281,7 @@ def test_the_configurator_watches_a_flight_in_wind(generation, request, tmp_path
 
     # Foxglove: every channel advertised, poses stamped in simulation time (the flight's
     # rows are 10 ms apart at 100 Hz: lockstep paced to 1x, not the wall clock's jitter).
-    assert {"/sim/pose", "/fc/pose", "/flight/altitude", "/rc", "/motors",
-            "/events"} <= topics
+    assert {"/sim/pose", "/fc/pose", "/flight/altitude", "/rc", "/motors", "/events"} <= topics
     assert len(pose_times_ns) >= 5 and pose_times_ns == sorted(pose_times_ns)
     row_times_ns = {round(float(r["time_s"]) * 1e9) for r in rows}
     assert set(pose_times_ns) <= row_times_ns
@@ -245,19 +291,30 @@ def test_the_configurator_watches_a_flight_in_wind(generation, request, tmp_path
         reader = make_reader(file)
         summary = reader.get_summary()
         assert summary is not None and summary.statistics is not None
-        counts = {c.topic: summary.statistics.channel_message_counts.get(c.id, 0)
-                  for c in summary.channels.values()}
+        counts = {
+            c.topic: summary.statistics.channel_message_counts.get(c.id, 0)
+            for c in summary.channels.values()
+        }
         stamped = [m.log_time for _s, c, m in reader.iter_messages(topics=["/fc/pose"])]
-    for topic in ("/sim/pose", "/fc/pose", "/flight/altitude", "/flight/position", "/rc",
-                  "/motors", "/fc/state"):
+    for topic in (
+        "/sim/pose",
+        "/fc/pose",
+        "/flight/altitude",
+        "/flight/position",
+        "/rc",
+        "/motors",
+        "/fc/state",
+    ):
         assert counts[topic] == len(rows), (topic, counts[topic], len(rows))
     assert counts["/events"] >= 6  # armed, take-off, reached, hold, landing, disarmed...
     assert stamped == [round(float(r["time_s"]) * 1e9) for r in rows]
 
     # Watching does not change the flight: the same seed and wind, the same metrics.
-    assert watched["hold"]["rms_error_m"] == pytest.approx(unwatched["hold"]["rms_error_m"],
-                                                           abs=0.02)
+    assert watched["hold"]["rms_error_m"] == pytest.approx(
+        unwatched["hold"]["rms_error_m"], abs=0.02
+    )
     assert watched["hold"]["rms_error_m"] < 0.15
-    assert watched["landed_from_start_m"] == pytest.approx(unwatched["landed_from_start_m"],
-                                                           abs=0.3)
+    assert watched["landed_from_start_m"] == pytest.approx(
+        unwatched["landed_from_start_m"], abs=0.3
+    )
     assert math.isfinite(watched["landed_from_start_m"])

@@ -29,9 +29,16 @@ pytestmark = pytest.mark.sitl
 
 REPO = Path(__file__).resolve().parents[2]
 #: Left out of the copy the wheel is built from: never part of a source tree.
-_NOT_SOURCE_ANYWHERE = shutil.ignore_patterns(".git", ".venv", "*.egg-info", "__pycache__",
-                                              ".pytest_cache", ".hypothesis", ".mypy_cache",
-                                              ".ruff_cache")
+_NOT_SOURCE_ANYWHERE = shutil.ignore_patterns(
+    ".git",
+    ".venv",
+    "*.egg-info",
+    "__pycache__",
+    ".pytest_cache",
+    ".hypothesis",
+    ".mypy_cache",
+    ".ruff_cache",
+)
 #: Outputs at the top of a checkout (``src/bfsitl/build`` is a package: only the top's go).
 _NOT_SOURCE_AT_TOP = {"build", "dist", "site"}
 
@@ -45,8 +52,11 @@ def _not_source(directory: str, names: list[str]) -> set[str]:
 
 def _clean_env() -> dict[str, str]:
     """The environment of a user's shell: no test-session variables pointing into the repo."""
-    env = {key: value for key, value in os.environ.items()
-           if not key.startswith(("BFSITL_", "PYTEST", "VIRTUAL_ENV", "PYTHON"))}
+    env = {
+        key: value
+        for key, value in os.environ.items()
+        if not key.startswith(("BFSITL_", "PYTEST", "VIRTUAL_ENV", "PYTHON"))
+    }
     env["PIP_DISABLE_PIP_VERSION_CHECK"] = "1"
     return env
 
@@ -58,23 +68,52 @@ def installed(tmp_path_factory: pytest.TempPathFactory) -> Iterator[tuple[Path, 
     source = root / "source"
     shutil.copytree(REPO, source, ignore=_not_source)
     built = subprocess.run(
-        [sys.executable, "-m", "pip", "wheel", "--no-deps", "--quiet", "-w", str(root / "dist"),
-         str(source)], capture_output=True, text=True, timeout=300, env=_clean_env())
+        [
+            sys.executable,
+            "-m",
+            "pip",
+            "wheel",
+            "--no-deps",
+            "--quiet",
+            "-w",
+            str(root / "dist"),
+            str(source),
+        ],
+        capture_output=True,
+        text=True,
+        timeout=300,
+        env=_clean_env(),
+    )
     assert built.returncode == 0, built.stdout + built.stderr
     wheel = next((root / "dist").glob("bfsitl-*.whl"))
     venv.create(root / "venv", with_pip=True)
     bin_dir = root / "venv" / "bin"
     install = subprocess.run(
         [str(bin_dir / "python"), "-m", "pip", "install", "--quiet", str(wheel)],
-        capture_output=True, text=True, timeout=600, env=_clean_env())
+        capture_output=True,
+        text=True,
+        timeout=600,
+        env=_clean_env(),
+    )
     assert install.returncode == 0, install.stdout + install.stderr
     yield wheel, bin_dir
 
 
-def _bfsitl(bin_dir: Path, cwd: Path, *args: str, env: dict[str, str] | None = None,
-            timeout_s: float = 120.0) -> subprocess.CompletedProcess[str]:
-    return subprocess.run([str(bin_dir / "bfsitl"), *args], capture_output=True, text=True,
-                          cwd=cwd, timeout=timeout_s, env=env or _clean_env())
+def _bfsitl(
+    bin_dir: Path,
+    cwd: Path,
+    *args: str,
+    env: dict[str, str] | None = None,
+    timeout_s: float = 120.0,
+) -> subprocess.CompletedProcess[str]:
+    return subprocess.run(
+        [str(bin_dir / "bfsitl"), *args],
+        capture_output=True,
+        text=True,
+        cwd=cwd,
+        timeout=timeout_s,
+        env=env or _clean_env(),
+    )
 
 
 def test_the_wheel_carries_the_library_the_missions_and_the_lockstep_patch(installed):
@@ -94,8 +133,13 @@ def test_the_wheel_carries_the_library_the_missions_and_the_lockstep_patch(insta
 
 def test_installed_bfsitl_runs_from_its_own_files(installed, tmp_path):
     _wheel, bin_dir = installed
-    where = subprocess.run([str(bin_dir / "python"), "-c", "import bfsitl; print(bfsitl.__file__)"],
-                           capture_output=True, text=True, cwd=tmp_path, env=_clean_env())
+    where = subprocess.run(
+        [str(bin_dir / "python"), "-c", "import bfsitl; print(bfsitl.__file__)"],
+        capture_output=True,
+        text=True,
+        cwd=tmp_path,
+        env=_clean_env(),
+    )
     assert where.returncode == 0, where.stderr
     assert Path(where.stdout.strip()).is_relative_to(bin_dir.parent), where.stdout
     assert not Path(where.stdout.strip()).is_relative_to(REPO)
@@ -114,8 +158,20 @@ def test_a_lockstep_flight_from_the_installed_wheel(installed, lockstep_46_firmw
     _wheel, bin_dir = installed
     # A cache of its own: the physics is built from the wheel's C sources, not found.
     env = {**_clean_env(), "BFSITL_CACHE_DIR": str(tmp_path / "cache")}
-    flown = _bfsitl(bin_dir, tmp_path, "fly", "--firmware", str(lockstep_46_firmware),
-                    "--hold", "2", "--json", "--log", "flight.csv", timeout_s=180, env=env)
+    flown = _bfsitl(
+        bin_dir,
+        tmp_path,
+        "fly",
+        "--firmware",
+        str(lockstep_46_firmware),
+        "--hold",
+        "2",
+        "--json",
+        "--log",
+        "flight.csv",
+        timeout_s=180,
+        env=env,
+    )
     assert flown.returncode == 0, flown.stderr[-3000:]
     summary = json.loads(flown.stdout)
     assert summary["outcome"] == "landed", summary

@@ -45,26 +45,27 @@ class FcModel:
     """The flight controller between the RC throttle and the reported altitude."""
 
     min_check_us: float = 1050.0
-    motor_low: float = 0.055            # (1000 + 550 x 0.1 - 1000) / 1000
-    throttle_boost: float = 0.5         # throttle_boost 5 x 0.1
+    motor_low: float = 0.055  # (1000 + 550 x 0.1 - 1000) / 1000
+    throttle_boost: float = 0.5  # throttle_boost 5 x 0.1
     throttle_boost_cutoff_hz: float = 15.0
-    rc_period_s: float = 0.01           # UDP RC at 100 Hz
+    rc_period_s: float = 0.01  # UDP RC at 100 Hz
     rc_smoothing_tau_s: float = 0.015
     baro_rate_hz: float = 40.0
     altitude_task_rate_hz: float = 40.0  # fitted to a real 4.6.0 SITL flight (35-40 Hz)
-    altitude_lpf_hz: float = 3.0        # altitude_lpf 300 / 100
+    altitude_lpf_hz: float = 3.0  # altitude_lpf 300 / 100
     altitude_filter_dt_s: float = 0.01  # the filter gain assumes the nominal 100 Hz
-    msp_delay_s: float = 0.03            # telemetry round trip at the mission rate
-    acc_lpf_hz: float = 25.0            # acc_lpf_hz, a PT2 at the accelerometer's rate
-    acc_1g_lsb: float = 256.0           # the SITL's scale (MSP_RAW_IMU is rounded to LSB)
+    msp_delay_s: float = 0.03  # telemetry round trip at the mission rate
+    acc_lpf_hz: float = 25.0  # acc_lpf_hz, a PT2 at the accelerometer's rate
+    acc_1g_lsb: float = 256.0  # the SITL's scale (MSP_RAW_IMU is rounded to LSB)
     #: The real SITL hovered at 1541.5 us where the formula above gives 1539.3: some offset in
     #: the throttle path that the formula misses, taken as a constant.
     rc_offset_us: float = -2.2
 
     def motor_command(self, throttle_us: float) -> float:
         """Steady motor command for an RC throttle (no boost)."""
-        throttle = min(1.0, max(0.0, (throttle_us - self.min_check_us)
-                                / (2000.0 - self.min_check_us)))
+        throttle = min(
+            1.0, max(0.0, (throttle_us - self.min_check_us) / (2000.0 - self.min_check_us))
+        )
         return self.motor_low + (1.0 - self.motor_low) * throttle
 
     def hover_throttle_us(self, hover_command: float) -> float:
@@ -121,9 +122,13 @@ class AltitudePlant:
         throttle the controller does not know); ``baro_noise_pa`` and ``accel_noise_m_s2`` add
         white noise to the pressure and the acceleration the FC reads."""
         self.fc = fc or FcModel()
-        self.sim = Simulator(home=GeoPoint(0.0, 0.0, home_alt_m), seed=seed,
-                             sensors=SensorConfig(baro_noise_std_pa=baro_noise_pa,
-                                                  accel_noise_std_m_s2=accel_noise_m_s2))
+        self.sim = Simulator(
+            home=GeoPoint(0.0, 0.0, home_alt_m),
+            seed=seed,
+            sensors=SensorConfig(
+                baro_noise_std_pa=baro_noise_pa, accel_noise_std_m_s2=accel_noise_m_s2
+            ),
+        )
         self.physics_step_s = physics_step_s
         self.control_period_s = 1.0 / control_rate_hz
         self.control_jitter_s = control_jitter_s
@@ -149,9 +154,9 @@ class AltitudePlant:
         self._next_baro_s = 0.0
         self._next_alt_s = 0.0
         self._next_rc_s = 0.0
-        self._command_us = 1000.0      # what the mission asked for last
-        self._rc_us = 1000.0           # what the FC has received
-        self._smoothed = 0.0           # RC-smoothed throttle 0..1
+        self._command_us = 1000.0  # what the mission asked for last
+        self._rc_us = 1000.0  # what the FC has received
+        self._smoothed = 0.0  # RC-smoothed throttle 0..1
         self._boost_lpf = 0.0
         boost_k = 2.0 * math.pi * fc.throttle_boost_cutoff_hz * physics_step_s
         self._boost_k = boost_k / (boost_k + 1.0)
@@ -189,8 +194,7 @@ class AltitudePlant:
         t = self.sim.time_s
         fc = self.fc
         if t >= self._next_rc_s:
-            self._rc_us = float(min(2000, max(1000, round(self._command_us)))) \
-                + fc.rc_offset_us
+            self._rc_us = float(min(2000, max(1000, round(self._command_us)))) + fc.rc_offset_us
             self._next_rc_s += fc.rc_period_s
         if t >= self._next_baro_s:
             pressure = int(self.sim.read_sensors().pressure_pa)
@@ -213,8 +217,7 @@ class AltitudePlant:
 
     def _motor(self) -> float:
         fc = self.fc
-        throttle = min(1.0, max(0.0, (self._rc_us - fc.min_check_us)
-                                / (2000.0 - fc.min_check_us)))
+        throttle = min(1.0, max(0.0, (self._rc_us - fc.min_check_us) / (2000.0 - fc.min_check_us)))
         self._smoothed += self._smooth_k * (throttle - self._smoothed)
         self._boost_lpf += self._boost_k * (self._smoothed - self._boost_lpf)
         boosted = self._smoothed + fc.throttle_boost * (self._smoothed - self._boost_lpf)
@@ -276,7 +279,8 @@ class AltitudePlant:
             climb = self.climb.update(t, fc_alt)
             target = target_alt_m(t - start_s) if callable(target_alt_m) else target_alt_m
             throttle = controller.update(
-                AltitudeInput(t, fc_alt, climb, target, self.fc_accel_up_m_s2()))
+                AltitudeInput(t, fc_alt, climb, target, self.fc_accel_up_m_s2())
+            )
             if not math.isfinite(throttle):
                 raise AssertionError(f"{controller.name} returned {throttle}")
             self._command_us = throttle

@@ -54,9 +54,11 @@ class ConfiguratorLikeClient:
 
     def open(self) -> ConfiguratorLikeClient:
         offered = frames()["websocket"]["subprotocols"]
-        self.ws = self._stack.enter_context(connect(
-            self.url, subprotocols=offered, origin=self.origin,
-            open_timeout=self.open_timeout_s))
+        self.ws = self._stack.enter_context(
+            connect(
+                self.url, subprotocols=offered, origin=self.origin, open_timeout=self.open_timeout_s
+            )
+        )
         return self
 
     def __enter__(self) -> ConfiguratorLikeClient:
@@ -96,8 +98,9 @@ class ConfiguratorLikeClient:
 
     def connect_sequence(self) -> dict[str, Reply]:
         """The app's requests on connecting, in its order; the replies by request name."""
-        return {step["name"]: self.request(step["hex"], step["command"])
-                for step in frames()["connect"]}
+        return {
+            step["name"]: self.request(step["hex"], step["command"]) for step in frames()["connect"]
+        }
 
     def cli_text(self, data_hex: str, until: bytes, timeout_s: float = 5.0) -> str:
         """Send CLI bytes; the text received until ``until`` shows up."""

@@ -59,19 +59,19 @@ class FakeFcLink(Link):
         self._parser = MspParser()
         self._pending: deque[_Received] = deque()  # requests received, not yet answered
         self._out = bytearray()
-        self.received: list[MspFrame] = []          # requests that reached the FC
-        self.sent_commands: list[int] = []          # every request parsed, dropped ones too
+        self.received: list[MspFrame] = []  # requests that reached the FC
+        self.sent_commands: list[int] = []  # every request parsed, dropped ones too
         self.raw_written = bytearray()
-        self.drop_next: set[int] = set()            # command ids whose next request is lost
-        self.corrupt_next: set[int] = set()         # command ids whose next reply is corrupted
-        self.reply_delay_s: dict[int, float] = {}   # command id -> time before it is answered
-        self.cli_mode = False                       # echo like a port left in CLI mode
-        self.echo_requests = False                  # a half-duplex line hears its own bytes
+        self.drop_next: set[int] = set()  # command ids whose next request is lost
+        self.corrupt_next: set[int] = set()  # command ids whose next reply is corrupted
+        self.reply_delay_s: dict[int, float] = {}  # command id -> time before it is answered
+        self.cli_mode = False  # echo like a port left in CLI mode
+        self.echo_requests = False  # a half-duplex line hears its own bytes
         self.max_unanswered_bytes = 0
         self.max_unanswered_requests = 0
         self._unanswered_bytes = 0
         self.answers_per_read = 1
-        self.closed_by_peer = False                 # the FC closed the stream (SITL exited)
+        self.closed_by_peer = False  # the FC closed the stream (SITL exited)
 
     # -- Link hooks --------------------------------------------------------------------------
     def _write_bytes(self, data: bytes) -> None:
@@ -150,6 +150,7 @@ class FakeFcLink(Link):
 
 
 # --- MSP reply helpers --------------------------------------------------------------------------
+
 
 def fixed(payload: bytes) -> Handler:
     """A handler that always answers ``payload``."""
@@ -271,7 +272,7 @@ class FakeCliLink(FakeFcLink):
         self.settings: dict[str, tuple[int, int, int]] = dict(settings or DEFAULT_SETTINGS)
         self.enter_silence_s = enter_silence_s
         self.chunk_size = chunk_size
-        self.overrides: dict[str, str] = {}       # command line -> output, replaces the built-in
+        self.overrides: dict[str, str] = {}  # command line -> output, replaces the built-in
         self.commands_run: list[tuple[str, str]] = []  # (mode, line) of every command executed
         self.cli_entries = 0
         self.saves = 0

@@ -16,10 +16,15 @@ from bfsitl.gym.observation import observation_space
 
 
 class FakeFlightEnv(gymnasium.Env[np.ndarray, np.ndarray]):
-    def __init__(self, *, max_episode_steps: int = 3, marker: float = 0.0, pin_core: bool = False,
-                 timing: Timing | None = None) -> None:
-        options = {"pin_core": pin_core,
-                   "spin": timing is not None and bool(timing.lockstep_spin)}
+    def __init__(
+        self,
+        *,
+        max_episode_steps: int = 3,
+        marker: float = 0.0,
+        pin_core: bool = False,
+        timing: Timing | None = None,
+    ) -> None:
+        options = {"pin_core": pin_core, "spin": timing is not None and bool(timing.lockstep_spin)}
         self.max_episode_steps = max_episode_steps
         self.marker = marker
         self.options = options
@@ -41,14 +46,28 @@ class FakeFlightEnv(gymnasium.Env[np.ndarray, np.ndarray]):
         return observation
 
     def _info(self, ended_because: str | None = None) -> dict[str, Any]:
-        return {"time_s": self.steps * 0.01, "target": (1.0, 2.0, 3.0), "waypoint": 0,
-                "distance_m": 0.5 + self.steps, "armed": True, "failsafe": False,
-                "truth": {"north_m": 0.1, "east_m": 0.2, "alt_m": 1.5 + self.steps,
-                          "v_north_m_s": 0.0, "v_east_m_s": 0.0, "v_up_m_s": -0.5},
-                "flight_modes": ("ANGLE",), "ended_because": ended_because}
+        return {
+            "time_s": self.steps * 0.01,
+            "target": (1.0, 2.0, 3.0),
+            "waypoint": 0,
+            "distance_m": 0.5 + self.steps,
+            "armed": True,
+            "failsafe": False,
+            "truth": {
+                "north_m": 0.1,
+                "east_m": 0.2,
+                "alt_m": 1.5 + self.steps,
+                "v_north_m_s": 0.0,
+                "v_east_m_s": 0.0,
+                "v_up_m_s": -0.5,
+            },
+            "flight_modes": ("ANGLE",),
+            "ended_because": ended_because,
+        }
 
-    def reset(self, *, seed: int | None = None,
-              options: dict[str, Any] | None = None) -> tuple[np.ndarray, dict[str, Any]]:
+    def reset(
+        self, *, seed: int | None = None, options: dict[str, Any] | None = None
+    ) -> tuple[np.ndarray, dict[str, Any]]:
         super().reset(seed=seed)
         self.seed_seen = seed
         self.steps = 0

@@ -17,8 +17,14 @@ class FakeSimulator:
 
     def read_sensors(self) -> SensorReading:
         zero = (0.0, 0.0, 0.0)
-        return SensorReading(time_s=self.time_s, gyro_frd_rad_s=zero,
-                             specific_force_frd_m_s2=(0.0, 0.0, -9.80665),
-                             quaternion_wxyz=(1.0, 0.0, 0.0, 0.0), pressure_pa=101325.0,
-                             position_ned_m=zero, velocity_ned_m_s=zero,
-                             geodetic=(0.0, 0.0, 0.0), velocity_enu_m_s=zero)
+        return SensorReading(
+            time_s=self.time_s,
+            gyro_frd_rad_s=zero,
+            specific_force_frd_m_s2=(0.0, 0.0, -9.80665),
+            quaternion_wxyz=(1.0, 0.0, 0.0, 0.0),
+            pressure_pa=101325.0,
+            position_ned_m=zero,
+            velocity_ned_m_s=zero,
+            geodetic=(0.0, 0.0, 0.0),
+            velocity_enu_m_s=zero,
+        )

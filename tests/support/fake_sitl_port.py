@@ -59,8 +59,9 @@ class FakeSitl:
                         if frame.command == MspCommand.API_VERSION:
                             conn.sendall(API_VERSION_REPLY)
                         else:
-                            conn.sendall(encode_frame(
-                                MspFrame(frame.command, b"", Direction.ERROR)))
+                            conn.sendall(
+                                encode_frame(MspFrame(frame.command, b"", Direction.ERROR))
+                            )
         except OSError:
             pass
         finally:

@@ -43,8 +43,14 @@ class FakeVehicle(Vehicle):
     time_s: float = 0.0  # type: ignore[assignment]
     has_gps: bool = False  # type: ignore[assignment]
 
-    def __init__(self, *, tilt_deg: float = 0.0, arm_error: Exception | None = None,
-                 fail_after: int | None = None, failure: BaseException | None = None) -> None:
+    def __init__(
+        self,
+        *,
+        tilt_deg: float = 0.0,
+        arm_error: Exception | None = None,
+        fail_after: int | None = None,
+        failure: BaseException | None = None,
+    ) -> None:
         super().__init__()
         self.config = _Config(speed=50.0)
         self.clock = FakeClock(self)  # the runner waits on it, never on the wall clock
@@ -96,13 +102,27 @@ class FakeVehicle(Vehicle):
         self.time_s += 0.02
         on_ground = self.altitude_m <= 0.0
         return FlightSample(
-            time_s=self.time_s, wall_s=self.time_s, fc_alt_m=round(self.altitude_m, 2),
-            fc_climb_m_s=climb, fc_accel_up_m_s2=accel_up, roll_deg=0.0, pitch_deg=0.0,
+            time_s=self.time_s,
+            wall_s=self.time_s,
+            fc_alt_m=round(self.altitude_m, 2),
+            fc_climb_m_s=climb,
+            fc_accel_up_m_s2=accel_up,
+            roll_deg=0.0,
+            pitch_deg=0.0,
             yaw_deg=0.0,
-            sim_alt_m=self.altitude_m, sim_climb_m_s=0.0 if on_ground else climb,
-            sim_tilt_deg=self.tilt_deg, sim_roll_deg=self.tilt_deg, sim_pitch_deg=0.0,
-            sim_yaw_deg=0.0, on_ground=on_ground, armed=self.armed,
-            arming_blockers=(), flight_modes=("ARM",), motors=(0.5,) * 4, rc=self.command)
+            sim_alt_m=self.altitude_m,
+            sim_climb_m_s=0.0 if on_ground else climb,
+            sim_tilt_deg=self.tilt_deg,
+            sim_roll_deg=self.tilt_deg,
+            sim_pitch_deg=0.0,
+            sim_yaw_deg=0.0,
+            on_ground=on_ground,
+            armed=self.armed,
+            arming_blockers=(),
+            flight_modes=("ARM",),
+            motors=(0.5,) * 4,
+            rc=self.command,
+        )
 
     def rc_stats(self) -> RcLinkStats:
         return RcLinkStats(10, 10.0, 10.5, 11.0, 0)
@@ -180,8 +200,13 @@ class PlanarVehicle(FakeVehicle):
             self.east_m += self.v_east * dt
             yaw_rate = self.sticks.yaw.setpoint((self.command.yaw_us - 1500.0) / 500.0)
             self.heading_deg = (self.heading_deg + yaw_rate * dt) % 360.0
-        return replace(sample, yaw_deg=self.heading_deg, sim_yaw_deg=self.heading_deg,
-                       sim_north_m=self.north_m, sim_east_m=self.east_m)
+        return replace(
+            sample,
+            yaw_deg=self.heading_deg,
+            sim_yaw_deg=self.heading_deg,
+            sim_north_m=self.north_m,
+            sim_east_m=self.east_m,
+        )
 
     def gps_position(self):  # type: ignore[no-untyped-def]
         from bfsitl.mission.vehicle import GpsPosition

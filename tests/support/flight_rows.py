@@ -14,13 +14,36 @@ from bfsitl.mission.flight_row import FlightRow
 
 def make_row(index: int, **changes: object) -> FlightRow:
     row = FlightRow(
-        time_s=3.0 + index * 0.02, phase="hold", target_alt_m=2.0, sim_alt_m=1.9 + index * 0.01,
-        fc_alt_m=1.95, climb_m_s=0.1, sim_climb_m_s=0.1, fc_accel_up_m_s2=0.02, roll_deg=1.0,
-        pitch_deg=-2.0, yaw_deg=90.5, sim_tilt_deg=2.2, sim_roll_deg=1.2, sim_pitch_deg=-2.1,
-        sim_yaw_deg=90.2, rc_roll_us=1490, rc_pitch_us=1510, rc_throttle_us=1540 + index,
-        rc_yaw_us=1500, rc_aux1_us=1800, rc_aux2_us=1800, motor1=0.51, motor2=0.52,
-        motor3=0.53, motor4=0.54, armed=index >= 2, wall_s=0.1 * index,
-        sim_north_m=0.5, sim_east_m=-0.25)
+        time_s=3.0 + index * 0.02,
+        phase="hold",
+        target_alt_m=2.0,
+        sim_alt_m=1.9 + index * 0.01,
+        fc_alt_m=1.95,
+        climb_m_s=0.1,
+        sim_climb_m_s=0.1,
+        fc_accel_up_m_s2=0.02,
+        roll_deg=1.0,
+        pitch_deg=-2.0,
+        yaw_deg=90.5,
+        sim_tilt_deg=2.2,
+        sim_roll_deg=1.2,
+        sim_pitch_deg=-2.1,
+        sim_yaw_deg=90.2,
+        rc_roll_us=1490,
+        rc_pitch_us=1510,
+        rc_throttle_us=1540 + index,
+        rc_yaw_us=1500,
+        rc_aux1_us=1800,
+        rc_aux2_us=1800,
+        motor1=0.51,
+        motor2=0.52,
+        motor3=0.53,
+        motor4=0.54,
+        armed=index >= 2,
+        wall_s=0.1 * index,
+        sim_north_m=0.5,
+        sim_east_m=-0.25,
+    )
     return replace(row, **changes)  # type: ignore[arg-type]
 
 
@@ -32,8 +55,10 @@ def read_mcap(path: Path) -> tuple[dict[str, int], dict[str, list]]:
         reader = make_reader(file)
         summary = reader.get_summary()
         assert summary is not None and summary.statistics is not None
-        counts = {channel.topic: summary.statistics.channel_message_counts.get(channel.id, 0)
-                  for channel in summary.channels.values()}
+        counts = {
+            channel.topic: summary.statistics.channel_message_counts.get(channel.id, 0)
+            for channel in summary.channels.values()
+        }
         messages: dict[str, list] = {}
         for schema, channel, message in reader.iter_messages():
             assert schema is not None

@@ -43,16 +43,34 @@ HOVER = IRIS.hover_command
 
 def _state_floats(sim: Any) -> tuple[float, ...]:
     s = sim.state
-    return (s.time_s, *s.position_ned_m, *s.velocity_ned_m_s, *s.quaternion_wxyz,
-            *s.angular_velocity_frd_rad_s, *s.motor_speeds_rad_s,
-            *sim.specific_force_frd_m_s2, *sim.wind_ned_m_s, sim.altitude_m, sim.agl_m,
-            sim.time_s, *sim.motor_thrust)
+    return (
+        s.time_s,
+        *s.position_ned_m,
+        *s.velocity_ned_m_s,
+        *s.quaternion_wxyz,
+        *s.angular_velocity_frd_rad_s,
+        *s.motor_speeds_rad_s,
+        *sim.specific_force_frd_m_s2,
+        *sim.wind_ned_m_s,
+        sim.altitude_m,
+        sim.agl_m,
+        sim.time_s,
+        *sim.motor_thrust,
+    )
 
 
 def _reading_floats(r: Any) -> tuple[float, ...]:
-    return (r.time_s, *r.gyro_frd_rad_s, *r.specific_force_frd_m_s2, *r.quaternion_wxyz,
-            r.pressure_pa, *r.position_ned_m, *r.velocity_ned_m_s, *r.geodetic,
-            *r.velocity_enu_m_s)
+    return (
+        r.time_s,
+        *r.gyro_frd_rad_s,
+        *r.specific_force_frd_m_s2,
+        *r.quaternion_wxyz,
+        r.pressure_pa,
+        *r.position_ned_m,
+        *r.velocity_ned_m_s,
+        *r.geodetic,
+        *r.velocity_enu_m_s,
+    )
 
 
 def _bits(values: tuple[float, ...]) -> bytes:
@@ -125,8 +143,9 @@ def parked_take_off_and_landings() -> Recorder:
     r.run((0.0, 0.0, 0.0, 0.0), 300)
     r.do("reset", None, angular_velocity_frd_rad_s=(0.0, 0.0, 2.0))
     r.run((0.0, 0.0, 0.0, 0.0), 300)
-    r.do("reset", None, velocity_ned_m_s=(0.0, 0.0, -0.2),
-         angular_velocity_frd_rad_s=(0.0, 0.3, 0.0))
+    r.do(
+        "reset", None, velocity_ned_m_s=(0.0, 0.0, -0.2), angular_velocity_frd_rad_s=(0.0, 0.3, 0.0)
+    )
     r.run((0.0, 0.0, 0.0, 0.0), 300)
     r.do("reset", None, angular_velocity_frd_rad_s=(-0.3, 0.0, 0.0))
     r.run((0.0, 0.0, 0.0, 0.0), 300)
@@ -137,13 +156,24 @@ def parked_take_off_and_landings() -> Recorder:
 
 def hard_sliding_and_tilted_landings() -> Recorder:
     r = Recorder(IRIS, sensors=SensorConfig.typical_mems(), seed=7)
-    r.do("reset", (0.0, 0.0, -3.0), roll_deg=20.0, pitch_deg=-10.0, yaw_deg=30.0,
-         velocity_ned_m_s=(3.0, -1.0, 6.0), angular_velocity_frd_rad_s=(0.5, -1.0, 2.0))
+    r.do(
+        "reset",
+        (0.0, 0.0, -3.0),
+        roll_deg=20.0,
+        pitch_deg=-10.0,
+        yaw_deg=30.0,
+        velocity_ned_m_s=(3.0, -1.0, 6.0),
+        angular_velocity_frd_rad_s=(0.5, -1.0, 2.0),
+    )
     r.run((0.0, 0.0, 0.0, 0.0), 1200)
     r.do("reset", None, roll_deg=35.0, yaw_deg=-120.0)
     r.run((0.1, 0.0, 0.1, 0.0), 600)
-    r.do("reset", (0.0, 0.0, -0.5), velocity_ned_m_s=(-8.0, 5.0, 2.0),
-         motor_speeds_rad_s=(400.0, 420.0, 380.0, 400.0))
+    r.do(
+        "reset",
+        (0.0, 0.0, -0.5),
+        velocity_ned_m_s=(-8.0, 5.0, 2.0),
+        motor_speeds_rad_s=(400.0, 420.0, 380.0, 400.0),
+    )
     r.run((0.2, 0.2, 0.2, 0.2), 1500, read=False)
     return r
 
@@ -161,10 +191,12 @@ def tip_overs_onto_the_top_corners() -> Recorder:
 
 
 def slippery_ground_and_other_parameters() -> Recorder:
-    params = dataclasses.replace(IRIS, axial_inflow=False, friction_coefficient=0.05,
-                                 contact_damping_ratio=0.3, mass_kg=1.2)
-    r = Recorder(params, wind=Wind((12.0, -6.0, 0.0)), home=GeoPoint(47.3977, 8.5456, 488.0),
-                 seed=2)
+    params = dataclasses.replace(
+        IRIS, axial_inflow=False, friction_coefficient=0.05, contact_damping_ratio=0.3, mass_kg=1.2
+    )
+    r = Recorder(
+        params, wind=Wind((12.0, -6.0, 0.0)), home=GeoPoint(47.3977, 8.5456, 488.0), seed=2
+    )
     r.run((0.0, 0.0, 0.0, 0.0), 600)  # the wind pushes it along the ice
     r.run((0.9, 0.9, 0.9, 0.9), 600)
     r.run((0.3, 0.3, 0.3, 0.3), 800, read=False)
@@ -172,10 +204,14 @@ def slippery_ground_and_other_parameters() -> Recorder:
 
 
 def random_commands_noisy_sensors_and_gps() -> Recorder:
-    sensors = dataclasses.replace(SensorConfig.typical_mems().with_typical_gps(),
-                                  gyro_bias_rad_s=(0.01, -0.02, 0.003),
-                                  accel_bias_m_s2=(0.1, 0.0, -0.05), baro_bias_pa=4.0,
-                                  gps_offset_ne_m=(0.7, -0.3), baro_drift_pa_s=0.3)
+    sensors = dataclasses.replace(
+        SensorConfig.typical_mems().with_typical_gps(),
+        gyro_bias_rad_s=(0.01, -0.02, 0.003),
+        accel_bias_m_s2=(0.1, 0.0, -0.05),
+        baro_bias_pa=4.0,
+        gps_offset_ne_m=(0.7, -0.3),
+        baro_drift_pa_s=0.3,
+    )
     r = Recorder(IRIS, sensors=sensors, home=GeoPoint(-33.0, 151.0, 30.0), seed=123)
     r.do("reset", (5.0, -3.0, -20.0), motor_speeds_rad_s=(IRIS.hover_rotor_speed_rad_s,) * 4)
     rng = random.Random(99)
@@ -189,11 +225,19 @@ def random_commands_noisy_sensors_and_gps() -> Recorder:
 
 def fast_climbs_dives_and_tumbles() -> Recorder:
     r = Recorder(IRIS, seed=4)
-    r.do("reset", (0.0, 0.0, -300.0), velocity_ned_m_s=(0.0, 0.0, 25.0),
-         motor_speeds_rad_s=(500.0,) * 4)
+    r.do(
+        "reset",
+        (0.0, 0.0, -300.0),
+        velocity_ned_m_s=(0.0, 0.0, 25.0),
+        motor_speeds_rad_s=(500.0,) * 4,
+    )
     r.run((0.8, 0.8, 0.8, 0.8), 300)  # diving onto spinning rotors: the inflow cap
-    r.do("reset", (0.0, 0.0, -100.0), velocity_ned_m_s=(0.0, 0.0, -30.0),
-         motor_speeds_rad_s=(50.0,) * 4)
+    r.do(
+        "reset",
+        (0.0, 0.0, -100.0),
+        velocity_ned_m_s=(0.0, 0.0, -30.0),
+        motor_speeds_rad_s=(50.0,) * 4,
+    )
     r.run((0.0, 0.1, 0.0, 0.1), 300)  # climbing on slow rotors: thrust clamped at zero
     r.do("reset", (0.0, 0.0, -200.0), angular_velocity_frd_rad_s=(60.0, -20.0, 35.0))
     r.run((1.0, 0.0, 0.0, 1.0), 200, dt_s=0.004)  # the exact exponential map
@@ -202,8 +246,9 @@ def fast_climbs_dives_and_tumbles() -> Recorder:
 
 
 def wind_gusts_and_changes_mid_flight() -> Recorder:
-    r = Recorder(IRIS, wind=Wind((3.0, -2.0, 0.5), gust_std_m_s=1.5, gust_time_constant_s=0.5),
-                 seed=21)
+    r = Recorder(
+        IRIS, wind=Wind((3.0, -2.0, 0.5), gust_std_m_s=1.5, gust_time_constant_s=0.5), seed=21
+    )
     r.run((0.0, 0.0, 0.0, 0.0), 300)
     r.run((0.7, 0.7, 0.7, 0.7), 700)
     r.do("set_wind", Wind.from_direction(8.0, 45.0, gust_std_m_s=3.0))
@@ -226,17 +271,29 @@ def sensor_changes_drift_offsets_and_repeated_reads() -> Recorder:
     r.read()
     r.read()
     r.run(hover, 300)
-    r.do("set_sensors", SensorConfig(gps_noise_std_m=0.5, gps_velocity_noise_std_m_s=0.2,
-                                     accel_bias_m_s2=(0.0, 0.2, 0.0)))
+    r.do(
+        "set_sensors",
+        SensorConfig(
+            gps_noise_std_m=0.5, gps_velocity_noise_std_m_s=0.2, accel_bias_m_s2=(0.0, 0.2, 0.0)
+        ),
+    )
     r.run(hover, 300)
     r.do("set_sensors", SensorConfig.typical_mems().with_typical_gps())
     r.run(hover, 300, read=False)
     r.run(hover, 300)
     r.do("reset", (0.0, 0.0, -5.0), yaw_deg=90.0)  # no time passes: the wander stays
     r.read()
-    r.do("set_sensors", SensorConfig(gyro_bias_rad_s=(0.1, 0.0, 0.0), baro_bias_pa=-3.0,
-                                     gps_drift_std_m=1.0, gps_drift_time_s=2.0,
-                                     gps_offset_ne_m=(0.25, 0.5), gps_noise_std_m=0.1))
+    r.do(
+        "set_sensors",
+        SensorConfig(
+            gyro_bias_rad_s=(0.1, 0.0, 0.0),
+            baro_bias_pa=-3.0,
+            gps_drift_std_m=1.0,
+            gps_drift_time_s=2.0,
+            gps_offset_ne_m=(0.25, 0.5),
+            gps_noise_std_m=0.1,
+        ),
+    )
     r.run(hover, 300)
     r.do("set_sensors", SensorConfig())
     r.run(hover, 100)
@@ -246,9 +303,14 @@ def sensor_changes_drift_offsets_and_repeated_reads() -> Recorder:
 def resets_holds_motor_faults_and_step_lengths() -> Recorder:
     r = Recorder(IRIS, sensors=SensorConfig.typical_mems(), seed=8)
     r.run((0.7, 0.7, 0.7, 0.7), 500)
-    r.do("reset", (0.0, 0.0, -15.0), quaternion_wxyz=(0.9, 0.2, -0.3, 0.1),
-         velocity_ned_m_s=(2.0, -1.0, 0.5), angular_velocity_frd_rad_s=(0.3, 0.2, -0.4),
-         motor_speeds_rad_s=(300.0, 310.0, 320.0, 330.0))
+    r.do(
+        "reset",
+        (0.0, 0.0, -15.0),
+        quaternion_wxyz=(0.9, 0.2, -0.3, 0.1),
+        velocity_ned_m_s=(2.0, -1.0, 0.5),
+        angular_velocity_frd_rad_s=(0.3, 0.2, -0.4),
+        motor_speeds_rad_s=(300.0, 310.0, 320.0, 330.0),
+    )
     r.run((HOVER,) * 4, 300, dt_s=0.0005)
     r.do("hold")
     r.read()
@@ -306,8 +368,12 @@ INVALID_CALLS: tuple[tuple[str, tuple[Any, ...], dict[str, Any]], ...] = (
 
 
 def invalid_steps_and_calls() -> Recorder:
-    r = Recorder(IRIS, sensors=SensorConfig.typical_mems().with_typical_gps(),
-                 wind=Wind((1.0, 0.0, 0.0), 1.0), seed=1)
+    r = Recorder(
+        IRIS,
+        sensors=SensorConfig.typical_mems().with_typical_gps(),
+        wind=Wind((1.0, 0.0, 0.0), 1.0),
+        seed=1,
+    )
     for motors, dt_s in INVALID_STEPS:
         r.run((0.7,) * 4, 10)
         if r.do("step", motors, dt_s) is None:
@@ -340,8 +406,12 @@ def leaving_and_entering_the_atmosphere_model() -> Recorder:
     r.read()  # below the model: refused
     r.run((0.7,) * 4, 600, read=False)
     r.read()  # lifted off into it
-    high = Recorder(IRIS, sensors=SensorConfig.typical_mems().with_typical_gps(),
-                    home=GeoPoint(10.0, 20.0, 19995.0), seed=9)
+    high = Recorder(
+        IRIS,
+        sensors=SensorConfig.typical_mems().with_typical_gps(),
+        home=GeoPoint(10.0, 20.0, 19995.0),
+        seed=9,
+    )
     high.do("reset", (0.0, 0.0, -4.0), motor_speeds_rad_s=(IRIS.hover_rotor_speed_rad_s,) * 4)
     high.run((0.75,) * 4, 400)
     high.run((0.75,) * 4, 200, read=False)  # through 20 km MSL
@@ -353,13 +423,20 @@ def leaving_and_entering_the_atmosphere_model() -> Recorder:
 
 
 SCRIPTS: dict[str, Callable[[], Recorder]] = {
-    script.__name__: script for script in (
-        parked_take_off_and_landings, hard_sliding_and_tilted_landings,
-        tip_overs_onto_the_top_corners, slippery_ground_and_other_parameters,
-        random_commands_noisy_sensors_and_gps, fast_climbs_dives_and_tumbles,
-        wind_gusts_and_changes_mid_flight, sensor_changes_drift_offsets_and_repeated_reads,
-        resets_holds_motor_faults_and_step_lengths, invalid_steps_and_calls,
-        other_number_types, drifting_barometer_from_the_start,
+    script.__name__: script
+    for script in (
+        parked_take_off_and_landings,
+        hard_sliding_and_tilted_landings,
+        tip_overs_onto_the_top_corners,
+        slippery_ground_and_other_parameters,
+        random_commands_noisy_sensors_and_gps,
+        fast_climbs_dives_and_tumbles,
+        wind_gusts_and_changes_mid_flight,
+        sensor_changes_drift_offsets_and_repeated_reads,
+        resets_holds_motor_faults_and_step_lengths,
+        invalid_steps_and_calls,
+        other_number_types,
+        drifting_barometer_from_the_start,
         leaving_and_entering_the_atmosphere_model,
     )
 }

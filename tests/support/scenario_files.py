@@ -14,8 +14,12 @@ MASTER = profile_for(MASTER_API_VERSION, "2026.12.0-alpha")
 
 
 def scenario(**extra):  # type: ignore[no-untyped-def]
-    data = {"duration_s": 20.0, "flight": {"takeoff_alt_m": 2.0}, "expect": {"disarmed": True},
-            **extra}
+    data = {
+        "duration_s": 20.0,
+        "flight": {"takeoff_alt_m": 2.0},
+        "expect": {"disarmed": True},
+        **extra,
+    }
     return scenario_from_dict(data, name="t")
 
 

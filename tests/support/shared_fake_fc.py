@@ -28,10 +28,15 @@ class SharedFakeFc:
     """Maps the region, writes the header last, answers every new request (4.6's slot order)
     after ``delay_s``; ``version`` other than 1 plays a firmware of another layout."""
 
-    def __init__(self, path: Path, *, delay_s: float = 0.0, version: int = 1,
-                 answer: bool = True,
-                 motors: Callable[[bytes], tuple[float, float, float, float]] | None = None
-                 ) -> None:
+    def __init__(
+        self,
+        path: Path,
+        *,
+        delay_s: float = 0.0,
+        version: int = 1,
+        answer: bool = True,
+        motors: Callable[[bytes], tuple[float, float, float, float]] | None = None,
+    ) -> None:
         self.file = path.open("r+b")
         self.map = mmap.mmap(self.file.fileno(), REGION_BYTES)
         self.words = memoryview(self.map).cast("I")
@@ -61,20 +66,21 @@ class SharedFakeFc:
                 self.futex.wait(self.base + 8, seq, 0.05)
                 continue
             size = self.words[4]
-            data = bytes(self.map[DATAGRAM_AT:DATAGRAM_AT + size])
+            data = bytes(self.map[DATAGRAM_AT : DATAGRAM_AT + size])
             if self.words[2] != seq:
                 continue  # rewritten while copied: take the new one
             self.seen = seq
-            fdm = FdmPacket.unpack(data[:FdmPacket.SIZE])
-            rc = RcPacket.unpack(data[FdmPacket.SIZE:])
+            fdm = FdmPacket.unpack(data[: FdmPacket.SIZE])
+            rc = RcPacket.unpack(data[FdmPacket.SIZE :])
             self.received.append((fdm.timestamp_s, rc.channels_us[:6]))
             self.datagrams.append(data)
             if not self.answer:
                 continue
             time.sleep(self.delay_s)
             slots = (0.2, 0.3, 0.4, 0.1) if self.motors is None else self.motors(data)
-            self.map[REPLY_AT:REPLY_AT + 24] = REPLY_FORMAT.pack(
-                *slots, fdm.timestamp_s + self.stamp_error_s)
+            self.map[REPLY_AT : REPLY_AT + 24] = REPLY_FORMAT.pack(
+                *slots, fdm.timestamp_s + self.stamp_error_s
+            )
             self.words[3] = seq
             self.futex.wake(self.base + 12)
 
@@ -97,10 +103,13 @@ class NoSockets:
         return sock
 
 
-def bridge_on(exchange: ShmExchange, simulator: object, **options: object
-              ) -> LockstepBridge:
-    bridge = LockstepBridge(simulator, NoSockets(), exchange=exchange,  # type: ignore[arg-type]
-                            **options)  # type: ignore[arg-type]
+def bridge_on(exchange: ShmExchange, simulator: object, **options: object) -> LockstepBridge:
+    bridge = LockstepBridge(
+        simulator,
+        NoSockets(),
+        exchange=exchange,  # type: ignore[arg-type]
+        **options,
+    )  # type: ignore[arg-type]
     bridge._sock = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)  # no port of 9002 needed
     bridge._sock.setblocking(False)
     return bridge.start()

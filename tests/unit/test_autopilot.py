@@ -118,9 +118,9 @@ def test_takeoff_arms_waits_on_the_ground_then_climbs_to_the_height_asked() -> N
     took_s = pilot.takeoff(2.5)
     assert vehicle.armed and pilot.armed
     ground, climb = rows_of(pilot, Phase.GROUND), rows_of(pilot, Phase.TAKEOFF)
-    assert pilot.rows[:len(ground)] == ground                  # the wait comes first
+    assert pilot.rows[: len(ground)] == ground  # the wait comes first
     assert ground[-1].time_s - ground[0].time_s >= GROUND_WAIT_S - 0.021
-    assert all(row.rc_throttle_us == 1000 for row in ground)   # armed at idle
+    assert all(row.rc_throttle_us == 1000 for row in ground)  # armed at idle
     assert climb and all(row.target_alt_m == 2.5 for row in climb)
     asked_in_climb = [target for t, target in controller.asked if t >= climb[0].time_s]
     assert asked_in_climb and set(asked_in_climb) == {2.5}
@@ -158,7 +158,11 @@ def test_goto_flies_north_and_east_the_right_way_round_and_numbers_its_legs() ->
     leg = pilot.goto(6.0, -4.0)
     assert (vehicle.north_m, vehicle.east_m) == pytest.approx((6.0, -4.0), abs=0.3)
     assert (leg.waypoint, leg.target_north_m, leg.target_east_m, leg.target_alt_m) == (
-        1, 6.0, -4.0, 1.5)
+        1,
+        6.0,
+        -4.0,
+        1.5,
+    )
     assert pilot.legs == [leg] and leg.arrival_error_m < 0.3
     # The position loop's target travels from the start to the end, north up and east down.
     first = [r for r in rows_of(pilot, Phase.GOTO) if r.waypoint == 1]
@@ -166,7 +170,7 @@ def test_goto_flies_north_and_east_the_right_way_round_and_numbers_its_legs() ->
     easts = [r.target_east_m for r in first]
     assert norths[0] < 0.5 and norths[-1] == 6.0 and norths == sorted(norths)
     assert easts[0] > -0.5 and easts[-1] == -4.0 and easts == sorted(easts, reverse=True)
-    assert all(r.target_alt_m == 1.5 for r in first)      # altitude: the one held
+    assert all(r.target_alt_m == 1.5 for r in first)  # altitude: the one held
     # A second leg, climbing, at 1 m/s: numbered 2, the altitude target moves with it.
     second_leg = pilot.goto(0.0, 3.0, 2.5, speed_m_s=1.0)
     assert second_leg.waypoint == 2 and len(pilot.legs) == 2
@@ -174,7 +178,7 @@ def test_goto_flies_north_and_east_the_right_way_round_and_numbers_its_legs() ->
     second = [r for r in rows_of(pilot, Phase.GOTO) if r.waypoint == 2]
     assert second[0].target_alt_m < 1.7 and second[-1].target_alt_m == pytest.approx(2.5)
     assert second_leg.took_s >= math.hypot(6.0, 7.0) / 1.0
-    pilot.hold(2.0)                    # the leg's altitude is the one held from now on
+    pilot.hold(2.0)  # the leg's altitude is the one held from now on
     assert controller.asked[-1][1] == pytest.approx(2.5)
     assert vehicle.altitude_m == pytest.approx(2.5, abs=0.06)
 
@@ -187,9 +191,10 @@ def test_goto_without_a_gps_says_which_firmware_to_fly() -> None:
     with pytest.raises(MissionError, match=r"needs the FC's GPS.*firmware build --gps"):
         pilot.goto(3.0, 0.0)
     assert len(pilot.rows) == recorded and pilot.legs == [] and vehicle.armed
-    pilot.hold(0.5)                    # the altitude alone still flies
+    pilot.hold(0.5)  # the altitude alone still flies
     assert rows_of(pilot, Phase.HOLD) and all(
-        math.isnan(r.target_north_m) for r in rows_of(pilot, Phase.HOLD))
+        math.isnan(r.target_north_m) for r in rows_of(pilot, Phase.HOLD)
+    )
 
 
 # -- hold, yaw, land ----------------------------------------------------------------------------
@@ -198,7 +203,7 @@ def test_hold_holds_the_position_with_a_gps_and_the_altitude_alone_without(has_g
     vehicle = PlanarVehicle(wind_push_m_s2=0.5)
     pilot = pilot_for(vehicle)
     pilot.takeoff(1.5)
-    vehicle.has_gps = has_gps          # the same vehicle, told it has no GPS for the hold
+    vehicle.has_gps = has_gps  # the same vehicle, told it has no GPS for the hold
     before = (vehicle.north_m, vehicle.east_m)
     pilot.hold(4.0)
     held = rows_of(pilot, Phase.HOLD)
@@ -208,7 +213,7 @@ def test_hold_holds_the_position_with_a_gps_and_the_altitude_alone_without(has_g
     if has_gps:
         assert moved_m < 0.3 and all(math.isfinite(r.target_north_m) for r in held)
     else:
-        assert vehicle.north_m - before[0] > 1.0            # the wind had its way
+        assert vehicle.north_m - before[0] > 1.0  # the wind had its way
         assert all(math.isnan(r.target_north_m) for r in held)
 
 
@@ -219,8 +224,8 @@ def test_yaw_to_turns_clockwise_and_back_to_the_heading_asked() -> None:
     took_s = pilot.yaw_to(90.0)
     assert vehicle.heading_deg == pytest.approx(90.0, abs=2.5) and 0.5 <= took_s < 10.0
     turning = rows_of(pilot, Phase.YAW)
-    assert turning[len(turning) // 4].yaw_deg < 90.0     # it went up from 0, not round
-    pilot.yaw_to(-45.0)                                   # the same as 315
+    assert turning[len(turning) // 4].yaw_deg < 90.0  # it went up from 0, not round
+    pilot.yaw_to(-45.0)  # the same as 315
     assert vehicle.heading_deg == pytest.approx(315.0, abs=2.5)
     assert rows_of(pilot, Phase.YAW)[-1].target_heading_deg == pytest.approx(315.0)
 
@@ -255,10 +260,15 @@ def test_land_touches_down_where_the_last_leg_ended_and_disarms() -> None:
 def test_manoeuvres_on_the_ground_are_refused_before_anything_moves(verb) -> None:
     vehicle = PlanarVehicle()
     pilot = pilot_for(vehicle)
-    act = {"goto": lambda: pilot.goto(1.0, 1.0), "hold": lambda: pilot.hold(1.0),
-           "yaw_to": lambda: pilot.yaw_to(10.0), "land": lambda: pilot.land()}[verb]
-    with pytest.raises(MissionError,
-                       match=f"^{verb}: the vehicle is on the ground, disarmed; take off first$"):
+    act = {
+        "goto": lambda: pilot.goto(1.0, 1.0),
+        "hold": lambda: pilot.hold(1.0),
+        "yaw_to": lambda: pilot.yaw_to(10.0),
+        "land": lambda: pilot.land(),
+    }[verb]
+    with pytest.raises(
+        MissionError, match=f"^{verb}: the vehicle is on the ground, disarmed; take off first$"
+    ):
         act()
     assert not vehicle.armed and vehicle.samples == 0 and pilot.rows == []
 
@@ -270,7 +280,7 @@ def test_fly_runs_a_plan_from_the_ground_into_the_same_log_and_refuses_in_the_ai
     result = pilot.fly(MissionPlan(target_alt_m=1.0, hold_s=1.0, ground_s=0.0))
     assert result.outcome is Outcome.LANDED and not vehicle.armed
     assert [r.phase for r in result.rows][-1] == Phase.LANDED
-    assert rec.opened[0].rows == result.rows               # recorded in the autopilot's log
+    assert rec.opened[0].rows == result.rows  # recorded in the autopilot's log
     pilot.takeoff(1.0)
     with pytest.raises(MissionError, match="land first"):
         pilot.fly(MissionPlan())
@@ -278,14 +288,15 @@ def test_fly_runs_a_plan_from_the_ground_into_the_same_log_and_refuses_in_the_ai
 
 # -- the log ------------------------------------------------------------------------------------
 def test_the_log_is_opened_by_its_suffix_gets_every_row_and_closes_with_the_vehicle(
-        rec, tmp_path) -> None:
+    rec, tmp_path
+) -> None:
     vehicle = FakeVehicle()
     pilot = pilot_for(vehicle, log=tmp_path / "flight.rec")
-    sink, = rec.opened
+    (sink,) = rec.opened
     assert sink.path == tmp_path / "flight.rec"
     pilot.takeoff(1.0)
     pilot.land()
-    assert sink.rows == pilot.rows and sink.closes == 0    # open while the vehicle is
+    assert sink.rows == pilot.rows and sink.closes == 0  # open while the vehicle is
     vehicle.close()
     vehicle.close()
     assert sink.closes == 1
@@ -302,18 +313,24 @@ def test_a_csv_log_holds_the_rows_of_the_flight(tmp_path) -> None:
     assert float(written[-1]["target_alt_m"]) == 1.0
 
 
-@pytest.mark.parametrize(("make", "error"), [
-    (lambda: FakeVehicle(fail_after=150, failure=SitlExitedError("the SITL exited")),
-     SitlExitedError),
-    (TipsOver, CrashDetectedError),
-])
+@pytest.mark.parametrize(
+    ("make", "error"),
+    [
+        (
+            lambda: FakeVehicle(fail_after=150, failure=SitlExitedError("the SITL exited")),
+            SitlExitedError,
+        ),
+        (TipsOver, CrashDetectedError),
+    ],
+)
 def test_the_log_keeps_the_rows_so_far_and_closes_on_the_way_out_of_a_failed_flight(
-        rec, make, error) -> None:
+    rec, make, error
+) -> None:
     vehicle = make()
     with pytest.raises(error), vehicle:
         pilot = pilot_for(vehicle, log="flight.rec")
         pilot.takeoff(2.0)
-    sink, = rec.opened
+    (sink,) = rec.opened
     assert sink.closes == 1 and sink.rows == pilot.rows and pilot.rows
 
 
@@ -343,7 +360,7 @@ def test_the_loop_rate_and_the_controller_come_from_the_vehicle_and_the_caller()
     assert Autopilot(vehicle, PController(), rate_hz=20.0).loop.rate_hz == 20.0
     with pytest.raises(MissionError, match="outside 1..200 Hz"):
         Autopilot(vehicle, PController(), rate_hz=500.0)
-    assert Autopilot(vehicle).controller.name == "fused"            # the default
+    assert Autopilot(vehicle).controller.name == "fused"  # the default
     assert Autopilot(vehicle, "cascade").controller.name == "cascade"
     with pytest.raises(ControllerConfigError, match="unknown controller 'pid2'"):
         Autopilot(vehicle, "pid2")
@@ -354,9 +371,12 @@ def test_fusing_the_accelerometer_changes_the_position_loops_estimate_and_lead_o
     fused = Autopilot(FakeVehicle(), PController(), fuse_accelerometer=True).loop.steering
     assert plain.horizontal is None and plain.position.gains.lead_s > 0.0
     assert isinstance(fused.horizontal, HorizontalEstimator)
-    assert fused.position.gains == PositionGains(**{
-        **{f: getattr(plain.position.gains, f) for f in plain.position.gains.__slots__},
-        "lead_s": 0.0})
+    assert fused.position.gains == PositionGains(
+        **{
+            **{f: getattr(plain.position.gains, f) for f in plain.position.gains.__slots__},
+            "lead_s": 0.0,
+        }
+    )
 
 
 # -- plans ---------------------------------------------------------------------------------------

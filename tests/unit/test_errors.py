@@ -24,8 +24,9 @@ def bfsitl_exception_classes() -> set[type[BaseException]]:
 def test_every_exception_class_is_defined_in_errors_py():
     classes = bfsitl_exception_classes()
     assert len(classes) > 30  # the walk found the package's modules
-    elsewhere = sorted(f"{c.__module__}.{c.__qualname__}" for c in classes
-                       if c.__module__ != "bfsitl.errors")
+    elsewhere = sorted(
+        f"{c.__module__}.{c.__qualname__}" for c in classes if c.__module__ != "bfsitl.errors"
+    )
     assert elsewhere == [], "define these in bfsitl/errors.py (and re-export if needed)"
 
 

@@ -26,10 +26,10 @@ def test_sigterm_and_sighup_raise_an_interrupt_that_names_them(signum: int) -> N
     before = signal.getsignal(signum)
     with pytest.raises(KeyboardInterrupt) as caught, stop_signals_interrupt():
         os.kill(os.getpid(), signum)
-        time.sleep(1.0)                   # the handler runs at the next bytecode
+        time.sleep(1.0)  # the handler runs at the next bytecode
     assert isinstance(caught.value, Interrupted)
     assert how_stopped(caught.value) == signal.Signals(signum).name
-    assert signal.getsignal(signum) is before          # put back on the way out
+    assert signal.getsignal(signum) is before  # put back on the way out
 
 
 def test_ctrl_c_is_said_as_ctrl_c() -> None:
@@ -40,12 +40,13 @@ def test_ctrl_c_is_said_as_ctrl_c() -> None:
 def test_signals_are_ignored_while_a_cleanup_must_finish() -> None:
     with stop_signals_interrupt(), stop_signals_ignored():
         os.kill(os.getpid(), signal.SIGTERM)
-        time.sleep(0.05)                   # nothing raised: the cleanup went on
+        time.sleep(0.05)  # nothing raised: the cleanup went on
 
 
 def _python(code: str, **kwargs) -> subprocess.Popen[str]:  # type: ignore[no-untyped-def]
-    return subprocess.Popen([sys.executable, "-c", textwrap.dedent(code)], text=True,
-                            stdout=subprocess.PIPE, **kwargs)
+    return subprocess.Popen(
+        [sys.executable, "-c", textwrap.dedent(code)], text=True, stdout=subprocess.PIPE, **kwargs
+    )
 
 
 def _alive(pid: int) -> bool:
@@ -90,7 +91,8 @@ def test_a_child_dies_with_its_parent_even_when_the_parent_is_killed(tmp_path: P
 
 
 def test_a_worker_stops_once_cleans_up_and_ends_with_its_job() -> None:
-    worker = _python("""
+    worker = _python(
+        """
         import os, signal, sys, time
         from bfsitl.stop_signals import Interrupted, WorkerStop
         stop = WorkerStop()
@@ -105,7 +107,9 @@ def test_a_worker_stops_once_cleans_up_and_ends_with_its_job() -> None:
                 time.sleep(0.2)
                 print("cleaned up", flush=True)
         print("still here after the job", flush=True)
-        """, stderr=subprocess.PIPE)
+        """,
+        stderr=subprocess.PIPE,
+    )
     assert worker.stdout is not None
     assert worker.stdout.readline().strip() == "busy"
     worker.send_signal(signal.SIGTERM)
@@ -115,13 +119,16 @@ def test_a_worker_stops_once_cleans_up_and_ends_with_its_job() -> None:
 
 
 def test_an_idle_worker_ends_quietly() -> None:
-    idle = _python("""
+    idle = _python(
+        """
         import time
         from bfsitl.stop_signals import WorkerStop
         WorkerStop().install()
         print("idle", flush=True)
         time.sleep(30)
-        """, stderr=subprocess.PIPE)
+        """,
+        stderr=subprocess.PIPE,
+    )
     assert idle.stdout is not None and idle.stdout.readline().strip() == "idle"
     idle.send_signal(signal.SIGINT)
     _out, err = idle.communicate(timeout=20)

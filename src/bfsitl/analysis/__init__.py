@@ -15,6 +15,21 @@ from bfsitl.analysis.track import (
 )
 from bfsitl.analysis.watch import FlightWatch, combine
 
-__all__ = ["ANALYSERS", "Analyser", "Analysis", "Finding", "FlightWatch", "Limits", "Severity",
-           "Track", "TrackPoint", "analyse", "combine", "finding_from_dict", "point_from_row",
-           "track_from_blackbox", "track_from_rows", "worst"]
+__all__ = [
+    "ANALYSERS",
+    "Analyser",
+    "Analysis",
+    "Finding",
+    "FlightWatch",
+    "Limits",
+    "Severity",
+    "Track",
+    "TrackPoint",
+    "analyse",
+    "combine",
+    "finding_from_dict",
+    "point_from_row",
+    "track_from_blackbox",
+    "track_from_rows",
+    "worst",
+]

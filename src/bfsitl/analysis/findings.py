@@ -32,8 +32,9 @@ class Severity(enum.IntEnum):
         try:
             return cls[text.strip().upper()]
         except KeyError:
-            raise ValueError(f"unknown severity {text!r}; one of "
-                             f"{', '.join(s.label for s in cls)}") from None
+            raise ValueError(
+                f"unknown severity {text!r}; one of {', '.join(s.label for s in cls)}"
+            ) from None
 
 
 @dataclass(frozen=True, slots=True)
@@ -58,24 +59,37 @@ class Finding:
     source: str = "flight"
 
     def as_dict(self) -> dict[str, Any]:
-        return {"analyser": self.analyser, "severity": self.severity.label,
-                "summary": self.summary, "time_s": _plain(self.time_s),
-                "value": _plain(self.value), "unit": self.unit, "source": self.source,
-                "evidence": {k: _plain(v) for k, v in self.evidence.items()}}
+        return {
+            "analyser": self.analyser,
+            "severity": self.severity.label,
+            "summary": self.summary,
+            "time_s": _plain(self.time_s),
+            "value": _plain(self.value),
+            "unit": self.unit,
+            "source": self.source,
+            "evidence": {k: _plain(v) for k, v in self.evidence.items()},
+        }
 
     def line(self) -> str:
         """``failure  crash  t=12.34 s  hit the ground at 6.1 m/s ...`` for a terminal."""
-        return f"{self.severity.label:<8} {self.analyser:<18} t={self.time_s:7.2f} s  " \
-               f"{self.summary}"
+        return (
+            f"{self.severity.label:<8} {self.analyser:<18} t={self.time_s:7.2f} s  {self.summary}"
+        )
 
 
 def finding_from_dict(data: dict[str, Any]) -> Finding:
     """A finding as :meth:`Finding.as_dict` wrote it."""
     value = data.get("value")
-    return Finding(str(data["analyser"]), Severity.parse(str(data["severity"])),
-                   str(data.get("summary", "")), float(data.get("time_s") or 0.0),
-                   math.nan if value is None else float(value), str(data.get("unit", "")),
-                   dict(data.get("evidence") or {}), str(data.get("source", "flight")))
+    return Finding(
+        str(data["analyser"]),
+        Severity.parse(str(data["severity"])),
+        str(data.get("summary", "")),
+        float(data.get("time_s") or 0.0),
+        math.nan if value is None else float(value),
+        str(data.get("unit", "")),
+        dict(data.get("evidence") or {}),
+        str(data.get("source", "flight")),
+    )
 
 
 def worst(findings: list[Finding]) -> Severity | None:

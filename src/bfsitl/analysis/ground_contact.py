@@ -27,10 +27,10 @@ class Touchdown:
 
     index: int
     time_s: float
-    speed_m_s: float      # downward, at contact (the fastest in the 0.3 s before)
-    tilt_deg: float       # the most in the 0.3 s before and 0.5 s after
+    speed_m_s: float  # downward, at contact (the fastest in the 0.3 s before)
+    tilt_deg: float  # the most in the 0.3 s before and 0.5 s after
     rest_tilt_deg: float  # at the end of the stretch on the ground
-    from_alt_m: float     # the highest in the 10 s before
+    from_alt_m: float  # the highest in the 10 s before
 
 
 def touchdowns(track: Track) -> list[Touchdown]:
@@ -40,26 +40,37 @@ def touchdowns(track: Track) -> list[Touchdown]:
         if not (points[index - 1].airborne and points[index].airborne is False):
             continue
         t = points[index].time_s
-        before = [p for p in points[max(0, index - 60):index + 1] if t - 0.3 <= p.time_s <= t]
-        around = [p for p in points[max(0, index - 60):index + 60]
-                  if t - 0.3 <= p.time_s <= t + 0.5]
+        before = [p for p in points[max(0, index - 60) : index + 1] if t - 0.3 <= p.time_s <= t]
+        around = [
+            p for p in points[max(0, index - 60) : index + 60] if t - 0.3 <= p.time_s <= t + 0.5
+        ]
         ground_end = index
         while ground_end + 1 < len(points) and points[ground_end + 1].airborne is False:
             ground_end += 1
-        earlier = [p.alt_m for p in points[:index + 1] if t - 10.0 <= p.time_s
-                   and finite(p.alt_m)]
-        found.append(Touchdown(
-            index, t, max((-p.climb_m_s for p in before if finite(p.climb_m_s)), default=0.0),
-            max((p.tilt_deg for p in around if finite(p.tilt_deg)), default=math.nan),
-            points[ground_end].tilt_deg, max(earlier, default=math.nan)))
+        earlier = [p.alt_m for p in points[: index + 1] if t - 10.0 <= p.time_s and finite(p.alt_m)]
+        found.append(
+            Touchdown(
+                index,
+                t,
+                max((-p.climb_m_s for p in before if finite(p.climb_m_s)), default=0.0),
+                max((p.tilt_deg for p in around if finite(p.tilt_deg)), default=math.nan),
+                points[ground_end].tilt_deg,
+                max(earlier, default=math.nan),
+            )
+        )
     return found
 
 
 def _contact_evidence(touch: Touchdown, track: Track) -> dict[str, object]:
     point = track.points[touch.index]
-    return {"touchdown_speed_m_s": touch.speed_m_s, "tilt_at_contact_deg": touch.tilt_deg,
-            "tilt_at_rest_deg": touch.rest_tilt_deg, "fell_from_m": touch.from_alt_m,
-            "distance_from_home_m": point.distance_m, "sample": evidence_of(point)}
+    return {
+        "touchdown_speed_m_s": touch.speed_m_s,
+        "tilt_at_contact_deg": touch.tilt_deg,
+        "tilt_at_rest_deg": touch.rest_tilt_deg,
+        "fell_from_m": touch.from_alt_m,
+        "distance_from_home_m": point.distance_m,
+        "sample": evidence_of(point),
+    }
 
 
 def crash(track: Track, limits: Limits) -> Finding | None:
@@ -67,25 +78,39 @@ def crash(track: Track, limits: Limits) -> Finding | None:
         return _crash_in_log(track)
     require(track, "airborne", "climb_m_s")
     contacts = touchdowns(track)
-    crashes = [t for t in contacts
-               if t.speed_m_s >= limits.crash_speed_m_s
-               or (finite(t.tilt_deg) and t.tilt_deg >= limits.tipped_over_deg)
-               or (finite(t.rest_tilt_deg) and t.rest_tilt_deg >= limits.tipped_over_deg)]
+    crashes = [
+        t
+        for t in contacts
+        if t.speed_m_s >= limits.crash_speed_m_s
+        or (finite(t.tilt_deg) and t.tilt_deg >= limits.tipped_over_deg)
+        or (finite(t.rest_tilt_deg) and t.rest_tilt_deg >= limits.tipped_over_deg)
+    ]
     if not crashes:
         return None
     worst = max(crashes, key=lambda t: (t.speed_m_s, t.rest_tilt_deg))
     how = [f"hit the ground at {worst.speed_m_s:.1f} m/s"]
     if finite(worst.rest_tilt_deg) and worst.rest_tilt_deg >= limits.tipped_over_deg:
-        how.append("upside down" if worst.rest_tilt_deg >= limits.upside_down_deg
-                   else f"on its side ({worst.rest_tilt_deg:.0f} deg)")
+        how.append(
+            "upside down"
+            if worst.rest_tilt_deg >= limits.upside_down_deg
+            else f"on its side ({worst.rest_tilt_deg:.0f} deg)"
+        )
     elif finite(worst.tilt_deg):
         how.append(f"tilted {worst.tilt_deg:.0f} deg")
     if finite(worst.from_alt_m):
         how.append(f"from {worst.from_alt_m:.1f} m")
     evidence = _contact_evidence(worst, track)
     evidence["crashes"] = len(crashes)
-    return Finding("crash", Severity.FAILURE, ", ".join(how), worst.time_s, worst.speed_m_s,
-                   "m/s", evidence, track.source)
+    return Finding(
+        "crash",
+        Severity.FAILURE,
+        ", ".join(how),
+        worst.time_s,
+        worst.speed_m_s,
+        "m/s",
+        evidence,
+        track.source,
+    )
 
 
 def _crash_in_log(track: Track) -> Finding | None:
@@ -94,10 +119,16 @@ def _crash_in_log(track: Track) -> Finding | None:
     if track.disarm_reason not in CRASH_DISARM_REASONS:
         return None
     last = track.points[-1] if track.points else TrackPoint(0.0, True)
-    return Finding("crash", Severity.FAILURE,
-                   f"the FC disarmed itself: {track.disarm_reason}", last.time_s, math.nan, "",
-                   {"disarm_reason": track.disarm_reason, "sample": evidence_of(last)},
-                   track.source)
+    return Finding(
+        "crash",
+        Severity.FAILURE,
+        f"the FC disarmed itself: {track.disarm_reason}",
+        last.time_s,
+        math.nan,
+        "",
+        {"disarm_reason": track.disarm_reason, "sample": evidence_of(last)},
+        track.source,
+    )
 
 
 def hard_landing(track: Track, limits: Limits) -> Finding | None:
@@ -111,31 +142,51 @@ def hard_landing(track: Track, limits: Limits) -> Finding | None:
             # The peak alone is no landing speed (a simulator's rigid ground gives 4-5 g at
             # 0.8 m/s); with a barometer the descent before it decides.
             return None
-        speed = f" after descending at {descent:.1f} m/s (barometer)" if finite(descent) \
-            else ""
-        return Finding("hard_landing", Severity.WARNING,
-                       f"an impact of {peak.accel_g:.1f} g on the accelerometer{speed}",
-                       peak.time_s, peak.accel_g, "g",
-                       {"baro_descent_m_s": descent, "sample": evidence_of(peak)}, track.source)
+        speed = f" after descending at {descent:.1f} m/s (barometer)" if finite(descent) else ""
+        return Finding(
+            "hard_landing",
+            Severity.WARNING,
+            f"an impact of {peak.accel_g:.1f} g on the accelerometer{speed}",
+            peak.time_s,
+            peak.accel_g,
+            "g",
+            {"baro_descent_m_s": descent, "sample": evidence_of(peak)},
+            track.source,
+        )
     require(track, "airborne", "climb_m_s")
-    hard = [t for t in touchdowns(track)
-            if limits.hard_landing_speed_m_s <= t.speed_m_s < limits.crash_speed_m_s]
+    hard = [
+        t
+        for t in touchdowns(track)
+        if limits.hard_landing_speed_m_s <= t.speed_m_s < limits.crash_speed_m_s
+    ]
     if not hard:
         return None
     worst = max(hard, key=lambda t: t.speed_m_s)
     evidence = _contact_evidence(worst, track)
     evidence["hard_landings"] = len(hard)
-    return Finding("hard_landing", Severity.WARNING,
-                   f"touched down at {worst.speed_m_s:.1f} m/s", worst.time_s,
-                   worst.speed_m_s, "m/s", evidence, track.source)
+    return Finding(
+        "hard_landing",
+        Severity.WARNING,
+        f"touched down at {worst.speed_m_s:.1f} m/s",
+        worst.time_s,
+        worst.speed_m_s,
+        "m/s",
+        evidence,
+        track.source,
+    )
 
 
 # -- where it went ---------------------------------------------------------------------------
 def fly_away(track: Track, limits: Limits) -> Finding | None:
     require(track, "north_m")
-    reach = max((math.hypot(p.target_north_m, p.target_east_m) for p in track.points
-                 if finite(p.target_north_m) and finite(p.target_east_m)),
-                default=track.planned_reach_m)
+    reach = max(
+        (
+            math.hypot(p.target_north_m, p.target_east_m)
+            for p in track.points
+            if finite(p.target_north_m) and finite(p.target_east_m)
+        ),
+        default=track.planned_reach_m,
+    )
     reach = max(reach, track.planned_reach_m)
     bound = reach + limits.fly_away_margin_m
     placed = [p for p in track.points if finite(p.north_m)]
@@ -148,16 +199,31 @@ def fly_away(track: Track, limits: Limits) -> Finding | None:
     leaving = last.distance_m > bound and last.distance_m - recent[0].distance_m > 0.5
     # Gone (still beyond the bound and going) is a failure; out and back again a warning.
     severity = Severity.FAILURE if leaving else Severity.WARNING
-    end = (f"still going at the end ({last.distance_m:.0f} m)" if leaving
-           else f"{last.distance_m:.0f} m at the end")
-    return Finding("fly_away", severity,
-                   f"{farthest.distance_m:.0f} m from home, past the farthest target "
-                   f"({reach:.0f} m) + {limits.fly_away_margin_m:.0f} m from "
-                   f"t={first.time_s:.1f} s; {end}", first.time_s, farthest.distance_m, "m",
-                   {"farthest_target_m": reach, "bound_m": bound,
-                    "farthest_m": farthest.distance_m, "farthest_at_s": farthest.time_s,
-                    "final_distance_m": last.distance_m, "still_leaving": leaving,
-                    "sample": evidence_of(farthest)}, track.source)
+    end = (
+        f"still going at the end ({last.distance_m:.0f} m)"
+        if leaving
+        else f"{last.distance_m:.0f} m at the end"
+    )
+    return Finding(
+        "fly_away",
+        severity,
+        f"{farthest.distance_m:.0f} m from home, past the farthest target "
+        f"({reach:.0f} m) + {limits.fly_away_margin_m:.0f} m from "
+        f"t={first.time_s:.1f} s; {end}",
+        first.time_s,
+        farthest.distance_m,
+        "m",
+        {
+            "farthest_target_m": reach,
+            "bound_m": bound,
+            "farthest_m": farthest.distance_m,
+            "farthest_at_s": farthest.time_s,
+            "final_distance_m": last.distance_m,
+            "still_leaving": leaving,
+            "sample": evidence_of(farthest),
+        },
+        track.source,
+    )
 
 
 # -- attitude --------------------------------------------------------------------------------

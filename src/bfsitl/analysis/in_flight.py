@@ -28,34 +28,58 @@ def loss_of_control(track: Track, limits: Limits) -> Finding | None:
     in_air = [p for p in points if p.armed and p.airborne is not False]
     findings: list[Finding] = []
     if track.has("tilt_deg"):
-        inverted = [p for p in in_air if finite(p.tilt_deg)
-                    and p.tilt_deg >= limits.upside_down_deg]
+        inverted = [
+            p for p in in_air if finite(p.tilt_deg) and p.tilt_deg >= limits.upside_down_deg
+        ]
         if inverted:
             worst = max(inverted, key=lambda p: p.tilt_deg)
-            findings.append(Finding(
-                "loss_of_control", Severity.FAILURE,
-                f"upside down in the air ({worst.tilt_deg:.0f} deg) from "
-                f"t={inverted[0].time_s:.2f} s", inverted[0].time_s, worst.tilt_deg, "deg",
-                {"max_tilt_deg": worst.tilt_deg, "first_s": inverted[0].time_s,
-                 "sample": evidence_of(worst)}, track.source))
+            findings.append(
+                Finding(
+                    "loss_of_control",
+                    Severity.FAILURE,
+                    f"upside down in the air ({worst.tilt_deg:.0f} deg) from "
+                    f"t={inverted[0].time_s:.2f} s",
+                    inverted[0].time_s,
+                    worst.tilt_deg,
+                    "deg",
+                    {
+                        "max_tilt_deg": worst.tilt_deg,
+                        "first_s": inverted[0].time_s,
+                        "sample": evidence_of(worst),
+                    },
+                    track.source,
+                )
+            )
         else:
-            for first, last in runs(in_air, lambda p: finite(p.tilt_deg)
-                                     and p.tilt_deg >= limits.lost_attitude_deg):
-                worst = max(in_air[first:last + 1], key=lambda p: p.tilt_deg)
-                findings.append(Finding(
-                    "loss_of_control", Severity.WARNING,
-                    f"tilted {worst.tilt_deg:.0f} deg in the air, past the "
-                    f"{limits.lost_attitude_deg:.0f} deg the FC commands at most",
-                    in_air[first].time_s, worst.tilt_deg, "deg",
-                    {"max_tilt_deg": worst.tilt_deg,
-                     "lasted_s": span_s(in_air, first, last), "sample": evidence_of(worst)},
-                    track.source))
+            for first, last in runs(
+                in_air, lambda p: finite(p.tilt_deg) and p.tilt_deg >= limits.lost_attitude_deg
+            ):
+                worst = max(in_air[first : last + 1], key=lambda p: p.tilt_deg)
+                findings.append(
+                    Finding(
+                        "loss_of_control",
+                        Severity.WARNING,
+                        f"tilted {worst.tilt_deg:.0f} deg in the air, past the "
+                        f"{limits.lost_attitude_deg:.0f} deg the FC commands at most",
+                        in_air[first].time_s,
+                        worst.tilt_deg,
+                        "deg",
+                        {
+                            "max_tilt_deg": worst.tilt_deg,
+                            "lasted_s": span_s(in_air, first, last),
+                            "sample": evidence_of(worst),
+                        },
+                        track.source,
+                    )
+                )
     if track.has("gyro_deg_s") and track.has("setpoint_deg_s"):
         rated = [p for p in points if len(p.gyro_deg_s) >= 2 and len(p.setpoint_deg_s) >= 2]
 
         def error(p: TrackPoint) -> float:
-            return 0.5 * (abs(p.gyro_deg_s[0] - p.setpoint_deg_s[0])
-                          + abs(p.gyro_deg_s[1] - p.setpoint_deg_s[1]))
+            return 0.5 * (
+                abs(p.gyro_deg_s[0] - p.setpoint_deg_s[0])
+                + abs(p.gyro_deg_s[1] - p.setpoint_deg_s[1])
+            )
 
         worst_index, worst_mean = -1, 0.0
         for index, mean in window_means(rated, error, limits.rate_error_window_s):
@@ -63,12 +87,23 @@ def loss_of_control(track: Track, limits: Limits) -> Finding | None:
                 worst_index, worst_mean = index, mean
         if worst_mean >= limits.rate_error_deg_s:
             point = rated[worst_index]
-            findings.append(Finding(
-                "loss_of_control", Severity.FAILURE,
-                f"the gyro {worst_mean:.0f} deg/s off the setpoint (roll and pitch, mean over "
-                f"{limits.rate_error_window_s:g} s)", point.time_s, worst_mean, "deg/s",
-                {"gyro_deg_s": list(point.gyro_deg_s), "setpoint_deg_s":
-                 list(point.setpoint_deg_s), "sample": evidence_of(point)}, track.source))
+            findings.append(
+                Finding(
+                    "loss_of_control",
+                    Severity.FAILURE,
+                    f"the gyro {worst_mean:.0f} deg/s off the setpoint (roll and pitch, mean over "
+                    f"{limits.rate_error_window_s:g} s)",
+                    point.time_s,
+                    worst_mean,
+                    "deg/s",
+                    {
+                        "gyro_deg_s": list(point.gyro_deg_s),
+                        "setpoint_deg_s": list(point.setpoint_deg_s),
+                        "sample": evidence_of(point),
+                    },
+                    track.source,
+                )
+            )
     if not track.has("tilt_deg") and not track.has("gyro_deg_s"):
         raise TrackDataMissingError(f"the {track.source} track has no attitude and no gyro")
     return max(findings, key=lambda f: (f.severity, f.value), default=None)
@@ -77,6 +112,7 @@ def loss_of_control(track: Track, limits: Limits) -> Finding | None:
 def _rate_error(axis: int) -> Callable[[TrackPoint], float]:
     def error(p: TrackPoint) -> float:
         return p.gyro_deg_s[axis] - p.setpoint_deg_s[axis]
+
     return error
 
 
@@ -90,31 +126,49 @@ def _pitch_split(p: TrackPoint) -> float:
 
 def oscillation(track: Track, limits: Limits) -> Finding | None:
     if track.has("gyro_deg_s") and track.has("setpoint_deg_s"):
-        points = [p for p in track.points if len(p.gyro_deg_s) >= 3
-                  and len(p.setpoint_deg_s) >= 3]
+        points = [p for p in track.points if len(p.gyro_deg_s) >= 3 and len(p.setpoint_deg_s) >= 3]
         axes: list[tuple[str, Callable[[TrackPoint], float]]] = [
-            (name, _rate_error(axis)) for axis, name in enumerate(("roll", "pitch", "yaw"))]
-        swing = sustained_swing(points, axes, 0.5, limits.oscillation_rate_rms_deg_s,
-                                limits.oscillation_min_rate_hz, limits.oscillation_windows)
+            (name, _rate_error(axis)) for axis, name in enumerate(("roll", "pitch", "yaw"))
+        ]
+        swing = sustained_swing(
+            points,
+            axes,
+            0.5,
+            limits.oscillation_rate_rms_deg_s,
+            limits.oscillation_min_rate_hz,
+            limits.oscillation_windows,
+        )
         unit, what = "deg/s", "the gyro's error"
     else:
         # Betaflight's quad X: motor 1 rear right, 2 front right, 3 rear left, 4 front left;
         # the left pair against the right rolls, the rear pair against the front pitches.
         require(track, "motors")
-        points = [p for p in track.points if p.armed and p.airborne is not False
-                  and len(p.motors) == 4]
+        points = [
+            p for p in track.points if p.armed and p.airborne is not False and len(p.motors) == 4
+        ]
         axes = [("roll", _roll_split), ("pitch", _pitch_split)]
-        swing = sustained_swing(points, axes, 1.0, limits.oscillation_motor_rms,
-                                limits.oscillation_min_motor_hz, limits.oscillation_windows)
+        swing = sustained_swing(
+            points,
+            axes,
+            1.0,
+            limits.oscillation_motor_rms,
+            limits.oscillation_min_motor_hz,
+            limits.oscillation_windows,
+        )
         unit, what = "of full", "the motors' split"
     if swing is None:
         return None
     axis, rms, hz, started_s, lasted_s = swing
-    return Finding("oscillation", Severity.WARNING,
-                   f"{axis}: {what} swings {rms:.1f} {unit} RMS at {hz:.1f} Hz for "
-                   f"{lasted_s:.1f} s", started_s, rms, unit,
-                   {"axis": axis, "rms": rms, "frequency_hz": hz, "lasted_s": lasted_s},
-                   track.source)
+    return Finding(
+        "oscillation",
+        Severity.WARNING,
+        f"{axis}: {what} swings {rms:.1f} {unit} RMS at {hz:.1f} Hz for {lasted_s:.1f} s",
+        started_s,
+        rms,
+        unit,
+        {"axis": axis, "rms": rms, "frequency_hz": hz, "lasted_s": lasted_s},
+        track.source,
+    )
 
 
 # -- motors ----------------------------------------------------------------------------------
@@ -125,24 +179,40 @@ def motor_saturation(track: Track, limits: Limits) -> Finding | None:
     def flying(p: TrackPoint) -> bool:
         return p.armed and bool(p.motors) and p.airborne is not False
 
-    stretches = [(first, last, span_s(points, first, last)) for first, last in runs(
-        points, lambda p: flying(p) and max(p.motors) >= limits.saturated_motor)]
+    stretches = [
+        (first, last, span_s(points, first, last))
+        for first, last in runs(
+            points, lambda p: flying(p) and max(p.motors) >= limits.saturated_motor
+        )
+    ]
     long_ones = [s for s in stretches if s[2] >= limits.saturation_min_s]
     if not long_ones:
         return None
     first, last, lasted = max(long_ones, key=lambda s: s[2])
-    stretch = points[first:last + 1]
-    motors = sorted({i + 1 for p in stretch for i, m in enumerate(p.motors)
-                     if m >= limits.saturated_motor})
+    stretch = points[first : last + 1]
+    motors = sorted(
+        {i + 1 for p in stretch for i, m in enumerate(p.motors) if m >= limits.saturated_motor}
+    )
     total = sum(s[2] for s in stretches)
     armed_s = sum(span_s(points, a, b) for a, b in runs(points, flying)) or 1.0
-    return Finding("motor_saturation", Severity.WARNING,
-                   f"motor {', '.join(map(str, motors))} at full for {lasted:.2f} s "
-                   f"({100 * total / armed_s:.0f} % of the time in the air)",
-                   stretch[0].time_s, lasted, "s",
-                   {"motors": motors, "longest_s": lasted, "total_s": total,
-                    "share_of_flight": total / armed_s, "stretches": len(long_ones),
-                    "sample": evidence_of(stretch[0])}, track.source)
+    return Finding(
+        "motor_saturation",
+        Severity.WARNING,
+        f"motor {', '.join(map(str, motors))} at full for {lasted:.2f} s "
+        f"({100 * total / armed_s:.0f} % of the time in the air)",
+        stretch[0].time_s,
+        lasted,
+        "s",
+        {
+            "motors": motors,
+            "longest_s": lasted,
+            "total_s": total,
+            "share_of_flight": total / armed_s,
+            "stretches": len(long_ones),
+            "sample": evidence_of(stretch[0]),
+        },
+        track.source,
+    )
 
 
 # -- failsafe --------------------------------------------------------------------------------
@@ -171,8 +241,9 @@ def failsafe(track: Track, limits: Limits) -> Finding | None:
             changes.append((track.points[-1].time_s, "disarmed by the failsafe"))
         entered = [(t, name) for t, name in changes if name != "IDLE"]
     elif track.has("modes"):
-        entered = [(point.time_s, "FAILSAFE mode") for point in track.points
-                   if "FAILSAFE" in point.modes][:1]
+        entered = [
+            (point.time_s, "FAILSAFE mode") for point in track.points if "FAILSAFE" in point.modes
+        ][:1]
         changes = entered
     else:
         raise TrackDataMissingError(f"the {track.source} track has no failsafe phase and no modes")
@@ -180,14 +251,24 @@ def failsafe(track: Track, limits: Limits) -> Finding | None:
         return None
     first_s = entered[0][0]
     sequence = " -> ".join(f"{name} at {t:.2f} s" for t, name in changes if t >= first_s)
-    evidence: dict[str, object] = {"phases": [[name, t] for t, name in changes],
-                                   "entered_s": first_s}
+    evidence: dict[str, object] = {
+        "phases": [[name, t] for t, name in changes],
+        "entered_s": first_s,
+    }
     for t, name in entered:
         evidence.setdefault(f"to_{name.lower().replace(' ', '_')}_s", round(t - first_s, 4))
     if track.disarm_reason:
         evidence["disarm_reason"] = track.disarm_reason
-    return Finding("failsafe", Severity.INFO, f"failsafe: {sequence}", first_s,
-                   float(len(entered)), "phases", evidence, track.source)
+    return Finding(
+        "failsafe",
+        Severity.INFO,
+        f"failsafe: {sequence}",
+        first_s,
+        float(len(entered)),
+        "phases",
+        evidence,
+        track.source,
+    )
 
 
 # -- the GPS and the estimate ------------------------------------------------------------------
@@ -201,20 +282,32 @@ def gps_glitch(track: Track, limits: Limits) -> Finding | None:
     episodes = []
     for first, last in runs(known, lambda p: off(p) >= limits.gps_glitch_m):
         onset = known[first]
-        moved = max(math.hypot(p.north_m - onset.north_m, p.east_m - onset.east_m)
-                    for p in known[first:last + 1])
+        moved = max(
+            math.hypot(p.north_m - onset.north_m, p.east_m - onset.east_m)
+            for p in known[first : last + 1]
+        )
         episodes.append((moved, first, last))
     if not episodes:
         return None
     moved, first, last = max(episodes)
     onset = known[first]
-    error = max(off(p) for p in known[first:last + 1])
+    error = max(off(p) for p in known[first : last + 1])
     followed = moved >= limits.gps_followed_m
-    return Finding("gps_glitch", Severity.WARNING if followed else Severity.INFO,
-                   f"the FC's GPS {error:.0f} m off the truth for "
-                   f"{span_s(known, first, last):.1f} s; the vehicle "
-                   + (f"followed it {moved:.1f} m" if followed else
-                      f"held within {moved:.1f} m"), onset.time_s, moved, "m",
-                   {"gps_error_m": error, "moved_m": moved,
-                    "lasted_s": span_s(known, first, last), "glitches": len(episodes),
-                    "sample": evidence_of(onset)}, track.source)
+    return Finding(
+        "gps_glitch",
+        Severity.WARNING if followed else Severity.INFO,
+        f"the FC's GPS {error:.0f} m off the truth for "
+        f"{span_s(known, first, last):.1f} s; the vehicle "
+        + (f"followed it {moved:.1f} m" if followed else f"held within {moved:.1f} m"),
+        onset.time_s,
+        moved,
+        "m",
+        {
+            "gps_error_m": error,
+            "moved_m": moved,
+            "lasted_s": span_s(known, first, last),
+            "glitches": len(episodes),
+            "sample": evidence_of(onset),
+        },
+        track.source,
+    )

@@ -20,12 +20,13 @@ def held_points(track: Track, settle_s: float) -> list[TrackPoint]:
     held: list[TrackPoint] = []
     for first, last in runs(track.points, lambda p: p.phase == HOLD_PHASE):
         start = track.points[first].time_s + settle_s
-        held.extend(p for p in track.points[first:last + 1] if p.time_s >= start)
+        held.extend(p for p in track.points[first : last + 1] if p.time_s >= start)
     return held
 
 
-def runs(points: Sequence[TrackPoint], test: Callable[[TrackPoint], bool]
-         ) -> Iterator[tuple[int, int]]:
+def runs(
+    points: Sequence[TrackPoint], test: Callable[[TrackPoint], bool]
+) -> Iterator[tuple[int, int]]:
     """(first, last) index of each stretch of consecutive points that pass ``test``."""
     start: int | None = None
     for index, point in enumerate(points):
@@ -59,8 +60,16 @@ def finite(value: float) -> bool:
 def evidence_of(point: TrackPoint) -> dict[str, float | str | bool]:
     """The point as evidence: its time and the values that are known."""
     keep: dict[str, float | str | bool] = {"time_s": point.time_s, "armed": point.armed}
-    for name in ("alt_m", "climb_m_s", "north_m", "east_m", "tilt_deg", "roll_deg",
-                 "pitch_deg", "accel_g"):
+    for name in (
+        "alt_m",
+        "climb_m_s",
+        "north_m",
+        "east_m",
+        "tilt_deg",
+        "roll_deg",
+        "pitch_deg",
+        "accel_g",
+    ):
         value = getattr(point, name)
         if finite(value):
             keep[name] = round(value, 3)
@@ -74,8 +83,11 @@ def evidence_of(point: TrackPoint) -> dict[str, float | str | bool]:
 def descent_before(track: Track, time_s: float) -> float:
     """The downward speed in the half second before ``time_s`` (a line fitted to the
     heights); NaN without heights."""
-    window = [(p.time_s, p.alt_m) for p in track.points
-              if time_s - 0.5 <= p.time_s < time_s and finite(p.alt_m)]
+    window = [
+        (p.time_s, p.alt_m)
+        for p in track.points
+        if time_s - 0.5 <= p.time_s < time_s and finite(p.alt_m)
+    ]
     if len(window) < 3:
         return math.nan
     mean_t = sum(t for t, _ in window) / len(window)
@@ -86,8 +98,9 @@ def descent_before(track: Track, time_s: float) -> float:
     return -sum((t - mean_t) * (a - mean_a) for t, a in window) / spread
 
 
-def window_means(points: Sequence[TrackPoint], value: Callable[[TrackPoint], float],
-                 window_s: float) -> Iterator[tuple[int, float]]:
+def window_means(
+    points: Sequence[TrackPoint], value: Callable[[TrackPoint], float], window_s: float
+) -> Iterator[tuple[int, float]]:
     """(index, mean of ``value`` over the ``window_s`` ending at that point)."""
     total, start = 0.0, 0
     values = [value(p) for p in points]
@@ -118,9 +131,14 @@ def swing(values: Sequence[float], times: Sequence[float]) -> tuple[float, float
     return rms, (crossings / (2.0 * duration) if duration > 0 else 0.0)
 
 
-def sustained_swing(points: Sequence[TrackPoint], axes: Sequence[tuple[str, Callable[
-        [TrackPoint], float]]], window_s: float, min_rms: float, min_hz: float,
-        windows: int) -> tuple[str, float, float, float, float] | None:
+def sustained_swing(
+    points: Sequence[TrackPoint],
+    axes: Sequence[tuple[str, Callable[[TrackPoint], float]]],
+    window_s: float,
+    min_rms: float,
+    min_hz: float,
+    windows: int,
+) -> tuple[str, float, float, float, float] | None:
     """The worst (axis, rms, hz, start time, lasted) of swings sustained over ``windows``
     consecutive windows; None when none is."""
     best: tuple[str, float, float, float, float] | None = None

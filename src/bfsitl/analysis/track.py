@@ -38,8 +38,8 @@ class TrackPoint:
     airborne: bool | None = None
     #: Height above the take-off point: the truth for a flight, the barometer for a log.
     alt_m: float = _NAN
-    climb_m_s: float = _NAN           # vertical speed, up positive (truth)
-    north_m: float = _NAN             # position from the take-off point (truth)
+    climb_m_s: float = _NAN  # vertical speed, up positive (truth)
+    north_m: float = _NAN  # position from the take-off point (truth)
     east_m: float = _NAN
     #: Attitude: the truth for a flight, the FC's estimate for a log (Betaflight's signs).
     tilt_deg: float = _NAN
@@ -103,9 +103,13 @@ class Track:
         return False
 
 
-def point_from_row(row: FlightRow, sample: FlightSample | None = None, *,
-                   time_s: float | None = None, failsafe_phase: int | None = None
-                   ) -> TrackPoint:
+def point_from_row(
+    row: FlightRow,
+    sample: FlightSample | None = None,
+    *,
+    time_s: float | None = None,
+    failsafe_phase: int | None = None,
+) -> TrackPoint:
     """A point of bfsitl's record of a flight; ``time_s`` replaces the row's clock (a
     scenario counts from arming)."""
     if sample is not None:
@@ -117,14 +121,28 @@ def point_from_row(row: FlightRow, sample: FlightSample | None = None, *,
         modes = ()
         accel = _NAN
     return TrackPoint(
-        time_s=row.time_s if time_s is None else time_s, armed=row.armed, airborne=airborne,
-        alt_m=row.sim_alt_m, climb_m_s=row.sim_climb_m_s, north_m=row.sim_north_m,
-        east_m=row.sim_east_m, tilt_deg=row.sim_tilt_deg, roll_deg=row.sim_roll_deg,
-        pitch_deg=row.sim_pitch_deg, phase=row.phase, target_alt_m=row.target_alt_m,
-        target_north_m=row.target_north_m, target_east_m=row.target_east_m,
-        motors=(row.motor1, row.motor2, row.motor3, row.motor4), accel_g=accel,
-        failsafe_phase=failsafe_phase, modes=modes, fc_alt_m=row.fc_alt_m,
-        fc_north_m=row.fc_north_m, fc_east_m=row.fc_east_m)
+        time_s=row.time_s if time_s is None else time_s,
+        armed=row.armed,
+        airborne=airborne,
+        alt_m=row.sim_alt_m,
+        climb_m_s=row.sim_climb_m_s,
+        north_m=row.sim_north_m,
+        east_m=row.sim_east_m,
+        tilt_deg=row.sim_tilt_deg,
+        roll_deg=row.sim_roll_deg,
+        pitch_deg=row.sim_pitch_deg,
+        phase=row.phase,
+        target_alt_m=row.target_alt_m,
+        target_north_m=row.target_north_m,
+        target_east_m=row.target_east_m,
+        motors=(row.motor1, row.motor2, row.motor3, row.motor4),
+        accel_g=accel,
+        failsafe_phase=failsafe_phase,
+        modes=modes,
+        fc_alt_m=row.fc_alt_m,
+        fc_north_m=row.fc_north_m,
+        fc_east_m=row.fc_east_m,
+    )
 
 
 def track_from_rows(rows: list[FlightRow], *, label: str = "") -> Track:
@@ -169,17 +187,28 @@ def track_from_blackbox(log: BlackboxLog) -> Track:
     points = []
     for frame in log.frames:
         tilt, roll, pitch = _tilt_roll_pitch(frame.quaternion_xyz)
-        accel = math.sqrt(sum(a * a for a in frame.acc)) / one_g if len(frame.acc) == 3 \
-            else _NAN
-        points.append(TrackPoint(
-            time_s=round(frame.time_s - start, 6), armed=True,
-            alt_m=frame.baro_alt_cm / 100.0 if frame.baro_alt_cm is not None else _NAN,
-            tilt_deg=tilt, roll_deg=roll, pitch_deg=pitch,
-            motors=tuple(min(1.0, max(0.0, (m - low) / (high - low))) for m in frame.motors),
-            gyro_deg_s=tuple(g / scale for g in frame.gyro_adc),
-            setpoint_deg_s=tuple(s / scale for s in frame.setpoint[:3]),
-            accel_g=accel, failsafe_phase=frame.failsafe_phase,
-            rx_ok=None if frame.rx_signal_received is None
-            else bool(frame.rx_signal_received and frame.rx_flight_channels_valid)))
-    return Track("blackbox", points, disarm_reason=log.disarm_reason_name,
-                 label=f"{log.path.name} log {log.index}")
+        accel = math.sqrt(sum(a * a for a in frame.acc)) / one_g if len(frame.acc) == 3 else _NAN
+        points.append(
+            TrackPoint(
+                time_s=round(frame.time_s - start, 6),
+                armed=True,
+                alt_m=frame.baro_alt_cm / 100.0 if frame.baro_alt_cm is not None else _NAN,
+                tilt_deg=tilt,
+                roll_deg=roll,
+                pitch_deg=pitch,
+                motors=tuple(min(1.0, max(0.0, (m - low) / (high - low))) for m in frame.motors),
+                gyro_deg_s=tuple(g / scale for g in frame.gyro_adc),
+                setpoint_deg_s=tuple(s / scale for s in frame.setpoint[:3]),
+                accel_g=accel,
+                failsafe_phase=frame.failsafe_phase,
+                rx_ok=None
+                if frame.rx_signal_received is None
+                else bool(frame.rx_signal_received and frame.rx_flight_channels_valid),
+            )
+        )
+    return Track(
+        "blackbox",
+        points,
+        disarm_reason=log.disarm_reason_name,
+        label=f"{log.path.name} log {log.index}",
+    )

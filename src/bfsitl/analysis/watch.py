@@ -27,10 +27,17 @@ class FlightWatch:
         self.track = Track("flight", label=label)
         self.limits = limits or Limits()
 
-    def add(self, row: FlightRow, sample: FlightSample | None = None, *,
-            time_s: float | None = None, failsafe_phase: int | None = None) -> None:
-        self.track.points.append(point_from_row(row, sample, time_s=time_s,
-                                                failsafe_phase=failsafe_phase))
+    def add(
+        self,
+        row: FlightRow,
+        sample: FlightSample | None = None,
+        *,
+        time_s: float | None = None,
+        failsafe_phase: int | None = None,
+    ) -> None:
+        self.track.points.append(
+            point_from_row(row, sample, time_s=time_s, failsafe_phase=failsafe_phase)
+        )
 
     def analysis(self) -> Analysis:
         return analyse(self.track, self.limits)
@@ -60,7 +67,10 @@ def combine(*analyses: Analysis) -> Analysis:
     if crash is not None:
         # One impact seen twice: the crash, and the log's accelerometer peak of it (the
         # sources' clocks differ by the log's start, a few tenths of a second).
-        merged.findings = [f for f in merged.findings if not (
-            f.analyser == "hard_landing" and abs(f.time_s - crash.time_s) <= SAME_IMPACT_S)]
+        merged.findings = [
+            f
+            for f in merged.findings
+            if not (f.analyser == "hard_landing" and abs(f.time_s - crash.time_s) <= SAME_IMPACT_S)
+        ]
     merged.findings.sort(key=lambda f: (-f.severity, f.time_s))
     return merged

@@ -20,6 +20,15 @@ from bfsitl.backend.disturbances import Disturbances
 from bfsitl.backend.factory import make_backend
 
 __all__ = [
-    "BOARD_IMU", "SITL_IMU", "Backend", "Disturbances", "ImuScale", "RcSender", "SessionClock",
-    "SitlBackend", "Truth", "WallClock", "make_backend",
+    "BOARD_IMU",
+    "SITL_IMU",
+    "Backend",
+    "Disturbances",
+    "ImuScale",
+    "RcSender",
+    "SessionClock",
+    "SitlBackend",
+    "Truth",
+    "WallClock",
+    "make_backend",
 ]

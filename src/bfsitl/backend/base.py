@@ -39,6 +39,7 @@ if TYPE_CHECKING:
     from bfsitl.sim.lockstep import LockstepBridge
     from bfsitl.sitl.process import SitlProcess
 
+
 @dataclass(frozen=True, slots=True)
 class ImuScale:
     """How MSP_RAW_IMU's accelerometer integers become physical units on this FC."""

@@ -39,7 +39,8 @@ def imu_scale_at_rest(readings: Sequence[tuple[int, int, int]]) -> ImuScale:
             f"the FC's accelerometer reads {magnitude:.0f} LSB at rest, far from every scale "
             f"Betaflight uses ({', '.join(map(str, KNOWN_ACC_1G_LSB))} per g): keep the "
             f"board still and calibrate its accelerometer (the Configurator's Setup tab), "
-            f"then connect again")
+            f"then connect again"
+        )
     if nearest == SITL_IMU.acc_1g_lsb:
         return SITL_IMU
     return ImuScale(float(nearest))
@@ -49,13 +50,13 @@ class BoardBackend(Backend):
     """What is under a real FC, as far as bfsitl knows: its clock is the wall's, its state
     is unknown, and the one thing measured is its accelerometer's scale."""
 
-
     def __init__(self, imu: ImuScale) -> None:
         super().__init__()
         self.imu = imu
 
     @classmethod
-    def measured(cls, read_acc_raw: Callable[[], tuple[int, int, int]],
-                 samples: int = 5) -> BoardBackend:
+    def measured(
+        cls, read_acc_raw: Callable[[], tuple[int, int, int]], samples: int = 5
+    ) -> BoardBackend:
         """A board backend whose IMU scale is measured from ``samples`` readings at rest."""
         return cls(imu_scale_at_rest([read_acc_raw() for _ in range(samples)]))

@@ -36,9 +36,14 @@ if TYPE_CHECKING:
 class Disturbances:
     """Typed handles on the RC link, the GPS, the motors, the sensors and the wind."""
 
-    def __init__(self, backend: str, *, rc: Callable[[], RcSender | None] | None = None,
-                 simulator: Simulator | None = None,
-                 gps_lost: Callable[[bool], None] | None = None) -> None:
+    def __init__(
+        self,
+        backend: str,
+        *,
+        rc: Callable[[], RcSender | None] | None = None,
+        simulator: Simulator | None = None,
+        gps_lost: Callable[[bool], None] | None = None,
+    ) -> None:
         self._backend = backend
         self._rc = rc
         self._simulator = simulator
@@ -56,21 +61,24 @@ class Disturbances:
         return self._simulator is not None
 
     def _unavailable(self, what: str, why: str) -> DisturbanceUnavailableError:
-        return DisturbanceUnavailableError(f"{what} cannot be disturbed with {self._backend}: "
-                                           f"{why}")
+        return DisturbanceUnavailableError(
+            f"{what} cannot be disturbed with {self._backend}: {why}"
+        )
 
     def _sim(self, what: str) -> Simulator:
         if self._simulator is None:
-            raise self._unavailable(what, "it acts in bfsitl's embedded physics "
-                                          "(physics = embedded)")
+            raise self._unavailable(
+                what, "it acts in bfsitl's embedded physics (physics = embedded)"
+            )
         return self._simulator
 
     # -- RC ------------------------------------------------------------------------------------
     def _sender(self) -> RcSender:
         sender = self._rc() if self._rc is not None else None
         if sender is None:
-            raise self._unavailable("the RC link", "an RC fault needs bfsitl's RC link "
-                                                   "(the session has none)")
+            raise self._unavailable(
+                "the RC link", "an RC fault needs bfsitl's RC link (the session has none)"
+            )
         return sender
 
     @property
@@ -89,8 +97,9 @@ class Disturbances:
     def set_gps_lost(self, lost: bool) -> None:
         """The virtual GPS stops (the firmware's loss sentinel) or comes back."""
         if self._set_gps_lost is None:
-            raise self._unavailable("the GPS", "it acts in bfsitl's embedded physics "
-                                               "(physics = embedded)")
+            raise self._unavailable(
+                "the GPS", "it acts in bfsitl's embedded physics (physics = embedded)"
+            )
         self._set_gps_lost(lost)
         self._gps_lost = lost
 
@@ -127,17 +136,21 @@ class Disturbances:
         self._sim("the wind").set_wind(wind)
 
     # -- a hand on the vehicle -------------------------------------------------------------------
-    def place(self, position_ned_m: tuple[float, float, float], *, yaw_deg: float = 0.0,
-              motor_speeds_rad_s: tuple[float, float, float, float] = (0.0, 0.0, 0.0, 0.0)
-              ) -> None:
+    def place(
+        self,
+        position_ned_m: tuple[float, float, float],
+        *,
+        yaw_deg: float = 0.0,
+        motor_speeds_rad_s: tuple[float, float, float, float] = (0.0, 0.0, 0.0, 0.0),
+    ) -> None:
         """Put the vehicle at ``position_ned_m`` (world NED), level, heading ``yaw_deg``, at
         rest, its rotors at ``motor_speeds_rad_s``: a hand that picks it up and sets it there.
         The firmware sees a jump in its sensors, as it would."""
-        self._sim("the vehicle's pose").reset(position_ned_m, yaw_deg=yaw_deg,
-                                              motor_speeds_rad_s=motor_speeds_rad_s)
+        self._sim("the vehicle's pose").reset(
+            position_ned_m, yaw_deg=yaw_deg, motor_speeds_rad_s=motor_speeds_rad_s
+        )
 
     def hold_still(self, held: bool) -> None:
         """Hold the vehicle where it is (a test stand: it reads level and at rest while the
         motors spin), or let it go."""
         self._sim("the vehicle's pose").hold(held)
-

@@ -44,6 +44,7 @@ if TYPE_CHECKING:
     from bfsitl.fc.msp_client import MspClient
     from bfsitl.sitl.process import SitlProcess
 
+
 class _EmbeddedPhysics(SitlBackend):
     """What both embedded backends share: the simulator, its truth, every disturbance."""
 
@@ -51,8 +52,9 @@ class _EmbeddedPhysics(SitlBackend):
         super().__init__()
         self._simulator = simulator
         self.progress = progress
-        self.disturbances = Disturbances(self.name, rc=lambda: self.rc, simulator=simulator,
-                                         gps_lost=self._set_gps_lost)
+        self.disturbances = Disturbances(
+            self.name, rc=lambda: self.rc, simulator=simulator, gps_lost=self._set_gps_lost
+        )
 
     @property
     def exchange(self) -> str | None:
@@ -80,11 +82,17 @@ class _EmbeddedPhysics(SitlBackend):
             # Body z in world NED has z component 1 - 2(x^2 + y^2): cos(tilt).
             cos_tilt = max(-1.0, min(1.0, 1.0 - 2.0 * (x * x + y * y)))
             north, east, _down = state.position_ned_m
-            return Truth(state.time_s, simulator.altitude_m, -state.velocity_ned_m_s[2],
-                         math.degrees(math.acos(cos_tilt)),
-                         betaflight_attitude_deg(state.quaternion_wxyz), simulator.on_ground,
-                         tuple(bridge.motors),  # type: ignore[arg-type]
-                         north, east)
+            return Truth(
+                state.time_s,
+                simulator.altitude_m,
+                -state.velocity_ned_m_s[2],
+                math.degrees(math.acos(cos_tilt)),
+                betaflight_attitude_deg(state.quaternion_wxyz),
+                simulator.on_ground,
+                tuple(bridge.motors),  # type: ignore[arg-type]
+                north,
+                east,
+            )
 
         # Between two steps (on the bridge thread in real time): one consistent state.
         return bridge.between_steps(read)
@@ -118,8 +126,9 @@ class RealTimeBackend(_EmbeddedPhysics):
 
     name: ClassVar[str] = "real-time physics"
 
-    def __init__(self, simulator: Simulator, *, speed: float,
-                 progress: Callable[[str], None]) -> None:
+    def __init__(
+        self, simulator: Simulator, *, speed: float, progress: Callable[[str], None]
+    ) -> None:
         super().__init__(simulator, progress)
         self.speed = speed
         self.clock = RealTimeClock(simulator, speed)
@@ -151,10 +160,16 @@ class LockstepBackend(_EmbeddedPhysics):
     name: ClassVar[str] = "lockstep physics"
     lockstep: ClassVar[bool] = True
 
-    def __init__(self, simulator: Simulator, *, speed: float | None, spin: bool,
-                 progress: Callable[[str], None],
-                 alive: Callable[[], None] | None = None,
-                 shared_memory: bool = False) -> None:
+    def __init__(
+        self,
+        simulator: Simulator,
+        *,
+        speed: float | None,
+        spin: bool,
+        progress: Callable[[str], None],
+        alive: Callable[[], None] | None = None,
+        shared_memory: bool = False,
+    ) -> None:
         super().__init__(simulator, progress)
         self.speed = speed
         self.spin = spin
@@ -174,8 +189,11 @@ class LockstepBackend(_EmbeddedPhysics):
     @property
     def hooks(self) -> SitlHooks:
         # Bound methods, so the process may be made before the bridge exists.
-        return SitlHooks(on_spawn=lambda: self._bridge.lock(), link_wrapper=self._wrap,
-                         client_clock=lambda: self._bridge.sim_time_s)
+        return SitlHooks(
+            on_spawn=lambda: self._bridge.lock(),
+            link_wrapper=self._wrap,
+            client_clock=lambda: self._bridge.sim_time_s,
+        )
 
     def _wrap(self, link: Link) -> Link:
         return SteppedLink(link, self._bridge)
@@ -194,10 +212,15 @@ class LockstepBackend(_EmbeddedPhysics):
     def start(self, sitl: SitlProcess, stack: ExitStack) -> None:
         if self.shared is not None:
             stack.callback(self.shared.close)
-        bridge = LockstepBridge(self._simulator, sitl.prepare_network(), speed=self.speed,
-                                profile=profile_of_binary(sitl.firmware.path),
-                                spin_s=REPLY_SPIN_S if self.spin else 0.0, alive=self.alive,
-                                exchange=self.shared)
+        bridge = LockstepBridge(
+            self._simulator,
+            sitl.prepare_network(),
+            speed=self.speed,
+            profile=profile_of_binary(sitl.firmware.path),
+            spin_s=REPLY_SPIN_S if self.spin else 0.0,
+            alive=self.alive,
+            exchange=self.shared,
+        )
         self._lockstep = self.bridge = bridge
         bridge.bind()
         stack.callback(bridge.close)
@@ -205,11 +228,11 @@ class LockstepBackend(_EmbeddedPhysics):
         stack.callback(sitl.stop)
         sitl.start()
         bridge.set_profile(sitl.profile)
-        pace = "as fast as it goes" if self.speed is None else \
-            f"paced to {self.speed:g}x real time"
+        pace = "as fast as it goes" if self.speed is None else f"paced to {self.speed:g}x real time"
         through = "shared memory" if self.shared is not None else "UDP"
-        self.progress(f"lockstep: the FC's clock follows the physics, {pace}, "
-                      f"packets through {through}")
+        self.progress(
+            f"lockstep: the FC's clock follows the physics, {pace}, packets through {through}"
+        )
 
     def rc_sender(self, sitl: SitlProcess) -> RcSender:
         # Closes first on the way out: its disarm is stepped in before the rest stops.

@@ -47,7 +47,8 @@ def real_time_speed(speed: float | None) -> float:
         raise BfsitlError(
             f"speed {speed:g} is outside {low:g}..{high:g} for a stock SITL, which runs on the "
             f"wall clock; faster (or --speed max) needs a lockstep build: `bfsitl firmware "
-            f"build --lockstep`, then --firmware with its name")
+            f"build --lockstep`, then --firmware with its name"
+        )
     return speed
 
 
@@ -56,7 +57,8 @@ def wants_lockstep(firmware: FirmwareBinary, asked: bool | None) -> bool:
     if asked and not firmware.lockstep:
         raise BfsitlError(
             f"lockstep asked for, but {firmware.path} is not a lockstep build: build one "
-            f"with `bfsitl firmware build --lockstep` and pass its name")
+            f"with `bfsitl firmware build --lockstep` and pass its name"
+        )
     return firmware.lockstep if asked is None else asked
 
 
@@ -70,11 +72,15 @@ def uses_shm_exchange(firmware: FirmwareBinary, asked: LockstepExchange) -> bool
         return False
     possible = firmware.shm_exchange and shm_exchange_supported()
     if asked == "shm" and not possible:
-        why = ("this machine is not x86-64 Linux" if firmware.shm_exchange else
-               f"{firmware.path} was built without it: rebuild it with this bfsitl "
-               f"(`bfsitl firmware build --lockstep`)")
-        raise BfsitlError(f"the shared-memory lockstep exchange was asked for, but {why}; "
-                          f"or use the UDP exchange")
+        why = (
+            "this machine is not x86-64 Linux"
+            if firmware.shm_exchange
+            else f"{firmware.path} was built without it: rebuild it with this bfsitl "
+            f"(`bfsitl firmware build --lockstep`)"
+        )
+        raise BfsitlError(
+            f"the shared-memory lockstep exchange was asked for, but {why}; or use the UDP exchange"
+        )
     return possible
 
 
@@ -89,9 +95,15 @@ def make_simulator(world: World) -> Simulator:
     return simulator
 
 
-def make_backend(world: World, timing: Timing, firmware: FirmwareBinary, *,
-                 progress: Callable[[str], None], rc_link: bool = True,
-                 alive: Callable[[], None] | None = None) -> SitlBackend:
+def make_backend(
+    world: World,
+    timing: Timing,
+    firmware: FirmwareBinary,
+    *,
+    progress: Callable[[str], None],
+    rc_link: bool = True,
+    alive: Callable[[], None] | None = None,
+) -> SitlBackend:
     """The backend for ``firmware`` in ``world`` on ``timing`` (see the module table).
     ``rc_link`` False (RC from elsewhere) needs a real-time SITL.  ``alive`` is asked during a
     lockstep wait that runs long (it raises if the SITL has ended)."""
@@ -102,29 +114,36 @@ def make_backend(world: World, timing: Timing, firmware: FirmwareBinary, *,
     check_speed(speed)
     if world.physics == "gazebo":
         if speed not in (None, 1.0):
-            raise BfsitlError("--speed applies to the embedded physics only; Gazebo sets "
-                              "its own pace")
+            raise BfsitlError(
+                "--speed applies to the embedded physics only; Gazebo sets its own pace"
+            )
         backend = GazeboBackend(world.gz_plugin_dir, progress=progress)
         if firmware.lockstep:
             raise BfsitlError(
                 f"{firmware.path} is a lockstep build: its clock follows bfsitl's own "
                 f"physics, and Gazebo's plugin reads only stock motor packets. Use a stock "
-                f"build with --physics gazebo")
+                f"build with --physics gazebo"
+            )
         return backend
     if world.physics != "embedded":
-        raise BfsitlError(f"unknown physics {world.physics!r}: "
-                          f"{' or '.join(PHYSICS)}")
+        raise BfsitlError(f"unknown physics {world.physics!r}: {' or '.join(PHYSICS)}")
     if wants_lockstep(firmware, timing.lockstep):
         if not rc_link:
-            raise BfsitlError("rc_link=False (RC from elsewhere, e.g. MSP through the serial "
-                              "bridge) needs a real-time SITL: a lockstep build takes its RC "
-                              "in the fdm packets bfsitl steps it with; use a stock build")
+            raise BfsitlError(
+                "rc_link=False (RC from elsewhere, e.g. MSP through the serial "
+                "bridge) needs a real-time SITL: a lockstep build takes its RC "
+                "in the fdm packets bfsitl steps it with; use a stock build"
+            )
         shared = uses_shm_exchange(firmware, timing.lockstep_exchange)
         simulator = make_simulator(world)
         # Unsaid, a session spins: its run has the cores unless its runner says otherwise.
         spin = True if timing.lockstep_spin is None else timing.lockstep_spin
-        return LockstepBackend(simulator, speed=None if speed is None or math.isinf(speed)
-                               else speed, spin=spin, progress=progress,
-                               alive=alive, shared_memory=shared)
-    return RealTimeBackend(make_simulator(world), speed=real_time_speed(speed),
-                           progress=progress)
+        return LockstepBackend(
+            simulator,
+            speed=None if speed is None or math.isinf(speed) else speed,
+            spin=spin,
+            progress=progress,
+            alive=alive,
+            shared_memory=shared,
+        )
+    return RealTimeBackend(make_simulator(world), speed=real_time_speed(speed), progress=progress)

@@ -27,8 +27,7 @@ class GazeboBackend(SitlBackend):
 
     name: ClassVar[str] = "Gazebo's physics"
 
-    def __init__(self, plugin_dir: str | Path | None, *,
-                 progress: Callable[[str], None]) -> None:
+    def __init__(self, plugin_dir: str | Path | None, *, progress: Callable[[str], None]) -> None:
         from bfsitl.gazebo import check_gazebo
 
         super().__init__()
@@ -53,8 +52,9 @@ class GazeboBackend(SitlBackend):
         network = sitl.prepare_network()
         check_plugin_port_free(network)
         self.progress(f"starting Gazebo: {launch.command_line()}")
-        gazebo = network.spawn(launch.argv, sitl.workdir, sitl.workdir / "gazebo.log",
-                               env=launch.env_dict())
+        gazebo = network.spawn(
+            launch.argv, sitl.workdir, sitl.workdir / "gazebo.log", env=launch.env_dict()
+        )
         stack.callback(stop_gazebo, gazebo)
         wait_for_plugin(network, gazebo)
         sitl.start()

@@ -34,16 +34,22 @@ DEFAULT_BARO_NOISE_PA = 0.5
 DEFAULT_ACCEL_NOISE_M_S2 = 0.05
 
 
-def fly_sensors(*, baro_noise_std_pa: float | None = None,
-                accel_noise_std_m_s2: float | None = None,
-                gps_noise: bool = False) -> SensorConfig:
+def fly_sensors(
+    *,
+    baro_noise_std_pa: float | None = None,
+    accel_noise_std_m_s2: float | None = None,
+    gps_noise: bool = False,
+) -> SensorConfig:
     """The sensor errors bfsitl simulates by default; a value given replaces one, and
     ``gps_noise`` adds a typical receiver's GPS errors."""
     sensors = SensorConfig(
-        baro_noise_std_pa=(DEFAULT_BARO_NOISE_PA if baro_noise_std_pa is None
-                           else baro_noise_std_pa),
-        accel_noise_std_m_s2=(DEFAULT_ACCEL_NOISE_M_S2 if accel_noise_std_m_s2 is None
-                              else accel_noise_std_m_s2))
+        baro_noise_std_pa=(
+            DEFAULT_BARO_NOISE_PA if baro_noise_std_pa is None else baro_noise_std_pa
+        ),
+        accel_noise_std_m_s2=(
+            DEFAULT_ACCEL_NOISE_M_S2 if accel_noise_std_m_s2 is None else accel_noise_std_m_s2
+        ),
+    )
     return sensors.with_typical_gps() if gps_noise else sensors
 
 

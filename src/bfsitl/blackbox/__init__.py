@@ -32,6 +32,12 @@ from bfsitl.blackbox.decode import (
 )
 
 __all__ = [
-    "DISARM_REASONS", "BlackboxEvent", "BlackboxFrame", "BlackboxLog",
-    "collect_blackbox", "decode_blackbox", "find_blackbox_files", "frames_to_rows",
+    "DISARM_REASONS",
+    "BlackboxEvent",
+    "BlackboxFrame",
+    "BlackboxLog",
+    "collect_blackbox",
+    "decode_blackbox",
+    "find_blackbox_files",
+    "frames_to_rows",
 ]

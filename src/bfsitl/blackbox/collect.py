@@ -18,8 +18,7 @@ def find_blackbox_files(directory: str | Path) -> list[Path]:
     return sorted(p for p in directory.iterdir() if p.is_file() and _LOG_NAME.match(p.name))
 
 
-def collect_blackbox(run_dir: str | Path, dest_dir: str | Path, *, prefix: str = ""
-                     ) -> list[Path]:
+def collect_blackbox(run_dir: str | Path, dest_dir: str | Path, *, prefix: str = "") -> list[Path]:
     """Copy the blackbox files of ``run_dir`` into ``dest_dir`` (created); returns the
     copies.  Copies, not moves: the run directory stays as the firmware left it.  A name
     already taken in ``dest_dir`` gets a number, so collecting after every flight of a

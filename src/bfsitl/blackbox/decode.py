@@ -37,8 +37,14 @@ from bfsitl.blackbox.events import DISARM_REASONS, EventKeepingParser, disarm_re
 from bfsitl.errors import BlackboxError
 from bfsitl.protocol.failsafe_phase import FailsafePhase
 
-__all__ = ["DISARM_REASONS", "BlackboxEvent", "BlackboxFrame", "BlackboxLog",
-           "decode_blackbox", "frames_to_rows"]
+__all__ = [
+    "DISARM_REASONS",
+    "BlackboxEvent",
+    "BlackboxFrame",
+    "BlackboxLog",
+    "decode_blackbox",
+    "frames_to_rows",
+]
 
 #: Every log starts with this header line (``[4.6] src/main/blackbox/blackbox.c:131``);
 #: orangebox splits a file into logs where it repeats.
@@ -50,19 +56,19 @@ class BlackboxFrame:
     """One main frame, with the slow frame in force at its time
     (``loadSlowState``, ``[4.6] src/main/blackbox/blackbox.c:1003-1010``)."""
 
-    time_s: float                      # FC time (the log's µs since boot), seconds
-    failsafe_phase: int | None         # None before the first slow frame
+    time_s: float  # FC time (the log's µs since boot), seconds
+    failsafe_phase: int | None  # None before the first slow frame
     rx_signal_received: bool | None
     rx_flight_channels_valid: bool | None
     #: ``flightModeFlags``: rcModeActivationMask, the mode *switches* on by internal box id
     #: (``boxId_e``), not the active flight modes; 0 before the first slow frame.
     mode_switch_mask: int
-    state_flags: int                   # bit 0 GPS_FIX_HOME, bit 1 GPS_FIX
-    motors: tuple[int, ...]            # motor[0..], as logged
-    rc_command: tuple[int, ...]        # rcCommand[0..3]
-    setpoint: tuple[int, ...]          # setpoint[0..3] (deg/s, throttle)
-    gyro_adc: tuple[int, ...]          # gyroADC[0..2], as logged
-    debug: tuple[int, ...]             # debug[0..7] (what debug_mode puts there)
+    state_flags: int  # bit 0 GPS_FIX_HOME, bit 1 GPS_FIX
+    motors: tuple[int, ...]  # motor[0..], as logged
+    rc_command: tuple[int, ...]  # rcCommand[0..3]
+    setpoint: tuple[int, ...]  # setpoint[0..3] (deg/s, throttle)
+    gyro_adc: tuple[int, ...]  # gyroADC[0..2], as logged
+    debug: tuple[int, ...]  # debug[0..7] (what debug_mode puts there)
     #: accSmooth[0..2] (the accelerometer, ``acc_1G`` per g; empty when not logged).
     acc: tuple[int, ...] = ()
     #: imuQuaternion[0..2]: the attitude's x, y, z scaled by 0x7FFF, w >= 0 implied
@@ -89,14 +95,14 @@ class BlackboxLog:
     """One log of a file (the FC starts one each time it arms)."""
 
     path: Path
-    index: int                         # 1-based, as the file holds them
+    index: int  # 1-based, as the file holds them
     firmware_revision: str
     #: The ``H name:value`` lines as written (field definitions included).
     headers: dict[str, str] = field(repr=False)
     frames: tuple[BlackboxFrame, ...] = field(repr=False)
     events: tuple[BlackboxEvent, ...] = field(repr=False)
-    disarm_reason: int | None          # the DISARM event's; None without one
-    disarm_reason_name: str | None     # FAILSAFE, SWITCH, ... (``DISARM_REASONS``)
+    disarm_reason: int | None  # the DISARM event's; None without one
+    disarm_reason_name: str | None  # FAILSAFE, SWITCH, ... (``DISARM_REASONS``)
     #: The log ends without LOG_END: the SITL stopped while logging, or the file was cut.
     truncated: bool
 
@@ -137,20 +143,23 @@ def decode_blackbox(path: str | Path) -> list[BlackboxLog]:
     try:
         data = path.read_bytes()
     except OSError as exc:
-        raise BlackboxError(f"cannot read the blackbox file {path}: {exc.strerror or exc}"
-                            ) from exc
+        raise BlackboxError(f"cannot read the blackbox file {path}: {exc.strerror or exc}") from exc
     if not data.startswith(_FIRST_HEADER):
         what = "is empty" if not data else "does not start with an 'H Product:' header"
-        raise BlackboxError(f"{path} is not a blackbox log (it {what}); pass a LOG*.BFL or "
-                            f"LOG*.BF file the FC wrote (blackbox_device = VIRTUAL)")
+        raise BlackboxError(
+            f"{path} is not a blackbox log (it {what}); pass a LOG*.BFL or "
+            f"LOG*.BF file the FC wrote (blackbox_device = VIRTUAL)"
+        )
     with _orangebox_quiet():
         try:
             starts = Reader(str(path)).log_pointers
         except (OSError, ValueError, RuntimeError, InvalidHeaderException) as exc:
             raise BlackboxError(f"{path}: orangebox cannot read the file: {exc}") from exc
         ends = [*starts[1:], len(data)]
-        return [_decode_one(path, index, data[start:end])
-                for index, (start, end) in enumerate(zip(starts, ends, strict=True), 1)]
+        return [
+            _decode_one(path, index, data[start:end])
+            for index, (start, end) in enumerate(zip(starts, ends, strict=True), 1)
+        ]
 
 
 @contextmanager
@@ -176,21 +185,36 @@ def _decode_one(path: Path, index: int, segment: bytes) -> BlackboxLog:
         names = parser.field_names
         for frame in parser.frames():
             frames.append(_frame(dict(zip(names, frame.data, strict=False))))
-    except (TypeError, IndexError, ValueError, KeyError, RuntimeError, ZeroDivisionError,
-            InvalidHeaderException):
+    except (
+        TypeError,
+        IndexError,
+        ValueError,
+        KeyError,
+        RuntimeError,
+        ZeroDivisionError,
+        InvalidHeaderException,
+    ):
         # 0.4.0 reads past the end of a cut log as None (TypeError) or peeks past it
         # (IndexError); a header cut short fails while building its field definitions.
         # Whatever came before the damage is kept.
         cut = True
     kept = parser.kept if parser is not None else []
-    events = tuple(BlackboxEvent(frames[before - 1].time_s if before else None, kind, data)
-                   for before, kind, data in kept)
+    events = tuple(
+        BlackboxEvent(frames[before - 1].time_s if before else None, kind, data)
+        for before, kind, data in kept
+    )
     reason = next((e.data["reason"] for e in reversed(events) if e.kind == "DISARM"), None)
     return BlackboxLog(
-        path=path, index=index, firmware_revision=headers.get("Firmware revision", ""),
-        headers=headers, frames=tuple(frames), events=events, disarm_reason=reason,
+        path=path,
+        index=index,
+        firmware_revision=headers.get("Firmware revision", ""),
+        headers=headers,
+        frames=tuple(frames),
+        events=events,
+        disarm_reason=reason,
         disarm_reason_name=None if reason is None else disarm_reason_name(reason),
-        truncated=cut or parser is None or not parser.saw_log_end)
+        truncated=cut or parser is None or not parser.saw_log_end,
+    )
 
 
 def _raw_headers(segment: bytes) -> dict[str, str]:
@@ -239,10 +263,15 @@ def _frame(row: dict[str, object]) -> BlackboxFrame:
         rx_flight_channels_valid=_flag(row, "rxFlightChannelsValid"),
         mode_switch_mask=_int(row.get("flightModeFlags")) or 0,
         state_flags=_int(row.get("stateFlags")) or 0,
-        motors=_group(row, "motor", 8), rc_command=_group(row, "rcCommand", 4),
-        setpoint=_group(row, "setpoint", 4), gyro_adc=_group(row, "gyroADC", 3),
-        debug=_group(row, "debug", 8), acc=_group(row, "accSmooth", 3),
-        quaternion_xyz=_group(row, "imuQuaternion", 3), baro_alt_cm=_int(row.get("baroAlt")))
+        motors=_group(row, "motor", 8),
+        rc_command=_group(row, "rcCommand", 4),
+        setpoint=_group(row, "setpoint", 4),
+        gyro_adc=_group(row, "gyroADC", 3),
+        debug=_group(row, "debug", 8),
+        acc=_group(row, "accSmooth", 3),
+        quaternion_xyz=_group(row, "imuQuaternion", 3),
+        baro_alt_cm=_int(row.get("baroAlt")),
+    )
 
 
 def frames_to_rows(log: BlackboxLog) -> list[dict[str, float | int | bool | None]]:
@@ -252,11 +281,14 @@ def frames_to_rows(log: BlackboxLog) -> list[dict[str, float | int | bool | None
     rows: list[dict[str, float | int | bool | None]] = []
     for frame in log.frames:
         row: dict[str, float | int | bool | None] = {
-            "time_s": frame.time_s, "time_from_start_s": round(frame.time_s - start, 6),
+            "time_s": frame.time_s,
+            "time_from_start_s": round(frame.time_s - start, 6),
             "failsafe_phase": frame.failsafe_phase,
             "rx_signal_received": frame.rx_signal_received,
             "rx_flight_channels_valid": frame.rx_flight_channels_valid,
-            "mode_switch_mask": frame.mode_switch_mask, "state_flags": frame.state_flags}
+            "mode_switch_mask": frame.mode_switch_mask,
+            "state_flags": frame.state_flags,
+        }
         for name in ("motors", "rc_command", "setpoint", "gyro_adc", "debug"):
             prefix = "motor" if name == "motors" else name
             for index, value in enumerate(getattr(frame, name)):

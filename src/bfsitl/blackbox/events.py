@@ -40,14 +40,30 @@ from bfsitl.errors import BlackboxError
 
 #: ``flightLogDisarmReason_e``: ``[4.6] src/main/fc/core.h:49-58``; master adds CRASHFLIP
 #: (``[M] src/main/fc/core.h:49-59``).  255 (SYSTEM) exists only in the firmware's unit tests.
-DISARM_REASONS = {0: "ARMING_DISABLED", 1: "FAILSAFE", 2: "THROTTLE_TIMEOUT", 3: "STICKS",
-                  4: "SWITCH", 5: "CRASH_PROTECTION", 6: "RUNAWAY_TAKEOFF", 7: "GPS_RESCUE",
-                  8: "SERIAL_COMMAND", 9: "LANDING", 10: "CRASHFLIP"}
+DISARM_REASONS = {
+    0: "ARMING_DISABLED",
+    1: "FAILSAFE",
+    2: "THROTTLE_TIMEOUT",
+    3: "STICKS",
+    4: "SWITCH",
+    5: "CRASH_PROTECTION",
+    6: "RUNAWAY_TAKEOFF",
+    7: "GPS_RESCUE",
+    8: "SERIAL_COMMAND",
+    9: "LANDING",
+    10: "CRASHFLIP",
+}
 
 #: ``FlightLogEvent`` codes the firmware writes (``[4.6] src/main/blackbox/blackbox.h:50-60``;
 #: 10-12 are declared UNUSED there and never written).
-EVENT_KINDS = {0: "SYNC_BEEP", 13: "INFLIGHT_ADJUSTMENT", 14: "LOGGING_RESUME", 15: "DISARM",
-               30: "FLIGHTMODE", 255: "LOG_END"}
+EVENT_KINDS = {
+    0: "SYNC_BEEP",
+    13: "INFLIGHT_ADJUSTMENT",
+    14: "LOGGING_RESUME",
+    15: "DISARM",
+    30: "FLIGHTMODE",
+    255: "LOG_END",
+}
 
 _LOG_END_TEXT = b"End of log\x00"
 #: ``FLIGHT_LOG_EVENT_INFLIGHT_ADJUSTMENT_FUNCTION_FLOAT_VALUE_FLAG``
@@ -101,8 +117,10 @@ def read_event(code: int, stream: Iterator[int | None]) -> tuple[str, dict[str, 
             reason = _unsigned(stream)
             return kind, {"reason": reason, "reason_name": disarm_reason_name(reason)}
         if kind == "FLIGHTMODE":
-            return kind, {"mode_switch_mask": _unsigned(stream),
-                          "previous_mode_switch_mask": _unsigned(stream)}
+            return kind, {
+                "mode_switch_mask": _unsigned(stream),
+                "previous_mode_switch_mask": _unsigned(stream),
+            }
         # LOG_END: only with its text, else it is an 0xFF after an 'E' in damaged data.
         text = bytes(_byte(stream) for _ in range(len(_LOG_END_TEXT)))
         return (kind, {}) if text == _LOG_END_TEXT else None

@@ -120,10 +120,13 @@ def connect_upstream(upstream: Upstream) -> socket.socket:
 def _connect_once(upstream: Upstream) -> socket.socket:
     try:
         sock = connect_tcp(
-            upstream.host, upstream.port, connect_timeout_s=upstream.connect_timeout_s,
+            upstream.host,
+            upstream.port,
+            connect_timeout_s=upstream.connect_timeout_s,
             socket_factory=upstream.socket_factory,
             hint="Use --start to have the bridge start one, or --uri tcp://HOST:PORT for one "
-                 "that is running.")
+            "that is running.",
+        )
     except LinkError as exc:
         raise UpstreamUnreachableError(str(exc)) from exc
     sock.settimeout(None)
@@ -173,12 +176,16 @@ class SessionStats:
         return end_s - self.started_s
 
     def summary(self) -> str:
-        text = (f"{self.client}: {self.bytes_to_fc} B to the FC, {self.bytes_to_client} B back "
-                f"in {self.duration_s:.1f} s ({self.end_reason or 'still open'})")
+        text = (
+            f"{self.client}: {self.bytes_to_fc} B to the FC, {self.bytes_to_client} B back "
+            f"in {self.duration_s:.1f} s ({self.end_reason or 'still open'})"
+        )
         if self.torn_frame_bytes:
-            text += (f"; it left in the middle of an MSP frame ({self.torn_frame_bytes} B sent): "
-                     f"the FC may take the next client's first request as the rest of it and "
-                     f"drop it (clients retry reads)")
+            text += (
+                f"; it left in the middle of an MSP frame ({self.torn_frame_bytes} B sent): "
+                f"the FC may take the next client's first request as the rest of it and "
+                f"drop it (clients retry reads)"
+            )
         return text
 
 
@@ -234,4 +241,5 @@ def check_listen_port(host: str, port: int, option: str) -> None:
                 raise
             raise ListenAddressInUseError(
                 f"cannot listen on {host}:{port}: {describe_listener(port)}. Stop it, or "
-                f"pick another port with {option}.") from exc
+                f"pick another port with {option}."
+            ) from exc

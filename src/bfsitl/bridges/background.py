@@ -23,13 +23,15 @@ def listen_error(host: str, port: int, option: str, exc: OSError) -> BridgeError
     if exc.errno == errno.EADDRINUSE:
         return ListenAddressInUseError(
             f"cannot listen on {host}:{port}: {describe_listener(port)}. Stop it, or pick "
-            f"another port with {option}.")
+            f"another port with {option}."
+        )
     return BridgeError(f"cannot listen on {host}:{port}: {exc}")
 
 
 @contextlib.contextmanager
-def serving_in_thread(serve: Serve, stop: Callable[[], None], *, name: str,
-                      start_timeout_s: float = 10.0) -> Iterator[str]:
+def serving_in_thread(
+    serve: Serve, stop: Callable[[], None], *, name: str, start_timeout_s: float = 10.0
+) -> Iterator[str]:
     """Run ``serve`` on its own event loop in a daemon thread while the block runs; yields
     the URL it listens on.  A failure to start (a taken port) is raised here, in the caller's
     thread; on the way out ``stop()`` is called and the thread joined."""
@@ -91,8 +93,9 @@ class StoppableServer:
     async def serve(self, started: Callable[[str], None] | None = None) -> None:
         raise NotImplementedError
 
-    async def _serve_until_stopped(self, open_server: Callable[[], Awaitable[Any]],
-                                   started: Callable[[str], None] | None) -> None:
+    async def _serve_until_stopped(
+        self, open_server: Callable[[], Awaitable[Any]], started: Callable[[str], None] | None
+    ) -> None:
         self._loop = asyncio.get_running_loop()
         self._stop = asyncio.Event()
         try:
@@ -112,5 +115,6 @@ class StoppableServer:
 
     def running(self, start_timeout_s: float = 10.0) -> contextlib.AbstractContextManager[str]:
         """Serve from a background thread while the block runs; yields :attr:`url`."""
-        return serving_in_thread(self.serve, self.stop, name=self.thread_name,
-                                 start_timeout_s=start_timeout_s)
+        return serving_in_thread(
+            self.serve, self.stop, name=self.thread_name, start_timeout_s=start_timeout_s
+        )

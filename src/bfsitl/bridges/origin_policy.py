@@ -31,14 +31,16 @@ from bfsitl.errors import BridgeError
 CLOSE_POLICY_VIOLATION = 1008
 
 #: Exact origins the Configurator and Foxglove apps use (scheme://host[:port], lower case).
-KNOWN_APP_ORIGINS: frozenset[str] = frozenset({
-    "https://app.betaflight.com",
-    "tauri://localhost",
-    "http://tauri.localhost",
-    "https://tauri.localhost",
-    "capacitor://localhost",
-    "https://app.foxglove.dev",
-})
+KNOWN_APP_ORIGINS: frozenset[str] = frozenset(
+    {
+        "https://app.betaflight.com",
+        "tauri://localhost",
+        "http://tauri.localhost",
+        "https://tauri.localhost",
+        "capacitor://localhost",
+        "https://app.foxglove.dev",
+    }
+)
 #: Hosts whose pages, on any port over http or https, are the user's own machine.
 LOOPBACK_HOSTS: frozenset[str] = frozenset({"localhost", "127.0.0.1", "::1"})
 #: Sub-sites of the hosted Configurator (e.g. master.app.betaflight.com, pull-request previews).
@@ -101,5 +103,7 @@ class OriginPolicy:
     def describe(self) -> str:
         """One line for help text and logs."""
         extra = ", ".join(sorted(self.allowed)) if self.allowed else "none"
-        return ("the Configurator's and Foxglove's apps, pages on localhost/127.0.0.1, clients "
-                f"without an Origin (scripts); also allowed: {extra}")
+        return (
+            "the Configurator's and Foxglove's apps, pages on localhost/127.0.0.1, clients "
+            f"without an Origin (scripts); also allowed: {extra}"
+        )

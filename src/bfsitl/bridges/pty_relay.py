@@ -250,8 +250,7 @@ class PtyRelay:
         try:
             self._upstream.sendall(data)
         except OSError as exc:
-            self._on_event(f"writing to the SITL failed ({exc}); reconnecting on the next "
-                           f"bytes")
+            self._on_event(f"writing to the SITL failed ({exc}); reconnecting on the next bytes")
             self._close_upstream()
             return
         self._session.bytes_to_fc += len(data)
@@ -266,8 +265,10 @@ class PtyRelay:
             data = b""
             self._on_event(f"SITL connection lost: {exc}")
         if not data:
-            self._on_event("the SITL closed the connection (it rebooted or exited, or the port "
-                           "sat idle for 120 s); reconnecting on the client's next bytes")
+            self._on_event(
+                "the SITL closed the connection (it rebooted or exited, or the port "
+                "sat idle for 120 s); reconnecting on the client's next bytes"
+            )
             self._close_upstream()
             return
         if self._session is not None:
@@ -277,8 +278,10 @@ class PtyRelay:
         if overflow > 0:
             del self._to_client[:overflow]
             if not self._dropped_to_client:
-                self._on_event(f"the client does not read: dropping the oldest bytes beyond "
-                               f"{MAX_PENDING_TO_CLIENT_BYTES} B, as a UART overruns")
+                self._on_event(
+                    f"the client does not read: dropping the oldest bytes beyond "
+                    f"{MAX_PENDING_TO_CLIENT_BYTES} B, as a UART overruns"
+                )
             self._dropped_to_client += overflow
         self._flush_to_client()
 
@@ -301,8 +304,9 @@ class PtyRelay:
             sock = connect_upstream(self.upstream)
         except (BfsitlError, OSError) as exc:  # also a SITL that failed to restart
             self._retry_after_s = time.monotonic() + RECONNECT_BACKOFF_S
-            self._on_event(f"{exc} (client bytes are dropped; trying again in "
-                           f"{RECONNECT_BACKOFF_S:.0f} s)")
+            self._on_event(
+                f"{exc} (client bytes are dropped; trying again in {RECONNECT_BACKOFF_S:.0f} s)"
+            )
             return False
         sock.settimeout(_UPSTREAM_SEND_TIMEOUT_S)
         self._upstream = sock

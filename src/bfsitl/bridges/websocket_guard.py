@@ -40,10 +40,16 @@ class OriginGuard(StoppableServer):
 
     thread_name = "bfsitl-origin-guard"
 
-    def __init__(self, upstream_url: str, *, port: int, subprotocols: Sequence[str],
-                 origins: OriginPolicy | None = None,
-                 on_event: Callable[[str], None] | None = None,
-                 port_option: str = "--port") -> None:
+    def __init__(
+        self,
+        upstream_url: str,
+        *,
+        port: int,
+        subprotocols: Sequence[str],
+        origins: OriginPolicy | None = None,
+        on_event: Callable[[str], None] | None = None,
+        port_option: str = "--port",
+    ) -> None:
         super().__init__()
         self.upstream_url = upstream_url
         self.host = LISTEN_HOST
@@ -59,10 +65,18 @@ class OriginGuard(StoppableServer):
         from websockets.asyncio.server import serve
         from websockets.typing import Subprotocol
 
-        await self._serve_until_stopped(lambda: serve(
-            self._handle, LISTEN_HOST, self.port,
-            subprotocols=[Subprotocol(name) for name in self.subprotocols],
-            compression=None, max_size=None, close_timeout=CLOSE_TIMEOUT_S), started)
+        await self._serve_until_stopped(
+            lambda: serve(
+                self._handle,
+                LISTEN_HOST,
+                self.port,
+                subprotocols=[Subprotocol(name) for name in self.subprotocols],
+                compression=None,
+                max_size=None,
+                close_timeout=CLOSE_TIMEOUT_S,
+            ),
+            started,
+        )
 
     async def _handle(self, connection: Any) -> None:
         from websockets.asyncio.client import connect
@@ -72,15 +86,21 @@ class OriginGuard(StoppableServer):
         refusal = self.origins.refusal(origin)
         if refusal is not None:
             self.refused_origins += 1
-            self._on_event(f"refused a client from {origin}: not an allowed page; if it is "
-                           f"yours, restart with --allow-origin {origin}")
+            self._on_event(
+                f"refused a client from {origin}: not an allowed page; if it is "
+                f"yours, restart with --allow-origin {origin}"
+            )
             await connection.close(CLOSE_POLICY_VIOLATION, refusal)
             return
         protocols = [connection.subprotocol] if connection.subprotocol else None
         try:
-            upstream = await connect(self.upstream_url, subprotocols=protocols,
-                                     compression=None, max_size=None,
-                                     close_timeout=CLOSE_TIMEOUT_S)
+            upstream = await connect(
+                self.upstream_url,
+                subprotocols=protocols,
+                compression=None,
+                max_size=None,
+                close_timeout=CLOSE_TIMEOUT_S,
+            )
         except (OSError, Exception) as exc:  # noqa: BLE001 - any failure closes the client
             self._on_event(f"the server behind the guard is not reachable: {exc}")
             await connection.close(CLOSE_UPSTREAM_ERROR, "server not reachable")
@@ -102,8 +122,7 @@ async def _pass_both_ways(client: Any, server: Any) -> None:
 
     to_server = asyncio.create_task(copy(client, server))
     to_client = asyncio.create_task(copy(server, client))
-    done, pending = await asyncio.wait({to_server, to_client},
-                                       return_when=asyncio.FIRST_COMPLETED)
+    done, pending = await asyncio.wait({to_server, to_client}, return_when=asyncio.FIRST_COMPLETED)
     for task in pending:
         task.cancel()
     await asyncio.gather(*pending, return_exceptions=True)

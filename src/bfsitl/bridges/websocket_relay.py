@@ -56,7 +56,7 @@ _READ_CHUNK_BYTES = 4096
 CLOSE_TIMEOUT_S = 2.0
 
 # Close codes (RFC 6455 section 7.4.1); reasons must fit 123 bytes.
-CLOSE_BUSY = 1013          # try again later: another client holds the bridge
+CLOSE_BUSY = 1013  # try again later: another client holds the bridge
 #: How long a new client waits for the previous one's connection to finish closing before it
 #: is refused as a second client.
 _HANDOVER_WAIT_S = 1.0
@@ -83,10 +83,14 @@ def connect_hint(url: str) -> str:
     """What to do in the Configurator (2026.12) to reach ``url``: its manual entries, the
     built-in "Betaflight SITL" one included, appear only with Expert Mode on."""
     if url == f"ws://{LISTEN_HOST}:{DEFAULT_PORT}":
-        return ('in the Configurator: Options > Expert Mode on; Connect menu > "Betaflight '
-                'SITL" (this URL; it connects at once)')
-    return ('in the Configurator: Options > Expert Mode on; Connect menu > "Manual '
-            'Selection", this URL in the Port field, then Connect')
+        return (
+            'in the Configurator: Options > Expert Mode on; Connect menu > "Betaflight '
+            'SITL" (this URL; it connects at once)'
+        )
+    return (
+        'in the Configurator: Options > Expert Mode on; Connect menu > "Manual '
+        'Selection", this URL in the Port field, then Connect'
+    )
 
 
 def pick_subprotocol(offered: Sequence[str]) -> str | None:
@@ -158,16 +162,26 @@ class WebSocketRelay(StoppableServer):
         def note_plain_http(_connection: object, request) -> None:  # type: ignore[no-untyped-def]
             # websockets answers 426 by itself; say why, since it is usually a browser tab.
             if request.headers.get("Upgrade", "").lower() != "websocket":
-                self._on_event(f"a plain HTTP request for {request.path} was refused: this is a "
-                               f"WebSocket server; enter {self.url} in the Configurator's "
-                               f"manual connection, not in the address bar")
+                self._on_event(
+                    f"a plain HTTP request for {request.path} was refused: this is a "
+                    f"WebSocket server; enter {self.url} in the Configurator's "
+                    f"manual connection, not in the address bar"
+                )
 
-        await self._serve_until_stopped(lambda: server_module.serve(
-            self._handle, self.host, self.port,
-            subprotocols=list(SUBPROTOCOLS), select_subprotocol=select_subprotocol,
-            compression=None, max_size=MAX_MESSAGE_BYTES, process_request=note_plain_http,
-            close_timeout=CLOSE_TIMEOUT_S,
-        ), started)
+        await self._serve_until_stopped(
+            lambda: server_module.serve(
+                self._handle,
+                self.host,
+                self.port,
+                subprotocols=list(SUBPROTOCOLS),
+                select_subprotocol=select_subprotocol,
+                compression=None,
+                max_size=MAX_MESSAGE_BYTES,
+                process_request=note_plain_http,
+                close_timeout=CLOSE_TIMEOUT_S,
+            ),
+            started,
+        )
 
     # -- one client ------------------------------------------------------------------------
     async def _handle(self, connection: ServerConnection) -> None:
@@ -181,9 +195,11 @@ class WebSocketRelay(StoppableServer):
             # Checked before the one-client rule: a foreign page must not even learn whether
             # the FC is busy, nor take the slot from the Configurator.
             self.refused_origins += 1
-            self._on_event(f"refused {client}: the page at {origin} is not allowed to drive "
-                           f"the FC (cross-site WebSocket); if it is yours, restart with "
-                           f"--allow-origin {origin}")
+            self._on_event(
+                f"refused {client}: the page at {origin} is not allowed to drive "
+                f"the FC (cross-site WebSocket); if it is yours, restart with "
+                f"--allow-origin {origin}"
+            )
             await connection.close(CLOSE_POLICY_VIOLATION, refusal)
             return
         # A client that reconnects at once (a page reload) can arrive before the relay has
@@ -194,14 +210,17 @@ class WebSocketRelay(StoppableServer):
             waited_s += _HANDOVER_POLL_S
         if self._active is not None:
             self.refused_clients += 1
-            self._on_event(f"refused {client} ({origin}): {self._active.client} is connected, "
-                           f"and the SITL serves one client at a time")
+            self._on_event(
+                f"refused {client} ({origin}): {self._active.client} is connected, "
+                f"and the SITL serves one client at a time"
+            )
             await connection.close(CLOSE_BUSY, _BUSY_REASON)
             return
         session = SessionStats(client, time.monotonic())
         self._active = session  # set before any await: a second client sees it
-        self._on_event(f"client {client} connected ({origin}, subprotocol "
-                       f"{connection.subprotocol or 'none'})")
+        self._on_event(
+            f"client {client} connected ({origin}, subprotocol {connection.subprotocol or 'none'})"
+        )
         try:
             await self._relay(connection, session)
         finally:
@@ -243,7 +262,10 @@ class WebSocketRelay(StoppableServer):
             await connection.close(CLOSE_UPSTREAM_GONE, _SITL_CLOSED_REASON)
 
     async def _client_to_fc(
-        self, connection: ServerConnection, writer: asyncio.StreamWriter, watch: RequestWatch,
+        self,
+        connection: ServerConnection,
+        writer: asyncio.StreamWriter,
+        watch: RequestWatch,
         session: SessionStats,
     ) -> _Ended:
         _server, connection_closed, _negotiation = _import_websockets()
@@ -262,7 +284,9 @@ class WebSocketRelay(StoppableServer):
         return _Ended("client closed")
 
     async def _fc_to_client(
-        self, connection: ServerConnection, reader: asyncio.StreamReader,
+        self,
+        connection: ServerConnection,
+        reader: asyncio.StreamReader,
         session: SessionStats,
     ) -> _Ended:
         _server, connection_closed, _negotiation = _import_websockets()

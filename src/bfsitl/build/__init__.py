@@ -38,10 +38,15 @@ if TYPE_CHECKING:
 # Loaded on first use (PEP 562): finding a firmware (sitl/firmware.py) needs only the binary
 # scan and the cache, not the builder with its subprocess and tarfile machinery.
 _EXPORTS = {
-    "BinaryTraits": "binary_scan", "binary_traits": "binary_scan",
-    "BuildResult": "builder", "build_firmware": "builder", "default_jobs": "builder",
-    "CacheEntry": "cache", "FirmwareCache": "cache",
-    "BuildMetadata": "metadata", "build_options_for_binary": "metadata",
+    "BinaryTraits": "binary_scan",
+    "binary_traits": "binary_scan",
+    "BuildResult": "builder",
+    "build_firmware": "builder",
+    "default_jobs": "builder",
+    "CacheEntry": "cache",
+    "FirmwareCache": "cache",
+    "BuildMetadata": "metadata",
+    "build_options_for_binary": "metadata",
     "metadata_for_binary": "metadata",
     "FirmwareBuildOptions": "options",
     "BuildProgress": "progress",

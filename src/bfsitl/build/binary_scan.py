@@ -75,12 +75,12 @@ def _scan(real_path: str, _size: int, _mtime_ns: int, _ino: int, _dev: int) -> B
             takes_ip = mapped.find(IP_FLAG_MARKER) >= 0
             lockstep = mapped.find(LOCKSTEP_MARKER) >= 0
             shm_exchange = lockstep and mapped.find(SHM_EXCHANGE_MARKER) >= 0
-            features = tuple(name for name, marker in FEATURE_MARKERS.items()
-                             if mapped.find(marker) >= 0)
+            features = tuple(
+                name for name, marker in FEATURE_MARKERS.items() if mapped.find(marker) >= 0
+            )
     return BinaryTraits(takes_ip, features, lockstep, shm_exchange)
 
 
 def clear_cache() -> None:
     """Forget every scan (tests that rewrite a file within one mtime tick)."""
     _scan.cache_clear()
-

@@ -123,8 +123,9 @@ def build_firmware(
             check_build_tools(env)
             work = cache.work_dir(plan.key)
             try:
-                staging = _build_into(plan, chosen, work, jobs or default_jobs(), env, report,
-                                      cache.root, source_url)
+                staging = _build_into(
+                    plan, chosen, work, jobs or default_jobs(), env, report, cache.root, source_url
+                )
                 cache.commit(staging, plan.key)
             finally:
                 remove_tree(work)
@@ -148,11 +149,11 @@ def _explain_plan(plan: BuildPlan, name: str, report: BuildProgress) -> None:
     if gps is None:
         return
     if not gps.add:
-        report.note("--gps: this tree's SITL has GPS, altitude and position hold already; "
-                    "nothing to add")
+        report.note(
+            "--gps: this tree's SITL has GPS, altitude and position hold already; nothing to add"
+        )
     if gps.unavailable:
-        report.note(f"--gps: this tree has no code for {', '.join(gps.unavailable)}; built "
-                    f"without")
+        report.note(f"--gps: this tree has no code for {', '.join(gps.unavailable)}; built without")
 
 
 def _build_into(
@@ -175,8 +176,13 @@ def _build_into(
     env = build_environment(environ, work)
     args = plan.make_arguments(jobs)
     report.note(f"compiling with {jobs} job{'s' if jobs != 1 else ''}")
-    result = run_make(args, cwd=tree, env=env, progress=report,
-                      dry_run_args=plan.make_arguments(jobs, dry_run=True))
+    result = run_make(
+        args,
+        cwd=tree,
+        env=env,
+        progress=report,
+        dry_run_args=plan.make_arguments(jobs, dry_run=True),
+    )
     built = _find_binary(tree)
     staging = work / "entry"
     staging.mkdir()
@@ -255,8 +261,11 @@ def _copy_filter(root: Path, cache_root: Path) -> Callable[[str, list[str]], set
 
 def _find_binary(tree: Path) -> Path:
     obj = tree / "obj"
-    candidates = sorted((p for p in obj.glob(BINARY_GLOB) if p.is_file()),
-                        key=lambda p: p.stat().st_mtime_ns, reverse=True)
+    candidates = sorted(
+        (p for p in obj.glob(BINARY_GLOB) if p.is_file()),
+        key=lambda p: p.stat().st_mtime_ns,
+        reverse=True,
+    )
     if not candidates and (obj / ELF_FALLBACK).is_file():
         candidates = [obj / ELF_FALLBACK]
     if not candidates:

@@ -71,9 +71,14 @@ def is_git_url(text: str) -> bool:
     return "://" in text or bool(re.match(r"^[\w.-]+@[\w.-]+:", text))
 
 
-def fetch_git_source(url: str, ref: str | None, cache_root: Path, *,
-                     note: Note | None = None,
-                     environ: Mapping[str, str] | None = None) -> GitSource:
+def fetch_git_source(
+    url: str,
+    ref: str | None,
+    cache_root: Path,
+    *,
+    note: Note | None = None,
+    environ: Mapping[str, str] | None = None,
+) -> GitSource:
     """The tree of ``ref`` at ``url``, from ``cache_root`` or freshly cloned into it.
 
     Raises :class:`~bfsitl.errors.FirmwareSourceError` with one line saying what went wrong
@@ -104,8 +109,7 @@ def fetch_git_source(url: str, ref: str | None, cache_root: Path, *,
     return GitSource(url, ref, commit, entry, fetched=True)
 
 
-def resolve_ref(git: str, url: str, ref: str | None, env: Mapping[str, str]
-                ) -> tuple[str, str]:
+def resolve_ref(git: str, url: str, ref: str | None, env: Mapping[str, str]) -> tuple[str, str]:
     """(the commit, what to fetch for it).  A full hash is taken as given (servers may refuse
     to list it, but fetching it works); a short one cannot be fetched and is refused."""
     if ref is not None and _FULL_HASH.match(ref.lower()):
@@ -113,19 +117,22 @@ def resolve_ref(git: str, url: str, ref: str | None, env: Mapping[str, str]
     # Only the refs that can match: a big repository lists thousands of others.
     # (``REF^{}`` asks for an annotated tag's commit, which a bare pattern leaves out.)
     pattern = ["--symref", url, "HEAD"] if ref is None else [url, ref, f"{ref}^{{}}"]
-    listing = _run_git([git, "ls-remote", *pattern], env, what=f"listing {url}",
-                       timeout_s=LS_REMOTE_TIMEOUT_S)
+    listing = _run_git(
+        [git, "ls-remote", *pattern], env, what=f"listing {url}", timeout_s=LS_REMOTE_TIMEOUT_S
+    )
     refs = parse_ls_remote(listing)
     found = pick_ref(refs, ref)
     if found is None:
         if ref is not None and _SHORT_HASH.match(ref.lower()):
             raise FirmwareSourceError(
                 f"--ref {ref}: a short commit hash cannot be fetched shallowly; give all 40 "
-                f"digits (`git rev-parse {ref}` in a clone prints them)")
+                f"digits (`git rev-parse {ref}` in a clone prints them)"
+            )
         if ref is None:
             raise FirmwareSourceError(f"{url} has no default branch (HEAD): give --ref")
-        raise FirmwareSourceError(f"{url} has no branch, tag or commit {ref!r} "
-                                  f"(`git ls-remote {url}` lists them)")
+        raise FirmwareSourceError(
+            f"{url} has no branch, tag or commit {ref!r} (`git ls-remote {url}` lists them)"
+        )
     return found
 
 
@@ -153,24 +160,71 @@ def pick_ref(refs: Mapping[str, str], ref: str | None) -> tuple[str, str] | None
     return None
 
 
-def _clone_into(git: str, url: str, fetch_ref: str, commit: str, directory: Path,
-                env: Mapping[str, str], say: Note) -> None:
+def _clone_into(
+    git: str,
+    url: str,
+    fetch_ref: str,
+    commit: str,
+    directory: Path,
+    env: Mapping[str, str],
+    say: Note,
+) -> None:
     _run_git([git, "init", "--quiet", str(directory)], env, what="git init")
-    _run_git([git, "-C", str(directory), "remote", "add", "origin", url], env,
-             what="git remote add")
-    _run_git([git, "-C", str(directory), "fetch", "--depth", "1", "--progress", "--no-tags",
-              "origin", fetch_ref], env, what=f"fetching {fetch_ref} from {url}",
-             on_progress=_progress_relay(say))
-    fetched = _run_git([git, "-C", str(directory), "rev-parse", "FETCH_HEAD^{commit}"], env,
-                       what="git rev-parse").strip().lower()
+    _run_git(
+        [git, "-C", str(directory), "remote", "add", "origin", url], env, what="git remote add"
+    )
+    _run_git(
+        [
+            git,
+            "-C",
+            str(directory),
+            "fetch",
+            "--depth",
+            "1",
+            "--progress",
+            "--no-tags",
+            "origin",
+            fetch_ref,
+        ],
+        env,
+        what=f"fetching {fetch_ref} from {url}",
+        on_progress=_progress_relay(say),
+    )
+    fetched = (
+        _run_git(
+            [git, "-C", str(directory), "rev-parse", "FETCH_HEAD^{commit}"],
+            env,
+            what="git rev-parse",
+        )
+        .strip()
+        .lower()
+    )
     if fetched != commit:
         # The branch moved between ls-remote and fetch: build what was fetched, and say so.
         say(f"{fetch_ref} moved to {fetched[:12]} while fetching; building that")
-    _run_git([git, "-C", str(directory), "checkout", "--quiet", "--detach", "FETCH_HEAD"], env,
-             what="git checkout")
+    _run_git(
+        [git, "-C", str(directory), "checkout", "--quiet", "--detach", "FETCH_HEAD"],
+        env,
+        what="git checkout",
+    )
     for path in SITL_SUBMODULES:
-        _run_git([git, "-C", str(directory), "submodule", "update", "--init", "--depth", "1",
-                  "--", path], env, what=f"submodule {path}", on_progress=_progress_relay(say))
+        _run_git(
+            [
+                git,
+                "-C",
+                str(directory),
+                "submodule",
+                "update",
+                "--init",
+                "--depth",
+                "1",
+                "--",
+                path,
+            ],
+            env,
+            what=f"submodule {path}",
+            on_progress=_progress_relay(say),
+        )
 
 
 def _progress_relay(say: Note) -> Callable[[str], None]:
@@ -193,8 +247,9 @@ def _progress_relay(say: Note) -> Callable[[str], None]:
 def _git_command() -> str:
     git = shutil.which("git")
     if git is None:
-        raise FirmwareSourceError("git is not installed (apt-get install git); it is needed "
-                                  "for --git")
+        raise FirmwareSourceError(
+            "git is not installed (apt-get install git); it is needed for --git"
+        )
     return git
 
 
@@ -206,13 +261,23 @@ def _git_environment(environ: Mapping[str, str] | None) -> dict[str, str]:
     return env
 
 
-def _run_git(args: Sequence[str], env: Mapping[str, str], *, what: str,
-             timeout_s: float | None = None,
-             on_progress: Callable[[str], None] | None = None) -> str:
+def _run_git(
+    args: Sequence[str],
+    env: Mapping[str, str],
+    *,
+    what: str,
+    timeout_s: float | None = None,
+    on_progress: Callable[[str], None] | None = None,
+) -> str:
     """Run git; its stdout.  A failure is one line: what was being done and git's last word."""
     try:
-        process = subprocess.Popen(list(args), stdout=subprocess.PIPE, stderr=subprocess.PIPE,
-                                   env=dict(env), stdin=subprocess.DEVNULL)
+        process = subprocess.Popen(
+            list(args),
+            stdout=subprocess.PIPE,
+            stderr=subprocess.PIPE,
+            env=dict(env),
+            stdin=subprocess.DEVNULL,
+        )
     except OSError as exc:
         raise FirmwareSourceError(f"{what}: cannot run git: {exc}") from None
     try:
@@ -220,8 +285,9 @@ def _run_git(args: Sequence[str], env: Mapping[str, str], *, what: str,
     except subprocess.TimeoutExpired:
         process.kill()
         process.wait()
-        raise FirmwareSourceError(f"{what}: no answer in {timeout_s:.0f} s (offline, or the "
-                                  f"server is not answering)") from None
+        raise FirmwareSourceError(
+            f"{what}: no answer in {timeout_s:.0f} s (offline, or the server is not answering)"
+        ) from None
     except BaseException:  # Ctrl-C: git goes too
         process.kill()
         process.wait()
@@ -231,8 +297,11 @@ def _run_git(args: Sequence[str], env: Mapping[str, str], *, what: str,
     return stdout
 
 
-def _communicate(process: subprocess.Popen[bytes], timeout_s: float | None,
-                 on_progress: Callable[[str], None] | None) -> tuple[str, str]:
+def _communicate(
+    process: subprocess.Popen[bytes],
+    timeout_s: float | None,
+    on_progress: Callable[[str], None] | None,
+) -> tuple[str, str]:
     if on_progress is None:
         out, err = process.communicate(timeout=timeout_s)
         return out.decode(errors="replace"), err.decode(errors="replace")

@@ -36,10 +36,28 @@ INSTALL_TOOLS_HINT = "sudo apt-get install gcc make  (Debian/Ubuntu; packages gc
 TAIL_LINES = 20
 
 CLEARED_ENV_VARS = (
-    "MAKEFLAGS", "MFLAGS", "MAKELEVEL", "MAKEFILES", "GNUMAKEFLAGS",
-    "TARGET", "OPTIONS", "EXTRA_FLAGS", "DEBUG", "DEBUG_FLAGS", "CONFIG", "REV", "REVISION",
-    "CFLAGS", "CPPFLAGS", "LDFLAGS", "CCACHE", "ARM_SDK_PREFIX", "ARM_SDK_DIR", "V",
-    "OBJECT_DIR", "BIN_DIR",
+    "MAKEFLAGS",
+    "MFLAGS",
+    "MAKELEVEL",
+    "MAKEFILES",
+    "GNUMAKEFLAGS",
+    "TARGET",
+    "OPTIONS",
+    "EXTRA_FLAGS",
+    "DEBUG",
+    "DEBUG_FLAGS",
+    "CONFIG",
+    "REV",
+    "REVISION",
+    "CFLAGS",
+    "CPPFLAGS",
+    "LDFLAGS",
+    "CCACHE",
+    "ARM_SDK_PREFIX",
+    "ARM_SDK_DIR",
+    "V",
+    "OBJECT_DIR",
+    "BIN_DIR",
 )
 """Environment variables make reads as variable defaults; none of them may shape a build."""
 
@@ -96,8 +114,14 @@ def run_make(
     estimator: _DryRun | None = None
     try:
         process = subprocess.Popen(
-            list(args), cwd=cwd, env=dict(env), stdin=subprocess.DEVNULL,
-            stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True, errors="replace",
+            list(args),
+            cwd=cwd,
+            env=dict(env),
+            stdin=subprocess.DEVNULL,
+            stdout=subprocess.PIPE,
+            stderr=subprocess.STDOUT,
+            text=True,
+            errors="replace",
             start_new_session=True,
         )
     except FileNotFoundError:
@@ -178,9 +202,15 @@ class _DryRun:
         self._progress = progress
         try:
             self._process: subprocess.Popen[str] | None = subprocess.Popen(
-                list(args), cwd=cwd, env=dict(env), stdin=subprocess.DEVNULL,
-                stdout=subprocess.PIPE, stderr=subprocess.DEVNULL, text=True,
-                errors="replace", start_new_session=True,
+                list(args),
+                cwd=cwd,
+                env=dict(env),
+                stdin=subprocess.DEVNULL,
+                stdout=subprocess.PIPE,
+                stderr=subprocess.DEVNULL,
+                text=True,
+                errors="replace",
+                start_new_session=True,
             )
         except OSError:
             self._process = None

@@ -97,8 +97,9 @@ class BuildMetadata:
             value = data[field.name]
             if not _has_type(value, str(field.type)):
                 # A record edited by hand or cut short by a full disk: not one of ours.
-                raise ValueError(f"{directory / METADATA_NAME}: {field.name} is not "
-                                 f"{field.type}: {value!r}")
+                raise ValueError(
+                    f"{directory / METADATA_NAME}: {field.name} is not {field.type}: {value!r}"
+                )
             values[field.name] = tuple(value) if isinstance(value, list) else value
         try:
             return cls(**values, directory=directory.absolute())

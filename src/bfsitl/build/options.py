@@ -93,6 +93,4 @@ class FirmwareBuildOptions:
 
     def key_fields(self) -> dict[str, object]:
         """The fields that enter the cache key as they are (all but the :data:`RESOLVED` ones)."""
-        return {
-            f.name: getattr(self, f.name) for f in fields(self) if not f.metadata.get(RESOLVED)
-        }
+        return {f.name: getattr(self, f.name) for f in fields(self) if not f.metadata.get(RESOLVED)}

@@ -80,8 +80,10 @@ class BuildPlan:
 
     def describe(self) -> str:
         """For the progress output: what is built and how."""
-        parts = [f"{self.source.facts.firmware_version} (MSP API "
-                 f"{self.source.facts.msp_api_version}) from {self.source.spec.path}"]
+        parts = [
+            f"{self.source.facts.firmware_version} (MSP API "
+            f"{self.source.facts.msp_api_version}) from {self.source.spec.path}"
+        ]
         if self.make_defines:
             parts.append(" ".join(Define.parse(d).flag for d in self.make_defines))
         parts += [hook.description for hook in self.tree_hooks]

@@ -75,8 +75,9 @@ def read_facts(root: Path, memo_dir: Path | None, *, fingerprint: str | None = N
         sitl_target=target.relative_to(root).as_posix(),
         features=read_tree_features(root, target),
     )
-    _save_json(_facts_path(memo_dir, fingerprint),
-               {**asdict(facts), "facts_version": FACTS_VERSION})
+    _save_json(
+        _facts_path(memo_dir, fingerprint), {**asdict(facts), "facts_version": FACTS_VERSION}
+    )
     return facts
 
 
@@ -103,8 +104,10 @@ def identify_source(
     root = unpack(spec.path, scratch())
     # The unpacked copy is temporary: no per-file memo for it, the tarball memo stands in.
     facts = read_facts(root, memo_dir, fingerprint=fingerprint_tree(root, None))
-    _save_json(_tarball_path(memo_dir, spec.path),
-               {"stamp": stamp, "fingerprint": facts.fingerprint, "top_name": root.name})
+    _save_json(
+        _tarball_path(memo_dir, spec.path),
+        {"stamp": stamp, "fingerprint": facts.fingerprint, "top_name": root.name},
+    )
     return IdentifiedSource(spec, facts, revision_of(root), root)
 
 

@@ -149,8 +149,11 @@ def extract_tarball(tarball: Path, dest: Path, *, skip_dirs: frozenset[str]) -> 
         # Skipped directories are looked for at the tree's root only: a submodule's ``.git``
         # marker file deeper down is part of the tree (master's Makefile checks for it).
         depth = 1 if len(tops) == 1 else 0
-        members = [m for m, parts in checked
-                   if parts and not (len(parts) > depth and parts[depth] in skip_dirs)]
+        members = [
+            m
+            for m, parts in checked
+            if parts and not (len(parts) > depth and parts[depth] in skip_dirs)
+        ]
         try:
             if hasattr(tarfile, "data_filter"):
                 # The "data" filter repeats the checks above and drops owners and set-id bits.

@@ -36,8 +36,11 @@ def auto_hydrated_submodules(gitmodules_text: str) -> list[str]:
         setting = _SETTING.match(line)
         if setting and entries:
             entries[-1][setting["key"].lower()] = setting["value"].strip('"')
-    return [entry["path"] for entry in entries
-            if entry.get("path") and entry.get("update", "").lower() != "none"]
+    return [
+        entry["path"]
+        for entry in entries
+        if entry.get("path") and entry.get("update", "").lower() != "none"
+    ]
 
 
 def stamp_missing_submodules(tree: Path, note: Callable[[str], None]) -> list[str]:
@@ -61,7 +64,9 @@ def stamp_missing_submodules(tree: Path, note: Callable[[str], None]) -> list[st
         (directory / ".git").write_text("")
         stamped.append(relative)
     if stamped:
-        note(f"not fetching submodule{'s' if len(stamped) > 1 else ''} "
-             f"{', '.join(stamped)}: the SITL build does not compile "
-             f"{'them' if len(stamped) > 1 else 'it'}")
+        note(
+            f"not fetching submodule{'s' if len(stamped) > 1 else ''} "
+            f"{', '.join(stamped)}: the SITL build does not compile "
+            f"{'them' if len(stamped) > 1 else 'it'}"
+        )
     return stamped

@@ -12,8 +12,9 @@ import math
 from collections.abc import Callable
 
 
-def number_in(low: float | None, high: float | None, unit: str, *,
-              above_low: bool = False) -> Callable[[str], float]:
+def number_in(
+    low: float | None, high: float | None, unit: str, *, above_low: bool = False
+) -> Callable[[str], float]:
     """A finite number within ``low``..``high`` (either may be None: unbounded); with
     ``above_low`` the low end itself is refused (``> 0`` rather than ``>= 0``)."""
 

@@ -35,17 +35,22 @@ def add_configurator_parser(sub: argparse._SubParsersAction) -> None:  # type: i
     from bfsitl.bridges.websocket_relay import DEFAULT_PORT
 
     parser = sub.add_parser(
-        "configurator", help="WebSocket bridge for the web Betaflight Configurator",
+        "configurator",
+        help="WebSocket bridge for the web Betaflight Configurator",
         description="Serve a WebSocket on 127.0.0.1 that relays bytes to the SITL's UART1 "
-                    "(subprotocol binary; wsSerial for Configurators before 2026.6.1), one "
-                    "client at a time. In the Configurator's Connect menu pick \"Betaflight "
-                    "SITL\" (ws://127.0.0.1:6761, the default port) or, with Expert Mode on "
-                    "(Options), \"Manual Selection\" and the printed URL. Only the "
-                    "Configurator's own pages may connect (see --allow-origin). Stop with "
-                    "Ctrl-C.",
+        "(subprotocol binary; wsSerial for Configurators before 2026.6.1), one "
+        "client at a time. In the Configurator's Connect menu pick \"Betaflight "
+        'SITL" (ws://127.0.0.1:6761, the default port) or, with Expert Mode on '
+        '(Options), "Manual Selection" and the printed URL. Only the '
+        "Configurator's own pages may connect (see --allow-origin). Stop with "
+        "Ctrl-C.",
     )
-    parser.add_argument("--port", type=port_number, default=DEFAULT_PORT,
-                        help=f"WebSocket port on 127.0.0.1 (default {DEFAULT_PORT})")
+    parser.add_argument(
+        "--port",
+        type=port_number,
+        default=DEFAULT_PORT,
+        help=f"WebSocket port on 127.0.0.1 (default {DEFAULT_PORT})",
+    )
     add_allow_origin_argument(parser)
     add_target_arguments(parser)
     parser.set_defaults(func=cmd_configurator)
@@ -53,27 +58,38 @@ def add_configurator_parser(sub: argparse._SubParsersAction) -> None:  # type: i
 
 def add_serial_bridge_parser(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]
     parser = sub.add_parser(
-        "serial-bridge", help="virtual serial port (pty) relayed to the SITL",
+        "serial-bridge",
+        help="virtual serial port (pty) relayed to the SITL",
         description="Create a pseudo-terminal in raw mode relayed to the SITL's UART1, so tools "
-                    "that only open serial devices (pyserial, terminal monitors, "
-                    "serial:// URIs) reach the SITL. Stop with Ctrl-C; the symlink is removed.",
+        "that only open serial devices (pyserial, terminal monitors, "
+        "serial:// URIs) reach the SITL. Stop with Ctrl-C; the symlink is removed.",
     )
-    parser.add_argument("--link", metavar="PATH", default=None,
-                        help="create a symlink PATH to the pty (a stable name; an existing "
-                             "symlink is replaced, any other file is left alone and refused)")
+    parser.add_argument(
+        "--link",
+        metavar="PATH",
+        default=None,
+        help="create a symlink PATH to the pty (a stable name; an existing "
+        "symlink is replaced, any other file is left alone and refused)",
+    )
     add_target_arguments(parser)
     parser.set_defaults(func=cmd_serial_bridge)
 
 
 # --- commands ------------------------------------------------------------------------------
 
+
 def add_allow_origin_argument(parser: argparse.ArgumentParser) -> None:
     """``--allow-origin``, shared by every command that serves a WebSocket."""
-    parser.add_argument("--allow-origin", action="append", default=[], metavar="ORIGIN",
-                        help="also accept WebSocket clients from this web page origin "
-                             "(scheme://host[:port], repeatable; '*' for any). By default only "
-                             "the Configurator's and Foxglove's apps, pages on localhost or "
-                             "127.0.0.1, and clients that send no Origin (scripts) are served")
+    parser.add_argument(
+        "--allow-origin",
+        action="append",
+        default=[],
+        metavar="ORIGIN",
+        help="also accept WebSocket clients from this web page origin "
+        "(scheme://host[:port], repeatable; '*' for any). By default only "
+        "the Configurator's and Foxglove's apps, pages on localhost or "
+        "127.0.0.1, and clients that send no Origin (scripts) are served",
+    )
 
 
 def cmd_configurator(args: argparse.Namespace) -> int:
@@ -113,12 +129,14 @@ def cmd_serial_bridge(args: argparse.Namespace) -> int:
 
 # --- helpers -------------------------------------------------------------------------------
 
+
 @contextlib.contextmanager
 def _upstream(args: argparse.Namespace) -> Iterator[Upstream]:
     """Where to relay: a SITL started here (stopped afterwards, always) or one at ``--uri``."""
     if getattr(args, "start", False):
-        sitl = SitlProcess(args.firmware, workdir=args.workdir, isolate=not args.no_isolate,
-                           progress=progress)
+        sitl = SitlProcess(
+            args.firmware, workdir=args.workdir, isolate=not args.no_isolate, progress=progress
+        )
         with sitl:
             yield sitl_upstream(sitl)
         progress("SITL stopped")
@@ -134,8 +152,12 @@ def sitl_upstream(sitl: SitlProcess) -> Upstream:
     _free_client_slot(sitl)
     if sitl.network is None:
         raise BridgeError("the SITL has not been started")
-    return Upstream(SITL_HOST, SITL_MSP_PORT, socket_factory=sitl.network.socket,
-                    prepare=_restart_when_exited(sitl))
+    return Upstream(
+        SITL_HOST,
+        SITL_MSP_PORT,
+        socket_factory=sitl.network.socket,
+        prepare=_restart_when_exited(sitl),
+    )
 
 
 def _upstream_from_uri(uri: str) -> Upstream:

@@ -18,52 +18,104 @@ DEFAULT_OUT = "scenario-compare"
 
 def add_compare_parser(actions: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]
     compare = actions.add_parser(
-        "compare", help="A/B: the scenarios on two builds, a verdict per scenario",
+        "compare",
+        help="A/B: the scenarios on two builds, a verdict per scenario",
         description="Fly each scenario on side A and side B over --seeds seeds and judge "
-                    "what changed: the failsafe's phases, the modes, how it ended, what the "
-                    "analysers found, and the figures (where it landed, how hard, tilt, time "
-                    "to each failsafe phase, hold error, path, an energy proxy) against the "
-                    "seeds' spread. Each scenario is same, better, worse or changed. Exit 0 "
-                    "when none is worse or changed (or each such one is --accept'ed), 1 "
-                    "otherwise.",
+        "what changed: the failsafe's phases, the modes, how it ended, what the "
+        "analysers found, and the figures (where it landed, how hard, tilt, time "
+        "to each failsafe phase, hold error, path, an energy proxy) against the "
+        "seeds' spread. Each scenario is same, better, worse or changed. Exit 0 "
+        "when none is worse or changed (or each such one is --accept'ed), 1 "
+        "otherwise.",
         epilog="Examples:\n"
-               "  bfsitl scenario compare --firmware master-lockstep --firmware my-branch\n"
-               "  bfsitl scenario compare --firmware 4.6.0-gps-lockstep "
-               "--b-cli 'set ap_hover_throttle = 1275' --seeds 2 --report cmp/",
-        formatter_class=argparse.RawDescriptionHelpFormatter)
-    compare.add_argument("paths", nargs="*", metavar="FILE_OR_DIR",
-                         help="scenario files, directories or library names (default: the "
-                              "shipped library)")
-    compare.add_argument("--firmware", action="append", default=[], metavar="NAME",
-                         required=True,
-                         help="side A's build; give it twice for side B's (once: both sides "
-                              "fly it, and --a-cli / --b-cli make the difference)")
-    compare.add_argument("--a-cli", action="append", default=[], metavar="LINE",
-                         help="a CLI line for side A, before each scenario's own lines "
-                              "(a changed default); repeat for several")
-    compare.add_argument("--b-cli", action="append", default=[], metavar="LINE",
-                         help="the same for side B")
-    compare.add_argument("--seeds", type=whole_number_at_least(1), default=3, metavar="N",
-                         help="seeds per scenario and side: the scenario's seed and the next "
-                              "N-1 (default 3); the spread across them is what a difference "
-                              "must exceed")
-    compare.add_argument("--accept", action="append", default=[], metavar="SCENARIO",
-                         help="a scenario whose worse or changed verdict is expected (it is "
-                              "still reported); repeat for several")
-    compare.add_argument("--jobs", type=whole_number_at_least(1), default=1, metavar="N",
-                         help="runs side by side (default 1; about one per core)")
-    compare.add_argument("--ray", metavar="ADDRESS", dest="ray_address",
-                         help="fly the runs on a Ray cluster (as `scenario run --ray`)")
-    compare.add_argument("--out", type=Path, default=Path(DEFAULT_OUT), metavar="DIR",
-                         help=f"runs under DIR/A/ and DIR/B/, compare.json and the overlay "
-                              f"plots in DIR (default {DEFAULT_OUT}/)")
-    compare.add_argument("--junit", type=Path, metavar="FILE",
-                         help="JUnit XML: a test case per scenario, failed when worse or "
-                              "changed and not accepted")
-    compare.add_argument("--report", type=Path, metavar="DIR",
-                         help="an HTML page: verdicts, figures side by side, overlay plots")
-    compare.add_argument("--speed", type=parse_speed, default=None, metavar="X",
-                         help="x real time (default: as fast as a lockstep build goes)")
+        "  bfsitl scenario compare --firmware master-lockstep --firmware my-branch\n"
+        "  bfsitl scenario compare --firmware 4.6.0-gps-lockstep "
+        "--b-cli 'set ap_hover_throttle = 1275' --seeds 2 --report cmp/",
+        formatter_class=argparse.RawDescriptionHelpFormatter,
+    )
+    compare.add_argument(
+        "paths",
+        nargs="*",
+        metavar="FILE_OR_DIR",
+        help="scenario files, directories or library names (default: the shipped library)",
+    )
+    compare.add_argument(
+        "--firmware",
+        action="append",
+        default=[],
+        metavar="NAME",
+        required=True,
+        help="side A's build; give it twice for side B's (once: both sides "
+        "fly it, and --a-cli / --b-cli make the difference)",
+    )
+    compare.add_argument(
+        "--a-cli",
+        action="append",
+        default=[],
+        metavar="LINE",
+        help="a CLI line for side A, before each scenario's own lines "
+        "(a changed default); repeat for several",
+    )
+    compare.add_argument(
+        "--b-cli", action="append", default=[], metavar="LINE", help="the same for side B"
+    )
+    compare.add_argument(
+        "--seeds",
+        type=whole_number_at_least(1),
+        default=3,
+        metavar="N",
+        help="seeds per scenario and side: the scenario's seed and the next "
+        "N-1 (default 3); the spread across them is what a difference "
+        "must exceed",
+    )
+    compare.add_argument(
+        "--accept",
+        action="append",
+        default=[],
+        metavar="SCENARIO",
+        help="a scenario whose worse or changed verdict is expected (it is "
+        "still reported); repeat for several",
+    )
+    compare.add_argument(
+        "--jobs",
+        type=whole_number_at_least(1),
+        default=1,
+        metavar="N",
+        help="runs side by side (default 1; about one per core)",
+    )
+    compare.add_argument(
+        "--ray",
+        metavar="ADDRESS",
+        dest="ray_address",
+        help="fly the runs on a Ray cluster (as `scenario run --ray`)",
+    )
+    compare.add_argument(
+        "--out",
+        type=Path,
+        default=Path(DEFAULT_OUT),
+        metavar="DIR",
+        help=f"runs under DIR/A/ and DIR/B/, compare.json and the overlay "
+        f"plots in DIR (default {DEFAULT_OUT}/)",
+    )
+    compare.add_argument(
+        "--junit",
+        type=Path,
+        metavar="FILE",
+        help="JUnit XML: a test case per scenario, failed when worse or changed and not accepted",
+    )
+    compare.add_argument(
+        "--report",
+        type=Path,
+        metavar="DIR",
+        help="an HTML page: verdicts, figures side by side, overlay plots",
+    )
+    compare.add_argument(
+        "--speed",
+        type=parse_speed,
+        default=None,
+        metavar="X",
+        help="x real time (default: as fast as a lockstep build goes)",
+    )
     compare.set_defaults(func=cmd_scenario_compare)
 
 
@@ -82,33 +134,49 @@ def cmd_scenario_compare(args: argparse.Namespace) -> int:
     from bfsitl.scenario.suite import run_suite
 
     if len(args.firmware) > 2:
-        raise ScenarioError("--firmware: give side A's build, and side B's if it differs "
-                            f"(got {len(args.firmware)})")
+        raise ScenarioError(
+            "--firmware: give side A's build, and side B's if it differs "
+            f"(got {len(args.firmware)})"
+        )
     firmware_b = args.firmware[1] if len(args.firmware) == 2 else args.firmware[0]
-    sides = (Side("A", args.firmware[0], tuple(args.a_cli)),
-             Side("B", firmware_b, tuple(args.b_cli)))
+    sides = (
+        Side("A", args.firmware[0], tuple(args.a_cli)),
+        Side("B", firmware_b, tuple(args.b_cli)),
+    )
     scenarios = find_scenarios(paths_or_library(args.paths))
     unknown = sorted(set(args.accept) - {s.name for s in scenarios})
     if unknown:
-        raise ScenarioError(f"--accept {', '.join(unknown)}: no such scenario among "
-                            f"{', '.join(s.name for s in scenarios)}")
+        raise ScenarioError(
+            f"--accept {', '.join(unknown)}: no such scenario among "
+            f"{', '.join(s.name for s in scenarios)}"
+        )
     planned = plan_comparison(scenarios, sides, args.seeds, args.out)
     check_builds([entry.run for entry in planned], given=True)
     if (sides[0].firmware, sides[0].cli) == (sides[1].firmware, sides[1].cli):
         progress("A and B are the same build and lines: every scenario should come out same")
-    progress(f"{len(planned)} runs: {len(scenarios)} scenarios x {args.seeds} seeds x 2 "
-             f"sides; files in {args.out}/")
+    progress(
+        f"{len(planned)} runs: {len(scenarios)} scenarios x {args.seeds} seeds x 2 "
+        f"sides; files in {args.out}/"
+    )
     for side in sides:
         progress(side.title)
     started = time.monotonic()
 
     def finished(result) -> None:  # type: ignore[no-untyped-def]
-        print(f"  ran {result.test_id}: {result.verdict.value} ({result.wall_time_s:.1f} s)",
-              flush=True)
+        print(
+            f"  ran {result.test_id}: {result.verdict.value} ({result.wall_time_s:.1f} s)",
+            flush=True,
+        )
 
-    suite = run_suite([entry.run for entry in planned], jobs=args.jobs, speed=args.speed,
-                      plot=False, progress=progress if args.jobs == 1 else None,
-                      on_result=finished, ray_address=args.ray_address)
+    suite = run_suite(
+        [entry.run for entry in planned],
+        jobs=args.jobs,
+        speed=args.speed,
+        plot=False,
+        progress=progress if args.jobs == 1 else None,
+        on_result=finished,
+        ray_address=args.ray_address,
+    )
     comparisons = compare_results(planned, suite.results, sides, args.accept)
     draw_overlays(comparisons, sides, args.out / "overlays")
     for line in comparison_lines(comparisons):
@@ -125,7 +193,9 @@ def cmd_scenario_compare(args: argparse.Namespace) -> int:
         return EXIT_INTERRUPTED
     failing = [c for c in comparisons if c.fails]
     if failing:
-        progress(f"{len(failing)} scenario(s) "
-                 f"{'/'.join(sorted({c.change.value for c in failing}))}: "
-                 f"{', '.join(c.name for c in failing)} (--accept NAME if expected)")
+        progress(
+            f"{len(failing)} scenario(s) "
+            f"{'/'.join(sorted({c.change.value for c in failing}))}: "
+            f"{', '.join(c.name for c in failing)} (--accept NAME if expected)"
+        )
     return EXIT_DIFFERENT if failing else EXIT_OK

@@ -41,14 +41,17 @@ class Finding:
 
 def add_doctor_parser(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]
     doctor = sub.add_parser(
-        "doctor", help="check the firmware, ports and a live probe; explain arming blockers",
+        "doctor",
+        help="check the firmware, ports and a live probe; explain arming blockers",
         description="Check that this machine can fly: the SITL binary, stale SITL processes, "
-                    "taken ports, namespace isolation, and a live probe that provisions an "
-                    "isolated SITL, explains every arming blocker it sees and arms it.",
+        "taken ports, namespace isolation, and a live probe that provisions an "
+        "isolated SITL, explains every arming blocker it sees and arms it.",
     )
-    doctor.add_argument("--firmware", default=None,
-                        help="SITL binary or cached build name to check (`bfsitl firmware "
-                             "list`)")
+    doctor.add_argument(
+        "--firmware",
+        default=None,
+        help="SITL binary or cached build name to check (`bfsitl firmware list`)",
+    )
     doctor.add_argument("--no-probe", action="store_true", help="skip the live probe")
     doctor.set_defaults(func=cmd_doctor)
 
@@ -79,26 +82,38 @@ def static_checks(firmware: str | None) -> list[Finding]:
     stale = stale_sitl_processes()
     if stale:
         listed = ", ".join(f"pid {pid} ({name})" for pid, name in stale)
-        findings.append(Finding(
-            "WARN", "running SITLs",
-            f"{listed}. One in the host network shares UDP 9003/9004 with any new SITL there; "
-            f"stop it (kill PID) unless you started it on purpose"))
+        findings.append(
+            Finding(
+                "WARN",
+                "running SITLs",
+                f"{listed}. One in the host network shares UDP 9003/9004 with any new SITL there; "
+                f"stop it (kill PID) unless you started it on purpose",
+            )
+        )
     else:
         findings.append(Finding("ok", "running SITLs", "none"))
     holders = find_port_holders(SITL_TCP_PORTS, SITL_UDP_PORTS + SIM_UDP_PORTS[:1])
     if holders:
-        findings.append(Finding(
-            "WARN", "host ports",
-            "; ".join(h.describe() for h in holders)
-            + ". `--start` (isolated) is unaffected; `--no-isolate` and --attach would clash"))
+        findings.append(
+            Finding(
+                "WARN",
+                "host ports",
+                "; ".join(h.describe() for h in holders)
+                + ". `--start` (isolated) is unaffected; `--no-isolate` and --attach would clash",
+            )
+        )
     else:
         findings.append(Finding("ok", "host ports", "TCP 5761, UDP 9002-9004 free"))
     if unshare_available():
         findings.append(Finding("ok", "isolation", "unshare found: each SITL gets a namespace"))
     else:
-        findings.append(Finding(
-            "WARN", "isolation",
-            "unshare missing (apt-get install util-linux): SITLs would share host ports"))
+        findings.append(
+            Finding(
+                "WARN",
+                "isolation",
+                "unshare missing (apt-get install util-linux): SITLs would share host ports",
+            )
+        )
     findings.append(physics_check())
     return findings
 
@@ -147,10 +162,14 @@ def live_probe(firmware: str | None, report: Callable[[str], None]) -> list[Find
                 time.sleep(0.2)
             for name, info in seen.items():
                 still = any(b.cli_name == name for b in blockers)
-                findings.append(Finding(
-                    "FAIL" if still else "ok", f"arming blocker {name}",
-                    f"{info.meaning}; fix: {info.fix}"
-                    + ("" if still else " (cleared during the probe)")))
+                findings.append(
+                    Finding(
+                        "FAIL" if still else "ok",
+                        f"arming blocker {name}",
+                        f"{info.meaning}; fix: {info.fix}"
+                        + ("" if still else " (cleared during the probe)"),
+                    )
+                )
             if not blockers:
                 rc.set(RcCommand().with_aux(0, 1800))
                 armed = False
@@ -159,18 +178,30 @@ def live_probe(firmware: str | None, report: Callable[[str], None]) -> list[Find
                     armed = client.status().armed
                     time.sleep(0.05)
                 rc.set(RcCommand())
-                findings.append(Finding("ok" if armed else "FAIL", "arming",
-                                        "armed and disarmed" if armed else
-                                        "nothing blocked, yet it did not arm"))
+                findings.append(
+                    Finding(
+                        "ok" if armed else "FAIL",
+                        "arming",
+                        "armed and disarmed" if armed else "nothing blocked, yet it did not arm",
+                    )
+                )
             monitor = HealthMonitor(bridge, client)
             monitor.reset()
             time.sleep(1.5)
             sample = monitor.sample()
-            findings.append(Finding(
-                "ok" if sample.faithful else "WARN", "simulation health",
-                f"firmware clock / sim time {sample.fc_clock_ratio}, PID cycle "
-                f"{sample.fc_cycle_us} us, {sample.answered_ratio * 100:.1f} % of fdm answered"
-                + ("" if sample.faithful else "; on a busy machine try `bfsitl sim --speed 0.5`")))
+            findings.append(
+                Finding(
+                    "ok" if sample.faithful else "WARN",
+                    "simulation health",
+                    f"firmware clock / sim time {sample.fc_clock_ratio}, PID cycle "
+                    f"{sample.fc_cycle_us} us, {sample.answered_ratio * 100:.1f} % of fdm answered"
+                    + (
+                        ""
+                        if sample.faithful
+                        else "; on a busy machine try `bfsitl sim --speed 0.5`"
+                    ),
+                )
+            )
     except BfsitlError as exc:
         findings.append(Finding("FAIL", "live probe", str(exc).splitlines()[0]))
     finally:

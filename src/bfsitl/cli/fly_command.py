@@ -24,6 +24,8 @@ DEFAULT_RATE_HZ = 50.0
 POSITION_RATE_HZ = 100.0
 #: Live-line redraws per second: readable, and cheap next to the 50 Hz control loop.
 LIVE_REFRESH_HZ = 5.0
+
+
 def _plan_from_args(args: argparse.Namespace):  # type: ignore[no-untyped-def]
     """The mission file's plan, or the one --target-alt / --hold describe."""
     from dataclasses import replace
@@ -31,15 +33,22 @@ def _plan_from_args(args: argparse.Namespace):  # type: ignore[no-untyped-def]
     from bfsitl.mission.plan import DEFAULT_HOLD_S, MissionPlan, load_mission
 
     if args.mission:
-        given = [flag for flag, value in (("--target-alt", args.target_alt),
-                                          ("--hold", args.hold)) if value is not None]
+        given = [
+            flag
+            for flag, value in (("--target-alt", args.target_alt), ("--hold", args.hold))
+            if value is not None
+        ]
         if given:
-            raise BfsitlError(f"{' and '.join(given)} cannot be combined with --mission: the "
-                              f"mission file sets the take-off altitude and the holds")
+            raise BfsitlError(
+                f"{' and '.join(given)} cannot be combined with --mission: the "
+                f"mission file sets the take-off altitude and the holds"
+            )
         plan = load_mission(mission_path(args.mission))
     else:
-        plan = MissionPlan(target_alt_m=2.0 if args.target_alt is None else args.target_alt,
-                           hold_s=DEFAULT_HOLD_S if args.hold is None else args.hold)
+        plan = MissionPlan(
+            target_alt_m=2.0 if args.target_alt is None else args.target_alt,
+            hold_s=DEFAULT_HOLD_S if args.hold is None else args.hold,
+        )
     if args.ground is not None:
         plan = replace(plan, ground_s=args.ground)
     if args.no_position_hold:
@@ -96,11 +105,13 @@ class LiveProgress:
             return
         self._last_draw_s = now_s
         blockers = ",".join(sample.arming_blockers) or "-"
-        line = (f"{row.phase:<8} t={row.time_s:6.1f}s alt {row.fc_alt_m:5.2f}/"
-                f"{row.target_alt_m:4.2f} m (true {row.sim_alt_m:5.2f}) "
-                f"thr {row.rc_throttle_us:4d} roll {row.roll_deg:5.1f} pitch "
-                f"{row.pitch_deg:5.1f} {'ARMED' if row.armed else 'disarmed'} "
-                f"blockers {blockers}")
+        line = (
+            f"{row.phase:<8} t={row.time_s:6.1f}s alt {row.fc_alt_m:5.2f}/"
+            f"{row.target_alt_m:4.2f} m (true {row.sim_alt_m:5.2f}) "
+            f"thr {row.rc_throttle_us:4d} roll {row.roll_deg:5.1f} pitch "
+            f"{row.pitch_deg:5.1f} {'ARMED' if row.armed else 'disarmed'} "
+            f"blockers {blockers}"
+        )
         self.stream.write("\r\x1b[K" + line)
         self.stream.flush()
         self._line_shown = True
@@ -153,24 +164,40 @@ def cmd_fly(args: argparse.Namespace) -> int:
     # The flags, flat on the command line, map onto the session's groups here.
     config = SessionConfig.for_autopilot(
         control_rate_hz=args.rate,
-        sitl=SitlLaunch(firmware=args.firmware, workdir=args.workdir,
-                        isolate=not args.no_isolate),
-        timing=Timing(speed=speed, lockstep=args.lockstep,
-                      lockstep_exchange=args.lockstep_exchange),
+        sitl=SitlLaunch(firmware=args.firmware, workdir=args.workdir, isolate=not args.no_isolate),
+        timing=Timing(
+            speed=speed, lockstep=args.lockstep, lockstep_exchange=args.lockstep_exchange
+        ),
         fc=FcSetup(profile=profile, angle_mode=not args.no_angle),
-        world=World(physics=args.physics, gz_plugin_dir=args.gz_plugin_dir, wind=wind,
-                    seed=args.seed,
-                    sensors=fly_sensors(baro_noise_std_pa=args.baro_noise_pa,
-                                        accel_noise_std_m_s2=args.accel_noise,
-                                        gps_noise=args.gps_noise)),
-        configurator=(ConfiguratorBridge(port=args.configurator_port,
-                                         allow_origins=tuple(args.allow_origin))
-                      if args.configurator else None))
-    outputs = FlightOutputs(OutputOptions(
-        csv_path=args.log, plot_path=args.plot, summary_path=args.summary,
-        mcap_path=args.mcap, foxglove_port=args.foxglove_port if args.foxglove else None,
-        allow_origins=tuple(args.allow_origin), waypoints=plan_waypoints(plan),
-    ), progress=live.event)
+        world=World(
+            physics=args.physics,
+            gz_plugin_dir=args.gz_plugin_dir,
+            wind=wind,
+            seed=args.seed,
+            sensors=fly_sensors(
+                baro_noise_std_pa=args.baro_noise_pa,
+                accel_noise_std_m_s2=args.accel_noise,
+                gps_noise=args.gps_noise,
+            ),
+        ),
+        configurator=(
+            ConfiguratorBridge(port=args.configurator_port, allow_origins=tuple(args.allow_origin))
+            if args.configurator
+            else None
+        ),
+    )
+    outputs = FlightOutputs(
+        OutputOptions(
+            csv_path=args.log,
+            plot_path=args.plot,
+            summary_path=args.summary,
+            mcap_path=args.mcap,
+            foxglove_port=args.foxglove_port if args.foxglove else None,
+            allow_origins=tuple(args.allow_origin),
+            waypoints=plan_waypoints(plan),
+        ),
+        progress=live.event,
+    )
 
     def on_row(row, sample) -> None:  # type: ignore[no-untyped-def]
         outputs.on_row(row, sample)
@@ -186,8 +213,9 @@ def cmd_fly(args: argparse.Namespace) -> int:
         try:
             outputs.start()
             session.start()
-            result = fly(session, plan, controller, on_row=on_row,
-                         on_event=on_event, rate_hz=args.rate)
+            result = fly(
+                session, plan, controller, on_row=on_row, on_event=on_event, rate_hz=args.rate
+            )
         except KeyboardInterrupt:
             result = None
     finally:
@@ -217,62 +245,83 @@ def cmd_fly(args: argparse.Namespace) -> int:
 
 
 def render_summary(summary: dict) -> str:
-    lines = [f"outcome        {summary['outcome']}: {summary['reason']}",
-             f"controller     {summary['controller']}"]
+    lines = [
+        f"outcome        {summary['outcome']}: {summary['reason']}",
+        f"controller     {summary['controller']}",
+    ]
     if summary.get("blockers"):
         lines.append(f"blockers       {', '.join(summary['blockers'])}")
     if summary.get("command_to_armed_s") is not None:
-        lines.append(f"armed after    {summary['command_to_armed_s']:.1f} s (wall time from the "
-                     f"command)")
+        lines.append(
+            f"armed after    {summary['command_to_armed_s']:.1f} s (wall time from the command)"
+        )
     elif summary.get("armed_after_s") is not None:
         lines.append(f"armed after    {summary['armed_after_s']:.1f} s (wall time from start)")
     step = summary.get("step_response")
     if step:
         lines.append(
-            "take-off       " + ", ".join(
-                f"{key} {value:.3f}" for key, value in step.items()
-                if isinstance(value, (int, float))))
+            "take-off       "
+            + ", ".join(
+                f"{key} {value:.3f}"
+                for key, value in step.items()
+                if isinstance(value, (int, float))
+            )
+        )
     hold = summary.get("hold")
     if hold:
-        lines.append(f"hold           RMS {hold['rms_error_m'] * 100:.1f} cm, max "
-                     f"{hold['max_abs_error_m'] * 100:.1f} cm, mean "
-                     f"{hold['mean_error_m'] * 100:+.1f} cm (simulated truth vs target)")
+        lines.append(
+            f"hold           RMS {hold['rms_error_m'] * 100:.1f} cm, max "
+            f"{hold['max_abs_error_m'] * 100:.1f} cm, mean "
+            f"{hold['mean_error_m'] * 100:+.1f} cm (simulated truth vs target)"
+        )
     attitude = summary.get("attitude")
     if attitude:
-        lines.append(f"attitude       FC vs truth in the air: roll RMS "
-                     f"{attitude['roll_rms_error_deg']:.2f} deg, pitch RMS "
-                     f"{attitude['pitch_rms_error_deg']:.2f} deg, max "
-                     f"{attitude['max_abs_error_deg']:.2f} deg (true tilt up to "
-                     f"{attitude['max_true_tilt_deg']:.1f} deg)")
+        lines.append(
+            f"attitude       FC vs truth in the air: roll RMS "
+            f"{attitude['roll_rms_error_deg']:.2f} deg, pitch RMS "
+            f"{attitude['pitch_rms_error_deg']:.2f} deg, max "
+            f"{attitude['max_abs_error_deg']:.2f} deg (true tilt up to "
+            f"{attitude['max_true_tilt_deg']:.1f} deg)"
+        )
     for leg in summary.get("waypoints") or ():
-        lines.append(f"waypoint {leg['waypoint']:<5} reached after {leg['took_s']:.1f} s, "
-                     f"{leg['arrival_error_m'] * 100:.0f} cm off (height "
-                     f"{leg['arrival_alt_error_m'] * 100:+.0f} cm), cross-track RMS "
-                     f"{leg['cross_track_rms_m'] * 100:.0f} cm, max "
-                     f"{leg['cross_track_max_m'] * 100:.0f} cm")
+        lines.append(
+            f"waypoint {leg['waypoint']:<5} reached after {leg['took_s']:.1f} s, "
+            f"{leg['arrival_error_m'] * 100:.0f} cm off (height "
+            f"{leg['arrival_alt_error_m'] * 100:+.0f} cm), cross-track RMS "
+            f"{leg['cross_track_rms_m'] * 100:.0f} cm, max "
+            f"{leg['cross_track_max_m'] * 100:.0f} cm"
+        )
     if summary.get("cross_track_rms_m") is not None:
-        lines.append(f"cross-track    RMS {summary['cross_track_rms_m'] * 100:.0f} cm over all "
-                     f"legs (simulated truth vs the straight lines)")
+        lines.append(
+            f"cross-track    RMS {summary['cross_track_rms_m'] * 100:.0f} cm over all "
+            f"legs (simulated truth vs the straight lines)"
+        )
     if summary.get("landed_from_start_m") is not None:
-        lines.append(f"landed         {summary['landed_from_start_m'] * 100:.0f} cm from the "
-                     f"take-off point")
+        lines.append(
+            f"landed         {summary['landed_from_start_m'] * 100:.0f} cm from the take-off point"
+        )
     firmware = summary.get("firmware")
     if firmware:
-        lines.append(f"firmware       {firmware['version']} (MSP API {firmware['api']}, "
-                     f"{firmware['conventions']} conventions"
-                     + (", GPS" if firmware["gps"] else "") + ")")
+        lines.append(
+            f"firmware       {firmware['version']} (MSP API {firmware['api']}, "
+            f"{firmware['conventions']} conventions" + (", GPS" if firmware["gps"] else "") + ")"
+        )
     rc = summary.get("rc_link")
     if rc:
-        lines.append(f"RC link        {rc['packets']} packets, period mean "
-                     f"{rc['period_mean_ms']:.2f} ms, max {rc['period_max_ms']:.2f} ms")
+        lines.append(
+            f"RC link        {rc['packets']} packets, period mean "
+            f"{rc['period_mean_ms']:.2f} ms, max {rc['period_max_ms']:.2f} ms"
+        )
     physics = summary.get("physics")
     if physics:
         mode = ""
         if physics.get("lockstep"):
             through = {"shm": "shared memory", "udp": "UDP"}.get(physics.get("exchange"), "")
             mode = f"lockstep through {through}, " if through else "lockstep, "
-        lines.append(f"physics        {mode}{physics['answered_ratio'] * 100:.1f} % of fdm "
-                     f"packets answered at {physics['speed']:.2f}x real time")
+        lines.append(
+            f"physics        {mode}{physics['answered_ratio'] * 100:.1f} % of fdm "
+            f"packets answered at {physics['speed']:.2f}x real time"
+        )
     if "findings" in summary:
         findings = summary["findings"]
         watched = len((summary.get("analysers") or {}).get("watched") or ())
@@ -280,6 +329,8 @@ def render_summary(summary: dict) -> str:
             lines.append(f"findings       none ({watched} analysers watched)")
         for index, finding in enumerate(findings):
             head = "findings       " if index == 0 else " " * 15
-            lines.append(f"{head}{finding['severity']:<8} {finding['analyser']}: "
-                         f"{finding['summary']} (t={finding['time_s']:.2f} s)")
+            lines.append(
+                f"{head}{finding['severity']:<8} {finding['analyser']}: "
+                f"{finding['summary']} (t={finding['time_s']:.2f} s)"
+            )
     return "\n".join(lines)

@@ -20,135 +20,262 @@ WIND_M_S = number_in(0, MAX_WIND_COMPONENT_M_S, "m/s")
 GUST_STD_M_S = number_in(0, MAX_GUST_STD_M_S, "m/s")
 
 
-
-
 def add_fly_parser(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]
     from bfsitl.control import CONTROLLERS, DEFAULT_CONTROLLER
     from bfsitl.mission.plan import MissionPlan
 
     fly = sub.add_parser(
-        "fly", help="fly an autonomous mission on a SITL with the embedded physics",
+        "fly",
+        help="fly an autonomous mission on a SITL with the embedded physics",
         description="Start an isolated SITL with the embedded physics, provision it (ARM on "
-                    "AUX1, ANGLE on AUX2), arm, take off to --target-alt, hold for --hold "
-                    "seconds, land and disarm. Exit code 0 only if it landed.",
+        "AUX1, ANGLE on AUX2), arm, take off to --target-alt, hold for --hold "
+        "seconds, land and disarm. Exit code 0 only if it landed.",
         epilog="Examples:\n"
-               "  bfsitl fly --plot flight.png --summary flight.json\n"
-               "  bfsitl fly --firmware 4.6.0-gps-lockstep --mission square --wind 3\n"
-               "  bfsitl fly --controller tutorial-pid --gain kp=120 --log flight.csv\n"
-               "  bfsitl fly --workdir ~/.cache/bfsitl/quad   (eeprom.bin kept between flights)\n"
-               "  bfsitl fly --controller cascade --list-gains",
+        "  bfsitl fly --plot flight.png --summary flight.json\n"
+        "  bfsitl fly --firmware 4.6.0-gps-lockstep --mission square --wind 3\n"
+        "  bfsitl fly --controller tutorial-pid --gain kp=120 --log flight.csv\n"
+        "  bfsitl fly --workdir ~/.cache/bfsitl/quad   (eeprom.bin kept between flights)\n"
+        "  bfsitl fly --controller cascade --list-gains",
         formatter_class=argparse.RawDescriptionHelpFormatter,
     )
     mission = fly.add_argument_group("mission")
-    mission.add_argument("--mission", metavar="FILE.toml|NAME",
-                         help="fly a mission file: take-off altitude, [[waypoint]] tables "
-                              "(north_m, east_m, alt_m, optional hold_s and heading_deg), "
-                              "land = true (see docs/missions.md). Waypoints need a GPS "
-                              "build; they are flown at 100 Hz unless --rate says otherwise")
-    mission.add_argument("--no-position-hold", action="store_true",
-                         help="on a GPS build, fly the altitude only (by default the take-off "
-                              "point is held in the take-off, the hold and the landing)")
-    mission.add_argument("--target-alt", type=ALTITUDE_M, default=None, metavar="M",
-                         help="take-off altitude above the ground, metres (default 2.0)")
-    mission.add_argument("--hold", type=DURATION_S, default=None, metavar="S",
-                         help="seconds to hold the altitude before landing (default 10)")
-    mission.add_argument("--controller", choices=sorted(CONTROLLERS),
-                         default=DEFAULT_CONTROLLER,
-                         help=f"altitude controller (default {DEFAULT_CONTROLLER}: barometer + "
-                              "accelerometer; cascade: barometer only; tutorial-pid and "
-                              "open-loop re-create the tutorial's scripts)")
-    mission.add_argument("--ground", type=DURATION_S, default=None, metavar="S",
-                         help="seconds armed at idle before the take-off, while the FC's "
-                              "altitude settles and the fused controller learns the "
-                              f"barometer's zero (default {MissionPlan().ground_s:g})")
-    mission.add_argument("--gain", action="append", default=[], metavar="NAME=VALUE",
-                         help="override a controller gain, repeatable (see --list-gains)")
-    mission.add_argument("--list-gains", action="store_true",
-                         help="print the chosen controller's gains and defaults, then exit")
-    mission.add_argument("--rate", type=RATE_HZ, default=None, metavar="HZ",
-                         help="control loop rate in simulation time (default 50, 100 for "
-                              "missions with waypoints; above 50 the FC's serial task is set "
-                              "to 1 kHz, which costs one reboot in a run directory that does "
-                              "not hold it yet)")
+    mission.add_argument(
+        "--mission",
+        metavar="FILE.toml|NAME",
+        help="fly a mission file: take-off altitude, [[waypoint]] tables "
+        "(north_m, east_m, alt_m, optional hold_s and heading_deg), "
+        "land = true (see docs/missions.md). Waypoints need a GPS "
+        "build; they are flown at 100 Hz unless --rate says otherwise",
+    )
+    mission.add_argument(
+        "--no-position-hold",
+        action="store_true",
+        help="on a GPS build, fly the altitude only (by default the take-off "
+        "point is held in the take-off, the hold and the landing)",
+    )
+    mission.add_argument(
+        "--target-alt",
+        type=ALTITUDE_M,
+        default=None,
+        metavar="M",
+        help="take-off altitude above the ground, metres (default 2.0)",
+    )
+    mission.add_argument(
+        "--hold",
+        type=DURATION_S,
+        default=None,
+        metavar="S",
+        help="seconds to hold the altitude before landing (default 10)",
+    )
+    mission.add_argument(
+        "--controller",
+        choices=sorted(CONTROLLERS),
+        default=DEFAULT_CONTROLLER,
+        help=f"altitude controller (default {DEFAULT_CONTROLLER}: barometer + "
+        "accelerometer; cascade: barometer only; tutorial-pid and "
+        "open-loop re-create the tutorial's scripts)",
+    )
+    mission.add_argument(
+        "--ground",
+        type=DURATION_S,
+        default=None,
+        metavar="S",
+        help="seconds armed at idle before the take-off, while the FC's "
+        "altitude settles and the fused controller learns the "
+        f"barometer's zero (default {MissionPlan().ground_s:g})",
+    )
+    mission.add_argument(
+        "--gain",
+        action="append",
+        default=[],
+        metavar="NAME=VALUE",
+        help="override a controller gain, repeatable (see --list-gains)",
+    )
+    mission.add_argument(
+        "--list-gains",
+        action="store_true",
+        help="print the chosen controller's gains and defaults, then exit",
+    )
+    mission.add_argument(
+        "--rate",
+        type=RATE_HZ,
+        default=None,
+        metavar="HZ",
+        help="control loop rate in simulation time (default 50, 100 for "
+        "missions with waypoints; above 50 the FC's serial task is set "
+        "to 1 kHz, which costs one reboot in a run directory that does "
+        "not hold it yet)",
+    )
     out = fly.add_argument_group("outputs")
     out.add_argument("--log", metavar="FILE.csv", help="one row per control step, flushed")
     out.add_argument("--plot", metavar="FILE.png", help="altitude, throttle and attitude plot")
     out.add_argument("--summary", metavar="FILE.json", help="outcome and metrics as JSON")
     out.add_argument("--json", action="store_true", help="print the summary as JSON")
-    out.add_argument("--mcap", metavar="FILE.mcap",
-                     help="record the flight for Foxglove: poses as transforms (3D panel), "
-                          "altitude, position, RC, motors, FC state, events; simulation time "
-                          "(needs the foxglove extra)")
+    out.add_argument(
+        "--mcap",
+        metavar="FILE.mcap",
+        help="record the flight for Foxglove: poses as transforms (3D panel), "
+        "altitude, position, RC, motors, FC state, events; simulation time "
+        "(needs the foxglove extra)",
+    )
     watch = fly.add_argument_group("watching the flight")
-    watch.add_argument("--configurator", action="store_true",
-                       help="let the Betaflight Configurator watch the flight: MSP on UART2 "
-                            "(TCP 5762) too, relayed to a WebSocket on 127.0.0.1 "
-                            f"(--configurator-port, default {CONFIGURATOR_PORT}); a lockstep "
-                            "build then flies at 1x real time unless --speed says otherwise")
-    watch.add_argument("--configurator-port", type=port_number, default=CONFIGURATOR_PORT,
-                       metavar="PORT", help=f"its WebSocket port (default {CONFIGURATOR_PORT}: "
-                                            "the Configurator's \"Betaflight SITL\" entry)")
-    watch.add_argument("--foxglove", action="store_true",
-                       help="serve the flight live to Foxglove (its SDK's WebSocket server on "
-                            f"127.0.0.1, --foxglove-port, default {FOXGLOVE_PORT}); lockstep "
-                            "flies at 1x real time unless --speed says otherwise")
-    watch.add_argument("--foxglove-port", type=port_number, default=FOXGLOVE_PORT, metavar="PORT",
-                       help=f"the Foxglove server's port (default {FOXGLOVE_PORT})")
-    watch.add_argument("--allow-origin", action="append", default=[], metavar="ORIGIN",
-                       help="also accept WebSocket clients from this web page origin "
-                            "(scheme://host[:port], repeatable; '*' for any). By default only "
-                            "the Configurator's and Foxglove's apps, pages on localhost or "
-                            "127.0.0.1, and clients without an Origin (scripts) are served")
+    watch.add_argument(
+        "--configurator",
+        action="store_true",
+        help="let the Betaflight Configurator watch the flight: MSP on UART2 "
+        "(TCP 5762) too, relayed to a WebSocket on 127.0.0.1 "
+        f"(--configurator-port, default {CONFIGURATOR_PORT}); a lockstep "
+        "build then flies at 1x real time unless --speed says otherwise",
+    )
+    watch.add_argument(
+        "--configurator-port",
+        type=port_number,
+        default=CONFIGURATOR_PORT,
+        metavar="PORT",
+        help=f"its WebSocket port (default {CONFIGURATOR_PORT}: "
+        'the Configurator\'s "Betaflight SITL" entry)',
+    )
+    watch.add_argument(
+        "--foxglove",
+        action="store_true",
+        help="serve the flight live to Foxglove (its SDK's WebSocket server on "
+        f"127.0.0.1, --foxglove-port, default {FOXGLOVE_PORT}); lockstep "
+        "flies at 1x real time unless --speed says otherwise",
+    )
+    watch.add_argument(
+        "--foxglove-port",
+        type=port_number,
+        default=FOXGLOVE_PORT,
+        metavar="PORT",
+        help=f"the Foxglove server's port (default {FOXGLOVE_PORT})",
+    )
+    watch.add_argument(
+        "--allow-origin",
+        action="append",
+        default=[],
+        metavar="ORIGIN",
+        help="also accept WebSocket clients from this web page origin "
+        "(scheme://host[:port], repeatable; '*' for any). By default only "
+        "the Configurator's and Foxglove's apps, pages on localhost or "
+        "127.0.0.1, and clients without an Origin (scripts) are served",
+    )
     sitl = fly.add_argument_group("SITL and physics")
-    sitl.add_argument("--firmware", default=None,
-                      help="SITL binary or cached build name (`bfsitl firmware list`; default: "
-                           "$BFSITL_FIRMWARE, the betaflight package, PATH)")
-    sitl.add_argument("--workdir", default=None,
-                      help="run directory; its eeprom.bin persists between flights "
-                           "(default: a fresh temporary directory)")
-    sitl.add_argument("--no-isolate", action="store_true",
-                      help="run the SITL in the host network (ports shared with other SITLs)")
-    sitl.add_argument("--speed", type=parse_speed, default=None, metavar="X|max",
-                      help="simulation speed x real time. Stock SITL: 0.05..4, default 1 (0.5 "
-                           "is the faithful speed on a busy 2-core machine). Lockstep build "
-                           "(`bfsitl firmware build --lockstep`): default max, any X paces it")
-    sitl.add_argument("--lockstep", action=argparse.BooleanOptionalAction, default=None,
-                      help="step the FC with the physics (default: when the firmware is a "
-                           "lockstep build; --no-lockstep flies one on the wall clock)")
-    sitl.add_argument("--lockstep-exchange", choices=("auto", "shm", "udp"), default="auto",
-                      help="how lockstep packets pass: shared memory (shm, on builds made by "
-                           "this bfsitl, x86-64 Linux) or UDP; both fly the same flight "
-                           "(default auto: shm where it can)")
-    sitl.add_argument("--baro-noise-pa", type=number_in(0, None, "Pa"), default=None, metavar="PA",
-                      help="barometer noise std of the embedded physics (default 0.5: dithers "
-                           "the SITL's whole-pascal pressure; 0 for a noiseless barometer)")
-    sitl.add_argument("--accel-noise", type=number_in(0, None, "m/s^2"), default=None,
-                      metavar="M_S2",
-                      help="accelerometer noise std, m/s^2 (default 0.05: dithers the SITL's "
-                           "truncated acceleration; 0 for a noiseless accelerometer)")
-    sitl.add_argument("--wind", type=WIND_M_S, default=0.0, metavar="M_S",
-                      help="steady horizontal wind of the embedded physics, m/s (default 0)")
-    sitl.add_argument("--gusts", type=GUST_STD_M_S, default=0.0, metavar="M_S",
-                      help="gust standard deviation per axis, m/s (default 0; correlated over "
-                           "about 2 s)")
-    sitl.add_argument("--wind-from", type=number_in(None, None, "deg"), default=0.0, metavar="DEG",
-                      help="where the wind blows from, degrees clockwise from north "
-                           "(default 0: from the north)")
-    sitl.add_argument("--gps-noise", action="store_true",
-                      help="give the GPS a typical receiver's errors (0.15 m of wander per "
-                           "axis, 3 cm noise, 5 cm/s on the velocity; default: an exact GPS)")
-    sitl.add_argument("--seed", type=int, default=0, metavar="N",
-                      help="seed of the sensor noise and the gusts (default 0)")
-    sitl.add_argument("--physics", choices=("embedded", "gazebo"), default="embedded",
-                      help="embedded (default, nothing to install) or gazebo (needs `gz` of "
-                           "Gazebo Harmonic and libBetaflightPlugin.so; see docs/gazebo.md)")
-    sitl.add_argument("--gz-plugin-dir", metavar="DIR",
-                      help="folder holding libBetaflightPlugin.so (default: "
-                           "$GZ_SIM_SYSTEM_PLUGIN_PATH)")
-    sitl.add_argument("--profile", metavar="FILE",
-                      help="extra CLI lines to provision (one per line, '#' comments)")
-    sitl.add_argument("--no-provision", action="store_true",
-                      help="fly with the configuration the FC already holds")
-    sitl.add_argument("--no-angle", action="store_true",
-                      help="do not provision or switch on ANGLE (self-levelling) on AUX2")
+    sitl.add_argument(
+        "--firmware",
+        default=None,
+        help="SITL binary or cached build name (`bfsitl firmware list`; default: "
+        "$BFSITL_FIRMWARE, the betaflight package, PATH)",
+    )
+    sitl.add_argument(
+        "--workdir",
+        default=None,
+        help="run directory; its eeprom.bin persists between flights "
+        "(default: a fresh temporary directory)",
+    )
+    sitl.add_argument(
+        "--no-isolate",
+        action="store_true",
+        help="run the SITL in the host network (ports shared with other SITLs)",
+    )
+    sitl.add_argument(
+        "--speed",
+        type=parse_speed,
+        default=None,
+        metavar="X|max",
+        help="simulation speed x real time. Stock SITL: 0.05..4, default 1 (0.5 "
+        "is the faithful speed on a busy 2-core machine). Lockstep build "
+        "(`bfsitl firmware build --lockstep`): default max, any X paces it",
+    )
+    sitl.add_argument(
+        "--lockstep",
+        action=argparse.BooleanOptionalAction,
+        default=None,
+        help="step the FC with the physics (default: when the firmware is a "
+        "lockstep build; --no-lockstep flies one on the wall clock)",
+    )
+    sitl.add_argument(
+        "--lockstep-exchange",
+        choices=("auto", "shm", "udp"),
+        default="auto",
+        help="how lockstep packets pass: shared memory (shm, on builds made by "
+        "this bfsitl, x86-64 Linux) or UDP; both fly the same flight "
+        "(default auto: shm where it can)",
+    )
+    sitl.add_argument(
+        "--baro-noise-pa",
+        type=number_in(0, None, "Pa"),
+        default=None,
+        metavar="PA",
+        help="barometer noise std of the embedded physics (default 0.5: dithers "
+        "the SITL's whole-pascal pressure; 0 for a noiseless barometer)",
+    )
+    sitl.add_argument(
+        "--accel-noise",
+        type=number_in(0, None, "m/s^2"),
+        default=None,
+        metavar="M_S2",
+        help="accelerometer noise std, m/s^2 (default 0.05: dithers the SITL's "
+        "truncated acceleration; 0 for a noiseless accelerometer)",
+    )
+    sitl.add_argument(
+        "--wind",
+        type=WIND_M_S,
+        default=0.0,
+        metavar="M_S",
+        help="steady horizontal wind of the embedded physics, m/s (default 0)",
+    )
+    sitl.add_argument(
+        "--gusts",
+        type=GUST_STD_M_S,
+        default=0.0,
+        metavar="M_S",
+        help="gust standard deviation per axis, m/s (default 0; correlated over about 2 s)",
+    )
+    sitl.add_argument(
+        "--wind-from",
+        type=number_in(None, None, "deg"),
+        default=0.0,
+        metavar="DEG",
+        help="where the wind blows from, degrees clockwise from north (default 0: from the north)",
+    )
+    sitl.add_argument(
+        "--gps-noise",
+        action="store_true",
+        help="give the GPS a typical receiver's errors (0.15 m of wander per "
+        "axis, 3 cm noise, 5 cm/s on the velocity; default: an exact GPS)",
+    )
+    sitl.add_argument(
+        "--seed",
+        type=int,
+        default=0,
+        metavar="N",
+        help="seed of the sensor noise and the gusts (default 0)",
+    )
+    sitl.add_argument(
+        "--physics",
+        choices=("embedded", "gazebo"),
+        default="embedded",
+        help="embedded (default, nothing to install) or gazebo (needs `gz` of "
+        "Gazebo Harmonic and libBetaflightPlugin.so; see docs/gazebo.md)",
+    )
+    sitl.add_argument(
+        "--gz-plugin-dir",
+        metavar="DIR",
+        help="folder holding libBetaflightPlugin.so (default: $GZ_SIM_SYSTEM_PLUGIN_PATH)",
+    )
+    sitl.add_argument(
+        "--profile",
+        metavar="FILE",
+        help="extra CLI lines to provision (one per line, '#' comments)",
+    )
+    sitl.add_argument(
+        "--no-provision",
+        action="store_true",
+        help="fly with the configuration the FC already holds",
+    )
+    sitl.add_argument(
+        "--no-angle",
+        action="store_true",
+        help="do not provision or switch on ANGLE (self-levelling) on AUX2",
+    )
     fly.set_defaults(func=cmd_fly)

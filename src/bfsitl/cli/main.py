@@ -41,6 +41,7 @@ EXIT_INTERRUPTED = 130
 
 # --- commands ------------------------------------------------------------------------------
 
+
 def cmd_status(args: argparse.Namespace) -> int:
     with open_target(args) as target:
         client = target.client
@@ -48,23 +49,35 @@ def cmd_status(args: argparse.Namespace) -> int:
         telemetry = client.telemetry()
         status = telemetry.status
         if args.json:
-            print(json.dumps({
-                "identity": identity.as_dict(),
-                "sitl_conventions": render.conventions_text(identity),
-                "sensors": list(status.sensors),
-                "cycle_time_us": status.cycle_time_us,
-                "cpu_load_percent": status.cpu_load_percent,
-                "armed": status.armed,
-                "flight_modes": list(telemetry.flight_modes),
-                "arming_blockers": [
-                    {"name": b.cli_name, "bit": b.bit, "meaning": b.meaning, "fix": b.fix,
-                     "firmware_source": b.source}
-                    for b in status.arming_blockers
-                ],
-                "attitude_deg": [telemetry.attitude.roll_deg, telemetry.attitude.pitch_deg,
-                                 telemetry.attitude.yaw_deg],
-                "altitude_m": telemetry.altitude.altitude_m,
-            }))
+            print(
+                json.dumps(
+                    {
+                        "identity": identity.as_dict(),
+                        "sitl_conventions": render.conventions_text(identity),
+                        "sensors": list(status.sensors),
+                        "cycle_time_us": status.cycle_time_us,
+                        "cpu_load_percent": status.cpu_load_percent,
+                        "armed": status.armed,
+                        "flight_modes": list(telemetry.flight_modes),
+                        "arming_blockers": [
+                            {
+                                "name": b.cli_name,
+                                "bit": b.bit,
+                                "meaning": b.meaning,
+                                "fix": b.fix,
+                                "firmware_source": b.source,
+                            }
+                            for b in status.arming_blockers
+                        ],
+                        "attitude_deg": [
+                            telemetry.attitude.roll_deg,
+                            telemetry.attitude.pitch_deg,
+                            telemetry.attitude.yaw_deg,
+                        ],
+                        "altitude_m": telemetry.altitude.altitude_m,
+                    }
+                )
+            )
         else:
             print(render.status_report(identity, telemetry))
     return EXIT_OK
@@ -94,8 +107,10 @@ def cmd_telemetry(args: argparse.Namespace) -> int:
         stats = poller.stats()
     if not as_json:
         print()
-    progress(f"{stats.updates} updates in {stats.elapsed_s:.1f} s ({stats.rate_hz:.1f}/s), "
-             f"{stats.errors} errors")
+    progress(
+        f"{stats.updates} updates in {stats.elapsed_s:.1f} s ({stats.rate_hz:.1f}/s), "
+        f"{stats.errors} errors"
+    )
     if stats.updates == 0:
         # Nothing was measured: a script piping this must not take silence for success.
         progress("no telemetry update arrived; `bfsitl status` tells what the FC answers")
@@ -119,8 +134,9 @@ def cmd_cli(args: argparse.Namespace) -> int:
                     restart = target.sitl.restart_after_reboot if target.sitl else None
                     print(cli.save(restart=restart))
                     if target.sitl is None:
-                        progress("saved; the FC reboots (a SITL process exits and must be "
-                                 "restarted)")
+                        progress(
+                            "saved; the FC reboots (a SITL process exits and must be restarted)"
+                        )
                     return EXIT_OK
                 if word == "exit":
                     print(cli.leave())
@@ -139,64 +155,85 @@ def cmd_backup(args: argparse.Namespace) -> int:
 
 # --- parser --------------------------------------------------------------------------------
 
+
 def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(
         prog="bfsitl",
         description="Fly a real Betaflight flight controller in software-in-the-loop "
-                    "simulation, from Python. Talks MSP and the CLI to a SITL or a real board.",
+        "simulation, from Python. Talks MSP and the CLI to a SITL or a real board.",
         epilog="Examples:\n"
-               "  bfsitl fly --plot flight.png     take off to 2 m, hold 10 s, land; plot it\n"
-               "  bfsitl status --start            start a SITL, show who it is and what "
-               "blocks arming\n"
-               "  bfsitl telemetry --rate 20 --duration 5\n"
-               "  bfsitl cli get small_angle\n"
-               "  bfsitl backup my-quad.txt --uri serial:///dev/ttyACM0\n"
-               "  bfsitl sim --duration 10 --json  physics against a SITL, health once a second\n"
-               "  bfsitl scenario run --junit r.xml   the shipped failsafe/fault library\n"
-               "  bfsitl doctor                    firmware, ports, a live probe, blockers\n"
-               "  bfsitl top --start               live dashboard: attitude, motors, RC, "
-               "blockers, link\n"
-               "  bfsitl configurator --start      the web Configurator reaches the SITL at "
-               "ws://127.0.0.1:6761\n"
-               "  bfsitl serial-bridge --start --link /tmp/ttyBF   a pty for serial-only tools",
+        "  bfsitl fly --plot flight.png     take off to 2 m, hold 10 s, land; plot it\n"
+        "  bfsitl status --start            start a SITL, show who it is and what "
+        "blocks arming\n"
+        "  bfsitl telemetry --rate 20 --duration 5\n"
+        "  bfsitl cli get small_angle\n"
+        "  bfsitl backup my-quad.txt --uri serial:///dev/ttyACM0\n"
+        "  bfsitl sim --duration 10 --json  physics against a SITL, health once a second\n"
+        "  bfsitl scenario run --junit r.xml   the shipped failsafe/fault library\n"
+        "  bfsitl doctor                    firmware, ports, a live probe, blockers\n"
+        "  bfsitl top --start               live dashboard: attitude, motors, RC, "
+        "blockers, link\n"
+        "  bfsitl configurator --start      the web Configurator reaches the SITL at "
+        "ws://127.0.0.1:6761\n"
+        "  bfsitl serial-bridge --start --link /tmp/ttyBF   a pty for serial-only tools",
         formatter_class=argparse.RawDescriptionHelpFormatter,
     )
     parser.add_argument("--version", action="version", version=f"bfsitl {__version__}")
     sub = parser.add_subparsers(dest="command_name", metavar="COMMAND", required=True)
 
-    status = sub.add_parser("status", help="identity, sensors, arming blockers explained",
-                            description="Show the FC's identity, sensors, loop time, flight "
-                                        "modes and every arming blocker with its fix.")
+    status = sub.add_parser(
+        "status",
+        help="identity, sensors, arming blockers explained",
+        description="Show the FC's identity, sensors, loop time, flight "
+        "modes and every arming blocker with its fix.",
+    )
     add_target_arguments(status)
     status.add_argument("--json", action="store_true", help="one JSON object")
     status.set_defaults(func=cmd_status)
 
     telemetry = sub.add_parser(
-        "telemetry", help="stream attitude, altitude, RC, motors, arming state",
+        "telemetry",
+        help="stream attitude, altitude, RC, motors, arming state",
         description="Poll telemetry (one MSP_MULTIPLE_MSP round trip per update). A live line "
-                    "on a terminal; JSON lines otherwise or with --json.")
+        "on a terminal; JSON lines otherwise or with --json.",
+    )
     add_target_arguments(telemetry)
-    telemetry.add_argument("--rate", type=_rate, default=10.0, metavar="HZ",
-                           help="updates per second, or 'max' (default 10)")
-    telemetry.add_argument("--duration", type=number_in(0, None, "s", above_low=True),
-                           default=None, metavar="S",
-                           help="stop after S seconds (default: until Ctrl-C)")
+    telemetry.add_argument(
+        "--rate",
+        type=_rate,
+        default=10.0,
+        metavar="HZ",
+        help="updates per second, or 'max' (default 10)",
+    )
+    telemetry.add_argument(
+        "--duration",
+        type=number_in(0, None, "s", above_low=True),
+        default=None,
+        metavar="S",
+        help="stop after S seconds (default: until Ctrl-C)",
+    )
     telemetry.add_argument("--json", action="store_true", help="JSON lines even on a terminal")
     telemetry.set_defaults(func=cmd_telemetry)
 
     cli = sub.add_parser(
-        "cli", help="run Betaflight CLI commands",
+        "cli",
+        help="run Betaflight CLI commands",
         description="Run CLI commands (default: status) and print their output. 'save' writes "
-                    "and reboots; with --start the SITL is restarted afterwards.")
+        "and reboots; with --start the SITL is restarted afterwards.",
+    )
     add_target_arguments(cli)
     cli.add_argument("command", nargs="*", help="one command, e.g. get small_angle")
     cli.add_argument("--file", help="a file of commands, one per line ('#' comments allowed)")
-    cli.add_argument("--keep-going", action="store_true",
-                     help="print ###ERROR output instead of stopping at it")
+    cli.add_argument(
+        "--keep-going", action="store_true", help="print ###ERROR output instead of stopping at it"
+    )
     cli.set_defaults(func=cmd_cli)
 
-    backup = sub.add_parser("backup", help="save `diff all` to a file",
-                            description="Write the FC's `diff all` to FILE (atomically).")
+    backup = sub.add_parser(
+        "backup",
+        help="save `diff all` to a file",
+        description="Write the FC's `diff all` to FILE (atomically).",
+    )
     backup.add_argument("file", help="where to write the backup")
     add_target_arguments(backup)
     backup.set_defaults(func=cmd_backup)
@@ -228,8 +265,11 @@ def _rate(text: str) -> float | None:
 def main(argv: Sequence[str] | None = None) -> int:
     parser = build_parser()
     args = parser.parse_args(argv)
-    if getattr(args, "file", None) and getattr(args, "command", None) and \
-            args.command_name == "cli":
+    if (
+        getattr(args, "file", None)
+        and getattr(args, "command", None)
+        and args.command_name == "cli"
+    ):
         parser.error("give either COMMAND or --file, not both")
     try:
         with stop_signals_interrupt():

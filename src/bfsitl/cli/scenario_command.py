@@ -22,72 +22,132 @@ _MARK = {"passed": "PASS", "failed": "FAIL", "error": "ERROR", "skipped": "SKIP"
 
 def add_scenario_parser(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]
     scenario = sub.add_parser(
-        "scenario", help="run failsafe / fault scenarios as a regression suite",
+        "scenario",
+        help="run failsafe / fault scenarios as a regression suite",
         description="Scenarios: a flight, faults at given times (RC loss, GPS loss, a weak "
-                    "motor, sensor errors, wind) and expectations checked on the simulated "
-                    "truth, the FC's telemetry and its own blackbox. See docs/scenarios.md.")
+        "motor, sensor errors, wind) and expectations checked on the simulated "
+        "truth, the FC's telemetry and its own blackbox. See docs/scenarios.md.",
+    )
     actions = scenario.add_subparsers(dest="scenario_action", metavar="ACTION", required=True)
 
     run = actions.add_parser(
-        "run", help="fly scenario files and judge them",
+        "run",
+        help="fly scenario files and judge them",
         description="Fly each scenario on each firmware, each in its own SITL and network "
-                    "namespace. Exit 0 when every run passed (or was skipped: a fault the "
-                    "firmware cannot express, a GPS scenario on a build without GPS), 1 "
-                    "otherwise.",
+        "namespace. Exit 0 when every run passed (or was skipped: a fault the "
+        "firmware cannot express, a GPS scenario on a build without GPS), 1 "
+        "otherwise.",
         epilog="Examples:\n  bfsitl scenario run                       the shipped library, on the "
-               "builds it names that you have\n"
-               "  bfsitl scenario run my-scenarios/ --firmware 4.6.0-gps-lockstep --jobs 2 "
-               "--junit results.xml --report report/",
-        formatter_class=argparse.RawDescriptionHelpFormatter)
-    run.add_argument("paths", nargs="*", metavar="FILE_OR_DIR",
-                     help="scenario files (.toml), directories of them, or names of the "
-                          "shipped library's scenarios (default: the "
-                          "library shipped with bfsitl; `bfsitl scenario list` shows it)")
-    run.add_argument("--firmware", action="append", default=[], metavar="NAME",
-                     help="a cached build's name or a SITL binary; repeat for several "
-                          "(default: the builds each file names that are built; the others "
-                          "are named, with the command that builds them)")
-    run.add_argument("--jobs", type=whole_number_at_least(1), default=1, metavar="N",
-                     help="runs side by side, each in its own process (default 1; about one "
-                          "per core: a SITL wants most of one)")
-    run.add_argument("--ray", metavar="ADDRESS", dest="ray_address",
-                     help="run on a Ray cluster instead (e.g. 127.0.0.1:6379 from `ray start "
-                          "--head`; 'auto' finds a local one): one task per run, one CPU "
-                          "each; the firmware travels to the nodes and each run's files come "
-                          "back to --out; needs the ray extra")
-    run.add_argument("--ray-retries", type=whole_number_at_least(0), default=2, metavar="N",
-                     help="submit a run again at most N times when its Ray worker or node is "
-                          "lost (default 2; a run that fails on its own is never retried)")
-    run.add_argument("--ray-max-mb", type=number_in(0.1, None, "MB"), default=256.0,
-                     metavar="MB",
-                     help="the most a run's files may bring home from a Ray node, compressed "
-                          "(default 256)")
-    run.add_argument("--junit", type=Path, metavar="FILE",
-                     help="write the results as JUnit XML (one suite per firmware)")
-    run.add_argument("--report", type=Path, metavar="DIR",
-                     help="write an HTML report (index.html, with the plots) into DIR")
-    run.add_argument("--out", type=Path, default=Path(DEFAULT_OUT), metavar="DIR",
-                     help=f"where each run's files go, DIR/FIRMWARE/SCENARIO/ (default "
-                          f"{DEFAULT_OUT}/): CSV, plot, result.json, blackbox, the SITL's "
-                          f"log and run directory")
-    run.add_argument("--speed", type=parse_speed, default=None, metavar="X",
-                     help="x real time (default: as fast as it goes on a lockstep build, real "
-                          "time on a stock one)")
+        "builds it names that you have\n"
+        "  bfsitl scenario run my-scenarios/ --firmware 4.6.0-gps-lockstep --jobs 2 "
+        "--junit results.xml --report report/",
+        formatter_class=argparse.RawDescriptionHelpFormatter,
+    )
+    run.add_argument(
+        "paths",
+        nargs="*",
+        metavar="FILE_OR_DIR",
+        help="scenario files (.toml), directories of them, or names of the "
+        "shipped library's scenarios (default: the "
+        "library shipped with bfsitl; `bfsitl scenario list` shows it)",
+    )
+    run.add_argument(
+        "--firmware",
+        action="append",
+        default=[],
+        metavar="NAME",
+        help="a cached build's name or a SITL binary; repeat for several "
+        "(default: the builds each file names that are built; the others "
+        "are named, with the command that builds them)",
+    )
+    run.add_argument(
+        "--jobs",
+        type=whole_number_at_least(1),
+        default=1,
+        metavar="N",
+        help="runs side by side, each in its own process (default 1; about one "
+        "per core: a SITL wants most of one)",
+    )
+    run.add_argument(
+        "--ray",
+        metavar="ADDRESS",
+        dest="ray_address",
+        help="run on a Ray cluster instead (e.g. 127.0.0.1:6379 from `ray start "
+        "--head`; 'auto' finds a local one): one task per run, one CPU "
+        "each; the firmware travels to the nodes and each run's files come "
+        "back to --out; needs the ray extra",
+    )
+    run.add_argument(
+        "--ray-retries",
+        type=whole_number_at_least(0),
+        default=2,
+        metavar="N",
+        help="submit a run again at most N times when its Ray worker or node is "
+        "lost (default 2; a run that fails on its own is never retried)",
+    )
+    run.add_argument(
+        "--ray-max-mb",
+        type=number_in(0.1, None, "MB"),
+        default=256.0,
+        metavar="MB",
+        help="the most a run's files may bring home from a Ray node, compressed (default 256)",
+    )
+    run.add_argument(
+        "--junit",
+        type=Path,
+        metavar="FILE",
+        help="write the results as JUnit XML (one suite per firmware)",
+    )
+    run.add_argument(
+        "--report",
+        type=Path,
+        metavar="DIR",
+        help="write an HTML report (index.html, with the plots) into DIR",
+    )
+    run.add_argument(
+        "--out",
+        type=Path,
+        default=Path(DEFAULT_OUT),
+        metavar="DIR",
+        help=f"where each run's files go, DIR/FIRMWARE/SCENARIO/ (default "
+        f"{DEFAULT_OUT}/): CSV, plot, result.json, blackbox, the SITL's "
+        f"log and run directory",
+    )
+    run.add_argument(
+        "--speed",
+        type=parse_speed,
+        default=None,
+        metavar="X",
+        help="x real time (default: as fast as it goes on a lockstep build, real "
+        "time on a stock one)",
+    )
     run.add_argument("--no-plot", action="store_true", help="skip the plots (faster)")
-    run.add_argument("--mcap", action="store_true",
-                     help="write each run's flight as MCAP too (flight.mcap, Foxglove's "
-                          "schemas; the foxglove extra)")
+    run.add_argument(
+        "--mcap",
+        action="store_true",
+        help="write each run's flight as MCAP too (flight.mcap, Foxglove's "
+        "schemas; the foxglove extra)",
+    )
     run.set_defaults(func=cmd_scenario_run)
 
-    show = actions.add_parser("list", help="check scenario files and show what they do",
-                              description="Read and check scenario files without flying.")
-    show.add_argument("paths", nargs="*", metavar="FILE_OR_DIR",
-                      help="scenario files, directories or library names (default: the "
-                           "shipped library)")
+    show = actions.add_parser(
+        "list",
+        help="check scenario files and show what they do",
+        description="Read and check scenario files without flying.",
+    )
+    show.add_argument(
+        "paths",
+        nargs="*",
+        metavar="FILE_OR_DIR",
+        help="scenario files, directories or library names (default: the shipped library)",
+    )
     show.set_defaults(func=cmd_scenario_list)
 
-    faults = actions.add_parser("faults", help="the fault catalog, and where each works",
-                                description="Print the fault kinds and their parameters.")
+    faults = actions.add_parser(
+        "faults",
+        help="the fault catalog, and where each works",
+        description="Print the fault kinds and their parameters.",
+    )
     faults.set_defaults(func=cmd_scenario_faults)
     add_compare_parser(actions)
 
@@ -106,22 +166,37 @@ def cmd_scenario_run(args: argparse.Namespace) -> int:
 
     def finished(result) -> None:  # type: ignore[no-untyped-def]
         mark = _MARK[result.verdict.value]
-        print(f"{mark:5} {result.test_id}  {result.sim_time_s:6.1f} s simulated in "
-              f"{result.wall_time_s:5.1f} s  {result.reason}", flush=True)
+        print(
+            f"{mark:5} {result.test_id}  {result.sim_time_s:6.1f} s simulated in "
+            f"{result.wall_time_s:5.1f} s  {result.reason}",
+            flush=True,
+        )
 
-    suite = run_suite(runs, jobs=args.jobs, speed=args.speed, plot=not args.no_plot,
-                      progress=progress if args.jobs == 1 or args.ray_address else None,
-                      on_result=finished, ray_address=args.ray_address, mcap=args.mcap,
-                      ray_retries=args.ray_retries, ray_max_mb=args.ray_max_mb)
+    suite = run_suite(
+        runs,
+        jobs=args.jobs,
+        speed=args.speed,
+        plot=not args.no_plot,
+        progress=progress if args.jobs == 1 or args.ray_address else None,
+        on_result=finished,
+        ray_address=args.ray_address,
+        mcap=args.mcap,
+        ray_retries=args.ray_retries,
+        ray_max_mb=args.ray_max_mb,
+    )
     results, interrupted = suite.results, suite.interrupted
     wall_s = time.monotonic() - started
     _write_outputs(args, results)
-    counts = {v: sum(1 for r in results if r.verdict.value == v)
-              for v in ("passed", "failed", "error", "skipped")}
+    counts = {
+        v: sum(1 for r in results if r.verdict.value == v)
+        for v in ("passed", "failed", "error", "skipped")
+    }
     simulated = sum(r.sim_time_s for r in results)
-    print(f"{counts['passed']} passed, {counts['failed']} failed, {counts['error']} errors, "
-          f"{counts['skipped']} skipped; {simulated:.0f} s simulated in {wall_s:.0f} s "
-          f"({simulated / wall_s if wall_s > 0 else 0:.1f}x real time)")
+    print(
+        f"{counts['passed']} passed, {counts['failed']} failed, {counts['error']} errors, "
+        f"{counts['skipped']} skipped; {simulated:.0f} s simulated in {wall_s:.0f} s "
+        f"({simulated / wall_s if wall_s > 0 else 0:.1f}x real time)"
+    )
     if interrupted:
         progress(suite.stop_line())
         return EXIT_INTERRUPTED
@@ -142,7 +217,7 @@ def _write_outputs(args: argparse.Namespace, results: list) -> None:  # type: ig
 #: How each build a shipped scenario names is made (master comes from the user's clone).
 _HOW_TO_BUILD = {
     "master-lockstep": "bfsitl firmware build --git https://github.com/betaflight/betaflight "
-                       "--ref master --lockstep --name master-lockstep",
+    "--ref master --lockstep --name master-lockstep",
     "4.6.0-gps-lockstep": "bfsitl firmware build --gps --lockstep",
     "4.6.0-lockstep": "bfsitl firmware build --lockstep",
 }
@@ -169,10 +244,12 @@ def _runs_on_made_builds(runs: list) -> list:  # type: ignore[type-arg]
         progress(f"not running on {name}: not built (`{how}` makes it)")
     if not kept:
         wanted = ", ".join(missing)
-        raise ScenarioError(f"none of the builds the scenarios name ({wanted}) is built: "
-                            f"`{_HOW_TO_BUILD['4.6.0-gps-lockstep']}` makes the 4.6.0 one, "
-                            f"or give --firmware NAME (`bfsitl firmware list` shows the "
-                            f"builds)")
+        raise ScenarioError(
+            f"none of the builds the scenarios name ({wanted}) is built: "
+            f"`{_HOW_TO_BUILD['4.6.0-gps-lockstep']}` makes the 4.6.0 one, "
+            f"or give --firmware NAME (`bfsitl firmware list` shows the "
+            f"builds)"
+        )
     return kept
 
 
@@ -187,8 +264,10 @@ def cmd_scenario_list(args: argparse.Namespace) -> int:
         for spec in scenario.faults:
             params = ", ".join(f"{k}={v!r}" for k, v in spec.params)
             lasts = f" for {spec.duration_s:g} s" if spec.duration_s is not None else ""
-            print(f"    fault at {spec.at_s:g} s{lasts}: {spec.kind}"
-                  + (f" ({params})" if params else ""))
+            print(
+                f"    fault at {spec.at_s:g} s{lasts}: {spec.kind}"
+                + (f" ({params})" if params else "")
+            )
         for key, value in scenario.expect:
             print(f"    expect {key} = {value!r}")
     return EXIT_OK

@@ -25,7 +25,9 @@ def check_builds(runs: list, *, given: bool) -> None:  # type: ignore[type-arg]
             find_firmware(run.firmware)
         except FirmwareNotFoundError as exc:
             origin = "--firmware" if given else f"named by {run.scenario.where}"
-            raise FirmwareNotFoundError(f"the build {run.firmware!r} ({origin}) is not there: "
-                                        f"`bfsitl firmware list` shows the builds, `bfsitl "
-                                        f"firmware build --lockstep [--gps]` makes one. "
-                                        f"{exc}") from exc
+            raise FirmwareNotFoundError(
+                f"the build {run.firmware!r} ({origin}) is not there: "
+                f"`bfsitl firmware list` shows the builds, `bfsitl "
+                f"firmware build --lockstep [--gps]` makes one. "
+                f"{exc}"
+            ) from exc

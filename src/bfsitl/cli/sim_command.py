@@ -24,38 +24,65 @@ REPORT_INTERVAL_S = 1.0
 
 def add_sim_parser(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]
     sim = sub.add_parser(
-        "sim", help="run the embedded physics against a SITL, with health figures",
+        "sim",
+        help="run the embedded physics against a SITL, with health figures",
         description="Feed the SITL simulated sensors (fdm packets on UDP 9003) and fly the "
-                    "simulated quad with its motor commands (UDP 9002). The firmware's clock is "
-                    "kept equal to simulated time. Prints state and health once a second; "
-                    "with --json one JSON object per second (fc_clock_ratio, fc_cycle_us, "
-                    "answered_ratio, speed, ...).",
+        "simulated quad with its motor commands (UDP 9002). The firmware's clock is "
+        "kept equal to simulated time. Prints state and health once a second; "
+        "with --json one JSON object per second (fc_clock_ratio, fc_cycle_us, "
+        "answered_ratio, speed, ...).",
     )
     add_target_arguments(sim, start_flag=False)
-    sim.add_argument("--attach", action="store_true",
-                     help="use a SITL already running in the host network (at --uri) instead "
-                          "of starting one")
-    sim.add_argument("--speed", type=number_in(0.01, 100, "x real time"), default=1.0, metavar="S",
-                     help="simulated seconds per wall second (default 1.0, real time; "
-                          "below 1 for slow machines; benchmarks/physics.py finds the fastest "
-                          "faithful speed)")
-    sim.add_argument("--duration", type=number_in(0, None, "s", above_low=True), default=None,
-                     metavar="S",
-                     help="stop after S simulated seconds (default: until Ctrl-C)")
-    sim.add_argument("--step-ms", type=number_in(0.1, 20, "ms"), default=DEFAULT_STEP_S * 1000,
-                     metavar="MS",
-                     help="physics step and fdm packet interval (default 1 ms, as Gazebo)")
-    sim.add_argument("--timestamps", choices=("frozen", "sim"), default="frozen",
-                     help="fdm timestamps: 'frozen' keeps the firmware clock at sim time "
-                          "(default); 'sim' sends sim time like Gazebo (the clock drifts)")
+    sim.add_argument(
+        "--attach",
+        action="store_true",
+        help="use a SITL already running in the host network (at --uri) instead of starting one",
+    )
+    sim.add_argument(
+        "--speed",
+        type=number_in(0.01, 100, "x real time"),
+        default=1.0,
+        metavar="S",
+        help="simulated seconds per wall second (default 1.0, real time; "
+        "below 1 for slow machines; benchmarks/physics.py finds the fastest "
+        "faithful speed)",
+    )
+    sim.add_argument(
+        "--duration",
+        type=number_in(0, None, "s", above_low=True),
+        default=None,
+        metavar="S",
+        help="stop after S simulated seconds (default: until Ctrl-C)",
+    )
+    sim.add_argument(
+        "--step-ms",
+        type=number_in(0.1, 20, "ms"),
+        default=DEFAULT_STEP_S * 1000,
+        metavar="MS",
+        help="physics step and fdm packet interval (default 1 ms, as Gazebo)",
+    )
+    sim.add_argument(
+        "--timestamps",
+        choices=("frozen", "sim"),
+        default="frozen",
+        help="fdm timestamps: 'frozen' keeps the firmware clock at sim time "
+        "(default); 'sim' sends sim time like Gazebo (the clock drifts)",
+    )
     sim.add_argument("--json", action="store_true", help="one JSON object per second")
-    sim.add_argument("--configurator", action="store_true",
-                     help="let the Betaflight Configurator watch: MSP on UART2 (TCP 5762) too "
-                          "(one reboot the first time), relayed to a WebSocket on 127.0.0.1 at "
-                          "--configurator-port (default 6761); not with --attach")
-    sim.add_argument("--configurator-port", type=port_number, default=6761, metavar="PORT",
-                     help="its WebSocket port (default 6761: the Configurator's \"Betaflight "
-                          "SITL\" entry)")
+    sim.add_argument(
+        "--configurator",
+        action="store_true",
+        help="let the Betaflight Configurator watch: MSP on UART2 (TCP 5762) too "
+        "(one reboot the first time), relayed to a WebSocket on 127.0.0.1 at "
+        "--configurator-port (default 6761); not with --attach",
+    )
+    sim.add_argument(
+        "--configurator-port",
+        type=port_number,
+        default=6761,
+        metavar="PORT",
+        help='its WebSocket port (default 6761: the Configurator\'s "Betaflight SITL" entry)',
+    )
     add_allow_origin_argument(sim)
     sim.set_defaults(func=cmd_sim)
 
@@ -67,8 +94,9 @@ def _sitl_and_bridge(args: argparse.Namespace) -> Iterator[tuple[SitlBridge, Msp
     simulator = Simulator()
     step_s = args.step_ms / 1000.0
     if args.attach:
-        bridge = SitlBridge(simulator, HostNetwork(), speed=args.speed, step_s=step_s,
-                            timestamps=args.timestamps)
+        bridge = SitlBridge(
+            simulator, HostNetwork(), speed=args.speed, step_s=step_s, timestamps=args.timestamps
+        )
         bridge.bind()
         link = open_link(args.uri or DEFAULT_SITL_URI, timeout_s=args.timeout)
         with MspClient(link, timeout_s=args.timeout) as client:
@@ -81,18 +109,24 @@ def _sitl_and_bridge(args: argparse.Namespace) -> Iterator[tuple[SitlBridge, Msp
         return
     if args.uri:
         raise SystemExit("bfsitl sim: --uri needs --attach (otherwise a SITL is started)")
-    sitl = SitlProcess(args.firmware, workdir=args.workdir, isolate=not args.no_isolate,
-                       progress=progress)
-    with bridged_sitl(sitl, simulator, speed=args.speed, step_s=step_s,
-                      timestamps=args.timestamps) as bridge, contextlib.ExitStack() as stack:
+    sitl = SitlProcess(
+        args.firmware, workdir=args.workdir, isolate=not args.no_isolate, progress=progress
+    )
+    with (
+        bridged_sitl(
+            sitl, simulator, speed=args.speed, step_s=step_s, timestamps=args.timestamps
+        ) as bridge,
+        contextlib.ExitStack() as stack,
+    ):
         if args.configurator:
             _serve_configurator(sitl, bridge, args, stack)
         assert sitl.client is not None
         yield bridge, sitl.client
 
 
-def _serve_configurator(sitl: SitlProcess, bridge: SitlBridge, args: argparse.Namespace,
-                        stack: contextlib.ExitStack) -> None:
+def _serve_configurator(
+    sitl: SitlProcess, bridge: SitlBridge, args: argparse.Namespace, stack: contextlib.ExitStack
+) -> None:
     """MSP on UART2 as well (a reboot the first time), and the WebSocket bridge to it."""
     from bfsitl.bridges import Upstream
     from bfsitl.bridges.origin_policy import OriginPolicy
@@ -111,16 +145,23 @@ def _serve_configurator(sitl: SitlProcess, bridge: SitlBridge, args: argparse.Na
         wait_for_replies(bridge)
 
     assert sitl.client is not None and sitl.network is not None
-    provision(sitl.client, Profile(mode_ranges=(), cli_lines=sitl.profile.second_msp_cli,
-                                   reboot_when_changed=True), reboot=reboot)
+    provision(
+        sitl.client,
+        Profile(mode_ranges=(), cli_lines=sitl.profile.second_msp_cli, reboot_when_changed=True),
+        reboot=reboot,
+    )
     relay = WebSocketRelay(
         Upstream(SITL_HOST, SECOND_MSP_PORT, socket_factory=sitl.network.socket),
-        port=args.configurator_port, origins=OriginPolicy.with_extra(args.allow_origin),
+        port=args.configurator_port,
+        origins=OriginPolicy.with_extra(args.allow_origin),
         on_event=lambda line: progress(f"configurator: {line}"),
-        port_option="--configurator-port")
+        port_option="--configurator-port",
+    )
     url = stack.enter_context(relay.running())
-    progress(f"the Configurator can watch at {url} (MSP on UART2, TCP {SECOND_MSP_PORT}); "
-             f"{connect_hint(url)}")
+    progress(
+        f"the Configurator can watch at {url} (MSP on UART2, TCP {SECOND_MSP_PORT}); "
+        f"{connect_hint(url)}"
+    )
 
 
 def _human_line(sample: HealthSample, bridge: SitlBridge) -> str:
@@ -157,6 +198,8 @@ def cmd_sim(args: argparse.Namespace) -> int:
             else:
                 print(_human_line(sample, bridge), flush=True)
         stats = bridge.stats()
-    progress(f"simulated {stats.sim_time_s:.1f} s in {stats.wall_time_s:.1f} s, "
-             f"{stats.answered_ratio * 100:.1f} % of {stats.fdm_sent} fdm packets answered")
+    progress(
+        f"simulated {stats.sim_time_s:.1f} s in {stats.wall_time_s:.1f} s, "
+        f"{stats.answered_ratio * 100:.1f} % of {stats.fdm_sent} fdm packets answered"
+    )
     return 0

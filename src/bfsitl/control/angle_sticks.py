@@ -29,15 +29,15 @@ _BISECTION_STEPS = 40
 class ActualRates:
     """One axis of Actual rates, in the firmware's units (10 deg/s, percent)."""
 
-    rc_rate: int   # centre sensitivity / 10 deg/s
-    rate: int      # max rate / 10 deg/s
-    expo: int      # percent
+    rc_rate: int  # centre sensitivity / 10 deg/s
+    rate: int  # max rate / 10 deg/s
+    expo: int  # percent
 
     def setpoint(self, deflection: float) -> float:
         """The rate setpoint (deg/s) for a stick deflection -1..1 (``applyActualRates``)."""
         x = max(-1.0, min(1.0, deflection))
         e = self.expo / 100.0
-        shaped = abs(x) * (x ** 5 * e + x * (1.0 - e))
+        shaped = abs(x) * (x**5 * e + x * (1.0 - e))
         centre = self.rc_rate * 10.0
         return x * centre + max(0.0, self.rate * 10.0 - centre) * shaped
 
@@ -45,7 +45,6 @@ class ActualRates:
         """setpoint(deflection) / setpoint(full stick): what ANGLE mode scales its limit by."""
         full = self.setpoint(1.0)
         return self.setpoint(deflection) / full if full > 0 else 0.0
-
 
     def deflection_for(self, rate_deg_s: float) -> float:
         """The stick deflection -1..1 that asks for ``rate_deg_s`` (clamped to the curve)."""
@@ -65,7 +64,7 @@ class ActualRates:
         low, high = 0.0, 1.0
         for _ in range(_BISECTION_STEPS):  # share() rises monotonically with the deflection
             mid = 0.5 * (low + high)
-            if (mid * centre + span * (mid * (mid ** 5 * e + mid * keep))) / full < wanted:
+            if (mid * centre + span * (mid * (mid**5 * e + mid * keep))) / full < wanted:
                 low = mid
             else:
                 high = mid
@@ -98,11 +97,14 @@ class AngleStickMap:
             raise UnsupportedFirmwareError(
                 f"position control reads the FC's rate curve and knows Actual rates only; this "
                 f"FC uses rates_type {tuning.rates_type}: `set rates_type = ACTUAL` (and set "
-                f"the rates again) for autonomous flight")
-        return cls(ActualRates(tuning.roll_rc_rate, tuning.roll_rate, tuning.roll_expo),
-                   ActualRates(tuning.pitch_rc_rate, tuning.pitch_rate, tuning.pitch_expo),
-                   float(advanced.angle_limit_deg),
-                   ActualRates(tuning.yaw_rc_rate, tuning.yaw_rate, tuning.yaw_expo))
+                f"the rates again) for autonomous flight"
+            )
+        return cls(
+            ActualRates(tuning.roll_rc_rate, tuning.roll_rate, tuning.roll_expo),
+            ActualRates(tuning.pitch_rc_rate, tuning.pitch_rate, tuning.pitch_expo),
+            float(advanced.angle_limit_deg),
+            ActualRates(tuning.yaw_rc_rate, tuning.yaw_rate, tuning.yaw_expo),
+        )
 
     def angle_deg(self, axis: str, stick_us: float) -> float:
         """The angle the FC holds for ``stick_us`` on ``axis`` ("roll" or "pitch")."""

@@ -34,10 +34,10 @@ THROTTLE_MAX_US = 2000.0
 class AltitudeInput:
     """One control step's measurements, in the FC's frame (up positive, metres, seconds)."""
 
-    time_s: float          # mission clock in seconds (simulation time), strictly increasing
-    altitude_m: float      # measured altitude relative to the arming point (MSP_ALTITUDE / 100)
+    time_s: float  # mission clock in seconds (simulation time), strictly increasing
+    altitude_m: float  # measured altitude relative to the arming point (MSP_ALTITUDE / 100)
     climb_rate_m_s: float  # measured vertical speed, up positive
-    target_alt_m: float    # wanted altitude, same reference
+    target_alt_m: float  # wanted altitude, same reference
     #: Vertical acceleration, up positive, gravity removed, from the FC's accelerometer
     #: (MSP_RAW_IMU) and attitude; None when the source has none.  Unlike the barometric
     #: altitude it is not late, so a controller can fuse the two (:mod:`.altitude_estimator`).
@@ -118,10 +118,14 @@ def check_gains(gains: object) -> None:
     """
     for field in fields(gains):  # type: ignore[arg-type]
         value = getattr(gains, field.name)
-        if not isinstance(value, (int, float)) or isinstance(value, bool) \
-                or not math.isfinite(value):
+        if (
+            not isinstance(value, (int, float))
+            or isinstance(value, bool)
+            or not math.isfinite(value)
+        ):
             raise ControllerConfigError(
-                f"{type(gains).__name__}: {field.name} must be a finite number, got {value!r}")
+                f"{type(gains).__name__}: {field.name} must be a finite number, got {value!r}"
+            )
 
 
 def require(condition: bool, gains: object, message: str) -> None:
@@ -132,9 +136,12 @@ def require(condition: bool, gains: object, message: str) -> None:
 
 def throttle_range_ok(gains: object, low_us: float, high_us: float) -> None:
     """The common throttle-limit check: inside the RC range and low below high."""
-    require(THROTTLE_MIN_US <= low_us < high_us <= THROTTLE_MAX_US, gains,
-            f"throttle limits must satisfy {THROTTLE_MIN_US:.0f} <= min < max <= "
-            f"{THROTTLE_MAX_US:.0f} us, got {low_us:g}..{high_us:g}")
+    require(
+        THROTTLE_MIN_US <= low_us < high_us <= THROTTLE_MAX_US,
+        gains,
+        f"throttle limits must satisfy {THROTTLE_MIN_US:.0f} <= min < max <= "
+        f"{THROTTLE_MAX_US:.0f} us, got {low_us:g}..{high_us:g}",
+    )
 
 
 class HoverLimits(Protocol):
@@ -156,10 +163,15 @@ class HoverLimits(Protocol):
 def hover_range_ok(gains: HoverLimits) -> None:
     """The throttle limits, and the hover bounds and guess inside them, in that order."""
     throttle_range_ok(gains, gains.throttle_min_us, gains.throttle_max_us)
-    require(gains.throttle_min_us <= gains.hover_min_us <= gains.hover_guess_us
-            <= gains.hover_max_us <= gains.throttle_max_us, gains,
-            "need throttle_min_us <= hover_min_us <= hover_guess_us <= hover_max_us "
-            "<= throttle_max_us")
+    require(
+        gains.throttle_min_us
+        <= gains.hover_min_us
+        <= gains.hover_guess_us
+        <= gains.hover_max_us
+        <= gains.throttle_max_us,
+        gains,
+        "need throttle_min_us <= hover_min_us <= hover_guess_us <= hover_max_us <= throttle_max_us",
+    )
 
 
 class WholeMicroseconds:

@@ -75,38 +75,56 @@ MIN_IDENTIFY_SAMPLES = 12
 class CascadeGains:
     """Gains and limits of :class:`CascadedAltitudeController` (units in the names)."""
 
-    hover_guess_us: float = 1480.0       # start of the spool-up: below any sane hover
-    hover_min_us: float = 1250.0         # bounds of the adapted hover estimate
+    hover_guess_us: float = 1480.0  # start of the spool-up: below any sane hover
+    hover_min_us: float = 1250.0  # bounds of the adapted hover estimate
     hover_max_us: float = 1800.0
-    spool_rate_us_s: float = 100.0       # how fast the throttle rises on the ground
-    liftoff_alt_m: float = 0.08          # FC altitude that means "off the ground" ...
-    liftoff_climb_m_s: float = 0.20      # ... together with this climb rate
-    liftoff_delay_s: float = 0.64        # true lift-off to the FC showing it, at that ramp
+    spool_rate_us_s: float = 100.0  # how fast the throttle rises on the ground
+    liftoff_alt_m: float = 0.08  # FC altitude that means "off the ground" ...
+    liftoff_climb_m_s: float = 0.20  # ... together with this climb rate
+    liftoff_delay_s: float = 0.64  # true lift-off to the FC showing it, at that ramp
     max_climb_m_s: float = 3.0
     max_descent_m_s: float = 1.0
     max_accel_m_s2: float = 5.0
-    approach_rate_hz: float = 3.0        # final approach: climb rate = this x distance
-    alt_kp: float = 1.5                  # 1/s: climb-rate correction per m of altitude error
-    alt_ki: float = 30.0                 # us per (m s): hover adaptation
-    rate_kp: float = 50.0                # us per m/s of climb-rate error
-    rate_filter_s: float = 0.08          # time constant of the climb rate derived here
-    accel_ff_us: float = 28.0            # us per m/s^2 (1 / b, the vehicle's throttle gain)
-    climb_ff_us: float = 24.0            # us per m/s (rotor-inflow damping, in throttle)
-    lag_s: float = 0.22                  # FC altitude behind the truth
-    rate_lag_s: float = 0.30             # climb rate (from that altitude) behind the truth
-    hold_deadband_m: float = 0.0         # optional; e.g. 0.02 (a quarter barometer step)
-    learn_below_m_s: float = 0.3         # hover adaptation only while the profile is slower
+    approach_rate_hz: float = 3.0  # final approach: climb rate = this x distance
+    alt_kp: float = 1.5  # 1/s: climb-rate correction per m of altitude error
+    alt_ki: float = 30.0  # us per (m s): hover adaptation
+    rate_kp: float = 50.0  # us per m/s of climb-rate error
+    rate_filter_s: float = 0.08  # time constant of the climb rate derived here
+    accel_ff_us: float = 28.0  # us per m/s^2 (1 / b, the vehicle's throttle gain)
+    climb_ff_us: float = 24.0  # us per m/s (rotor-inflow damping, in throttle)
+    lag_s: float = 0.22  # FC altitude behind the truth
+    rate_lag_s: float = 0.30  # climb rate (from that altitude) behind the truth
+    hold_deadband_m: float = 0.0  # optional; e.g. 0.02 (a quarter barometer step)
+    learn_below_m_s: float = 0.3  # hover adaptation only while the profile is slower
     throttle_min_us: float = 1150.0
     throttle_max_us: float = 1850.0
 
     def __post_init__(self) -> None:
         check_gains(self)
         hover_range_ok(self)
-        for name in ("spool_rate_us_s", "max_climb_m_s", "max_descent_m_s", "max_accel_m_s2",
-                     "approach_rate_hz", "liftoff_alt_m", "liftoff_climb_m_s", "accel_ff_us"):
+        for name in (
+            "spool_rate_us_s",
+            "max_climb_m_s",
+            "max_descent_m_s",
+            "max_accel_m_s2",
+            "approach_rate_hz",
+            "liftoff_alt_m",
+            "liftoff_climb_m_s",
+            "accel_ff_us",
+        ):
             require(getattr(self, name) > 0, self, f"{name} must be > 0")
-        for name in ("alt_kp", "alt_ki", "rate_kp", "rate_filter_s", "climb_ff_us", "lag_s",
-                     "rate_lag_s", "liftoff_delay_s", "hold_deadband_m", "learn_below_m_s"):
+        for name in (
+            "alt_kp",
+            "alt_ki",
+            "rate_kp",
+            "rate_filter_s",
+            "climb_ff_us",
+            "lag_s",
+            "rate_lag_s",
+            "liftoff_delay_s",
+            "hold_deadband_m",
+            "learn_below_m_s",
+        ):
             require(getattr(self, name) >= 0, self, f"{name} must be >= 0")
 
 
@@ -157,8 +175,13 @@ class ReferenceProfile:
 
     __slots__ = ("alt_m", "climb_m_s", "accel_m_s2", "_climb", "_descent", "_accel", "_k")
 
-    def __init__(self, max_climb_m_s: float, max_descent_m_s: float, max_accel_m_s2: float,
-                 approach_rate_hz: float) -> None:
+    def __init__(
+        self,
+        max_climb_m_s: float,
+        max_descent_m_s: float,
+        max_accel_m_s2: float,
+        approach_rate_hz: float,
+    ) -> None:
         self._climb, self._descent = max_climb_m_s, max_descent_m_s
         self._accel, self._k = max_accel_m_s2, approach_rate_hz
         self.reset(0.0)
@@ -198,8 +221,9 @@ class CascadedAltitudeController:
     def __init__(self, gains: CascadeGains | None = None) -> None:
         self.gains = gains or CascadeGains()
         g = self.gains
-        self._profile = ReferenceProfile(g.max_climb_m_s, g.max_descent_m_s, g.max_accel_m_s2,
-                                         g.approach_rate_hz)
+        self._profile = ReferenceProfile(
+            g.max_climb_m_s, g.max_descent_m_s, g.max_accel_m_s2, g.approach_rate_hz
+        )
         self._seen_alt = SensorLag(g.lag_s)
         self._seen_climb = SensorLag(g.rate_lag_s)
         self.reset(0.0)
@@ -251,8 +275,10 @@ class CascadedAltitudeController:
     def _still_on_ground(self, sample: AltitudeInput) -> bool:
         """The profile is well up but the FC still reads ground level: it never left."""
         g = self.gains
-        return sample.altitude_m < g.liftoff_alt_m and \
-            self._profile.alt_m - sample.altitude_m > FALSE_LIFTOFF_LEAD_M
+        return (
+            sample.altitude_m < g.liftoff_alt_m
+            and self._profile.alt_m - sample.altitude_m > FALSE_LIFTOFF_LEAD_M
+        )
 
     def _own_climb_rate(self, altitude_m: float, dt_s: float) -> float:
         """Finite difference of the FC altitude through a short first-order filter."""
@@ -276,8 +302,9 @@ class CascadedAltitudeController:
         g = self.gains
         if sample.target_alt_m < g.liftoff_alt_m:
             return THROTTLE_MIN_US  # nowhere to go: stay down, motors at idle
-        self.hover_throttle_us = min(self.hover_throttle_us + g.spool_rate_us_s * dt_s,
-                                     g.hover_max_us)
+        self.hover_throttle_us = min(
+            self.hover_throttle_us + g.spool_rate_us_s * dt_s, g.hover_max_us
+        )
         return self.hover_throttle_us
 
     def _take_off(self, sample: AltitudeInput) -> None:
@@ -300,8 +327,9 @@ class CascadedAltitudeController:
             self._seen_climb.reset(sample.climb_rate_m_s)
             return
         delay_s = g.liftoff_delay_s
-        self.hover_throttle_us = clamp(self.hover_throttle_us - g.spool_rate_us_s * delay_s,
-                                       g.hover_min_us, g.hover_max_us)
+        self.hover_throttle_us = clamp(
+            self.hover_throttle_us - g.spool_rate_us_s * delay_s, g.hover_min_us, g.hover_max_us
+        )
         per_b = g.spool_rate_us_s / g.accel_ff_us
         climb = min(max(sample.climb_rate_m_s, per_b * delay_s**2 / 2.0), g.max_climb_m_s)
         alt = max(sample.altitude_m, per_b * delay_s**3 / 6.0)
@@ -331,8 +359,11 @@ class CascadedAltitudeController:
         assert best is not None
         return best[1], best[2], best[3]
 
-    def _replay(self, hover_us: float, log: list[tuple[float, float, float]],
-                ) -> tuple[float, float, float]:
+    def _replay(
+        self,
+        hover_us: float,
+        log: list[tuple[float, float, float]],
+    ) -> tuple[float, float, float]:
         g = self.gains
         lag = SensorLag(g.lag_s)
         alt_m = climb_m_s = cost = 0.0
@@ -375,9 +406,11 @@ class CascadedAltitudeController:
         # lag varies with its task rate): learning the hover throttle from it would wind up.
         slow = abs(profile.climb_m_s) <= g.learn_below_m_s
         if slow and not (pushing_up_at_max or pushing_down_at_min):
-            self.hover_throttle_us = clamp(self.hover_throttle_us
-                                           + g.alt_ki * integrated_error * dt_s,
-                                           g.hover_min_us, g.hover_max_us)
+            self.hover_throttle_us = clamp(
+                self.hover_throttle_us + g.alt_ki * integrated_error * dt_s,
+                g.hover_min_us,
+                g.hover_max_us,
+            )
         return output
 
 

@@ -45,40 +45,55 @@ from bfsitl.errors import ControllerConfigError
 class FusedGains:
     """Gains and limits of :class:`FusedAltitudeController` (units in the names)."""
 
-    hover_guess_us: float = 1480.0       # start of the spool-up: below any sane hover
-    hover_min_us: float = 1250.0         # bounds of the learnt hover throttle
+    hover_guess_us: float = 1480.0  # start of the spool-up: below any sane hover
+    hover_min_us: float = 1250.0  # bounds of the learnt hover throttle
     hover_max_us: float = 1800.0
-    spool_rate_us_s: float = 150.0       # how fast the throttle rises on the ground
-    liftoff_accel_m_s2: float = 0.3      # measured upward acceleration that means "lifting"
+    spool_rate_us_s: float = 150.0  # how fast the throttle rises on the ground
+    liftoff_accel_m_s2: float = 0.3  # measured upward acceleration that means "lifting"
     # A brisker reference than the cascade's (5 m/s^2, 3 m/s, 3 Hz): the estimate is on time,
     # so the final approach can be tight (SITL, six flights: rise 0.75-0.82 s, overshoot
     # median 1.6 %, where 5/3/3 rose in ~1.05 s).
     max_climb_m_s: float = 3.5
     max_descent_m_s: float = 1.0
     max_accel_m_s2: float = 6.0
-    approach_rate_hz: float = 5.0        # final approach: climb rate = this x distance
-    pos_kp: float = 2.0                  # 1/s: climb-rate correction per m of altitude error
-    vel_kp: float = 5.0                  # 1/s: acceleration per m/s of climb-rate error
-    accel_ff_us: float = 28.0            # us per m/s^2 (1 / b, the vehicle's throttle gain)
-    climb_ff_us: float = 24.0            # us per m/s (rotor-inflow damping, in throttle)
-    motor_lag_s: float = 0.05            # throttle sent -> acceleration measured
-    ff_lead_s: float = 0.0               # acceleration feedforward taken this far ahead
-    hover_learn_s: float = 0.5           # time constant of the hover learning
-    learn_below_m_s2: float = 1.5        # learn only while the reference accelerates less
-    baro_lag_s: float = 0.22             # FC altitude behind the truth (estimator's model)
-    baro_bandwidth_rad_s: float = 0.5    # how fast the barometer corrects the estimate
+    approach_rate_hz: float = 5.0  # final approach: climb rate = this x distance
+    pos_kp: float = 2.0  # 1/s: climb-rate correction per m of altitude error
+    vel_kp: float = 5.0  # 1/s: acceleration per m/s of climb-rate error
+    accel_ff_us: float = 28.0  # us per m/s^2 (1 / b, the vehicle's throttle gain)
+    climb_ff_us: float = 24.0  # us per m/s (rotor-inflow damping, in throttle)
+    motor_lag_s: float = 0.05  # throttle sent -> acceleration measured
+    ff_lead_s: float = 0.0  # acceleration feedforward taken this far ahead
+    hover_learn_s: float = 0.5  # time constant of the hover learning
+    learn_below_m_s2: float = 1.5  # learn only while the reference accelerates less
+    baro_lag_s: float = 0.22  # FC altitude behind the truth (estimator's model)
+    baro_bandwidth_rad_s: float = 0.5  # how fast the barometer corrects the estimate
     throttle_min_us: float = 1150.0
     throttle_max_us: float = 1850.0
 
     def __post_init__(self) -> None:
         check_gains(self)
         hover_range_ok(self)
-        for name in ("spool_rate_us_s", "liftoff_accel_m_s2", "max_climb_m_s",
-                     "max_descent_m_s", "max_accel_m_s2", "approach_rate_hz", "accel_ff_us",
-                     "hover_learn_s", "baro_bandwidth_rad_s"):
+        for name in (
+            "spool_rate_us_s",
+            "liftoff_accel_m_s2",
+            "max_climb_m_s",
+            "max_descent_m_s",
+            "max_accel_m_s2",
+            "approach_rate_hz",
+            "accel_ff_us",
+            "hover_learn_s",
+            "baro_bandwidth_rad_s",
+        ):
             require(getattr(self, name) > 0, self, f"{name} must be > 0")
-        for name in ("pos_kp", "vel_kp", "climb_ff_us", "motor_lag_s", "ff_lead_s",
-                     "learn_below_m_s2", "baro_lag_s"):
+        for name in (
+            "pos_kp",
+            "vel_kp",
+            "climb_ff_us",
+            "motor_lag_s",
+            "ff_lead_s",
+            "learn_below_m_s2",
+            "baro_lag_s",
+        ):
             require(getattr(self, name) >= 0, self, f"{name} must be >= 0")
 
 
@@ -91,10 +106,12 @@ class FusedAltitudeController:
     def __init__(self, gains: FusedGains | None = None) -> None:
         self.gains = gains or FusedGains()
         g = self.gains
-        self._profile = ReferenceProfile(g.max_climb_m_s, g.max_descent_m_s, g.max_accel_m_s2,
-                                         g.approach_rate_hz)
-        self.estimator = AltitudeEstimator(lag_s=g.baro_lag_s,
-                                           bandwidth_rad_s=g.baro_bandwidth_rad_s)
+        self._profile = ReferenceProfile(
+            g.max_climb_m_s, g.max_descent_m_s, g.max_accel_m_s2, g.approach_rate_hz
+        )
+        self.estimator = AltitudeEstimator(
+            lag_s=g.baro_lag_s, bandwidth_rad_s=g.baro_bandwidth_rad_s
+        )
         self.reset(0.0)
 
     def reset(self, time_s: float) -> None:
@@ -103,7 +120,7 @@ class FusedAltitudeController:
         self._lifting_votes = 0
         self._prev_time_s = time_s
         self._output_us = THROTTLE_MIN_US
-        self._motors_us = THROTTLE_MIN_US   # what the motors have had: the output, lagged
+        self._motors_us = THROTTLE_MIN_US  # what the motors have had: the output, lagged
         self._whole_us = WholeMicroseconds()
         self._profile.reset(0.0)
         self.estimator.reset()
@@ -132,7 +149,8 @@ class FusedAltitudeController:
         if sample.accel_up_m_s2 is None:
             raise ControllerConfigError(
                 "the fused controller needs the FC's accelerometer (AltitudeInput."
-                "accel_up_m_s2); use 'cascade' or 'tutorial-pid' for barometer-only input")
+                "accel_up_m_s2); use 'cascade' or 'tutorial-pid' for barometer-only input"
+            )
         return sample.accel_up_m_s2
 
     def update(self, sample: AltitudeInput) -> float:
@@ -144,21 +162,22 @@ class FusedAltitudeController:
         # The estimator integrates over the real gap (the vehicle moved all along); the
         # loops below take at most MAX_STEP_S (the cascade's) so a stalled loop cannot jump
         # the reference.
-        estimate = self.estimator.update(dt_s, accel, sample.altitude_m,
-                                         on_ground=not self.airborne)
+        estimate = self.estimator.update(
+            dt_s, accel, sample.altitude_m, on_ground=not self.airborne
+        )
         dt_s = min(dt_s, MAX_STEP_S)
         g = self.gains
         share = 1.0 if g.motor_lag_s <= 0 else min(1.0, dt_s / g.motor_lag_s)
         self._motors_us += share * (self._output_us - self._motors_us)
         if not self.airborne:
             if sample.target_alt_m < 0.05:
-                self._output_us = THROTTLE_MIN_US   # nowhere to go: stay down
+                self._output_us = THROTTLE_MIN_US  # nowhere to go: stay down
                 return self._output_us
-            self._lifting_votes = self._lifting_votes + 1 \
-                if accel >= g.liftoff_accel_m_s2 else 0
+            self._lifting_votes = self._lifting_votes + 1 if accel >= g.liftoff_accel_m_s2 else 0
             if self._lifting_votes < 2:
-                self.hover_throttle_us = min(self.hover_throttle_us + g.spool_rate_us_s * dt_s,
-                                             g.hover_max_us)
+                self.hover_throttle_us = min(
+                    self.hover_throttle_us + g.spool_rate_us_s * dt_s, g.hover_max_us
+                )
                 self._output_us = self.hover_throttle_us
                 return self._output_us
             self.airborne = True
@@ -166,17 +185,20 @@ class FusedAltitudeController:
             # (A fast spool-up makes this worse: the skids unloading add a spike, and the
             # reading's delay is worth more microseconds; 150 us/s was measured to give the
             # hover within ~5 us on the SITL, 300 us/s missed by 13 us.)
-            self.hover_throttle_us = clamp(self._motors_us - g.accel_ff_us * accel,
-                                           g.hover_min_us, g.hover_max_us)
+            self.hover_throttle_us = clamp(
+                self._motors_us - g.accel_ff_us * accel, g.hover_min_us, g.hover_max_us
+            )
             self._profile.reset(estimate.alt_m, estimate.climb_m_s)
         profile = self._profile
         profile.step(sample.target_alt_m, dt_s)
         self._learn_hover(accel, estimate.climb_m_s, dt_s)
         climb_sp = profile.climb_m_s + g.pos_kp * (profile.alt_m - estimate.alt_m)
-        accel_sp = self._accel_ahead(sample.target_alt_m) \
-            + g.vel_kp * (climb_sp - estimate.climb_m_s)
-        wanted = self.hover_throttle_us + g.accel_ff_us * accel_sp \
-            + g.climb_ff_us * estimate.climb_m_s
+        accel_sp = self._accel_ahead(sample.target_alt_m) + g.vel_kp * (
+            climb_sp - estimate.climb_m_s
+        )
+        wanted = (
+            self.hover_throttle_us + g.accel_ff_us * accel_sp + g.climb_ff_us * estimate.climb_m_s
+        )
         self._output_us = self._whole_us(clamp(wanted, g.throttle_min_us, g.throttle_max_us))
         return self._output_us
 
@@ -195,10 +217,13 @@ class FusedAltitudeController:
         g = self.gains
         if abs(self._profile.accel_m_s2) > g.learn_below_m_s2:
             return
-        predicted = (self._motors_us - self.hover_throttle_us) / g.accel_ff_us \
-            - g.climb_ff_us / g.accel_ff_us * climb_m_s
+        predicted = (
+            self._motors_us - self.hover_throttle_us
+        ) / g.accel_ff_us - g.climb_ff_us / g.accel_ff_us * climb_m_s
         # Measured below predicted: the vehicle needs more throttle to hover than assumed.
         error_us = g.accel_ff_us * (predicted - accel_m_s2)
         self.hover_throttle_us = clamp(
             self.hover_throttle_us + error_us * min(1.0, dt_s / g.hover_learn_s),
-            g.hover_min_us, g.hover_max_us)
+            g.hover_min_us,
+            g.hover_max_us,
+        )

@@ -39,8 +39,9 @@ class HorizontalEstimate:
     bias_east_m_s2: float
 
 
-def specific_force_north_east(acc_flu_m_s2: tuple[float, float, float], roll_deg: float,
-                              pitch_deg: float, heading_deg: float) -> tuple[float, float]:
+def specific_force_north_east(
+    acc_flu_m_s2: tuple[float, float, float], roll_deg: float, pitch_deg: float, heading_deg: float
+) -> tuple[float, float]:
     """The accelerometer's specific force turned to north and east (m/s^2): what makes the
     vehicle accelerate horizontally (gravity has no horizontal part).
 
@@ -57,19 +58,30 @@ def specific_force_north_east(acc_flu_m_s2: tuple[float, float, float], roll_deg
     sphi, cphi = math.sin(phi), math.cos(phi)
     sth, cth = math.sin(theta), math.cos(theta)
     spsi, cpsi = math.sin(psi), math.cos(psi)
-    north = (cpsi * cth * fx + (cpsi * sth * sphi - spsi * cphi) * fy
-             + (cpsi * sth * cphi + spsi * sphi) * fz)
-    east = (spsi * cth * fx + (spsi * sth * sphi + cpsi * cphi) * fy
-            + (spsi * sth * cphi - cpsi * sphi) * fz)
+    north = (
+        cpsi * cth * fx
+        + (cpsi * sth * sphi - spsi * cphi) * fy
+        + (cpsi * sth * cphi + spsi * sphi) * fz
+    )
+    east = (
+        spsi * cth * fx
+        + (spsi * sth * sphi + cpsi * cphi) * fy
+        + (spsi * sth * cphi - cpsi * sphi) * fz
+    )
     return north, east
 
 
 class HorizontalEstimator:
     """Complementary filter on north and east; one :meth:`update` per control step."""
 
-    def __init__(self, *, gps_delay_s: float = 0.1, bandwidth_rad_s: float = 1.5,
-                 max_step_s: float = 0.2, max_bias_m_s2: float = 0.2 * STANDARD_GRAVITY_M_S2
-                 ) -> None:
+    def __init__(
+        self,
+        *,
+        gps_delay_s: float = 0.1,
+        bandwidth_rad_s: float = 1.5,
+        max_step_s: float = 0.2,
+        max_bias_m_s2: float = 0.2 * STANDARD_GRAVITY_M_S2,
+    ) -> None:
         if not (gps_delay_s >= 0 and bandwidth_rad_s > 0 and max_step_s > 0):
             raise ValueError("gps_delay_s >= 0, bandwidth_rad_s > 0, max_step_s > 0")
         self.gps_delay_s = gps_delay_s
@@ -86,8 +98,14 @@ class HorizontalEstimator:
         #: (time_s, north, east, v_north, v_east) of past steps, for the late fix.
         self._history: deque[tuple[float, float, float, float, float]] = deque()
 
-    def reset(self, time_s: float, north_m: float, east_m: float, v_north_m_s: float = 0.0,
-              v_east_m_s: float = 0.0) -> None:
+    def reset(
+        self,
+        time_s: float,
+        north_m: float,
+        east_m: float,
+        v_north_m_s: float = 0.0,
+        v_east_m_s: float = 0.0,
+    ) -> None:
         self.started = True
         self._time_s = time_s
         self._p = [north_m, east_m]
@@ -98,8 +116,13 @@ class HorizontalEstimator:
         self._history.clear()
         self._remember()
 
-    def update(self, time_s: float, accel_north_m_s2: float, accel_east_m_s2: float,
-               fix: tuple[float, float, float, float]) -> HorizontalEstimate:
+    def update(
+        self,
+        time_s: float,
+        accel_north_m_s2: float,
+        accel_east_m_s2: float,
+        fix: tuple[float, float, float, float],
+    ) -> HorizontalEstimate:
         """``fix``: the GPS's (north, east, v_north, v_east) as read this step."""
         if not self.started or time_s - self._time_s > RESTART_AFTER_S:
             # First use, or back after a stretch without position control: start from the fix.
@@ -115,8 +138,9 @@ class HorizontalEstimator:
             self._last_fix = fix
             self._correct(fix)
         self._remember()
-        return HorizontalEstimate(self._p[0], self._p[1], self._v[0], self._v[1],
-                                  self._b[0], self._b[1])
+        return HorizontalEstimate(
+            self._p[0], self._p[1], self._v[0], self._v[1], self._b[0], self._b[1]
+        )
 
     def _correct(self, fix: tuple[float, float, float, float]) -> None:
         then = self._state_at(self._time_s - self.gps_delay_s)
@@ -156,4 +180,5 @@ class HorizontalEstimator:
         """A correction says where the vehicle *was* too: move the remembered states."""
         self._history = deque(
             (t, north + dp[0], east + dp[1], v_north + dv[0], v_east + dv[1])
-            for t, north, east, v_north, v_east in self._history)
+            for t, north, east, v_north, v_east in self._history
+        )

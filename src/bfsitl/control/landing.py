@@ -38,30 +38,38 @@ from bfsitl.errors import ControllerConfigError
 class LandingGains:
     """Descent profile, climb-rate loop and touchdown detection (units in the names)."""
 
-    descent_m_s: float = 0.6             # descent rate high up
-    slow_descent_m_s: float = 0.25       # ... near the ground (touchdown speed)
-    slow_below_m: float = 0.7            # where the slow-down ends (FC altitude)
-    slow_over_m: float = 0.6             # and over how much height it blends in
-    hover_guess_us: float = 1500.0       # used when no estimate is handed over
+    descent_m_s: float = 0.6  # descent rate high up
+    slow_descent_m_s: float = 0.25  # ... near the ground (touchdown speed)
+    slow_below_m: float = 0.7  # where the slow-down ends (FC altitude)
+    slow_over_m: float = 0.6  # and over how much height it blends in
+    hover_guess_us: float = 1500.0  # used when no estimate is handed over
     hover_min_us: float = 1250.0
     hover_max_us: float = 1700.0
-    rate_kp: float = 60.0                # us per m/s of climb-rate error
-    rate_ki: float = 40.0                # us per m of integrated climb-rate error
-    climb_ff_us: float = 24.0            # us per m/s (rotor-inflow damping)
-    touchdown_alt_m: float = 0.3         # "near the arming point"
-    touchdown_climb_m_s: float = 0.15    # "not moving" (the dithered baro wanders ~0.1 m/s)
+    rate_kp: float = 60.0  # us per m/s of climb-rate error
+    rate_ki: float = 40.0  # us per m of integrated climb-rate error
+    climb_ff_us: float = 24.0  # us per m/s (rotor-inflow damping)
+    touchdown_alt_m: float = 0.3  # "near the arming point"
+    touchdown_climb_m_s: float = 0.15  # "not moving" (the dithered baro wanders ~0.1 m/s)
     touchdown_hold_s: float = 0.8
     ground_windup_us: float = 80.0
-    throttle_min_us: float = 1100.0      # in flight; after touchdown it is 1000
+    throttle_min_us: float = 1100.0  # in flight; after touchdown it is 1000
     throttle_max_us: float = 1750.0
 
     def __post_init__(self) -> None:
         check_gains(self)
         hover_range_ok(self)
-        require(0 < self.slow_descent_m_s <= self.descent_m_s, self,
-                "need 0 < slow_descent_m_s <= descent_m_s")
-        for name in ("slow_over_m", "touchdown_alt_m", "touchdown_climb_m_s",
-                     "touchdown_hold_s", "ground_windup_us"):
+        require(
+            0 < self.slow_descent_m_s <= self.descent_m_s,
+            self,
+            "need 0 < slow_descent_m_s <= descent_m_s",
+        )
+        for name in (
+            "slow_over_m",
+            "touchdown_alt_m",
+            "touchdown_climb_m_s",
+            "touchdown_hold_s",
+            "ground_windup_us",
+        ):
             require(getattr(self, name) > 0, self, f"{name} must be > 0")
         for name in ("rate_kp", "rate_ki", "climb_ff_us", "slow_below_m"):
             require(getattr(self, name) >= 0, self, f"{name} must be >= 0")
@@ -72,8 +80,9 @@ class LandingController:
 
     name = "landing"
 
-    def __init__(self, gains: LandingGains | None = None, *,
-                 hover_from: object | None = None) -> None:
+    def __init__(
+        self, gains: LandingGains | None = None, *, hover_from: object | None = None
+    ) -> None:
         """``hover_from``: a flying controller whose ``hover_throttle_us`` (if it has one) is
         read at every :meth:`reset`, so the descent starts from what it learnt."""
         self.gains = gains or LandingGains()
@@ -91,8 +100,11 @@ class LandingController:
     def reset(self, time_s: float) -> None:
         g = self.gains
         learnt = getattr(self._hover_from, "hover_throttle_us", None)
-        if isinstance(learnt, (int, float)) and math.isfinite(learnt) \
-                and getattr(self._hover_from, "airborne", True):
+        if (
+            isinstance(learnt, (int, float))
+            and math.isfinite(learnt)
+            and getattr(self._hover_from, "airborne", True)
+        ):
             self.set_hover_estimate(learnt)
         start = self._handed_over_us if self._handed_over_us is not None else g.hover_guess_us
         self.hover_throttle_us = start
@@ -129,11 +141,13 @@ class LandingController:
         error = climb_sp - sample.climb_rate_m_s
         wanted = self.hover_throttle_us + g.climb_ff_us * climb_sp + g.rate_kp * error
         output = clamp(wanted, g.throttle_min_us, g.throttle_max_us)
-        saturated = (wanted > g.throttle_max_us and error > 0) or \
-            (wanted < g.throttle_min_us and error < 0)
+        saturated = (wanted > g.throttle_max_us and error > 0) or (
+            wanted < g.throttle_min_us and error < 0
+        )
         if not saturated:
-            self.hover_throttle_us = clamp(self.hover_throttle_us + g.rate_ki * error * dt_s,
-                                           g.hover_min_us, g.hover_max_us)
+            self.hover_throttle_us = clamp(
+                self.hover_throttle_us + g.rate_ki * error * dt_s, g.hover_min_us, g.hover_max_us
+            )
         self._output_us = output
         return output
 
@@ -141,8 +155,10 @@ class LandingController:
         g = self.gains
         if self._start_hover_us - self.hover_throttle_us >= g.ground_windup_us:
             return True
-        low_and_still = sample.altitude_m <= g.touchdown_alt_m and \
-            abs(sample.climb_rate_m_s) <= g.touchdown_climb_m_s
+        low_and_still = (
+            sample.altitude_m <= g.touchdown_alt_m
+            and abs(sample.climb_rate_m_s) <= g.touchdown_climb_m_s
+        )
         if not low_and_still:
             self._still_since_s = None
             return False

@@ -95,14 +95,17 @@ def step_response(
 
 
 def _checked(
-    time_s: Sequence[float], altitude_m: Sequence[float], target_m: float, start_m: float,
-    band_m: float, steady_window_s: float,
+    time_s: Sequence[float],
+    altitude_m: Sequence[float],
+    target_m: float,
+    start_m: float,
+    band_m: float,
+    steady_window_s: float,
 ) -> tuple[list[float], list[float]]:
     times = [float(t) for t in time_s]
     alts = [float(a) for a in altitude_m]
     if len(times) != len(alts):
-        raise MetricsInputError(
-            f"time_s has {len(times)} samples but altitude_m has {len(alts)}")
+        raise MetricsInputError(f"time_s has {len(times)} samples but altitude_m has {len(alts)}")
     if len(times) < 2:
         raise MetricsInputError(f"a step response needs at least 2 samples, got {len(times)}")
     if not all(math.isfinite(v) for v in times + alts):
@@ -111,7 +114,8 @@ def _checked(
         raise MetricsInputError("time_s must be strictly increasing")
     if not (math.isfinite(target_m) and math.isfinite(start_m) and target_m != start_m):
         raise MetricsInputError(
-            f"target_m ({target_m}) and start_m ({start_m}) must be finite and differ")
+            f"target_m ({target_m}) and start_m ({start_m}) must be finite and differ"
+        )
     if not (math.isfinite(band_m) and band_m > 0):
         raise MetricsInputError(f"band_m must be > 0, got {band_m}")
     if not (math.isfinite(steady_window_s) and steady_window_s > 0):
@@ -150,7 +154,9 @@ def _settling_time(times: list[float], errors: list[float], band_m: float) -> fl
 
 
 def _max_attitude(
-    count: int, roll_deg: Sequence[float] | None, pitch_deg: Sequence[float] | None,
+    count: int,
+    roll_deg: Sequence[float] | None,
+    pitch_deg: Sequence[float] | None,
 ) -> float:
     worst = math.nan
     for name, series in (("roll_deg", roll_deg), ("pitch_deg", pitch_deg)):

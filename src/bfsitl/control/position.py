@@ -64,17 +64,18 @@ class PositionGains:
         if self.max_tilt_deg >= 45.0:
             raise ControllerConfigError(
                 f"max_tilt_deg {self.max_tilt_deg} must stay below 45 deg (the altitude "
-                f"controller loses a third of its thrust beyond)")
+                f"controller loses a third of its thrust beyond)"
+            )
 
 
 @dataclass(frozen=True, slots=True)
 class PositionInput:
     time_s: float
-    north_m: float           # where the FC's GPS puts the vehicle, local to a reference
+    north_m: float  # where the FC's GPS puts the vehicle, local to a reference
     east_m: float
-    v_north_m_s: float       # the GPS velocity
+    v_north_m_s: float  # the GPS velocity
     v_east_m_s: float
-    heading_deg: float       # the FC's yaw, clockwise from north
+    heading_deg: float  # the FC's yaw, clockwise from north
     target_north_m: float
     target_east_m: float
     #: How fast the target moves (a leg's travelling reference): fed forward, so the
@@ -88,7 +89,7 @@ class PositionInput:
 
 @dataclass(frozen=True, slots=True)
 class TiltCommand:
-    roll_deg: float          # Betaflight's signs: roll right positive, pitch nose down positive
+    roll_deg: float  # Betaflight's signs: roll right positive, pitch nose down positive
     pitch_deg: float
     target_speed_m_s: float
 
@@ -121,8 +122,11 @@ class PositionController:
         # 1. position -> target velocity, from the position extrapolated past the GPS lag
         north = state.north_m + state.v_north_m_s * g.lead_s
         east = state.east_m + state.v_east_m_s * g.lead_s
-        vn_t, ve_t = _limit(g.kp_pos_per_s * (state.target_north_m - north),
-                            g.kp_pos_per_s * (state.target_east_m - east), g.max_speed_m_s)
+        vn_t, ve_t = _limit(
+            g.kp_pos_per_s * (state.target_north_m - north),
+            g.kp_pos_per_s * (state.target_east_m - east),
+            g.max_speed_m_s,
+        )
         vn_t += state.target_v_north_m_s
         ve_t += state.target_v_east_m_s
         # 2. velocity -> acceleration, with the wind integral
@@ -131,9 +135,11 @@ class PositionController:
         i_n = self._integral[0] + g.ki_vel_per_s2 * en * dt
         i_e = self._integral[1] + g.ki_vel_per_s2 * ee * dt
         self._integral = _limit(i_n, i_e, a_max)
-        a_n, a_e = _limit(g.kp_vel_per_s * en + self._integral[0] + state.target_a_north_m_s2,
-                          g.kp_vel_per_s * ee + self._integral[1] + state.target_a_east_m_s2,
-                          a_max)
+        a_n, a_e = _limit(
+            g.kp_vel_per_s * en + self._integral[0] + state.target_a_north_m_s2,
+            g.kp_vel_per_s * ee + self._integral[1] + state.target_a_east_m_s2,
+            a_max,
+        )
         # 3. acceleration -> tilt about the body axes
         psi = math.radians(state.heading_deg)
         a_fwd = a_n * math.cos(psi) + a_e * math.sin(psi)

@@ -36,21 +36,27 @@ class TutorialPidGains:
     """
 
     hover_base_us: float = 1500.0
-    kp: float = 100.0            # us per m of altitude error
-    ki: float = 20.0             # us per (m s) of integrated error
-    kd: float = 60.0             # us per (m/s) of error derivative
+    kp: float = 100.0  # us per m of altitude error
+    ki: float = 20.0  # us per (m s) of integrated error
+    kd: float = 60.0  # us per (m/s) of error derivative
     integral_limit: float = 5.0  # m s: the integral is clamped to +- this
     throttle_min_us: float = 1100.0
     throttle_max_us: float = 1800.0
 
     def __post_init__(self) -> None:
         check_gains(self)
-        require(self.kp >= 0 and self.ki >= 0 and self.kd >= 0, self,
-                "kp, ki and kd must be >= 0 (a negative gain pushes the wrong way)")
+        require(
+            self.kp >= 0 and self.ki >= 0 and self.kd >= 0,
+            self,
+            "kp, ki and kd must be >= 0 (a negative gain pushes the wrong way)",
+        )
         require(self.integral_limit >= 0, self, "integral_limit must be >= 0")
         throttle_range_ok(self, self.throttle_min_us, self.throttle_max_us)
-        require(self.throttle_min_us <= self.hover_base_us <= self.throttle_max_us, self,
-                "hover_base_us must lie between throttle_min_us and throttle_max_us")
+        require(
+            self.throttle_min_us <= self.hover_base_us <= self.throttle_max_us,
+            self,
+            "hover_base_us must lie between throttle_min_us and throttle_max_us",
+        )
 
 
 class TutorialPid:
@@ -73,16 +79,14 @@ class TutorialPid:
         error = sample.target_alt_m - sample.altitude_m
         dt_s = sample.time_s - self._prev_time_s
         if dt_s > 0:
-            self.integral = clamp(self.integral + error * dt_s, -g.integral_limit,
-                                  g.integral_limit)
+            self.integral = clamp(self.integral + error * dt_s, -g.integral_limit, g.integral_limit)
             if self._prev_error is not None:
                 self._derivative = (error - self._prev_error) / dt_s
             self._prev_error = error
             self._prev_time_s = sample.time_s
         elif self._prev_error is None:
             self._prev_error = error  # the very first sample, at the reset time
-        throttle = (g.hover_base_us + g.kp * error + g.ki * self.integral
-                    + g.kd * self._derivative)
+        throttle = g.hover_base_us + g.kp * error + g.ki * self.integral + g.kd * self._derivative
         return clamp(throttle, g.throttle_min_us, g.throttle_max_us)
 
 
@@ -97,11 +101,13 @@ class OpenLoopGains:
 
     def __post_init__(self) -> None:
         check_gains(self)
-        require(self.ramp_s >= 0 and self.climb_s >= 0, self,
-                "ramp_s and climb_s must be >= 0")
+        require(self.ramp_s >= 0 and self.climb_s >= 0, self, "ramp_s and climb_s must be >= 0")
         throttle_range_ok(self, THROTTLE_MIN_US, max(self.climb_us, self.hover_us))
-        require(self.climb_us > THROTTLE_MIN_US and self.hover_us > THROTTLE_MIN_US, self,
-                f"climb_us and hover_us must be above {THROTTLE_MIN_US:.0f} us")
+        require(
+            self.climb_us > THROTTLE_MIN_US and self.hover_us > THROTTLE_MIN_US,
+            self,
+            f"climb_us and hover_us must be above {THROTTLE_MIN_US:.0f} us",
+        )
 
 
 class OpenLoopTakeoff:

@@ -20,9 +20,14 @@ class LiveScreen:
 
     def __init__(self, console: Console | None = None, *, alternate_screen: bool = True) -> None:
         self.console = console or Console()
-        self._live = Live(console=self.console, auto_refresh=False, screen=alternate_screen,
-                          transient=not alternate_screen, redirect_stdout=False,
-                          redirect_stderr=False)
+        self._live = Live(
+            console=self.console,
+            auto_refresh=False,
+            screen=alternate_screen,
+            transient=not alternate_screen,
+            redirect_stdout=False,
+            redirect_stderr=False,
+        )
 
     def __enter__(self) -> LiveScreen:
         self._live.start()

@@ -41,8 +41,13 @@ class DashboardResult:
 class DashboardPoller:
     """One telemetry round trip per :meth:`poll`, timed and counted in a :class:`LinkMeter`."""
 
-    def __init__(self, client: MspClient, meter: LinkMeter,
-                 clock: Callable[[], float] = time.monotonic, retries: int = 0) -> None:
+    def __init__(
+        self,
+        client: MspClient,
+        meter: LinkMeter,
+        clock: Callable[[], float] = time.monotonic,
+        retries: int = 0,
+    ) -> None:
         """``retries``: re-sends of a poll that got no intact reply.  0 for a live view (the
         next frame is a fresher retry); more when a single frame must count (``--once``)."""
         self.client = client
@@ -60,8 +65,7 @@ class DashboardPoller:
                 self._have_box_ids = True
             request = self.client.telemetry_request()
             sent_at_s = self.clock()
-            payload = self.client.request(request.command, request.payload,
-                                          retries=self.retries)
+            payload = self.client.request(request.command, request.payload, retries=self.retries)
             snapshot = self.client.decode_telemetry(payload)
         except LinkClosedError:
             raise
@@ -101,8 +105,15 @@ def run_dashboard(
         while True:
             frame_started_s = clock()
             latest = poller.poll() or latest
-            show(build_view(latest, meter.stats(clock()), target=target, rate_hz=rate_hz,
-                            stale_after_s=stale_after_s))
+            show(
+                build_view(
+                    latest,
+                    meter.stats(clock()),
+                    target=target,
+                    rate_hz=rate_hz,
+                    stale_after_s=stale_after_s,
+                )
+            )
             frames += 1
             if max_frames is not None and frames >= max_frames:
                 return DashboardResult(frames, meter.stats(clock()), "frames")

@@ -54,8 +54,11 @@ def _channels_table(channels: tuple[ChannelView, ...], bar_width: int, rows: int
             index = column * rows + row
             if index < len(channels):
                 channel = channels[index]
-                cells += [Text(channel.label), Text(str(channel.value_us)),
-                          _bar(channel.fill, bar_width)]
+                cells += [
+                    Text(channel.label),
+                    Text(str(channel.value_us)),
+                    _bar(channel.fill, bar_width),
+                ]
             else:
                 cells += [Text(""), Text(""), Text("")]
         table.add_row(*cells)
@@ -70,7 +73,7 @@ def _pairs(rows: list[tuple[str, str]], columns: int = 1) -> Table:
         table.add_column(no_wrap=columns > 1)
     for start in range(0, len(rows), columns):
         cells: list[RenderableType] = []
-        for name, value in rows[start:start + columns]:
+        for name, value in rows[start : start + columns]:
             cells += [Text(name), Text(value)]
         cells += [Text("")] * (2 * columns - len(cells))
         table.add_row(*cells)
@@ -85,8 +88,11 @@ def _link_panel(link: LinkStats) -> Panel:
     rows = [
         ("rate", f"{link.updates_per_s:.1f} updates/s"),
         ("polls", f"{link.updates} answered, {link.errors} failed"),
-        ("MSP round trip", f"{_fmt_ms(link.rtt_last_ms)} (mean {_fmt_ms(link.rtt_mean_ms)}, "
-                           f"max {_fmt_ms(link.rtt_max_ms)})"),
+        (
+            "MSP round trip",
+            f"{_fmt_ms(link.rtt_last_ms)} (mean {_fmt_ms(link.rtt_mean_ms)}, "
+            f"max {_fmt_ms(link.rtt_max_ms)})",
+        ),
         ("last reply", "none yet" if link.age_s is None else f"{link.age_s:.1f} s ago"),
     ]
     if link.last_error:
@@ -95,17 +101,24 @@ def _link_panel(link: LinkStats) -> Panel:
 
 
 def _state_panel(flight: FlightView) -> Panel:
-    return Panel(_pairs([
-        ("roll", f"{flight.roll_deg:+.1f}°"),
-        ("altitude", f"{flight.altitude_m:+.2f} m"),
-        ("pitch", f"{flight.pitch_deg:+.1f}°"),
-        ("vario", f"{flight.vario_m_s:+.2f} m/s"),
-        ("heading", f"{flight.heading_deg:d}°"),
-        ("battery", f"{flight.battery_v:.2f} V"),
-        ("PID loop", f"{flight.cycle_time_us} us"),
-        ("CPU", f"{flight.cpu_load_percent} %"),
-    ], columns=2), title="attitude, baro altitude", subtitle="pitch + = nose down",
-        box=box.ROUNDED)
+    return Panel(
+        _pairs(
+            [
+                ("roll", f"{flight.roll_deg:+.1f}°"),
+                ("altitude", f"{flight.altitude_m:+.2f} m"),
+                ("pitch", f"{flight.pitch_deg:+.1f}°"),
+                ("vario", f"{flight.vario_m_s:+.2f} m/s"),
+                ("heading", f"{flight.heading_deg:d}°"),
+                ("battery", f"{flight.battery_v:.2f} V"),
+                ("PID loop", f"{flight.cycle_time_us} us"),
+                ("CPU", f"{flight.cpu_load_percent} %"),
+            ],
+            columns=2,
+        ),
+        title="attitude, baro altitude",
+        subtitle="pitch + = nose down",
+        box=box.ROUNDED,
+    )
 
 
 def _arming_panel(flight: FlightView) -> Panel:
@@ -157,21 +170,34 @@ def render_dashboard(view: DashboardView) -> RenderableType:
     parts: list[RenderableType] = [_header(view)]
     flight = view.flight
     if flight is None:
-        parts.append(_side_by_side(
-            Panel(Text(f"no telemetry yet from {view.target}"), title="flight controller",
-                  box=box.ROUNDED),
-            _link_panel(view.link),
-        ))
+        parts.append(
+            _side_by_side(
+                Panel(
+                    Text(f"no telemetry yet from {view.target}"),
+                    title="flight controller",
+                    box=box.ROUNDED,
+                ),
+                _link_panel(view.link),
+            )
+        )
         return Group(*parts)
     parts.append(_side_by_side(_state_panel(flight), _link_panel(view.link)))
     parts.append(_arming_panel(flight))
-    parts.append(_side_by_side(
-        Panel(_channels_table(flight.motors, MOTOR_BAR_WIDTH, rows=4), title="motors (us)",
-              box=box.ROUNDED),
-        Panel(_channels_table(flight.rc, RC_BAR_WIDTH, rows=RC_ROWS), title="RC channels (us)",
-              box=box.ROUNDED),
-        ratios=(2, 3),
-    ))
+    parts.append(
+        _side_by_side(
+            Panel(
+                _channels_table(flight.motors, MOTOR_BAR_WIDTH, rows=4),
+                title="motors (us)",
+                box=box.ROUNDED,
+            ),
+            Panel(
+                _channels_table(flight.rc, RC_BAR_WIDTH, rows=RC_ROWS),
+                title="RC channels (us)",
+                box=box.ROUNDED,
+            ),
+            ratios=(2, 3),
+        )
+    )
     modes = ", ".join(flight.flight_modes) if flight.flight_modes else "none active"
     parts.append(Text("flight modes: ", style="bold") + Text(modes))
     return Group(*parts)
@@ -179,7 +205,13 @@ def render_dashboard(view: DashboardView) -> RenderableType:
 
 def render_text(view: DashboardView, width: int = TEXT_WIDTH) -> str:
     """The frame as plain text (no colour codes), as a terminal of ``width`` columns shows it."""
-    console = Console(record=True, width=width, file=io.StringIO(), color_system=None,
-                      force_terminal=False, legacy_windows=False)
+    console = Console(
+        record=True,
+        width=width,
+        file=io.StringIO(),
+        color_system=None,
+        force_terminal=False,
+        legacy_windows=False,
+    )
     console.print(render_dashboard(view))
     return console.export_text()

@@ -293,7 +293,7 @@ class CliSession:
         data = self._read_until(marker, timeout_s or self.timeout_s)
         at = data.rfind(marker)
         # Wait for the prompt that follows the marker's own (empty) command.
-        tail = data[at + len(marker):]
+        tail = data[at + len(marker) :]
         if PROMPT not in tail:
             self._read_until(PROMPT, timeout_s or self.timeout_s, initial=tail)
         # The marker was typed after the prompt: keep the prompt, drop from the echoed '#'.
@@ -323,8 +323,7 @@ _NO_REBOOT_OPTION = {"save": "noreboot", "exit": "noreboot", "defaults": "nosave
 
 def _refuse_reboot(command: str) -> None:
     words = command.lower().split()
-    if words and words[0] in _REBOOTING and \
-            _NO_REBOOT_OPTION.get(words[0]) not in words[1:]:
+    if words and words[0] in _REBOOTING and _NO_REBOOT_OPTION.get(words[0]) not in words[1:]:
         raise CliError(
             f"{command!r} reboots the FC (a SITL process exits): use save(restart=...), or "
             f"'save noreboot' to write without rebooting"
@@ -355,7 +354,7 @@ def _strip_echo(raw: bytes, command: str) -> str:
     echo = command + "\r\n"
     start = text.find(echo)
     if start >= 0:
-        text = text[start + len(echo):]
+        text = text[start + len(echo) :]
     # Drop the trailing prompt the FC printed after the output.
     text = text.rstrip()
     if text.endswith("\r\n#") or text == "#":

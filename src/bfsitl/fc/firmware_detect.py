@@ -24,9 +24,13 @@ from bfsitl.protocol.firmware_profile import (
 MASTER_API_VERSION = "1.48"
 
 
-def detect_profile(client: MspClient, build: BuildOptions | None = None,
-                   *, probe_gps: bool = False,
-                   api: msg.ApiVersion | None = None) -> FirmwareProfile:
+def detect_profile(
+    client: MspClient,
+    build: BuildOptions | None = None,
+    *,
+    probe_gps: bool = False,
+    api: msg.ApiVersion | None = None,
+) -> FirmwareProfile:
     """The profile of the firmware behind ``client``; raises UnsupportedFirmwareError.
 
     Whether the build has GPS comes from its build record when there is one, else from the
@@ -46,8 +50,7 @@ def detect_profile(client: MspClient, build: BuildOptions | None = None,
             has_gps = True
         except MspErrorReply:
             has_gps = False
-    return profile_for(f"{api.api_major}.{api.api_minor}", version.text, build,
-                       has_gps=has_gps)
+    return profile_for(f"{api.api_major}.{api.api_minor}", version.text, build, has_gps=has_gps)
 
 
 def profile_of_binary(path: str | os.PathLike[str]) -> FirmwareProfile:
@@ -62,8 +65,9 @@ def profile_of_binary(path: str | os.PathLike[str]) -> FirmwareProfile:
 
     metadata = metadata_for_binary(path)
     if metadata is not None:
-        return profile_for(metadata.msp_api_version, metadata.firmware_version,
-                           build_options_for_binary(path))
+        return profile_for(
+            metadata.msp_api_version, metadata.firmware_version, build_options_for_binary(path)
+        )
     try:
         takes_ip_flag = binary_traits(path).takes_ip_flag
     except OSError:

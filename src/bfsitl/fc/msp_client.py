@@ -259,8 +259,7 @@ class MspClient:
     def telemetry(self) -> Telemetry:
         """Attitude, altitude, status, analog, RC, motors and raw IMU in one round trip."""
         box_ids = self.box_ids()
-        return telemetry_from_payloads(self.multiple(TELEMETRY_COMMANDS), self._clock(),
-                                        box_ids)
+        return telemetry_from_payloads(self.multiple(TELEMETRY_COMMANDS), self._clock(), box_ids)
 
     def telemetry_request(self) -> MspRequest:
         """The request :meth:`telemetry` sends, for pipelining many of them."""

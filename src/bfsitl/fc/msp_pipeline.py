@@ -24,14 +24,27 @@ from bfsitl.protocol.msp_frame import (
 WAKE_BYTE = b"\x00"
 
 #: Commands that change state although their name has no SET in it.
-_MUTATING_COMMANDS = frozenset({
-    MspCommand.REBOOT, MspCommand.EEPROM_WRITE, MspCommand.ACC_CALIBRATION,
-    MspCommand.MAG_CALIBRATION, MspCommand.RESET_CONF, MspCommand.DATAFLASH_ERASE,
-    MspCommand.COPY_PROFILE, MspCommand.SELECT_SETTING, MspCommand.CALCULATE_SIMPLIFIED_PID,
-    MspCommand.CALCULATE_SIMPLIFIED_GYRO, MspCommand.CALCULATE_SIMPLIFIED_DTERM,
-    MspCommand.OSD_CHAR_WRITE, MspCommand.DISPLAYPORT, MspCommand.MSP2_BETAFLIGHT_BIND,
-    MspCommand.MSP2_SEND_DSHOT_COMMAND, MspCommand.CAMERA_CONTROL,
-})
+_MUTATING_COMMANDS = frozenset(
+    {
+        MspCommand.REBOOT,
+        MspCommand.EEPROM_WRITE,
+        MspCommand.ACC_CALIBRATION,
+        MspCommand.MAG_CALIBRATION,
+        MspCommand.RESET_CONF,
+        MspCommand.DATAFLASH_ERASE,
+        MspCommand.COPY_PROFILE,
+        MspCommand.SELECT_SETTING,
+        MspCommand.CALCULATE_SIMPLIFIED_PID,
+        MspCommand.CALCULATE_SIMPLIFIED_GYRO,
+        MspCommand.CALCULATE_SIMPLIFIED_DTERM,
+        MspCommand.OSD_CHAR_WRITE,
+        MspCommand.DISPLAYPORT,
+        MspCommand.MSP2_BETAFLIGHT_BIND,
+        MspCommand.MSP2_SEND_DSHOT_COMMAND,
+        MspCommand.CAMERA_CONTROL,
+    }
+)
+
 
 def is_idempotent(command: int) -> bool:
     """Whether repeating ``command`` is harmless (a read)."""
@@ -83,6 +96,7 @@ class ClientStats:
     late_replies: int = 0
     stray_replies: int = 0
     checksum_failures: int = 0
+
 
 class PipelineHost(Protocol):
     """What a pipeline run uses of its client (:class:`~bfsitl.fc.msp_client.MspClient`)."""
@@ -148,17 +162,19 @@ class PipelineRun:
             if head.lost or now_s >= head.clock_start_s + self.timeout_s:
                 # Look behind a garbage header before declaring the head lost.
                 self._dispatch(client._parser.flush_stalled())
-                if head in self.queue and (head.lost or
-                                           client._clock() >= head.clock_start_s
-                                           + self.timeout_s):
+                if head in self.queue and (
+                    head.lost or client._clock() >= head.clock_start_s + self.timeout_s
+                ):
                     self._give_up_on(head)
                 continue
             wait_s = head.clock_start_s + self.timeout_s - now_s
             data = client.link.read_some(min(wait_s, client.wake_interval_s or 0.1))
             if data:
                 self._dispatch(client._parser.feed(data))
-            elif client.wake_interval_s is not None and \
-                    self._unconsumed_bytes() < client.max_in_flight_bytes:
+            elif (
+                client.wake_interval_s is not None
+                and self._unconsumed_bytes() < client.max_in_flight_bytes
+            ):
                 client.link.write(WAKE_BYTE)
                 self.trailing_wake_bytes += 1
 
@@ -176,8 +192,9 @@ class PipelineRun:
         Per serial tick the FC reads idle bytes up to one frame and that frame, so a frame's
         reply proves it consumed everything up to that frame.
         """
-        return sum(p.frame_size + p.wake_bytes_before for p in self.queue) + \
-            self.trailing_wake_bytes
+        return (
+            sum(p.frame_size + p.wake_bytes_before for p in self.queue) + self.trailing_wake_bytes
+        )
 
     def _expire_ghosts(self) -> None:
         now_s = self.client._clock()
@@ -201,15 +218,21 @@ class PipelineRun:
                 return
             frame = encode_request(request.command, request.payload)
             # With nothing live outstanding, send anyway: waiting could not free anything.
-            if self._live() and \
-                    self._unconsumed_bytes() + len(frame) > client.max_in_flight_bytes:
+            if self._live() and self._unconsumed_bytes() + len(frame) > client.max_in_flight_bytes:
                 self.resend.appendleft((index, request))
                 return
             client.link.write(frame)
             client.stats.requests += 1
             self.attempts[index] = self.attempts.get(index, 0) + 1
-            self.queue.append(Pending(request, len(frame), client._clock(), index,
-                                       wake_bytes_before=self.trailing_wake_bytes))
+            self.queue.append(
+                Pending(
+                    request,
+                    len(frame),
+                    client._clock(),
+                    index,
+                    wake_bytes_before=self.trailing_wake_bytes,
+                )
+            )
             self.trailing_wake_bytes = 0
 
     def _give_up_on(self, pending: Pending) -> None:
@@ -299,8 +322,9 @@ class PipelineRun:
                     client.stats.lost_requests += 1
             self.queue.remove(pending)
             if pending.ghost:
-                retry = next((p for p in self.queue
-                              if not p.ghost and p.index == pending.index), None)
+                retry = next(
+                    (p for p in self.queue if not p.ghost and p.index == pending.index), None
+                )
                 if retry is None:
                     client.stats.late_replies += 1  # its caller has already moved on
                     continue

@@ -42,8 +42,7 @@ _AUX_ARGUMENTS = 7
 #: and master fc/tasks.c ``rescheduleTask(TASK_SERIAL, ...)``); the blackbox's device and
 #: sample rate are read once in ``blackboxInit()`` (blackbox/blackbox.c: a device of NONE at
 #: boot leaves the blackbox DISABLED; measured: set without a reboot, no log was written).
-BOOT_ONLY_SETTINGS = frozenset({"serial_update_rate_hz", "blackbox_device",
-                                "blackbox_sample_rate"})
+BOOT_ONLY_SETTINGS = frozenset({"serial_update_rate_hz", "blackbox_device", "blackbox_sample_rate"})
 
 
 @dataclass(frozen=True, slots=True)
@@ -75,8 +74,9 @@ class Profile:
             validate_cli_line(line)
 
     @classmethod
-    def from_file(cls, path: str | Path,
-                  mode_ranges: tuple[msg.ModeRange, ...] = (ARM_ON_AUX1,)) -> Profile:
+    def from_file(
+        cls, path: str | Path, mode_ranges: tuple[msg.ModeRange, ...] = (ARM_ON_AUX1,)
+    ) -> Profile:
         """CLI lines from a file (``#`` comments and blank lines skipped); a file that cannot
         be read, is not text or holds a line the FC must not get is one error naming it.
 
@@ -107,7 +107,7 @@ class Profile:
 
 @dataclass(frozen=True, slots=True)
 class ProvisionResult:
-    changed: bool            # something was written and saved
+    changed: bool  # something was written and saved
     mode_ranges_written: int
     cli_lines_run: int
     rebooted: bool
@@ -177,7 +177,8 @@ def provision(
     current = client.mode_ranges().ranges
     if len(profile.mode_ranges) > len(current):
         raise ProvisioningError(
-            f"{len(profile.mode_ranges)} mode ranges asked, the FC has {len(current)} slots")
+            f"{len(profile.mode_ranges)} mode ranges asked, the FC has {len(current)} slots"
+        )
     written = 0
     for index, wanted in enumerate(profile.mode_ranges):
         if current[index] != wanted:
@@ -248,10 +249,14 @@ def _lines_to_run(cli: CliSession, lines: tuple[str, ...]) -> list[str]:
     cli.c ``cliGet``).  A value that does not read back the same way (case, a number's
     form) is simply set again.
     """
-    last_set = {name: index for index, line in enumerate(lines)
-                if (name := _set_name(line)) is not None}
-    lines = tuple(line for index, line in enumerate(lines)
-                  if (name := _set_name(line)) is None or last_set[name] == index)
+    last_set = {
+        name: index for index, line in enumerate(lines) if (name := _set_name(line)) is not None
+    }
+    lines = tuple(
+        line
+        for index, line in enumerate(lines)
+        if (name := _set_name(line)) is None or last_set[name] == index
+    )
     names = [name for name in (_set_name(line) for line in lines) if name is not None]
     current: dict[str, str] = {}
     for batch in _batches(names, _BATCH_LINES):
@@ -264,6 +269,9 @@ def _lines_to_run(cli: CliSession, lines: tuple[str, ...]) -> list[str]:
     if any(_serial_line(line) for line in lines):
         listing = cli.batch(["serial"], check=False)
         held_ports = {form for raw in listing.splitlines() if (form := _serial_line(raw))}
-    return [line for line in lines
-            if ((setting := _set_name(line)) is None or current.get(setting) != _set_value(line))
-            and _serial_line(line) not in held_ports]
+    return [
+        line
+        for line in lines
+        if ((setting := _set_name(line)) is None or current.get(setting) != _set_value(line))
+        and _serial_line(line) not in held_ports
+    ]

@@ -106,11 +106,14 @@ class RcFault:
     def __post_init__(self) -> None:
         for index, pulse in self.pulses_us:
             if not (0 <= index < 16 and 0 <= pulse <= 0xFFFF):
-                raise BfsitlError(f"RC fault: channel {index + 1} = {pulse} us is not a "
-                                  f"pulse the rc_packet can carry (16 channels, 0-65535)")
+                raise BfsitlError(
+                    f"RC fault: channel {index + 1} = {pulse} us is not a "
+                    f"pulse the rc_packet can carry (16 channels, 0-65535)"
+                )
         if not (self.delay_s >= 0 and self.jitter_s >= 0):
-            raise BfsitlError(f"RC fault: delay {self.delay_s} s and jitter {self.jitter_s} s "
-                              f"must be >= 0")
+            raise BfsitlError(
+                f"RC fault: delay {self.delay_s} s and jitter {self.jitter_s} s must be >= 0"
+            )
 
 
 class RcFaultState:
@@ -151,8 +154,9 @@ class RcFaultState:
             return command.channels_aetr()
         if fault.silent:
             return None
-        late_s = fault.delay_s + (self._rng.uniform(0.0, fault.jitter_s)
-                                  if fault.jitter_s > 0 else 0.0)
+        late_s = fault.delay_s + (
+            self._rng.uniform(0.0, fault.jitter_s) if fault.jitter_s > 0 else 0.0
+        )
         if late_s > 0:
             self.note(time_s, command)
             for stamp_s, past in reversed(self._history):
@@ -276,8 +280,9 @@ class _RcLinkBase:
         if not periods_ms:
             return RcLinkStats(self._packets, 0.0, 0.0, 0.0, self._send_errors)
         p99 = periods_ms[min(len(periods_ms) - 1, int(0.99 * len(periods_ms)))]
-        return RcLinkStats(self._packets, statistics.fmean(periods_ms), p99, periods_ms[-1],
-                           self._send_errors)
+        return RcLinkStats(
+            self._packets, statistics.fmean(periods_ms), p99, periods_ms[-1], self._send_errors
+        )
 
     # -- the thread ------------------------------------------------------------------------
     def _run(self) -> None:

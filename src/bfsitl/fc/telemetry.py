@@ -15,8 +15,13 @@ from bfsitl.protocol.msp_codes import MspCommand
 
 #: What :meth:`MspClient.telemetry` asks for in one MSP_MULTIPLE_MSP round trip.
 TELEMETRY_COMMANDS: tuple[int, ...] = (
-    MspCommand.ATTITUDE, MspCommand.ALTITUDE, MspCommand.STATUS_EX, MspCommand.ANALOG,
-    MspCommand.RC, MspCommand.MOTOR, MspCommand.RAW_IMU,
+    MspCommand.ATTITUDE,
+    MspCommand.ALTITUDE,
+    MspCommand.STATUS_EX,
+    MspCommand.ANALOG,
+    MspCommand.RC,
+    MspCommand.MOTOR,
+    MspCommand.RAW_IMU,
 )
 
 
@@ -49,8 +54,9 @@ class Telemetry:
 
         return decode_flight_modes(self.status.flight_mode_flags, self.box_ids)
 
-    def accel_up_m_s2(self, acc_1g_lsb: float = msg.SITL_ACC_1G_LSB,
-                      offset_lsb: float = 0.0) -> float:
+    def accel_up_m_s2(
+        self, acc_1g_lsb: float = msg.SITL_ACC_1G_LSB, offset_lsb: float = 0.0
+    ) -> float:
         """Vertical acceleration in m/s^2, up positive, gravity removed (0 at rest or hovering).
 
         ``acc_1g_lsb``: the SITL reports 256 LSB per g; real IMUs usually 2048 (the board's
@@ -72,9 +78,11 @@ class Telemetry:
         ay = self.imu.acc_raw[1] * scale
         az = (self.imu.acc_raw[2] + offset_lsb) * scale
         cos_pitch = math.cos(pitch_rad)
-        specific_force_up_m_s2 = (-math.sin(pitch_rad) * ax
-                                  + math.sin(roll_rad) * cos_pitch * ay
-                                  + math.cos(roll_rad) * cos_pitch * az)
+        specific_force_up_m_s2 = (
+            -math.sin(pitch_rad) * ax
+            + math.sin(roll_rad) * cos_pitch * ay
+            + math.cos(roll_rad) * cos_pitch * az
+        )
         return specific_force_up_m_s2 - STANDARD_GRAVITY_M_S2
 
 

@@ -98,16 +98,16 @@ class TelemetryPoller:
         """Block until a snapshot newer than ``after_sequence`` arrives (or timeout)."""
         with self._changed:
             self._changed.wait_for(
-                lambda: self._sequence > after_sequence or self._stop.is_set()
-                or self._finished,
+                lambda: self._sequence > after_sequence or self._stop.is_set() or self._finished,
                 timeout_s,
             )
             return self._latest if self._sequence > after_sequence else None
 
     def stats(self) -> PollerStats:
         end_s = self._stopped_at_s or time.monotonic()
-        return PollerStats(self._sequence, self._missed, self._errors,
-                           end_s - self._started_at_s, self._last_error)
+        return PollerStats(
+            self._sequence, self._missed, self._errors, end_s - self._started_at_s, self._last_error
+        )
 
     # -- the thread ------------------------------------------------------------------------
     def _publish(self, _request: MspRequest, payload: bytes) -> None:
@@ -136,7 +136,9 @@ class TelemetryPoller:
             while not self._stop.is_set():
                 if period_s is None:
                     results = self.client.pipeline(
-                        self._requests(_BATCH_REQUESTS), depth=self.depth, retries=0,
+                        self._requests(_BATCH_REQUESTS),
+                        depth=self.depth,
+                        retries=0,
                         on_reply=self._publish,
                     )
                 else:

@@ -24,5 +24,3 @@ BUILD_HINT = (
     f"gz-math7, gz-transport13, gz-msgs10; steps in {DOCS}), then pass its build folder "
     "with --gz-plugin-dir DIR or add DIR to GZ_SIM_SYSTEM_PLUGIN_PATH."
 )
-
-

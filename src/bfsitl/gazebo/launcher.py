@@ -90,10 +90,11 @@ class GazeboLaunch:
 
     def command_line(self) -> str:
         """The command as a shell would run it, with the Gazebo variables, for logs and docs."""
-        variables = [f"{name}={shlex.quote(self.env[name])}"
-                     for name in (PLUGIN_PATH_VAR, RESOURCE_PATH_VAR, TRANSPORT_IP_VAR,
-                                  PARTITION_VAR)
-                     if name in self.env]
+        variables = [
+            f"{name}={shlex.quote(self.env[name])}"
+            for name in (PLUGIN_PATH_VAR, RESOURCE_PATH_VAR, TRANSPORT_IP_VAR, PARTITION_VAR)
+            if name in self.env
+        ]
         return " ".join([*variables, *map(shlex.quote, self.argv)])
 
 
@@ -120,8 +121,7 @@ def find_gz(env: Mapping[str, str] | None = None) -> Path:
     return Path(found)
 
 
-def find_plugin(plugin_dir: str | Path | None = None,
-                env: Mapping[str, str] | None = None) -> Path:
+def find_plugin(plugin_dir: str | Path | None = None, env: Mapping[str, str] | None = None) -> Path:
     """The BetaflightPlugin library: in ``plugin_dir`` if given, else on the plugin path.
 
     ``plugin_dir`` may also name the library file itself.  An explicit directory that does not
@@ -141,13 +141,17 @@ def find_plugin(plugin_dir: str | Path | None = None,
         candidate = Path(entry) / PLUGIN_LIBRARY
         if candidate.is_file():
             return candidate.resolve()
-    where = f"{PLUGIN_PATH_VAR} ({os.pathsep.join(searched)})" if searched else \
-        f"{PLUGIN_PATH_VAR} (not set)"
+    where = (
+        f"{PLUGIN_PATH_VAR} ({os.pathsep.join(searched)})"
+        if searched
+        else f"{PLUGIN_PATH_VAR} (not set)"
+    )
     raise GazeboPluginNotFoundError(f"{PLUGIN_LIBRARY} was not found on {where}. {BUILD_HINT}")
 
 
-def check_gazebo(plugin_dir: str | Path | None = None, *,
-                 env: Mapping[str, str] | None = None) -> GazeboInstall:
+def check_gazebo(
+    plugin_dir: str | Path | None = None, *, env: Mapping[str, str] | None = None
+) -> GazeboInstall:
     """Both parts Gazebo needs here, or a :class:`GazeboNotFoundError` that says how to get
     them.  ``gz`` is checked first: without it the plugin is of no use."""
     return GazeboInstall(find_gz(env), find_plugin(plugin_dir, env))
@@ -175,8 +179,9 @@ def plan_gazebo_launch(
     install = install or check_gazebo(plugin_dir, env=base)
     world_file = world_path(world)
     child_env = dict(base)
-    child_env[PLUGIN_PATH_VAR] = prepend_search_path(base.get(PLUGIN_PATH_VAR),
-                                                     [install.plugin_dir])
+    child_env[PLUGIN_PATH_VAR] = prepend_search_path(
+        base.get(PLUGIN_PATH_VAR), [install.plugin_dir]
+    )
     child_env[RESOURCE_PATH_VAR] = prepend_search_path(
         base.get(RESOURCE_PATH_VAR), [world_file.parent, *(Path(d) for d in resource_dirs)]
     )
@@ -193,5 +198,6 @@ def plan_gazebo_launch(
             raise ValueError(f"gz verbosity is 0..4, got {verbosity}")
         argv += ["-v", str(verbosity)]
     argv.append(str(world_file))
-    return GazeboLaunch(tuple(argv), MappingProxyType(child_env), world_file,
-                        install.plugin_library)
+    return GazeboLaunch(
+        tuple(argv), MappingProxyType(child_env), world_file, install.plugin_library
+    )

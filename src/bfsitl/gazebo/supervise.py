@@ -36,11 +36,14 @@ def check_plugin_port_free(network: Network, port: int = PLUGIN_MOTOR_PORT) -> N
     check_ports_free((), (port,), netns_pid=network.netns_pid)
 
 
-def plugin_listening(netns_pid: int | None, port: int = PLUGIN_MOTOR_PORT, *,
-                     proc_root: Path = PROC_ROOT) -> bool:
+def plugin_listening(
+    netns_pid: int | None, port: int = PLUGIN_MOTOR_PORT, *, proc_root: Path = PROC_ROOT
+) -> bool:
     """Whether a UDP socket is bound to ``port`` in the namespace of ``netns_pid``."""
-    return any(sock.protocol == "udp" and sock.port == port
-               for sock in read_proc_net(netns_pid, proc_root=proc_root))
+    return any(
+        sock.protocol == "udp" and sock.port == port
+        for sock in read_proc_net(netns_pid, proc_root=proc_root)
+    )
 
 
 def wait_for_plugin(

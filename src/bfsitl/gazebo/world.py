@@ -78,8 +78,11 @@ def world_for_profile(profile: FirmwareProfile, directory: Path) -> Path:
     is the slot ``profile`` puts that motor in.
     """
     shipped = world_path(DEFAULT_WORLD)
-    transform = (GAZEBO_XYZ_TO_NED_BRIDGE if profile.fdm.quaternion is QuaternionConvention.GAZEBO
-                 else GAZEBO_XYZ_TO_NED_COPIED)
+    transform = (
+        GAZEBO_XYZ_TO_NED_BRIDGE
+        if profile.fdm.quaternion is QuaternionConvention.GAZEBO
+        else GAZEBO_XYZ_TO_NED_COPIED
+    )
     slots_shipped = DEFAULT_PROFILE.motor_slot_of_betaflight_motor
     slots = profile.motor_slot_of_betaflight_motor
     if transform == GAZEBO_XYZ_TO_NED_COPIED and slots == slots_shipped:
@@ -96,9 +99,13 @@ def world_for_profile(profile: FirmwareProfile, directory: Path) -> Path:
     for control in plugin.findall("control"):
         shipped_slot = int(control.attrib["channel"])
         control.set("channel", str(slots[motor_in_shipped_slot[shipped_slot]]))
-    plugin.insert(0, ET.Comment(
-        f" Derived by bfsitl from {DEFAULT_WORLD} for {profile.name}: gazeboXYZToNED "
-        f"and the channel numbers (the servo_packet slots this firmware uses) differ. "))
+    plugin.insert(
+        0,
+        ET.Comment(
+            f" Derived by bfsitl from {DEFAULT_WORLD} for {profile.name}: gazeboXYZToNED "
+            f"and the channel numbers (the servo_packet slots this firmware uses) differ. "
+        ),
+    )
     directory.mkdir(parents=True, exist_ok=True)
     derived = directory / f"{Path(DEFAULT_WORLD).stem}-{profile.generation.value}.sdf"
     tree.write(derived, encoding="unicode", xml_declaration=True)

@@ -41,8 +41,7 @@ from bfsitl.errors import ExtraMissingError
 try:
     from gymnasium.envs.registration import register, registry
 except ImportError as exc:  # pragma: no cover - depends on the installation
-    raise ExtraMissingError(
-        "bfsitl.gym needs Gymnasium: pip install 'bfsitl[gym]'") from exc
+    raise ExtraMissingError("bfsitl.gym needs Gymnasium: pip install 'bfsitl[gym]'") from exc
 
 from bfsitl.gym.env import (
     HOVER_MAX_EPISODE_STEPS,
@@ -52,23 +51,38 @@ from bfsitl.gym.env import (
     WaypointsEnv,
 )
 
-ENVIRONMENTS = {"bfsitl/Hover-v0": "bfsitl.gym.env:HoverEnv",
-                "bfsitl/Waypoints-v0": "bfsitl.gym.env:WaypointsEnv"}
+ENVIRONMENTS = {
+    "bfsitl/Hover-v0": "bfsitl.gym.env:HoverEnv",
+    "bfsitl/Waypoints-v0": "bfsitl.gym.env:WaypointsEnv",
+}
 #: What ``gymnasium.make_vec(id, num_envs=N)`` makes (Gymnasium takes a registered vector
 #: entry point first): N environments in pinned workers, sharing memory (bfsitl.gym.vector);
 #: ``vectorization_mode="async"`` or ``"sync"`` asks for Gymnasium's own.
-VECTOR_ENVIRONMENTS = {"bfsitl/Hover-v0": "bfsitl.gym.vector:HoverVectorEnv",
-                       "bfsitl/Waypoints-v0": "bfsitl.gym.vector:WaypointsVectorEnv"}
+VECTOR_ENVIRONMENTS = {
+    "bfsitl/Hover-v0": "bfsitl.gym.vector:HoverVectorEnv",
+    "bfsitl/Waypoints-v0": "bfsitl.gym.vector:WaypointsVectorEnv",
+}
 #: Gymnasium's TimeLimit ends each episode after this many steps (``make_vec`` passes it to
 #: the vector environments, whose workers count it).
-MAX_EPISODE_STEPS = {"bfsitl/Hover-v0": HOVER_MAX_EPISODE_STEPS,
-                     "bfsitl/Waypoints-v0": WAYPOINTS_MAX_EPISODE_STEPS}
+MAX_EPISODE_STEPS = {
+    "bfsitl/Hover-v0": HOVER_MAX_EPISODE_STEPS,
+    "bfsitl/Waypoints-v0": WAYPOINTS_MAX_EPISODE_STEPS,
+}
 
 for _id, _entry_point in ENVIRONMENTS.items():
     if _id not in registry:
-        register(id=_id, entry_point=_entry_point,
-                 vector_entry_point=VECTOR_ENVIRONMENTS[_id],
-                 max_episode_steps=MAX_EPISODE_STEPS[_id])
+        register(
+            id=_id,
+            entry_point=_entry_point,
+            vector_entry_point=VECTOR_ENVIRONMENTS[_id],
+            max_episode_steps=MAX_EPISODE_STEPS[_id],
+        )
 
-__all__ = ["ENVIRONMENTS", "MAX_EPISODE_STEPS", "VECTOR_ENVIRONMENTS", "FlightEnv", "HoverEnv",
-           "WaypointsEnv"]
+__all__ = [
+    "ENVIRONMENTS",
+    "MAX_EPISODE_STEPS",
+    "VECTOR_ENVIRONMENTS",
+    "FlightEnv",
+    "HoverEnv",
+    "WaypointsEnv",
+]

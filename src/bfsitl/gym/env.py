@@ -123,14 +123,23 @@ class FlightEnv(gymnasium.Env[np.ndarray, np.ndarray]):
 
     metadata: dict[str, Any] = {"render_modes": []}
 
-    def __init__(self, task: Hover, *, sitl: SitlLaunch = DEFAULT_SITL,
-                 timing: Timing = DEFAULT_TIMING, world: World = DEFAULT_WORLD,
-                 control_hz: float = DEFAULT_CONTROL_HZ, mode: FlightMode = "angle",
-                 observation: ObservationSource = "fc",
-                 disturbances: DisturbanceHook | None = None,
-                 max_episode_steps: int | None = HOVER_MAX_EPISODE_STEPS,
-                 start: EpisodeStart = "air", start_alt_m: float = 1.5,
-                 pin_core: bool | None = None, warm_resets: bool = True) -> None:
+    def __init__(
+        self,
+        task: Hover,
+        *,
+        sitl: SitlLaunch = DEFAULT_SITL,
+        timing: Timing = DEFAULT_TIMING,
+        world: World = DEFAULT_WORLD,
+        control_hz: float = DEFAULT_CONTROL_HZ,
+        mode: FlightMode = "angle",
+        observation: ObservationSource = "fc",
+        disturbances: DisturbanceHook | None = None,
+        max_episode_steps: int | None = HOVER_MAX_EPISODE_STEPS,
+        start: EpisodeStart = "air",
+        start_alt_m: float = 1.5,
+        pin_core: bool | None = None,
+        warm_resets: bool = True,
+    ) -> None:
         check_group("sitl", sitl, SitlLaunch)
         check_group("timing", timing, Timing)
         check_group("world", world, World)
@@ -141,20 +150,22 @@ class FlightEnv(gymnasium.Env[np.ndarray, np.ndarray]):
         if timing.lockstep is False:
             raise EnvironmentConfigError(
                 "timing.lockstep=False: the environment steps the firmware with the physics; "
-                "leave it None or True")
+                "leave it None or True"
+            )
         if world.physics != "embedded":
             raise EnvironmentConfigError(
                 f"world.physics={world.physics!r}: the environment flies bfsitl's own "
-                f"(embedded) physics, whose steps the lockstep follows")
+                f"(embedded) physics, whose steps the lockstep follows"
+            )
         spin = timing.lockstep_spin
         low, high = CONTROL_HZ_RANGE
         if not low <= control_hz <= high:
-            raise EnvironmentConfigError(
-                f"control_hz {control_hz} is outside {low:g}..{high:g} Hz")
+            raise EnvironmentConfigError(f"control_hz {control_hz} is outside {low:g}..{high:g} Hz")
         if max_episode_steps is not None and max_episode_steps < 1:
             raise EnvironmentConfigError(
                 f"max_episode_steps {max_episode_steps} is not a number of steps (1 or more; "
-                f"None: no limit)")
+                f"None: no limit)"
+            )
         if not 0.5 <= start_alt_m <= 15.0:
             raise EnvironmentConfigError(f"start_alt_m {start_alt_m} is outside 0.5..15 m")
         in_worker = multiprocessing.parent_process() is not None
@@ -166,7 +177,8 @@ class FlightEnv(gymnasium.Env[np.ndarray, np.ndarray]):
             raise EnvironmentConfigError(
                 "timing.lockstep_spin=True with pin_core=True: the SITL and the environment "
                 "share the pinned core, so a busy-wait would starve the firmware it waits for; "
-                "choose one")
+                "choose one"
+            )
         #: Busy-wait for the firmware's replies (Timing.lockstep_spin): the SITL and bfsitl
         #: each keep a core busy, which makes one environment faster and several sharing the
         #: cores slower (benchmarks/gym.py).  None: spin when not pinned and not in the
@@ -179,7 +191,8 @@ class FlightEnv(gymnasium.Env[np.ndarray, np.ndarray]):
             raise EnvironmentConfigError(
                 f"{sitl.firmware}: not a lockstep build; the environment steps the firmware "
                 f"with the physics. Build one: `bfsitl firmware build --gps --lockstep` (makes "
-                f"{DEFAULT_FIRMWARE})")
+                f"{DEFAULT_FIRMWARE})"
+            )
         self.task = task
         self.control_hz = control_hz
         self.mode = mode
@@ -206,8 +219,9 @@ class FlightEnv(gymnasium.Env[np.ndarray, np.ndarray]):
         self.observation_space = observation_space()
         self._own_workdir = sitl.workdir is None
         #: The SITL's run directory (its EEPROM, provisioned once, boots every episode).
-        self.workdir = Path(tempfile.mkdtemp(prefix="bfsitl-gym-") if sitl.workdir is None
-                            else sitl.workdir)
+        self.workdir = Path(
+            tempfile.mkdtemp(prefix="bfsitl-gym-") if sitl.workdir is None else sitl.workdir
+        )
         self._vehicle: FlightSession | None = None
         self._prepared = False
         self._arm_ned: Vec3 = (0.0, 0.0, 0.0)
@@ -218,8 +232,9 @@ class FlightEnv(gymnasium.Env[np.ndarray, np.ndarray]):
         self._snapshot: Snapshot | None = None
 
     # -- the episode -------------------------------------------------------------------------
-    def reset(self, *, seed: int | None = None,
-              options: dict[str, Any] | None = None) -> tuple[np.ndarray, dict[str, Any]]:
+    def reset(
+        self, *, seed: int | None = None, options: dict[str, Any] | None = None
+    ) -> tuple[np.ndarray, dict[str, Any]]:
         super().reset(seed=seed)
         if seed is None and self.warm_resets and self.start == "air" and self._can_go_on():
             return self._warm_reset()
@@ -245,15 +260,15 @@ class FlightEnv(gymnasium.Env[np.ndarray, np.ndarray]):
         self._snapshot = read_snapshot(vehicle, arm_ned_m=self._arm_ned)
         return self._observe(), self._info(None)
 
-    def step(self, action: np.ndarray) -> tuple[np.ndarray, float, bool, bool,
-                                                 dict[str, Any]]:
+    def step(self, action: np.ndarray) -> tuple[np.ndarray, float, bool, bool, dict[str, Any]]:
         vehicle = self._vehicle
         if vehicle is None:
             raise EnvironmentConfigError("step() before reset(): call env.reset() first")
         action = np.asarray(action, dtype=np.float32)
         if action.shape != (4,):
             raise EnvironmentConfigError(
-                f"an action is 4 sticks (roll, pitch, throttle, yaw), got shape {action.shape}")
+                f"an action is 4 sticks (roll, pitch, throttle, yaw), got shape {action.shape}"
+            )
         try:
             if self.disturbances is not None:
                 self.disturbances(vehicle.disturbances, vehicle.time_s - self._started_s)
@@ -270,15 +285,19 @@ class FlightEnv(gymnasium.Env[np.ndarray, np.ndarray]):
             # a fresh one; training goes on.
             self._close_vehicle()
             assert self._snapshot is not None
-            return (self._observe(), FAILURE_REWARD, True, False,
-                    self._info(f"the SITL failed: {exc}".splitlines()[0]))
+            return (
+                self._observe(),
+                FAILURE_REWARD,
+                True,
+                False,
+                self._info(f"the SITL failed: {exc}".splitlines()[0]),
+            )
         truth = snapshot.truth
         if truth.alt_m > AIRBORNE_M:
             self._has_flown = True
         reward = step_reward(truth, self.task.target, action)
         bonus, finished = self.task.advance(truth)
-        why = failure(truth, self.task.target, armed=snapshot.fc.armed,
-                      has_flown=self._has_flown)
+        why = failure(truth, self.task.target, armed=snapshot.fc.armed, has_flown=self._has_flown)
         reward += bonus + (FAILURE_REWARD if why is not None else 0.0)
         terminated = finished or why is not None
         self._steps += 1
@@ -296,8 +315,13 @@ class FlightEnv(gymnasium.Env[np.ndarray, np.ndarray]):
     def _can_go_on(self) -> bool:
         """The firmware is alive, armed and out of failsafe: a warm reset can use it."""
         vehicle, snapshot = self._vehicle, self._snapshot
-        return (vehicle is not None and snapshot is not None and not vehicle.has_exited()
-                and snapshot.fc.armed and "FAILSAFE" not in snapshot.fc.flight_modes)
+        return (
+            vehicle is not None
+            and snapshot is not None
+            and not vehicle.has_exited()
+            and snapshot.fc.armed
+            and "FAILSAFE" not in snapshot.fc.flight_modes
+        )
 
     def _warm_reset(self) -> tuple[np.ndarray, dict[str, Any]]:
         """A hand puts the vehicle back at the start, level, rotors at hover speed, and holds
@@ -346,10 +370,11 @@ class FlightEnv(gymnasium.Env[np.ndarray, np.ndarray]):
     def _new_session(self, seed: int) -> FlightSession:
         config = SessionConfig.for_autopilot(
             control_rate_hz=self.control_hz,
-            sitl=dataclasses.replace(self.sitl, firmware=self.binary.path,
-                                     workdir=self.workdir),
-            timing=self.timing, fc=FcSetup(angle_mode=self.mode == "angle"),
-            world=dataclasses.replace(self.world, seed=seed))
+            sitl=dataclasses.replace(self.sitl, firmware=self.binary.path, workdir=self.workdir),
+            timing=self.timing,
+            fc=FcSetup(angle_mode=self.mode == "angle"),
+            world=dataclasses.replace(self.world, seed=seed),
+        )
         return FlightSession(config)
 
     def _prepare(self) -> None:
@@ -405,13 +430,16 @@ class WaypointsEnv(FlightEnv):
     """``bfsitl/Waypoints-v0``: three points in turn, the next one in the observation (see
     :class:`~bfsitl.gym.tasks.Waypoints`); 20 s by default."""
 
-    def __init__(self, *, count: int = 3,
-                 max_episode_steps: int | None = WAYPOINTS_MAX_EPISODE_STEPS,
-                 **options: Any) -> None:
+    def __init__(
+        self,
+        *,
+        count: int = 3,
+        max_episode_steps: int | None = WAYPOINTS_MAX_EPISODE_STEPS,
+        **options: Any,
+    ) -> None:
         if not 1 <= count <= 50:
             raise EnvironmentConfigError(f"count {count} is outside 1..50 waypoints")
-        super().__init__(Waypoints(count=count), max_episode_steps=max_episode_steps,
-                         **options)
+        super().__init__(Waypoints(count=count), max_episode_steps=max_episode_steps, **options)
 
 
 def check_group(name: str, value: object, group: type) -> None:
@@ -422,7 +450,8 @@ def check_group(name: str, value: object, group: type) -> None:
         names = ", ".join(f.name for f in dataclasses.fields(group))
         raise EnvironmentConfigError(
             f"{name} must be a {group.__name__} (bfsitl.{group.__name__}({names}), all "
-            f"optional), not {type(value).__name__}")
+            f"optional), not {type(value).__name__}"
+        )
 
 
 def _check_choice(name: str, value: str, choices: tuple[str, ...]) -> None:

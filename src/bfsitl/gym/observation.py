@@ -37,8 +37,10 @@ OBSERVATIONS: tuple[ObservationSource, ...] = get_args(ObservationSource)
 #: Bounds of each slot, far outside a flight (a 2000 deg/s gyro is 35 rad/s, a 16 g
 #: accelerometer 157 m/s^2); a value beyond them is clipped, so every observation is inside
 #: the space.
-_HIGH = np.array([1000.0] * 3 + [100.0] * 3 + [math.pi] * 2 + [1.0] * 2 + [100.0] * 3
-                 + [1000.0] * 3 + [1.0] * 4, dtype=np.float32)
+_HIGH = np.array(
+    [1000.0] * 3 + [100.0] * 3 + [math.pi] * 2 + [1.0] * 2 + [100.0] * 3 + [1000.0] * 3 + [1.0] * 4,
+    dtype=np.float32,
+)
 _LOW = np.concatenate([-_HIGH[:16], np.zeros(4, dtype=np.float32)])
 
 
@@ -53,9 +55,18 @@ def observe(snapshot: Snapshot, target: Vec3, which: ObservationSource) -> np.nd
     # The FC's climb rate is MSP_ALTITUDE's vario; the truth's is its vertical velocity.
     v_up = view.climb_m_s if isinstance(view, FcView) else view.v_up_m_s
     values = (
-        target[0] - view.north_m, target[1] - view.east_m, target[2] - view.alt_m,
-        view.v_north_m_s, view.v_east_m_s, v_up,
-        view.roll_rad, view.pitch_rad, math.sin(view.yaw_rad), math.cos(view.yaw_rad),
-        *view.rates_flu_rad_s, *view.accel_flu_m_s2, *view.motors,
+        target[0] - view.north_m,
+        target[1] - view.east_m,
+        target[2] - view.alt_m,
+        view.v_north_m_s,
+        view.v_east_m_s,
+        v_up,
+        view.roll_rad,
+        view.pitch_rad,
+        math.sin(view.yaw_rad),
+        math.cos(view.yaw_rad),
+        *view.rates_flu_rad_s,
+        *view.accel_flu_m_s2,
+        *view.motors,
     )
     return np.clip(np.asarray(values, dtype=np.float32), _LOW, _HIGH)

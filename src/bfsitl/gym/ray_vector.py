@@ -50,8 +50,9 @@ class EnvironmentActor:
     """One environment on a node (made remote by :class:`RayVectorEnv`): its firmware from
     the parcel, its numbers in a block of its own, sent back whole after every command."""
 
-    def __init__(self, index: int, entry_point: str, options: dict[str, Any],
-                 parcel: FirmwareParcel) -> None:
+    def __init__(
+        self, index: int, entry_point: str, options: dict[str, Any], parcel: FirmwareParcel
+    ) -> None:
         import ray
 
         binary = unpack_firmware(parcel, ray.get)
@@ -59,7 +60,8 @@ class EnvironmentActor:
         self.index = index
         sitl = options.get("sitl", DEFAULT_SITL)
         self.env = getattr(import_module(module_name), class_name)(
-            **{**options, "sitl": dataclasses.replace(sitl, firmware=str(binary))})
+            **{**options, "sitl": dataclasses.replace(sitl, firmware=str(binary))}
+        )
         self.shared = _Shared(1, bytearray(_Shared.size(1)))
 
     def ready(self) -> bytes:
@@ -71,8 +73,13 @@ class EnvironmentActor:
         try:
             answer = handle_command(self.env, self.shared, 0, message)
         except Exception as exc:  # noqa: BLE001 - reported to the driver, which raises it
-            answer = _FAILED + (f"environment {self.index}: {type(exc).__name__}: {exc}\n"
-                                f"{traceback.format_exc()}").encode()
+            answer = (
+                _FAILED
+                + (
+                    f"environment {self.index}: {type(exc).__name__}: {exc}\n"
+                    f"{traceback.format_exc()}"
+                ).encode()
+            )
         return answer, bytes(self.shared.block)
 
     def close(self) -> None:
@@ -83,18 +90,21 @@ class RayVectorEnv(FlightVectorEnv):
     """``num_envs`` copies of ``entry_point`` (``module:Class``) as Ray actors on the cluster
     at ``address``; every other keyword goes to each copy (module docstring)."""
 
-    def __init__(self, entry_point: str, num_envs: int = 2, *, address: str = "auto",
-                 **options: Any) -> None:
+    def __init__(
+        self, entry_point: str, num_envs: int = 2, *, address: str = "auto", **options: Any
+    ) -> None:
         try:
             import ray
         except ImportError as exc:
-            raise EnvironmentConfigError("RayVectorEnv needs Ray: pip install "
-                                         "'bfsitl[ray]'") from exc
+            raise EnvironmentConfigError(
+                "RayVectorEnv needs Ray: pip install 'bfsitl[ray]'"
+            ) from exc
         sitl = options.get("sitl", DEFAULT_SITL)
         check_group("sitl", sitl, SitlLaunch)
         if sitl.workdir is not None:
-            raise EnvironmentConfigError("sitl.workdir: a Ray actor's SITL runs in a temporary "
-                                         "directory of its node")
+            raise EnvironmentConfigError(
+                "sitl.workdir: a Ray actor's SITL runs in a temporary directory of its node"
+            )
         firmware = str(DEFAULT_FIRMWARE if sitl.firmware is None else sitl.firmware)
         self._set_up(num_envs, options)
         self._ray = ray
@@ -105,13 +115,15 @@ class RayVectorEnv(FlightVectorEnv):
         try:
             ray.init(address=address, log_to_driver=False, ignore_reinit_error=True)
         except (ConnectionError, RuntimeError, ValueError) as exc:
-            raise EnvironmentConfigError(f"cannot reach the Ray cluster at {address}: {exc}") \
-                from exc
+            raise EnvironmentConfigError(
+                f"cannot reach the Ray cluster at {address}: {exc}"
+            ) from exc
         try:
             parcel = pack_firmware(ray, [firmware])[firmware]
             actor = ray.remote(num_cpus=1, max_restarts=0)(EnvironmentActor)
-            self._actors = [actor.remote(index, entry_point, options, parcel)
-                            for index in range(num_envs)]
+            self._actors = [
+                actor.remote(index, entry_point, options, parcel) for index in range(num_envs)
+            ]
             self._gather([a.ready.remote() for a in self._actors], expect=_READY)
         except BaseException:
             self.close()
@@ -120,17 +132,20 @@ class RayVectorEnv(FlightVectorEnv):
     # -- the transport: Ray calls instead of pipes ------------------------------------------
     def _exchange(self, messages: list[bytes]) -> dict[int, tuple[np.ndarray, dict[str, Any]]]:
         try:
-            refs = [actor.handle.remote(message, self._shared.actions[index].copy()
-                                        if message == _STEP else None)
-                    for index, (actor, message) in enumerate(zip(self._actors, messages,
-                                                                  strict=True))]
+            refs = [
+                actor.handle.remote(
+                    message, self._shared.actions[index].copy() if message == _STEP else None
+                )
+                for index, (actor, message) in enumerate(zip(self._actors, messages, strict=True))
+            ]
             return self._gather(refs, expect=_DONE)
         except BaseException:
             self.close()
             raise
 
-    def _gather(self, refs: list[Any], *, expect: bytes
-                ) -> dict[int, tuple[np.ndarray, dict[str, Any]]]:
+    def _gather(
+        self, refs: list[Any], *, expect: bytes
+    ) -> dict[int, tuple[np.ndarray, dict[str, Any]]]:
         """Every actor's answer, its numbers copied into this side's block."""
         finals: dict[int, tuple[np.ndarray, dict[str, Any]]] = {}
         failures: list[str] = []
@@ -139,8 +154,10 @@ class RayVectorEnv(FlightVectorEnv):
             try:
                 reply = self._ray.get(ref)
             except self._ray.exceptions.RayError as exc:
-                failures.append(f"environment {index}: its Ray actor failed or was lost "
-                                f"({type(exc).__name__}: {str(exc).splitlines()[0]})")
+                failures.append(
+                    f"environment {index}: its Ray actor failed or was lost "
+                    f"({type(exc).__name__}: {str(exc).splitlines()[0]})"
+                )
                 continue
             if isinstance(reply, bytes):  # ready
                 _sort_answer(index, reply, expect, finals, failures)

@@ -31,19 +31,19 @@ class FcView:
     """What a companion computer on a real quad reads from the FC."""
 
     roll_rad: float
-    pitch_rad: float              # positive nose down
-    yaw_rad: float                # heading, clockwise from north
-    rates_flu_rad_s: Vec3         # MSP_RAW_IMU gyro
-    accel_flu_m_s2: Vec3          # MSP_RAW_IMU accelerometer (specific force: +g up at rest)
-    accel_up_m_s2: float          # the same made vertical, gravity removed (0 at rest)
-    alt_m: float                  # MSP_ALTITUDE, zeroed at arming
-    climb_m_s: float              # MSP_ALTITUDE vario
-    north_m: float                # the FC's GPS made local (0 without a GPS: see has_gps)
+    pitch_rad: float  # positive nose down
+    yaw_rad: float  # heading, clockwise from north
+    rates_flu_rad_s: Vec3  # MSP_RAW_IMU gyro
+    accel_flu_m_s2: Vec3  # MSP_RAW_IMU accelerometer (specific force: +g up at rest)
+    accel_up_m_s2: float  # the same made vertical, gravity removed (0 at rest)
+    alt_m: float  # MSP_ALTITUDE, zeroed at arming
+    climb_m_s: float  # MSP_ALTITUDE vario
+    north_m: float  # the FC's GPS made local (0 without a GPS: see has_gps)
     east_m: float
     v_north_m_s: float
     v_east_m_s: float
     has_gps: bool
-    motors: Vec4                  # MSP_MOTOR, 0..1
+    motors: Vec4  # MSP_MOTOR, 0..1
     armed: bool
     arming_blockers: tuple[str, ...]
     flight_modes: tuple[str, ...]
@@ -86,31 +86,39 @@ def read_snapshot(vehicle: FlightSession, *, arm_ned_m: Vec3) -> Snapshot:
     with_gps = vehicle.has_gps
     commands = TELEMETRY_COMMANDS + ((MspCommand.RAW_GPS,) if with_gps else ())
     payloads = client.multiple(commands)
-    telemetry = telemetry_from_payloads(payloads[:len(TELEMETRY_COMMANDS)], vehicle.time_s,
-                                        client.box_ids())
+    telemetry = telemetry_from_payloads(
+        payloads[: len(TELEMETRY_COMMANDS)], vehicle.time_s, client.box_ids()
+    )
     imu = vehicle.backend.imu
     gx, gy, gz = telemetry.imu.gyro_dps()
     north = east = v_north = v_east = 0.0
     if with_gps:
         gps = vehicle.local_gps(msg.RawGps.decode(payloads[-1]))
-        north, east, v_north, v_east = (gps.north_m, gps.east_m, gps.v_north_m_s,
-                                        gps.v_east_m_s)
+        north, east, v_north, v_east = (gps.north_m, gps.east_m, gps.v_north_m_s, gps.v_east_m_s)
     attitude = telemetry.attitude
     fc = FcView(
-        roll_rad=math.radians(attitude.roll_deg), pitch_rad=math.radians(attitude.pitch_deg),
+        roll_rad=math.radians(attitude.roll_deg),
+        pitch_rad=math.radians(attitude.pitch_deg),
         # MSP_ATTITUDE truncates the heading to whole degrees: the middle is unbiased.
         yaw_rad=math.radians(attitude.yaw_deg + 0.5),
         rates_flu_rad_s=(math.radians(gx), math.radians(gy), math.radians(gz)),
         accel_flu_m_s2=accel_flu_m_s2(telemetry, imu),
-        accel_up_m_s2=telemetry.accel_up_m_s2(imu.acc_1g_lsb,
-                                              offset_lsb=imu.acc_truncation_lsb),
-        alt_m=telemetry.altitude.altitude_m, climb_m_s=telemetry.altitude.vario_m_s,
-        north_m=north, east_m=east, v_north_m_s=v_north, v_east_m_s=v_east,
+        accel_up_m_s2=telemetry.accel_up_m_s2(imu.acc_1g_lsb, offset_lsb=imu.acc_truncation_lsb),
+        alt_m=telemetry.altitude.altitude_m,
+        climb_m_s=telemetry.altitude.vario_m_s,
+        north_m=north,
+        east_m=east,
+        v_north_m_s=v_north,
+        v_east_m_s=v_east,
         has_gps=with_gps,
-        motors=tuple(min(1.0, max(0.0, (us - _MOTOR_MIN_US) / _MOTOR_SPAN_US))  # type: ignore[arg-type]
-                     for us in telemetry.motors.motors_us[:4]),
-        armed=telemetry.armed, arming_blockers=telemetry.arming_blockers,
-        flight_modes=telemetry.flight_modes)
+        motors=tuple(
+            min(1.0, max(0.0, (us - _MOTOR_MIN_US) / _MOTOR_SPAN_US))  # type: ignore[arg-type]
+            for us in telemetry.motors.motors_us[:4]
+        ),
+        armed=telemetry.armed,
+        arming_blockers=telemetry.arming_blockers,
+        flight_modes=telemetry.flight_modes,
+    )
     return Snapshot(vehicle.time_s, fc, true_view(vehicle, arm_ned_m))
 
 
@@ -129,8 +137,18 @@ def true_view(vehicle: FlightSession, arm_ned_m: Vec3) -> TrueView:
     fx, fy, fz = simulator.specific_force_frd_m_s2
     roll, pitch, yaw = (math.radians(a) for a in truth.attitude_deg)
     return TrueView(
-        north_m=north - arm_ned_m[0], east_m=east - arm_ned_m[1], alt_m=arm_ned_m[2] - down,
-        v_north_m_s=vn, v_east_m_s=ve, v_up_m_s=-vd,
-        roll_rad=roll, pitch_rad=pitch, yaw_rad=yaw,
-        rates_flu_rad_s=(p, -q, -r), accel_flu_m_s2=(fx, -fy, -fz),
-        motors=truth.motors, tilt_deg=truth.tilt_deg, on_ground=truth.on_ground)
+        north_m=north - arm_ned_m[0],
+        east_m=east - arm_ned_m[1],
+        alt_m=arm_ned_m[2] - down,
+        v_north_m_s=vn,
+        v_east_m_s=ve,
+        v_up_m_s=-vd,
+        roll_rad=roll,
+        pitch_rad=pitch,
+        yaw_rad=yaw,
+        rates_flu_rad_s=(p, -q, -r),
+        accel_flu_m_s2=(fx, -fy, -fz),
+        motors=truth.motors,
+        tilt_deg=truth.tilt_deg,
+        on_ground=truth.on_ground,
+    )

@@ -41,4 +41,5 @@ def rc_to_sticks(command: RcCommand) -> tuple[float, float, float, float]:
     """The inverse of :func:`sticks_to_rc` (for a hand-written policy and for tests)."""
     return tuple(  # type: ignore[return-value]
         (float(us) - RC_MID_US) / _HALF_RANGE_US
-        for us in (command.roll_us, command.pitch_us, command.throttle_us, command.yaw_us))
+        for us in (command.roll_us, command.pitch_us, command.throttle_us, command.yaw_us)
+    )

@@ -43,8 +43,11 @@ def step_reward(truth: TrueView, target: Vec3, action: np.ndarray) -> float:
     """The per-step reward of the module docstring."""
     roll, pitch, _throttle, yaw = (float(v) for v in action)
     tilt_rad = math.radians(truth.tilt_deg)
-    return (math.exp(-distance_m(truth, target)) - 0.1 * tilt_rad
-            - 0.01 * (roll * roll + pitch * pitch + yaw * yaw))
+    return (
+        math.exp(-distance_m(truth, target))
+        - 0.1 * tilt_rad
+        - 0.01 * (roll * roll + pitch * pitch + yaw * yaw)
+    )
 
 
 def failure(truth: TrueView, target: Vec3, *, armed: bool, has_flown: bool) -> str | None:

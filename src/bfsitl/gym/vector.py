@@ -79,8 +79,9 @@ class _Shared:
         def view(dtype: Any, shape: tuple[int, ...]) -> np.ndarray:
             nonlocal offset
             size = int(np.prod(shape)) * np.dtype(dtype).itemsize
-            array = np.frombuffer(buffer, dtype=dtype, count=int(np.prod(shape)),
-                                  offset=offset).reshape(shape)
+            array = np.frombuffer(
+                buffer, dtype=dtype, count=int(np.prod(shape)), offset=offset
+            ).reshape(shape)
             offset += (size + 7) // 8 * 8
             return array
 
@@ -96,16 +97,31 @@ class _Shared:
         def aligned(nbytes: int) -> int:
             return (nbytes + 7) // 8 * 8
 
-        return (aligned(count * 4 * 4) + aligned(count * OBSERVATION_SIZE * 4)
-                + aligned(count * 8) + 2 * aligned(count) + aligned(count * _INFO_WIDTH * 8))
+        return (
+            aligned(count * 4 * 4)
+            + aligned(count * OBSERVATION_SIZE * 4)
+            + aligned(count * 8)
+            + 2 * aligned(count)
+            + aligned(count * _INFO_WIDTH * 8)
+        )
 
 
 def _info_row(info: dict[str, Any]) -> list[float]:
     truth = info["truth"]
-    return [float(info["time_s"]), float(info["distance_m"]), float(info["waypoint"]),
-            float(info["armed"]), float(info["failsafe"]), *info["target"],
-            truth["north_m"], truth["east_m"], truth["alt_m"],
-            truth["v_north_m_s"], truth["v_east_m_s"], truth["v_up_m_s"]]
+    return [
+        float(info["time_s"]),
+        float(info["distance_m"]),
+        float(info["waypoint"]),
+        float(info["armed"]),
+        float(info["failsafe"]),
+        *info["target"],
+        truth["north_m"],
+        truth["east_m"],
+        truth["alt_m"],
+        truth["v_north_m_s"],
+        truth["v_east_m_s"],
+        truth["v_up_m_s"],
+    ]
 
 
 def handle_command(env: Any, shared: _Shared, index: int, message: bytes) -> bytes:
@@ -137,9 +153,15 @@ def _end_on_terminate(_signal: int, _frame: object) -> None:
     raise SystemExit(0)  # so that the worker's finally closes its SITL
 
 
-def _worker(index: int, entry_point: str, options: dict[str, Any], block: Any, count: int,
-            connection: multiprocessing.connection.Connection,
-            parents_ends: list[multiprocessing.connection.Connection]) -> None:
+def _worker(
+    index: int,
+    entry_point: str,
+    options: dict[str, Any],
+    block: Any,
+    count: int,
+    connection: multiprocessing.connection.Connection,
+    parents_ends: list[multiprocessing.connection.Connection],
+) -> None:
     """One environment: steps when the parent says, until it says close or goes away."""
     # A forked worker holds copies of the parent's ends of the pipes made so far: closed, so
     # that the parent's death closes this worker's pipe (and the read below ends).
@@ -151,8 +173,10 @@ def _worker(index: int, entry_point: str, options: dict[str, Any], block: Any, c
     sitl = options.get("sitl")
     if isinstance(sitl, SitlLaunch) and sitl.workdir is not None:
         # One run directory each: two SITLs must not share an EEPROM file.
-        options = {**options, "sitl": dataclasses.replace(
-            sitl, workdir=Path(sitl.workdir) / f"env{index}")}
+        options = {
+            **options,
+            "sitl": dataclasses.replace(sitl, workdir=Path(sitl.workdir) / f"env{index}"),
+        }
     try:
         module_name, class_name = entry_point.split(":")
         env = getattr(import_module(module_name), class_name)(**options)
@@ -183,11 +207,11 @@ class FlightVectorEnv(VectorEnv[np.ndarray, np.ndarray, np.ndarray]):
     """``num_envs`` copies of one environment (``entry_point``, ``module:Class``), stepped
     together; every other keyword goes to each copy (see the module docstring)."""
 
-    metadata: dict[str, Any] = {"autoreset_mode": AutoresetMode.SAME_STEP,
-                                "render_modes": []}
+    metadata: dict[str, Any] = {"autoreset_mode": AutoresetMode.SAME_STEP, "render_modes": []}
 
-    def __init__(self, entry_point: str, num_envs: int = 2, *, context: str = "fork",
-                 **options: Any) -> None:
+    def __init__(
+        self, entry_point: str, num_envs: int = 2, *, context: str = "fork", **options: Any
+    ) -> None:
         self._set_up(num_envs, options)
         mp: Any = multiprocessing.get_context(context)
         self._shared = _Shared(num_envs, mp.RawArray("b", _Shared.size(num_envs)))
@@ -198,9 +222,19 @@ class FlightVectorEnv(VectorEnv[np.ndarray, np.ndarray, np.ndarray]):
                 parent_end, child_end = mp.Pipe()
                 forked = context == "fork"
                 process = mp.Process(
-                    target=_worker, name=f"bfsitl-gym-{index}", daemon=True,
-                    args=(index, entry_point, options, self._shared.block, num_envs,
-                          child_end, [*self._connections, parent_end] if forked else []))
+                    target=_worker,
+                    name=f"bfsitl-gym-{index}",
+                    daemon=True,
+                    args=(
+                        index,
+                        entry_point,
+                        options,
+                        self._shared.block,
+                        num_envs,
+                        child_end,
+                        [*self._connections, parent_end] if forked else [],
+                    ),
+                )
                 process.start()
                 child_end.close()
                 self._connections.append(parent_end)
@@ -229,36 +263,45 @@ class FlightVectorEnv(VectorEnv[np.ndarray, np.ndarray, np.ndarray]):
         self._closed_workers = False
 
     # -- the vector environment ----------------------------------------------------------------
-    def reset(self, *, seed: int | list[int | None] | None = None,
-              options: dict[str, Any] | None = None) -> tuple[np.ndarray, dict[str, Any]]:
+    def reset(
+        self, *, seed: int | list[int | None] | None = None, options: dict[str, Any] | None = None
+    ) -> tuple[np.ndarray, dict[str, Any]]:
         self._check_open()
         if seed is None or isinstance(seed, int):
-            seeds: list[int | None] = ([None] * self.num_envs if seed is None
-                                       else [seed + index for index in range(self.num_envs)])
+            seeds: list[int | None] = (
+                [None] * self.num_envs
+                if seed is None
+                else [seed + index for index in range(self.num_envs)]
+            )
         else:
             seeds = list(seed)
             if len(seeds) != self.num_envs:
-                raise EnvironmentConfigError(
-                    f"{len(seeds)} seeds for {self.num_envs} environments")
+                raise EnvironmentConfigError(f"{len(seeds)} seeds for {self.num_envs} environments")
         self._exchange([_RESET + pickle.dumps((env_seed, options)) for env_seed in seeds])
         return self._shared.observations.copy(), self._info()
 
-    def step(self, actions: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray,
-                                                   np.ndarray, dict[str, Any]]:
+    def step(
+        self, actions: np.ndarray
+    ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, dict[str, Any]]:
         self._check_open()
         actions = np.asarray(actions, dtype=np.float32)
         if actions.shape != (self.num_envs, 4):
             raise EnvironmentConfigError(
-                f"actions are {self.num_envs} x 4 sticks, got shape {actions.shape}")
+                f"actions are {self.num_envs} x 4 sticks, got shape {actions.shape}"
+            )
         self._shared.actions[:] = actions
         finals = self._exchange([_STEP] * self.num_envs)
         shared = self._shared
         info = self._info()
         for index, (observation, env_info) in finals.items():
-            info = self._add_info(info, {"final_obs": observation, "final_info": env_info},
-                                  index)
-        return (shared.observations.copy(), shared.rewards.copy(), shared.terminated.copy(),
-                shared.truncated.copy(), info)
+            info = self._add_info(info, {"final_obs": observation, "final_info": env_info}, index)
+        return (
+            shared.observations.copy(),
+            shared.rewards.copy(),
+            shared.terminated.copy(),
+            shared.truncated.copy(),
+            info,
+        )
 
     def close_extras(self, **kwargs: Any) -> None:
         if self._closed_workers:
@@ -275,7 +318,7 @@ class FlightVectorEnv(VectorEnv[np.ndarray, np.ndarray, np.ndarray]):
                 process.terminate()  # its SIGTERM handler still closes the SITL
                 process.join(_CLOSE_WAIT_S)
             if process.is_alive():
-                process.kill()       # its namespace agent ends the SITL with it
+                process.kill()  # its namespace agent ends the SITL with it
                 process.join(1.0)
         for connection in self._connections:
             connection.close()
@@ -311,8 +354,9 @@ class FlightVectorEnv(VectorEnv[np.ndarray, np.ndarray, np.ndarray]):
             except (EOFError, OSError):
                 process = self._processes[index]
                 process.join(1.0)  # the pipe closes a moment before the exit code is known
-                failures.append(f"environment {index}: its worker process ended "
-                                f"(exit code {process.exitcode})")
+                failures.append(
+                    f"environment {index}: its worker process ended (exit code {process.exitcode})"
+                )
                 continue
             _sort_answer(index, answer, expect, finals, failures)
         if failures:
@@ -327,16 +371,20 @@ class FlightVectorEnv(VectorEnv[np.ndarray, np.ndarray, np.ndarray]):
             info[name] = values.astype(bool) if name in ("armed", "failsafe") else values
         first = len(INFO_NUMBERS)
         for number, name in enumerate(_VECTORS):
-            info[name] = numbers[:, first + 3 * number:first + 3 * number + 3].copy()
+            info[name] = numbers[:, first + 3 * number : first + 3 * number + 3].copy()
         info["waypoint"] = info["waypoint"].astype(np.int64)
         for name in (*INFO_NUMBERS, *_VECTORS):
             info[f"_{name}"] = np.ones(self.num_envs, dtype=bool)
         return info
 
 
-def _sort_answer(index: int, answer: bytes, expect: bytes,
-                 finals: dict[int, tuple[np.ndarray, dict[str, Any]]],
-                 failures: list[str]) -> None:
+def _sort_answer(
+    index: int,
+    answer: bytes,
+    expect: bytes,
+    finals: dict[int, tuple[np.ndarray, dict[str, Any]]],
+    failures: list[str],
+) -> None:
     """An environment's answer: an ended episode's (observation, info) into ``finals``, a
     failure's text into ``failures``."""
     kind = answer[:1]
@@ -361,4 +409,3 @@ class WaypointsVectorEnv(FlightVectorEnv):
 
     def __init__(self, num_envs: int = 2, **options: Any) -> None:
         super().__init__("bfsitl.gym.env:WaypointsEnv", num_envs, **options)
-

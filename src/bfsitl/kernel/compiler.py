@@ -30,8 +30,15 @@ from bfsitl.cache_location import cache_root
 from bfsitl.errors import KernelUnavailableError
 
 #: The compiler's flags; part of the cache key.
-CFLAGS = ("-O2", "-std=c11", "-fPIC", "-shared", "-ffp-contract=off", "-fno-fast-math",
-          "-D_GNU_SOURCE")
+CFLAGS = (
+    "-O2",
+    "-std=c11",
+    "-fPIC",
+    "-shared",
+    "-ffp-contract=off",
+    "-fno-fast-math",
+    "-D_GNU_SOURCE",
+)
 #: ``cc`` unless ``$CC`` names another.
 CC_ENV = "CC"
 COMPILE_TIMEOUT_S = 120.0
@@ -78,19 +85,22 @@ def build_kernel(target: Path) -> None:
         raise KernelUnavailableError(
             "no C compiler for the embedded physics, which is C built once per machine "
             "(looked for $CC, cc, gcc, clang): install one (Debian/Ubuntu: apt-get install "
-            "gcc; the firmware build needs it too), or set $CC to yours")
+            "gcc; the firmware build needs it too), or set $CC to yours"
+        )
     target.parent.mkdir(parents=True, exist_ok=True)
     scratch = target.with_name(f".{target.name}.{os.getpid()}.tmp")
     sources = [str(p) for p in kernel_sources() if p.suffix == ".c"]
     command = [compiler, *CFLAGS, "-o", str(scratch), *sources, "-lm"]
     try:
-        done = subprocess.run(command, capture_output=True, text=True, timeout=COMPILE_TIMEOUT_S,
-                              check=False)
+        done = subprocess.run(
+            command, capture_output=True, text=True, timeout=COMPILE_TIMEOUT_S, check=False
+        )
         if done.returncode != 0:
             raise KernelUnavailableError(
                 f"the embedded physics did not build ({Path(compiler).name} exited "
                 f"{done.returncode}; set $CC to another C compiler):\n"
-                f"{done.stderr.strip()[-2000:]}")
+                f"{done.stderr.strip()[-2000:]}"
+            )
         os.replace(scratch, target)
     except (OSError, subprocess.TimeoutExpired) as exc:
         raise KernelUnavailableError(f"the embedded physics did not build: {exc}") from exc
@@ -117,8 +127,8 @@ def load_kernel() -> ctypes.CDLL:
                 _library = ctypes.CDLL(str(target))
             except OSError as exc:
                 raise KernelUnavailableError(
-                    f"the compiled physics {target} would not load ({exc}): delete it to "
-                    f"rebuild") from exc
+                    f"the compiled physics {target} would not load ({exc}): delete it to rebuild"
+                ) from exc
         except KernelUnavailableError as exc:
             _failure = str(exc)
             raise

@@ -14,9 +14,7 @@ def _import_pyserial() -> Any:
     try:
         import serial  # type: ignore[import-untyped]
     except ImportError as exc:
-        raise ExtraMissingError(
-            "serial links need pyserial: pip install 'bfsitl[serial]'"
-        ) from exc
+        raise ExtraMissingError("serial links need pyserial: pip install 'bfsitl[serial]'") from exc
     return serial
 
 
@@ -36,7 +34,10 @@ class SerialLink(Link):
         try:
             # exclusive: a second program on the same port would steal half of the replies.
             self._port = serial.Serial(
-                device, baudrate=baud, timeout=timeout_s, write_timeout=timeout_s,
+                device,
+                baudrate=baud,
+                timeout=timeout_s,
+                write_timeout=timeout_s,
                 exclusive=True,
             )
         except (OSError, serial.SerialException) as exc:

@@ -54,8 +54,7 @@ _SYS_FUTEX = {"x86_64": 202}
 def shm_exchange_supported() -> bool:
     """This machine can use the exchange (x86-64 Linux and a 64-bit Python, see the module
     docstring)."""
-    return (platform.system() == "Linux" and platform.machine() in _SYS_FUTEX
-            and sys.maxsize > 2**32)
+    return platform.system() == "Linux" and platform.machine() in _SYS_FUTEX and sys.maxsize > 2**32
 
 
 def _region_directory() -> Path:
@@ -71,8 +70,15 @@ class _Futex:
         libc = ctypes.CDLL(None, use_errno=True)
         self._syscall = libc.syscall
         self._syscall.restype = ctypes.c_long
-        self._syscall.argtypes = [ctypes.c_long, ctypes.c_void_p, ctypes.c_int, ctypes.c_uint32,
-                                  ctypes.c_void_p, ctypes.c_void_p, ctypes.c_uint32]
+        self._syscall.argtypes = [
+            ctypes.c_long,
+            ctypes.c_void_p,
+            ctypes.c_int,
+            ctypes.c_uint32,
+            ctypes.c_void_p,
+            ctypes.c_void_p,
+            ctypes.c_uint32,
+        ]
         self._number = _SYS_FUTEX[platform.machine()]
 
     def wake(self, address: int) -> None:
@@ -84,8 +90,9 @@ class _Futex:
         lost)."""
         seconds = int(timeout_s)
         timeout = (ctypes.c_long * 2)(seconds, int((timeout_s - seconds) * 1e9))
-        self._syscall(self._number, address, _FUTEX_WAIT, expected, ctypes.addressof(timeout),
-                      None, 0)
+        self._syscall(
+            self._number, address, _FUTEX_WAIT, expected, ctypes.addressof(timeout), None, 0
+        )
 
 
 class ShmExchange:
@@ -101,8 +108,9 @@ class ShmExchange:
         self._remove = weakref.finalize(self, _unlink, self.path)
         try:
             os.ftruncate(fd, REGION_BYTES)
-            self._map = mmap.mmap(fd, REGION_BYTES, mmap.MAP_SHARED,
-                                  mmap.PROT_READ | mmap.PROT_WRITE)
+            self._map = mmap.mmap(
+                fd, REGION_BYTES, mmap.MAP_SHARED, mmap.PROT_READ | mmap.PROT_WRITE
+            )
         finally:
             os.close(fd)
         self._words = memoryview(self._map).cast("I")
@@ -127,14 +135,23 @@ class ShmExchange:
         if self._words[_MAGIC_WORD] != _MAGIC:
             return False
         version, datagram_at, reply_at, size = (
-            self._words[_VERSION_WORD], self._words[_DATAGRAM_OFFSET_WORD],
-            self._words[_REPLY_OFFSET_WORD], self._words[_REGION_WORD])
-        if version != _VERSION or size > REGION_BYTES or reply_at + _REPLY_BYTES > size \
-                or datagram_at < _HEADER.size or reply_at < datagram_at + _DATAGRAM_BYTES:
+            self._words[_VERSION_WORD],
+            self._words[_DATAGRAM_OFFSET_WORD],
+            self._words[_REPLY_OFFSET_WORD],
+            self._words[_REGION_WORD],
+        )
+        if (
+            version != _VERSION
+            or size > REGION_BYTES
+            or reply_at + _REPLY_BYTES > size
+            or datagram_at < _HEADER.size
+            or reply_at < datagram_at + _DATAGRAM_BYTES
+        ):
             raise SitlError(
                 f"the firmware's shared exchange has layout version {version} ({size} bytes), "
                 f"this bfsitl knows version {_VERSION}: rebuild the firmware with this bfsitl "
-                f"(`bfsitl firmware build --lockstep`), or use the UDP exchange")
+                f"(`bfsitl firmware build --lockstep`), or use the UDP exchange"
+            )
         self._datagram_offset, self._reply_offset = datagram_at, reply_at
         self._ready = True
         return True
@@ -164,11 +181,13 @@ class ShmExchange:
         word is 0 while the datagram is written (the FC's copy checks it: a seqlock)."""
         offset = self._datagram_offset
         if offset + len(datagram) > self._reply_offset:
-            raise SitlError(f"a lockstep datagram of {len(datagram)} bytes does not fit the "
-                            f"firmware's shared exchange ({self._reply_offset - offset} bytes)")
+            raise SitlError(
+                f"a lockstep datagram of {len(datagram)} bytes does not fit the "
+                f"firmware's shared exchange ({self._reply_offset - offset} bytes)"
+            )
         words = self._words
         words[_REQUEST_WORD] = 0
-        self._map[offset:offset + len(datagram)] = datagram
+        self._map[offset : offset + len(datagram)] = datagram
         words[_BYTES_WORD] = len(datagram)
         self._seq = (self._seq + 1) & 0xFFFFFFFF
         if self._seq == 0:
@@ -177,8 +196,9 @@ class ShmExchange:
         self._futex.wake(self._base + 4 * _REQUEST_WORD)
         return self._seq
 
-    def wait_reply(self, first: int, last: int, timeout_s: float,
-                   spin_until: Callable[[], bool]) -> bytes | None:
+    def wait_reply(
+        self, first: int, last: int, timeout_s: float, spin_until: Callable[[], bool]
+    ) -> bytes | None:
         """The reply to any of the requests ``first`` to ``last`` (one packet and its
         resends) if it comes within ``timeout_s``; the word is polled while ``spin_until()``
         is true, then slept on."""
@@ -201,7 +221,7 @@ class ShmExchange:
 
     def _reply(self) -> bytes:
         offset = self._reply_offset
-        return self._map[offset:offset + _REPLY_BYTES]
+        return self._map[offset : offset + _REPLY_BYTES]
 
     def close(self) -> None:
         """Unmap and remove the region (the FC's mapping, if it still runs, stays valid)."""
@@ -229,7 +249,7 @@ def remove_stale_regions(folder: Path) -> None:
     except OSError:
         return
     for entry in entries:
-        pid_text = entry.name[len(_PREFIX):].split("-", 1)[0]
+        pid_text = entry.name[len(_PREFIX) :].split("-", 1)[0]
         if not pid_text.isdigit() or _running(int(pid_text)):
             continue
         try:

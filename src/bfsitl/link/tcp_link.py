@@ -42,8 +42,7 @@ def connect_tcp(
         sock.setsockopt(socket.IPPROTO_TCP, socket.TCP_NODELAY, 1)
     except TimeoutError as exc:
         sock.close()
-        raise LinkTimeoutError(f"{uri}: no answer to connect within {connect_timeout_s} s") \
-            from exc
+        raise LinkTimeoutError(f"{uri}: no answer to connect within {connect_timeout_s} s") from exc
     except OSError as exc:
         sock.close()
         if exc.errno == errno.ECONNREFUSED:
@@ -72,8 +71,9 @@ class TcpLink(Link):
         super().__init__(f"tcp://{host}:{port}", timeout_s)
         self.host = host
         self.port = port
-        sock = connect_tcp(host, port, connect_timeout_s=connect_timeout_s,
-                           socket_factory=socket_factory)
+        sock = connect_tcp(
+            host, port, connect_timeout_s=connect_timeout_s, socket_factory=socket_factory
+        )
         sock.setblocking(False)
         self._sock = sock
 

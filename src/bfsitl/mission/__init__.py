@@ -1,12 +1,12 @@
 """Flights: a session (SITL + physics + provisioning + RC), missions and their records.
 
-    from bfsitl.control import make_controller
-    from bfsitl.mission import FlightSession, MissionPlan, fly
+from bfsitl.control import make_controller
+from bfsitl.mission import FlightSession, MissionPlan, fly
 
-    with FlightSession() as session:
-        result = fly(session, MissionPlan(target_alt_m=2.0, hold_s=10),
-                     make_controller("cascade"))
-    print(result.outcome, result.hold)
+with FlightSession() as session:
+    result = fly(session, MissionPlan(target_alt_m=2.0, hold_s=10),
+                 make_controller("cascade"))
+print(result.outcome, result.hold)
 """
 
 from bfsitl.mission.flight_metrics import HoldStats
@@ -27,7 +27,21 @@ from bfsitl.mission.session import (
 from bfsitl.mission.vehicle import FlightSample
 
 __all__ = [
-    "FLY_PROFILE", "ConfiguratorBridge", "FcSetup", "FlightLoop", "FlightRow", "FlightSample",
-    "FlightSession", "HoldStats", "LegStats", "MissionPlan", "MissionResult", "Outcome",
-    "SessionConfig", "SitlLaunch", "Waypoint", "fly", "load_mission",
+    "FLY_PROFILE",
+    "ConfiguratorBridge",
+    "FcSetup",
+    "FlightLoop",
+    "FlightRow",
+    "FlightSample",
+    "FlightSession",
+    "HoldStats",
+    "LegStats",
+    "MissionPlan",
+    "MissionResult",
+    "Outcome",
+    "SessionConfig",
+    "SitlLaunch",
+    "Waypoint",
+    "fly",
+    "load_mission",
 ]

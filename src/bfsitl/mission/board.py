@@ -66,12 +66,18 @@ class BoardVehicle(Vehicle):
     #: What the default serial task (100 Hz) leaves room for next to RC and the GPS.
     control_rate_hz = 25.0
 
-    def __init__(self, uri: str, *, profile: Profile | None = None,
-                 rc_rate_hz: float = DEFAULT_MSP_RATE_HZ,
-                 timeout_s: float = BOARD_MSP_TIMEOUT_S,
-                 arm_timeout_s: float = DEFAULT_ARM_TIMEOUT_S, angle_mode: bool = True,
-                 progress: Progress | None = None,
-                 link_opener: Callable[..., Link] | None = None) -> None:
+    def __init__(
+        self,
+        uri: str,
+        *,
+        profile: Profile | None = None,
+        rc_rate_hz: float = DEFAULT_MSP_RATE_HZ,
+        timeout_s: float = BOARD_MSP_TIMEOUT_S,
+        arm_timeout_s: float = DEFAULT_ARM_TIMEOUT_S,
+        angle_mode: bool = True,
+        progress: Progress | None = None,
+        link_opener: Callable[..., Link] | None = None,
+    ) -> None:
         super().__init__(progress=progress, arm_timeout_s=arm_timeout_s, angle_mode=angle_mode)
         self.uri = uri
         #: Opens the link to the board from ``uri`` (``timeout_s=``): a serial port or a TCP
@@ -112,15 +118,22 @@ class BoardVehicle(Vehicle):
             # Measured before arming, while the board stands still.
             self.backend = BoardBackend.measured(lambda: client.get(msg.RawImu).acc_raw)
             self.clock = self.backend.clock
-            self._progress(f"connected to {self.uri}: {self._firmware.name}"
-                           + ("" if self._has_gps else ", no GPS (altitude only)")
-                           + f", accelerometer {self.backend.imu.acc_1g_lsb:g} LSB per g")
+            self._progress(
+                f"connected to {self.uri}: {self._firmware.name}"
+                + ("" if self._has_gps else ", no GPS (altitude only)")
+                + f", accelerometer {self.backend.imu.acc_1g_lsb:g} LSB per g"
+            )
             self._check_receiver(client)
             if self.profile is not None:
                 self.provisioned = provision(client, self.profile, reboot=self._no_reboot)
-                self._progress("provisioned: " + ("written and saved" if
-                                                  self.provisioned.changed
-                                                  else "already configured, nothing written"))
+                self._progress(
+                    "provisioned: "
+                    + (
+                        "written and saved"
+                        if self.provisioned.changed
+                        else "already configured, nothing written"
+                    )
+                )
             self._start_rc(MspRcLink(client, rate_hz=self.rc_rate_hz))
         except BaseException:
             self.close()
@@ -135,13 +148,15 @@ class BoardVehicle(Vehicle):
                 f"the FC's receiver is not MSP (features: {', '.join(features) or 'none'}): "
                 f"MSP_SET_RAW_RC would be acknowledged and ignored. Switch the receiver to MSP "
                 f"(the Configurator's Receiver tab, or the feature mask over MSP as "
-                f"docs/real-board.md shows), save, reboot, and connect again")
+                f"docs/real-board.md shows), save, reboot, and connect again"
+            )
 
     @staticmethod
     def _no_reboot() -> None:
         raise BoardSetupError(
             "the settings were saved but take effect only after a reboot: power-cycle or "
-            "reboot the board (`bfsitl cli --uri URI reboot`), then connect again")
+            "reboot the board (`bfsitl cli --uri URI reboot`), then connect again"
+        )
 
     # -- the Vehicle parts ----------------------------------------------------------------------
     @property

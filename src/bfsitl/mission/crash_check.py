@@ -26,11 +26,15 @@ def check_flying(sample: FlightSample, doing: str) -> None:
         MissionError: The FC disarmed.
     """
     # The truth when the physics is ours; the FC's attitude otherwise (Gazebo).
-    tilt_deg = (sample.sim_tilt_deg if math.isfinite(sample.sim_tilt_deg)
-                else max(abs(sample.roll_deg), abs(sample.pitch_deg)))
+    tilt_deg = (
+        sample.sim_tilt_deg
+        if math.isfinite(sample.sim_tilt_deg)
+        else max(abs(sample.roll_deg), abs(sample.pitch_deg))
+    )
     if tilt_deg > CRASH_TILT_DEG:
-        raise CrashDetectedError(f"the vehicle tipped over ({tilt_deg:.0f} deg "
-                                 f"from level at t={sample.time_s:.1f} s)")
+        raise CrashDetectedError(
+            f"the vehicle tipped over ({tilt_deg:.0f} deg from level at t={sample.time_s:.1f} s)"
+        )
     if sample.on_ground and sample.sim_climb_m_s < -CRASH_TOUCHDOWN_M_S:
         raise CrashDetectedError(f"hit the ground at {-sample.sim_climb_m_s:.1f} m/s")
     if not sample.armed:

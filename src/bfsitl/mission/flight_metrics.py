@@ -33,7 +33,7 @@ class AttitudeTracking:
     samples: int
     roll_rms_error_deg: float
     pitch_rms_error_deg: float
-    max_abs_error_deg: float      # roll or pitch, whichever is worse
+    max_abs_error_deg: float  # roll or pitch, whichever is worse
     max_true_tilt_deg: float
 
 
@@ -43,8 +43,11 @@ def attitude_tracking(rows: list[FlightRow]) -> AttitudeTracking | None:
     MSP_ATTITUDE comes from the same round trip as the rest of the sample and the truth is
     read right after it, so the comparison carries at most one exchange of delay.
     """
-    flown = [r for r in rows if r.armed and r.phase in FLOWN
-             and math.isfinite(r.sim_roll_deg) and r.sim_alt_m > 0.2]
+    flown = [
+        r
+        for r in rows
+        if r.armed and r.phase in FLOWN and math.isfinite(r.sim_roll_deg) and r.sim_alt_m > 0.2
+    ]
     if not flown:
         return None
     roll = [r.roll_deg - r.sim_roll_deg for r in flown]
@@ -53,9 +56,13 @@ def attitude_tracking(rows: list[FlightRow]) -> AttitudeTracking | None:
     def rms(errors: list[float]) -> float:
         return math.sqrt(sum(e * e for e in errors) / len(errors))
 
-    return AttitudeTracking(len(flown), rms(roll), rms(pitch),
-                            max(max(map(abs, roll)), max(map(abs, pitch))),
-                            max(r.sim_tilt_deg for r in flown))
+    return AttitudeTracking(
+        len(flown),
+        rms(roll),
+        rms(pitch),
+        max(max(map(abs, roll)), max(map(abs, pitch))),
+        max(r.sim_tilt_deg for r in flown),
+    )
 
 
 def judged_position(row: FlightRow) -> tuple[float, float, float]:
@@ -70,7 +77,7 @@ def cross_track_rms(legs: list[LegStats]) -> float | None:
     samples = sum(leg.samples for leg in legs)
     if not samples:
         return None
-    return math.sqrt(sum(leg.cross_track_rms_m ** 2 * leg.samples for leg in legs) / samples)
+    return math.sqrt(sum(leg.cross_track_rms_m**2 * leg.samples for leg in legs) / samples)
 
 
 def landed_from_start_m(rows: list[FlightRow]) -> float | None:
@@ -93,7 +100,9 @@ def hold_stats(rows: list[FlightRow]) -> HoldStats | None:
     return HoldStats(
         rms_error_m=math.sqrt(sum(e * e for e in errors) / len(errors)),
         max_abs_error_m=max(abs(e) for e in errors),
-        mean_error_m=sum(errors) / len(errors), samples=len(errors))
+        mean_error_m=sum(errors) / len(errors),
+        samples=len(errors),
+    )
 
 
 def takeoff_metrics(rows: list[FlightRow], target_alt_m: float) -> Any:
@@ -109,6 +118,10 @@ def takeoff_metrics(rows: list[FlightRow], target_alt_m: float) -> Any:
     if len(flown) < 10:
         return None
     return step_response(
-        [r.time_s for r in flown], [judged_alt_m(r) for r in flown], target_m=target_alt_m,
-        start_m=0.0, roll_deg=[r.roll_deg for r in flown],
-        pitch_deg=[r.pitch_deg for r in flown])
+        [r.time_s for r in flown],
+        [judged_alt_m(r) for r in flown],
+        target_m=target_alt_m,
+        start_m=0.0,
+        roll_deg=[r.roll_deg for r in flown],
+        pitch_deg=[r.pitch_deg for r in flown],
+    )

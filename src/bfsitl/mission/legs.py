@@ -34,14 +34,19 @@ class LegPoint:
     v_east_m_s: float
     a_north_m_s2: float
     a_east_m_s2: float
-    finished: bool          # the reference has stopped at the leg's end
+    finished: bool  # the reference has stopped at the leg's end
 
 
 class LegReference:
     """The travelling reference of one leg, as a function of the time since it began."""
 
-    def __init__(self, start: tuple[float, float, float], end: tuple[float, float, float],
-                 speed_m_s: float, accel_m_s2: float = DEFAULT_LEG_ACCEL_M_S2) -> None:
+    def __init__(
+        self,
+        start: tuple[float, float, float],
+        end: tuple[float, float, float],
+        speed_m_s: float,
+        accel_m_s2: float = DEFAULT_LEG_ACCEL_M_S2,
+    ) -> None:
         if not (math.isfinite(speed_m_s) and 0.0 < speed_m_s <= 20.0):
             raise MissionError(f"leg speed {speed_m_s} m/s is outside 0..20 m/s")
         if not (math.isfinite(accel_m_s2) and accel_m_s2 > 0.0):
@@ -71,15 +76,26 @@ class LegReference:
             along_m, speed, accel = self.length_m - 0.5 * a * left_s * left_s, a * left_s, -a
         share = along_m / self.length_m if self.length_m > 0 else 1.0
         (n0, e0, h0), (n1, e1, h1) = self.start, self.end
-        un, ue = ((n1 - n0) / self.length_m, (e1 - e0) / self.length_m) \
-            if self.length_m > 0 else (0.0, 0.0)
-        return LegPoint(n0 + (n1 - n0) * share, e0 + (e1 - e0) * share,
-                        h0 + (h1 - h0) * share, un * speed, ue * speed, un * accel,
-                        ue * accel, t >= self.duration_s)
+        un, ue = (
+            ((n1 - n0) / self.length_m, (e1 - e0) / self.length_m)
+            if self.length_m > 0
+            else (0.0, 0.0)
+        )
+        return LegPoint(
+            n0 + (n1 - n0) * share,
+            e0 + (e1 - e0) * share,
+            h0 + (h1 - h0) * share,
+            un * speed,
+            ue * speed,
+            un * accel,
+            ue * accel,
+            t >= self.duration_s,
+        )
 
 
-def cross_track_m(north_m: float, east_m: float, start: tuple[float, float],
-                  end: tuple[float, float]) -> float:
+def cross_track_m(
+    north_m: float, east_m: float, start: tuple[float, float], end: tuple[float, float]
+) -> float:
     """Distance from the track: the line through ``start`` and ``end``, perpendicular to it
     (running past the end is along the track, not across it).  A leg of no length has no
     direction: the distance from its point."""
@@ -94,33 +110,48 @@ def cross_track_m(north_m: float, east_m: float, start: tuple[float, float],
 class LegStats:
     """How one leg went, judged on the simulated truth (the FC's GPS where there is none)."""
 
-    waypoint: int                  # 1-based, in the order flown
+    waypoint: int  # 1-based, in the order flown
     target_north_m: float
     target_east_m: float
     target_alt_m: float
-    took_s: float                  # simulation time from the leg's start to "reached"
-    arrival_error_m: float         # horizontal distance from the waypoint when reached
-    arrival_alt_error_m: float     # height minus the waypoint's altitude then
-    cross_track_rms_m: float       # distance from the straight line, over the leg
+    took_s: float  # simulation time from the leg's start to "reached"
+    arrival_error_m: float  # horizontal distance from the waypoint when reached
+    arrival_alt_error_m: float  # height minus the waypoint's altitude then
+    cross_track_rms_m: float  # distance from the straight line, over the leg
     cross_track_max_m: float
-    overshoot_m: float             # furthest past the waypoint along the track
+    overshoot_m: float  # furthest past the waypoint along the track
     samples: int
 
 
-def leg_stats(waypoint: int, start: tuple[float, float], end: tuple[float, float, float],
-              positions: Sequence[tuple[float, float, float]], took_s: float) -> LegStats:
+def leg_stats(
+    waypoint: int,
+    start: tuple[float, float],
+    end: tuple[float, float, float],
+    positions: Sequence[tuple[float, float, float]],
+    took_s: float,
+) -> LegStats:
     """``positions``: (north, east, altitude) of every step of the leg, the last at arrival."""
     if not positions:
         raise MissionError(f"leg {waypoint} has no samples to judge")
     off = [cross_track_m(n, e, start, (end[0], end[1])) for n, e, _h in positions]
     dn, de = end[0] - start[0], end[1] - start[1]
     length = math.hypot(dn, de)
-    beyond = [((n - end[0]) * dn + (e - end[1]) * de) / length for n, e, _h in positions] \
-        if length > 0 else [0.0]
+    beyond = (
+        [((n - end[0]) * dn + (e - end[1]) * de) / length for n, e, _h in positions]
+        if length > 0
+        else [0.0]
+    )
     last_n, last_e, last_h = positions[-1]
     return LegStats(
-        waypoint, end[0], end[1], end[2], took_s,
+        waypoint,
+        end[0],
+        end[1],
+        end[2],
+        took_s,
         arrival_error_m=math.hypot(last_n - end[0], last_e - end[1]),
         arrival_alt_error_m=last_h - end[2],
         cross_track_rms_m=math.sqrt(sum(x * x for x in off) / len(off)),
-        cross_track_max_m=max(off), overshoot_m=max(0.0, max(beyond)), samples=len(off))
+        cross_track_max_m=max(off),
+        overshoot_m=max(0.0, max(beyond)),
+        samples=len(off),
+    )

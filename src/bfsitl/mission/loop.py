@@ -97,8 +97,9 @@ class FlightLoop(PositionManoeuvres):
         self.log = log
         self.rows: list[FlightRow] = []
         hooks = hooks or FlightHooks()
-        self.hooks = replace(hooks, on_step=hooks.on_step or on_row,
-                             on_event=hooks.on_event or on_event)
+        self.hooks = replace(
+            hooks, on_step=hooks.on_step or on_row, on_event=hooks.on_event or on_event
+        )
         self.target_alt_m = 0.0
         self._phase = Phase.ARMING
         #: Why the stop condition ended the flying (None while it flies on).
@@ -146,15 +147,21 @@ class FlightLoop(PositionManoeuvres):
             return
         self._on_event(f"on the ground for {seconds:g} s (the barometer settles)")
         end_s = self.vehicle.time_s + seconds
-        self._fly(Phase.GROUND, 0.0, lambda s: s.time_s >= end_s, timeout_s=seconds + 5,
-                  controller=GroundObserver(self.controller))
+        self._fly(
+            Phase.GROUND,
+            0.0,
+            lambda s: s.time_s >= end_s,
+            timeout_s=seconds + 5,
+            controller=GroundObserver(self.controller),
+        )
         if not isinstance(self.controller, ObservesGround):
             # It saw nothing of the wait: start its clock now, as if it had just been armed
             # (a PID would otherwise integrate the whole wait in its first step).
             self.controller.reset(self.vehicle.time_s)
 
-    def takeoff(self, altitude_m: float, *, timeout_s: float = 20.0,
-                hold_position: bool = False) -> float:
+    def takeoff(
+        self, altitude_m: float, *, timeout_s: float = 20.0, hold_position: bool = False
+    ) -> float:
         """Climb to ``altitude_m`` above the take-off point; returns the sim time it took.
 
         Args:
@@ -168,8 +175,10 @@ class FlightLoop(PositionManoeuvres):
         """
         if self.stopped:
             return 0.0
-        self._on_event(f"take-off to {altitude_m:.2f} m"
-                       + (", holding the take-off point" if hold_position else ""))
+        self._on_event(
+            f"take-off to {altitude_m:.2f} m"
+            + (", holding the take-off point" if hold_position else "")
+        )
         if not hold_position:
             return self._reach(Phase.TAKEOFF, altitude_m, timeout_s)
         here = self.steering.position_target(0.0, 0.0)
@@ -196,8 +205,14 @@ class FlightLoop(PositionManoeuvres):
         self._on_event(f"go to {altitude_m:.2f} m")
         return self._reach(Phase.GOTO, altitude_m, timeout_s)
 
-    def hold(self, seconds: float, *, roll_us: float = RC_MID_US, pitch_us: float = RC_MID_US,
-             yaw_us: float = RC_MID_US) -> None:
+    def hold(
+        self,
+        seconds: float,
+        *,
+        roll_us: float = RC_MID_US,
+        pitch_us: float = RC_MID_US,
+        yaw_us: float = RC_MID_US,
+    ) -> None:
         """Hold the altitude for ``seconds`` of simulation time.
 
         Off-centre ``roll_us`` / ``pitch_us`` / ``yaw_us`` are held for the whole time (a stick
@@ -214,22 +229,39 @@ class FlightLoop(PositionManoeuvres):
             return
         sticks = (roll_us, pitch_us, yaw_us)
         stepped = any(value != RC_MID_US for value in sticks)
-        what = (f" with sticks roll {roll_us:.0f}, pitch {pitch_us:.0f}, yaw {yaw_us:.0f} us"
-                if stepped else "")
+        what = (
+            f" with sticks roll {roll_us:.0f}, pitch {pitch_us:.0f}, yaw {yaw_us:.0f} us"
+            if stepped
+            else ""
+        )
         self._on_event(f"hold {self.target_alt_m:.2f} m for {seconds:g} s{what}")
         end_s = self.vehicle.time_s + seconds
-        self.vehicle.set_rc(replace(self.vehicle.rc_command, roll_us=roll_us,
-                                    pitch_us=pitch_us, yaw_us=yaw_us))
+        self.vehicle.set_rc(
+            replace(self.vehicle.rc_command, roll_us=roll_us, pitch_us=pitch_us, yaw_us=yaw_us)
+        )
         try:
-            self._fly(Phase.HOLD, self.target_alt_m, lambda s: s.time_s >= end_s,
-                      timeout_s=seconds + 5)
+            self._fly(
+                Phase.HOLD, self.target_alt_m, lambda s: s.time_s >= end_s, timeout_s=seconds + 5
+            )
         finally:
             if stepped:
-                self.vehicle.set_rc(replace(self.vehicle.rc_command, roll_us=RC_MID_US,
-                                            pitch_us=RC_MID_US, yaw_us=RC_MID_US))
+                self.vehicle.set_rc(
+                    replace(
+                        self.vehicle.rc_command,
+                        roll_us=RC_MID_US,
+                        pitch_us=RC_MID_US,
+                        yaw_us=RC_MID_US,
+                    )
+                )
 
-    def hand_over(self, seconds: float, *, switches: tuple[int, ...], throttle_us: float,
-                  phase: Phase = Phase.FC_MODE) -> None:
+    def hand_over(
+        self,
+        seconds: float,
+        *,
+        switches: tuple[int, ...],
+        throttle_us: float,
+        phase: Phase = Phase.FC_MODE,
+    ) -> None:
         """Give the flight to the firmware's own modes for ``seconds``: the AUX channels
         ``switches`` (0-based: 2 is AUX3) on, roll, pitch and yaw centred, the throttle held
         at ``throttle_us`` (ALTHOLD reads it as a climb-rate stick around its hover value).
@@ -244,8 +276,10 @@ class FlightLoop(PositionManoeuvres):
         """
         if self.stopped:
             return
-        self._on_event(f"handing over to the FC's modes (AUX "
-                       f"{', '.join(str(i + 1) for i in switches)}) for {seconds:g} s")
+        self._on_event(
+            f"handing over to the FC's modes (AUX "
+            f"{', '.join(str(i + 1) for i in switches)}) for {seconds:g} s"
+        )
         self.steering.set_sticks(roll_us=RC_MID_US, pitch_us=RC_MID_US, yaw_us=RC_MID_US)
         command = self.vehicle.rc_command
         for index in switches:
@@ -253,16 +287,26 @@ class FlightLoop(PositionManoeuvres):
         self.vehicle.set_rc(command)
         end_s = self.vehicle.time_s + seconds
         try:
-            self._fly(phase, self.target_alt_m, lambda s: s.time_s >= end_s,
-                      timeout_s=seconds + 5, controller=FixedThrottle(throttle_us))
+            self._fly(
+                phase,
+                self.target_alt_m,
+                lambda s: s.time_s >= end_s,
+                timeout_s=seconds + 5,
+                controller=FixedThrottle(throttle_us),
+            )
         finally:
             command = self.vehicle.rc_command
             for index in switches:
                 command = command.with_aux(index, SWITCH_OFF_US)
             self.vehicle.set_rc(command)
 
-    def observe(self, done: Callable[[FlightSample], bool], *, timeout_s: float,
-                phase: Phase = Phase.OBSERVE) -> None:
+    def observe(
+        self,
+        done: Callable[[FlightSample], bool],
+        *,
+        timeout_s: float,
+        phase: Phase = Phase.OBSERVE,
+    ) -> None:
         """Record rows without flying: the sticks stay as they are, because something else
         has the vehicle (an injected RC fault, the FC's failsafe).  Nothing is judged here (a
         disarm or a crash is what a scenario watches for).
@@ -296,8 +340,10 @@ class FlightLoop(PositionManoeuvres):
         self._on_event("landing")
         landing = self.landing
         if not isinstance(landing, DetectsTouchdown):
-            raise MissionError("the landing controller has no touched_down property "
-                               "(bfsitl.control.base.DetectsTouchdown)")
+            raise MissionError(
+                "the landing controller has no touched_down property "
+                "(bfsitl.control.base.DetectsTouchdown)"
+            )
         # Start the descent from the flying controller's hover estimate, not a guess.
         if isinstance(self.controller, KnowsHover) and isinstance(landing, TakesHoverEstimate):
             landing.set_hover_estimate(self.controller.hover_throttle_us)
@@ -309,8 +355,13 @@ class FlightLoop(PositionManoeuvres):
         if self.steering.target_ne is not None:
             # After position control the descent holds the position too: wind would
             # otherwise carry the vehicle off while it sinks.
-            self._fly_position(Phase.LAND, self.steering.fixed(self.steering.target_ne, 0.0),
-                               touched_down, timeout_s, controller=self.landing)
+            self._fly_position(
+                Phase.LAND,
+                self.steering.fixed(self.steering.target_ne, 0.0),
+                touched_down,
+                timeout_s,
+                controller=self.landing,
+            )
         else:
             self._fly(Phase.LAND, 0.0, touched_down, timeout_s=timeout_s, controller=self.landing)
         if self.stopped:
@@ -324,22 +375,31 @@ class FlightLoop(PositionManoeuvres):
         self._on_event("disarmed")
 
     # -- the loop --------------------------------------------------------------------------
-    def _reach(self, phase: Phase, altitude_m: float, timeout_s: float, *,
-               steer: Callable[[FlightSample], float | None] | None = None) -> float:
+    def _reach(
+        self,
+        phase: Phase,
+        altitude_m: float,
+        timeout_s: float,
+        *,
+        steer: Callable[[FlightSample], float | None] | None = None,
+    ) -> float:
         start_s = self.vehicle.time_s
         settled_since: list[float] = []
 
         def reached(sample: FlightSample) -> bool:
             # The FC's reading, or the controller's own estimate when it keeps one (it knows
             # the FC's zero error, which on master can exceed the band).
-            estimate = self.controller.altitude_estimate_m \
-                if isinstance(self.controller, EstimatesAltitude) else None
+            estimate = (
+                self.controller.altitude_estimate_m
+                if isinstance(self.controller, EstimatesAltitude)
+                else None
+            )
             widen = 2.0 if sample.time_s - start_s >= REACHED_PATIENCE_S else 1.0
             band_m = REACHED_BAND_M * widen
             within = abs(sample.fc_alt_m - altitude_m) <= band_m or (
-                estimate is not None and abs(estimate - altitude_m) <= band_m)
-            near = within and \
-                abs(self._climb.rate_m_s) <= REACHED_CLIMB_M_S * widen
+                estimate is not None and abs(estimate - altitude_m) <= band_m
+            )
+            near = within and abs(self._climb.rate_m_s) <= REACHED_CLIMB_M_S * widen
             if not near:
                 settled_since.clear()
                 return False
@@ -355,8 +415,13 @@ class FlightLoop(PositionManoeuvres):
         return took_s
 
     def _fly(
-        self, phase: Phase, target_alt_m: float, done: Callable[[FlightSample], bool], *,
-        timeout_s: float, controller: AltitudeController | None = None,
+        self,
+        phase: Phase,
+        target_alt_m: float,
+        done: Callable[[FlightSample], bool],
+        *,
+        timeout_s: float,
+        controller: AltitudeController | None = None,
         steer: Callable[[FlightSample], float | None] | None = None,
     ) -> None:
         if self.stopped:
@@ -376,11 +441,19 @@ class FlightLoop(PositionManoeuvres):
                 if moved_alt_m is not None:
                     target_alt_m = self.target_alt_m = moved_alt_m
             throttle_us = controller.update(
-                AltitudeInput(sample.time_s, sample.fc_alt_m, climb_m_s, target_alt_m,
-                              accel_up_m_s2=sample.fc_accel_up_m_s2))
+                AltitudeInput(
+                    sample.time_s,
+                    sample.fc_alt_m,
+                    climb_m_s,
+                    target_alt_m,
+                    accel_up_m_s2=sample.fc_accel_up_m_s2,
+                )
+            )
             if not math.isfinite(throttle_us):
-                raise MissionError(f"controller {getattr(controller, 'name', controller)} "
-                                   f"returned throttle {throttle_us}")
+                raise MissionError(
+                    f"controller {getattr(controller, 'name', controller)} "
+                    f"returned throttle {throttle_us}"
+                )
             self.vehicle.set_throttle(throttle_us)
             self._record(phase, target_alt_m, sample, climb_m_s)
             if self._stop_asked(sample) or done(sample):
@@ -388,7 +461,8 @@ class FlightLoop(PositionManoeuvres):
             if sample.time_s >= deadline_s:
                 raise MissionTimeoutError(
                     f"{phase} did not finish within {timeout_s:.0f} s of simulation time "
-                    f"(FC altitude {sample.fc_alt_m:.2f} m, target {target_alt_m:.2f} m)")
+                    f"(FC altitude {sample.fc_alt_m:.2f} m, target {target_alt_m:.2f} m)"
+                )
             next_s = next_step(clock, next_s, period_s)
 
     def _stop_asked(self, sample: FlightSample) -> bool:
@@ -402,27 +476,45 @@ class FlightLoop(PositionManoeuvres):
         self._on_event(f"stopped flying: {reason}")
         return True
 
-    def _record(self, phase: str, target_alt_m: float, sample: FlightSample,
-                climb_m_s: float) -> FlightRow:
+    def _record(
+        self, phase: str, target_alt_m: float, sample: FlightSample, climb_m_s: float
+    ) -> FlightRow:
         """One row of the log; ``phase`` is a :class:`Phase`, or an :class:`Outcome`'s value
         for the last row of a flight that did not land."""
         rc = self.vehicle.rc_command  # what goes out from this step on
         aux = tuple(rc.aux_us) + (SWITCH_OFF_US, SWITCH_OFF_US)
         row = FlightRow(
-            time_s=sample.time_s, phase=phase, target_alt_m=target_alt_m,
-            sim_alt_m=sample.sim_alt_m, fc_alt_m=sample.fc_alt_m, climb_m_s=climb_m_s,
-            sim_climb_m_s=sample.sim_climb_m_s, fc_accel_up_m_s2=sample.fc_accel_up_m_s2,
-            roll_deg=sample.roll_deg, pitch_deg=sample.pitch_deg, yaw_deg=sample.yaw_deg,
-            sim_tilt_deg=sample.sim_tilt_deg, sim_roll_deg=sample.sim_roll_deg,
-            sim_pitch_deg=sample.sim_pitch_deg, sim_yaw_deg=sample.sim_yaw_deg,
-            rc_roll_us=round(rc.roll_us), rc_pitch_us=round(rc.pitch_us),
-            rc_throttle_us=round(rc.throttle_us), rc_yaw_us=round(rc.yaw_us),
-            rc_aux1_us=round(aux[0]), rc_aux2_us=round(aux[1]),
-            motor1=sample.motors[0], motor2=sample.motors[1], motor3=sample.motors[2],
-            motor4=sample.motors[3], armed=sample.armed,
+            time_s=sample.time_s,
+            phase=phase,
+            target_alt_m=target_alt_m,
+            sim_alt_m=sample.sim_alt_m,
+            fc_alt_m=sample.fc_alt_m,
+            climb_m_s=climb_m_s,
+            sim_climb_m_s=sample.sim_climb_m_s,
+            fc_accel_up_m_s2=sample.fc_accel_up_m_s2,
+            roll_deg=sample.roll_deg,
+            pitch_deg=sample.pitch_deg,
+            yaw_deg=sample.yaw_deg,
+            sim_tilt_deg=sample.sim_tilt_deg,
+            sim_roll_deg=sample.sim_roll_deg,
+            sim_pitch_deg=sample.sim_pitch_deg,
+            sim_yaw_deg=sample.sim_yaw_deg,
+            rc_roll_us=round(rc.roll_us),
+            rc_pitch_us=round(rc.pitch_us),
+            rc_throttle_us=round(rc.throttle_us),
+            rc_yaw_us=round(rc.yaw_us),
+            rc_aux1_us=round(aux[0]),
+            rc_aux2_us=round(aux[1]),
+            motor1=sample.motors[0],
+            motor2=sample.motors[1],
+            motor3=sample.motors[2],
+            motor4=sample.motors[3],
+            armed=sample.armed,
             wall_s=sample.wall_s - self._started_wall_s,
-            sim_north_m=sample.sim_north_m, sim_east_m=sample.sim_east_m,
-            waypoint=self.steering.waypoint, **self.steering.row_columns,
+            sim_north_m=sample.sim_north_m,
+            sim_east_m=sample.sim_east_m,
+            waypoint=self.steering.waypoint,
+            **self.steering.row_columns,
         )
         self.rows.append(row)
         self.last_sample = sample
@@ -441,12 +533,12 @@ class FlightLoop(PositionManoeuvres):
         vehicle = self.vehicle
         if vehicle.rc is None:
             return
-        safe = replace(vehicle.rc_command, throttle_us=RC_MIN_US,
-                       aux_us=(SWITCH_OFF_US, SWITCH_OFF_US))
+        safe = replace(
+            vehicle.rc_command, throttle_us=RC_MIN_US, aux_us=(SWITCH_OFF_US, SWITCH_OFF_US)
+        )
         vehicle.set_rc(safe)
         if self.last_sample is not None:
-            self._record(ending.value, self.target_alt_m, self.last_sample,
-                         self._climb.rate_m_s)
+            self._record(ending.value, self.target_alt_m, self.last_sample, self._climb.rate_m_s)
 
 
 def next_step(clock: SessionClock, next_s: float, period_s: float) -> float:

@@ -15,16 +15,16 @@ class Phase(StrEnum):
     ``FlightLoop.abort``)."""
 
     ARMING = "arming"
-    GROUND = "ground"          # armed on the ground while the barometer settles
+    GROUND = "ground"  # armed on the ground while the barometer settles
     TAKEOFF = "takeoff"
     HOLD = "hold"
     GOTO = "goto"
     YAW = "yaw"
     LAND = "land"
     LANDED = "landed"
-    FC_MODE = "fc-mode"        # the firmware's own mode flies (FlightLoop.hand_over)
-    OBSERVE = "observe"        # nobody flies; the mission only watches
-    WATCH = "watch"            # a scenario watches after a fault took the sticks
+    FC_MODE = "fc-mode"  # the firmware's own mode flies (FlightLoop.hand_over)
+    OBSERVE = "observe"  # nobody flies; the mission only watches
+    WATCH = "watch"  # a scenario watches after a fault took the sticks
 
 
 #: The phases in which the autopilot flies (and a hold or a leg's error means something).

@@ -133,10 +133,16 @@ class MissionPlan:
 
 
 #: The file's top-level keys and the plan's fields they fill.
-_TOP_KEYS = {"takeoff_alt_m": "target_alt_m", "hold_s": "hold_s", "ground_s": "ground_s",
-             "speed_m_s": "speed_m_s", "land": "land", "hold_position": "hold_position",
-             "takeoff_timeout_s": "takeoff_timeout_s",
-             "land_timeout_s": "land_timeout_s"}
+_TOP_KEYS = {
+    "takeoff_alt_m": "target_alt_m",
+    "hold_s": "hold_s",
+    "ground_s": "ground_s",
+    "speed_m_s": "speed_m_s",
+    "land": "land",
+    "hold_position": "hold_position",
+    "takeoff_timeout_s": "takeoff_timeout_s",
+    "land_timeout_s": "land_timeout_s",
+}
 _WAYPOINT_KEYS = {f.name for f in fields(Waypoint)}
 
 
@@ -145,8 +151,10 @@ def plan_from_dict(data: dict[str, Any], *, source: str = "the mission") -> Miss
     errors."""
     unknown = set(data) - set(_TOP_KEYS) - {"waypoint"}
     if unknown:
-        raise MissionError(f"{source}: unknown key(s) {', '.join(sorted(unknown))}; known: "
-                           f"{', '.join(sorted([*_TOP_KEYS, 'waypoint']))}")
+        raise MissionError(
+            f"{source}: unknown key(s) {', '.join(sorted(unknown))}; known: "
+            f"{', '.join(sorted([*_TOP_KEYS, 'waypoint']))}"
+        )
     if "takeoff_alt_m" not in data:
         raise MissionError(f"{source}: takeoff_alt_m is missing (the take-off altitude, m)")
     raw_points = data.get("waypoint", [])
@@ -163,8 +171,9 @@ def plan_from_dict(data: dict[str, Any], *, source: str = "the mission") -> Miss
             problems = [f"unknown key(s) {', '.join(sorted(unknown))}"] if unknown else []
             if missing:
                 problems.append(f"missing {', '.join(sorted(missing))}")
-            raise MissionError(f"{where}: {'; '.join(problems)} (keys: "
-                               f"{', '.join(sorted(_WAYPOINT_KEYS))})")
+            raise MissionError(
+                f"{where}: {'; '.join(problems)} (keys: {', '.join(sorted(_WAYPOINT_KEYS))})"
+            )
         _check_types(where, raw)
         try:
             waypoints.append(Waypoint(**raw))

@@ -36,9 +36,14 @@ from bfsitl.stop_signals import how_stopped
 STEP_STEADY_WINDOW_S = 5.0
 
 
-def fly_steps(loop: FlightLoop, plan: MissionPlan, *, arm: bool = True,
-              time_left_s: Callable[[], float] | None = None,
-              after_step: Callable[[Phase], None] | None = None) -> None:
+def fly_steps(
+    loop: FlightLoop,
+    plan: MissionPlan,
+    *,
+    arm: bool = True,
+    time_left_s: Callable[[], float] | None = None,
+    after_step: Callable[[Phase], None] | None = None,
+) -> None:
     """Arm, take off, hold, fly the waypoints, land: ``plan`` on ``loop``, raising on
     trouble (:func:`fly_plan` turns that into an outcome).
 
@@ -53,8 +58,7 @@ def fly_steps(loop: FlightLoop, plan: MissionPlan, *, arm: bool = True,
     if plan.ground_s > 0:
         loop.wait_on_ground(plan.ground_s)
     position = plan.needs_position or (plan.hold_position and loop.vehicle.has_gps)
-    loop.takeoff(plan.target_alt_m, timeout_s=plan.takeoff_timeout_s,
-                    hold_position=position)
+    loop.takeoff(plan.target_alt_m, timeout_s=plan.takeoff_timeout_s, hold_position=position)
     if loop.stopped:
         return
     done(Phase.TAKEOFF)
@@ -81,8 +85,9 @@ def fly_steps(loop: FlightLoop, plan: MissionPlan, *, arm: bool = True,
 
 def fly_waypoint(loop: FlightLoop, waypoint: Waypoint, number: int, speed_m_s: float) -> None:
     """The leg to ``waypoint``, the turn to its heading, its hold."""
-    loop.fly_to(waypoint.north_m, waypoint.east_m, waypoint.alt_m, speed_m_s=speed_m_s,
-                   waypoint=number)
+    loop.fly_to(
+        waypoint.north_m, waypoint.east_m, waypoint.alt_m, speed_m_s=speed_m_s, waypoint=number
+    )
     if waypoint.heading_deg is not None:
         loop.yaw_to(waypoint.heading_deg)
     if waypoint.hold_s > 0:
@@ -124,13 +129,19 @@ def fly(
     Raises:
         MissionError: ``rate_hz`` is outside 1 to 200 (nothing has flown then).
     """
-    loop = FlightLoop(vehicle, controller, landing=landing, rate_hz=rate_hz, log=log,
-                      on_row=on_row, on_event=on_event)
+    loop = FlightLoop(
+        vehicle,
+        controller,
+        landing=landing,
+        rate_hz=rate_hz,
+        log=log,
+        on_row=on_row,
+        on_event=on_event,
+    )
     return fly_plan(loop, plan)
 
 
-def fly_plan(loop: FlightLoop, plan: MissionPlan, *,
-             keep_flying: bool = False) -> MissionResult:
+def fly_plan(loop: FlightLoop, plan: MissionPlan, *, keep_flying: bool = False) -> MissionResult:
     """Fly ``plan`` from the ground on ``loop`` (a new one, or one that has flown and
     landed before: the :class:`~bfsitl.autopilot.Autopilot` flies on its own); every ending
     becomes an :class:`Outcome`, and the result covers the rows and legs of this plan only.
@@ -149,7 +160,8 @@ def fly_plan(loop: FlightLoop, plan: MissionPlan, *,
             raise MissionError(
                 "this mission has waypoints, flown from the FC's GPS, and this firmware has "
                 "no GPS: fly a GPS build (`bfsitl firmware build --gps`, add --lockstep for "
-                "lockstep; master always has it)")
+                "lockstep; master always has it)"
+            )
         fly_steps(loop, plan)
         if not plan.land:
             outcome, reason = Outcome.COMPLETED, "mission completed in the air (land = false)"
@@ -173,16 +185,26 @@ def fly_plan(loop: FlightLoop, plan: MissionPlan, *,
     if outcome is Outcome.ERROR and vehicle.has_exited():
         outcome = Outcome.SITL_EXITED
     rows = loop.rows[first_row:]
-    result = MissionResult(outcome, reason.splitlines()[0] if reason else "", name, plan,
-                           rows, blockers, vehicle.armed_after_s)
+    result = MissionResult(
+        outcome,
+        reason.splitlines()[0] if reason else "",
+        name,
+        plan,
+        rows,
+        blockers,
+        vehicle.armed_after_s,
+    )
     result.hold = hold_stats(rows)
     result.legs = list(loop.legs[first_leg:])
     result.attitude = attitude_tracking(rows)
     profile = vehicle.firmware
     if profile is not None:
         result.extra["firmware"] = {
-            "version": profile.firmware_version, "api": profile.api_version,
-            "conventions": profile.generation.value, "gps": profile.has_gps}
+            "version": profile.firmware_version,
+            "api": profile.api_version,
+            "conventions": profile.generation.value,
+            "gps": profile.has_gps,
+        }
     if not plan.waypoints or plan.hold_s >= STEP_STEADY_WINDOW_S:
         # A step response needs the hold after it: straight into a leg, there is none.
         result.metrics = takeoff_metrics(rows, plan.target_alt_m)
@@ -191,7 +213,10 @@ def fly_plan(loop: FlightLoop, plan: MissionPlan, *,
         result.extra["rc_link"] = rc_stats
     if bridge_stats is not None:
         result.extra["physics"] = {
-            "answered_ratio": bridge_stats.answered_ratio, "speed": bridge_stats.speed,
-            "steps": bridge_stats.steps, "lockstep": vehicle.lockstep,
-            "exchange": vehicle.backend.exchange}
+            "answered_ratio": bridge_stats.answered_ratio,
+            "speed": bridge_stats.speed,
+            "steps": bridge_stats.steps,
+            "lockstep": vehicle.lockstep,
+            "exchange": vehicle.backend.exchange,
+        }
     return result

@@ -34,8 +34,14 @@ class PositionManoeuvres:
     #: The flight loop's inner loop (:meth:`FlightLoop._fly`).
     _fly: Callable[..., None]
 
-    def hold_position(self, seconds: float, north_m: float | None = None,
-                      east_m: float | None = None, *, waypoint: int = 0) -> None:
+    def hold_position(
+        self,
+        seconds: float,
+        north_m: float | None = None,
+        east_m: float | None = None,
+        *,
+        waypoint: int = 0,
+    ) -> None:
         """Hold the altitude and a position (metres from the take-off point; default: the
         last position target, else where the FC's GPS is now) for ``seconds``, steering
         through ANGLE mode and holding the heading.
@@ -49,15 +55,30 @@ class PositionManoeuvres:
         if self.stopped:
             return
         target = self.steering.position_target(north_m, east_m)
-        self._on_event(f"hold {target[0]:+.1f} m N {target[1]:+.1f} m E, "
-                       f"{self.target_alt_m:.2f} m up, for {seconds:g} s")
+        self._on_event(
+            f"hold {target[0]:+.1f} m N {target[1]:+.1f} m E, "
+            f"{self.target_alt_m:.2f} m up, for {seconds:g} s"
+        )
         end_s = self.vehicle.time_s + seconds
-        self._fly_position(Phase.HOLD, self._fixed(target), lambda s: s.time_s >= end_s,
-                           seconds + 5, waypoint=waypoint)
+        self._fly_position(
+            Phase.HOLD,
+            self._fixed(target),
+            lambda s: s.time_s >= end_s,
+            seconds + 5,
+            waypoint=waypoint,
+        )
 
-    def fly_to(self, north_m: float, east_m: float, alt_m: float | None = None, *,
-               speed_m_s: float | None = None, tolerance_m: float = 0.15,
-               timeout_s: float | None = None, waypoint: int = 0) -> float:
+    def fly_to(
+        self,
+        north_m: float,
+        east_m: float,
+        alt_m: float | None = None,
+        *,
+        speed_m_s: float | None = None,
+        tolerance_m: float = 0.15,
+        timeout_s: float | None = None,
+        waypoint: int = 0,
+    ) -> float:
         """Fly a straight leg to a position and altitude at ``speed_m_s``.
 
         The leg starts at the last position target (where the previous leg ended) or, before
@@ -88,8 +109,10 @@ class PositionManoeuvres:
         if timeout_s is None:
             timeout_s = 20.0 + 3.0 * reference.duration_s
         label = f"waypoint {waypoint}: " if waypoint else ""
-        self._on_event(f"{label}fly to {north_m:+.1f} m N {east_m:+.1f} m E, {end[2]:.2f} m "
-                       f"up ({reference.length_m:.1f} m at {speed:g} m/s)")
+        self._on_event(
+            f"{label}fly to {north_m:+.1f} m N {east_m:+.1f} m E, {end[2]:.2f} m "
+            f"up ({reference.length_m:.1f} m at {speed:g} m/s)"
+        )
         started_s = self.vehicle.time_s
         first_row = len(self.rows)
         finished = [False]
@@ -101,21 +124,32 @@ class PositionManoeuvres:
 
         def arrived(_sample: FlightSample) -> bool:
             gps = self.steering.last_gps
-            return finished[0] and gps is not None and math.hypot(
-                gps.north_m - north_m, gps.east_m - east_m) <= tolerance_m \
+            return (
+                finished[0]
+                and gps is not None
+                and math.hypot(gps.north_m - north_m, gps.east_m - east_m) <= tolerance_m
                 and math.hypot(gps.v_north_m_s, gps.v_east_m_s) < 0.3
+            )
 
         self._fly_position(Phase.GOTO, target, arrived, timeout_s, waypoint=waypoint)
         if self.stopped:
             return self.vehicle.time_s - started_s  # not arrived: no leg to judge
         self.steering.target_ne = (north_m, east_m)
         took_s = self.vehicle.time_s - started_s
-        self.legs.append(leg_stats(waypoint or len(self.legs) + 1, start, end,
-                                   [judged_position(r) for r in self.rows[first_row:]], took_s))
+        self.legs.append(
+            leg_stats(
+                waypoint or len(self.legs) + 1,
+                start,
+                end,
+                [judged_position(r) for r in self.rows[first_row:]],
+                took_s,
+            )
+        )
         return took_s
 
-    def yaw_to(self, heading_deg: float, *, tolerance_deg: float = 2.0,
-               timeout_s: float = 30.0) -> float:
+    def yaw_to(
+        self, heading_deg: float, *, tolerance_deg: float = 2.0, timeout_s: float = 30.0
+    ) -> float:
         """Turn to ``heading_deg``, holding the altitude, and the position on a GPS build;
         reached when the FC's heading stays within ``tolerance_deg`` for half a second.
 
@@ -147,18 +181,36 @@ class PositionManoeuvres:
             here = self.steering.position_target(None, None)
             self._fly_position(Phase.YAW, self._fixed(here), turned, timeout_s)
         else:
-            self._fly(Phase.YAW, self.target_alt_m, turned, timeout_s=timeout_s,
-                      steer=self.steering.steer_heading)
+            self._fly(
+                Phase.YAW,
+                self.target_alt_m,
+                turned,
+                timeout_s=timeout_s,
+                steer=self.steering.steer_heading,
+            )
             self.steering.set_sticks(yaw_us=RC_MID_US)
         return self.vehicle.time_s - started_s
 
-    def _fly_position(self, phase: Phase, target: PositionTarget,
-                      done: Callable[[FlightSample], bool], timeout_s: float, *,
-                      waypoint: int = 0, controller: AltitudeController | None = None) -> None:
+    def _fly_position(
+        self,
+        phase: Phase,
+        target: PositionTarget,
+        done: Callable[[FlightSample], bool],
+        timeout_s: float,
+        *,
+        waypoint: int = 0,
+        controller: AltitudeController | None = None,
+    ) -> None:
         steer = self.steering.steer_to(target, waypoint)
         try:
-            self._fly(phase, target(0.0).alt_m, done, timeout_s=timeout_s, steer=steer,
-                      controller=controller)
+            self._fly(
+                phase,
+                target(0.0).alt_m,
+                done,
+                timeout_s=timeout_s,
+                steer=steer,
+                controller=controller,
+            )
         finally:
             self.steering.end()
 

@@ -67,14 +67,15 @@ class PositionSteering:
         point = LegPoint(north_east[0], north_east[1], alt_m, 0.0, 0.0, 0.0, 0.0, True)
         return lambda _elapsed_s: point
 
-    def position_target(self, north_m: float | None, east_m: float | None
-                        ) -> tuple[float, float]:
+    def position_target(self, north_m: float | None, east_m: float | None) -> tuple[float, float]:
         """The given coordinates, else the last target, else where the FC's GPS is now."""
         if self.target_ne is None:
             gps = self.read_gps()
             self.target_ne = (gps.north_m, gps.east_m)
-        return (self.target_ne[0] if north_m is None else north_m,
-                self.target_ne[1] if east_m is None else east_m)
+        return (
+            self.target_ne[0] if north_m is None else north_m,
+            self.target_ne[1] if east_m is None else east_m,
+        )
 
     def read_gps(self) -> GpsPosition:
         """The FC's GPS now (kept in :attr:`last_gps`); raises without a GPS or a fix."""
@@ -84,28 +85,40 @@ class PositionSteering:
             raise MissionError(
                 "position control needs the FC's GPS, and this firmware has none (it refused "
                 "MSP_RAW_GPS): fly a GPS build (`bfsitl firmware build --gps`, add --lockstep "
-                "for lockstep; master always has it)") from exc
+                "for lockstep; master always has it)"
+            ) from exc
         if not gps.has_fix:
-            raise MissionError(f"the FC's GPS has no fix ({gps.satellites} satellites): "
-                               f"position control needs one")
+            raise MissionError(
+                f"the FC's GPS has no fix ({gps.satellites} satellites): position control needs one"
+            )
         self.last_gps = gps
         return gps
 
     def stick_map(self) -> AngleStickMap:
         if self.sticks is None:
             client = self.vehicle.client
-            self.sticks = AngleStickMap.from_replies(client.get(msg.RcTuning),
-                                                     client.get(msg.PidAdvanced))
+            self.sticks = AngleStickMap.from_replies(
+                client.get(msg.RcTuning), client.get(msg.PidAdvanced)
+            )
         return self.sticks
 
-    def set_sticks(self, *, roll_us: float | None = None, pitch_us: float | None = None,
-                   yaw_us: float | None = None) -> None:
+    def set_sticks(
+        self,
+        *,
+        roll_us: float | None = None,
+        pitch_us: float | None = None,
+        yaw_us: float | None = None,
+    ) -> None:
         """Roll, pitch and yaw (those given); the throttle and switches stay as they are."""
         rc = self.vehicle.rc_command
-        self.vehicle.set_rc(replace(
-            rc, roll_us=rc.roll_us if roll_us is None else roll_us,
-            pitch_us=rc.pitch_us if pitch_us is None else pitch_us,
-            yaw_us=rc.yaw_us if yaw_us is None else yaw_us))
+        self.vehicle.set_rc(
+            replace(
+                rc,
+                roll_us=rc.roll_us if roll_us is None else roll_us,
+                pitch_us=rc.pitch_us if pitch_us is None else pitch_us,
+                yaw_us=rc.yaw_us if yaw_us is None else yaw_us,
+            )
+        )
 
     def steer_heading(self, sample: FlightSample) -> None:
         """Yaw towards :attr:`target_heading_deg` (set to the heading now if there is none)."""
@@ -115,8 +128,9 @@ class PositionSteering:
         self.set_sticks(yaw_us=self.stick_map().yaw_stick_us(rate))
         self.row_columns["target_heading_deg"] = self.target_heading_deg
 
-    def steer_to(self, target: PositionTarget, waypoint: int
-                 ) -> Callable[[FlightSample], float | None]:
+    def steer_to(
+        self, target: PositionTarget, waypoint: int
+    ) -> Callable[[FlightSample], float | None]:
         """Position and heading control towards ``target`` from now on (the position loop
         resumes here): the step it returns sets the roll, pitch and yaw sticks and returns the
         altitude target.  :meth:`end` ends it."""
@@ -129,21 +143,35 @@ class PositionSteering:
             point = target(sample.time_s - started_s)
             north, east = point.north_m, point.east_m
             here = (gps.north_m, gps.east_m, gps.v_north_m_s, gps.v_east_m_s)
-            if self.horizontal is not None and all(map(math.isfinite,
-                                                       sample.fc_accel_flu_m_s2)):
+            if self.horizontal is not None and all(map(math.isfinite, sample.fc_accel_flu_m_s2)):
                 a_north, a_east = specific_force_north_east(
-                    sample.fc_accel_flu_m_s2, sample.roll_deg, sample.pitch_deg,
-                    sample.yaw_deg)
+                    sample.fc_accel_flu_m_s2, sample.roll_deg, sample.pitch_deg, sample.yaw_deg
+                )
                 fused = self.horizontal.update(sample.time_s, a_north, a_east, here)
                 here = (fused.north_m, fused.east_m, fused.v_north_m_s, fused.v_east_m_s)
-            tilt = self.position.update(PositionInput(
-                sample.time_s, *here, sample.yaw_deg, north, east, point.v_north_m_s,
-                point.v_east_m_s, point.a_north_m_s2, point.a_east_m_s2))
-            self.set_sticks(roll_us=sticks.stick_us("roll", tilt.roll_deg),
-                            pitch_us=sticks.stick_us("pitch", tilt.pitch_deg))
+            tilt = self.position.update(
+                PositionInput(
+                    sample.time_s,
+                    *here,
+                    sample.yaw_deg,
+                    north,
+                    east,
+                    point.v_north_m_s,
+                    point.v_east_m_s,
+                    point.a_north_m_s2,
+                    point.a_east_m_s2,
+                )
+            )
+            self.set_sticks(
+                roll_us=sticks.stick_us("roll", tilt.roll_deg),
+                pitch_us=sticks.stick_us("pitch", tilt.pitch_deg),
+            )
             self.row_columns = {
-                "fc_north_m": gps.north_m, "fc_east_m": gps.east_m,
-                "target_north_m": north, "target_east_m": east}
+                "fc_north_m": gps.north_m,
+                "fc_east_m": gps.east_m,
+                "target_north_m": north,
+                "target_east_m": east,
+            }
             self.waypoint = waypoint
             self.steer_heading(sample)
             return point.alt_m

@@ -34,7 +34,7 @@ class Outcome(enum.Enum):
     """
 
     LANDED = "landed"
-    COMPLETED = "completed"       # a plan with land = false: ended in the air
+    COMPLETED = "completed"  # a plan with land = false: ended in the air
     ARMING_BLOCKED = "arming-blocked"
     SITL_EXITED = "sitl-exited"
     TIMEOUT = "timeout"
@@ -89,6 +89,7 @@ class MissionResult:
 
     def summary(self) -> dict[str, Any]:
         """Everything worth keeping, JSON-ready."""
+
         def plain(value: Any) -> Any:
             if value is None:
                 return None
@@ -118,6 +119,7 @@ class MissionResult:
             "landed_from_start_m": plain(landed_from_start_m(self.rows)),
             "rows": len(self.rows),
             "flight_time_s": plain(self.rows[-1].time_s - self.rows[0].time_s)
-            if self.rows else None,
+            if self.rows
+            else None,
             **plain(self.extra),
         }

@@ -172,7 +172,8 @@ class SessionConfig:
         if profile is None or control_rate_hz <= FAST_SERIAL_ABOVE_HZ:
             return config
         return dataclasses.replace(
-            config, fc=dataclasses.replace(config.fc, profile=with_fast_serial(profile)))
+            config, fc=dataclasses.replace(config.fc, profile=with_fast_serial(profile))
+        )
 
 
 class FlightSession(Vehicle):
@@ -197,11 +198,15 @@ class FlightSession(Vehicle):
     #: With the serial task at 1 kHz (``with_fast_serial``, what launch_sitl provisions).
     control_rate_hz = 100.0
 
-    def __init__(self, config: SessionConfig | None = None, *,
-                 progress: Progress | None = None) -> None:
+    def __init__(
+        self, config: SessionConfig | None = None, *, progress: Progress | None = None
+    ) -> None:
         config = config or SessionConfig()
-        super().__init__(progress=progress, arm_timeout_s=config.fc.arm_timeout_s,
-                         angle_mode=config.fc.angle_mode)
+        super().__init__(
+            progress=progress,
+            arm_timeout_s=config.fc.arm_timeout_s,
+            angle_mode=config.fc.angle_mode,
+        )
         self.config = config
         check_speed(config.timing.speed)
         self.sitl: SitlProcess | None = None
@@ -211,8 +216,10 @@ class FlightSession(Vehicle):
         #: The Configurator bridge's ws:// URL while one serves (``config.configurator``).
         self.configurator_url: str | None = None
         if config.configurator is not None and config.fc.profile is None:
-            raise BfsitlError("the Configurator bridge needs provisioning (it puts MSP on "
-                              "UART2 as well): drop --no-provision, or leave out --configurator")
+            raise BfsitlError(
+                "the Configurator bridge needs provisioning (it puts MSP on "
+                "UART2 as well): drop --no-provision, or leave out --configurator"
+            )
 
     # -- lifecycle ---------------------------------------------------------------------------
     def start(self) -> Self:
@@ -239,13 +246,23 @@ class FlightSession(Vehicle):
             check_listen_port(SITL_HOST, config.configurator.port, "--configurator-port")
         try:
             firmware = find_firmware(config.sitl.firmware)
-            backend = make_backend(config.world, config.timing, firmware,
-                                   progress=self._progress, rc_link=config.fc.rc_link,
-                                   alive=self.check_alive)
+            backend = make_backend(
+                config.world,
+                config.timing,
+                firmware,
+                progress=self._progress,
+                rc_link=config.fc.rc_link,
+                alive=self.check_alive,
+            )
             self.backend = self.sitl_backend = backend
-            self.sitl = SitlProcess(firmware, workdir=config.sitl.workdir,
-                                    isolate=config.sitl.isolate, progress=self._progress,
-                                    env=backend.sitl_env, hooks=backend.hooks)
+            self.sitl = SitlProcess(
+                firmware,
+                workdir=config.sitl.workdir,
+                isolate=config.sitl.isolate,
+                progress=self._progress,
+                env=backend.sitl_env,
+                hooks=backend.hooks,
+            )
             backend.start(self.sitl, self._stack)
             self.clock = backend.clock
             self._provision()
@@ -302,7 +319,9 @@ class FlightSession(Vehicle):
             raise SitlExitedError(
                 f"the SITL exited with code {code} during the flight; its log "
                 f"({self.sitl.log_path}) ends with:\n{self.sitl.log_tail()}",
-                code, self.sitl.log_tail())
+                code,
+                self.sitl.log_tail(),
+            )
         failure = self.backend.failure()
         if failure is not None:
             raise SitlError(failure)
@@ -312,11 +331,17 @@ class FlightSession(Vehicle):
         config = self.config
         if config.fc.profile is None:
             return
-        self.provisioned = provision(self.client, self._flight_profile(config.fc.profile),
-                                     reboot=self._reboot)
-        self._progress("provisioned: " + (
-            "written and saved" + (", rebooted" if self.provisioned.rebooted else "")
-            if self.provisioned.changed else "already configured, nothing written"))
+        self.provisioned = provision(
+            self.client, self._flight_profile(config.fc.profile), reboot=self._reboot
+        )
+        self._progress(
+            "provisioned: "
+            + (
+                "written and saved" + (", rebooted" if self.provisioned.rebooted else "")
+                if self.provisioned.changed
+                else "already configured, nothing written"
+            )
+        )
         if config.configurator is not None:
             self._serve_configurator(config.configurator)
 
@@ -328,15 +353,20 @@ class FlightSession(Vehicle):
 
         assert self.sitl is not None and self.sitl.network is not None
         upstream = Upstream(SITL_HOST, SECOND_MSP_PORT, socket_factory=self.sitl.network.socket)
-        relay = WebSocketRelay(upstream, port=bridge.port,
-                               origins=OriginPolicy.with_extra(bridge.allow_origins),
-                               on_event=lambda line: self._progress(f"configurator: {line}"),
-                               port_option="--configurator-port")
+        relay = WebSocketRelay(
+            upstream,
+            port=bridge.port,
+            origins=OriginPolicy.with_extra(bridge.allow_origins),
+            on_event=lambda line: self._progress(f"configurator: {line}"),
+            port_option="--configurator-port",
+        )
         self.configurator_url = self._stack.enter_context(relay.running())
         url = self.configurator_url
-        self._progress(f"the Configurator can watch this flight at {url} (MSP on UART2, TCP "
-                       f"{SECOND_MSP_PORT}); {connect_hint(url)}. Leaving its CLI tab or "
-                       f"saving reboots the FC and ends the flight")
+        self._progress(
+            f"the Configurator can watch this flight at {url} (MSP on UART2, TCP "
+            f"{SECOND_MSP_PORT}); {connect_hint(url)}. Leaving its CLI tab or "
+            f"saving reboots the FC and ends the flight"
+        )
 
     def _flight_profile(self, profile: Profile) -> Profile:
         """``profile``, plus the compass set-up the firmware needs (master: trust its virtual
@@ -347,16 +377,19 @@ class FlightSession(Vehicle):
         Its GPS answers MSP_RAW_GPS with no satellites until then.
         """
         assert self.sitl is not None
-        compass = tuple(line for line in self.sitl.profile.compass_cli
-                        if line not in profile.cli_lines)
+        compass = tuple(
+            line for line in self.sitl.profile.compass_cli if line not in profile.cli_lines
+        )
         if compass:
             profile = dataclasses.replace(profile, cli_lines=(*profile.cli_lines, *compass))
         if self.config.configurator is not None:
             # Read at boot only; provisioning compares them, so this reboots once per run
             # directory.
             profile = dataclasses.replace(
-                profile, cli_lines=(*profile.cli_lines, *self.sitl.profile.second_msp_cli),
-                reboot_when_changed=True)
+                profile,
+                cli_lines=(*profile.cli_lines, *self.sitl.profile.second_msp_cli),
+                reboot_when_changed=True,
+            )
         lines = self.sitl.profile.gps_setup_cli
         if not lines:
             return profile
@@ -366,7 +399,6 @@ class FlightSession(Vehicle):
         except MspErrorReply:
             return profile  # no GPS compiled in, whatever the build record says
         self._progress("switching the GPS build's virtual GPS on (needs a reboot)")
-        return dataclasses.replace(profile, cli_lines=(*profile.cli_lines, *lines),
-                                   reboot_when_changed=True)
-
-
+        return dataclasses.replace(
+            profile, cli_lines=(*profile.cli_lines, *lines), reboot_when_changed=True
+        )

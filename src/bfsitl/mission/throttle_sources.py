@@ -31,8 +31,9 @@ class GroundObserver:
 
     def __init__(self, controller: AltitudeController) -> None:
         self.name = getattr(controller, "name", "controller")
-        self._observe = controller.observe_ground if isinstance(controller, ObservesGround) \
-            else None
+        self._observe = (
+            controller.observe_ground if isinstance(controller, ObservesGround) else None
+        )
 
     def reset(self, time_s: float) -> None:
         pass

@@ -63,27 +63,27 @@ def accel_flu_m_s2(telemetry: Telemetry, imu: ImuScale) -> tuple[float, float, f
 class FlightSample:
     """One look at the flight: what the FC reports next to the simulated truth."""
 
-    time_s: float               # simulation time: the mission clock
-    wall_s: float               # time.monotonic() when the sample was taken
-    fc_alt_m: float             # MSP_ALTITUDE, up positive, zeroed by the FC at arming
-    fc_climb_m_s: float         # MSP_ALTITUDE vario, up positive
-    fc_accel_up_m_s2: float     # MSP_RAW_IMU z and MSP_ATTITUDE: vertical acceleration,
-                                # gravity removed
-    roll_deg: float             # MSP_ATTITUDE
-    pitch_deg: float            # positive nose down (Betaflight's convention)
-    yaw_deg: float              # MSP_ATTITUDE's whole degree + 0.5 (it truncates)
-    sim_alt_m: float            # true height above the take-off point
-    sim_climb_m_s: float        # true vertical speed, up positive
-    sim_tilt_deg: float         # true angle between the body z axis and the vertical
-    sim_roll_deg: float         # true attitude in Betaflight's convention (as MSP_ATTITUDE)
+    time_s: float  # simulation time: the mission clock
+    wall_s: float  # time.monotonic() when the sample was taken
+    fc_alt_m: float  # MSP_ALTITUDE, up positive, zeroed by the FC at arming
+    fc_climb_m_s: float  # MSP_ALTITUDE vario, up positive
+    fc_accel_up_m_s2: float  # MSP_RAW_IMU z and MSP_ATTITUDE: vertical acceleration,
+    # gravity removed
+    roll_deg: float  # MSP_ATTITUDE
+    pitch_deg: float  # positive nose down (Betaflight's convention)
+    yaw_deg: float  # MSP_ATTITUDE's whole degree + 0.5 (it truncates)
+    sim_alt_m: float  # true height above the take-off point
+    sim_climb_m_s: float  # true vertical speed, up positive
+    sim_tilt_deg: float  # true angle between the body z axis and the vertical
+    sim_roll_deg: float  # true attitude in Betaflight's convention (as MSP_ATTITUDE)
     sim_pitch_deg: float
     sim_yaw_deg: float
-    on_ground: bool             # the simulated skids touch the ground
+    on_ground: bool  # the simulated skids touch the ground
     armed: bool
     arming_blockers: tuple[str, ...]
     flight_modes: tuple[str, ...]
     motors: tuple[float, float, float, float]  # applied motor commands 0..1, Betaflight M1..M4
-    rc: RcCommand               # what the RC link is sending
+    rc: RcCommand  # what the RC link is sending
     sim_north_m: float = math.nan  # true position from the start point, NED metres
     sim_east_m: float = math.nan
     #: MSP_RAW_IMU's accelerometer in m/s^2, Betaflight's FLU body axes (specific force).
@@ -96,7 +96,7 @@ class GpsPosition:
 
     north_m: float
     east_m: float
-    v_north_m_s: float       # ground speed along the ground course
+    v_north_m_s: float  # ground speed along the ground course
     v_east_m_s: float
     has_fix: bool
     satellites: int
@@ -119,8 +119,14 @@ class Vehicle:
         angle_mode: Hold AUX2 on while armed (ANGLE, when the profile puts ANGLE there).
     """
 
-    def __init__(self, *, backend: Backend | None = None, progress: Progress | None = None,
-                 arm_timeout_s: float = DEFAULT_ARM_TIMEOUT_S, angle_mode: bool = True) -> None:
+    def __init__(
+        self,
+        *,
+        backend: Backend | None = None,
+        progress: Progress | None = None,
+        arm_timeout_s: float = DEFAULT_ARM_TIMEOUT_S,
+        angle_mode: bool = True,
+    ) -> None:
         self._progress = progress or (lambda _message: None)
         self.arm_timeout_s = arm_timeout_s
         #: Hold AUX2 on while armed (ANGLE, when the profile puts ANGLE there).
@@ -199,8 +205,11 @@ class Vehicle:
         truth = self.backend.truth()
         if truth is None:
             return Truth.unknown(self.time_s)
-        return replace(truth, north_m=truth.north_m - self._start_ned[0],
-                       east_m=truth.east_m - self._start_ned[1])
+        return replace(
+            truth,
+            north_m=truth.north_m - self._start_ned[0],
+            east_m=truth.east_m - self._start_ned[1],
+        )
 
     def _start_rc(self, rc: RcSender) -> None:
         """Send the sticks at disarm on ``rc`` from now on; it closes first on the way out,
@@ -284,24 +293,28 @@ class Vehicle:
         """
         timeout_s = self.arm_timeout_s if timeout_s is None else timeout_s
         client = self.client
-        arm_ranges = [r for r in client.mode_ranges().ranges
-                      if r.is_used and r.box_id == BoxId.ARM]
-        if not any(r.aux_channel_index == 0 and r.start_us <= SWITCH_ON_US < r.end_us
-                   for r in arm_ranges):
-            found = ", ".join(f"AUX{r.aux_channel_index + 1} {r.start_us}-{r.end_us} us"
-                              for r in arm_ranges) or "none"
+        arm_ranges = [r for r in client.mode_ranges().ranges if r.is_used and r.box_id == BoxId.ARM]
+        if not any(
+            r.aux_channel_index == 0 and r.start_us <= SWITCH_ON_US < r.end_us for r in arm_ranges
+        ):
+            found = (
+                ", ".join(
+                    f"AUX{r.aux_channel_index + 1} {r.start_us}-{r.end_us} us" for r in arm_ranges
+                )
+                or "none"
+            )
             raise ArmingBlockedError(
                 f"no ARM mode range on AUX1 covers {SWITCH_ON_US} us (ARM ranges: {found}); "
                 f"provision with the default profile or add `aux 0 0 0 1700 2100 0 0`",
-                ("NO_ARM_RANGE",))
+                ("NO_ARM_RANGE",),
+            )
         clock = self.clock
         deadline = clock.now_s() + timeout_s
         blockers = self._wait_unblocked(deadline)
         if blockers:
             raise self._blocked_error(blockers, timeout_s)
         aux2 = SWITCH_ON_US if self.angle_mode else SWITCH_OFF_US
-        self.set_rc(replace(self.rc_command, throttle_us=RC_MIN_US,
-                            aux_us=(SWITCH_ON_US, aux2)))
+        self.set_rc(replace(self.rc_command, throttle_us=RC_MIN_US, aux_us=(SWITCH_ON_US, aux2)))
         while clock.now_s() < deadline:
             self.check_alive()
             status = client.status()
@@ -311,8 +324,10 @@ class Vehicle:
                 self._ground_alt_m = truth.altitude_m if math.isfinite(truth.altitude_m) else 0.0
                 if math.isfinite(truth.north_m):
                     # Positions count from the take-off point, like altitudes.
-                    self._start_ned = (self._start_ned[0] + truth.north_m,
-                                       self._start_ned[1] + truth.east_m)
+                    self._start_ned = (
+                        self._start_ned[0] + truth.north_m,
+                        self._start_ned[1] + truth.east_m,
+                    )
                 if self.has_gps:
                     self._gps_origin_e7 = None
                     self.gps_position()  # the FC's GPS here is the origin from now on
@@ -341,10 +356,10 @@ class Vehicle:
         from bfsitl.protocol.arming import all_arming_flags
 
         fixes = {info.cli_name: info.fix for info in all_arming_flags()}
-        explained = "; ".join(f"{name}: {fixes.get(name, 'see `bfsitl doctor`')}"
-                              for name in names)
-        return ArmingBlockedError(f"the FC did not arm within {timeout_s:.0f} s, blocked by "
-                                  f"{explained}", names)
+        explained = "; ".join(f"{name}: {fixes.get(name, 'see `bfsitl doctor`')}" for name in names)
+        return ArmingBlockedError(
+            f"the FC did not arm within {timeout_s:.0f} s, blocked by {explained}", names
+        )
 
     def disarm(self, timeout_s: float = 3.0) -> bool:
         """Throttle low, both switches off, and wait for the FC to report it.
@@ -359,8 +374,9 @@ class Vehicle:
             SitlExitedError: The SITL ended while waiting.
             MspError: The FC stopped answering.
         """
-        self.set_rc(replace(self.rc_command, throttle_us=RC_MIN_US,
-                            aux_us=(SWITCH_OFF_US, SWITCH_OFF_US)))
+        self.set_rc(
+            replace(self.rc_command, throttle_us=RC_MIN_US, aux_us=(SWITCH_OFF_US, SWITCH_OFF_US))
+        )
         deadline = self.clock.now_s() + timeout_s
         while self.clock.now_s() < deadline:
             self.check_alive()
@@ -384,22 +400,33 @@ class Vehicle:
         truth = self._truth()
         imu = self.backend.imu
         return FlightSample(
-            time_s=truth.time_s, wall_s=time.monotonic(),
-            fc_alt_m=telemetry.altitude.altitude_m, fc_climb_m_s=telemetry.altitude.vario_m_s,
+            time_s=truth.time_s,
+            wall_s=time.monotonic(),
+            fc_alt_m=telemetry.altitude.altitude_m,
+            fc_climb_m_s=telemetry.altitude.vario_m_s,
             fc_accel_up_m_s2=telemetry.accel_up_m_s2(
-                imu.acc_1g_lsb, offset_lsb=imu.acc_truncation_lsb),
+                imu.acc_1g_lsb, offset_lsb=imu.acc_truncation_lsb
+            ),
             fc_accel_flu_m_s2=accel_flu_m_s2(telemetry, imu),
-            roll_deg=telemetry.attitude.roll_deg, pitch_deg=telemetry.attitude.pitch_deg,
+            roll_deg=telemetry.attitude.roll_deg,
+            pitch_deg=telemetry.attitude.pitch_deg,
             # MSP_ATTITUDE truncates the heading to whole degrees: the middle of the degree
             # is the unbiased reading.
             yaw_deg=float(telemetry.attitude.yaw_deg) + 0.5,
-            sim_alt_m=truth.altitude_m - self._ground_alt_m, sim_climb_m_s=truth.climb_m_s,
-            sim_tilt_deg=truth.tilt_deg, sim_roll_deg=truth.attitude_deg[0],
-            sim_pitch_deg=truth.attitude_deg[1], sim_yaw_deg=truth.attitude_deg[2],
+            sim_alt_m=truth.altitude_m - self._ground_alt_m,
+            sim_climb_m_s=truth.climb_m_s,
+            sim_tilt_deg=truth.tilt_deg,
+            sim_roll_deg=truth.attitude_deg[0],
+            sim_pitch_deg=truth.attitude_deg[1],
+            sim_yaw_deg=truth.attitude_deg[2],
             on_ground=truth.on_ground,
-            armed=telemetry.armed, arming_blockers=telemetry.arming_blockers,
-            flight_modes=telemetry.flight_modes, motors=truth.motors, rc=self.rc_command,
-            sim_north_m=truth.north_m, sim_east_m=truth.east_m,
+            armed=telemetry.armed,
+            arming_blockers=telemetry.arming_blockers,
+            flight_modes=telemetry.flight_modes,
+            motors=truth.motors,
+            rc=self.rc_command,
+            sim_north_m=truth.north_m,
+            sim_east_m=truth.east_m,
         )
 
     def gps_position(self) -> GpsPosition:
@@ -431,9 +458,11 @@ class Vehicle:
         return GpsPosition(
             north_m=(gps.lat_e7 - lat0) * 1e-7 * METRES_PER_DEGREE,
             east_m=(gps.lon_e7 - lon0) * 1e-7 * METRES_PER_DEGREE * cos_lat,
-            v_north_m_s=speed * math.cos(course), v_east_m_s=speed * math.sin(course),
-            has_fix=gps.has_fix, satellites=gps.satellites)
+            v_north_m_s=speed * math.cos(course),
+            v_east_m_s=speed * math.sin(course),
+            has_fix=gps.has_fix,
+            satellites=gps.satellites,
+        )
 
     def rc_stats(self) -> RcLinkStats | None:
         return self.rc.stats() if self.rc is not None else None
-

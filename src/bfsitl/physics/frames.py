@@ -174,9 +174,15 @@ def rotation_matrix(q: Quat) -> Matrix3:
     xy, xz, yz = x * y, x * z, y * z
     wx, wy, wz = w * x, w * y, w * z
     return (
-        1.0 - 2.0 * (yy + zz), 2.0 * (xy - wz), 2.0 * (xz + wy),
-        2.0 * (xy + wz), 1.0 - 2.0 * (xx + zz), 2.0 * (yz - wx),
-        2.0 * (xz - wy), 2.0 * (yz + wx), 1.0 - 2.0 * (xx + yy),
+        1.0 - 2.0 * (yy + zz),
+        2.0 * (xy - wz),
+        2.0 * (xz + wy),
+        2.0 * (xy + wz),
+        1.0 - 2.0 * (xx + zz),
+        2.0 * (yz - wx),
+        2.0 * (xz - wy),
+        2.0 * (yz + wx),
+        1.0 - 2.0 * (xx + yy),
     )
 
 
@@ -267,8 +273,10 @@ def ned_to_geodetic(position_ned_m: Vec3, home: GeoPoint) -> GeoPoint:
 def geodetic_to_ned(point: GeoPoint, home: GeoPoint) -> Vec3:
     """Inverse of :func:`ned_to_geodetic`."""
     north = math.radians(point.lat_deg - home.lat_deg) * EARTH_RADIUS_M
-    east = math.radians(point.lon_deg - home.lon_deg) * EARTH_RADIUS_M * math.cos(
-        math.radians(home.lat_deg)
+    east = (
+        math.radians(point.lon_deg - home.lon_deg)
+        * EARTH_RADIUS_M
+        * math.cos(math.radians(home.lat_deg))
     )
     return (north, east, home.alt_m - point.alt_m)
 

@@ -88,9 +88,23 @@ class Simulator:
         SimInputError: A parameter the model cannot use.
     """
 
-    __slots__ = ("params", "sensor_config", "wind", "home", "_seed", "_kernel", "_sim",
-                 "_ptr", "_step", "_read", "_time", "_valid", "_gen", "_reading",
-                 "_reading_gen")
+    __slots__ = (
+        "params",
+        "sensor_config",
+        "wind",
+        "home",
+        "_seed",
+        "_kernel",
+        "_sim",
+        "_ptr",
+        "_step",
+        "_read",
+        "_time",
+        "_valid",
+        "_gen",
+        "_reading",
+        "_reading_gen",
+    )
 
     def __init__(
         self,
@@ -129,8 +143,9 @@ class Simulator:
     def _write_vehicle(self, p: QuadParams) -> None:
         sim = self._sim
         sim.mass_kg, sim.inertia_kg_m2[:] = p.mass_kg, p.inertia_kg_m2
-        for i, (position, ccw) in enumerate(zip(p.rotor_positions_frd_m, p.rotor_spin_ccw,
-                                                strict=True)):
+        for i, (position, ccw) in enumerate(
+            zip(p.rotor_positions_frd_m, p.rotor_spin_ccw, strict=True)
+        ):
             sim.rotor_xy_frd_m[i][:] = (position[0], position[1])
             sim.rotor_spin_ccw[i] = bool(ccw)
         sim.thrust_coefficient = p.thrust_coefficient_n_per_rad2_s2
@@ -145,8 +160,12 @@ class Simulator:
         sim.blade_stall_rad, sim.axial_inflow = p.blade_stall_rad, bool(p.axial_inflow)
         sim.drag_linear_n_s_per_m[:] = p.drag_linear_n_s_per_m
         sim.drag_quadratic_n_s2_per_m2[:] = p.drag_quadratic_n_s2_per_m2
-        sim.contact_box_m[:] = (p.contact_half_x_m, p.contact_half_y_m, p.contact_bottom_m,
-                                p.contact_top_m)
+        sim.contact_box_m[:] = (
+            p.contact_half_x_m,
+            p.contact_half_y_m,
+            p.contact_bottom_m,
+            p.contact_top_m,
+        )
         sim.contact_stiffness_n_per_m = p.contact_stiffness_n_per_m
         sim.contact_damping_n_s_per_m = p.contact_damping_n_s_per_m
         sim.friction_coefficient = p.friction_coefficient
@@ -231,9 +250,15 @@ class Simulator:
     @property
     def state(self) -> VehicleState:
         s = STATE.unpack_from(self._sim)
-        return VehicleState(s[0], (s[1], s[2], s[3]), (s[4], s[5], s[6]),
-                            (s[7], s[8], s[9], s[10]), (s[11], s[12], s[13]),
-                            (s[14], s[15], s[16], s[17]), self.on_ground)
+        return VehicleState(
+            s[0],
+            (s[1], s[2], s[3]),
+            (s[4], s[5], s[6]),
+            (s[7], s[8], s[9], s[10]),
+            (s[11], s[12], s[13]),
+            (s[14], s[15], s[16], s[17]),
+            self.on_ground,
+        )
 
     @property
     def specific_force_frd_m_s2(self) -> Vec3:
@@ -244,11 +269,14 @@ class Simulator:
         a, b, c = s[18], s[19], s[20]
         # R(q)^T f, as physics.c's rotate_inverse computes it for the reading.
         return (
-            (1.0 - 2.0 * (y * y + z * z)) * a + 2.0 * (x * y + w * z) * b
+            (1.0 - 2.0 * (y * y + z * z)) * a
+            + 2.0 * (x * y + w * z) * b
             + 2.0 * (x * z - w * y) * c,
-            2.0 * (x * y - w * z) * a + (1.0 - 2.0 * (x * x + z * z)) * b
+            2.0 * (x * y - w * z) * a
+            + (1.0 - 2.0 * (x * x + z * z)) * b
             + 2.0 * (y * z + w * x) * c,
-            2.0 * (x * z + w * y) * a + 2.0 * (y * z - w * x) * b
+            2.0 * (x * z + w * y) * a
+            + 2.0 * (y * z - w * x) * b
             + (1.0 - 2.0 * (x * x + y * y)) * c,
         )
 
@@ -306,8 +334,11 @@ class Simulator:
                 raise SimInputError("reset: give quaternion_wxyz or Euler angles, not both")
             q = quat_normalize(_vec4(quaternion_wxyz, "quaternion_wxyz"))
         else:
-            q = quat_normalize(quat_from_euler_deg(
-                *_vector((roll_deg, pitch_deg, yaw_deg), 3, "roll/pitch/yaw_deg")))
+            q = quat_normalize(
+                quat_from_euler_deg(
+                    *_vector((roll_deg, pitch_deg, yaw_deg), 3, "roll/pitch/yaw_deg")
+                )
+            )
         velocity = _vec3(velocity_ned_m_s, "velocity_ned_m_s")
         rates = _vec3(angular_velocity_frd_rad_s, "angular_velocity_frd_rad_s")
         speeds = _vector(motor_speeds_rad_s, 4, "motor_speeds_rad_s")
@@ -326,8 +357,7 @@ class Simulator:
                     f"(z <= {-lowest:.3f}).  position_ned_m=None parks it on the ground."
                 )
         # Everything checked: only now change the state.
-        self._kernel.reset(self._ptr, D4(*q), D3(*position), D3(*velocity), D3(*rates),
-                           D4(*speeds))
+        self._kernel.reset(self._ptr, D4(*q), D3(*position), D3(*velocity), D3(*rates), D4(*speeds))
 
     # ---- the step -----------------------------------------------------------------------------
 
@@ -353,10 +383,8 @@ class Simulator:
     def _step_checked(self, motors: object, dt_s: object) -> None:
         """The checks, with the error that names what is wrong; then the step as floats."""
         u1, u2, u3, u4 = check_step_input(motors, dt_s)  # type: ignore[arg-type]
-        if self._step(self._ptr, float(u1), float(u2), float(u3), float(u4),
-                      float(dt_s)):  # type: ignore[arg-type]
-            raise SimInputError(f"step: the physics refused motors {motors!r} and "
-                                f"dt_s {dt_s!r}")
+        if self._step(self._ptr, float(u1), float(u2), float(u3), float(u4), float(dt_s)):  # type: ignore[arg-type]
+            raise SimInputError(f"step: the physics refused motors {motors!r} and dt_s {dt_s!r}")
 
     # ---- faults (scenarios change these mid-flight, between two steps) -------------------
 
@@ -419,8 +447,14 @@ class Simulator:
             raise SimInputError("read_sensors: the physics refused the altitude")
         r = READING.unpack_from(self._sim, READING_OFFSET)
         reading = SensorReading(
-            r[0], (r[1], r[2], r[3]), (r[4], r[5], r[6]), (r[7], r[8], r[9], r[10]), r[11],
-            (r[12], r[13], r[14]), (r[15], r[16], r[17]), (r[18], r[19], r[20]),
+            r[0],
+            (r[1], r[2], r[3]),
+            (r[4], r[5], r[6]),
+            (r[7], r[8], r[9], r[10]),
+            r[11],
+            (r[12], r[13], r[14]),
+            (r[15], r[16], r[17]),
+            (r[18], r[19], r[20]),
             (r[21], r[22], r[23]),
         )
         self._reading = reading

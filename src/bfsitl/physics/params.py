@@ -181,9 +181,8 @@ class QuadParams:
             raise SimInputError(f"QuadParams {self.name!r}: cannot hover (too heavy)")
         p = self.motor_p_gain_nm_s_per_rad
         torque = (
-            (p + self.rotor_damping_nm_s_per_rad) * omega
-            + self.torque_coefficient_nm_per_rad2_s2 * omega * omega
-        )
+            p + self.rotor_damping_nm_s_per_rad
+        ) * omega + self.torque_coefficient_nm_per_rad2_s2 * omega * omega
         return torque / (p * self.motor_command_speed_rad_s)
 
     # ---- derived contact figures ------------------------------------------------------------
@@ -230,10 +229,10 @@ IRIS = QuadParams(
     # rotor_2 (0.13, 0.22) FLU -> FRD (x, -y, -z); servo slot 3, 0, 1, 2 = M1, M2, M3, M4
     # (sitl.c pwmCompleteMotorUpdate, docs/firmware-facts.md#motor-order).
     rotor_positions_frd_m=(
-        (-0.13, 0.20, _ROTOR_Z_FRD_M),   # M1 rear right   (rotor_3)
-        (0.13, 0.22, _ROTOR_Z_FRD_M),    # M2 front right  (rotor_0)
+        (-0.13, 0.20, _ROTOR_Z_FRD_M),  # M1 rear right   (rotor_3)
+        (0.13, 0.22, _ROTOR_Z_FRD_M),  # M2 front right  (rotor_0)
         (-0.13, -0.20, _ROTOR_Z_FRD_M),  # M3 rear left    (rotor_1)
-        (0.13, -0.22, _ROTOR_Z_FRD_M),   # M4 front left   (rotor_2)
+        (0.13, -0.22, _ROTOR_Z_FRD_M),  # M4 front left   (rotor_2)
     ),
     # empty_betaflight_world.sdf: multiplier +838 (CCW, joint axis +z up) for rotor_0/1,
     # -838 (CW) for rotor_2/3 -> M1 CW, M2 CCW, M3 CCW, M4 CW (Betaflight props-in default).

@@ -88,40 +88,56 @@ class SensorConfig:
             "gps_velocity_noise_std_m_s": self.gps_velocity_noise_std_m_s,
         }
         if not (math.isfinite(self.gps_drift_time_s) and self.gps_drift_time_s > 0):
-            raise SimInputError(f"SensorConfig: gps_drift_time_s must be > 0, "
-                                f"got {self.gps_drift_time_s}")
+            raise SimInputError(
+                f"SensorConfig: gps_drift_time_s must be > 0, got {self.gps_drift_time_s}"
+            )
         for name, value in stds.items():
             if not (math.isfinite(value) and value >= 0):
                 raise SimInputError(f"SensorConfig: {name} must be >= 0, got {value}")
-        for name, vector in (("gyro_bias_rad_s", self.gyro_bias_rad_s),
-                             ("accel_bias_m_s2", self.accel_bias_m_s2)):
+        for name, vector in (
+            ("gyro_bias_rad_s", self.gyro_bias_rad_s),
+            ("accel_bias_m_s2", self.accel_bias_m_s2),
+        ):
             if len(vector) != 3 or not all(math.isfinite(v) for v in vector):
-                raise SimInputError(f"SensorConfig: {name} must be 3 finite numbers, "
-                                    f"got {vector!r}")
-        for name, number in (("baro_bias_pa", self.baro_bias_pa),
-                             ("baro_drift_pa_s", self.baro_drift_pa_s)):
+                raise SimInputError(
+                    f"SensorConfig: {name} must be 3 finite numbers, got {vector!r}"
+                )
+        for name, number in (
+            ("baro_bias_pa", self.baro_bias_pa),
+            ("baro_drift_pa_s", self.baro_drift_pa_s),
+        ):
             if not math.isfinite(number):
                 raise SimInputError(f"SensorConfig: {name} must be finite, got {number}")
-        if len(self.gps_offset_ne_m) != 2 or not all(math.isfinite(v)
-                                                     for v in self.gps_offset_ne_m):
-            raise SimInputError(f"SensorConfig: gps_offset_ne_m must be 2 finite numbers, "
-                                f"got {self.gps_offset_ne_m!r}")
+        if len(self.gps_offset_ne_m) != 2 or not all(
+            math.isfinite(v) for v in self.gps_offset_ne_m
+        ):
+            raise SimInputError(
+                f"SensorConfig: gps_offset_ne_m must be 2 finite numbers, "
+                f"got {self.gps_offset_ne_m!r}"
+            )
 
     @property
     def is_ideal(self) -> bool:
         """True when every error is zero: readings are the exact state."""
         return (
-            self.gyro_noise_std_rad_s == 0.0 and self.accel_noise_std_m_s2 == 0.0
-            and self.baro_noise_std_pa == 0.0 and self.baro_bias_pa == 0.0
+            self.gyro_noise_std_rad_s == 0.0
+            and self.accel_noise_std_m_s2 == 0.0
+            and self.baro_noise_std_pa == 0.0
+            and self.baro_bias_pa == 0.0
             and self.baro_drift_pa_s == 0.0
-            and not any(self.gyro_bias_rad_s) and not any(self.accel_bias_m_s2)
+            and not any(self.gyro_bias_rad_s)
+            and not any(self.accel_bias_m_s2)
             and not self.has_gps_error
         )
 
     @property
     def has_gps_error(self) -> bool:
-        return (self.gps_drift_std_m > 0.0 or self.gps_noise_std_m > 0.0
-                or self.gps_velocity_noise_std_m_s > 0.0 or any(self.gps_offset_ne_m))
+        return (
+            self.gps_drift_std_m > 0.0
+            or self.gps_noise_std_m > 0.0
+            or self.gps_velocity_noise_std_m_s > 0.0
+            or any(self.gps_offset_ne_m)
+        )
 
     def with_typical_gps(self) -> SensorConfig:
         """These errors plus a GPS receiver's without corrections in open sky: 0.15 m of
@@ -130,8 +146,13 @@ class SensorConfig:
         noise")."""
         from dataclasses import replace
 
-        return replace(self, gps_drift_std_m=0.15, gps_drift_time_s=30.0, gps_noise_std_m=0.03,
-                       gps_velocity_noise_std_m_s=0.05)
+        return replace(
+            self,
+            gps_drift_std_m=0.15,
+            gps_drift_time_s=30.0,
+            gps_noise_std_m=0.03,
+            gps_velocity_noise_std_m_s=0.05,
+        )
 
     @classmethod
     def typical_mems(cls, sample_rate_hz: float = 1000.0) -> SensorConfig:

@@ -47,24 +47,30 @@ class Wind:
 
     def __post_init__(self) -> None:
         if len(self.velocity_ned_m_s) != 3 or not all(
-            math.isfinite(v) and abs(v) <= MAX_WIND_COMPONENT_M_S
-            for v in self.velocity_ned_m_s
+            math.isfinite(v) and abs(v) <= MAX_WIND_COMPONENT_M_S for v in self.velocity_ned_m_s
         ):
-            raise SimInputError(f"Wind: velocity_ned_m_s must be 3 numbers within "
-                                f"+-{MAX_WIND_COMPONENT_M_S:g} m/s, got {self.velocity_ned_m_s!r}")
+            raise SimInputError(
+                f"Wind: velocity_ned_m_s must be 3 numbers within "
+                f"+-{MAX_WIND_COMPONENT_M_S:g} m/s, got {self.velocity_ned_m_s!r}"
+            )
         if not (math.isfinite(self.gust_std_m_s) and 0 <= self.gust_std_m_s <= MAX_GUST_STD_M_S):
-            raise SimInputError(f"Wind: gust_std_m_s must be in 0..{MAX_GUST_STD_M_S:g} m/s, "
-                                f"got {self.gust_std_m_s}")
-        if not (math.isfinite(self.gust_time_constant_s) and MIN_GUST_TIME_CONSTANT_S
-                <= self.gust_time_constant_s <= MAX_GUST_TIME_CONSTANT_S):
+            raise SimInputError(
+                f"Wind: gust_std_m_s must be in 0..{MAX_GUST_STD_M_S:g} m/s, "
+                f"got {self.gust_std_m_s}"
+            )
+        if not (
+            math.isfinite(self.gust_time_constant_s)
+            and MIN_GUST_TIME_CONSTANT_S <= self.gust_time_constant_s <= MAX_GUST_TIME_CONSTANT_S
+        ):
             raise SimInputError(
                 f"Wind: gust_time_constant_s must be in {MIN_GUST_TIME_CONSTANT_S:g}.."
                 f"{MAX_GUST_TIME_CONSTANT_S:g} s, got {self.gust_time_constant_s}"
             )
 
     @classmethod
-    def from_direction(cls, speed_m_s: float, from_deg: float = 0.0,
-                       gust_std_m_s: float = 0.0) -> Wind:
+    def from_direction(
+        cls, speed_m_s: float, from_deg: float = 0.0, gust_std_m_s: float = 0.0
+    ) -> Wind:
         """A horizontal wind blowing FROM a direction (the meteorological convention).
 
         Args:
@@ -84,5 +90,6 @@ class Wind:
         if not math.isfinite(from_deg):
             raise SimInputError(f"Wind: direction must be finite, got {from_deg}")
         heading = math.radians(from_deg)
-        return cls((-speed_m_s * math.cos(heading), -speed_m_s * math.sin(heading), 0.0),
-                   gust_std_m_s)
+        return cls(
+            (-speed_m_s * math.cos(heading), -speed_m_s * math.sin(heading), 0.0), gust_std_m_s
+        )

@@ -249,7 +249,9 @@ ARMING_FLAGS: tuple[ArmingFlagInfo, ...] = tuple(
 #: Master (MSP API 1.49) adds AUTOPILOT at bit 28 and moves ARM_SWITCH to 29, the last bit
 #: ("needs to be the last element", master fc/runtime_config.h).
 AUTOPILOT_FLAG = ArmingFlagInfo(
-    28, "AUTOPILOT", "AUTOPILOT",
+    28,
+    "AUTOPILOT",
+    "AUTOPILOT",
     "the AUTOPILOT (flight plan) switch is on while disarmed",
     "turn the AUTOPILOT switch (AUX) off before arming",
     "fc/core.c (master)",
@@ -297,8 +299,9 @@ def decode_arming_flags(
     """Every set bit of an arming-disable mask, in bit order (most critical first)."""
     if mask < 0:
         raise ValueError(f"arming-disable mask must be non-negative, got {mask}")
-    return tuple(arming_flag_info(bit, flag_count)
-                 for bit in range(mask.bit_length()) if mask >> bit & 1)
+    return tuple(
+        arming_flag_info(bit, flag_count) for bit in range(mask.bit_length()) if mask >> bit & 1
+    )
 
 
 def arming_flags_text(mask: int, flag_count: int = ARMING_DISABLE_FLAGS_COUNT) -> str:

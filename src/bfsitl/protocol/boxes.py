@@ -149,8 +149,9 @@ SITL_DEFAULT_BOX_IDS: tuple[int, ...] = (
 
 def box_name(permanent_id: int) -> str:
     """Display name of a permanent box id; ids unknown to 4.6 become ``UNKNOWN_<id>``."""
-    return BOX_NAMES.get(permanent_id) or LATER_BOX_NAMES.get(permanent_id,
-                                                              f"UNKNOWN_{permanent_id}")
+    return BOX_NAMES.get(permanent_id) or LATER_BOX_NAMES.get(
+        permanent_id, f"UNKNOWN_{permanent_id}"
+    )
 
 
 def decode_flight_modes(flight_mode_flags: int, box_ids: Sequence[int]) -> tuple[str, ...]:

@@ -257,13 +257,20 @@ def profile_for(
     if generation is Generation.V4_6:
         gps = has_gps if has_gps is not None else bool(build.gps)
         return FirmwareProfile(
-            generation=generation, firmware_version=firmware_version, api_version=api_version,
-            takes_ip_flag=False, fdm=_FDM_4_6, motor_slot_of_betaflight_motor=(3, 0, 1, 2),
+            generation=generation,
+            firmware_version=firmware_version,
+            api_version=api_version,
+            takes_ip_flag=False,
+            fdm=_FDM_4_6,
+            motor_slot_of_betaflight_motor=(3, 0, 1, 2),
             rc=RcBehaviour(rxloss_after_silence_s=None, msp_rc_empty_before_rc=False),
             cli=CliDifferences(serial_read_only=False, msp_cli_command=False),
-            gyro_rate_hz=8000, has_gps=gps, tested=tested,
+            gyro_rate_hz=8000,
+            has_gps=gps,
+            tested=tested,
             gps_setup_cli=("feature GPS", GPS_SERIAL_4_6, "set gps_provider = VIRTUAL")
-            if gps else (),
+            if gps
+            else (),
             # On a GPS build the GPS line is repeated: a run directory made before the GPS
             # moved to UART3 would otherwise lose its GPS to the MSP line.
             second_msp_cli=(MSP_SERIAL_4_6, GPS_SERIAL_4_6) if gps else (MSP_SERIAL_4_6,),
@@ -274,14 +281,19 @@ def profile_for(
             "RealFlight conventions), which bfsitl does not drive; build the default with "
             "`bfsitl firmware build --source DIR`"
         )
-    fdm = replace(_FDM_MASTER, attitude_estimated=False) if build.attitude_direct \
-        else _FDM_MASTER
+    fdm = replace(_FDM_MASTER, attitude_estimated=False) if build.attitude_direct else _FDM_MASTER
     return FirmwareProfile(
-        generation=generation, firmware_version=firmware_version, api_version=api_version,
-        takes_ip_flag=True, fdm=fdm, motor_slot_of_betaflight_motor=(0, 1, 2, 3),
+        generation=generation,
+        firmware_version=firmware_version,
+        api_version=api_version,
+        takes_ip_flag=True,
+        fdm=fdm,
+        motor_slot_of_betaflight_motor=(0, 1, 2, 3),
         rc=RcBehaviour(rxloss_after_silence_s=0.15, msp_rc_empty_before_rc=True),
         cli=CliDifferences(serial_read_only=True, msp_cli_command=True),
-        gyro_rate_hz=1000, has_gps=True if has_gps is None else has_gps, tested=tested,
+        gyro_rate_hz=1000,
+        has_gps=True if has_gps is None else has_gps,
+        tested=tested,
         compass_cli=() if build.attitude_direct else ("set trust_mag = ON",),
         second_msp_cli=("set msp_uart_2 = UART2",),
     )

@@ -81,6 +81,7 @@ ParserEvent = MspFrame | ChecksumFailure
 
 # --- checksums ---------------------------------------------------------------------------------
 
+
 def _make_crc8_table(poly: int) -> bytes:
     table = bytearray(256)
     for value in range(256):
@@ -111,9 +112,11 @@ def xor_checksum(data: bytes | bytearray | memoryview) -> int:
 
 # --- encoding ----------------------------------------------------------------------------------
 
+
 def _v2_body(command: int, payload: bytes, flags: int) -> bytes:
-    header = bytes((flags & 0xFF, command & 0xFF, command >> 8, len(payload) & 0xFF,
-                    len(payload) >> 8))
+    header = bytes(
+        (flags & 0xFF, command & 0xFF, command >> 8, len(payload) & 0xFF, len(payload) >> 8)
+    )
     body = header + payload
     return body + bytes((crc8_dvb_s2(body),))
 
@@ -152,9 +155,7 @@ def _encode_v1(command: int, payload: bytes, direction: int) -> bytes:
     return b"$M" + bytes((direction,)) + body + bytes((xor_checksum(body),))
 
 
-def encode_request(
-    command: int, payload: bytes = b"", version: MspVersion | None = None
-) -> bytes:
+def encode_request(command: int, payload: bytes = b"", version: MspVersion | None = None) -> bytes:
     """Build a request frame for the FC.
 
     ``version`` defaults to v1 for ids below 255 and v2 native above.  Payloads over
@@ -175,6 +176,7 @@ def encode_request(
 
 
 # --- parsing -----------------------------------------------------------------------------------
+
 
 class MspParser:
     """Incremental MSP parser: feed it bytes in any split, get frames and checksum failures.

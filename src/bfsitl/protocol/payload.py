@@ -35,9 +35,7 @@ class PayloadReader:
     def _take(self, size: int) -> bytes:
         end = self._pos + size
         if end > len(self._data):
-            raise MspDecodeError(
-                f"{self._what}: needs at least {end} bytes, got {len(self._data)}"
-            )
+            raise MspDecodeError(f"{self._what}: needs at least {end} bytes, got {len(self._data)}")
         chunk = self._data[self._pos : end]
         self._pos = end
         return chunk

@@ -74,8 +74,13 @@ class FdmPacket:
 
     def _values(self) -> tuple[float, ...]:
         return (
-            self.timestamp_s, *self.gyro_rad_s, *self.accel_m_s2, *self.quaternion_wxyz,
-            *self.velocity_m_s, *self.position, self.pressure_pa,
+            self.timestamp_s,
+            *self.gyro_rad_s,
+            *self.accel_m_s2,
+            *self.quaternion_wxyz,
+            *self.velocity_m_s,
+            *self.position,
+            self.pressure_pa,
         )
 
     def pack(self) -> bytes:
@@ -126,12 +131,14 @@ class ServoPacket:
 
     @classmethod
     def from_betaflight_motors(
-        cls, motors: tuple[float, float, float, float],
+        cls,
+        motors: tuple[float, float, float, float],
         slots: tuple[int, int, int, int] | None = None,
     ) -> ServoPacket:
         values = [0.0] * 4
-        for motor_index, slot in enumerate(cls.SLOT_OF_BETAFLIGHT_MOTOR if slots is None
-                                           else slots):
+        for motor_index, slot in enumerate(
+            cls.SLOT_OF_BETAFLIGHT_MOTOR if slots is None else slots
+        ):
             values[slot] = motors[motor_index]
         return cls((values[0], values[1], values[2], values[3]))
 

@@ -64,8 +64,7 @@ def read_flight_log(path: str | Path) -> list[dict[str, str]]:
     with Path(path).open(newline="") as file:
         reader = csv.DictReader(file)
         if reader.fieldnames is None or tuple(reader.fieldnames) != COLUMNS:
-            raise BfsitlError(f"{path} is not a bfsitl flight log (columns "
-                              f"{reader.fieldnames})")
+            raise BfsitlError(f"{path} is not a bfsitl flight log (columns {reader.fieldnames})")
         return list(reader)
 
 
@@ -89,7 +88,9 @@ def read_flight_rows(path: str | Path) -> list[FlightRow]:
     read (``bfsitl log check flight.csv``)."""
     try:
         rows = read_flight_log(path)
-        return [FlightRow(**{name: _typed(name, row[name]) for name in COLUMNS})  # type: ignore[arg-type]
-                for row in rows]
+        return [
+            FlightRow(**{name: _typed(name, row[name]) for name in COLUMNS})  # type: ignore[arg-type]
+            for row in rows
+        ]
     except (OSError, ValueError, KeyError, UnicodeDecodeError, csv.Error) as exc:
         raise BfsitlError(f"cannot read the flight log {path}: {exc}") from exc

@@ -54,8 +54,9 @@ class FlightOutputs:
     way out; :meth:`finish` once the result is known.
     """
 
-    def __init__(self, options: OutputOptions, *,
-                 progress: Callable[[str], None] | None = None) -> None:
+    def __init__(
+        self, options: OutputOptions, *, progress: Callable[[str], None] | None = None
+    ) -> None:
         self.options = options
         self._progress = progress or (lambda _line: None)
         self.sinks: list[RowSink] = []
@@ -73,8 +74,17 @@ class FlightOutputs:
         """Open every streaming sink, each chosen by its file's suffix
         (:mod:`bfsitl.records.sinks`); a failure closes the ones already open."""
         options = self.options
-        paths = [Path(p) for p in (options.csv_path, options.mcap_path, options.plot_path,
-                                   options.summary_path, *options.extra_paths) if p]
+        paths = [
+            Path(p)
+            for p in (
+                options.csv_path,
+                options.mcap_path,
+                options.plot_path,
+                options.summary_path,
+                *options.extra_paths,
+            )
+            if p
+        ]
         live_port = options.foxglove_port
         try:
             for path in paths:
@@ -83,17 +93,26 @@ class FlightOutputs:
                     # The MCAP file's recorder serves the live view too.
                     extra = {"live_port": live_port, "allow_origins": options.allow_origins}
                     live_port = None
-                self._open(open_sink(path, progress=self._progress,
-                                     waypoints=options.waypoints, **extra))
+                self._open(
+                    open_sink(path, progress=self._progress, waypoints=options.waypoints, **extra)
+                )
             if live_port is not None:
-                self._open(FoxgloveSink(None, live_port=live_port,
-                                        allow_origins=options.allow_origins,
-                                        progress=self._progress))
-            self.foxglove_url = next((url for sink in self._opened
-                                      if (url := getattr(sink, "live_url", None))), None)
+                self._open(
+                    FoxgloveSink(
+                        None,
+                        live_port=live_port,
+                        allow_origins=options.allow_origins,
+                        progress=self._progress,
+                    )
+                )
+            self.foxglove_url = next(
+                (url for sink in self._opened if (url := getattr(sink, "live_url", None))), None
+            )
             if self.foxglove_url:
-                self._progress(f"Foxglove can watch this flight live: open a Foxglove "
-                               f"WebSocket connection to {self.foxglove_url}")
+                self._progress(
+                    f"Foxglove can watch this flight live: open a Foxglove "
+                    f"WebSocket connection to {self.foxglove_url}"
+                )
         except BaseException:
             self.close()
             raise
@@ -137,8 +156,10 @@ class FlightOutputs:
         if self.watch is not None:
             self.analysis = self.watch.analysis()
             summary["findings"] = [f.as_dict() for f in self.analysis.findings]
-            summary["analysers"] = {"watched": self.analysis.watched,
-                                    "skipped": self.analysis.skipped}
+            summary["analysers"] = {
+                "watched": self.analysis.watched,
+                "skipped": self.analysis.skipped,
+            }
         written = [sink.finish(result, summary) for sink in self._opened]
         return [line for line in written if line]
 

@@ -15,8 +15,13 @@ from bfsitl.mission.flight_row import FlightRow
 from bfsitl.mission.phase import Phase
 
 
-def write_flight_plot(rows: Sequence[FlightRow], path: str | Path, *, title: str = "",
-                      waypoints: Sequence[tuple[float, float]] = ()) -> Path:
+def write_flight_plot(
+    rows: Sequence[FlightRow],
+    path: str | Path,
+    *,
+    title: str = "",
+    waypoints: Sequence[tuple[float, float]] = (),
+) -> Path:
     """Three stacked panels; phases shaded so take-off, hold and landing are easy to find.
     A flight with position control gets the top-down track on the right; ``waypoints``
     (north, east) are marked on it."""
@@ -68,24 +73,33 @@ def write_flight_plot(rows: Sequence[FlightRow], path: str | Path, *, title: str
     return out
 
 
-def _plot_track(axis, rows: Sequence[FlightRow],  # type: ignore[no-untyped-def]
-                waypoints: Sequence[tuple[float, float]]) -> None:
+def _plot_track(
+    axis,
+    rows: Sequence[FlightRow],  # type: ignore[no-untyped-def]
+    waypoints: Sequence[tuple[float, float]],
+) -> None:
     """Top-down: the truth's track, the FC's GPS, the waypoints numbered, the start."""
     flown = [r for r in rows if math.isfinite(r.sim_north_m)]
     if flown:
-        axis.plot([r.sim_east_m for r in flown], [r.sim_north_m for r in flown],
-                  label="simulated (truth)")
+        axis.plot(
+            [r.sim_east_m for r in flown], [r.sim_north_m for r in flown], label="simulated (truth)"
+        )
     gps = [r for r in rows if math.isfinite(r.fc_north_m)]
     if gps:
-        axis.plot([r.fc_east_m for r in gps], [r.fc_north_m for r in gps], alpha=0.7,
-                  label="FC (GPS)")
+        axis.plot(
+            [r.fc_east_m for r in gps], [r.fc_north_m for r in gps], alpha=0.7, label="FC (GPS)"
+        )
     if waypoints:
-        axis.plot([0.0] + [e for _n, e in waypoints], [0.0] + [n for n, _e in waypoints], "k--",
-                  alpha=0.5, label="planned track")
+        axis.plot(
+            [0.0] + [e for _n, e in waypoints],
+            [0.0] + [n for n, _e in waypoints],
+            "k--",
+            alpha=0.5,
+            label="planned track",
+        )
         for number, (north, east) in enumerate(waypoints, start=1):
             axis.plot(east, north, "ks", markersize=6)
-            axis.annotate(str(number), (east, north), textcoords="offset points",
-                          xytext=(6, 6))
+            axis.annotate(str(number), (east, north), textcoords="offset points", xytext=(6, 6))
     axis.plot(0.0, 0.0, "g^", markersize=9, label="take-off point")
     axis.set_xlabel("east (m)")
     axis.set_ylabel("north (m)")
@@ -95,8 +109,12 @@ def _plot_track(axis, rows: Sequence[FlightRow],  # type: ignore[no-untyped-def]
     axis.set_title("track, seen from above")
 
 
-_PHASE_COLOURS: dict[str, str] = {Phase.TAKEOFF: "tab:green", Phase.GOTO: "tab:blue",
-                                  Phase.YAW: "tab:purple", Phase.LAND: "tab:red"}
+_PHASE_COLOURS: dict[str, str] = {
+    Phase.TAKEOFF: "tab:green",
+    Phase.GOTO: "tab:blue",
+    Phase.YAW: "tab:purple",
+    Phase.LAND: "tab:red",
+}
 
 
 def _shade_phases(time_s: list[float], rows: Sequence[FlightRow], axes: tuple) -> None:

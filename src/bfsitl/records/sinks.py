@@ -91,16 +91,25 @@ class FoxgloveSink(SinkBase):
     on 127.0.0.1 at ``live_port`` (0: any free port; :attr:`live_url` once serving).  One
     recorder does both, so a watched and recorded flight encodes each message once."""
 
-    def __init__(self, path: Path | None, *, live_port: int | None = None,
-                 allow_origins: tuple[str, ...] = (),
-                 progress: Callable[[str], None] | None = None, **_options: Any) -> None:
+    def __init__(
+        self,
+        path: Path | None,
+        *,
+        live_port: int | None = None,
+        allow_origins: tuple[str, ...] = (),
+        progress: Callable[[str], None] | None = None,
+        **_options: Any,
+    ) -> None:
         from bfsitl.records.foxglove import FoxgloveRecorder
 
         say = progress or (lambda _line: None)
         self.path = path
-        self.recorder = FoxgloveRecorder(mcap_path=path, live_port=live_port,
-                                         allow_origins=allow_origins,
-                                         on_event=lambda line: say(f"foxglove: {line}"))
+        self.recorder = FoxgloveRecorder(
+            mcap_path=path,
+            live_port=live_port,
+            allow_origins=allow_origins,
+            on_event=lambda line: say(f"foxglove: {line}"),
+        )
         self.recorder.start()
         self.live_url: str | None = self.recorder.live_url
 
@@ -122,8 +131,9 @@ class PlotSink(SinkBase):
 
     streams = False
 
-    def __init__(self, path: Path, *, waypoints: Sequence[tuple[float, float]] = (),
-                 **_options: Any) -> None:
+    def __init__(
+        self, path: Path, *, waypoints: Sequence[tuple[float, float]] = (), **_options: Any
+    ) -> None:
         self.path = path
         self.waypoints = list(waypoints)
 
@@ -132,9 +142,12 @@ class PlotSink(SinkBase):
             return None
         from bfsitl.records.plot import write_flight_plot
 
-        write_flight_plot(result.rows, self.path,
-                          title=f"bfsitl fly: {result.controller}, {result.outcome.value}",
-                          waypoints=self.waypoints)
+        write_flight_plot(
+            result.rows,
+            self.path,
+            title=f"bfsitl fly: {result.controller}, {result.outcome.value}",
+            waypoints=self.waypoints,
+        )
         return f"plot {self.path}"
 
 
@@ -157,7 +170,11 @@ class SummarySink(SinkBase):
 
 SinkFactory = Callable[..., RowSink]
 _SINKS: dict[str, SinkFactory] = {
-    ".csv": CsvSink, ".mcap": FoxgloveSink, ".png": PlotSink, ".svg": PlotSink, ".pdf": PlotSink,
+    ".csv": CsvSink,
+    ".mcap": FoxgloveSink,
+    ".png": PlotSink,
+    ".svg": PlotSink,
+    ".pdf": PlotSink,
     ".json": SummarySink,
 }
 
@@ -180,6 +197,7 @@ def open_sink(path: str | Path, **options: Any) -> RowSink:
     factory = _SINKS.get(path.suffix.lower())
     if factory is None:
         what = path.suffix or "a file without a suffix"
-        raise BfsitlError(f"{path}: no record format for {what}; known: "
-                          f"{', '.join(sink_suffixes())}")
+        raise BfsitlError(
+            f"{path}: no record format for {what}; known: {', '.join(sink_suffixes())}"
+        )
     return factory(path, **options)

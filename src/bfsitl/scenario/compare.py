@@ -38,8 +38,12 @@ from bfsitl.scenario.spec import Scenario
 from bfsitl.scenario.suite import dir_name
 
 #: Behaviour keys compared, and how each is named in a reason.
-BEHAVIOUR_KEYS = {"phases": "failsafe phases", "modes": "flight modes", "ended": "ended",
-                  "expectations": "expectations"}
+BEHAVIOUR_KEYS = {
+    "phases": "failsafe phases",
+    "modes": "flight modes",
+    "ended": "ended",
+    "expectations": "expectations",
+}
 
 
 class Change(enum.Enum):
@@ -60,7 +64,7 @@ class Change(enum.Enum):
 class Side:
     """One side of a comparison: a firmware and CLI lines applied before each scenario's."""
 
-    label: str            # "A" or "B"
+    label: str  # "A" or "B"
     firmware: str
     cli: tuple[str, ...] = ()
 
@@ -79,8 +83,9 @@ class ComparedRun:
     run: PlannedRun
 
 
-def plan_comparison(scenarios: Sequence[Scenario], sides: tuple[Side, Side], seeds: int,
-                    out_dir: Path) -> list[ComparedRun]:
+def plan_comparison(
+    scenarios: Sequence[Scenario], sides: tuple[Side, Side], seeds: int, out_dir: Path
+) -> list[ComparedRun]:
     """Each scenario, each seed, on each side; files under ``OUT/SIDE/SCENARIO/seed-N``."""
     if seeds < 1:
         raise ScenarioError(f"--seeds {seeds}: at least 1")
@@ -92,8 +97,9 @@ def plan_comparison(scenarios: Sequence[Scenario], sides: tuple[Side, Side], see
             for side in sides:
                 variant = replace(scenario, seed=seed, cli=(*side.cli, *scenario.cli))
                 out = out_dir / side.label / dir_name(scenario.name) / f"seed-{seed}"
-                planned.append(ComparedRun(side.label, seed,
-                                           PlannedRun(variant, side.firmware, out)))
+                planned.append(
+                    ComparedRun(side.label, seed, PlannedRun(variant, side.firmware, out))
+                )
     return planned
 
 
@@ -138,9 +144,12 @@ class ScenarioComparison:
         return self.change is Change.ERROR or (self.change.fails and not self.accepted)
 
 
-def compare_results(planned: Sequence[ComparedRun], results: Sequence[ScenarioResult],
-                    sides: tuple[Side, Side], accepted: Sequence[str] = ()
-                    ) -> list[ScenarioComparison]:
+def compare_results(
+    planned: Sequence[ComparedRun],
+    results: Sequence[ScenarioResult],
+    sides: tuple[Side, Side],
+    accepted: Sequence[str] = (),
+) -> list[ScenarioComparison]:
     """The verdict of each scenario from its runs (``results`` in ``planned``'s order)."""
     if len(planned) != len(results):
         raise ScenarioError(f"{len(results)} results for {len(planned)} planned runs")
@@ -151,8 +160,9 @@ def compare_results(planned: Sequence[ComparedRun], results: Sequence[ScenarioRe
     return [_compare_one(name, a, b, name in accepted) for name, (a, b) in grouped.items()]
 
 
-def _compare_one(name: str, a: list[ScenarioResult], b: list[ScenarioResult],
-                 accepted: bool) -> ScenarioComparison:
+def _compare_one(
+    name: str, a: list[ScenarioResult], b: list[ScenarioResult], accepted: bool
+) -> ScenarioComparison:
     out = ScenarioComparison(name, Change.SAME, "", a_runs=a, b_runs=b, accepted=accepted)
     runs = a + b
     if all(r.verdict is Verdict.SKIPPED for r in runs):
@@ -170,17 +180,23 @@ def _compare_one(name: str, a: list[ScenarioResult], b: list[ScenarioResult],
     better = [f for f in out.figures if f.change is Change.BETTER] + found_better
     neutral = [f for f in out.figures if f.change is Change.CHANGED]
     behaviour_changed = len(out.differences) > len(found_worse) + len(found_better)
-    out.change = _verdict(behaviour_changed or bool(neutral), found_worse, found_better,
-                          bool(worse), bool(better))
-    notes = [d for d in out.differences if not d.startswith("finding")] \
-        + [_said(f) for f in (*worse, *better, *neutral)]
-    out.reason = "; ".join(notes[:3]) if notes else \
-        f"every figure within the seeds' spread ({len(a)} seed{'s' if len(a) > 1 else ''})"
+    out.change = _verdict(
+        behaviour_changed or bool(neutral), found_worse, found_better, bool(worse), bool(better)
+    )
+    notes = [d for d in out.differences if not d.startswith("finding")] + [
+        _said(f) for f in (*worse, *better, *neutral)
+    ]
+    out.reason = (
+        "; ".join(notes[:3])
+        if notes
+        else f"every figure within the seeds' spread ({len(a)} seed{'s' if len(a) > 1 else ''})"
+    )
     return out
 
 
-def _verdict(changed: bool, found_worse: list[str], found_better: list[str],
-             worse: bool, better: bool) -> Change:
+def _verdict(
+    changed: bool, found_worse: list[str], found_better: list[str], worse: bool, better: bool
+) -> Change:
     """Behaviour first; then the analysers (a new crash makes a side worse even if it spent
     less energy getting to the ground); then the figures."""
     if changed:
@@ -225,8 +241,9 @@ def _severities(result: ScenarioResult) -> dict[str, int]:
     return {f.analyser: int(f.severity) for f in result.findings}
 
 
-def _finding_differences(a: list[ScenarioResult], b: list[ScenarioResult],
-                         lines: list[str]) -> tuple[list[str], list[str]]:
+def _finding_differences(
+    a: list[ScenarioResult], b: list[ScenarioResult], lines: list[str]
+) -> tuple[list[str], list[str]]:
     """(findings that make B worse, ... better); each also a line of ``lines``."""
     worse, better = [], []
     names = sorted({n for r in a + b for n in _severities(r)})
@@ -261,8 +278,9 @@ def _figures(a: list[ScenarioResult], b: list[ScenarioResult]) -> list[FigureDif
     return diffs
 
 
-def _judge_figure(name: str, va: tuple[float | None, ...], vb: tuple[float | None, ...]
-                  ) -> FigureDiff:
+def _judge_figure(
+    name: str, va: tuple[float | None, ...], vb: tuple[float | None, ...]
+) -> FigureDiff:
     spec = metric(name)
     known_a = [v for v in va if v is not None]
     known_b = [v for v in vb if v is not None]
@@ -271,11 +289,13 @@ def _judge_figure(name: str, va: tuple[float | None, ...], vb: tuple[float | Non
         if len(known_a) == len(va) or len(known_b) == len(vb):
             # One side always has it, the other never: a different ending (landed or not, a
             # phase reached or not).
-            return FigureDiff(name, spec.unit, va, vb, Change.CHANGED,
-                              f"{shown} (only one side has it)")
+            return FigureDiff(
+                name, spec.unit, va, vb, Change.CHANGED, f"{shown} (only one side has it)"
+            )
         return FigureDiff(name, spec.unit, va, vb, Change.SAME, shown)
-    apart = min(known_b) - max(known_a) > spec.tolerance \
-        or min(known_a) - max(known_b) > spec.tolerance
+    apart = (
+        min(known_b) - max(known_a) > spec.tolerance or min(known_a) - max(known_b) > spec.tolerance
+    )
     if not apart:
         return FigureDiff(name, spec.unit, va, vb, Change.SAME, shown)
     higher = statistics.fmean(known_b) > statistics.fmean(known_a)
@@ -283,9 +303,14 @@ def _judge_figure(name: str, va: tuple[float | None, ...], vb: tuple[float | Non
         change = Change.WORSE if higher else Change.BETTER
     else:
         change = Change.CHANGED
-    return FigureDiff(name, spec.unit, va, vb, change,
-                      f"{shown}: apart by more than {spec.tolerance:g} {spec.unit} beyond "
-                      f"the seeds' spread")
+    return FigureDiff(
+        name,
+        spec.unit,
+        va,
+        vb,
+        change,
+        f"{shown}: apart by more than {spec.tolerance:g} {spec.unit} beyond the seeds' spread",
+    )
 
 
 def _range(values: list[float]) -> str:

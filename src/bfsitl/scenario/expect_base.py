@@ -26,8 +26,10 @@ def shown(key: str, value: Any) -> str:
     if isinstance(value, Limit):
         window = ""
         if value.from_s is not None or value.until_s is not None:
-            window = (f" over {value.from_s if value.from_s is not None else 0:g}.."
-                      f"{value.until_s if value.until_s is not None else 'end'} s")
+            window = (
+                f" over {value.from_s if value.from_s is not None else 0:g}.."
+                f"{value.until_s if value.until_s is not None else 'end'} s"
+            )
         point = ""
         if value.north_m is not None or value.east_m is not None:
             point = f" from ({value.north_m or 0:g} N, {value.east_m or 0:g} E)"
@@ -41,12 +43,19 @@ def shown(key: str, value: Any) -> str:
     return f"{key} = {value!r}" if isinstance(value, str) else f"{key} = {value:g}"
 
 
-def check(key: str, value: Any, passed: bool, message: str, measured: float | str | None,
-          at_s: float | None) -> CheckResult:
+def check(
+    key: str,
+    value: Any,
+    passed: bool,
+    message: str,
+    measured: float | str | None,
+    at_s: float | None,
+) -> CheckResult:
     """One judged expectation: its message names it, what was measured and when."""
     when = f" at t={at_s:.2f} s" if at_s is not None else ""
-    return CheckResult(shown(key, value), passed, f"{shown(key, value)}: {message}{when}",
-                       measured, at_s)
+    return CheckResult(
+        shown(key, value), passed, f"{shown(key, value)}: {message}{when}", measured, at_s
+    )
 
 
 def name_list(value: str | list[str]) -> list[str]:

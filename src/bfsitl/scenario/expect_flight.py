@@ -18,8 +18,9 @@ from bfsitl.scenario.trace import Trace, TraceRow, phase_name
 def disarmed(key: str, value: bool, trace: Trace, _expect: dict[str, Any]) -> CheckResult:
     last = trace.rows[-1]
     state = "armed" if last.armed else "disarmed"
-    return check(key, value, (not last.armed) == value, f"the FC was {state} at the end",
-                  state, last.time_s)
+    return check(
+        key, value, (not last.armed) == value, f"the FC was {state} at the end", state, last.time_s
+    )
 
 
 def _first_disarm(trace: Trace, after_s: float) -> TraceRow | None:
@@ -32,17 +33,28 @@ def disarmed_within(key: str, value: float, trace: Trace, _e: dict[str, Any]) ->
         return check(key, value, False, "no fault was injected", None, None)
     row = _first_disarm(trace, fault_s)
     if row is None:
-        return check(key, value, False,
-                      f"still armed {trace.end_s - fault_s:.2f} s after the fault (the end)",
-                      None, trace.end_s)
+        return check(
+            key,
+            value,
+            False,
+            f"still armed {trace.end_s - fault_s:.2f} s after the fault (the end)",
+            None,
+            trace.end_s,
+        )
     after = row.time_s - fault_s
-    return check(key, value, after <= value,
-                  f"disarmed {after:.2f} s after the fault (expected within {value:g} s)",
-                  round(after, 3), row.time_s)
+    return check(
+        key,
+        value,
+        after <= value,
+        f"disarmed {after:.2f} s after the fault (expected within {value:g} s)",
+        round(after, 3),
+        row.time_s,
+    )
 
 
-def phase_sequence(seen: list[tuple[float, str]], wanted: list[str]
-                    ) -> tuple[list[tuple[float, str]], str | None]:
+def phase_sequence(
+    seen: list[tuple[float, str]], wanted: list[str]
+) -> tuple[list[tuple[float, str]], str | None]:
     """The times the wanted phases were reached, in order; the first missing one."""
     found: list[tuple[float, str]] = []
     start = 0
@@ -66,30 +78,45 @@ def _live_phases(trace: Trace) -> list[tuple[float, str]]:
     return changes
 
 
-def failsafe_phase(key: str, value: str | list[str], trace: Trace,
-                    expect: dict[str, Any]) -> CheckResult:
+def failsafe_phase(
+    key: str, value: str | list[str], trace: Trace, expect: dict[str, Any]
+) -> CheckResult:
     seen = _live_phases(trace)
     if not seen:
-        return check(key, value, False, "the FC's failsafe phase was never read (MSP_DEBUG)",
-                      None, None)
+        return check(
+            key, value, False, "the FC's failsafe phase was never read (MSP_DEBUG)", None, None
+        )
     found, missing = phase_sequence(seen, name_list(value))
     path = " -> ".join(f"{name} ({t:.2f} s)" for t, name in seen)
     if missing is not None:
-        return check(key, value, False, f"never reached {missing} in order; the phases were "
-                      f"{path}", seen[-1][1], None)
+        return check(
+            key,
+            value,
+            False,
+            f"never reached {missing} in order; the phases were {path}",
+            seen[-1][1],
+            None,
+        )
     within = expect.get("failsafe_within_s")
     fault_s = trace.first_fault_s
     if within is not None and fault_s is not None:
         first_s = found[0][0]
         after = first_s - fault_s
-        return check(key, value, 0 <= after <= within,
-                      f"{found[0][1]} {after:.2f} s after the fault (expected within "
-                      f"{within:g} s); the phases were {path}", round(after, 3), first_s)
+        return check(
+            key,
+            value,
+            0 <= after <= within,
+            f"{found[0][1]} {after:.2f} s after the fault (expected within "
+            f"{within:g} s); the phases were {path}",
+            round(after, 3),
+            first_s,
+        )
     return check(key, value, True, f"the phases were {path}", found[-1][1], found[-1][0])
 
 
-def failsafe_never(key: str, value: str | list[str], trace: Trace,
-                    _e: dict[str, Any]) -> CheckResult:
+def failsafe_never(
+    key: str, value: str | list[str], trace: Trace, _e: dict[str, Any]
+) -> CheckResult:
     banned = set(name_list(value))
     for t, name in _live_phases(trace):
         if name in banned:
@@ -102,11 +129,22 @@ def landed_within(key: str, value: float, trace: Trace, _e: dict[str, Any]) -> C
     distance = last.distance_m
     if last.armed or not last.on_ground:
         where = "still armed" if last.armed else "not on the ground"
-        return check(key, value, False, f"{where} at the end, {distance:.2f} m from the "
-                      f"take-off point", round(distance, 3), last.time_s)
-    return check(key, value, distance <= value,
-                  f"landed {distance:.2f} m from the take-off point (expected within "
-                  f"{value:g} m)", round(distance, 3), last.time_s)
+        return check(
+            key,
+            value,
+            False,
+            f"{where} at the end, {distance:.2f} m from the take-off point",
+            round(distance, 3),
+            last.time_s,
+        )
+    return check(
+        key,
+        value,
+        distance <= value,
+        f"landed {distance:.2f} m from the take-off point (expected within {value:g} m)",
+        round(distance, 3),
+        last.time_s,
+    )
 
 
 def _touchdowns(trace: Trace) -> list[tuple[float, float]]:
@@ -130,9 +168,14 @@ def max_touchdown(key: str, value: float, trace: Trace, _e: dict[str, Any]) -> C
     if not touchdowns:
         return check(key, value, False, "it never came down", None, None)
     t, speed = max(touchdowns, key=lambda item: item[1])
-    return check(key, value, speed <= value,
-                  f"met the ground at {speed:.2f} m/s (expected at most {value:g} m/s)",
-                  round(speed, 3), t)
+    return check(
+        key,
+        value,
+        speed <= value,
+        f"met the ground at {speed:.2f} m/s (expected at most {value:g} m/s)",
+        round(speed, 3),
+        t,
+    )
 
 
 def crash_of(trace: Trace) -> tuple[float, str] | None:
@@ -152,14 +195,20 @@ def crash_of(trace: Trace) -> tuple[float, str] | None:
 def crashed(key: str, value: bool, trace: Trace, _e: dict[str, Any]) -> CheckResult:
     crash = crash_of(trace)
     if crash is None:
-        return check(key, value, not value, "no crash: never tipped over, never met the "
-                      f"ground faster than {CRASH_TOUCHDOWN_M_S:g} m/s", "no", None)
+        return check(
+            key,
+            value,
+            not value,
+            "no crash: never tipped over, never met the "
+            f"ground faster than {CRASH_TOUCHDOWN_M_S:g} m/s",
+            "no",
+            None,
+        )
     t, why = crash
     return check(key, value, value, f"crashed: {why}", "yes", t)
 
 
-def mode_seen(key: str, value: str | list[str], trace: Trace,
-               _e: dict[str, Any]) -> CheckResult:
+def mode_seen(key: str, value: str | list[str], trace: Trace, _e: dict[str, Any]) -> CheckResult:
     missing = []
     first: dict[str, float] = {}
     for name in name_list(value):
@@ -170,26 +219,42 @@ def mode_seen(key: str, value: str | list[str], trace: Trace,
             first[name] = row.time_s
     every = sorted({m for r in trace.rows for m in r.modes})
     if missing:
-        return check(key, value, False, f"never saw {', '.join(missing)} (modes seen: "
-                      f"{', '.join(every) or 'none'})", None, None)
+        return check(
+            key,
+            value,
+            False,
+            f"never saw {', '.join(missing)} (modes seen: {', '.join(every) or 'none'})",
+            None,
+            None,
+        )
     name, at = min(first.items(), key=lambda item: item[1])
     return check(key, value, True, f"first seen: {name}", name, at)
 
 
-def mode_never(key: str, value: str | list[str], trace: Trace,
-                _e: dict[str, Any]) -> CheckResult:
+def mode_never(key: str, value: str | list[str], trace: Trace, _e: dict[str, Any]) -> CheckResult:
     banned = set(name_list(value))
     for row in trace.rows:
         hit = banned.intersection(row.modes)
         if hit:
-            return check(key, value, False, f"the FC reported {', '.join(sorted(hit))}",
-                          sorted(hit)[0], row.time_s)
+            return check(
+                key,
+                value,
+                False,
+                f"the FC reported {', '.join(sorted(hit))}",
+                sorted(hit)[0],
+                row.time_s,
+            )
     return check(key, value, True, "never reported", None, None)
 
 
-def extreme(measure: Callable[[TraceRow], float], *, lowest: bool, what: str, unit: str,
-             default_window: Callable[[Trace], tuple[float | None, float | None]]
-             ) -> Callable[[str, Limit, Trace, dict[str, Any]], CheckResult]:
+def extreme(
+    measure: Callable[[TraceRow], float],
+    *,
+    lowest: bool,
+    what: str,
+    unit: str,
+    default_window: Callable[[Trace], tuple[float | None, float | None]],
+) -> Callable[[str, Limit, Trace, dict[str, Any]], CheckResult]:
     def judge(key: str, limit: Limit, trace: Trace, _e: dict[str, Any]) -> CheckResult:
         from_s, until_s = limit.from_s, limit.until_s
         if from_s is None and until_s is None:
@@ -202,8 +267,15 @@ def extreme(measure: Callable[[TraceRow], float], *, lowest: bool, what: str, un
         value = measure(row)
         passed = value >= limit.value if lowest else value <= limit.value
         bound = "at least" if lowest else "at most"
-        return check(key, limit, passed, f"{what} {value:.2f} {unit} (expected {bound} "
-                      f"{limit.value:g} {unit})", round(value, 3), row.time_s)
+        return check(
+            key,
+            limit,
+            passed,
+            f"{what} {value:.2f} {unit} (expected {bound} {limit.value:g} {unit})",
+            round(value, 3),
+            row.time_s,
+        )
+
     return judge
 
 

@@ -80,12 +80,22 @@ _KEYS: dict[str, tuple[str, _Judge | None]] = {
     "crashed": ("bool", expect_flight.crashed),
     "mode_seen": ("names", expect_flight.mode_seen),
     "mode_never": ("names", expect_flight.mode_never),
-    "max_tilt_deg": ("limit", extreme(lambda r: r.tilt_deg, lowest=False, what="tilted",
-                                      unit="deg", default_window=whole_run)),
-    "min_alt_m": ("limit", extreme(lambda r: r.alt_m, lowest=True, what="down to",
-                                   unit="m", default_window=in_the_air)),
-    "max_alt_m": ("limit", extreme(lambda r: r.alt_m, lowest=False, what="up to", unit="m",
-                                   default_window=whole_run)),
+    "max_tilt_deg": (
+        "limit",
+        extreme(
+            lambda r: r.tilt_deg, lowest=False, what="tilted", unit="deg", default_window=whole_run
+        ),
+    ),
+    "min_alt_m": (
+        "limit",
+        extreme(
+            lambda r: r.alt_m, lowest=True, what="down to", unit="m", default_window=in_the_air
+        ),
+    ),
+    "max_alt_m": (
+        "limit",
+        extreme(lambda r: r.alt_m, lowest=False, what="up to", unit="m", default_window=whole_run),
+    ),
     "max_distance_m": ("limit", expect_path.distance_bound(lowest=False)),
     "min_distance_m": ("limit", expect_path.distance_bound(lowest=True)),
     "reached": ("point", expect_path.reached),
@@ -116,23 +126,29 @@ def _parse(where: str, key: str, value: Any) -> Any:
             raise ScenarioError(f"{where}, [expect]: {key} must be true or false")
         return value
     if kind == "number":
-        if isinstance(value, bool) or not isinstance(value, (int, float)) \
-                or not math.isfinite(value) or value < 0:
-            raise ScenarioError(f"{where}, [expect]: {key} must be a number >= 0, "
-                                f"got {value!r}")
+        if (
+            isinstance(value, bool)
+            or not isinstance(value, (int, float))
+            or not math.isfinite(value)
+            or value < 0
+        ):
+            raise ScenarioError(f"{where}, [expect]: {key} must be a number >= 0, got {value!r}")
         return float(value)
     if kind == "severity":
         if value not in SEVERITY_NAMES:
-            raise ScenarioError(f"{where}, [expect]: {key} = {value!r} is not one of "
-                                f"{', '.join(SEVERITY_NAMES)}")
+            raise ScenarioError(
+                f"{where}, [expect]: {key} = {value!r} is not one of {', '.join(SEVERITY_NAMES)}"
+            )
         return value
     if kind == "analysers":
         listed = name_list(value) if isinstance(value, (str, list)) else []
         unknown = [n for n in listed if n not in ANALYSER_NAMES]
         if not listed or unknown:
-            raise ScenarioError(f"{where}, [expect]: {key}: unknown analyser(s) "
-                                f"{', '.join(map(repr, unknown)) or repr(value)}; known: "
-                                f"{', '.join(ANALYSER_NAMES)}")
+            raise ScenarioError(
+                f"{where}, [expect]: {key}: unknown analyser(s) "
+                f"{', '.join(map(repr, unknown)) or repr(value)}; known: "
+                f"{', '.join(ANALYSER_NAMES)}"
+            )
         return value
     if kind in ("names", "phases", "text"):
         names = name_list(value) if isinstance(value, (str, list)) else None
@@ -141,36 +157,47 @@ def _parse(where: str, key: str, value: Any) -> Any:
         if kind == "phases":
             unknown = [n for n in names if n not in FAILSAFE_PHASES]
             if unknown:
-                raise ScenarioError(f"{where}, [expect]: {key}: unknown phase(s) "
-                                    f"{', '.join(unknown)}; phases: "
-                                    f"{', '.join(FAILSAFE_PHASES)}")
+                raise ScenarioError(
+                    f"{where}, [expect]: {key}: unknown phase(s) "
+                    f"{', '.join(unknown)}; phases: "
+                    f"{', '.join(FAILSAFE_PHASES)}"
+                )
         if kind == "text" and not isinstance(value, str):
             raise bad
         return value
     if kind == "point":
-        return expect_path.parse_table(where, key, value, expect_path.POINT_KEYS,
-                                       {"north_m", "east_m", "within_m"})
+        return expect_path.parse_table(
+            where, key, value, expect_path.POINT_KEYS, {"north_m", "east_m", "within_m"}
+        )
     if kind == "heading":
-        return expect_path.parse_table(where, key, value, expect_path.HEADING_KEYS,
-                                       {"value", "within_deg"})
+        return expect_path.parse_table(
+            where, key, value, expect_path.HEADING_KEYS, {"value", "within_deg"}
+        )
     # limit: a number, or a table with value, an optional window (and for a distance, the
     # point it is measured from)
     if isinstance(value, dict):
-        allowed = ["value", "from_s", "until_s", *(("north_m", "east_m") if key in
-                                                   _FROM_A_POINT else ())]
+        allowed = [
+            "value",
+            "from_s",
+            "until_s",
+            *(("north_m", "east_m") if key in _FROM_A_POINT else ()),
+        ]
         extra = set(value) - set(allowed)
         if extra or "value" not in value:
-            raise ScenarioError(f"{where}, [expect]: {key} takes a number or "
-                                f"{{ {', '.join(f'{k} = ...' for k in allowed)} }}")
+            raise ScenarioError(
+                f"{where}, [expect]: {key} takes a number or "
+                f"{{ {', '.join(f'{k} = ...' for k in allowed)} }}"
+            )
         numbers = [value.get(k) for k in ("value", "from_s", "until_s", "north_m", "east_m")]
         for number in numbers:
-            if number is not None and (isinstance(number, bool)
-                                       or not isinstance(number, (int, float))
-                                       or not math.isfinite(number)):
+            if number is not None and (
+                isinstance(number, bool)
+                or not isinstance(number, (int, float))
+                or not math.isfinite(number)
+            ):
                 raise bad
         return Limit(*(float(n) if n is not None else None for n in numbers))  # type: ignore
-    if isinstance(value, bool) or not isinstance(value, (int, float)) \
-            or not math.isfinite(value):
+    if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value):
         raise bad
     return Limit(float(value))
 
@@ -187,8 +214,10 @@ def parsed_expectations(scenario: Scenario, generation: str | None = None) -> di
     for key, value in scenario.expect:
         if key in GENERATION_TABLES:
             if not isinstance(value, dict):
-                raise ScenarioError(f"{scenario.where}, [expect]: {key} must be a table "
-                                    f"([expect.\"{key}\"]) of expectations for that firmware")
+                raise ScenarioError(
+                    f"{scenario.where}, [expect]: {key} must be a table "
+                    f'([expect."{key}"]) of expectations for that firmware'
+                )
             for inner, inner_value in value.items():
                 checked = _checked(scenario, f"{key}.{inner}", inner, inner_value)
                 if key == generation:
@@ -197,20 +226,26 @@ def parsed_expectations(scenario: Scenario, generation: str | None = None) -> di
         out[key] = _checked(scenario, key, key, value)
     out.update(own)
     if "failsafe_within_s" in out and "failsafe_phase" not in out:
-        raise ScenarioError(f"{scenario.where}, [expect]: failsafe_within_s needs "
-                            f"failsafe_phase (the phase to reach)")
+        raise ScenarioError(
+            f"{scenario.where}, [expect]: failsafe_within_s needs "
+            f"failsafe_phase (the phase to reach)"
+        )
     needs_fault = {"disarmed_within_s", "failsafe_within_s"} & set(out)
     if needs_fault and not scenario.faults:
-        raise ScenarioError(f"{scenario.where}, [expect]: {', '.join(sorted(needs_fault))} "
-                            f"count from the first fault, and there is none")
+        raise ScenarioError(
+            f"{scenario.where}, [expect]: {', '.join(sorted(needs_fault))} "
+            f"count from the first fault, and there is none"
+        )
     return out
 
 
 def _checked(scenario: Scenario, shown: str, key: str, value: Any) -> Any:
     if key not in _KEYS:
-        raise ScenarioError(f"{scenario.where}, [expect]: unknown key {shown!r}; known: "
-                            f"{', '.join(EXPECTATION_KEYS)} (and the tables "
-                            f"{', '.join(GENERATION_TABLES)})")
+        raise ScenarioError(
+            f"{scenario.where}, [expect]: unknown key {shown!r}; known: "
+            f"{', '.join(EXPECTATION_KEYS)} (and the tables "
+            f"{', '.join(GENERATION_TABLES)})"
+        )
     return _parse(scenario.where, key, value)
 
 
@@ -219,14 +254,16 @@ def check_expectations(scenario: Scenario) -> None:
         parsed_expectations(scenario, generation)
 
 
-def judge(scenario: Scenario, trace: Trace, generation: str | None = None
-          ) -> list[CheckResult]:
+def judge(scenario: Scenario, trace: Trace, generation: str | None = None) -> list[CheckResult]:
     """Every expectation of ``scenario`` (and of ``generation``'s own table) judged on
     ``trace``, in the file's order."""
     expect = parsed_expectations(scenario, generation)
     if not trace.rows:
-        return [CheckResult(_shown(k, v), False, f"{_shown(k, v)}: nothing was recorded")
-                for k, v in expect.items() if _KEYS[k][1] is not None]
+        return [
+            CheckResult(_shown(k, v), False, f"{_shown(k, v)}: nothing was recorded")
+            for k, v in expect.items()
+            if _KEYS[k][1] is not None
+        ]
     results = []
     for key, value in expect.items():
         judge_key = _KEYS[key][1]

@@ -74,10 +74,16 @@ FAILSAFE_SWITCH_AUX_INDEX = 2
 MODE_SWITCHES: dict[str, tuple[tuple[int, ...], int]] = {
     "ALTHOLD": ((int(BoxId.ALTHOLD),), 3),
     "POSHOLD": ((int(BoxId.POSHOLD), int(BoxId.ALTHOLD)), 4),
-    "GPS RESCUE": ((int(BoxId.GPSRESCUE),), 5), "AUTOPILOT": ((AUTOPILOT_BOX_ID,), 6)}
+    "GPS RESCUE": ((int(BoxId.GPSRESCUE),), 5),
+    "AUTOPILOT": ((AUTOPILOT_BOX_ID,), 6),
+}
 #: The build feature (bfsitl.build.binary_scan) a mode needs beyond GPS.
-MODE_FEATURES = {"AUTOPILOT": "flight_plan", "GPS RESCUE": "gps_rescue",
-                 "ALTHOLD": "altitude_hold", "POSHOLD": "position_hold"}
+MODE_FEATURES = {
+    "AUTOPILOT": "flight_plan",
+    "GPS RESCUE": "gps_rescue",
+    "ALTHOLD": "altitude_hold",
+    "POSHOLD": "position_hold",
+}
 #: ISA sea level: the pressure falls this much per metre of climb (rho g).
 PA_PER_M = 12.01
 RC_LOSS_METHODS = ("auto", "silence", "invalid_pulses", "switch")
@@ -141,18 +147,28 @@ def _rc_loss(spec: FaultSpec, profile: FirmwareProfile, where: str) -> Fault:
         raise FaultNotSupportedError(
             f"{where}: rc_loss by silence cannot happen on {_name(profile)}: it holds the last "
             f"sticks forever when RC stops (its SITL receiver never times out). Use method = "
-            f"\"switch\" or \"invalid_pulses\" (\"auto\" picks the switch there)")
+            f'"switch" or "invalid_pulses" ("auto" picks the switch there)'
+        )
     if method == "switch":
         # The pilot's own failsafe switch: the vehicle's sticks, not a disturbance.
         def apply_switch(vehicle: Vehicle) -> Undo:
-            vehicle.set_rc(vehicle.rc_command.with_aux(FAILSAFE_SWITCH_AUX_INDEX,
-                                                       SWITCH_ON_US))
+            vehicle.set_rc(vehicle.rc_command.with_aux(FAILSAFE_SWITCH_AUX_INDEX, SWITCH_ON_US))
             return lambda: vehicle.set_rc(
-                vehicle.rc_command.with_aux(FAILSAFE_SWITCH_AUX_INDEX, SWITCH_OFF_US))
-        return Fault(spec, "RC lost (failsafe switch on AUX3)", True, apply_switch,
-                     switches=((int(BoxId.FAILSAFE), FAILSAFE_SWITCH_AUX_INDEX),))
-    rc_fault = RcFault(silent=True) if method == "silence" else RcFault(
-        pulses_us=tuple((channel, LOST_PULSE_US) for channel in range(4)))
+                vehicle.rc_command.with_aux(FAILSAFE_SWITCH_AUX_INDEX, SWITCH_OFF_US)
+            )
+
+        return Fault(
+            spec,
+            "RC lost (failsafe switch on AUX3)",
+            True,
+            apply_switch,
+            switches=((int(BoxId.FAILSAFE), FAILSAFE_SWITCH_AUX_INDEX),),
+        )
+    rc_fault = (
+        RcFault(silent=True)
+        if method == "silence"
+        else RcFault(pulses_us=tuple((channel, LOST_PULSE_US) for channel in range(4)))
+    )
     title = "RC lost (silence)" if method == "silence" else "RC lost (invalid pulses)"
     return Fault(spec, title, True, _rc_fault_injector(rc_fault))
 
@@ -162,13 +178,18 @@ def _rc_fault_injector(fault: RcFault) -> Inject:
         disturbances = vehicle.disturbances
         disturbances.set_rc_fault(fault)
         return lambda: disturbances.set_rc_fault(None)
+
     return inject
 
 
 def _rc_latency(spec: FaultSpec, profile: FirmwareProfile, where: str) -> Fault:
     delay_s, jitter_s = spec.param("delay_s"), spec.param("jitter_s")
-    return Fault(spec, f"RC {delay_s * 1000:.0f} ms late (+{jitter_s * 1000:.0f} ms jitter)",
-                 False, _rc_fault_injector(RcFault(delay_s=delay_s, jitter_s=jitter_s)))
+    return Fault(
+        spec,
+        f"RC {delay_s * 1000:.0f} ms late (+{jitter_s * 1000:.0f} ms jitter)",
+        False,
+        _rc_fault_injector(RcFault(delay_s=delay_s, jitter_s=jitter_s)),
+    )
 
 
 def _gps_loss(spec: FaultSpec, profile: FirmwareProfile, where: str) -> Fault:
@@ -177,32 +198,41 @@ def _gps_loss(spec: FaultSpec, profile: FirmwareProfile, where: str) -> Fault:
         raise FaultNotSupportedError(
             f"{where}: gps_loss cannot happen on {_name(profile)}: its virtual GPS keeps a "
             f"12-satellite fix whatever the simulator sends (no loss sentinel in its sitl.c). "
-            f"gps_glitch works there; GPS loss runs on master")
+            f"gps_glitch works there; GPS loss runs on master"
+        )
 
     def inject(vehicle: Vehicle) -> Undo:
         disturbances = vehicle.disturbances
         disturbances.set_gps_lost(True)
         return lambda: disturbances.set_gps_lost(False)
+
     return Fault(spec, "GPS lost", False, inject)
 
 
 def _sensor_injector(fields: dict[str, Any]) -> Inject:
     """Sets sensor error ``fields``; undoing restores what they were (and only them)."""
+
     def inject(vehicle: Vehicle) -> Undo:
         disturbances = vehicle.disturbances
         before = disturbances.change_sensors(**fields)
 
         def undo() -> None:
             disturbances.change_sensors(**{key: getattr(before, key) for key in fields})
+
         return undo
+
     return inject
 
 
 def _gps_glitch(spec: FaultSpec, profile: FirmwareProfile, where: str) -> Fault:
     _need_gps(profile, where, "gps_glitch")
     north, east = spec.param("north_m"), spec.param("east_m")
-    return Fault(spec, f"GPS off by {north:g} m north, {east:g} m east", False,
-                 _sensor_injector({"gps_offset_ne_m": (north, east)}))
+    return Fault(
+        spec,
+        f"GPS off by {north:g} m north, {east:g} m east",
+        False,
+        _sensor_injector({"gps_offset_ne_m": (north, east)}),
+    )
 
 
 def _motor_thrust(spec: FaultSpec, profile: FirmwareProfile, where: str) -> Fault:
@@ -213,52 +243,71 @@ def _motor_thrust(spec: FaultSpec, profile: FirmwareProfile, where: str) -> Faul
         before = disturbances.motor_thrust[motor - 1]
         disturbances.set_motor_thrust(motor, fraction)
         return lambda: disturbances.set_motor_thrust(motor, before)
+
     return Fault(spec, f"motor {motor} at {fraction * 100:.0f} % thrust", False, inject)
 
 
 def _gyro_noise(spec: FaultSpec, profile: FirmwareProfile, where: str) -> Fault:
     std = math.radians(spec.param("std_deg_s"))
-    return Fault(spec, f"gyro noise {math.degrees(std):g} deg/s", False,
-                 _sensor_injector({"gyro_noise_std_rad_s": std}))
+    return Fault(
+        spec,
+        f"gyro noise {math.degrees(std):g} deg/s",
+        False,
+        _sensor_injector({"gyro_noise_std_rad_s": std}),
+    )
 
 
 def _gyro_bias(spec: FaultSpec, profile: FirmwareProfile, where: str) -> Fault:
     bias = tuple(math.radians(spec.param(f"{axis}_deg_s")) for axis in "xyz")
     shown = ", ".join(f"{math.degrees(b):g}" for b in bias)
-    return Fault(spec, f"gyro bias ({shown}) deg/s", False,
-                 _sensor_injector({"gyro_bias_rad_s": bias}))
+    return Fault(
+        spec, f"gyro bias ({shown}) deg/s", False, _sensor_injector({"gyro_bias_rad_s": bias})
+    )
 
 
 def _accel_noise(spec: FaultSpec, profile: FirmwareProfile, where: str) -> Fault:
     std = spec.param("std_m_s2")
-    return Fault(spec, f"accelerometer noise {std:g} m/s^2", False,
-                 _sensor_injector({"accel_noise_std_m_s2": std}))
+    return Fault(
+        spec,
+        f"accelerometer noise {std:g} m/s^2",
+        False,
+        _sensor_injector({"accel_noise_std_m_s2": std}),
+    )
 
 
 def _accel_bias(spec: FaultSpec, profile: FirmwareProfile, where: str) -> Fault:
     bias = tuple(spec.param(f"{axis}_m_s2") for axis in "xyz")
-    return Fault(spec, f"accelerometer bias {bias} m/s^2", False,
-                 _sensor_injector({"accel_bias_m_s2": bias}))
+    return Fault(
+        spec, f"accelerometer bias {bias} m/s^2", False, _sensor_injector({"accel_bias_m_s2": bias})
+    )
 
 
 def _baro_drift(spec: FaultSpec, profile: FirmwareProfile, where: str) -> Fault:
     rate_m_s = spec.param("rate_m_s")
-    return Fault(spec, f"barometer drifting {rate_m_s:+g} m/s", False,
-                 _sensor_injector({"baro_drift_pa_s": -rate_m_s * PA_PER_M}))
+    return Fault(
+        spec,
+        f"barometer drifting {rate_m_s:+g} m/s",
+        False,
+        _sensor_injector({"baro_drift_pa_s": -rate_m_s * PA_PER_M}),
+    )
 
 
 def _wind(spec: FaultSpec, profile: FirmwareProfile, where: str) -> Fault:
-    wind = Wind((spec.param("north_m_s"), spec.param("east_m_s"), 0.0),
-                spec.param("gust_std_m_s"))
+    wind = Wind((spec.param("north_m_s"), spec.param("east_m_s"), 0.0), spec.param("gust_std_m_s"))
 
     def inject(vehicle: Vehicle) -> Undo:
         disturbances = vehicle.disturbances
         before = disturbances.wind
         disturbances.set_wind(wind)
         return lambda: disturbances.set_wind(before)
+
     north, east, _ = wind.velocity_ned_m_s
-    return Fault(spec, f"wind to {north:g} m/s north, {east:g} m/s east "
-                       f"(gusts {wind.gust_std_m_s:g} m/s)", False, inject)
+    return Fault(
+        spec,
+        f"wind to {north:g} m/s north, {east:g} m/s east (gusts {wind.gust_std_m_s:g} m/s)",
+        False,
+        inject,
+    )
 
 
 def _mode_switch(spec: FaultSpec, profile: FirmwareProfile, where: str) -> Fault:
@@ -271,19 +320,36 @@ def _mode_switch(spec: FaultSpec, profile: FirmwareProfile, where: str) -> Fault
         # Letting go: roll, pitch and yaw centred; the throttle stays where the autopilot
         # held it, the hover, inside the altitude hold's deadband.
         held = vehicle.rc_command
-        vehicle.set_rc(replace(held, roll_us=RC_MID_US, pitch_us=RC_MID_US, yaw_us=RC_MID_US
-                               ).with_aux(aux_index, SWITCH_ON_US))
+        vehicle.set_rc(
+            replace(held, roll_us=RC_MID_US, pitch_us=RC_MID_US, yaw_us=RC_MID_US).with_aux(
+                aux_index, SWITCH_ON_US
+            )
+        )
         return lambda: vehicle.set_rc(vehicle.rc_command.with_aux(aux_index, SWITCH_OFF_US))
-    return Fault(spec, f"{mode} switch on AUX{aux_index + 1}: the FC flies", True,
-                 raise_switch, switches=tuple((box, aux_index) for box in boxes),
-                 needs_feature=MODE_FEATURES[mode])
+
+    return Fault(
+        spec,
+        f"{mode} switch on AUX{aux_index + 1}: the FC flies",
+        True,
+        raise_switch,
+        switches=tuple((box, aux_index) for box in boxes),
+        needs_feature=MODE_FEATURES[mode],
+    )
 
 
 _KINDS: dict[str, Callable[[FaultSpec, FirmwareProfile, str], Fault]] = {
-    "rc_loss": _rc_loss, "rc_latency": _rc_latency, "gps_loss": _gps_loss,
-    "gps_glitch": _gps_glitch, "motor_thrust": _motor_thrust, "gyro_noise": _gyro_noise,
-    "gyro_bias": _gyro_bias, "accel_noise": _accel_noise, "accel_bias": _accel_bias,
-    "baro_drift": _baro_drift, "wind": _wind, "mode_switch": _mode_switch,
+    "rc_loss": _rc_loss,
+    "rc_latency": _rc_latency,
+    "gps_loss": _gps_loss,
+    "gps_glitch": _gps_glitch,
+    "motor_thrust": _motor_thrust,
+    "gyro_noise": _gyro_noise,
+    "gyro_bias": _gyro_bias,
+    "accel_noise": _accel_noise,
+    "accel_bias": _accel_bias,
+    "baro_drift": _baro_drift,
+    "wind": _wind,
+    "mode_switch": _mode_switch,
 }
 
 
@@ -302,16 +368,21 @@ _PARAMS: dict[str, Mapping[str, _Number | tuple[str, ...] | type[int]]] = {
     "rc_loss": {"method": RC_LOSS_METHODS},
     "rc_latency": {"delay_s": _Number(0.0, 2.0), "jitter_s": _Number(0.0, 2.0, 0.0)},
     "gps_loss": {},
-    "gps_glitch": {"north_m": _Number(-1000.0, 1000.0, 0.0),
-                   "east_m": _Number(-1000.0, 1000.0, 0.0)},
+    "gps_glitch": {
+        "north_m": _Number(-1000.0, 1000.0, 0.0),
+        "east_m": _Number(-1000.0, 1000.0, 0.0),
+    },
     "motor_thrust": {"motor": int, "fraction": _Number(0.0, 1.0)},
     "gyro_noise": {"std_deg_s": _Number(0.0, 1000.0)},
     "gyro_bias": {f"{axis}_deg_s": _Number(-1000.0, 1000.0, 0.0) for axis in "xyz"},
     "accel_noise": {"std_m_s2": _Number(0.0, 100.0)},
     "accel_bias": {f"{axis}_m_s2": _Number(-50.0, 50.0, 0.0) for axis in "xyz"},
     "baro_drift": {"rate_m_s": _Number(-10.0, 10.0)},
-    "wind": {"north_m_s": _Number(-_WIND, _WIND, 0.0), "east_m_s": _Number(-_WIND, _WIND, 0.0),
-             "gust_std_m_s": _Number(0.0, MAX_GUST_STD_M_S, 0.0)},
+    "wind": {
+        "north_m_s": _Number(-_WIND, _WIND, 0.0),
+        "east_m_s": _Number(-_WIND, _WIND, 0.0),
+        "gust_std_m_s": _Number(0.0, MAX_GUST_STD_M_S, 0.0),
+    },
     # No default: the first word would be one, and a mode must be named.
     "mode_switch": {"mode": ("", *MODE_SWITCHES)},
 }
@@ -335,8 +406,7 @@ def read_fault_spec(raw: Any, *, where: str, number: int, run_s: float) -> Fault
     if not isinstance(kind, str):
         raise ScenarioError(f"{here}: kind must be a string, got {kind!r}")
     if kind not in _KINDS:
-        raise ScenarioError(f"{here}: unknown fault kind {kind!r}; known: "
-                            f"{', '.join(FAULT_KINDS)}")
+        raise ScenarioError(f"{here}: unknown fault kind {kind!r}; known: {', '.join(FAULT_KINDS)}")
     at_s = number_in(where, f"{label} at_s", raw["at_s"], 0.0, run_s)
     lasts = raw.get("duration_s")
     if lasts is not None:
@@ -345,29 +415,31 @@ def read_fault_spec(raw: Any, *, where: str, number: int, run_s: float) -> Fault
     schema = _PARAMS[kind]
     unknown = set(given) - set(schema)
     if unknown:
-        raise ScenarioError(f"{here}: {kind} has no parameter(s) "
-                            f"{', '.join(sorted(unknown))}; it takes "
-                            f"{', '.join(sorted(schema)) or 'none'}")
-    params = {key: _param(here, kind, key, rule, given.get(key))
-              for key, rule in schema.items()}
+        raise ScenarioError(
+            f"{here}: {kind} has no parameter(s) "
+            f"{', '.join(sorted(unknown))}; it takes "
+            f"{', '.join(sorted(schema)) or 'none'}"
+        )
+    params = {key: _param(here, kind, key, rule, given.get(key)) for key, rule in schema.items()}
     return FaultSpec(kind, at_s, lasts, tuple(sorted(params.items())), label)
 
 
-def _param(here: str, kind: str, key: str, rule: _Number | tuple[str, ...] | type[int],
-           value: Any) -> Any:
+def _param(
+    here: str, kind: str, key: str, rule: _Number | tuple[str, ...] | type[int], value: Any
+) -> Any:
     if isinstance(rule, tuple):  # one of some words; the first is the default ("": none)
         words = [word for word in rule if word]
         if value is None and not rule[0]:
             raise ScenarioError(f"{here}: {kind} needs {key}: one of {', '.join(words)}")
         value = rule[0] if value is None else value
         if value not in words:
-            raise ScenarioError(f"{here}: {kind} {key} {value!r} is not one of "
-                                f"{', '.join(words)}")
+            raise ScenarioError(f"{here}: {kind} {key} {value!r} is not one of {', '.join(words)}")
         return value
     if rule is int:  # a motor number, Betaflight's numbering
         if value not in (1, 2, 3, 4) or isinstance(value, bool):
-            raise ScenarioError(f"{here}: {kind} needs {key} = 1..4 (Betaflight's "
-                                f"numbering), got {value!r}")
+            raise ScenarioError(
+                f"{here}: {kind} needs {key} = 1..4 (Betaflight's numbering), got {value!r}"
+            )
         return value
     assert isinstance(rule, _Number)
     if value is None:
@@ -383,8 +455,9 @@ def make_fault(spec: FaultSpec, profile: FirmwareProfile, *, where: str = "scena
     return _KINDS[spec.kind](spec, profile, f"{where}, {spec.label}")
 
 
-def make_faults(specs: tuple[FaultSpec, ...], profile: FirmwareProfile, *,
-                where: str = "scenario") -> tuple[Fault, ...]:
+def make_faults(
+    specs: tuple[FaultSpec, ...], profile: FirmwareProfile, *, where: str = "scenario"
+) -> tuple[Fault, ...]:
     return tuple(make_fault(spec, profile, where=where) for spec in specs)
 
 
@@ -395,7 +468,7 @@ def _name(profile: FirmwareProfile) -> str:
 
 def _need_gps(profile: FirmwareProfile, where: str, kind: str) -> None:
     if not profile.has_gps:
-        raise FaultNotSupportedError(f"{where}: {kind} needs a firmware with GPS (`bfsitl "
-                                     f"firmware build --gps`; master has it)")
-
-
+        raise FaultNotSupportedError(
+            f"{where}: {kind} needs a firmware with GPS (`bfsitl "
+            f"firmware build --gps`; master has it)"
+        )

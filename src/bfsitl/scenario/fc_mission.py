@@ -49,7 +49,6 @@ class FcWaypoint:
     pattern: str = "none"
 
 
-
 def _word(where: str, key: str, value: Any, words: tuple[str, ...]) -> str:
     if not isinstance(value, str) or value.lower() not in words:
         raise ScenarioError(f"{where}: {key} = {value!r} is not one of {', '.join(words)}")
@@ -59,11 +58,11 @@ def _word(where: str, key: str, value: Any, words: tuple[str, ...]) -> str:
 def read_fc_waypoints(raw: Any, *, where: str) -> tuple[FcWaypoint, ...]:
     """``[[fc_waypoint]]`` tables, each checked (the file and the waypoint in messages)."""
     if not isinstance(raw, list):
-        raise ScenarioError(f"{where}: the FC's waypoints are written as [[fc_waypoint]] "
-                            f"tables")
+        raise ScenarioError(f"{where}: the FC's waypoints are written as [[fc_waypoint]] tables")
     if len(raw) > MAX_FC_WAYPOINTS:
-        raise ScenarioError(f"{where}: {len(raw)} [[fc_waypoint]] tables; the flight plan "
-                            f"holds {MAX_FC_WAYPOINTS}")
+        raise ScenarioError(
+            f"{where}: {len(raw)} [[fc_waypoint]] tables; the flight plan holds {MAX_FC_WAYPOINTS}"
+        )
     waypoints = []
     for number, table in enumerate(raw, 1):
         here = f"{where}, fc_waypoint {number}"
@@ -71,24 +70,28 @@ def read_fc_waypoints(raw: Any, *, where: str) -> tuple[FcWaypoint, ...]:
             raise ScenarioError(f"{here}: must be a table")
         unknown = set(table) - _KEYS
         if unknown:
-            raise ScenarioError(f"{here}: unknown key(s) {', '.join(sorted(unknown))}; known: "
-                                f"{', '.join(sorted(_KEYS))}")
+            raise ScenarioError(
+                f"{here}: unknown key(s) {', '.join(sorted(unknown))}; known: "
+                f"{', '.join(sorted(_KEYS))}"
+            )
         for key in ("north_m", "east_m", "alt_m"):
             if key not in table:
                 raise ScenarioError(f"{here}: {key} is missing")
-        waypoints.append(FcWaypoint(
-            north_m=number_in(here, "north_m", table["north_m"], -5000.0, 5000.0),
-            east_m=number_in(here, "east_m", table["east_m"], -5000.0, 5000.0),
-            alt_m=number_in(here, "alt_m", table["alt_m"], 0.0, 500.0),
-            speed_m_s=number_in(here, "speed_m_s", table.get("speed_m_s", 5.0), 0.0, 50.0),
-            type=_word(here, "type", table.get("type", "flyover"), WAYPOINT_TYPES),
-            duration_s=number_in(here, "duration_s", table.get("duration_s", 0.0), 0.0, 6000.0),
-            pattern=_word(here, "pattern", table.get("pattern", "none"), PATTERNS)))
+        waypoints.append(
+            FcWaypoint(
+                north_m=number_in(here, "north_m", table["north_m"], -5000.0, 5000.0),
+                east_m=number_in(here, "east_m", table["east_m"], -5000.0, 5000.0),
+                alt_m=number_in(here, "alt_m", table["alt_m"], 0.0, 500.0),
+                speed_m_s=number_in(here, "speed_m_s", table.get("speed_m_s", 5.0), 0.0, 50.0),
+                type=_word(here, "type", table.get("type", "flyover"), WAYPOINT_TYPES),
+                duration_s=number_in(here, "duration_s", table.get("duration_s", 0.0), 0.0, 6000.0),
+                pattern=_word(here, "pattern", table.get("pattern", "none"), PATTERNS),
+            )
+        )
     return tuple(waypoints)
 
 
-def fc_mission_cli(waypoints: tuple[FcWaypoint, ...], home: GeoPoint = HOME
-                   ) -> tuple[str, ...]:
+def fc_mission_cli(waypoints: tuple[FcWaypoint, ...], home: GeoPoint = HOME) -> tuple[str, ...]:
     """The CLI lines that make the FC's flight plan exactly ``waypoints`` (none: no lines)."""
     if not waypoints:
         return ()
@@ -96,7 +99,9 @@ def fc_mission_cli(waypoints: tuple[FcWaypoint, ...], home: GeoPoint = HOME
     lines = ["waypoint clear"]
     for index, wp in enumerate(waypoints):
         lon, lat, alt_msl = projection.lon_lat_alt((wp.north_m, wp.east_m, -wp.alt_m))
-        lines.append(f"waypoint insert {index} {lat:.7f} {lon:.7f} {round(alt_msl * 100)} "
-                     f"{round(wp.speed_m_s * 100)} {wp.type} {round(wp.duration_s * 10)} "
-                     f"{wp.pattern}")
+        lines.append(
+            f"waypoint insert {index} {lat:.7f} {lon:.7f} {round(alt_msl * 100)} "
+            f"{round(wp.speed_m_s * 100)} {wp.type} {round(wp.duration_s * 10)} "
+            f"{wp.pattern}"
+        )
     return tuple(lines)

@@ -95,8 +95,9 @@ def _outcome(result: ScenarioResult) -> Failure | Error | Skipped | None:
 
 
 def _case(result: ScenarioResult) -> TestCase:
-    case = _ScenarioCase(_xml_safe(result.name), _xml_safe(_classname(result.firmware)),
-                         float(result.wall_time_s))
+    case = _ScenarioCase(
+        _xml_safe(result.name), _xml_safe(_classname(result.firmware)), float(result.wall_time_s)
+    )
     if result.source is not None:
         case.file = _xml_safe(_display_path(result.source))
     outcome = _outcome(result)
@@ -119,8 +120,12 @@ def _suite(name: str, runs: Sequence[ScenarioResult]) -> TestSuite:
         prefix = _xml_safe(result.name) + "."
         suite.add_property(prefix + "sim_time_s", f"{result.sim_time_s:g}")
         for finding in result.findings:
-            suite.add_property(f"{prefix}finding.{finding.analyser}", _xml_safe(
-                f"{finding.severity.label} at t={finding.time_s:.2f} s: {finding.summary}"))
+            suite.add_property(
+                f"{prefix}finding.{finding.analyser}",
+                _xml_safe(
+                    f"{finding.severity.label} at t={finding.time_s:.2f} s: {finding.summary}"
+                ),
+            )
         for kind, artifact in result.artifacts.items():
             suite.add_property(prefix + _xml_safe(kind), _xml_safe(_display_path(artifact)))
     for result in runs:
@@ -137,8 +142,9 @@ def _by_firmware(results: Sequence[ScenarioResult]) -> dict[str, list[ScenarioRe
     return groups
 
 
-def write_junit(results: Sequence[ScenarioResult], path: str | Path, *,
-                suite_name: str = "bfsitl scenarios") -> Path:
+def write_junit(
+    results: Sequence[ScenarioResult], path: str | Path, *, suite_name: str = "bfsitl scenarios"
+) -> Path:
     """Write ``results`` to ``path`` as JUnit XML; returns the path.
 
     Atomic: the file is written beside ``path`` and renamed over it, so a run interrupted

@@ -59,13 +59,17 @@ def find_scenarios(paths: list[str | Path]) -> list[Scenario]:
         elif _library_file(given) is not None:
             files = [_library_file(given)]  # type: ignore[list-item]
         else:
-            raise ScenarioError(f"{path}: no such scenario file or directory, nor a scenario "
-                                f"of the shipped library (`bfsitl scenario list` names them)")
+            raise ScenarioError(
+                f"{path}: no such scenario file or directory, nor a scenario "
+                f"of the shipped library (`bfsitl scenario list` names them)"
+            )
         scenarios.extend(load_scenario(f) for f in files)
     seen: dict[str, Scenario] = {}
     for scenario in scenarios:
         if scenario.name in seen:
-            raise ScenarioError(f"two scenarios are named {scenario.name!r}: "
-                                f"{seen[scenario.name].where} and {scenario.where}")
+            raise ScenarioError(
+                f"two scenarios are named {scenario.name!r}: "
+                f"{seen[scenario.name].where} and {scenario.where}"
+            )
         seen[scenario.name] = scenario
     return scenarios

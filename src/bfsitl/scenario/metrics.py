@@ -24,7 +24,6 @@ if TYPE_CHECKING:
     from bfsitl.analysis import Finding
 
 
-
 @dataclass(frozen=True, slots=True)
 class Metric:
     """How a figure is compared between builds."""
@@ -40,18 +39,34 @@ class Metric:
 
 #: Every figure a run gives, in the order they are shown.
 METRICS: tuple[Metric, ...] = (
-    Metric("landed_distance_m", "m", "lower", 1.0,
-           "where it came to rest, from the take-off point (None: it did not)"),
-    Metric("touchdown_m_s", "m/s", "lower", 0.3,
-           "the hardest ground contact after flying (None: none)"),
+    Metric(
+        "landed_distance_m",
+        "m",
+        "lower",
+        1.0,
+        "where it came to rest, from the take-off point (None: it did not)",
+    ),
+    Metric(
+        "touchdown_m_s", "m/s", "lower", 0.3, "the hardest ground contact after flying (None: none)"
+    ),
     Metric("max_tilt_deg", "deg", "lower", 3.0, "the most tilt in the air"),
     Metric("fault_to_disarm_s", "s", None, 0.3, "from the first fault to the FC disarming"),
-    Metric("hold_rms_m", "m", "lower", 0.05,
-           "position (3-D) off the target in the autopilot's holds, RMS"),
+    Metric(
+        "hold_rms_m",
+        "m",
+        "lower",
+        0.05,
+        "position (3-D) off the target in the autopilot's holds, RMS",
+    ),
     Metric("path_m", "m", None, 3.0, "the horizontal path flown"),
-    Metric("throttle_s", "s", "lower", 1.0,
-           "the motors' mean command integrated over the armed time: an energy proxy "
-           "without a battery model"),
+    Metric(
+        "throttle_s",
+        "s",
+        "lower",
+        1.0,
+        "the motors' mean command integrated over the armed time: an energy proxy "
+        "without a battery model",
+    ),
 )
 #: ``fault_to_PHASE_s`` metrics: one per failsafe phase reached (tolerance 0.3 s).
 PHASE_METRIC_TOLERANCE_S = 0.3
@@ -67,9 +82,10 @@ class RunMetrics:
     behaviour: dict[str, list[str]] = field(default_factory=dict)
 
     def as_dict(self) -> dict[str, object]:
-        return {"values": {k: (round(v, 4) if v is not None else None)
-                           for k, v in self.values.items()},
-                "behaviour": self.behaviour}
+        return {
+            "values": {k: (round(v, 4) if v is not None else None) for k, v in self.values.items()},
+            "behaviour": self.behaviour,
+        }
 
 
 def metric(name: str) -> Metric:
@@ -78,9 +94,14 @@ def metric(name: str) -> Metric:
         if known.name == name:
             return known
     if name.startswith("fault_to_") and name.endswith("_s"):
-        phase = name[len("fault_to_"):-2]
-        return Metric(name, "s", None, PHASE_METRIC_TOLERANCE_S,
-                      f"from the first fault to the failsafe's {phase}")
+        phase = name[len("fault_to_") : -2]
+        return Metric(
+            name,
+            "s",
+            None,
+            PHASE_METRIC_TOLERANCE_S,
+            f"from the first fault to the failsafe's {phase}",
+        )
     raise KeyError(name)
 
 
@@ -98,10 +119,13 @@ def run_metrics(track: Track, trace: Trace, findings: list[Finding]) -> RunMetri
     tilts = [p.tilt_deg for p in points if p.airborne and math.isfinite(p.tilt_deg)]
     values["max_tilt_deg"] = max(tilts, default=None)
     fault_s = trace.first_fault_s
-    disarm = next((p.time_s for p in points
-                   if fault_s is not None and p.time_s >= fault_s and not p.armed), None)
-    values["fault_to_disarm_s"] = disarm - fault_s if disarm is not None and fault_s is not None \
-        else None
+    disarm = next(
+        (p.time_s for p in points if fault_s is not None and p.time_s >= fault_s and not p.armed),
+        None,
+    )
+    values["fault_to_disarm_s"] = (
+        disarm - fault_s if disarm is not None and fault_s is not None else None
+    )
     held = _held_errors(track)
     values["hold_rms_m"] = math.sqrt(sum(e * e for e in held) / len(held)) if held else None
     values["path_m"] = _path_m(track)
@@ -117,7 +141,8 @@ def run_metrics(track: Track, trace: Trace, findings: list[Finding]) -> RunMetri
                 values[f"fault_to_{name}_s"] = point.time_s - fault_s
     modes = sorted({mode for p in points for mode in p.modes})
     out.behaviour = {
-        "phases": phases, "modes": modes,
+        "phases": phases,
+        "modes": modes,
         "ended": [_ending(track)],
         "findings": [f"{f.analyser}:{f.severity.label}" for f in findings],
     }
@@ -133,8 +158,9 @@ def _held_errors(track: Track) -> list[float]:
         vertical = point.alt_m - point.target_alt_m
         horizontal = 0.0
         if math.isfinite(point.target_north_m) and math.isfinite(point.north_m):
-            horizontal = math.hypot(point.north_m - point.target_north_m,
-                                    point.east_m - point.target_east_m)
+            horizontal = math.hypot(
+                point.north_m - point.target_north_m, point.east_m - point.target_east_m
+            )
         errors.append(math.hypot(vertical, horizontal))
     return errors
 
@@ -143,8 +169,10 @@ def _path_m(track: Track) -> float | None:
     placed = [p for p in track.points if math.isfinite(p.north_m) and math.isfinite(p.east_m)]
     if len(placed) < 2:
         return None
-    return sum(math.hypot(b.north_m - a.north_m, b.east_m - a.east_m)
-               for a, b in zip(placed, placed[1:], strict=False))
+    return sum(
+        math.hypot(b.north_m - a.north_m, b.east_m - a.east_m)
+        for a, b in zip(placed, placed[1:], strict=False)
+    )
 
 
 def _throttle_s(track: Track) -> float | None:

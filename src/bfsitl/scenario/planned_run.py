@@ -35,8 +35,9 @@ def _is_lockstep(firmware: str) -> bool:
         return False
 
 
-def fly_one(scenario: Scenario, firmware: str, out_dir: Path, speed: float | None, plot: bool,
-            mcap: bool) -> ScenarioResult:
+def fly_one(
+    scenario: Scenario, firmware: str, out_dir: Path, speed: float | None, plot: bool, mcap: bool
+) -> ScenarioResult:
     """A worker's job: the run's progress goes to a file in its directory (several runs'
     lines interleaved on one terminal would be unreadable).  Workers share the machine's
     cores, so a lockstep run does not busy-wait (Timing.lockstep_spin); it claims a
@@ -47,10 +48,12 @@ def fly_one(scenario: Scenario, firmware: str, out_dir: Path, speed: float | Non
     claim = claim_core() if _is_lockstep(firmware) else None
     try:
         with open(out_dir / "progress.log", "w", buffering=1) as log:
-            return run_scenario(scenario, firmware,
-                                RunOptions(out_dir, speed=speed, plot=plot, mcap=mcap,
-                                           shares_cores=True),
-                                progress=lambda line: print(line, file=log))
+            return run_scenario(
+                scenario,
+                firmware,
+                RunOptions(out_dir, speed=speed, plot=plot, mcap=mcap, shares_cores=True),
+                progress=lambda line: print(line, file=log),
+            )
     finally:
         if claim is not None:
             claim.release()

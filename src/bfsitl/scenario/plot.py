@@ -14,8 +14,9 @@ def write_scenario_plot(trace: Trace, path: Path, *, title: str = "") -> Path:
     plt = load_pyplot()
     rows = trace.rows
     t = [r.time_s for r in rows]
-    figure, axes = plt.subplots(4, 1, figsize=(9, 8), sharex=True,
-                                gridspec_kw={"height_ratios": [3, 2, 2, 2]})
+    figure, axes = plt.subplots(
+        4, 1, figsize=(9, 8), sharex=True, gridspec_kw={"height_ratios": [3, 2, 2, 2]}
+    )
     panels = (
         ("height (m)", [r.alt_m for r in rows]),
         ("from home (m)", [r.distance_m for r in rows]),
@@ -39,35 +40,40 @@ def write_scenario_plot(trace: Trace, path: Path, *, title: str = "") -> Path:
         for number, fault_s in enumerate(trace.fault_times_s, start=1):
             axis.axvline(fault_s, color="tab:orange", linestyle="--", linewidth=1)
             if axis is axes[0]:
-                axis.annotate(f"fault {number}", (fault_s, 1.0), xycoords=("data", "axes "
-                              "fraction"), fontsize=8, color="tab:orange", va="top")
+                axis.annotate(
+                    f"fault {number}",
+                    (fault_s, 1.0),
+                    xycoords=("data", "axes fraction"),
+                    fontsize=8,
+                    color="tab:orange",
+                    va="top",
+                )
         if trace.crash is not None:
             axis.axvline(trace.crash[0], color="black", linestyle=":", linewidth=1)
     return _finish(plt, figure, axes, path, title)
 
 
-def write_overlay_plot(traces: list[tuple[str, Trace]], path: Path, *, title: str = ""
-                       ) -> Path:
+def write_overlay_plot(traces: list[tuple[str, Trace]], path: Path, *, title: str = "") -> Path:
     """Several runs of one scenario on one time axis (seconds from arming): height, distance
     from home, tilt and the failsafe phase, one colour per run (``bfsitl scenario compare``
     overlays side A's and side B's)."""
     plt = load_pyplot()
-    figure, axes = plt.subplots(4, 1, figsize=(9, 8), sharex=True,
-                                gridspec_kw={"height_ratios": [3, 2, 2, 2]})
+    figure, axes = plt.subplots(
+        4, 1, figsize=(9, 8), sharex=True, gridspec_kw={"height_ratios": [3, 2, 2, 2]}
+    )
     colours = ("tab:blue", "tab:orange", "tab:green", "tab:red")
     for number, (label, trace) in enumerate(traces):
         rows = trace.rows
         t = [r.time_s for r in rows]
         colour = colours[number % len(colours)]
-        panels = ([r.alt_m for r in rows], [r.distance_m for r in rows],
-                  [r.tilt_deg for r in rows])
+        panels = ([r.alt_m for r in rows], [r.distance_m for r in rows], [r.tilt_deg for r in rows])
         for axis, values in zip(axes, panels, strict=False):
             axis.plot(t, values, linewidth=1.2, color=colour, label=label)
-        phases = [r.failsafe_phase if r.failsafe_phase is not None else float("nan")
-                  for r in rows]
+        phases = [r.failsafe_phase if r.failsafe_phase is not None else float("nan") for r in rows]
         axes[3].step(t, phases, where="post", color=colour, linewidth=1.2)
-    for axis, label in zip(axes, ("height (m)", "from home (m)", "tilt (deg)", "failsafe"),
-                           strict=True):
+    for axis, label in zip(
+        axes, ("height (m)", "from home (m)", "tilt (deg)", "failsafe"), strict=True
+    ):
         axis.set_ylabel(label)
         axis.grid(alpha=0.3)
     axes[3].set_yticks(range(len(FAILSAFE_PHASES)))

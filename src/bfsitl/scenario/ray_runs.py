@@ -61,9 +61,9 @@ class RayTiming:
     driver's submit to its files home, the task's time on its node, the run's own time."""
 
     test_id: str
-    latency_s: float    # submit -> result and files home (the driver's clock)
-    task_s: float       # the task on its node: firmware, run, packing (the node's clock)
-    run_s: float        # the run itself (ScenarioResult.wall_time_s)
+    latency_s: float  # submit -> result and files home (the driver's clock)
+    task_s: float  # the task on its node: firmware, run, packing (the node's clock)
+    run_s: float  # the run itself (ScenarioResult.wall_time_s)
     archive_bytes: int
 
 
@@ -81,7 +81,8 @@ def pack_outputs(directory: Path, max_bytes: int) -> bytes:
         raise ScenarioError(
             f"the run's files come to more than {max_bytes / 1e6:.0f} MB compressed, the "
             f"bound for bringing them home from a Ray node: fly it with fewer outputs "
-            f"(--no-plot, no --mcap) or raise --ray-max-mb")
+            f"(--no-plot, no --mcap) or raise --ray-max-mb"
+        )
     return buffer.getvalue()
 
 
@@ -92,10 +93,11 @@ def unpack_outputs(data: bytes, out_dir: Path) -> None:
     with tarfile.open(fileobj=io.BytesIO(data), mode="r:gz") as archive:
         for member in archive.getmembers():
             name = PurePosixPath(member.name)
-            if name.is_absolute() or ".." in name.parts or not (member.isfile()
-                                                                or member.isdir()):
-                raise ScenarioError(f"a run's archive holds {member.name!r}, which would land "
-                                    f"outside its directory: refused")
+            if name.is_absolute() or ".." in name.parts or not (member.isfile() or member.isdir()):
+                raise ScenarioError(
+                    f"a run's archive holds {member.name!r}, which would land "
+                    f"outside its directory: refused"
+                )
             target = out_dir.joinpath(*name.parts)
             if member.isdir():
                 target.mkdir(parents=True, exist_ok=True)
@@ -105,8 +107,14 @@ def unpack_outputs(data: bytes, out_dir: Path) -> None:
             write_atomically(target, source.read())
 
 
-def fly_remote(run: PlannedRun, parcel: FirmwareParcel, speed: float | None, plot: bool,
-               mcap: bool, max_bytes: int) -> RemoteOutcome:
+def fly_remote(
+    run: PlannedRun,
+    parcel: FirmwareParcel,
+    speed: float | None,
+    plot: bool,
+    mcap: bool,
+    max_bytes: int,
+) -> RemoteOutcome:
     """A Ray task: one run on this node, in a temporary directory, with the firmware that
     travelled; its files packed to go home."""
     import ray
@@ -117,16 +125,16 @@ def fly_remote(run: PlannedRun, parcel: FirmwareParcel, speed: float | None, plo
     try:
         result = fly_one(run.scenario, str(binary), work, speed, plot, mcap)
         result.firmware = run.firmware  # as the driver named it, not this node's path
-        result.artifacts = {kind: _relative(path, work)
-                            for kind, path in result.artifacts.items()}
+        result.artifacts = {kind: _relative(path, work) for kind, path in result.artifacts.items()}
         try:
             archive = pack_outputs(work, max_bytes)
         except ScenarioError as exc:
             result.verdict, result.reason = Verdict.ERROR, str(exc)
             result.artifacts = {}
             archive = b""
-        return RemoteOutcome(result, archive, ray.get_runtime_context().get_node_id(),
-                             time.monotonic() - began_s)
+        return RemoteOutcome(
+            result, archive, ray.get_runtime_context().get_node_id(), time.monotonic() - began_s
+        )
     finally:
         shutil.rmtree(work, ignore_errors=True)
 
@@ -143,8 +151,10 @@ def bring_home(outcome: RemoteOutcome, run: PlannedRun) -> ScenarioResult:
     result = outcome.result
     if outcome.archive:
         unpack_outputs(outcome.archive, run.out_dir)
-    result.artifacts = {kind: path if path.is_absolute() else run.out_dir / path
-                        for kind, path in result.artifacts.items()}
+    result.artifacts = {
+        kind: path if path.is_absolute() else run.out_dir / path
+        for kind, path in result.artifacts.items()
+    }
     return result
 
 
@@ -153,7 +163,8 @@ def is_lost_worker(ray: Any, exc: BaseException) -> bool:
     because of anything in the run (a RayTaskError carries the run's own exception)."""
     errors = ray.exceptions
     return isinstance(exc, errors.RayError) and not isinstance(
-        exc, errors.RayTaskError | errors.TaskCancelledError)
+        exc, errors.RayTaskError | errors.TaskCancelledError
+    )
 
 
 @dataclass
@@ -165,12 +176,20 @@ class _Attempt:
     submitted_s: float = 0.0
 
 
-def run_on_ray(runs: Sequence[PlannedRun], address: str, *, speed: float | None, plot: bool,
-               mcap: bool, results: dict[int, ScenarioResult],
-               done: Callable[[ScenarioResult], None], say: Callable[[str], None],
-               max_artifact_mb: float = DEFAULT_MAX_ARTIFACT_MB,
-               retries: int = DEFAULT_RETRIES, timings: list[RayTiming] | None = None
-               ) -> None:
+def run_on_ray(
+    runs: Sequence[PlannedRun],
+    address: str,
+    *,
+    speed: float | None,
+    plot: bool,
+    mcap: bool,
+    results: dict[int, ScenarioResult],
+    done: Callable[[ScenarioResult], None],
+    say: Callable[[str], None],
+    max_artifact_mb: float = DEFAULT_MAX_ARTIFACT_MB,
+    retries: int = DEFAULT_RETRIES,
+    timings: list[RayTiming] | None = None,
+) -> None:
     """Every run as a Ray task on the cluster at ``address`` (module docstring); results
     into ``results`` by plan index, each passed to ``done`` as it comes; each run's
     :class:`RayTiming` appended to ``timings`` when given."""
@@ -183,15 +202,20 @@ def run_on_ray(runs: Sequence[PlannedRun], address: str, *, speed: float | None,
     try:
         ray.init(address=address, log_to_driver=False, ignore_reinit_error=True)
     except (ConnectionError, RuntimeError, ValueError) as exc:
-        raise ScenarioError(f"cannot reach the Ray cluster at {address}: {exc} (start one "
-                            f"with `ray start --head`, then pass the address it prints)") \
-            from exc
+        raise ScenarioError(
+            f"cannot reach the Ray cluster at {address}: {exc} (start one "
+            f"with `ray start --head`, then pass the address it prints)"
+        ) from exc
     try:
         parcels = pack_firmware(ray, [run.firmware for run in runs])
-        say(f"{len(runs)} runs on the Ray cluster at {address} "
+        say(
+            f"{len(runs)} runs on the Ray cluster at {address} "
             f"({ray.cluster_resources().get('CPU', 0):g} CPUs); "
-            + ", ".join(f"{p.name} travels as {p.sha256[:12]} ({p.size / 1e6:.1f} MB)"
-                        for p in parcels.values()))
+            + ", ".join(
+                f"{p.name} travels as {p.sha256[:12]} ({p.size / 1e6:.1f} MB)"
+                for p in parcels.values()
+            )
+        )
         task = ray.remote(num_cpus=1, max_retries=0)(fly_remote)
         max_bytes = int(max_artifact_mb * 1e6)
 
@@ -200,19 +224,21 @@ def run_on_ray(runs: Sequence[PlannedRun], address: str, *, speed: float | None,
             attempt.submitted_s = time.monotonic()
             return task.remote(run, attempt.parcel, speed, plot, mcap, max_bytes)
 
-        pending = {submit(a): a for a in (_Attempt(i, parcels[run.firmware])
-                                          for i, run in enumerate(runs))}
+        pending = {
+            submit(a): a for a in (_Attempt(i, parcels[run.firmware]) for i, run in enumerate(runs))
+        }
         try:
             while pending:
                 ready, _rest = ray.wait(list(pending), num_returns=1)
                 for ref in ready:
                     attempt = pending.pop(ref)
-                    result = _collect(ray, ref, runs[attempt.index], attempt, retries,
-                                      timings)
+                    result = _collect(ray, ref, runs[attempt.index], attempt, retries, timings)
                     if result is None:  # lost with its worker: once more
                         pending[submit(attempt)] = attempt
-                        say(f"{runs[attempt.index].test_id}: {attempt.why[-1]}; trying again "
-                            f"(attempt {attempt.tries} of {retries + 1})")
+                        say(
+                            f"{runs[attempt.index].test_id}: {attempt.why[-1]}; trying again "
+                            f"(attempt {attempt.tries} of {retries + 1})"
+                        )
                         continue
                     results[attempt.index] = result
                     done(result)
@@ -224,8 +250,14 @@ def run_on_ray(runs: Sequence[PlannedRun], address: str, *, speed: float | None,
         ray.shutdown()
 
 
-def _collect(ray: Any, ref: Any, run: PlannedRun, attempt: _Attempt, retries: int,
-             timings: list[RayTiming] | None = None) -> ScenarioResult | None:
+def _collect(
+    ray: Any,
+    ref: Any,
+    run: PlannedRun,
+    attempt: _Attempt,
+    retries: int,
+    timings: list[RayTiming] | None = None,
+) -> ScenarioResult | None:
     """The run's result with its files home; None when it should be tried again."""
     try:
         outcome: RemoteOutcome = ray.get(ref)
@@ -234,14 +266,26 @@ def _collect(ray: Any, ref: Any, run: PlannedRun, attempt: _Attempt, retries: in
             attempt.tries += 1
             attempt.why += (f"its Ray worker or node was lost ({type(exc).__name__})",)
             return None
-        return ScenarioResult(run.scenario.name, run.firmware, Verdict.ERROR,
-                              f"the Ray task failed: {exc!r}"[:500],
-                              source=run.scenario.source, retried=attempt.why)
+        return ScenarioResult(
+            run.scenario.name,
+            run.firmware,
+            Verdict.ERROR,
+            f"the Ray task failed: {exc!r}"[:500],
+            source=run.scenario.source,
+            retried=attempt.why,
+        )
     result = bring_home(outcome, run)
     result.retried = attempt.why
     if timings is not None:
-        timings.append(RayTiming(run.test_id, time.monotonic() - attempt.submitted_s,
-                                 outcome.task_s, result.wall_time_s, len(outcome.archive)))
+        timings.append(
+            RayTiming(
+                run.test_id,
+                time.monotonic() - attempt.submitted_s,
+                outcome.task_s,
+                result.wall_time_s,
+                len(outcome.archive),
+            )
+        )
     if "summary" in result.artifacts:
         write_summary(result, run.out_dir)  # the driver's names and paths
     return result

@@ -56,8 +56,7 @@ def href(target: Path, directory: Path) -> str:
 
 
 def _verdict(verdict: Verdict) -> str:
-    return (f'<span class="verdict {verdict.value}">'
-            f"{escape(verdict.value.upper())}</span>")
+    return f'<span class="verdict {verdict.value}">{escape(verdict.value.upper())}</span>'
 
 
 def _summary(results: Sequence[ScenarioResult]) -> str:
@@ -67,9 +66,11 @@ def _summary(results: Sequence[ScenarioResult]) -> str:
     simulated = sum(r.sim_time_s for r in results)
     wall = sum(r.wall_time_s for r in results)
     ratio = f"{simulated / wall:.1f}x real time" if wall > 0 else "no run time measured"
-    return (f'<p class="summary"><b>{len(results)} runs</b>: {escape(counts)}. '
-            f"{simulated:.1f} s simulated in {wall:.1f} s of run time ({ratio}, summed over "
-            "runs).</p>")
+    return (
+        f'<p class="summary"><b>{len(results)} runs</b>: {escape(counts)}. '
+        f"{simulated:.1f} s simulated in {wall:.1f} s of run time ({ratio}, summed over "
+        "runs).</p>"
+    )
 
 
 def _links(result: ScenarioResult, directory: Path) -> str:
@@ -89,44 +90,54 @@ def _table(results: Sequence[ScenarioResult], directory: Path) -> str:
         f'<tr><td><a href="#run-{index}">{escape(result.name)}</a></td>'
         f"<td>{escape(result.firmware)}</td><td>{_verdict(result.verdict)}</td>"
         f"<td>{escape(_reason(result))}</td><td>{_finding_badges(result)}</td>"
-        f"<td class=\"num\">{result.sim_time_s:.1f}</td>"
-        f"<td class=\"num\">{result.wall_time_s:.1f}</td><td>{_links(result, directory)}</td>"
+        f'<td class="num">{result.sim_time_s:.1f}</td>'
+        f'<td class="num">{result.wall_time_s:.1f}</td><td>{_links(result, directory)}</td>'
         "</tr>"
-        for index, result in enumerate(results)]
-    return ("<table><tr><th>scenario</th><th>firmware</th><th>verdict</th><th>reason</th>"
-            '<th class="num">sim s</th><th class="num">wall s</th><th>files</th></tr>'
-            + "".join(rows) + "</table>")
+        for index, result in enumerate(results)
+    ]
+    return (
+        "<table><tr><th>scenario</th><th>firmware</th><th>verdict</th><th>reason</th>"
+        '<th class="num">sim s</th><th class="num">wall s</th><th>files</th></tr>'
+        + "".join(rows)
+        + "</table>"
+    )
 
 
 def _reason(result: ScenarioResult) -> str:
     """The run's reason, and how often it had to be run (a Ray node or worker lost)."""
     if not result.retried:
         return result.reason
-    return (f"{result.reason} (run {len(result.retried) + 1} times: "
-            f"{'; '.join(result.retried)})")
+    return f"{result.reason} (run {len(result.retried) + 1} times: {'; '.join(result.retried)})"
 
 
 def _check_row(check: CheckResult) -> str:
     verdict = Verdict.PASSED if check.passed else Verdict.FAILED
     label = "PASS" if check.passed else "FAIL"
     at = "" if check.at_time_s is None else f"{check.at_time_s:.2f}"
-    return (f'<tr><td class="verdict {verdict.value}">{label}</td>'
-            f"<td>{escape(check.message)}</td><td class=\"num\">{at}</td></tr>")
+    return (
+        f'<tr><td class="verdict {verdict.value}">{label}</td>'
+        f'<td>{escape(check.message)}</td><td class="num">{at}</td></tr>'
+    )
 
 
 def _checks(result: ScenarioResult) -> str:
     """The checks as a table; a run with none (an error, a skip) shows its reason instead."""
     if not result.checks:
         return f"<p>{escape(result.reason)}</p>" if result.reason else ""
-    return ("<table><tr><th></th><th>check</th><th class=\"num\">at s</th></tr>"
-            + "".join(_check_row(c) for c in result.checks) + "</table>")
+    return (
+        '<table><tr><th></th><th>check</th><th class="num">at s</th></tr>'
+        + "".join(_check_row(c) for c in result.checks)
+        + "</table>"
+    )
 
 
 def _finding_badges(result: ScenarioResult) -> str:
     """The run's findings in the summary table: each analyser's name, coloured by severity."""
-    return " ".join(f'<span class="finding {f.severity.label}" '
-                    f'title="{escape(f.summary, quote=True)}">{escape(f.analyser)}</span>'
-                    for f in result.findings)
+    return " ".join(
+        f'<span class="finding {f.severity.label}" '
+        f'title="{escape(f.summary, quote=True)}">{escape(f.analyser)}</span>'
+        for f in result.findings
+    )
 
 
 def _findings(result: ScenarioResult) -> str:
@@ -137,14 +148,24 @@ def _findings(result: ScenarioResult) -> str:
         f'<tr><td class="finding {f.severity.label}">{f.severity.label}</td>'
         f"<td>{escape(f.analyser)}</td><td>{escape(f.summary)}</td>"
         f'<td class="num">{f.time_s:.2f}</td><td>{escape(f.source)}</td>'
-        f"<td><code>{escape(_evidence(f.evidence))}</code></td></tr>" for f in result.findings)
-    table = ("<table><tr><th></th><th>analyser</th><th>finding</th><th class=\"num\">at s"
-             "</th><th>seen in</th><th>evidence</th></tr>" + rows + "</table>") if rows \
+        f"<td><code>{escape(_evidence(f.evidence))}</code></td></tr>"
+        for f in result.findings
+    )
+    table = (
+        (
+            '<table><tr><th></th><th>analyser</th><th>finding</th><th class="num">at s'
+            "</th><th>seen in</th><th>evidence</th></tr>" + rows + "</table>"
+        )
+        if rows
         else "<p>nothing found</p>"
+    )
     unwatched = ""
     if result.unwatched:
-        unwatched = ("<p class=\"unwatched\">not watched: " + escape("; ".join(
-            f"{name} ({why})" for name, why in result.unwatched.items())) + "</p>")
+        unwatched = (
+            '<p class="unwatched">not watched: '
+            + escape("; ".join(f"{name} ({why})" for name, why in result.unwatched.items()))
+            + "</p>"
+        )
     return f"<h3>findings</h3>{table}{unwatched}"
 
 
@@ -171,36 +192,51 @@ def _images(result: ScenarioResult, directory: Path) -> str:
     for kind in kinds:
         path = Path(result.artifacts[kind])
         if path.suffix.lower() in _IMAGE_SUFFIXES and path.exists():
-            images.append(f'<img src="{href(path, directory)}" '
-                          f'alt="{escape(kind, quote=True)} of {escape(result.name, quote=True)}">')
+            images.append(
+                f'<img src="{href(path, directory)}" '
+                f'alt="{escape(kind, quote=True)} of {escape(result.name, quote=True)}">'
+            )
     return "".join(images)
 
 
 def _section(index: int, result: ScenarioResult, directory: Path) -> str:
-    parts = [f'<section id="run-{index}"><h2>{escape(result.name)} on '
-             f"{escape(result.firmware)}: {_verdict(result.verdict)}</h2>"]
+    parts = [
+        f'<section id="run-{index}"><h2>{escape(result.name)} on '
+        f"{escape(result.firmware)}: {_verdict(result.verdict)}</h2>"
+    ]
     if result.firmware_version:
         parts.append(f"<p>Betaflight {escape(result.firmware_version)}</p>")
     if result.description:
         parts.append(f"<p>{escape(' '.join(result.description.split()))}</p>")
-    parts.extend((_checks(result), _findings(result), _timeline(result),
-                  _images(result, directory), "</section>"))
+    parts.extend(
+        (
+            _checks(result),
+            _findings(result),
+            _timeline(result),
+            _images(result, directory),
+            "</section>",
+        )
+    )
     return "".join(parts)
 
 
-def render_report(results: Sequence[ScenarioResult], directory: Path, *,
-                  title: str = "bfsitl scenarios") -> str:
+def render_report(
+    results: Sequence[ScenarioResult], directory: Path, *, title: str = "bfsitl scenarios"
+) -> str:
     """The page as text; ``directory`` is where it will live (links are relative to it)."""
     stamp = datetime.now(UTC).strftime("%Y-%m-%d %H:%M UTC")
     sections = "".join(_section(i, r, directory) for i, r in enumerate(results))
-    return ('<!DOCTYPE html>\n<html lang="en"><head><meta charset="utf-8">'
-            f"<title>{escape(title)}</title><style>{STYLE}</style></head><body>"
-            f"<h1>{escape(title)}</h1><p>written {stamp}</p>{_summary(results)}"
-            f"{_table(results, directory)}{sections}</body></html>\n")
+    return (
+        '<!DOCTYPE html>\n<html lang="en"><head><meta charset="utf-8">'
+        f"<title>{escape(title)}</title><style>{STYLE}</style></head><body>"
+        f"<h1>{escape(title)}</h1><p>written {stamp}</p>{_summary(results)}"
+        f"{_table(results, directory)}{sections}</body></html>\n"
+    )
 
 
-def write_report(results: Sequence[ScenarioResult], directory: str | Path, *,
-                 title: str = "bfsitl scenarios") -> Path:
+def write_report(
+    results: Sequence[ScenarioResult], directory: str | Path, *, title: str = "bfsitl scenarios"
+) -> Path:
     """Write ``directory/index.html`` (atomically, see :func:`write_atomically`); returns its
     path."""
     directory = Path(directory)

@@ -100,29 +100,44 @@ def blackbox_cli(profile: FirmwareProfile) -> tuple[str, ...]:
     PID loop at 8 kHz and master at 1 kHz: 1/16 and 1/4 give both a few hundred frames a
     second, plenty to time a failsafe, and small files."""
     rate = "1/16" if profile.generation is Generation.V4_6 else "1/4"
-    return ("set blackbox_device = VIRTUAL", "set blackbox_mode = NORMAL",
-            f"set blackbox_sample_rate = {rate}", "set debug_mode = FAILSAFE")
+    return (
+        "set blackbox_device = VIRTUAL",
+        "set blackbox_mode = NORMAL",
+        f"set blackbox_sample_rate = {rate}",
+        "set debug_mode = FAILSAFE",
+    )
 
 
-def scenario_profile(scenario: Scenario, profile: FirmwareProfile,
-                     faults: tuple[Fault, ...]) -> Profile:
+def scenario_profile(
+    scenario: Scenario, profile: FirmwareProfile, faults: tuple[Fault, ...]
+) -> Profile:
     """What a run provisions: bfsitl's flight profile, the blackbox, the simulated quad's
     hover throttle, the scenario's lines (last, so they win), and the mode switches its
     faults use (the FAILSAFE switch, a ``mode_switch``'s mode)."""
     base = with_fast_serial(FLY_PROFILE)
     ranges = base.mode_ranges
     switches = dict.fromkeys(switch for fault in faults for switch in fault.switches)
-    ranges = (*ranges, *(msg.ModeRange.from_us(box_id, aux_index, 1700, 2100)
-                         for box_id, aux_index in switches))
+    ranges = (
+        *ranges,
+        *(msg.ModeRange.from_us(box_id, aux_index, 1700, 2100) for box_id, aux_index in switches),
+    )
     # A SITL reads AUX1-AUX6 only (max_aux_channels, DEFAULT_AUX_CHANNEL_COUNT in
     # target/common_post.h): a switch above that is never seen unless the FC reads it.
     highest_aux = max((aux_index + 1 for _box, aux_index in switches), default=0)
-    more_aux = (f"set max_aux_channels = {highest_aux}",) if highest_aux > SITL_AUX_CHANNELS \
-        else ()
-    return dataclasses.replace(base, mode_ranges=ranges, cli_lines=(
-        *base.cli_lines, *blackbox_cli(profile), hover_throttle_line(scenario.quad),
-        *more_aux, *fc_mission_cli(scenario.fc_waypoints), *scenario.cli,
-        *dict(scenario.cli_for).get(profile.generation.value, ())))
+    more_aux = (f"set max_aux_channels = {highest_aux}",) if highest_aux > SITL_AUX_CHANNELS else ()
+    return dataclasses.replace(
+        base,
+        mode_ranges=ranges,
+        cli_lines=(
+            *base.cli_lines,
+            *blackbox_cli(profile),
+            hover_throttle_line(scenario.quad),
+            *more_aux,
+            *fc_mission_cli(scenario.fc_waypoints),
+            *scenario.cli,
+            *dict(scenario.cli_for).get(profile.generation.value, ()),
+        ),
+    )
 
 
 @dataclass(frozen=True, slots=True)
@@ -165,9 +180,16 @@ class RunOptions:
 class _Injector:
     """Injects each fault when it is due and undoes it when it ends; keeps the trace."""
 
-    def __init__(self, vehicle: FlightSession, faults: tuple[Fault, ...], trace: Trace,
-                 events: list[TimedEvent], progress: Progress, record: Progress,
-                 watch: FlightWatch | None = None) -> None:
+    def __init__(
+        self,
+        vehicle: FlightSession,
+        faults: tuple[Fault, ...],
+        trace: Trace,
+        events: list[TimedEvent],
+        progress: Progress,
+        record: Progress,
+        watch: FlightWatch | None = None,
+    ) -> None:
         self.vehicle = vehicle
         #: The analysers' record of the run, on the trace's clock (seconds from arming).
         self.watch = watch or FlightWatch()
@@ -208,8 +230,9 @@ class _Injector:
             if fault.takes_sticks:
                 self.sticks_taken = True
         self.trace.rows.append(self._row(t, sample))
-        self.watch.add(row, sample, time_s=round(t, 4),
-                       failsafe_phase=self.trace.rows[-1].failsafe_phase)
+        self.watch.add(
+            row, sample, time_s=round(t, 4), failsafe_phase=self.trace.rows[-1].failsafe_phase
+        )
 
     def stop(self, _sample: FlightSample) -> str | None:
         """The autopilot stops flying once a fault has taken its sticks (then it watches)."""
@@ -218,8 +241,11 @@ class _Injector:
     def _row(self, t: float, sample: FlightSample) -> TraceRow:
         try:
             debug = self.vehicle.client.get(msg.Debug).values
-            phase: int | None = debug[FAILSAFE_PHASE_DEBUG_INDEX] \
-                if len(debug) > FAILSAFE_PHASE_DEBUG_INDEX else None
+            phase: int | None = (
+                debug[FAILSAFE_PHASE_DEBUG_INDEX]
+                if len(debug) > FAILSAFE_PHASE_DEBUG_INDEX
+                else None
+            )
         except BfsitlError:
             phase = None
         if self.trace.rows:  # what changed since the last row
@@ -227,19 +253,33 @@ class _Injector:
             if phase is not None and phase != last.failsafe_phase:
                 self.note(t, f"failsafe phase {phase_name(phase)}")
             if last.armed and not sample.armed:
-                self.note(t, "the FC disarmed" + (f" ({', '.join(sample.arming_blockers)})"
-                                                  if sample.arming_blockers else ""))
+                self.note(
+                    t,
+                    "the FC disarmed"
+                    + (f" ({', '.join(sample.arming_blockers)})" if sample.arming_blockers else ""),
+                )
             new_modes = set(sample.flight_modes) - set(last.modes)
             if new_modes:
                 self.note(t, f"flight mode {', '.join(sorted(new_modes))} on")
-        return TraceRow(round(t, 4), sample.sim_alt_m, sample.sim_north_m, sample.sim_east_m,
-                        sample.sim_climb_m_s, sample.sim_tilt_deg, sample.on_ground,
-                        sample.armed, sample.flight_modes, sample.arming_blockers, phase,
-                        sample.sim_yaw_deg)
+        return TraceRow(
+            round(t, 4),
+            sample.sim_alt_m,
+            sample.sim_north_m,
+            sample.sim_east_m,
+            sample.sim_climb_m_s,
+            sample.sim_tilt_deg,
+            sample.on_ground,
+            sample.armed,
+            sample.flight_modes,
+            sample.arming_blockers,
+            phase,
+            sample.sim_yaw_deg,
+        )
 
 
-def run_scenario(scenario: Scenario, firmware: str, options: RunOptions, *,
-                 progress: Progress | None = None) -> ScenarioResult:
+def run_scenario(
+    scenario: Scenario, firmware: str, options: RunOptions, *, progress: Progress | None = None
+) -> ScenarioResult:
     """Fly ``scenario`` on ``firmware`` (a cached build's name or a path); never raises for
     a failed flight (only for Ctrl-C).
 
@@ -260,8 +300,14 @@ def run_scenario(scenario: Scenario, firmware: str, options: RunOptions, *,
     """
     say = progress or (lambda _line: None)
     started = time.monotonic()
-    result = ScenarioResult(scenario.name, firmware, Verdict.ERROR, "", source=scenario.source,
-                            description=scenario.description)
+    result = ScenarioResult(
+        scenario.name,
+        firmware,
+        Verdict.ERROR,
+        "",
+        source=scenario.source,
+        description=scenario.description,
+    )
     out = options.out_dir
     try:
         out.mkdir(parents=True, exist_ok=True)
@@ -270,16 +316,21 @@ def run_scenario(scenario: Scenario, firmware: str, options: RunOptions, *,
         result.firmware_version = profile.firmware_version
         if scenario.requires_gps and not profile.has_gps:
             result.verdict = Verdict.SKIPPED
-            result.reason = (f"needs a firmware with GPS; {firmware} has none (`bfsitl "
-                             f"firmware build --gps`)")
+            result.reason = (
+                f"needs a firmware with GPS; {firmware} has none (`bfsitl firmware build --gps`)"
+            )
             return result
         faults = make_faults(scenario.faults, profile, where=scenario.where)
         missing = missing_features(scenario, faults, binary.path)
         if missing:
-            result.verdict, result.reason = Verdict.SKIPPED, (
-                f"needs {', '.join(missing)}, which {firmware} "
-                f"({profile.firmware_version or profile.generation.value}) was built "
-                f"without: {'; '.join(FEATURE_WHY.get(m, m) for m in missing)}")
+            result.verdict, result.reason = (
+                Verdict.SKIPPED,
+                (
+                    f"needs {', '.join(missing)}, which {firmware} "
+                    f"({profile.firmware_version or profile.generation.value}) was built "
+                    f"without: {'; '.join(FEATURE_WHY.get(m, m) for m in missing)}"
+                ),
+            )
             return result
         _fly(scenario, binary.path, profile, faults, options, result, say)
     except FaultNotSupportedError as exc:
@@ -295,19 +346,22 @@ def run_scenario(scenario: Scenario, firmware: str, options: RunOptions, *,
 #: What each build feature a scenario can need is, for a skip's reason.
 FEATURE_WHY = {
     "flight_plan": "master's flight plans (the FC's own waypoint missions, AUTOPILOT mode, "
-                   "ap_rx_loss_policy); Betaflight 4.6.0 has none",
+    "ap_rx_loss_policy); Betaflight 4.6.0 has none",
     "geofence": "master's geofence (ap_max_distance_from_home, ap_geofence_action), part of "
-                "its flight plans",
-    "gps_rescue": "GPS Rescue", "altitude_hold": "ALTHOLD", "position_hold": "POSHOLD",
-    "gps": "a GPS (`bfsitl firmware build --gps`)"}
+    "its flight plans",
+    "gps_rescue": "GPS Rescue",
+    "altitude_hold": "ALTHOLD",
+    "position_hold": "POSHOLD",
+    "gps": "a GPS (`bfsitl firmware build --gps`)",
+}
 
 
-def missing_features(scenario: Scenario, faults: tuple[Fault, ...], binary: Path
-                     ) -> list[str]:
+def missing_features(scenario: Scenario, faults: tuple[Fault, ...], binary: Path) -> list[str]:
     """The build features the scenario and its faults need that ``binary`` lacks (its
     CLI's setting names, scanned from its bytes)."""
-    needed = dict.fromkeys((*scenario.requires,
-                            *(f.needs_feature for f in faults if f.needs_feature)))
+    needed = dict.fromkeys(
+        (*scenario.requires, *(f.needs_feature for f in faults if f.needs_feature))
+    )
     if not needed:
         return []
     from bfsitl.build.binary_scan import binary_traits
@@ -319,8 +373,15 @@ def missing_features(scenario: Scenario, faults: tuple[Fault, ...], binary: Path
     return [feature for feature in needed if feature not in have]
 
 
-def _fly(scenario: Scenario, binary: Path, profile: FirmwareProfile, faults: tuple[Fault, ...],
-         options: RunOptions, result: ScenarioResult, say: Progress) -> None:
+def _fly(
+    scenario: Scenario,
+    binary: Path,
+    profile: FirmwareProfile,
+    faults: tuple[Fault, ...],
+    options: RunOptions,
+    result: ScenarioResult,
+    say: Progress,
+) -> None:
     out = options.out_dir
     trace = Trace()
     config = SessionConfig.for_autopilot(
@@ -328,36 +389,50 @@ def _fly(scenario: Scenario, binary: Path, profile: FirmwareProfile, faults: tup
         sitl=SitlLaunch(firmware=binary, workdir=out / "sitl"),
         timing=Timing(speed=options.speed, lockstep_spin=not options.shares_cores),
         fc=FcSetup(profile=scenario_profile(scenario, profile, faults)),
-        world=World(quad=scenario.quad, wind=scenario.wind, seed=scenario.seed,
-                    initial_heading_deg=scenario.initial_heading_deg))
+        world=World(
+            quad=scenario.quad,
+            wind=scenario.wind,
+            seed=scenario.seed,
+            initial_heading_deg=scenario.initial_heading_deg,
+        ),
+    )
     # The analysers watch through the injector (on the trace's clock, with the failsafe
     # phase), so the outputs do not keep a second copy of every row for them.
-    outputs = FlightOutputs(OutputOptions(
-        csv_path=out / "flight.csv", mcap_path=out / "flight.mcap" if options.mcap else None,
-        watch=False))
+    outputs = FlightOutputs(
+        OutputOptions(
+            csv_path=out / "flight.csv",
+            mcap_path=out / "flight.mcap" if options.mcap else None,
+            watch=False,
+        )
+    )
     outputs.start()
     result.artifacts["log"] = out / "flight.csv"
     if options.mcap:
         result.artifacts["mcap"] = out / "flight.mcap"
     session = options.session_factory(config, progress=lambda line: say(f"[sitl] {line}"))
     injector = _Injector(session, faults, trace, result.events, say, outputs.on_event)
-    planned = [(w.north_m, w.east_m) for w in scenario.fc_waypoints] \
-        + [(w.north_m, w.east_m) for w in scenario.plan.waypoints]
+    planned = [(w.north_m, w.east_m) for w in scenario.fc_waypoints] + [
+        (w.north_m, w.east_m) for w in scenario.plan.waypoints
+    ]
     injector.watch.track.planned_reach_m = max((math.hypot(*p) for p in planned), default=0.0)
 
     def on_row(row: FlightRow, sample: FlightSample) -> None:
-        outputs.on_row(row, sample)   # recorded first: the injector may end the flight
+        outputs.on_row(row, sample)  # recorded first: the injector may end the flight
         injector.on_row(row, sample)
 
     try:
         with session:
-            result.firmware_version = (session.firmware.firmware_version
-                                       if session.firmware else result.firmware_version)
+            result.firmware_version = (
+                session.firmware.firmware_version if session.firmware else result.firmware_version
+            )
             if session.sitl is not None:
                 result.artifacts["sitl_log"] = session.sitl.log_path
-            loop = FlightLoop(session, make_controller(options.controller),
-                              rate_hz=session.control_rate_hz,
-                              hooks=FlightHooks(on_step=on_row, stop=injector.stop))
+            loop = FlightLoop(
+                session,
+                make_controller(options.controller),
+                rate_hz=session.control_rate_hz,
+                hooks=FlightHooks(on_step=on_row, stop=injector.stop),
+            )
             try:
                 loop.arm()
             except ArmingBlockedError as exc:
@@ -375,8 +450,8 @@ def _fly(scenario: Scenario, binary: Path, profile: FirmwareProfile, faults: tup
         from bfsitl.blackbox.plot import write_blackbox_plot
 
         result.artifacts["blackbox_plot"] = write_blackbox_plot(
-            trace.blackbox[0], out / "blackbox.png",
-            title=f"{scenario.name} on {result.firmware}")
+            trace.blackbox[0], out / "blackbox.png", title=f"{scenario.name} on {result.firmware}"
+        )
     _analyse(injector.watch, trace, result)
     figures = run_metrics(injector.watch.track, trace, result.findings)
     result.metrics, result.behaviour = figures.values, figures.behaviour
@@ -391,11 +466,13 @@ def _fly(scenario: Scenario, binary: Path, profile: FirmwareProfile, faults: tup
         from bfsitl.scenario.plot import write_scenario_plot
 
         result.artifacts["plot"] = write_scenario_plot(
-            trace, out / "plot.png", title=f"{scenario.name} on {result.firmware}")
+            trace, out / "plot.png", title=f"{scenario.name} on {result.firmware}"
+        )
 
 
-def _autopilot_flight(scenario: Scenario, loop: FlightLoop, injector: _Injector,
-                      trace: Trace) -> None:
+def _autopilot_flight(
+    scenario: Scenario, loop: FlightLoop, injector: _Injector, trace: Trace
+) -> None:
     """The ``[flight]`` table flown (the vehicle is armed) until it ends, a fault takes the
     sticks (the loop's stop condition), or it fails."""
     armed_at_s = injector.armed_at_s or 0.0
@@ -410,8 +487,13 @@ def _autopilot_flight(scenario: Scenario, loop: FlightLoop, injector: _Injector,
             injector.note(t(), "the autopilot landed")
 
     try:
-        fly_steps(loop, scenario.plan, arm=False,
-                  time_left_s=lambda: scenario.duration_s - t(), after_step=step_done)
+        fly_steps(
+            loop,
+            scenario.plan,
+            arm=False,
+            time_left_s=lambda: scenario.duration_s - t(),
+            after_step=step_done,
+        )
         if loop.stopped:
             injector.note(t(), "the sticks are the FC's now: watching")
     except CrashDetectedError as exc:
@@ -448,8 +530,9 @@ def _analyse(watch: FlightWatch, trace: Trace, result: ScenarioResult) -> None:
     """Every analyser on the run (the trace's rows with the truth) and on the FC's own
     log(s): each analyser's worst finding, in the result and in the trace (expectations may
     ask about them)."""
-    analysis = combine(watch.analysis(),
-                       *(analyse(track_from_blackbox(log)) for log in trace.blackbox))
+    analysis = combine(
+        watch.analysis(), *(analyse(track_from_blackbox(log)) for log in trace.blackbox)
+    )
     trace.findings = analysis.findings
     result.findings = analysis.findings
     result.watched = analysis.watched
@@ -476,18 +559,28 @@ def write_summary(result: ScenarioResult, out: Path) -> None:
     if not out.is_dir():
         return
     data = {
-        "name": result.name, "firmware": result.firmware,
-        "firmware_version": result.firmware_version, "verdict": result.verdict.value,
-        "reason": result.reason, "sim_time_s": result.sim_time_s,
+        "name": result.name,
+        "firmware": result.firmware,
+        "firmware_version": result.firmware_version,
+        "verdict": result.verdict.value,
+        "reason": result.reason,
+        "sim_time_s": result.sim_time_s,
         "wall_time_s": result.wall_time_s,
-        "checks": [{"expectation": c.expectation, "passed": c.passed, "message": c.message,
-                    "measured": c.measured, "at_time_s": c.at_time_s} for c in result.checks],
+        "checks": [
+            {
+                "expectation": c.expectation,
+                "passed": c.passed,
+                "message": c.message,
+                "measured": c.measured,
+                "at_time_s": c.at_time_s,
+            }
+            for c in result.checks
+        ],
         "events": [{"time_s": e.time_s, "text": e.text} for e in result.events],
         "artifacts": {k: str(v) for k, v in result.artifacts.items()},
         "retried": list(result.retried),
         "findings": [f.as_dict() for f in result.findings],
-        "metrics": {k: (round(v, 4) if v is not None else None)
-                    for k, v in result.metrics.items()},
+        "metrics": {k: (round(v, 4) if v is not None else None) for k, v in result.metrics.items()},
         "behaviour": result.behaviour,
         "analysers": {"watched": result.watched, "skipped": result.unwatched},
     }

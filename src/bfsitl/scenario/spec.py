@@ -58,9 +58,24 @@ SCENARIO_GLOB = "*.toml"
 MAX_DURATION_S = 3600.0
 DEFAULT_SETTLE_S = 2.0
 
-_TOP_KEYS = {"name", "description", "firmware", "requires_gps", "requires", "duration_s",
-             "settle_s", "seed", "cli", "vehicle", "wind", "flight", "fault", "expect",
-             "fc_waypoint", "cli_for"}
+_TOP_KEYS = {
+    "name",
+    "description",
+    "firmware",
+    "requires_gps",
+    "requires",
+    "duration_s",
+    "settle_s",
+    "seed",
+    "cli",
+    "vehicle",
+    "wind",
+    "flight",
+    "fault",
+    "expect",
+    "fc_waypoint",
+    "cli_for",
+}
 #: ``[vehicle] model``: the quads the embedded physics knows.
 VEHICLE_MODELS = {"iris": IRIS}
 _WIND_KEYS = {"north_m_s", "east_m_s", "down_m_s", "gust_std_m_s", "gust_time_constant_s"}
@@ -133,13 +148,11 @@ class Scenario:
         return str(self.source) if self.source is not None else f"scenario {self.name}"
 
 
-
 def _strings(where: str, key: str, value: Any) -> tuple[str, ...]:
     if isinstance(value, str):
         value = [value]
     if not isinstance(value, list) or not all(isinstance(v, str) for v in value):
-        raise ScenarioError(f"{where}: {key} must be a string or a list of strings, "
-                            f"got {value!r}")
+        raise ScenarioError(f"{where}: {key} must be a string or a list of strings, got {value!r}")
     return tuple(value)
 
 
@@ -148,16 +161,23 @@ def _wind(where: str, raw: Any) -> Wind:
         raise ScenarioError(f"{where}: [wind] must be a table")
     unknown = set(raw) - _WIND_KEYS
     if unknown:
-        raise ScenarioError(f"{where}: [wind] has unknown key(s) {', '.join(sorted(unknown))}; "
-                            f"known: {', '.join(sorted(_WIND_KEYS))}")
-    limits = {"gust_std_m_s": (0.0, MAX_GUST_STD_M_S),
-              "gust_time_constant_s": (MIN_GUST_TIME_CONSTANT_S, MAX_GUST_TIME_CONSTANT_S)}
+        raise ScenarioError(
+            f"{where}: [wind] has unknown key(s) {', '.join(sorted(unknown))}; "
+            f"known: {', '.join(sorted(_WIND_KEYS))}"
+        )
+    limits = {
+        "gust_std_m_s": (0.0, MAX_GUST_STD_M_S),
+        "gust_time_constant_s": (MIN_GUST_TIME_CONSTANT_S, MAX_GUST_TIME_CONSTANT_S),
+    }
     component = (-MAX_WIND_COMPONENT_M_S, MAX_WIND_COMPONENT_M_S)
-    values = {k: number_in(where, f"wind.{k}", v, *limits.get(k, component))
-              for k, v in raw.items()}
-    return Wind((values.get("north_m_s", 0.0), values.get("east_m_s", 0.0),
-                 values.get("down_m_s", 0.0)), values.get("gust_std_m_s", 0.0),
-                values.get("gust_time_constant_s", 2.0))
+    values = {
+        k: number_in(where, f"wind.{k}", v, *limits.get(k, component)) for k, v in raw.items()
+    }
+    return Wind(
+        (values.get("north_m_s", 0.0), values.get("east_m_s", 0.0), values.get("down_m_s", 0.0)),
+        values.get("gust_std_m_s", 0.0),
+        values.get("gust_time_constant_s", 2.0),
+    )
 
 
 def _vehicle(where: str, raw: Any) -> QuadParams:
@@ -166,12 +186,15 @@ def _vehicle(where: str, raw: Any) -> QuadParams:
         raise ScenarioError(f"{where}: [vehicle] must be a table")
     unknown = set(raw) - {"model", "mass_kg", "heading_deg"}
     if unknown:
-        raise ScenarioError(f"{where}: [vehicle] has unknown key(s) "
-                            f"{', '.join(sorted(unknown))}; known: heading_deg, mass_kg, model")
+        raise ScenarioError(
+            f"{where}: [vehicle] has unknown key(s) "
+            f"{', '.join(sorted(unknown))}; known: heading_deg, mass_kg, model"
+        )
     model = raw.get("model", "iris")
     if model not in VEHICLE_MODELS:
-        raise ScenarioError(f"{where}: [vehicle] model {model!r} is not one of "
-                            f"{', '.join(VEHICLE_MODELS)}")
+        raise ScenarioError(
+            f"{where}: [vehicle] model {model!r} is not one of {', '.join(VEHICLE_MODELS)}"
+        )
     quad = VEHICLE_MODELS[model]
     if "mass_kg" in raw:
         mass_kg = number_in(where, "vehicle.mass_kg", raw["mass_kg"], 0.2, 20.0)
@@ -193,25 +216,32 @@ def _cli_for(where: str, data: dict[str, Any]) -> tuple[tuple[str, tuple[str, ..
         raise ScenarioError(f"{where}: [cli_for] must be a table of generation = [lines]")
     unknown = set(raw) - set(CLI_GENERATIONS)
     if unknown:
-        raise ScenarioError(f"{where}: [cli_for] has unknown generation(s) "
-                            f"{', '.join(sorted(unknown))}; known: {', '.join(CLI_GENERATIONS)}")
-    return tuple((name, _strings(where, f"cli_for.{name}", lines))
-                 for name, lines in raw.items())
+        raise ScenarioError(
+            f"{where}: [cli_for] has unknown generation(s) "
+            f"{', '.join(sorted(unknown))}; known: {', '.join(CLI_GENERATIONS)}"
+        )
+    return tuple((name, _strings(where, f"cli_for.{name}", lines)) for name, lines in raw.items())
 
 
-def scenario_from_dict(data: dict[str, Any], *, name: str, source: Path | None = None
-                       ) -> Scenario:
+def scenario_from_dict(data: dict[str, Any], *, name: str, source: Path | None = None) -> Scenario:
     """A scenario from a file's tables; ``name`` is used unless the file names itself."""
     where = str(source) if source is not None else f"scenario {name}"
     unknown = set(data) - _TOP_KEYS
     if unknown:
-        raise ScenarioError(f"{where}: unknown key(s) {', '.join(sorted(unknown))}; known: "
-                            f"{', '.join(sorted(_TOP_KEYS))}")
+        raise ScenarioError(
+            f"{where}: unknown key(s) {', '.join(sorted(unknown))}; known: "
+            f"{', '.join(sorted(_TOP_KEYS))}"
+        )
     for key in ("duration_s", "flight"):
         if key not in data:
-            raise ScenarioError(f"{where}: {key} is missing"
-                                + (" (simulation seconds from arming)" if key == "duration_s"
-                                   else " ([flight] says what the autopilot flies)"))
+            raise ScenarioError(
+                f"{where}: {key} is missing"
+                + (
+                    " (simulation seconds from arming)"
+                    if key == "duration_s"
+                    else " ([flight] says what the autopilot flies)"
+                )
+            )
     duration_s = number_in(where, "duration_s", data["duration_s"], 1.0, MAX_DURATION_S)
     if not isinstance(data["flight"], dict):
         raise ScenarioError(f"{where}: [flight] must be a table")
@@ -222,12 +252,16 @@ def scenario_from_dict(data: dict[str, Any], *, name: str, source: Path | None =
     raw_faults = data.get("fault", [])
     if not isinstance(raw_faults, list):
         raise ScenarioError(f"{where}: faults are written as [[fault]] tables")
-    faults = tuple(read_fault_spec(raw, where=where, number=n, run_s=duration_s)
-                   for n, raw in enumerate(raw_faults, 1))
+    faults = tuple(
+        read_fault_spec(raw, where=where, number=n, run_s=duration_s)
+        for n, raw in enumerate(raw_faults, 1)
+    )
     expect = data.get("expect", {})
     if not isinstance(expect, dict) or not expect:
-        raise ScenarioError(f"{where}: [expect] is missing or empty: a scenario must say what "
-                            f"has to hold (see docs/scenarios.md)")
+        raise ScenarioError(
+            f"{where}: [expect] is missing or empty: a scenario must say what "
+            f"has to hold (see docs/scenarios.md)"
+        )
     own_name = data.get("name", name)
     if not isinstance(own_name, str) or not own_name.strip():
         raise ScenarioError(f"{where}: name must be a non-empty string")
@@ -241,24 +275,41 @@ def scenario_from_dict(data: dict[str, Any], *, name: str, source: Path | None =
     requires = _strings(where, "requires", data.get("requires", []))
     unknown_features = sorted(set(requires) - set(FEATURE_MARKERS))
     if unknown_features:
-        raise ScenarioError(f"{where}: requires: unknown feature(s) "
-                            f"{', '.join(unknown_features)}; known: "
-                            f"{', '.join(sorted(FEATURE_MARKERS))}")
+        raise ScenarioError(
+            f"{where}: requires: unknown feature(s) "
+            f"{', '.join(unknown_features)}; known: "
+            f"{', '.join(sorted(FEATURE_MARKERS))}"
+        )
     if waypoints and "flight_plan" not in requires:
         requires = (*requires, "flight_plan")
     requires_gps = data.get("requires_gps", plan.needs_position or bool(waypoints))
     if not isinstance(requires_gps, bool):
         raise ScenarioError(f"{where}: requires_gps must be true or false")
     return Scenario(
-        name=own_name.strip(), plan=plan, duration_s=duration_s, faults=faults,
-        expect=tuple(expect.items()), description=description,
-        cli=_strings(where, "cli", data.get("cli", [])), cli_for=_cli_for(where, data),
-        wind=_wind(where, data["wind"]) if "wind" in data else None, seed=seed,
+        name=own_name.strip(),
+        plan=plan,
+        duration_s=duration_s,
+        faults=faults,
+        expect=tuple(expect.items()),
+        description=description,
+        cli=_strings(where, "cli", data.get("cli", [])),
+        cli_for=_cli_for(where, data),
+        wind=_wind(where, data["wind"]) if "wind" in data else None,
+        seed=seed,
         quad=_vehicle(where, data["vehicle"]) if "vehicle" in data else IRIS,
-        initial_heading_deg=number_in(where, "vehicle.heading_deg",
-                                    data.get("vehicle", {}).get("heading_deg", 0.0), 0.0, 360.0)
-        if isinstance(data.get("vehicle"), dict) else 0.0,
+        initial_heading_deg=number_in(
+            where,
+            "vehicle.heading_deg",
+            data.get("vehicle", {}).get("heading_deg", 0.0),
+            0.0,
+            360.0,
+        )
+        if isinstance(data.get("vehicle"), dict)
+        else 0.0,
         firmware=_strings(where, "firmware", data.get("firmware", [])),
-        requires_gps=requires_gps, requires=requires, fc_waypoints=waypoints,
+        requires_gps=requires_gps,
+        requires=requires,
+        fc_waypoints=waypoints,
         settle_s=number_in(where, "settle_s", data.get("settle_s", DEFAULT_SETTLE_S), 0.0, 60.0),
-        source=source)
+        source=source,
+    )

@@ -66,8 +66,10 @@ class SuiteResult:
         """What a user is told when the suite was stopped (empty when it was not)."""
         if not self.interrupted:
             return ""
-        return (f"interrupted ({self.stopped_by}): {self.finished} of {len(self.results)} "
-                f"runs finished; the others are marked not run")
+        return (
+            f"interrupted ({self.stopped_by}): {self.finished} of {len(self.results)} "
+            f"runs finished; the others are marked not run"
+        )
 
 
 def dir_name(text: str) -> str:
@@ -76,25 +78,32 @@ def dir_name(text: str) -> str:
     return name.strip("._") or "firmware"
 
 
-def plan_runs(scenarios: Sequence[Scenario], firmwares: Sequence[str], out_dir: Path
-              ) -> list[PlannedRun]:
+def plan_runs(
+    scenarios: Sequence[Scenario], firmwares: Sequence[str], out_dir: Path
+) -> list[PlannedRun]:
     """Each scenario on each of ``firmwares`` (or, when none is given, on the builds its
     file names)."""
     runs = []
     for scenario in scenarios:
         targets = list(firmwares) or list(scenario.firmware)
         if not targets:
-            raise ScenarioError(f"{scenario.where} names no firmware: give --firmware NAME "
-                                f"(`bfsitl firmware list` shows the builds) or a firmware "
-                                f"list in the file")
+            raise ScenarioError(
+                f"{scenario.where} names no firmware: give --firmware NAME "
+                f"(`bfsitl firmware list` shows the builds) or a firmware "
+                f"list in the file"
+            )
         for firmware in dict.fromkeys(targets):
-            runs.append(PlannedRun(scenario, firmware,
-                                   out_dir / dir_name(firmware) / dir_name(scenario.name)))
+            runs.append(
+                PlannedRun(
+                    scenario, firmware, out_dir / dir_name(firmware) / dir_name(scenario.name)
+                )
+            )
     return runs
 
 
-def split_by_build(runs: Sequence[PlannedRun], is_built: Callable[[str], bool]
-                   ) -> tuple[list[PlannedRun], list[str]]:
+def split_by_build(
+    runs: Sequence[PlannedRun], is_built: Callable[[str], bool]
+) -> tuple[list[PlannedRun], list[str]]:
     """(the runs whose firmware is built, the names of the builds that are not).
 
     For the builds the scenario files name themselves: a user who built only 4.6.0 runs the
@@ -120,17 +129,24 @@ def _start_worker(parent_pid: int) -> None:
     _worker_stop.install()
 
 
-def _run_one(run: PlannedRun, speed: float | None, plot: bool, mcap: bool
-             ) -> ScenarioResult:
+def _run_one(run: PlannedRun, speed: float | None, plot: bool, mcap: bool) -> ScenarioResult:
     with _worker_stop.job():
         return fly_one(run.scenario, run.firmware, run.out_dir, speed, plot, mcap)
 
 
-def run_suite(runs: Sequence[PlannedRun], *, jobs: int = 1, speed: float | None = None,
-              plot: bool = True, progress: Progress | None = None,
-              on_result: OnResult | None = None, ray_address: str | None = None,
-              mcap: bool = False, ray_retries: int = 2, ray_max_mb: float = 256.0
-              ) -> SuiteResult:
+def run_suite(
+    runs: Sequence[PlannedRun],
+    *,
+    jobs: int = 1,
+    speed: float | None = None,
+    plot: bool = True,
+    progress: Progress | None = None,
+    on_result: OnResult | None = None,
+    ray_address: str | None = None,
+    mcap: bool = False,
+    ray_retries: int = 2,
+    ray_max_mb: float = 256.0,
+) -> SuiteResult:
     """Every planned run, ``jobs`` at a time; results in plan order.  With ``jobs = 1`` the
     runs happen in this process and their events go to ``progress`` as they happen; with a
     ``ray_address`` they are Ray tasks on that cluster (one CPU each).  Ctrl-C ends it with
@@ -144,26 +160,38 @@ def run_suite(runs: Sequence[PlannedRun], *, jobs: int = 1, speed: float | None 
         if ray_address is not None:
             from bfsitl.scenario.ray_runs import run_on_ray
 
-            run_on_ray(runs, ray_address, speed=speed, plot=plot, mcap=mcap, results=results,
-                       done=done, say=say, max_artifact_mb=ray_max_mb, retries=ray_retries)
+            run_on_ray(
+                runs,
+                ray_address,
+                speed=speed,
+                plot=plot,
+                mcap=mcap,
+                results=results,
+                done=done,
+                say=say,
+                max_artifact_mb=ray_max_mb,
+                retries=ray_retries,
+            )
         elif jobs == 1:
             for index, run in enumerate(runs):
                 say(f"{run.test_id}: starting")
                 run.out_dir.mkdir(parents=True, exist_ok=True)
-                result = run_scenario(run.scenario, run.firmware,
-                                      RunOptions(run.out_dir, speed=speed, plot=plot,
-                                                 mcap=mcap),
-                                      progress=_prefixed(say, run.test_id))
+                result = run_scenario(
+                    run.scenario,
+                    run.firmware,
+                    RunOptions(run.out_dir, speed=speed, plot=plot, mcap=mcap),
+                    progress=_prefixed(say, run.test_id),
+                )
                 results[index] = result
                 done(result)
         else:
             _run_parallel(runs, jobs, speed, plot, mcap, results, done, say)
     except KeyboardInterrupt as exc:
         how, finished = how_stopped(exc), len(results)
-        results.update({i: _interrupted(run, how) for i, run in enumerate(runs)
-                        if i not in results})
-        return SuiteResult([results[i] for i in sorted(results)], stopped_by=how,
-                           finished=finished)
+        results.update(
+            {i: _interrupted(run, how) for i, run in enumerate(runs) if i not in results}
+        )
+        return SuiteResult([results[i] for i in sorted(results)], stopped_by=how, finished=finished)
     return SuiteResult([results[i] for i in sorted(results)], finished=len(results))
 
 
@@ -171,13 +199,21 @@ def _prefixed(say: Progress, prefix: str) -> Progress:
     return lambda line: say(f"{prefix}: {line}")
 
 
-def _run_parallel(runs: Sequence[PlannedRun], jobs: int, speed: float | None, plot: bool,
-                  mcap: bool, results: dict[int, ScenarioResult], done: OnResult,
-                  say: Progress) -> None:
+def _run_parallel(
+    runs: Sequence[PlannedRun],
+    jobs: int,
+    speed: float | None,
+    plot: bool,
+    mcap: bool,
+    results: dict[int, ScenarioResult],
+    done: OnResult,
+    say: Progress,
+) -> None:
     # spawn: a fresh interpreter per worker, nothing inherited from this one's threads.
     context = multiprocessing.get_context("spawn")
-    pool = ProcessPoolExecutor(max_workers=jobs, mp_context=context,
-                               initializer=_start_worker, initargs=(os.getpid(),))
+    pool = ProcessPoolExecutor(
+        max_workers=jobs, mp_context=context, initializer=_start_worker, initargs=(os.getpid(),)
+    )
     futures: dict[Future[ScenarioResult], int] = {}
     try:
         for index, run in enumerate(runs):
@@ -192,22 +228,35 @@ def _run_parallel(runs: Sequence[PlannedRun], jobs: int, speed: float | None, pl
         _stop_workers(pool)
         # A run that ended while the workers stopped is kept, not reported as not run.
         for future, index in futures.items():
-            if index not in results and future.done() and not future.cancelled() \
-                    and future.exception() is None:
+            if (
+                index not in results
+                and future.done()
+                and not future.cancelled()
+                and future.exception() is None
+            ):
                 _take(future, index, runs, results, done)
         raise
     pool.shutdown(wait=True)
 
 
-def _take(future: Future[ScenarioResult], index: int, runs: Sequence[PlannedRun],
-          results: dict[int, ScenarioResult], done: OnResult) -> None:
+def _take(
+    future: Future[ScenarioResult],
+    index: int,
+    runs: Sequence[PlannedRun],
+    results: dict[int, ScenarioResult],
+    done: OnResult,
+) -> None:
     try:
         result = future.result()
     except Exception as exc:  # noqa: BLE001 - a worker died: the run errs
         run = runs[index]
-        result = ScenarioResult(run.scenario.name, run.firmware, Verdict.ERROR,
-                                f"the worker process failed: {exc!r}",
-                                source=run.scenario.source)
+        result = ScenarioResult(
+            run.scenario.name,
+            run.firmware,
+            Verdict.ERROR,
+            f"the worker process failed: {exc!r}",
+            source=run.scenario.source,
+        )
     results[index] = result
     done(result)
 
@@ -230,14 +279,21 @@ def _stop_workers(pool: ProcessPoolExecutor) -> None:
         deadline = time.monotonic() + WORKER_STOP_S
         waiting = {worker.sentinel: worker for worker in workers}
         while waiting and time.monotonic() < deadline:
-            ended = set(multiprocessing.connection.wait(list(waiting),
-                                                        timeout=deadline - time.monotonic()))
-            waiting = {sentinel: worker for sentinel, worker in waiting.items()
-                       if sentinel not in ended}
+            ended = set(
+                multiprocessing.connection.wait(list(waiting), timeout=deadline - time.monotonic())
+            )
+            waiting = {
+                sentinel: worker for sentinel, worker in waiting.items() if sentinel not in ended
+            }
         for worker in waiting.values():
             worker.kill()
 
 
 def _interrupted(run: PlannedRun, how: str = "Ctrl-C") -> ScenarioResult:
-    return ScenarioResult(run.scenario.name, run.firmware, Verdict.SKIPPED,
-                          f"not run: interrupted ({how})", source=run.scenario.source)
+    return ScenarioResult(
+        run.scenario.name,
+        run.firmware,
+        Verdict.SKIPPED,
+        f"not run: interrupted ({how})",
+        source=run.scenario.source,
+    )

@@ -34,16 +34,16 @@ def phase_name(phase: int | None) -> str:
 class TraceRow:
     """One look at the run."""
 
-    time_s: float               # simulation seconds from arming
-    alt_m: float                # true height above the take-off point
-    north_m: float              # true position from the take-off point
+    time_s: float  # simulation seconds from arming
+    alt_m: float  # true height above the take-off point
+    north_m: float  # true position from the take-off point
     east_m: float
-    climb_m_s: float            # true vertical speed, up positive
-    tilt_deg: float             # true angle from level
+    climb_m_s: float  # true vertical speed, up positive
+    tilt_deg: float  # true angle from level
     on_ground: bool
-    armed: bool                 # as the FC reports it
-    modes: tuple[str, ...]      # the FC's flight modes (MSP_STATUS_EX)
-    blockers: tuple[str, ...]   # its arming-disable flags (RXLOSS, FAILSAFE, ...)
+    armed: bool  # as the FC reports it
+    modes: tuple[str, ...]  # the FC's flight modes (MSP_STATUS_EX)
+    blockers: tuple[str, ...]  # its arming-disable flags (RXLOSS, FAILSAFE, ...)
     #: debug[3] with ``debug_mode = FAILSAFE`` (the runner provisions it); None if unread.
     failsafe_phase: int | None = None
     #: The true heading, degrees clockwise from north (0..360).
@@ -86,19 +86,40 @@ class Trace:
 
 
 #: ``trace.csv``'s columns: what a comparison overlays (the modes and blockers stay out).
-TRACE_COLUMNS = ("time_s", "alt_m", "north_m", "east_m", "climb_m_s", "tilt_deg", "on_ground",
-                 "armed", "failsafe_phase", "heading_deg")
+TRACE_COLUMNS = (
+    "time_s",
+    "alt_m",
+    "north_m",
+    "east_m",
+    "climb_m_s",
+    "tilt_deg",
+    "on_ground",
+    "armed",
+    "failsafe_phase",
+    "heading_deg",
+)
 
 
 def write_trace_csv(trace: Trace, path: Path) -> Path:
     """The trace's rows as CSV (``trace.csv`` in a run's directory), written whole."""
     lines = [",".join(TRACE_COLUMNS)]
     for row in trace.rows:
-        lines.append(",".join((
-            f"{row.time_s:.4f}", f"{row.alt_m:.4f}", f"{row.north_m:.4f}", f"{row.east_m:.4f}",
-            f"{row.climb_m_s:.4f}", f"{row.tilt_deg:.3f}", str(int(row.on_ground)),
-            str(int(row.armed)), "" if row.failsafe_phase is None else str(row.failsafe_phase),
-            f"{row.heading_deg:.2f}")))
+        lines.append(
+            ",".join(
+                (
+                    f"{row.time_s:.4f}",
+                    f"{row.alt_m:.4f}",
+                    f"{row.north_m:.4f}",
+                    f"{row.east_m:.4f}",
+                    f"{row.climb_m_s:.4f}",
+                    f"{row.tilt_deg:.3f}",
+                    str(int(row.on_ground)),
+                    str(int(row.armed)),
+                    "" if row.failsafe_phase is None else str(row.failsafe_phase),
+                    f"{row.heading_deg:.2f}",
+                )
+            )
+        )
     write_atomically(path, ("\n".join(lines) + "\n").encode("ascii"))
     return path
 
@@ -110,12 +131,23 @@ def read_trace_csv(path: Path) -> Trace:
             reader = csv.DictReader(file)
             if tuple(reader.fieldnames or ()) != TRACE_COLUMNS:
                 raise ScenarioError(f"{path} is not a scenario run's trace.csv")
-            rows = [TraceRow(float(r["time_s"]), float(r["alt_m"]), float(r["north_m"]),
-                             float(r["east_m"]), float(r["climb_m_s"]), float(r["tilt_deg"]),
-                             r["on_ground"] == "1", r["armed"] == "1", (), (),
-                             int(r["failsafe_phase"]) if r["failsafe_phase"] else None,
-                             float(r["heading_deg"]))
-                    for r in reader]
+            rows = [
+                TraceRow(
+                    float(r["time_s"]),
+                    float(r["alt_m"]),
+                    float(r["north_m"]),
+                    float(r["east_m"]),
+                    float(r["climb_m_s"]),
+                    float(r["tilt_deg"]),
+                    r["on_ground"] == "1",
+                    r["armed"] == "1",
+                    (),
+                    (),
+                    int(r["failsafe_phase"]) if r["failsafe_phase"] else None,
+                    float(r["heading_deg"]),
+                )
+                for r in reader
+            ]
     except (OSError, ValueError, KeyError, csv.Error) as exc:
         raise ScenarioError(f"cannot read {path}: {exc}") from exc
     return Trace(rows=rows)

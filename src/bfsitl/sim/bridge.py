@@ -77,12 +77,12 @@ class BridgeStats:
 
     steps: int
     fdm_sent: int
-    replies: int          # servo packets that arrived before the next step was due
-    late_replies: int     # servo packets that arrived after; applied at the next step
-    misses: int           # steps that reused the previous command
+    replies: int  # servo packets that arrived before the next step was due
+    late_replies: int  # servo packets that arrived after; applied at the next step
+    misses: int  # steps that reused the previous command
     sim_time_s: float
     wall_time_s: float
-    skipped: int = 0      # steps integrated without an exchange, to catch up after a delay
+    skipped: int = 0  # steps integrated without an exchange, to catch up after a delay
 
     @property
     def answered_ratio(self) -> float:
@@ -96,10 +96,14 @@ class BridgeStats:
 
     def minus(self, earlier: BridgeStats) -> BridgeStats:
         return BridgeStats(
-            self.steps - earlier.steps, self.fdm_sent - earlier.fdm_sent,
-            self.replies - earlier.replies, self.late_replies - earlier.late_replies,
-            self.misses - earlier.misses, self.sim_time_s - earlier.sim_time_s,
-            self.wall_time_s - earlier.wall_time_s, self.skipped - earlier.skipped,
+            self.steps - earlier.steps,
+            self.fdm_sent - earlier.fdm_sent,
+            self.replies - earlier.replies,
+            self.late_replies - earlier.late_replies,
+            self.misses - earlier.misses,
+            self.sim_time_s - earlier.sim_time_s,
+            self.wall_time_s - earlier.wall_time_s,
+            self.skipped - earlier.skipped,
         )
 
 
@@ -247,8 +251,11 @@ class SitlBridge:
         The simulator is not thread-safe: moving the vehicle (``reset``, ``hold``) from
         another thread while a step runs could mix two states in one fdm packet.
         """
-        if self._thread is None or not self._thread.is_alive() or \
-                threading.current_thread() is self._thread:
+        if (
+            self._thread is None
+            or not self._thread.is_alive()
+            or threading.current_thread() is self._thread
+        ):
             return action()
         done = threading.Event()
         outcome: list[object] = []
@@ -274,8 +281,16 @@ class SitlBridge:
     def stats(self) -> BridgeStats:
         now_s = time.perf_counter()
         wall_s = (now_s - self._wall_start_s - self._wall_paused_s) if self._wall_start_s else 0.0
-        return BridgeStats(self._steps, self._fdm_sent, self._replies, self._late, self._misses,
-                           self.simulator.time_s - self._sim_start_s, wall_s, self._skipped)
+        return BridgeStats(
+            self._steps,
+            self._fdm_sent,
+            self._replies,
+            self._late,
+            self._misses,
+            self.simulator.time_s - self._sim_start_s,
+            wall_s,
+            self._skipped,
+        )
 
     def __enter__(self) -> SitlBridge:
         return self.start()
@@ -309,7 +324,7 @@ class SitlBridge:
             if len(data) == LOCKSTEP_REPLY_SIZE:
                 # A lockstep build's reply: the servo packet, then the stamp it answers. Paced
                 # by this bridge, such a build simply follows the packets' time.
-                data = data[:ServoPacket.SIZE]
+                data = data[: ServoPacket.SIZE]
             try:
                 self.motors = ServoPacket.unpack(data).betaflight_motors(self._motor_slots)
             except PacketError:

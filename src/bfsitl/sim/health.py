@@ -45,21 +45,26 @@ MIN_ANSWERED_RATIO_SAME_RATE = 0.85
 def targets_for(profile: FirmwareProfile) -> tuple[float, float]:
     """(max PID cycle us, min share of fdm answered) for a firmware generation."""
     max_cycle_us = max(MAX_CYCLE_US, profile.expected_cycle_us * CYCLE_MARGIN)
-    min_answered = MIN_ANSWERED_RATIO if profile.gyro_rate_hz > 1000 \
-        else MIN_ANSWERED_RATIO_SAME_RATE
+    min_answered = (
+        MIN_ANSWERED_RATIO if profile.gyro_rate_hz > 1000 else MIN_ANSWERED_RATIO_SAME_RATE
+    )
     return max_cycle_us, min_answered
 
 
 def meets_targets(
-    fc_clock_ratio: float | None, fc_cycle_us: float | None, answered_ratio: float,
+    fc_clock_ratio: float | None,
+    fc_cycle_us: float | None,
+    answered_ratio: float,
     profile: FirmwareProfile = DEFAULT_PROFILE,
 ) -> bool:
     """Firmware time / sim time 1.00 +/- 0.02, the PID cycle near the firmware's own period
     (<= 150 us for 4.6.0's 8 kHz), and the fdm packets answered (>= 99 % on 4.6.0)."""
     max_cycle_us, min_answered = targets_for(profile)
     return (
-        fc_clock_ratio is not None and abs(fc_clock_ratio - 1.0) <= CLOCK_RATIO_TOLERANCE
-        and fc_cycle_us is not None and fc_cycle_us <= max_cycle_us
+        fc_clock_ratio is not None
+        and abs(fc_clock_ratio - 1.0) <= CLOCK_RATIO_TOLERANCE
+        and fc_cycle_us is not None
+        and fc_cycle_us <= max_cycle_us
         and answered_ratio >= min_answered
     )
 
@@ -78,8 +83,9 @@ class HealthSample:
 
     @property
     def faithful(self) -> bool:
-        return meets_targets(self.fc_clock_ratio, self.fc_cycle_us, self.answered_ratio,
-                             self.profile)
+        return meets_targets(
+            self.fc_clock_ratio, self.fc_cycle_us, self.answered_ratio, self.profile
+        )
 
     def as_dict(self) -> dict[str, object]:
         record = asdict(self)

@@ -96,8 +96,8 @@ class LockstepStats:
     steps: int
     sim_time_s: float
     wall_time_s: float
-    exchange_s: float     # sending the packet and waiting for the FC's reply
-    physics_s: float      # integrating the physics
+    exchange_s: float  # sending the packet and waiting for the FC's reply
+    physics_s: float  # integrating the physics
     resends: int
 
 
@@ -193,16 +193,29 @@ class LockstepBridge:
 
     def stats(self) -> BridgeStats:
         wall_s = self._wall() - self._wall_start_s if self._started else 0.0
-        return BridgeStats(self._steps, self._steps + self._resends, self._steps, 0, 0,
-                           self.simulator.time_s - self._sim_start_s, wall_s)
+        return BridgeStats(
+            self._steps,
+            self._steps + self._resends,
+            self._steps,
+            0,
+            0,
+            self.simulator.time_s - self._sim_start_s,
+            wall_s,
+        )
 
     def lockstep_stats(self) -> LockstepStats:
         wall_s = self._wall() - self._wall_start_s if self._started else 0.0
         kernel = self._kernel
         exchange_s = self._exchange_s + (kernel.exchange_s if kernel is not None else 0.0)
         physics_s = self._physics_s + (kernel.physics_s if kernel is not None else 0.0)
-        return LockstepStats(self._steps, self.simulator.time_s - self._sim_start_s, wall_s,
-                             exchange_s, physics_s, self._resends)
+        return LockstepStats(
+            self._steps,
+            self.simulator.time_s - self._sim_start_s,
+            wall_s,
+            exchange_s,
+            physics_s,
+            self._resends,
+        )
 
     @property
     def compiled(self) -> bool:
@@ -241,7 +254,8 @@ class LockstepBridge:
             if self._wall() > deadline_s:
                 raise SitlError(
                     f"the SITL did not answer its first fdm packet within {LOCK_TIMEOUT_S:.0f} "
-                    f"s: is it a --lockstep build (`bfsitl firmware info`), in this network?")
+                    f"s: is it a --lockstep build (`bfsitl firmware info`), in this network?"
+                )
         self._locked = True
         self._advance(reply, self._wall())
 
@@ -315,7 +329,8 @@ class LockstepBridge:
             raise SitlError(
                 f"the SITL did not answer an fdm packet within {REPLY_TIMEOUT_S:.0f} s (sim "
                 f"time {self.simulator.time_s:.3f} s). A lockstep build answers every packet: "
-                f"is it still running, and is it a --lockstep build (`bfsitl firmware info`)?")
+                f"is it still running, and is it a --lockstep build (`bfsitl firmware info`)?"
+            )
         self._advance(reply, began_s)
 
     def _advance(self, motors: Motors, began_s: float) -> None:
@@ -329,8 +344,9 @@ class LockstepBridge:
         if self.on_step is not None:
             self.on_step(self)
         if self.speed is not None:
-            ahead_s = (self.simulator.time_s - self._sim_start_s) / self.speed - \
-                (done_s - self._wall_start_s)
+            ahead_s = (self.simulator.time_s - self._sim_start_s) / self.speed - (
+                done_s - self._wall_start_s
+            )
             if ahead_s > 0.002:
                 self._sleep(ahead_s)
 
@@ -352,8 +368,14 @@ class LockstepBridge:
         """The compiled loop, when it may take the next steps: the simulator's C structure, the
         shared-memory exchange ready, a locked SITL, and nothing that needs Python at every
         step (a callback, a pace, an RC fault whose channels follow the clock)."""
-        if not self._kernel_possible or self.on_step is not None or self.speed is not None \
-                or self.rc_fault.fault is not None or not self._locked or self._sock is None:
+        if (
+            not self._kernel_possible
+            or self.on_step is not None
+            or self.speed is not None
+            or self.rc_fault.fault is not None
+            or not self._locked
+            or self._sock is None
+        ):
             return None
         kernel = self._kernel
         if kernel is not None and kernel.exchange.closed:
@@ -364,14 +386,29 @@ class LockstepBridge:
                 return None
             kernel = self._kernel = KernelStepper(
                 self.simulator.kernel_pointer,  # type: ignore[attr-defined]
-                exchange, step_s=self.step_s, wait_s=KERNEL_WAIT_S)
+                exchange,
+                step_s=self.step_s,
+                wait_s=KERNEL_WAIT_S,
+            )
         return kernel
 
-    def _kernel_steps(self, kernel: KernelStepper, until_s: float, slack_s: float,
-                      max_steps: int, watch_fd: int = -1) -> None:
-        run: KernelRun = kernel.run(self.encoder, self._rc_bytes(self.simulator.time_s),
-                                    until_s=until_s, slack_s=slack_s, max_steps=max_steps,
-                                    spin_s=self.spin_s, watch_fd=watch_fd)
+    def _kernel_steps(
+        self,
+        kernel: KernelStepper,
+        until_s: float,
+        slack_s: float,
+        max_steps: int,
+        watch_fd: int = -1,
+    ) -> None:
+        run: KernelRun = kernel.run(
+            self.encoder,
+            self._rc_bytes(self.simulator.time_s),
+            until_s=until_s,
+            slack_s=slack_s,
+            max_steps=max_steps,
+            spin_s=self.spin_s,
+            watch_fd=watch_fd,
+        )
         self._steps += run.steps
         status = run.status
         if status == outcome.BAD_MOTORS:
@@ -388,16 +425,20 @@ class LockstepBridge:
             self._seq_stamp_s = run.stamp_s
             self._python_step(run.began_s, sent=True)
         elif status == outcome.OUT_OF_STEP:
-            raise SitlError(f"the FC answered fdm time {run.answered_s} for {run.stamp_s} "
-                            f"through shared memory: its exchange is out of step")
+            raise SitlError(
+                f"the FC answered fdm time {run.answered_s} for {run.stamp_s} "
+                f"through shared memory: its exchange is out of step"
+            )
         else:
             self._python_step(self._wall())  # it names the reading, or steps in Python
 
     def _send(self, datagram: bytes, stamp_s: float) -> None:
         exchange = self.exchange
         if exchange is not None and exchange.closed:
-            raise SitlError("the lockstep exchange's shared region is closed: the session "
-                            "that made it has ended")
+            raise SitlError(
+                "the lockstep exchange's shared region is closed: the session "
+                "that made it has ended"
+            )
         if exchange is not None and exchange.ready:
             seq = exchange.send(datagram)
             if not self._seq or stamp_s != self._seq_stamp_s:
@@ -428,10 +469,10 @@ class LockstepBridge:
             if answered_s != stamp_s:
                 continue  # the answer to a resent packet, or to one before a restart
             return ServoPacket.in_betaflight_order(
-                speeds, self.encoder.profile.motor_slot_of_betaflight_motor)
+                speeds, self.encoder.profile.motor_slot_of_betaflight_motor
+            )
 
-    def _wait_reply(self, stamp_s: float, timeout_s: float, *, spin: bool = True
-                    ) -> Motors | None:
+    def _wait_reply(self, stamp_s: float, timeout_s: float, *, spin: bool = True) -> Motors | None:
         if self._seq:
             return self._wait_shared_reply(stamp_s, timeout_s, spin=spin)
         assert self._sock is not None
@@ -447,13 +488,13 @@ class LockstepBridge:
             remaining_s = start_s + timeout_s - now_s
             if remaining_s <= 0:
                 return None
-            if not select.select([self._sock], [], [], min(remaining_s, 0.05))[0] and \
-                    self.alive is not None:
+            if (
+                not select.select([self._sock], [], [], min(remaining_s, 0.05))[0]
+                and self.alive is not None
+            ):
                 self.alive()  # a SITL that ended (a reboot, a crash) says so now
 
-
-    def _wait_shared_reply(self, stamp_s: float, timeout_s: float, *, spin: bool
-                           ) -> Motors | None:
+    def _wait_shared_reply(self, stamp_s: float, timeout_s: float, *, spin: bool) -> Motors | None:
         """The reply through shared memory: the same bytes as the UDP reply."""
         exchange = self.exchange
         assert exchange is not None
@@ -473,9 +514,12 @@ class LockstepBridge:
             if data is not None:
                 speeds, answered_s = decode_reply(data)
                 if answered_s != stamp_s:
-                    raise SitlError(f"the FC answered fdm time {answered_s} for {stamp_s} "
-                                    f"through shared memory: its exchange is out of step")
+                    raise SitlError(
+                        f"the FC answered fdm time {answered_s} for {stamp_s} "
+                        f"through shared memory: its exchange is out of step"
+                    )
                 return ServoPacket.in_betaflight_order(
-                    speeds, self.encoder.profile.motor_slot_of_betaflight_motor)
+                    speeds, self.encoder.profile.motor_slot_of_betaflight_motor
+                )
             if self.alive is not None:
                 self.alive()  # a SITL that ended (a reboot, a crash) says so now

@@ -92,17 +92,27 @@ class KernelRun:
 class KernelStepper:
     """Runs lockstep steps of one compiled simulator through one shared region."""
 
-    def __init__(self, simulator_pointer: int, exchange: ShmExchange, *, step_s: float,
-                 wait_s: float) -> None:
+    def __init__(
+        self, simulator_pointer: int, exchange: ShmExchange, *, step_s: float, wait_s: float
+    ) -> None:
         library = load_kernel()
         if ctypes.sizeof(_Lockstep) != library.bk_lockstep_size():
-            raise KernelUnavailableError("the compiled loop's bk_lockstep and its ctypes "
-                                         "mirror differ in size: the two were changed apart")
+            raise KernelUnavailableError(
+                "the compiled loop's bk_lockstep and its ctypes "
+                "mirror differ in size: the two were changed apart"
+            )
         self._run = library.bk_lockstep_run
         self._run.restype = ctypes.c_long
-        self._run.argtypes = [ctypes.c_void_p, ctypes.c_void_p, ctypes.c_char_p,
-                              ctypes.c_uint32, ctypes.c_double, ctypes.c_double, ctypes.c_long,
-                              ctypes.c_int]
+        self._run.argtypes = [
+            ctypes.c_void_p,
+            ctypes.c_void_p,
+            ctypes.c_char_p,
+            ctypes.c_uint32,
+            ctypes.c_double,
+            ctypes.c_double,
+            ctypes.c_long,
+            ctypes.c_int,
+        ]
         self._sim = simulator_pointer
         self._state = _Lockstep()
         self._pointer = ctypes.addressof(self._state)
@@ -142,8 +152,17 @@ class KernelStepper:
     def physics_s(self) -> float:
         return self._state.physics_s
 
-    def run(self, encoder: FdmEncoder, rc: bytes, *, until_s: float, slack_s: float,
-            max_steps: int, spin_s: float, watch_fd: int = -1) -> KernelRun:
+    def run(
+        self,
+        encoder: FdmEncoder,
+        rc: bytes,
+        *,
+        until_s: float,
+        slack_s: float,
+        max_steps: int,
+        spin_s: float,
+        watch_fd: int = -1,
+    ) -> KernelRun:
         """Step while the time plus ``slack_s`` is below ``until_s``, at most ``max_steps``,
         and (``watch_fd`` >= 0) until that descriptor has something to read."""
         if encoder is not self._encoder or encoder.gps_lost != self._gps_lost:
@@ -151,9 +170,17 @@ class KernelStepper:
         state, exchange = self._state, self.exchange
         state.spin_s = spin_s
         state.seq = exchange.seq
-        taken = self._run(self._sim, self._pointer, rc, len(rc), until_s, slack_s, max_steps,
-                          watch_fd)
+        taken = self._run(
+            self._sim, self._pointer, rc, len(rc), until_s, slack_s, max_steps, watch_fd
+        )
         exchange.seq = state.seq
         m = state.motors
-        return KernelRun(taken, state.status, state.seq, state.stamp_s, state.began_s,
-                         (m[0], m[1], m[2], m[3]), state.answered_s)
+        return KernelRun(
+            taken,
+            state.status,
+            state.seq,
+            state.stamp_s,
+            state.began_s,
+            (m[0], m[1], m[2], m[3]),
+            state.answered_s,
+        )

@@ -27,11 +27,11 @@ RECEIVED_DIR = "received"
 class FirmwareParcel:
     """One firmware build on its way to the nodes: its bytes are in the object store."""
 
-    name: str          # as the runs name it (a cached build's name or a path)
+    name: str  # as the runs name it (a cached build's name or a path)
     sha256: str
-    file_name: str     # the binary's own name (the SITL's version is in it)
+    file_name: str  # the binary's own name (the SITL's version is in it)
     size: int
-    ref: Any           # ray.ObjectRef of the bytes
+    ref: Any  # ray.ObjectRef of the bytes
     #: The build record beside it (``build.json``: its options, GPS among them), if any.
     record: bytes | None = None
 
@@ -43,9 +43,14 @@ def pack_firmware(ray: Any, names: Sequence[str]) -> dict[str, FirmwareParcel]:
         binary = find_firmware(name)
         data = binary.path.read_bytes()
         record = binary.path.parent / METADATA_NAME
-        parcels[name] = FirmwareParcel(name, hashlib.sha256(data).hexdigest(), binary.path.name,
-                                       len(data), ray.put(data),
-                                       record.read_bytes() if record.is_file() else None)
+        parcels[name] = FirmwareParcel(
+            name,
+            hashlib.sha256(data).hexdigest(),
+            binary.path.name,
+            len(data),
+            ray.put(data),
+            record.read_bytes() if record.is_file() else None,
+        )
     return parcels
 
 
@@ -55,8 +60,9 @@ def received_path(parcel: FirmwareParcel, root: Path | None = None) -> Path:
     return (root or cache_root()) / RECEIVED_DIR / parcel.sha256[:20] / parcel.file_name
 
 
-def unpack_firmware(parcel: FirmwareParcel, fetch: Callable[[Any], bytes],
-                    root: Path | None = None) -> Path:
+def unpack_firmware(
+    parcel: FirmwareParcel, fetch: Callable[[Any], bytes], root: Path | None = None
+) -> Path:
     """The binary on this node: kept from an earlier run, or fetched (``fetch(ref)``),
     checked against its hash and written whole."""
     path = received_path(parcel, root)
@@ -69,8 +75,10 @@ def unpack_firmware(parcel: FirmwareParcel, fetch: Callable[[Any], bytes],
         return path
     data = fetch(parcel.ref)
     if hashlib.sha256(data).hexdigest() != parcel.sha256:
-        raise SitlError(f"the firmware {parcel.name} arrived damaged (its SHA-256 is not "
-                            f"{parcel.sha256[:12]}...)")
+        raise SitlError(
+            f"the firmware {parcel.name} arrived damaged (its SHA-256 is not "
+            f"{parcel.sha256[:12]}...)"
+        )
     write_atomically(path, data)
     path.chmod(0o755)
     return path

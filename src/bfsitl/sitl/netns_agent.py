@@ -107,8 +107,12 @@ class Agent:
             try:
                 with timer_slack(None if slack_ns is None else int(slack_ns)):
                     child = subprocess.Popen(
-                        request["argv"], cwd=request["cwd"], stdin=subprocess.DEVNULL,
-                        stdout=log, stderr=subprocess.STDOUT, start_new_session=True,
+                        request["argv"],
+                        cwd=request["cwd"],
+                        stdin=subprocess.DEVNULL,
+                        stdout=log,
+                        stderr=subprocess.STDOUT,
+                        start_new_session=True,
                         env=request.get("env") or None,
                         preexec_fn=_die_with_agent(os.getpid()),  # noqa: PLW1509 - one thread
                     )

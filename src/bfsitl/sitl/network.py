@@ -47,14 +47,19 @@ class Network(Protocol):
     def socket(self, family: int, kind: int) -> socket.socket: ...
 
     def spawn(
-        self, argv: Sequence[str], cwd: Path, log_path: Path,
-        env: Mapping[str, str] | None = None, timer_slack_ns: int | None = None,
+        self,
+        argv: Sequence[str],
+        cwd: Path,
+        log_path: Path,
+        env: Mapping[str, str] | None = None,
+        timer_slack_ns: int | None = None,
     ) -> ProcessHandle: ...
 
     def close(self) -> None: ...
 
 
 # --- the host network ----------------------------------------------------------------------
+
 
 class _PopenHandle:
     def __init__(self, popen: subprocess.Popen[bytes]) -> None:
@@ -88,13 +93,21 @@ class HostNetwork:
         return socket.socket(family, kind)
 
     def spawn(
-        self, argv: Sequence[str], cwd: Path, log_path: Path,
-        env: Mapping[str, str] | None = None, timer_slack_ns: int | None = None,
+        self,
+        argv: Sequence[str],
+        cwd: Path,
+        log_path: Path,
+        env: Mapping[str, str] | None = None,
+        timer_slack_ns: int | None = None,
     ) -> ProcessHandle:
         with open(log_path, "ab") as log, timer_slack(timer_slack_ns):
             popen = subprocess.Popen(
-                list(argv), cwd=cwd, stdin=subprocess.DEVNULL, stdout=log,
-                stderr=subprocess.STDOUT, start_new_session=True,
+                list(argv),
+                cwd=cwd,
+                stdin=subprocess.DEVNULL,
+                stdout=log,
+                stderr=subprocess.STDOUT,
+                start_new_session=True,
                 env=dict(env) if env is not None else None,
             )
         return _PopenHandle(popen)
@@ -104,6 +117,7 @@ class HostNetwork:
 
 
 # --- a private namespace -------------------------------------------------------------------
+
 
 class _AgentProcessHandle:
     def __init__(self, network: IsolatedNetwork, pid: int) -> None:
@@ -131,8 +145,9 @@ class _AgentProcessHandle:
 
     def wait(self, timeout_s: float) -> int | None:
         if self._returncode is None and not self._network.closed:
-            reply = self._network.call({"op": "wait", "pid": self.pid, "timeout_s": timeout_s},
-                                       timeout_s=timeout_s + 5.0)
+            reply = self._network.call(
+                {"op": "wait", "pid": self.pid, "timeout_s": timeout_s}, timeout_s=timeout_s + 5.0
+            )
             self._returncode = reply["returncode"]
         return self._returncode
 
@@ -196,11 +211,23 @@ class IsolatedNetwork:
         env["PYTHONPATH"] = src_root + os.pathsep + env.get("PYTHONPATH", "")
         try:
             self._agent = subprocess.Popen(
-                [unshare, "--user", "--map-root-user", "--net", "--",
-                 sys.executable, "-m", "bfsitl.sitl.netns_agent",
-                 "--control-fd", str(child_end.fileno())],
-                pass_fds=[child_end.fileno()], stdin=subprocess.DEVNULL,
-                stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, start_new_session=True,
+                [
+                    unshare,
+                    "--user",
+                    "--map-root-user",
+                    "--net",
+                    "--",
+                    sys.executable,
+                    "-m",
+                    "bfsitl.sitl.netns_agent",
+                    "--control-fd",
+                    str(child_end.fileno()),
+                ],
+                pass_fds=[child_end.fileno()],
+                stdin=subprocess.DEVNULL,
+                stdout=subprocess.DEVNULL,
+                stderr=subprocess.PIPE,
+                start_new_session=True,
                 env=env,
             )
         finally:
@@ -269,13 +296,23 @@ class IsolatedNetwork:
         return socket.socket(fileno=fds[0])
 
     def spawn(
-        self, argv: Sequence[str], cwd: Path, log_path: Path,
-        env: Mapping[str, str] | None = None, timer_slack_ns: int | None = None,
+        self,
+        argv: Sequence[str],
+        cwd: Path,
+        log_path: Path,
+        env: Mapping[str, str] | None = None,
+        timer_slack_ns: int | None = None,
     ) -> ProcessHandle:
-        reply = self.call({
-            "op": "spawn", "argv": list(argv), "cwd": str(cwd), "log": str(log_path),
-            "env": dict(env) if env is not None else None, "timer_slack_ns": timer_slack_ns,
-        })
+        reply = self.call(
+            {
+                "op": "spawn",
+                "argv": list(argv),
+                "cwd": str(cwd),
+                "log": str(log_path),
+                "env": dict(env) if env is not None else None,
+                "timer_slack_ns": timer_slack_ns,
+            }
+        )
         return _AgentProcessHandle(self, int(reply["pid"]))
 
     def close(self) -> None:

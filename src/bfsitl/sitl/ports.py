@@ -154,8 +154,7 @@ def _parse_row(line: str, protocol: str) -> ProcNetSocket | None:
     try:
         address, port = decode_address(fields[1])
         rx_queue = int(fields[4].partition(":")[2], 16)  # the column is tx_queue:rx_queue
-        return ProcNetSocket(protocol, address, port, int(fields[3], 16), int(fields[9]),
-                             rx_queue)
+        return ProcNetSocket(protocol, address, port, int(fields[3], 16), int(fields[9]), rx_queue)
     except ValueError:
         return None
 

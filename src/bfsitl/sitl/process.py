@@ -139,8 +139,8 @@ class SitlProcess:
             firmware if isinstance(firmware, FirmwareBinary) else find_firmware(firmware)
         )
         self._owns_workdir = workdir is None
-        self.workdir = Path(workdir) if workdir is not None else Path(
-            tempfile.mkdtemp(prefix="bfsitl-run-")
+        self.workdir = (
+            Path(workdir) if workdir is not None else Path(tempfile.mkdtemp(prefix="bfsitl-run-"))
         )
         self.workdir.mkdir(parents=True, exist_ok=True)
         self.log_path = self.workdir / LOG_NAME
@@ -237,11 +237,19 @@ class SitlProcess:
             + (" (isolated network namespace)" if self.isolated else "")
         )
         for attempt in range(1, _START_ATTEMPTS + 1):
-            server_check = TcpServerCheck(log_path=self.log_path, log_offset=self._log_size(),
-                                          netns_pid=self.network.netns_pid, port=SITL_MSP_PORT)
+            server_check = TcpServerCheck(
+                log_path=self.log_path,
+                log_offset=self._log_size(),
+                netns_pid=self.network.netns_pid,
+                port=SITL_MSP_PORT,
+            )
             self._process = self.network.spawn(
-                argv, self.workdir, self.log_path, timer_slack_ns=self.timer_slack_ns,
-                env={**os.environ, **self.env} if self.env is not None else None)
+                argv,
+                self.workdir,
+                self.log_path,
+                timer_slack_ns=self.timer_slack_ns,
+                env={**os.environ, **self.env} if self.env is not None else None,
+            )
             self.launches += 1
             try:
                 if self.hooks.on_spawn is not None:
@@ -249,8 +257,9 @@ class SitlProcess:
                 self._ready_api = None
                 self.client = self._wait_ready(self.ready_timeout_s, server_check)
                 self._check_pid_loop(self.client)
-                self.profile = detect_profile(self.client, self.build_options(),
-                                              api=self._ready_api)
+                self.profile = detect_profile(
+                    self.client, self.build_options(), api=self._ready_api
+                )
                 self.starts += 1
                 break
             except SitlNotReadyError as exc:
@@ -261,13 +270,14 @@ class SitlProcess:
                 self._terminate()
                 load = _load_average()
                 if attempt == _START_ATTEMPTS:
-                    exc.args = (f"{exc} ({attempt} launches in a row failed at boot; "
-                                f"{load}; a lockstep build has no such boot race: "
-                                f"bfsitl firmware build --lockstep)",)
+                    exc.args = (
+                        f"{exc} ({attempt} launches in a row failed at boot; "
+                        f"{load}; a lockstep build has no such boot race: "
+                        f"bfsitl firmware build --lockstep)",
+                    )
                     raise
                 wait_s = _retry_wait_s(attempt)
-                self._progress(f"{exc.brief}; killed it ({load}), starting again in "
-                               f"{wait_s:.2g} s")
+                self._progress(f"{exc.brief}; killed it ({load}), starting again in {wait_s:.2g} s")
                 time.sleep(wait_s)  # let a busy spell pass: these races come in runs
             except BaseException:
                 self._terminate()
@@ -299,7 +309,8 @@ class SitlProcess:
                 raise SitlExitedError(
                     f"SITL exited with code {code} during start-up; its log "
                     f"({self.log_path}) ends with:\n{self.log_tail()}",
-                    code, self.log_tail(),
+                    code,
+                    self.log_tail(),
                 )
             try:
                 client = self.connect(timeout_s=0.3, retries=0)
@@ -363,13 +374,15 @@ class SitlProcess:
         """
         if self.network is None:
             raise SitlError("SITL not started")
-        link: Link = TcpLink(SITL_HOST, SITL_MSP_PORT, timeout_s=timeout_s,
-                             socket_factory=self.network.socket)
+        link: Link = TcpLink(
+            SITL_HOST, SITL_MSP_PORT, timeout_s=timeout_s, socket_factory=self.network.socket
+        )
         hooks = self.hooks
         if hooks.link_wrapper is not None:
             link = hooks.link_wrapper(link)  # the link brings its own wake policy
-        return MspClient(link, timeout_s=timeout_s, retries=retries,
-                         clock=hooks.client_clock or time.monotonic)
+        return MspClient(
+            link, timeout_s=timeout_s, retries=retries, clock=hooks.client_clock or time.monotonic
+        )
 
     def wait_exit(self, timeout_s: float) -> int | None:
         """Wait for the process to end by itself (after a reboot).

@@ -38,8 +38,15 @@ class TcpServerCheck:
     :class:`SitlTcpServerLostError` once either symptom above is certain.
     """
 
-    def __init__(self, *, log_path: Path, log_offset: int, netns_pid: int | None, port: int,
-                 stall_s: float = ACCEPT_STALL_S) -> None:
+    def __init__(
+        self,
+        *,
+        log_path: Path,
+        log_offset: int,
+        netns_pid: int | None,
+        port: int,
+        stall_s: float = ACCEPT_STALL_S,
+    ) -> None:
         self.log_path = log_path
         self.log_offset = log_offset
         self.netns_pid = netns_pid
@@ -82,6 +89,11 @@ class TcpServerCheck:
             sockets = read_proc_net(self.netns_pid)
         except ProcessLookupError:
             return 0  # the namespace is gone: the process check reports that
-        return max((s.rx_queue for s in sockets
-                    if s.protocol == "tcp" and s.port == self.port
-                    and s.state == TCP_LISTEN_STATE), default=0)
+        return max(
+            (
+                s.rx_queue
+                for s in sockets
+                if s.protocol == "tcp" and s.port == self.port and s.state == TCP_LISTEN_STATE
+            ),
+            default=0,
+        )

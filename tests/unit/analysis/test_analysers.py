@@ -24,21 +24,39 @@ from bfsitl.analysis.analysers import Analysis
 RATE_HZ = 50.0
 
 
-def hover(seconds: float, *, alt_m: float = 3.0, start_s: float = 0.0, **fields: object
-          ) -> list[TrackPoint]:
+def hover(
+    seconds: float, *, alt_m: float = 3.0, start_s: float = 0.0, **fields: object
+) -> list[TrackPoint]:
     """A steady hover: airborne, level, motors at 0.55, holding its target."""
     count = round(seconds * RATE_HZ)
-    base = TrackPoint(time_s=0.0, armed=True, airborne=True, alt_m=alt_m, climb_m_s=0.0,
-                      north_m=0.0, east_m=0.0, tilt_deg=1.0, roll_deg=0.5, pitch_deg=-0.5,
-                      phase="hold", target_alt_m=alt_m, target_north_m=0.0,
-                      target_east_m=0.0, motors=(0.55,) * 4, fc_alt_m=alt_m,
-                      fc_north_m=0.0, fc_east_m=0.0, modes=("ANGLE",))
+    base = TrackPoint(
+        time_s=0.0,
+        armed=True,
+        airborne=True,
+        alt_m=alt_m,
+        climb_m_s=0.0,
+        north_m=0.0,
+        east_m=0.0,
+        tilt_deg=1.0,
+        roll_deg=0.5,
+        pitch_deg=-0.5,
+        phase="hold",
+        target_alt_m=alt_m,
+        target_north_m=0.0,
+        target_east_m=0.0,
+        motors=(0.55,) * 4,
+        fc_alt_m=alt_m,
+        fc_north_m=0.0,
+        fc_east_m=0.0,
+        modes=("ANGLE",),
+    )
     base = replace(base, **fields)  # type: ignore[arg-type]
     return [replace(base, time_s=round(start_s + i / RATE_HZ, 4)) for i in range(count)]
 
 
-def fall(points: list[TrackPoint], *, speed_m_s: float, rest_tilt_deg: float = 2.0
-         ) -> list[TrackPoint]:
+def fall(
+    points: list[TrackPoint], *, speed_m_s: float, rest_tilt_deg: float = 2.0
+) -> list[TrackPoint]:
     """``points`` then a descent at ``speed_m_s`` to the ground and 2 s at rest there."""
     last = points[-1]
     out = list(points)
@@ -46,12 +64,24 @@ def fall(points: list[TrackPoint], *, speed_m_s: float, rest_tilt_deg: float = 2
     while alt > 0:
         t += 1 / RATE_HZ
         alt -= speed_m_s / RATE_HZ
-        out.append(replace(last, time_s=round(t, 4), alt_m=max(alt, 0.0),
-                           climb_m_s=-speed_m_s, phase="watch"))
+        out.append(
+            replace(
+                last, time_s=round(t, 4), alt_m=max(alt, 0.0), climb_m_s=-speed_m_s, phase="watch"
+            )
+        )
     for i in range(100):
-        out.append(replace(last, time_s=round(t + (i + 1) / RATE_HZ, 4), alt_m=0.0,
-                           climb_m_s=0.0, airborne=False, tilt_deg=rest_tilt_deg,
-                           phase="watch", armed=i < 10))
+        out.append(
+            replace(
+                last,
+                time_s=round(t + (i + 1) / RATE_HZ, 4),
+                alt_m=0.0,
+                climb_m_s=0.0,
+                airborne=False,
+                tilt_deg=rest_tilt_deg,
+                phase="watch",
+                armed=i < 10,
+            )
+        )
     return out
 
 
@@ -81,11 +111,19 @@ def test_a_slow_contact_that_ends_upside_down_is_a_crash() -> None:
     assert finding is not None and "upside down" in finding.summary
 
 
-@pytest.mark.parametrize(("speed", "crash", "hard"), [
-    (0.5, False, False), (1.49, False, False), (1.5, False, True), (2.9, False, True),
-    (3.0, True, False)])
+@pytest.mark.parametrize(
+    ("speed", "crash", "hard"),
+    [
+        (0.5, False, False),
+        (1.49, False, False),
+        (1.5, False, True),
+        (2.9, False, True),
+        (3.0, True, False),
+    ],
+)
 def test_contact_speeds_grade_from_landing_to_hard_landing_to_crash(
-        speed: float, crash: bool, hard: bool) -> None:
+    speed: float, crash: bool, hard: bool
+) -> None:
     points = fall(hover(5.0), speed_m_s=speed)
     assert (found(points, "crash") is not None) is crash
     assert (found(points, "hard_landing") is not None) is hard
@@ -100,10 +138,20 @@ def test_the_take_off_is_no_touchdown() -> None:
 # -- where it went -------------------------------------------------------------------------------
 def drift(points: list[TrackPoint], speed_m_s: float, seconds: float) -> list[TrackPoint]:
     last = points[-1]
-    return [*points, *(replace(last, time_s=round(last.time_s + (i + 1) / RATE_HZ, 4),
-                               north_m=speed_m_s * (i + 1) / RATE_HZ, phase="watch",
-                               target_north_m=math.nan, target_east_m=math.nan)
-                       for i in range(round(seconds * RATE_HZ)))]
+    return [
+        *points,
+        *(
+            replace(
+                last,
+                time_s=round(last.time_s + (i + 1) / RATE_HZ, 4),
+                north_m=speed_m_s * (i + 1) / RATE_HZ,
+                phase="watch",
+                target_north_m=math.nan,
+                target_east_m=math.nan,
+            )
+            for i in range(round(seconds * RATE_HZ))
+        ),
+    ]
 
 
 def test_a_vehicle_still_leaving_beyond_its_targets_is_flying_away() -> None:
@@ -115,12 +163,17 @@ def test_a_vehicle_still_leaving_beyond_its_targets_is_flying_away() -> None:
 
 def test_out_and_back_is_a_warning_and_within_the_margin_nothing() -> None:
     out = drift(hover(5.0), 2.0, 15.0)
-    back = [replace(p, time_s=round(out[-1].time_s + (i + 1) / RATE_HZ, 4),
-                    north_m=30.0 - 2.0 * (i + 1) / RATE_HZ) for i, p in
-            enumerate(out[-1:] * 700)]
+    back = [
+        replace(
+            p,
+            time_s=round(out[-1].time_s + (i + 1) / RATE_HZ, 4),
+            north_m=30.0 - 2.0 * (i + 1) / RATE_HZ,
+        )
+        for i, p in enumerate(out[-1:] * 700)
+    ]
     finding = found(out + back, "fly_away")
     assert finding is not None and finding.severity is Severity.WARNING
-    assert found(drift(hover(5.0), 2.0, 12.0), "fly_away") is None   # 24 m < 0 + 25 m
+    assert found(drift(hover(5.0), 2.0, 12.0), "fly_away") is None  # 24 m < 0 + 25 m
     # A mission that goes 100 m out sets the bound: 110 m is no fly-away.
     far = hover(5.0, target_north_m=100.0, north_m=110.0)
     assert found(far, "fly_away") is None
@@ -140,8 +193,7 @@ def test_tilt_past_what_angle_mode_commands_is_a_warning() -> None:
     steep = hover(3.0) + hover(0.5, start_s=3.0, tilt_deg=80.0)
     finding = found(steep, "loss_of_control")
     assert finding is not None and finding.severity is Severity.WARNING
-    assert found(hover(3.0) + hover(0.5, start_s=3.0, tilt_deg=70.0), "loss_of_control") \
-        is None
+    assert found(hover(3.0) + hover(0.5, start_s=3.0, tilt_deg=70.0), "loss_of_control") is None
 
 
 def rates(seconds: float, error: object, *, rate_hz: float = 500.0) -> list[TrackPoint]:
@@ -150,21 +202,28 @@ def rates(seconds: float, error: object, *, rate_hz: float = 500.0) -> list[Trac
     for i in range(round(seconds * rate_hz)):
         t = i / rate_hz
         e = error(t)  # type: ignore[operator]
-        points.append(TrackPoint(time_s=t, armed=True, motors=(0.5,) * 4,
-                                 gyro_deg_s=(10.0 + e, -5.0 + e, e),
-                                 setpoint_deg_s=(10.0, -5.0, 0.0), accel_g=1.0))
+        points.append(
+            TrackPoint(
+                time_s=t,
+                armed=True,
+                motors=(0.5,) * 4,
+                gyro_deg_s=(10.0 + e, -5.0 + e, e),
+                setpoint_deg_s=(10.0, -5.0, 0.0),
+                accel_g=1.0,
+            )
+        )
     return points
 
 
 def test_the_gyro_far_from_its_setpoint_is_a_loss_of_control() -> None:
-    track = Track("blackbox", rates(2.0, lambda t: 400.0 if t > 1.0 else 0.0),
-                  disarm_reason="SWITCH")
+    track = Track(
+        "blackbox", rates(2.0, lambda t: 400.0 if t > 1.0 else 0.0), disarm_reason="SWITCH"
+    )
     analysis = analyse(track)
     finding = next(f for f in analysis.findings if f.analyser == "loss_of_control")
     assert finding.severity is Severity.FAILURE and finding.source == "blackbox"
-    assert finding.time_s == pytest.approx(1.25, abs=0.01)   # 0.25 s of error at 400 deg/s
-    calm = Track("blackbox", rates(2.0, lambda t: 20.0 * math.sin(40 * t)),
-                  disarm_reason="SWITCH")
+    assert finding.time_s == pytest.approx(1.25, abs=0.01)  # 0.25 s of error at 400 deg/s
+    calm = Track("blackbox", rates(2.0, lambda t: 20.0 * math.sin(40 * t)), disarm_reason="SWITCH")
     assert not any(f.analyser == "loss_of_control" for f in analyse(calm).findings)
 
 
@@ -172,38 +231,49 @@ def test_a_sustained_swing_is_an_oscillation_and_noise_or_a_single_kick_is_not()
     def swing(t: float) -> float:
         return 80.0 * math.sin(2 * math.pi * 12.0 * t)
 
-    finding = next(f for f in analyse(Track("blackbox", rates(3.0, swing),
-                                            disarm_reason="SWITCH")).findings
-                   if f.analyser == "oscillation")
+    finding = next(
+        f
+        for f in analyse(Track("blackbox", rates(3.0, swing), disarm_reason="SWITCH")).findings
+        if f.analyser == "oscillation"
+    )
     assert finding.evidence["frequency_hz"] == pytest.approx(12.0, abs=1.0)
     assert finding.value == pytest.approx(80.0 / math.sqrt(2), rel=0.05)
     small = Track("blackbox", rates(3.0, lambda t: 0.2 * swing(t)), disarm_reason="SWITCH")
-    kick = Track("blackbox", rates(3.0, lambda t: swing(t) if t < 0.4 else 0.0),
-                 disarm_reason="SWITCH")
+    kick = Track(
+        "blackbox", rates(3.0, lambda t: swing(t) if t < 0.4 else 0.0), disarm_reason="SWITCH"
+    )
     for track in (small, kick):
         assert not any(f.analyser == "oscillation" for f in analyse(track).findings)
 
 
 def test_the_motors_split_swinging_in_a_flight_record_is_an_oscillation() -> None:
     points = hover(4.0)
-    shaken = [replace(p, motors=(0.55 - s, 0.55 - s, 0.55 + s, 0.55 + s)) for p in points
-              for s in [0.3 * math.copysign(1.0, math.sin(2 * math.pi * 6.0 * p.time_s))]]
+    shaken = [
+        replace(p, motors=(0.55 - s, 0.55 - s, 0.55 + s, 0.55 + s))
+        for p in points
+        for s in [0.3 * math.copysign(1.0, math.sin(2 * math.pi * 6.0 * p.time_s))]
+    ]
     finding = found(shaken, "oscillation")
     assert finding is not None and "roll" in finding.summary
-    gentle = [replace(p, motors=(0.55 - s, 0.55 - s, 0.55 + s, 0.55 + s)) for p in points
-              for s in [0.05 * math.sin(2 * math.pi * 6.0 * p.time_s)]]
+    gentle = [
+        replace(p, motors=(0.55 - s, 0.55 - s, 0.55 + s, 0.55 + s))
+        for p in points
+        for s in [0.05 * math.sin(2 * math.pi * 6.0 * p.time_s)]
+    ]
     assert found(gentle, "oscillation") is None
 
 
 # -- motors ------------------------------------------------------------------------------------
 def test_a_motor_at_full_for_a_while_is_saturation_and_a_blip_is_not() -> None:
-    points = hover(2.0) + hover(0.5, start_s=2.0, motors=(1.0, 0.6, 0.6, 0.6)) \
-        + hover(2.0, start_s=2.5)
+    points = (
+        hover(2.0) + hover(0.5, start_s=2.0, motors=(1.0, 0.6, 0.6, 0.6)) + hover(2.0, start_s=2.5)
+    )
     finding = found(points, "motor_saturation")
     assert finding is not None and finding.evidence["motors"] == [1]
     assert finding.value == pytest.approx(0.5, abs=0.03)
-    blip = hover(2.0) + hover(0.1, start_s=2.0, motors=(1.0, 0.6, 0.6, 0.6)) \
-        + hover(2.0, start_s=2.1)
+    blip = (
+        hover(2.0) + hover(0.1, start_s=2.0, motors=(1.0, 0.6, 0.6, 0.6)) + hover(2.0, start_s=2.1)
+    )
     assert found(blip, "motor_saturation") is None
 
 
@@ -214,8 +284,11 @@ def test_saturation_on_the_ground_is_not_counted() -> None:
 
 # -- failsafe, GPS, excursions -----------------------------------------------------------------
 def test_the_failsafe_phases_are_timed_from_when_it_was_entered() -> None:
-    points = hover(2.0, failsafe_phase=0) + hover(1.0, start_s=2.0, failsafe_phase=2) \
+    points = (
+        hover(2.0, failsafe_phase=0)
+        + hover(1.0, start_s=2.0, failsafe_phase=2)
         + hover(1.0, start_s=3.0, failsafe_phase=3)
+    )
     finding = found(points, "failsafe")
     assert finding is not None and finding.severity is Severity.INFO
     assert finding.evidence["to_landed_s"] == pytest.approx(1.0)
@@ -227,26 +300,33 @@ def test_a_gps_glitch_ridden_out_is_info_and_followed_is_a_warning() -> None:
     glitch = hover(2.0) + hover(3.0, start_s=2.0, fc_north_m=20.0) + hover(1.0, start_s=5.0)
     finding = found(glitch, "gps_glitch")
     assert finding is not None and finding.severity is Severity.INFO
-    followed = hover(2.0) + [replace(p, north_m=-min(8.0, 4.0 * (p.time_s - 2.0)))
-                             for p in hover(3.0, start_s=2.0, fc_north_m=20.0)]
+    followed = hover(2.0) + [
+        replace(p, north_m=-min(8.0, 4.0 * (p.time_s - 2.0)))
+        for p in hover(3.0, start_s=2.0, fc_north_m=20.0)
+    ]
     finding = found(followed, "gps_glitch")
     assert finding is not None and finding.severity is Severity.WARNING
     assert finding.value == pytest.approx(8.0)
-    assert found(hover(3.0, fc_north_m=2.0), "gps_glitch") is None   # GPS noise is no glitch
+    assert found(hover(3.0, fc_north_m=2.0), "gps_glitch") is None  # GPS noise is no glitch
 
 
-@pytest.mark.parametrize(("name", "field", "value", "severity"), [
-    ("altitude_excursion", "alt_m", 4.9, None),       # 1.9 m off
-    ("altitude_excursion", "alt_m", 5.5, Severity.WARNING),
-    ("altitude_excursion", "alt_m", 8.5, Severity.FAILURE),
-    ("position_excursion", "north_m", 2.5, None),
-    ("position_excursion", "north_m", 4.0, Severity.WARNING),
-    ("position_excursion", "north_m", 12.0, Severity.FAILURE),
-    ("altitude_estimate", "fc_alt_m", 4.5, None),
-    ("altitude_estimate", "fc_alt_m", 6.0, Severity.WARNING),
-    ("altitude_estimate", "fc_alt_m", 9.0, Severity.FAILURE)])
-def test_excursions_grade_by_how_far_off(name: str, field: str, value: float,
-                                         severity: Severity | None) -> None:
+@pytest.mark.parametrize(
+    ("name", "field", "value", "severity"),
+    [
+        ("altitude_excursion", "alt_m", 4.9, None),  # 1.9 m off
+        ("altitude_excursion", "alt_m", 5.5, Severity.WARNING),
+        ("altitude_excursion", "alt_m", 8.5, Severity.FAILURE),
+        ("position_excursion", "north_m", 2.5, None),
+        ("position_excursion", "north_m", 4.0, Severity.WARNING),
+        ("position_excursion", "north_m", 12.0, Severity.FAILURE),
+        ("altitude_estimate", "fc_alt_m", 4.5, None),
+        ("altitude_estimate", "fc_alt_m", 6.0, Severity.WARNING),
+        ("altitude_estimate", "fc_alt_m", 9.0, Severity.FAILURE),
+    ],
+)
+def test_excursions_grade_by_how_far_off(
+    name: str, field: str, value: float, severity: Severity | None
+) -> None:
     off = [replace(p, **{field: value}) for p in hover(2.0, start_s=5.0)]  # type: ignore[arg-type]
     finding = found(hover(5.0) + off, name)
     assert (finding.severity if finding else None) is severity
@@ -263,7 +343,7 @@ def test_a_track_without_the_data_lists_the_analyser_as_skipped_with_why() -> No
     analysis = analyse(Track("blackbox", bare))
     assert "motor_saturation" in analysis.watched
     assert "fly_away" in analysis.skipped and "north_m" in analysis.skipped["fly_away"]
-    assert "crash" in analysis.skipped       # no disarm reason: the log was cut
+    assert "crash" in analysis.skipped  # no disarm reason: the log was cut
     empty = analyse(Track("flight", []))
     assert empty.watched == [] and len(empty.skipped) == len(ANALYSERS)
 
@@ -272,8 +352,10 @@ def test_combining_sources_keeps_each_analysers_worst() -> None:
     warning = Finding("crash", Severity.WARNING, "a", 1.0, 1.0, "m/s")
     failure = Finding("crash", Severity.FAILURE, "b", 2.0, 5.0, "m/s", source="blackbox")
     info = Finding("failsafe", Severity.INFO, "c", 0.5, 1.0, "phases")
-    merged = combine(Analysis([warning, info], ["crash", "failsafe"], {"fly_away": "no"}),
-                     Analysis([failure], ["crash", "fly_away"], {}))
+    merged = combine(
+        Analysis([warning, info], ["crash", "failsafe"], {"fly_away": "no"}),
+        Analysis([failure], ["crash", "fly_away"], {}),
+    )
     assert merged.findings == [failure, info]
     assert merged.skipped == {} and set(merged.watched) == {"crash", "failsafe", "fly_away"}
 

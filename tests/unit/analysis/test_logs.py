@@ -50,7 +50,11 @@ def test_the_drops_failsafe_is_read_from_the_receiver_and_the_disarm_reason() ->
 def test_the_autoland_log_shows_its_landing_phase_in_order() -> None:
     finding = findings_of("autoland-master.BFL")["failsafe"]
     assert [p[0] for p in finding.evidence["phases"]] == [  # type: ignore[attr-defined]
-        "IDLE", "RX lost", "LANDING", "disarmed by the failsafe"]
+        "IDLE",
+        "RX lost",
+        "LANDING",
+        "disarmed by the failsafe",
+    ]
 
 
 def test_a_landing_at_two_metres_a_second_is_a_hard_landing_in_the_log() -> None:
@@ -68,11 +72,12 @@ def test_a_plain_flight_has_no_finding_and_a_cut_log_says_what_it_cannot_judge()
 
 
 def test_log_check_prints_each_logs_findings_and_exits_by_the_worst(
-        capsys: pytest.CaptureFixture[str]) -> None:
+    capsys: pytest.CaptureFixture[str],
+) -> None:
     assert main(["log", "check", str(DATA / "plain-4.6.0.BF")]) == 0
     assert "nothing found" in capsys.readouterr().out
     landing = str(DATA / "switch-landing-master.BFL")
-    assert main(["log", "check", landing]) == 0                      # a warning < failure
+    assert main(["log", "check", landing]) == 0  # a warning < failure
     assert main(["log", "check", landing, "--fail-on", "warning"]) == 1
     out = capsys.readouterr().out
     assert "hard_landing" in out and "not watched: altitude_estimate" in out
@@ -84,7 +89,8 @@ def test_log_check_prints_each_logs_findings_and_exits_by_the_worst(
 
 
 def test_log_check_names_a_file_it_cannot_read_and_goes_on(
-        tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
     garbage = tmp_path / "LOG00001.BFL"
     garbage.write_bytes(b"\x00garbage" * 10)
     assert main(["log", "check", str(garbage), str(DATA / "plain-master.BFL")]) == 2
@@ -96,19 +102,36 @@ def test_log_check_names_a_file_it_cannot_read_and_goes_on(
 
 
 def test_a_bfsitl_flight_log_is_read_back_and_checked(
-        tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
     path = tmp_path / "flight.csv"
     with CsvFlightLog(path) as log:
         for index in range(300):
-            log.write(make_row(index, motor1=1.0 if 100 <= index < 150 else 0.51,
-                               sim_alt_m=2.0, fc_alt_m=2.0, target_north_m=math.nan))
+            log.write(
+                make_row(
+                    index,
+                    motor1=1.0 if 100 <= index < 150 else 0.51,
+                    sim_alt_m=2.0,
+                    fc_alt_m=2.0,
+                    target_north_m=math.nan,
+                )
+            )
     rows = read_flight_rows(path)
     # Every column comes back with its type; an empty cell is NaN again.
-    nan_free = {name: 0.0 for name in ("target_north_m", "target_east_m",
-                                       "target_heading_deg", "fc_north_m", "fc_east_m")}
+    nan_free = {
+        name: 0.0
+        for name in (
+            "target_north_m",
+            "target_east_m",
+            "target_heading_deg",
+            "fc_north_m",
+            "fc_east_m",
+        )
+    }
     assert math.isnan(rows[5].target_north_m)
     assert replace(rows[5], **nan_free) == replace(
-        make_row(5, sim_alt_m=2.0, fc_alt_m=2.0, motor1=0.51), **nan_free)
+        make_row(5, sim_alt_m=2.0, fc_alt_m=2.0, motor1=0.51), **nan_free
+    )
     findings = analyse(track_from_rows(rows)).findings
     assert [f.analyser for f in findings] == ["motor_saturation"]
     assert main(["log", "check", str(path), "--fail-on", "warning"]) == 1

@@ -51,10 +51,12 @@ def lockstep(tmp_path) -> FirmwareBinary:
     return FirmwareBinary(path, "test")
 
 
-def make(firmware: FirmwareBinary, *, world: World | None = None, rc_link: bool = True,
-         **timing) -> SitlBackend:
-    return make_backend(world or World(), Timing(**timing), firmware, rc_link=rc_link,
-                        progress=lambda _line: None)
+def make(
+    firmware: FirmwareBinary, *, world: World | None = None, rc_link: bool = True, **timing
+) -> SitlBackend:
+    return make_backend(
+        world or World(), Timing(**timing), firmware, rc_link=rc_link, progress=lambda _line: None
+    )
 
 
 # -- the factory -------------------------------------------------------------------------------
@@ -85,9 +87,9 @@ def test_impossible_combinations_are_refused_before_anything_starts(stock, locks
 
 
 def test_a_lockstep_backend_paces_as_asked(lockstep) -> None:
-    assert make(lockstep).speed is None                            # type: ignore[attr-defined]
-    assert make(lockstep, speed=math.inf).speed is None            # type: ignore[attr-defined]
-    assert make(lockstep, speed=30.0).speed == 30.0                # type: ignore[attr-defined]
+    assert make(lockstep).speed is None  # type: ignore[attr-defined]
+    assert make(lockstep, speed=math.inf).speed is None  # type: ignore[attr-defined]
+    assert make(lockstep, speed=30.0).speed == 30.0  # type: ignore[attr-defined]
     assert make(lockstep, lockstep_spin=False).sitl_env == {SITL_SPIN_ENV: "0"}
     assert make(lockstep).sitl_env is None
 
@@ -97,7 +99,7 @@ def test_a_lockstep_backend_hooks_every_link_into_the_steps(lockstep) -> None:
     assert hooks.on_spawn is not None and hooks.client_clock is not None
     assert hooks.link_wrapper is not None
     with pytest.raises(BfsitlError, match="not started"):
-        hooks.client_clock()                 # before start there is no simulation time
+        hooks.client_clock()  # before start there is no simulation time
     assert make(lockstep, lockstep=False).hooks.link_wrapper is None
 
 
@@ -132,9 +134,12 @@ class Sender:
 def test_a_board_offers_no_disturbance_and_says_why() -> None:
     disturbances = Backend().disturbances
     assert not disturbances.has_rc and not disturbances.has_physics
-    for act in (lambda: disturbances.set_motor_thrust(1, 0.5),
-                lambda: disturbances.set_wind(None), lambda: disturbances.set_gps_lost(True),
-                lambda: disturbances.set_rc_fault(RcFault(silent=True))):
+    for act in (
+        lambda: disturbances.set_motor_thrust(1, 0.5),
+        lambda: disturbances.set_wind(None),
+        lambda: disturbances.set_gps_lost(True),
+        lambda: disturbances.set_rc_fault(RcFault(silent=True)),
+    ):
         with pytest.raises(DisturbanceUnavailableError, match="a real board"):
             act()
 
@@ -170,7 +175,7 @@ def test_embedded_physics_disturbs_the_simulator_it_flies(stock) -> None:
 def test_the_truth_counts_from_where_the_vehicle_stood_at_arming(stock) -> None:
     backend = make(stock)
     vehicle = Vehicle(backend=backend)
-    assert backend.truth() is None                       # no bridge yet: nobody knows it
+    assert backend.truth() is None  # no bridge yet: nobody knows it
     assert math.isnan(vehicle._truth().altitude_m)
 
     class StillBridge:
@@ -194,7 +199,7 @@ def test_a_boards_accelerometer_scale_is_measured_at_rest() -> None:
     assert imu_scale_at_rest([(0, 0, 4100)]).acc_1g_lsb == 4096
     tilted = (0, int(2048 * math.sin(0.3)), int(2048 * math.cos(0.3)))
     assert imu_scale_at_rest([tilted]).acc_1g_lsb == 2048
-    assert imu_scale_at_rest([(0, 0, 255)]) == SITL_IMU     # a SITL behind a serial bridge
+    assert imu_scale_at_rest([(0, 0, 255)]) == SITL_IMU  # a SITL behind a serial bridge
     with pytest.raises(BoardSetupError, match="keep the board still"):
         imu_scale_at_rest([(0, 0, 3000)])
     with pytest.raises(BoardSetupError):

@@ -54,8 +54,9 @@ COMPLETE = [  # file, firmware, disarm reason, failsafe phases the log shows
 
 
 @pytest.mark.parametrize(("name", "revision", "reason", "phases"), COMPLETE)
-def test_a_complete_log_decodes_with_its_disarm(name: str, revision: str, reason: str,
-                                                phases: list[str]) -> None:
+def test_a_complete_log_decodes_with_its_disarm(
+    name: str, revision: str, reason: str, phases: list[str]
+) -> None:
     log = only_log(name)
     assert log.firmware_revision.startswith(revision) and log.path == DATA / name
     assert not log.truncated and len(log.frames) > 5
@@ -82,10 +83,14 @@ def test_the_slow_frame_comes_after_the_first_main_frame() -> None:
 
 # -- plain flights: arm, 1500 us for 1 s, disarm by the switch --------------------------------
 
-@pytest.mark.parametrize(("name", "duration_s"), [
-    ("plain-4.6.0.BF", 0.89),    # 8 kHz loop: the header is written in 0.1 s
-    ("plain-master.BFL", 0.72),  # 1 kHz loop: 0.3 s
-])
+
+@pytest.mark.parametrize(
+    ("name", "duration_s"),
+    [
+        ("plain-4.6.0.BF", 0.89),  # 8 kHz loop: the header is written in 0.1 s
+        ("plain-master.BFL", 0.72),  # 1 kHz loop: 0.3 s
+    ],
+)
 def test_a_plain_flight_ends_with_the_switch(name: str, duration_s: float) -> None:
     log = only_log(name)
     assert log.duration_s == pytest.approx(duration_s, abs=0.02)
@@ -101,6 +106,7 @@ def test_a_plain_flight_ends_with_the_switch(name: str, duration_s: float) -> No
 
 
 # -- failsafe -----------------------------------------------------------------------------------
+
 
 def test_rc_silence_with_auto_land_shows_the_landing_and_a_failsafe_disarm() -> None:
     """master, AUTO-LAND, failsafe_delay 0.5 s, failsafe_landing_time 1 s; RC stopped."""
@@ -122,10 +128,13 @@ def test_rc_silence_with_auto_land_shows_the_landing_and_a_failsafe_disarm() -> 
     assert {frame.failsafe_phase for frame in log.frames} == {None, 0, 2}
 
 
-@pytest.mark.parametrize(("name", "signal_kept"), [
-    ("drop-4.6.0.BF", True),     # the FAILSAFE switch: frames keep coming
-    ("drop-master.BFL", False),  # silence: the signal goes
-])
+@pytest.mark.parametrize(
+    ("name", "signal_kept"),
+    [
+        ("drop-4.6.0.BF", True),  # the FAILSAFE switch: frames keep coming
+        ("drop-master.BFL", False),  # silence: the signal goes
+    ],
+)
 def test_a_drop_shows_the_link_lost_and_a_failsafe_disarm(name: str, signal_kept: bool) -> None:
     log = only_log(name)
     assert 3.0 < log.duration_s < 6.0  # ~1 s of ground and 4 s of hover
@@ -157,12 +166,13 @@ def test_the_phases_and_a_switch_disarm() -> None:
 
 # -- logs cut short -------------------------------------------------------------------------------
 
+
 def test_a_file_cut_in_the_middle_keeps_the_frames_before_the_cut() -> None:
     whole, cut = only_log("plain-4.6.0.BF"), only_log("plain-4.6.0-cut.BF")
     assert cut.truncated and not whole.truncated
     assert cut.disarm_reason is None and cut.disarm_reason_name is None and cut.events == ()
     assert 100 < len(cut.frames) < len(whole.frames)
-    assert cut.frames == whole.frames[:len(cut.frames)]  # the same frames, none invented
+    assert cut.frames == whole.frames[: len(cut.frames)]  # the same frames, none invented
 
 
 def test_a_killed_sitl_leaves_a_truncated_log() -> None:
@@ -185,15 +195,17 @@ def test_a_log_cut_anywhere_decodes_or_says_it_is_no_log(tmp_path: Path) -> None
             continue
         log = decode_blackbox(cut)[0]
         assert log.truncated
-        assert log.frames == whole.frames[:len(log.frames)]
+        assert log.frames == whole.frames[: len(log.frames)]
 
 
 # -- files with several logs, and what is no log --------------------------------------------------
 
+
 def test_two_flights_in_one_file_are_two_logs(tmp_path: Path) -> None:
     both = tmp_path / "LOG00001.BFL"
-    both.write_bytes((DATA / "drop-master.BFL").read_bytes()
-                     + (DATA / "plain-master.BFL").read_bytes())
+    both.write_bytes(
+        (DATA / "drop-master.BFL").read_bytes() + (DATA / "plain-master.BFL").read_bytes()
+    )
     logs = decode_blackbox(both)
     assert [log.index for log in logs] == [1, 2]
     assert [log.disarm_reason_name for log in logs] == ["FAILSAFE", "SWITCH"]
@@ -235,11 +247,18 @@ def test_frames_to_rows_flattens_each_frame() -> None:
 
 # -- finding and collecting -------------------------------------------------------------------
 
+
 def test_find_and_collect_keep_every_log(tmp_path: Path) -> None:
     run = tmp_path / "sitl"
     run.mkdir()
-    for name in ("LOG00001.BF", "LOG00002.BFL", "eeprom.bin", "LOG1.BFL", "sitl.log",
-                 "LOG00003.BFL.tmp"):
+    for name in (
+        "LOG00001.BF",
+        "LOG00002.BFL",
+        "eeprom.bin",
+        "LOG1.BFL",
+        "sitl.log",
+        "LOG00003.BFL.tmp",
+    ):
         (run / name).write_bytes(name.encode())
     (run / "LOG00009.BFL").mkdir()  # a directory is no log
     assert [p.name for p in find_blackbox_files(run)] == ["LOG00001.BF", "LOG00002.BFL"]

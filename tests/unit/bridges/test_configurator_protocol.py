@@ -45,8 +45,7 @@ def test_the_apps_pages_are_served(fake_sitl, origin: str) -> None:
             assert app.request(API["hex"], API["command"]).payload
 
 
-def test_a_foreign_page_speaking_like_the_app_is_refused_before_the_fc_hears_it(
-        fake_sitl) -> None:
+def test_a_foreign_page_speaking_like_the_app_is_refused_before_the_fc_hears_it(fake_sitl) -> None:
     with WebSocketRelay(fake_sitl.upstream, port=0).running() as url:
         with ConfiguratorLikeClient(url, origin="https://evil.example") as page:
             assert page.ws is not None
@@ -81,8 +80,9 @@ class _Sink:
 
 def test_the_apps_frames_reach_the_fc_byte_for_byte() -> None:
     sink = _Sink()
-    sent = b"".join(bytes.fromhex(step["hex"])
-                    for step in frames()["connect"] + frames()["setup_tab_poll"])
+    sent = b"".join(
+        bytes.fromhex(step["hex"]) for step in frames()["connect"] + frames()["setup_tab_poll"]
+    )
     try:
         with WebSocketRelay(sink.upstream, port=0).running() as url:
             with ConfiguratorLikeClient(url) as app:

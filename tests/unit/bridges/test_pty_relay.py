@@ -120,8 +120,7 @@ def test_unreachable_sitl_is_reported(tmp_path):
     with socket.create_server(("127.0.0.1", 0)) as placeholder:
         port = placeholder.getsockname()[1]
     events: list[str] = []
-    relay = PtyRelay(Upstream("127.0.0.1", port), link_path=tmp_path / "fc",
-                     on_event=events.append)
+    relay = PtyRelay(Upstream("127.0.0.1", port), link_path=tmp_path / "fc", on_event=events.append)
     with relay.running() as endpoint, serial.Serial(endpoint.path, timeout=0.2) as port_:
         port_.write(b"$M<\x00\x01\x01")
         wait_until(lambda: any("connection refused" in e for e in events))

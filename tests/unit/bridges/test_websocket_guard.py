@@ -18,22 +18,42 @@ from bfsitl.bridges.websocket_guard import CLOSE_UPSTREAM_ERROR, OriginGuard
 from bfsitl.errors import BridgeError
 
 
-@pytest.mark.parametrize("origin", [
-    None,  # not a browser
-    "http://127.0.0.1:8000", "http://localhost:5173", "https://localhost", "http://[::1]:80",
-    "https://app.betaflight.com", "https://master.app.betaflight.com",
-    "tauri://localhost", "http://tauri.localhost", "capacitor://localhost",
-    "chrome-extension://abcdefghijklmnop", "https://app.foxglove.dev", "HTTP://LOCALHOST:9",
-])
+@pytest.mark.parametrize(
+    "origin",
+    [
+        None,  # not a browser
+        "http://127.0.0.1:8000",
+        "http://localhost:5173",
+        "https://localhost",
+        "http://[::1]:80",
+        "https://app.betaflight.com",
+        "https://master.app.betaflight.com",
+        "tauri://localhost",
+        "http://tauri.localhost",
+        "capacitor://localhost",
+        "chrome-extension://abcdefghijklmnop",
+        "https://app.foxglove.dev",
+        "HTTP://LOCALHOST:9",
+    ],
+)
 def test_the_configurators_and_foxgloves_pages_are_accepted(origin):
     assert OriginPolicy().refusal(origin) is None
 
 
-@pytest.mark.parametrize("origin", [
-    "https://evil.example", "null", "file://", "http://127.0.0.1.nip.io",
-    "https://app.betaflight.com.evil.example", "https://evilapp.betaflight.com",
-    "ftp://localhost", "https://foxglove.dev.evil.example", "",
-])
+@pytest.mark.parametrize(
+    "origin",
+    [
+        "https://evil.example",
+        "null",
+        "file://",
+        "http://127.0.0.1.nip.io",
+        "https://app.betaflight.com.evil.example",
+        "https://evilapp.betaflight.com",
+        "ftp://localhost",
+        "https://foxglove.dev.evil.example",
+        "",
+    ],
+)
 def test_other_pages_are_refused_with_a_reason_that_fits_a_close_frame(origin):
     reason = OriginPolicy().refusal(origin)
     assert reason is not None and "--allow-origin" in reason
@@ -48,8 +68,9 @@ def test_allow_origin_adds_exact_origins_or_everything():
     assert OriginPolicy.with_extra(["*"]).accepts("https://anything.example")
 
 
-@pytest.mark.parametrize("bad", ["viewer.example", "https://viewer.example/path", "https://",
-                                 "https://x.example/?q=1"])
+@pytest.mark.parametrize(
+    "bad", ["viewer.example", "https://viewer.example/path", "https://", "https://x.example/?q=1"]
+)
 def test_a_mistyped_allow_origin_is_an_error_at_start(bad):
     with pytest.raises(BridgeError, match="--allow-origin"):
         normalise_origin(bad)
@@ -90,8 +111,10 @@ def echo_server(subprotocol: str = "demo.v1") -> Iterator[str]:
 def test_an_allowed_client_talks_to_the_server_behind_in_both_directions():
     with echo_server() as upstream:
         guard = OriginGuard(upstream, port=0, subprotocols=["demo.v1"])
-        with guard.running() as url, connect(url, subprotocols=["demo.v1"],
-                                             origin="http://localhost:3000") as ws:
+        with (
+            guard.running() as url,
+            connect(url, subprotocols=["demo.v1"], origin="http://localhost:3000") as ws,
+        ):
             assert ws.subprotocol == "demo.v1"
             ws.send(b"\x01\x02binary")
             assert ws.recv(timeout=3) == b"\x01\x02binary"
@@ -108,8 +131,10 @@ def test_a_foreign_page_never_reaches_the_server_behind():
     events: list[str] = []
     with echo_server() as upstream:
         guard = OriginGuard(upstream, port=0, subprotocols=["demo.v1"], on_event=events.append)
-        with guard.running() as url, connect(url, subprotocols=["demo.v1"],
-                                             origin="https://evil.example") as ws:
+        with (
+            guard.running() as url,
+            connect(url, subprotocols=["demo.v1"], origin="https://evil.example") as ws,
+        ):
             with pytest.raises(ConnectionClosed):
                 ws.recv(timeout=3)
             assert ws.close_code == CLOSE_POLICY_VIOLATION

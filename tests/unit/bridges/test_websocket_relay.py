@@ -36,8 +36,9 @@ def fake_sitl():
 
 
 def relay_for(sitl: FakeSitl, events: list[str] | None = None) -> WebSocketRelay:
-    return WebSocketRelay(sitl.upstream, port=0,
-                          on_event=events.append if events is not None else None)
+    return WebSocketRelay(
+        sitl.upstream, port=0, on_event=events.append if events is not None else None
+    )
 
 
 def closed_code(ws) -> tuple[int | None, str]:
@@ -109,8 +110,15 @@ def test_pick_subprotocol_prefers_the_current_configurators_binary():
         pick_subprotocol(["chat"])
 
 
-@pytest.mark.parametrize("origin", ["https://evil.example", "http://127.0.0.1.evil.example",
-                                    "https://app.betaflight.com.evil.example", "null"])
+@pytest.mark.parametrize(
+    "origin",
+    [
+        "https://evil.example",
+        "http://127.0.0.1.evil.example",
+        "https://app.betaflight.com.evil.example",
+        "null",
+    ],
+)
 def test_a_foreign_page_is_refused_before_a_byte_reaches_the_fc(fake_sitl, origin):
     """Cross-site WebSocket hijacking: a page in another tab must not drive the FC."""
     events: list[str] = []
@@ -125,8 +133,16 @@ def test_a_foreign_page_is_refused_before_a_byte_reaches_the_fc(fake_sitl, origi
     assert any(origin in e and "--allow-origin" in e for e in events)
 
 
-@pytest.mark.parametrize("origin", [None, "http://127.0.0.1:8000", "http://localhost:5173",
-                                    "https://app.betaflight.com", "tauri://localhost"])
+@pytest.mark.parametrize(
+    "origin",
+    [
+        None,
+        "http://127.0.0.1:8000",
+        "http://localhost:5173",
+        "https://app.betaflight.com",
+        "tauri://localhost",
+    ],
+)
 def test_the_configurators_own_origins_and_scripts_are_served(fake_sitl, origin):
     relay = relay_for(fake_sitl)
     with relay.running() as url, connect(url, subprotocols=["binary"], origin=origin) as ws:
@@ -136,8 +152,9 @@ def test_the_configurators_own_origins_and_scripts_are_served(fake_sitl, origin)
 
 
 def test_allow_origin_adds_a_page(fake_sitl):
-    relay = WebSocketRelay(fake_sitl.upstream, port=0,
-                           origins=OriginPolicy.with_extra(["https://My.Example:8443/"]))
+    relay = WebSocketRelay(
+        fake_sitl.upstream, port=0, origins=OriginPolicy.with_extra(["https://My.Example:8443/"])
+    )
     with relay.running() as url:
         with connect(url, subprotocols=["binary"], origin="https://my.example:8443") as ws:
             ws.send(REQUEST)

@@ -22,7 +22,7 @@ GITMODULES = """\
 [submodule "escape"]
 \tpath = ../outside
 """
-HYDRATING_MAKEFILE = "$(STAMPS):\n\tgit submodule update --init -- \"$(@:/.git=)\"\n"
+HYDRATING_MAKEFILE = '$(STAMPS):\n\tgit submodule update --init -- "$(@:/.git=)"\n'
 
 
 def tree_with(tmp_path: Path, makefile: str) -> Path:
@@ -35,7 +35,10 @@ def tree_with(tmp_path: Path, makefile: str) -> Path:
 
 def test_the_submodules_make_would_fetch_are_those_not_marked_update_none() -> None:
     assert auto_hydrated_submodules(GITMODULES) == [
-        "src/config", "lib/modules/dronecan/libcanard", "../outside"]
+        "src/config",
+        "lib/modules/dronecan/libcanard",
+        "../outside",
+    ]
     assert auto_hydrated_submodules("") == []
     assert auto_hydrated_submodules("garbage\n[submodule broken\npath = x\n") == []
 
@@ -50,12 +53,15 @@ def test_missing_ones_get_a_stamp_and_the_user_is_told(tmp_path: Path) -> None:
     assert (tree / "lib/modules/dronecan/libcanard/.git").is_file()
     assert not (tmp_path / "outside").exists()  # never outside the tree
     assert not (tree / "lib/modules/pico-sdk").exists()  # opt-in SDKs are left alone
-    assert notes == ["not fetching submodules src/config, lib/modules/dronecan/libcanard: the "
-                     "SITL build does not compile them"]
+    assert notes == [
+        "not fetching submodules src/config, lib/modules/dronecan/libcanard: the "
+        "SITL build does not compile them"
+    ]
 
 
 def test_a_checked_out_submodule_and_a_makefile_that_fetches_nothing_are_left_alone(
-        tmp_path: Path) -> None:
+    tmp_path: Path,
+) -> None:
     tree = tree_with(tmp_path, HYDRATING_MAKEFILE)
     (tree / "src/config").mkdir(parents=True)
     (tree / "src/config/.git").write_text("gitdir: ../../.git/modules/config\n")

@@ -106,9 +106,11 @@ COMMON_PRE = """
 #define USE_GPS_RESCUE
 #endif
 """
-CODE = "#ifdef USE_GPS\n#ifdef USE_VIRTUAL_GPS\n#endif\n#endif\n" \
-       "#ifdef USE_ALTITUDE_HOLD\n#endif\n#ifdef USE_POSITION_HOLD\n#endif\n" \
-       "#ifdef USE_GPS_RESCUE\n#endif\n"
+CODE = (
+    "#ifdef USE_GPS\n#ifdef USE_VIRTUAL_GPS\n#endif\n#endif\n"
+    "#ifdef USE_ALTITUDE_HOLD\n#endif\n#ifdef USE_POSITION_HOLD\n#endif\n"
+    "#ifdef USE_GPS_RESCUE\n#endif\n"
+)
 
 
 def make_tree(root: Path, *, master: bool = False) -> Path:
@@ -118,7 +120,7 @@ def make_tree(root: Path, *, master: bool = False) -> Path:
         "mk/tools.mk": "CC := gcc\n",
         "lib/main/dyad/dyad.c": "int dyad;\n",
         "src/main/msp/msp_protocol.h": "#define API_VERSION_MAJOR 1\n#define API_VERSION_MINOR "
-                                       + ("49\n" if master else "47\n"),
+        + ("49\n" if master else "47\n"),
         "src/main/target/common_pre.h": COMMON_PRE,
         "src/main/target/common_post.h": "",
         "src/main/io/gps.c": CODE,
@@ -129,11 +131,13 @@ def make_tree(root: Path, *, master: bool = False) -> Path:
     if master:
         files["src/main/build/version.h"] = (
             "#define FC_VERSION_YEAR 2026 // the year\n#define FC_VERSION_MONTH 12\n"
-            "#define FC_VERSION_PATCH_LEVEL 0\n#define FC_VERSION_SUFFIX \"alpha\"\n")
+            '#define FC_VERSION_PATCH_LEVEL 0\n#define FC_VERSION_SUFFIX "alpha"\n'
+        )
     else:
         files["src/main/build/version.h"] = (
             "#define FC_VERSION_MAJOR            4  // increment when ...\n"
-            "#define FC_VERSION_MINOR 6\n#define FC_VERSION_PATCH_LEVEL 0\n")
+            "#define FC_VERSION_MINOR 6\n#define FC_VERSION_PATCH_LEVEL 0\n"
+        )
     for rel, text in files.items():
         path = root / rel
         path.parent.mkdir(parents=True, exist_ok=True)
@@ -158,8 +162,13 @@ def env(tmp_path: Path, fake_bin: Path, monkeypatch: pytest.MonkeyPatch) -> dict
     monkeypatch.setenv("PATH", f"{fake_bin}{os.pathsep}/usr/bin{os.pathsep}/bin")
     monkeypatch.setenv("BFSITL_CACHE_DIR", str(tmp_path / "cache"))
     monkeypatch.setenv("FAKE_MAKE_LOG", str(tmp_path / "make.log"))
-    for name in ("FAKE_MAKE_FAIL", "FAKE_MAKE_SLEEP", "FAKE_MAKE_IP", "FAKE_MAKE_GPS",
-                 "BFSITL_FIRMWARE"):
+    for name in (
+        "FAKE_MAKE_FAIL",
+        "FAKE_MAKE_SLEEP",
+        "FAKE_MAKE_IP",
+        "FAKE_MAKE_GPS",
+        "BFSITL_FIRMWARE",
+    ):
         monkeypatch.delenv(name, raising=False)
     return dict(os.environ)
 
@@ -194,8 +203,10 @@ def test_build_then_cached(tree: Path, env: dict[str, str], tmp_path: Path) -> N
     assert second.binary_path == first.binary_path
     assert len(make_runs(tmp_path)) == 1
     # Only the binary and its record are kept; the copy and tmp/ are gone.
-    assert sorted(p.name for p in first.binary_path.parent.iterdir()) == \
-        ["betaflight_9.9.0_SITL", "build.json"]
+    assert sorted(p.name for p in first.binary_path.parent.iterdir()) == [
+        "betaflight_9.9.0_SITL",
+        "build.json",
+    ]
     assert list((Path(env["BFSITL_CACHE_DIR"]) / "tmp").iterdir()) == []
 
 
@@ -206,8 +217,9 @@ def test_source_tree_is_never_written(tree: Path, env: dict[str, str]) -> None:
     assert after == before  # no obj/ output, nothing touched
 
 
-def test_copy_leaves_out_obj_git_and_docs(tree: Path, env: dict[str, str],
-                                          monkeypatch: pytest.MonkeyPatch) -> None:
+def test_copy_leaves_out_obj_git_and_docs(
+    tree: Path, env: dict[str, str], monkeypatch: pytest.MonkeyPatch
+) -> None:
     (tree / ".git").mkdir()
     (tree / ".git" / "HEAD").write_text("0123456789abcdef0123456789abcdef01234567\n")
     seen: list[set[str]] = []
@@ -230,8 +242,7 @@ def test_copy_leaves_out_obj_git_and_docs(tree: Path, env: dict[str, str],
 
 
 def test_metadata_beside_the_binary(tree: Path, env: dict[str, str]) -> None:
-    result = build_firmware(tree, FirmwareBuildOptions(gps=True, defines=("FOO=2",)),
-                            environ=env)
+    result = build_firmware(tree, FirmwareBuildOptions(gps=True, defines=("FOO=2",)), environ=env)
     meta = metadata_for_binary(result.binary_path)
     assert meta is not None
     assert meta.name == "4.6.0-gps+FOO-2"
@@ -288,8 +299,9 @@ def test_fingerprint_ignores_obj_git_docs_and_uses_its_memo(
     assert [Path(p).name for p in reads] == ["gps.c"]
 
 
-def test_failure_leaves_no_entry_and_explains(tree: Path, env: dict[str, str],
-                                              tmp_path: Path) -> None:
+def test_failure_leaves_no_entry_and_explains(
+    tree: Path, env: dict[str, str], tmp_path: Path
+) -> None:
     env["FAKE_MAKE_FAIL"] = "1"
     with pytest.raises(FirmwareBuildError) as caught:
         build_firmware(tree, environ=env)
@@ -317,8 +329,9 @@ class InterruptingProgress(BuildProgress):
         raise KeyboardInterrupt
 
 
-def test_interrupt_kills_make_and_leaves_nothing(tree: Path, env: dict[str, str],
-                                                 tmp_path: Path) -> None:
+def test_interrupt_kills_make_and_leaves_nothing(
+    tree: Path, env: dict[str, str], tmp_path: Path
+) -> None:
     pidfile = tmp_path / "make.pid"
     env.update(FAKE_MAKE_SLEEP="30", FAKE_MAKE_PIDFILE=str(pidfile))
     started = time.monotonic()
@@ -333,8 +346,9 @@ def test_interrupt_kills_make_and_leaves_nothing(tree: Path, env: dict[str, str]
     assert cache_of(env).entries() == []
 
 
-def test_concurrent_builds_of_one_key_build_once(tree: Path, env: dict[str, str],
-                                                 tmp_path: Path) -> None:
+def test_concurrent_builds_of_one_key_build_once(
+    tree: Path, env: dict[str, str], tmp_path: Path
+) -> None:
     env["FAKE_MAKE_SLEEP"] = "0.3"
     env["FAKE_MAKE_PIDFILE"] = str(tmp_path / "pid")
     results = []
@@ -366,10 +380,13 @@ def test_missing_gcc_names_the_package(tree: Path, env: dict[str, str], fake_bin
     assert "apt-get install gcc make" in str(caught.value)
 
 
-def test_missing_compiler_seen_by_make_names_the_package(tree: Path, env: dict[str, str],
-                                                         fake_bin: Path) -> None:
-    (fake_bin / "make").write_text("#!/bin/sh\necho 'make: gcc: No such file or directory'\n"
-                                   "echo 'make: *** [x.o] Error 127'\nexit 2\n")
+def test_missing_compiler_seen_by_make_names_the_package(
+    tree: Path, env: dict[str, str], fake_bin: Path
+) -> None:
+    (fake_bin / "make").write_text(
+        "#!/bin/sh\necho 'make: gcc: No such file or directory'\n"
+        "echo 'make: *** [x.o] Error 127'\nexit 2\n"
+    )
     with pytest.raises(BuildToolMissingError, match="apt-get install gcc make"):
         build_firmware(tree, environ=env)
 
@@ -419,8 +436,9 @@ def test_gps_on_a_master_tree_changes_nothing(tmp_path: Path, env: dict[str, str
     assert plain.metadata.git_revision == "301d01a"
 
 
-def test_a_gps_build_without_gps_in_the_binary_fails(tree: Path, env: dict[str, str],
-                                                     fake_bin: Path) -> None:
+def test_a_gps_build_without_gps_in_the_binary_fails(
+    tree: Path, env: dict[str, str], fake_bin: Path
+) -> None:
     script = (fake_bin / "make").read_text().replace("*-DUSE_GPS*|*yes)", "*NEVER*)")
     (fake_bin / "make").write_text(script)
     with pytest.raises(FirmwareBuildError, match="has no GPS"):
@@ -540,8 +558,9 @@ def test_live_progress_redraws_one_line() -> None:
     assert text.endswith("\nbfsitl: linking\n")
 
 
-def test_cli_build_prints_the_path_last(tree: Path, env: dict[str, str],
-                                        capsys: pytest.CaptureFixture[str]) -> None:
+def test_cli_build_prints_the_path_last(
+    tree: Path, env: dict[str, str], capsys: pytest.CaptureFixture[str]
+) -> None:
     assert main(["firmware", "build", "--source", str(tree), "--gps", "-j", "2"]) == 0
     out, err = capsys.readouterr()
     path = Path(out.strip().splitlines()[-1])
@@ -555,9 +574,12 @@ def test_cli_build_prints_the_path_last(tree: Path, env: dict[str, str],
     assert "cached: 4.6.0-gps" in err
 
 
-def test_cli_build_failure_is_exit_1_with_the_cause(tree: Path, env: dict[str, str],
-                                                    monkeypatch: pytest.MonkeyPatch,
-                                                    capsys: pytest.CaptureFixture[str]) -> None:
+def test_cli_build_failure_is_exit_1_with_the_cause(
+    tree: Path,
+    env: dict[str, str],
+    monkeypatch: pytest.MonkeyPatch,
+    capsys: pytest.CaptureFixture[str],
+) -> None:
     monkeypatch.setenv("FAKE_MAKE_FAIL", "1")
     assert main(["firmware", "build", "--source", str(tree)]) == 1
     out, err = capsys.readouterr()
@@ -565,40 +587,43 @@ def test_cli_build_failure_is_exit_1_with_the_cause(tree: Path, env: dict[str, s
     assert "error: 'bogus' undeclared" in err
 
 
-def test_cli_list_info_clean(tree: Path, env: dict[str, str],
-                             capsys: pytest.CaptureFixture[str]) -> None:
+def test_cli_list_info_clean(
+    tree: Path, env: dict[str, str], capsys: pytest.CaptureFixture[str]
+) -> None:
     import json
 
     build_firmware(tree, FirmwareBuildOptions(gps=True), environ=env)
     assert main(["firmware", "list", "--json"]) == 0
     rows = json.loads(capsys.readouterr().out)
     mine = [r for r in rows if r["source"] == "cache"]
-    assert [(r["name"], r["firmware_version"], r["options"], r["gps"]) for r in mine] == \
-        [("4.6.0-gps", "4.6.0", "gps", True)]
+    assert [(r["name"], r["firmware_version"], r["options"], r["gps"]) for r in mine] == [
+        ("4.6.0-gps", "4.6.0", "gps", True)
+    ]
     assert main(["firmware", "info", "4.6.0-gps", "--no-probe", "--json"]) == 0
     info = json.loads(capsys.readouterr().out)
     assert info["build"]["name"] == "4.6.0-gps" and info["probe"] is None
-    assert info["binary"] == {"takes_ip_flag": False,
-                              "features": ["gps", "gps_rescue", "altitude_hold"]}
+    assert info["binary"] == {
+        "takes_ip_flag": False,
+        "features": ["gps", "gps_rescue", "altitude_hold"],
+    }
     assert main(["firmware", "clean", "4.6.0-gps"]) == 0
     assert cache_of(env).entries() == []
 
 
 def test_a_second_name_is_said_when_given_and_listed_beside_the_first(
-        tree: Path, env: dict[str, str], capsys: pytest.CaptureFixture[str]) -> None:
+    tree: Path, env: dict[str, str], capsys: pytest.CaptureFixture[str]
+) -> None:
     import json
 
     assert main(["firmware", "build", "--source", str(tree), "--gps"]) == 0
     capsys.readouterr()
     # The same build again under a name of the user's: nothing compiles, the name is said.
-    assert main(["firmware", "build", "--source", str(tree), "--gps",
-                 "--name", "mine-gps"]) == 0
+    assert main(["firmware", "build", "--source", str(tree), "--gps", "--name", "mine-gps"]) == 0
     err = capsys.readouterr().err
     assert "named it mine-gps: --firmware mine-gps now runs this build" in err
     assert "its other names: 4.6.0-gps" in err
     # Once more: the name is already there, so nothing new is named.
-    assert main(["firmware", "build", "--source", str(tree), "--gps",
-                 "--name", "mine-gps"]) == 0
+    assert main(["firmware", "build", "--source", str(tree), "--gps", "--name", "mine-gps"]) == 0
     assert "named it" not in capsys.readouterr().err
     assert main(["firmware", "list"]) == 0
     table = capsys.readouterr().out.splitlines()
@@ -612,15 +637,14 @@ def test_a_second_name_is_said_when_given_and_listed_beside_the_first(
 # --- find_firmware and the command-line form ------------------------------------------------
 
 
-def test_find_firmware_resolves_a_cached_name(tree: Path, env: dict[str, str],
-                                              tmp_path: Path,
-                                              monkeypatch: pytest.MonkeyPatch) -> None:
+def test_find_firmware_resolves_a_cached_name(
+    tree: Path, env: dict[str, str], tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
     result = build_firmware(tree, FirmwareBuildOptions(gps=True), environ=env)
     found = find_firmware("4.6.0-gps", environ=env)
     assert found.path == result.binary_path
     assert "4.6.0-gps" in found.source
-    assert find_firmware(environ={**env, "BFSITL_FIRMWARE": "4.6.0-gps"}).path == \
-        result.binary_path
+    assert find_firmware(environ={**env, "BFSITL_FIRMWARE": "4.6.0-gps"}).path == result.binary_path
     # An existing path of the same name wins over the cached name.
     monkeypatch.chdir(tmp_path)
     local = tmp_path / "4.6.0-gps"
@@ -642,8 +666,10 @@ def test_takes_ip_flag_comes_from_the_bytes(tmp_path: Path, name: str) -> None:
     clear_cache()
     with_text = tmp_path / "a" / name
     without = tmp_path / "b" / name
-    for path, content in ((with_text, b"usage\0  --ip <address>     Simulator IP\0"),
-                          (without, b"\x7fELF 4.6 copies argv[1]\0")):
+    for path, content in (
+        (with_text, b"usage\0  --ip <address>     Simulator IP\0"),
+        (without, b"\x7fELF 4.6 copies argv[1]\0"),
+    ):
         path.parent.mkdir()
         path.write_bytes(content)
         path.chmod(0o755)
@@ -663,8 +689,11 @@ def test_build_options_for_the_profile(tree: Path, env: dict[str, str]) -> None:
         pytest.skip("firmware_profile has no BuildOptions")
     from bfsitl.build import build_options_for_binary
 
-    result = build_firmware(tree, FirmwareBuildOptions(
-        gps=True, defines=("ENABLE_GAZEBO_BRIDGE=0", "SITL_ATTITUDE_DIRECT")), environ=env)
+    result = build_firmware(
+        tree,
+        FirmwareBuildOptions(gps=True, defines=("ENABLE_GAZEBO_BRIDGE=0", "SITL_ATTITUDE_DIRECT")),
+        environ=env,
+    )
     options = build_options_for_binary(result.binary_path)
     assert options == profile.BuildOptions(gps=True, gazebo_bridge=False, attitude_direct=True)
     assert build_options_for_binary(tree / "Makefile") is None

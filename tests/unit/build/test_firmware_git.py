@@ -27,8 +27,9 @@ GIT_ID = ["-c", "user.name=bfsitl tests", "-c", "user.email=tests@bfsitl.invalid
 
 
 def git(cwd: Path, *args: str) -> str:
-    return subprocess.run(["git", *GIT_ID, *args], cwd=cwd, check=True, capture_output=True,
-                          text=True).stdout.strip()
+    return subprocess.run(
+        ["git", *GIT_ID, *args], cwd=cwd, check=True, capture_output=True, text=True
+    ).stdout.strip()
 
 
 @pytest.fixture
@@ -60,10 +61,12 @@ def test_what_counts_as_a_git_url() -> None:
 
 
 def test_ls_remote_lines_and_which_ref_wins() -> None:
-    listing = ("ref: refs/heads/master\tHEAD\n"
-               f"{'a' * 40}\tHEAD\n{'a' * 40}\trefs/heads/master\n"
-               f"{'b' * 40}\trefs/tags/master\n{'c' * 40}\trefs/tags/v1\n"
-               f"{'d' * 40}\trefs/tags/v1^{{}}\nnot a line\n")
+    listing = (
+        "ref: refs/heads/master\tHEAD\n"
+        f"{'a' * 40}\tHEAD\n{'a' * 40}\trefs/heads/master\n"
+        f"{'b' * 40}\trefs/tags/master\n{'c' * 40}\trefs/tags/v1\n"
+        f"{'d' * 40}\trefs/tags/v1^{{}}\nnot a line\n"
+    )
     refs = parse_ls_remote(listing)
     assert refs["HEAD"] == "a" * 40 and len(refs) == 5
     assert pick_ref(refs, None) == ("a" * 40, "HEAD")
@@ -73,12 +76,19 @@ def test_ls_remote_lines_and_which_ref_wins() -> None:
     assert pick_ref(refs, "nope") is None
 
 
-@pytest.mark.parametrize(("ref", "expected"), [
-    (None, "second"), ("main", "second"), ("old", "first"), ("light", "first"),
-    ("annotated", "first"),
-])
-def test_each_kind_of_ref_clones_its_commit(remote, tmp_path: Path, ref: str | None,
-                                           expected: str) -> None:
+@pytest.mark.parametrize(
+    ("ref", "expected"),
+    [
+        (None, "second"),
+        ("main", "second"),
+        ("old", "first"),
+        ("light", "first"),
+        ("annotated", "first"),
+    ],
+)
+def test_each_kind_of_ref_clones_its_commit(
+    remote, tmp_path: Path, ref: str | None, expected: str
+) -> None:
     url, commits = remote
     source = fetch_git_source(url, ref, tmp_path / "cache")
     assert source.commit == commits[expected] and source.fetched
@@ -96,7 +106,8 @@ def test_a_full_commit_hash_is_fetched_as_given(remote, tmp_path: Path) -> None:
 
 
 def test_the_same_commit_again_comes_from_the_cache_without_git_fetching(
-        remote, tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    remote, tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
     url, commits = remote
     lines: list[str] = []
     first = fetch_git_source(url, "main", tmp_path / "cache", note=lines.append)
@@ -114,13 +125,15 @@ def test_the_same_commit_again_comes_from_the_cache_without_git_fetching(
     assert any("is cached" in line for line in lines)
 
 
-def test_an_interrupted_clone_leaves_nothing_behind(remote, tmp_path: Path,
-                                                    monkeypatch: pytest.MonkeyPatch) -> None:
+def test_an_interrupted_clone_leaves_nothing_behind(
+    remote, tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
     url, _commits = remote
     real_clone = git_source._clone_into
 
-    def interrupted(git: str, url: str, ref: str, commit: str, directory: Path,
-                    env: dict[str, str], say: object) -> None:
+    def interrupted(
+        git: str, url: str, ref: str, commit: str, directory: Path, env: dict[str, str], say: object
+    ) -> None:
         real_clone(git, url, ref, commit, directory, env, lambda _line: None)
         raise KeyboardInterrupt  # Ctrl-C after the fetch, before the entry is in place
 
@@ -130,10 +143,13 @@ def test_an_interrupted_clone_leaves_nothing_behind(remote, tmp_path: Path,
     assert list((tmp_path / "cache").iterdir()) == []
 
 
-@pytest.mark.parametrize(("ref", "says"), [
-    ("no-such-branch", "has no branch, tag or commit 'no-such-branch' (`git ls-remote"),
-    ("abc1234", "a short commit hash cannot be fetched shallowly; give all 40 digits"),
-])
+@pytest.mark.parametrize(
+    ("ref", "says"),
+    [
+        ("no-such-branch", "has no branch, tag or commit 'no-such-branch' (`git ls-remote"),
+        ("abc1234", "a short commit hash cannot be fetched shallowly; give all 40 digits"),
+    ],
+)
 def test_a_wrong_ref_is_one_clear_line(remote, tmp_path: Path, ref: str, says: str) -> None:
     url, _commits = remote
     with pytest.raises(FirmwareSourceError) as raised:
@@ -150,8 +166,9 @@ def test_an_unreachable_repository_is_one_clear_line(tmp_path: Path) -> None:
     assert "\n" not in message
 
 
-def test_without_git_the_error_says_how_to_get_it(tmp_path: Path,
-                                                  monkeypatch: pytest.MonkeyPatch) -> None:
+def test_without_git_the_error_says_how_to_get_it(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
     monkeypatch.setattr(git_source.shutil, "which", lambda _name: None)
     with pytest.raises(FirmwareSourceError, match=r"apt-get install git"):
         fetch_git_source("file:///x", None, tmp_path / "cache")
@@ -173,8 +190,14 @@ def test_progress_lines_become_a_few_notes() -> None:
 
 def _bfsitl(*args: str, cwd: Path) -> subprocess.CompletedProcess[str]:
     env = {**os.environ, "BFSITL_CACHE_DIR": str(cwd / "fw-cache")}
-    return subprocess.run([sys.executable, "-m", "bfsitl.cli.main", *args], capture_output=True,
-                          text=True, cwd=cwd, env=env, timeout=60)
+    return subprocess.run(
+        [sys.executable, "-m", "bfsitl.cli.main", *args],
+        capture_output=True,
+        text=True,
+        cwd=cwd,
+        env=env,
+        timeout=60,
+    )
 
 
 def test_the_command_refuses_ref_without_git_and_git_with_source(tmp_path: Path) -> None:
@@ -190,4 +213,5 @@ def test_the_command_says_a_wrong_ref_in_one_line(remote, tmp_path: Path) -> Non
     assert run.returncode == 1 and "Traceback" not in run.stderr
     assert run.stderr.strip().splitlines()[-1] == (
         f"bfsitl: error: {url} has no branch, tag or commit 'nope' (`git ls-remote {url}` "
-        f"lists them)")
+        f"lists them)"
+    )

@@ -45,18 +45,29 @@ def test_made_from_the_fcs_replies_and_other_rate_types_are_refused():
     assert angles.angle_limit_deg == 55.0
     assert (angles.pitch.rc_rate, angles.pitch.rate, angles.pitch.expo) == (8, 68, 5)
     with pytest.raises(UnsupportedFirmwareError, match="rates_type = ACTUAL"):
-        AngleStickMap.from_replies(msg.RcTuning(7, 0, 67, 67, 67, 0, 7, 7, 0, 0),
-                                   msg.PidAdvanced(60))
+        AngleStickMap.from_replies(
+            msg.RcTuning(7, 0, 67, 67, 67, 0, 7, 7, 0, 0), msg.PidAdvanced(60)
+        )
 
 
 def test_the_replies_decode_at_the_firmwares_offsets():
     # As 4.6.0 and master answered, with distinct rates put in.
-    payload = bytes([7, 1, 67, 68, 69, 0, 50, 0, 0, 0, 2, 9, 8, 3, 0, 100,
-                     206, 7, 206, 7, 206, 7, 3, 50])
+    payload = bytes(
+        [7, 1, 67, 68, 69, 0, 50, 0, 0, 0, 2, 9, 8, 3, 0, 100, 206, 7, 206, 7, 206, 7, 3, 50]
+    )
     tuning = msg.RcTuning.decode(payload)
-    assert (tuning.roll_rc_rate, tuning.roll_expo, tuning.roll_rate, tuning.pitch_rate,
-            tuning.yaw_rate, tuning.yaw_expo, tuning.yaw_rc_rate, tuning.pitch_rc_rate,
-            tuning.pitch_expo, tuning.rates_type) == (7, 1, 67, 68, 69, 2, 9, 8, 3, 3)
+    assert (
+        tuning.roll_rc_rate,
+        tuning.roll_expo,
+        tuning.roll_rate,
+        tuning.pitch_rate,
+        tuning.yaw_rate,
+        tuning.yaw_expo,
+        tuning.yaw_rc_rate,
+        tuning.pitch_rc_rate,
+        tuning.pitch_expo,
+        tuning.rates_type,
+    ) == (7, 1, 67, 68, 69, 2, 9, 8, 3, 3)
     advanced = bytes(17) + bytes([60, 0, 0, 0, 80]) + bytes(39)  # the SITLs' first bytes
     assert msg.PidAdvanced.decode(advanced).angle_limit_deg == 60
 
@@ -78,10 +89,12 @@ def bisect_share(rates: ActualRates, rate_deg_s: float) -> float:
     return sign * 0.5 * (low + high)
 
 
-@pytest.mark.parametrize("curve", [(7, 67, 0), (100, 67, 0), (1, 200, 50), (20, 80, 30),
-                                   (12, 50, 100), (0, 0, 0)])
+@pytest.mark.parametrize(
+    "curve", [(7, 67, 0), (100, 67, 0), (1, 200, 50), (20, 80, 30), (12, 50, 100), (0, 0, 0)]
+)
 def test_the_written_out_inversion_gives_the_same_floats_as_halving_share(
-        curve: tuple[int, int, int]) -> None:
+    curve: tuple[int, int, int],
+) -> None:
     rates = ActualRates(*curve)
     rng = random.Random(sum(curve))
     for rate in [0.0, -0.0, 670.0, -670.0, 1e-9] + [rng.uniform(-900, 900) for _ in range(2000)]:

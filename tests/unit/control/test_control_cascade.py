@@ -52,8 +52,11 @@ def test_step_and_hold_on_the_rig():
     assert m.rise_time_s < 2.0
     assert m.steady_state_rms_m < 0.05
     t0 = trace.time_s[0]
-    entered_s = next(t - t0 for t, a in zip(trace.time_s, trace.true_alt_m, strict=True)
-                     if abs(a - TARGET_M) <= 0.05)
+    entered_s = next(
+        t - t0
+        for t, a in zip(trace.time_s, trace.true_alt_m, strict=True)
+        if abs(a - TARGET_M) <= 0.05
+    )
     assert entered_s < 5.0
     # Once there, it never strays by more than the band plus one barometer step.
     worst = max(abs(trace.true_alt_m[i] - TARGET_M) for i in hold_rows(trace, 6.0))
@@ -92,6 +95,7 @@ def test_survives_a_noisy_barometer_and_a_slower_altitude_task():
 
 # -- the controller alone ---------------------------------------------------------------------
 
+
 def feed(controller, samples):
     return [controller.update(AltitudeInput(*s)) for s in samples]
 
@@ -99,8 +103,10 @@ def feed(controller, samples):
 def airborne(controller, t0: float = 0.0) -> float:
     """Make it take off: two samples of 'altitude and climb rate up'."""
     controller.reset(t0)
-    feed(controller, [(t0 + 0.02, 0.0, 0.0, 2.0), (t0 + 0.04, 0.11, 0.35, 2.0),
-                      (t0 + 0.06, 0.12, 0.35, 2.0)])
+    feed(
+        controller,
+        [(t0 + 0.02, 0.0, 0.0, 2.0), (t0 + 0.04, 0.11, 0.35, 2.0), (t0 + 0.06, 0.12, 0.35, 2.0)],
+    )
     assert controller.airborne
     return t0 + 0.06
 
@@ -124,12 +130,18 @@ def test_nowhere_to_go_stays_at_idle():
 
 
 def test_output_stays_within_the_throttle_limits():
-    g = CascadeGains(throttle_min_us=1300, throttle_max_us=1700, hover_min_us=1300,
-                     hover_max_us=1700)
+    g = CascadeGains(
+        throttle_min_us=1300, throttle_max_us=1700, hover_min_us=1300, hover_max_us=1700
+    )
     c = CascadedAltitudeController(g)
     t = airborne(c)
-    outs = feed(c, [(t + 0.02 * i, 10.0 * math.sin(i / 5.0), 30.0 * math.cos(i / 7.0), 2.0)
-                    for i in range(1, 500)])
+    outs = feed(
+        c,
+        [
+            (t + 0.02 * i, 10.0 * math.sin(i / 5.0), 30.0 * math.cos(i / 7.0), 2.0)
+            for i in range(1, 500)
+        ],
+    )
     assert min(outs) >= 1300 and max(outs) <= 1700
 
 
@@ -179,10 +191,17 @@ def test_a_repeated_sample_changes_nothing():
     assert c.hover_throttle_us == hover
 
 
-@pytest.mark.parametrize("bad", [
-    dict(rate_kp=-1.0), dict(hover_guess_us=1900.0), dict(throttle_min_us=900.0),
-    dict(max_accel_m_s2=0.0), dict(lag_s=float("inf")), dict(throttle_max_us=1100.0),
-])
+@pytest.mark.parametrize(
+    "bad",
+    [
+        dict(rate_kp=-1.0),
+        dict(hover_guess_us=1900.0),
+        dict(throttle_min_us=900.0),
+        dict(max_accel_m_s2=0.0),
+        dict(lag_s=float("inf")),
+        dict(throttle_max_us=1100.0),
+    ],
+)
 def test_bad_gains_are_rejected(bad):
     with pytest.raises(ControllerConfigError):
         CascadeGains(**bad)
@@ -194,8 +213,7 @@ def test_hover_throttle_is_identified_at_lift_off(hover_scale):
     lift-off the estimate is already within a few us of the truth (1516 to 1570 us here)."""
     controller = CascadedAltitudeController()
     plant = AltitudePlant(baro_noise_pa=DEFAULT_BARO_NOISE_PA, hover_scale=hover_scale)
-    plant.fly(controller, target_alt_m=TARGET_M, duration_s=8.0,
-              until=lambda: controller.airborne)
+    plant.fly(controller, target_alt_m=TARGET_M, duration_s=8.0, until=lambda: controller.airborne)
     assert controller.airborne
     assert abs(controller.hover_throttle_us - plant.hover_throttle_us) < 8.0
     # And the profile starts where the vehicle truly is, ahead of the lagging FC reading.

@@ -30,15 +30,18 @@ def fly(controller, duration_s: float = 12.0, **plant_kwargs):
     plant_kwargs.setdefault("baro_noise_pa", DEFAULT_BARO_NOISE_PA)
     plant_kwargs.setdefault("accel_noise_m_s2", DEFAULT_ACCEL_NOISE_M_S2)
     plant = AltitudePlant(**plant_kwargs)
-    trace = plant.fly(controller, target_alt_m=TARGET_M, duration_s=duration_s,
-                      ground_s=MissionPlan().ground_s)
+    trace = plant.fly(
+        controller, target_alt_m=TARGET_M, duration_s=duration_s, ground_s=MissionPlan().ground_s
+    )
     return plant, trace, step_response(trace.time_s, trace.true_alt_m, target_m=TARGET_M)
 
 
 # -- the estimator ------------------------------------------------------------------------------
 
-def simulate_estimator(estimator, accel_of_t, duration_s=4.0, dt_s=0.025, lag_s=0.2,
-                       baro_offset_m=0.0):
+
+def simulate_estimator(
+    estimator, accel_of_t, duration_s=4.0, dt_s=0.025, lag_s=0.2, baro_offset_m=0.0
+):
     """A vehicle with a known acceleration; the barometer is the truth through ``lag_s``."""
     baro = SensorLag(lag_s)
     alt = climb = 0.0
@@ -63,7 +66,8 @@ def test_estimate_is_on_time_while_the_barometer_lags():
     barometer trails by 0.2 s (up to 0.25 m), the estimate stays within a centimetre."""
     est = AltitudeEstimator(lag_s=0.2, accel_delay_s=0.0)
     alt, climb, final, worst = simulate_estimator(
-        est, lambda t: 2.0 * math.sin(math.pi * t) if t <= 2.0 else 0.0, lag_s=0.2)
+        est, lambda t: 2.0 * math.sin(math.pi * t) if t <= 2.0 else 0.0, lag_s=0.2
+    )
     assert alt == pytest.approx(4.0 / math.pi, abs=0.01) and abs(climb) < 0.01
     assert worst < 0.01
     assert final.alt_m == pytest.approx(alt, abs=0.01)
@@ -71,8 +75,8 @@ def test_estimate_is_on_time_while_the_barometer_lags():
 
 def test_the_barometer_corrects_a_wrong_start_and_an_accelerometer_bias():
     est = AltitudeEstimator(lag_s=0.2, accel_delay_s=0.0, bandwidth_rad_s=1.0)
-    est.reset(alt_m=0.5)          # wrong by half a metre
-    bias = 0.2                    # m/s^2 of accelerometer error, hovering still
+    est.reset(alt_m=0.5)  # wrong by half a metre
+    bias = 0.2  # m/s^2 of accelerometer error, hovering still
     baro = SensorLag(0.2)
     for _ in range(int(20.0 / 0.025)):
         final = est.update(0.025, 0.0 + bias, baro.step(0.0, 0.025))
@@ -96,6 +100,7 @@ def test_estimator_rejects_bad_settings_and_ignores_a_zero_step():
 
 
 # -- the controller on the rig ----------------------------------------------------------------
+
 
 def test_step_and_hold_on_the_rig():
     controller = FusedAltitudeController()
@@ -128,6 +133,7 @@ def test_a_slower_or_faster_altitude_task_changes_little(task_hz):
 
 
 # -- the controller alone ---------------------------------------------------------------------
+
 
 def test_without_an_accelerometer_it_says_which_controllers_fly_without():
     c = FusedAltitudeController()
@@ -179,8 +185,10 @@ def test_a_repeated_sample_changes_nothing_and_reset_starts_over():
     assert c.hover_throttle_us == FusedGains().hover_guess_us and not c.airborne
 
 
-@pytest.mark.parametrize("bad", [{"vel_kp": -1.0}, {"hover_learn_s": 0.0},
-                                 {"hover_min_us": 1700.0, "hover_max_us": 1600.0}])
+@pytest.mark.parametrize(
+    "bad",
+    [{"vel_kp": -1.0}, {"hover_learn_s": 0.0}, {"hover_min_us": 1700.0, "hover_max_us": 1600.0}],
+)
 def test_bad_gains_are_rejected(bad):
     with pytest.raises(ControllerConfigError):
         FusedGains(**bad)

@@ -16,8 +16,9 @@ def hover_then_land(hand_over: bool):
     flying = CascadedAltitudeController()
     plant.fly(flying, target_alt_m=2.0, duration_s=10.0, phase="hold")
     landing = LandingController(hover_from=flying if hand_over else None)
-    plant.fly(landing, target_alt_m=0.0, duration_s=25.0, phase="land",
-              until=lambda: landing.touched_down)
+    plant.fly(
+        landing, target_alt_m=0.0, duration_s=25.0, phase="land", until=lambda: landing.touched_down
+    )
     return plant, landing, plant.trace.select("land")
 
 
@@ -31,8 +32,10 @@ def test_lands_gently_and_cuts_the_throttle(hand_over):
     assert trace.true_climb_m_s[contact] > -0.6
     # Recognised soon after contact, and the throttle is then at minimum, for good.
     assert trace.time_s[-1] - trace.time_s[contact] < 3.0
-    assert all(landing.update(AltitudeInput(trace.time_s[-1] + 0.02 * i, 0.0, 0.0, 0.0)) == 1000
-               for i in range(1, 20))
+    assert all(
+        landing.update(AltitudeInput(trace.time_s[-1] + 0.02 * i, 0.0, 0.0, 0.0)) == 1000
+        for i in range(1, 20)
+    )
 
 
 def test_handing_over_the_hover_estimate_avoids_the_initial_dip():
@@ -79,10 +82,15 @@ def test_reset_clears_the_touchdown():
     assert not landing.touched_down
 
 
-@pytest.mark.parametrize("bad", [
-    dict(slow_descent_m_s=1.0, descent_m_s=0.5), dict(touchdown_hold_s=0.0),
-    dict(hover_guess_us=1900.0), dict(rate_kp=-1.0),
-])
+@pytest.mark.parametrize(
+    "bad",
+    [
+        dict(slow_descent_m_s=1.0, descent_m_s=0.5),
+        dict(touchdown_hold_s=0.0),
+        dict(hover_guess_us=1900.0),
+        dict(rate_kp=-1.0),
+    ],
+)
 def test_bad_gains_are_rejected(bad):
     with pytest.raises(ControllerConfigError):
         LandingGains(**bad)

@@ -25,8 +25,11 @@ def second_order(zeta: float, wn: float, target: float = 2.0, duration_s: float 
     wd = wn * math.sqrt(1 - zeta * zeta)
     phi = math.acos(zeta)
     t = _times(duration_s)
-    return t, [target * (1 - math.exp(-zeta * wn * x) * math.sin(wd * x + phi)
-                         / math.sqrt(1 - zeta * zeta)) for x in t]
+    return t, [
+        target
+        * (1 - math.exp(-zeta * wn * x) * math.sin(wd * x + phi) / math.sqrt(1 - zeta * zeta))
+        for x in t
+    ]
 
 
 def test_first_order_rise_settle_and_no_overshoot():
@@ -106,15 +109,18 @@ def test_max_attitude_from_roll_and_pitch():
     assert math.isnan(step_response(t, y, target_m=2.0).max_attitude_deg)
 
 
-@pytest.mark.parametrize("kwargs, message", [
-    (dict(time_s=[0.0, 1.0], altitude_m=[0.0]), "samples"),
-    (dict(time_s=[0.0], altitude_m=[0.0]), "at least 2"),
-    (dict(time_s=[0.0, 0.0], altitude_m=[0.0, 1.0]), "strictly increasing"),
-    (dict(time_s=[0.0, 1.0], altitude_m=[0.0, math.nan]), "finite"),
-    (dict(time_s=[0.0, 1.0], altitude_m=[0.0, 1.0], target_m=0.0), "differ"),
-    (dict(time_s=[0.0, 1.0], altitude_m=[0.0, 1.0], band_m=0.0), "band_m"),
-    (dict(time_s=[0.0, 1.0], altitude_m=[0.0, 1.0], roll_deg=[1.0]), "roll_deg"),
-])
+@pytest.mark.parametrize(
+    "kwargs, message",
+    [
+        (dict(time_s=[0.0, 1.0], altitude_m=[0.0]), "samples"),
+        (dict(time_s=[0.0], altitude_m=[0.0]), "at least 2"),
+        (dict(time_s=[0.0, 0.0], altitude_m=[0.0, 1.0]), "strictly increasing"),
+        (dict(time_s=[0.0, 1.0], altitude_m=[0.0, math.nan]), "finite"),
+        (dict(time_s=[0.0, 1.0], altitude_m=[0.0, 1.0], target_m=0.0), "differ"),
+        (dict(time_s=[0.0, 1.0], altitude_m=[0.0, 1.0], band_m=0.0), "band_m"),
+        (dict(time_s=[0.0, 1.0], altitude_m=[0.0, 1.0], roll_deg=[1.0]), "roll_deg"),
+    ],
+)
 def test_bad_input_is_rejected_clearly(kwargs, message):
     kwargs.setdefault("target_m", 2.0)
     with pytest.raises(MetricsInputError, match=message) as caught:

@@ -21,17 +21,21 @@ DT = 0.01  # a 100 Hz control loop
 
 
 def command(target=(0.0, 0.0), *, heading=0.0, at=(0.0, 0.0), v=(0.0, 0.0)) -> TiltCommand:
-    return PositionController().update(PositionInput(0.01, at[0], at[1], v[0], v[1], heading,
-                                                     target[0], target[1]))
+    return PositionController().update(
+        PositionInput(0.01, at[0], at[1], v[0], v[1], heading, target[0], target[1])
+    )
 
 
-@pytest.mark.parametrize(("target", "heading", "axis", "sign"), [
-    ((5.0, 0.0), 0.0, "pitch", +1),    # north ahead: nose down
-    ((-5.0, 0.0), 0.0, "pitch", -1),
-    ((0.0, 5.0), 0.0, "roll", +1),     # east is right when facing north: right wing down
-    ((0.0, 5.0), 90.0, "pitch", +1),   # facing east, east is ahead
-    ((5.0, 0.0), 90.0, "roll", -1),    # facing east, north is left
-])
+@pytest.mark.parametrize(
+    ("target", "heading", "axis", "sign"),
+    [
+        ((5.0, 0.0), 0.0, "pitch", +1),  # north ahead: nose down
+        ((-5.0, 0.0), 0.0, "pitch", -1),
+        ((0.0, 5.0), 0.0, "roll", +1),  # east is right when facing north: right wing down
+        ((0.0, 5.0), 90.0, "pitch", +1),  # facing east, east is ahead
+        ((5.0, 0.0), 90.0, "roll", -1),  # facing east, north is left
+    ],
+)
 def test_the_tilt_points_at_the_target_in_betaflights_signs(target, heading, axis, sign):
     tilt = command(target, heading=heading)
     main = tilt.pitch_deg if axis == "pitch" else tilt.roll_deg
@@ -83,8 +87,9 @@ class Rig:
         errors = []
         for _ in range(round(seconds / DT)):
             n, e, vn, ve = self.gps[0]
-            cmd = controller.update(PositionInput(self.t, n, e, vn, ve, self.heading,
-                                                  target[0], target[1]))
+            cmd = controller.update(
+                PositionInput(self.t, n, e, vn, ve, self.heading, target[0], target[1])
+            )
             self.step(cmd)
             errors.append(math.hypot(self.p[0] - target[0], self.p[1] - target[1]))
         return errors
@@ -93,7 +98,7 @@ class Rig:
 def test_a_hold_in_3_m_s_wind_learns_the_push_and_stays_within_25_cm():
     rig, controller = Rig(wind=(-3.0, 1.0)), PositionController()
     errors = rig.fly(controller, (0.0, 0.0), 30.0)
-    late = errors[len(errors) // 2:]
+    late = errors[len(errors) // 2 :]
     assert max(late) < 0.25
     assert math.sqrt(sum(e * e for e in late) / len(late)) < 0.1
     # The integral holds what it takes: drag on 3.16 m/s of wind, about 1 m/s^2, upwind.
@@ -107,7 +112,7 @@ def test_a_10_m_leg_arrives_within_half_a_metre_without_a_big_overshoot(heading)
     errors = rig.fly(PositionController(), (10.0, 0.0), 15.0)
     assert errors[-1] < 0.2
     assert rig.max_north < 10.5  # never more than half a metre past the point
-    assert min(errors[:round(8.0 / DT)]) < 0.5  # there within 8 s at 2 m/s
+    assert min(errors[: round(8.0 / DT)]) < 0.5  # there within 8 s at 2 m/s
 
 
 def test_bad_gains_are_refused_with_the_name():

@@ -37,13 +37,20 @@ def test_overrides_are_applied():
     assert pid.gains.kp == 150.0 and pid.gains.kd == 12.5
 
 
-@pytest.mark.parametrize("name, gains, message", [
-    ("pid", {}, "unknown controller 'pid'; choose one of: cascade, fused, open-loop, tutorial-pid"),
-    ("tutorial-pid", {"kq": 1.0}, "has no gain 'kq'; its gains are: hover_base_us, kp"),
-    ("tutorial-pid", {"kp": "fast"}, "must be a number"),
-    ("tutorial-pid", {"kp": float("inf")}, "must be finite"),
-    ("cascade", {"rate_kp": -5}, "rate_kp must be >= 0"),
-])
+@pytest.mark.parametrize(
+    "name, gains, message",
+    [
+        (
+            "pid",
+            {},
+            "unknown controller 'pid'; choose one of: cascade, fused, open-loop, tutorial-pid",
+        ),
+        ("tutorial-pid", {"kq": 1.0}, "has no gain 'kq'; its gains are: hover_base_us, kp"),
+        ("tutorial-pid", {"kp": "fast"}, "must be a number"),
+        ("tutorial-pid", {"kp": float("inf")}, "must be finite"),
+        ("cascade", {"rate_kp": -5}, "rate_kp must be >= 0"),
+    ],
+)
 def test_bad_names_and_values_raise_a_clear_value_error(name, gains, message):
     with pytest.raises(ControllerConfigError, match=message.replace("(", r"\(")) as caught:
         make_controller(name, gains)

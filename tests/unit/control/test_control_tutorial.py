@@ -14,8 +14,15 @@ def sample(t: float, alt: float, target: float = 2.0) -> AltitudeInput:
 
 
 def test_pid_is_hover_plus_p_plus_i_plus_d():
-    g = TutorialPidGains(hover_base_us=1500, kp=100, ki=20, kd=50, integral_limit=10,
-                         throttle_min_us=1000, throttle_max_us=2000)
+    g = TutorialPidGains(
+        hover_base_us=1500,
+        kp=100,
+        ki=20,
+        kd=50,
+        integral_limit=10,
+        throttle_min_us=1000,
+        throttle_max_us=2000,
+    )
     pid = TutorialPid(g)
     pid.reset(0.0)
     # First step: error 2, integral 2 x 0.1, no derivative yet.
@@ -26,8 +33,9 @@ def test_pid_is_hover_plus_p_plus_i_plus_d():
 
 
 def test_integral_is_clamped_and_output_is_clamped():
-    g = TutorialPidGains(kp=0, ki=100, kd=0, integral_limit=0.5, throttle_min_us=1100,
-                         throttle_max_us=1700)
+    g = TutorialPidGains(
+        kp=0, ki=100, kd=0, integral_limit=0.5, throttle_min_us=1100, throttle_max_us=1700
+    )
     pid = TutorialPid(g)
     pid.reset(0.0)
     for i in range(1, 200):
@@ -70,10 +78,17 @@ def test_open_loop_follows_the_clock_only():
     assert ol.update(sample(8.5, 2.0)) == pytest.approx(1520)
 
 
-@pytest.mark.parametrize("bad", [
-    dict(kp=-1.0), dict(integral_limit=-1.0), dict(throttle_min_us=1900),
-    dict(hover_base_us=1950), dict(kd=float("nan")), dict(throttle_max_us=2500),
-])
+@pytest.mark.parametrize(
+    "bad",
+    [
+        dict(kp=-1.0),
+        dict(integral_limit=-1.0),
+        dict(throttle_min_us=1900),
+        dict(hover_base_us=1950),
+        dict(kd=float("nan")),
+        dict(throttle_max_us=2500),
+    ],
+)
 def test_bad_pid_gains_are_rejected(bad):
     with pytest.raises(ControllerConfigError):
         TutorialPidGains(**bad)

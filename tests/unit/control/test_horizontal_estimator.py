@@ -13,8 +13,14 @@ from bfsitl.control.horizontal_estimator import HorizontalEstimator, specific_fo
 G = 9.80665
 
 
-def fly(estimator: HorizontalEstimator, *, gps_hz: float, delay_s: float,
-        accel_bias: float = 0.0, seconds: float = 20.0) -> tuple[float, float]:
+def fly(
+    estimator: HorizontalEstimator,
+    *,
+    gps_hz: float,
+    delay_s: float,
+    accel_bias: float = 0.0,
+    seconds: float = 20.0,
+) -> tuple[float, float]:
     """A vehicle swinging north and back (1.5 m, 0.25 Hz); returns the RMS error of the
     estimate and of the raw GPS against the truth, after 5 s of settling."""
     dt, w = 0.01, 2 * math.pi * 0.25
@@ -59,17 +65,20 @@ def test_a_gap_without_updates_restarts_from_the_gps():
     assert (later.north_m, later.east_m, later.v_north_m_s) == (7.0, -3.0, 0.5)
 
 
-@pytest.mark.parametrize(("roll", "pitch", "heading", "expected"), [
-    (0.0, 0.0, 0.0, (0.0, 0.0)),                 # level: thrust is all vertical
-    (0.0, 10.0, 0.0, (G * math.tan(math.radians(10)), 0.0)),   # nose down: forward = north
-    (0.0, 10.0, 90.0, (0.0, G * math.tan(math.radians(10)))),  # facing east: east
-    (10.0, 0.0, 0.0, (0.0, G * math.tan(math.radians(10)))),   # right wing down: right = east
-])
+@pytest.mark.parametrize(
+    ("roll", "pitch", "heading", "expected"),
+    [
+        (0.0, 0.0, 0.0, (0.0, 0.0)),  # level: thrust is all vertical
+        (0.0, 10.0, 0.0, (G * math.tan(math.radians(10)), 0.0)),  # nose down: forward = north
+        (0.0, 10.0, 90.0, (0.0, G * math.tan(math.radians(10)))),  # facing east: east
+        (10.0, 0.0, 0.0, (0.0, G * math.tan(math.radians(10)))),  # right wing down: right = east
+    ],
+)
 def test_the_thrust_of_a_tilted_hover_points_where_betaflights_angles_say(
-        roll, pitch, heading, expected):
+    roll, pitch, heading, expected
+):
     # A hover tilted so: the accelerometer reads the thrust along body z (FLU: +z), just
     # enough to hold the height, g / cos(tilt).
     tilt = math.acos(math.cos(math.radians(roll)) * math.cos(math.radians(pitch)))
-    north, east = specific_force_north_east((0.0, 0.0, G / math.cos(tilt)), roll, pitch,
-                                            heading)
+    north, east = specific_force_north_east((0.0, 0.0, G / math.cos(tilt)), roll, pitch, heading)
     assert (north, east) == pytest.approx(expected, abs=0.05)

@@ -39,10 +39,19 @@ BLOCKED = (ArmingFlag.RX_FAILSAFE, ArmingFlag.ANGLE, ArmingFlag.BOOT_GRACE_TIME)
 def status(flags: int, *, armed: bool = False) -> msg.StatusEx:
     """A SITL-like STATUS_EX: ANGLE mode (BOXIDS position 1) on, ARM (position 0) if armed."""
     return msg.StatusEx(
-        cycle_time_us=125, i2c_errors=0, sensors_mask=0x23,
-        flight_mode_flags=0b10 | int(armed), pid_profile=0, cpu_load_percent=7,
-        pid_profile_count=4, rate_profile_index=0, arming_disable_flag_count=29,
-        arming_disable_flags=flags, config_state=0, cpu_temp_c=0, rate_profile_count=4,
+        cycle_time_us=125,
+        i2c_errors=0,
+        sensors_mask=0x23,
+        flight_mode_flags=0b10 | int(armed),
+        pid_profile=0,
+        cpu_load_percent=7,
+        pid_profile_count=4,
+        rate_profile_index=0,
+        arming_disable_flag_count=29,
+        arming_disable_flags=flags,
+        config_state=0,
+        cpu_temp_c=0,
+        rate_profile_count=4,
     )
 
 
@@ -63,20 +72,36 @@ def snapshot(**changes: object) -> Telemetry:
     fields = {k: v for k, v in MESSAGES.items() if k != "box_ids"}
     fields.update(changes)
     return Telemetry(
-        received_at_s=10.0, attitude=fields["attitude"], altitude=fields["altitude"],
-        status=fields["status"], analog=fields["analog"], rc=fields["rc"],
-        motors=fields["motor"], imu=fields["imu"], box_ids=SITL_DEFAULT_BOX_IDS,
+        received_at_s=10.0,
+        attitude=fields["attitude"],
+        altitude=fields["altitude"],
+        status=fields["status"],
+        analog=fields["analog"],
+        rc=fields["rc"],
+        motors=fields["motor"],
+        imu=fields["imu"],
+        box_ids=SITL_DEFAULT_BOX_IDS,
     )
 
 
 def link_stats(**changes: object) -> LinkStats:
-    values = dict(updates=40, errors=2, updates_per_s=8.0, rtt_last_ms=11.5, rtt_mean_ms=10.2,
-                  rtt_max_ms=14.0, age_s=0.05, last_error=None, elapsed_s=5.0)
+    values = dict(
+        updates=40,
+        errors=2,
+        updates_per_s=8.0,
+        rtt_last_ms=11.5,
+        rtt_mean_ms=10.2,
+        rtt_max_ms=14.0,
+        age_s=0.05,
+        last_error=None,
+        elapsed_s=5.0,
+    )
     values.update(changes)
     return LinkStats(**values)  # type: ignore[arg-type]
 
 
 # --- link statistics ---------------------------------------------------------------------------
+
 
 def test_link_meter_before_any_poll_has_no_figures() -> None:
     stats = LinkMeter(started_at_s=100.0).stats(100.0)
@@ -129,6 +154,7 @@ def test_link_meter_rejects_an_empty_window() -> None:
 
 # --- view model --------------------------------------------------------------------------------
 
+
 def test_flight_view_decodes_attitude_altitude_modes_and_blockers() -> None:
     view = flight_view(snapshot())
     assert (view.roll_deg, view.pitch_deg, view.heading_deg) == (12.3, -4.5, 270)
@@ -152,7 +178,16 @@ def test_flight_view_shows_four_motors_and_any_other_that_exists() -> None:
 def test_flight_view_rc_channels_in_msp_rc_order_with_aux_labels() -> None:
     view = flight_view(snapshot())
     assert [c.label for c in view.rc] == [
-        "roll", "pitch", "yaw", "thr", "AUX1", "AUX2", "AUX3", "AUX4", "AUX5", "AUX6",
+        "roll",
+        "pitch",
+        "yaw",
+        "thr",
+        "AUX1",
+        "AUX2",
+        "AUX3",
+        "AUX4",
+        "AUX5",
+        "AUX6",
     ]
     assert [c.value_us for c in view.rc[:5]] == [1500, 1600, 1400, 1000, 1800]
 
@@ -171,6 +206,7 @@ def test_build_view_marks_old_data_stale_and_no_data_not_stale() -> None:
 
 # --- the rendered frame ------------------------------------------------------------------------
 
+
 def frame(view: DashboardView, width: int = 140) -> str:
     return render_text(view, width)
 
@@ -188,10 +224,25 @@ def test_frame_names_every_blocker_with_its_fix() -> None:
 
 def test_frame_shows_attitude_altitude_motors_rc_modes_and_link() -> None:
     text = frame(build_view(snapshot(), link_stats(), target="tcp://x:5761", rate_hz=8.0))
-    for expected in ("tcp://x:5761", "disarmed", "+12.3°", "-4.5°", "270°", "+12.34 m",
-                     "12.60 V", "125 us", "M4", "2100", "AUX1", "1800",
-                     "flight modes: ANGLE", "8.0 updates/s", "40 answered, 2 failed",
-                     "11.5 ms", "polling at 8 Hz"):
+    for expected in (
+        "tcp://x:5761",
+        "disarmed",
+        "+12.3°",
+        "-4.5°",
+        "270°",
+        "+12.34 m",
+        "12.60 V",
+        "125 us",
+        "M4",
+        "2100",
+        "AUX1",
+        "1800",
+        "flight modes: ANGLE",
+        "8.0 updates/s",
+        "40 answered, 2 failed",
+        "11.5 ms",
+        "polling at 8 Hz",
+    ):
         assert expected in text, expected
 
 
@@ -205,10 +256,21 @@ def test_frame_when_armed_and_when_nothing_blocks() -> None:
 
 
 def test_frame_before_the_first_reply_and_when_stale() -> None:
-    waiting = frame(build_view(None, link_stats(updates=0, age_s=None, rtt_last_ms=None,
-                                                rtt_mean_ms=None, rtt_max_ms=None,
-                                                last_error="no MSP reply to MSP_X"),
-                               target="tcp://x:5761", rate_hz=5.0))
+    waiting = frame(
+        build_view(
+            None,
+            link_stats(
+                updates=0,
+                age_s=None,
+                rtt_last_ms=None,
+                rtt_mean_ms=None,
+                rtt_max_ms=None,
+                last_error="no MSP reply to MSP_X",
+            ),
+            target="tcp://x:5761",
+            rate_hz=5.0,
+        )
+    )
     assert "waiting for telemetry" in waiting and "no telemetry yet" in waiting
     assert "no MSP reply to MSP_X" in waiting and "none yet" in waiting
     stale = frame(build_view(snapshot(), link_stats(age_s=4.0), target="t", rate_hz=8.0))
@@ -217,8 +279,11 @@ def test_frame_before_the_first_reply_and_when_stale() -> None:
 
 def test_frame_prints_brackets_literally_not_as_markup() -> None:
     """An error text with [tags] is shown as written, never interpreted by Rich."""
-    text = frame(build_view(None, link_stats(last_error="bad [bold]reply[/bold] [x"),
-                            target="t", rate_hz=8.0))
+    text = frame(
+        build_view(
+            None, link_stats(last_error="bad [bold]reply[/bold] [x"), target="t", rate_hz=8.0
+        )
+    )
     assert "bad [bold]reply[/bold] [x" in text
 
 
@@ -230,6 +295,7 @@ def test_frame_fits_an_80_column_terminal_without_losing_blocker_names() -> None
 
 
 # --- the loop ----------------------------------------------------------------------------------
+
 
 class ScriptedKeys:
     """Returns the scripted answers one per wait; None (no key) once they run out."""
@@ -254,8 +320,9 @@ def fake_client(link: FakeFcLink | None = None) -> MspClient:
 
 def test_loop_shows_frames_from_the_fc_until_max_frames() -> None:
     views: list[DashboardView] = []
-    result = run_dashboard(fake_client(), show=views.append, keys=NoKeys(), target="fake",
-                           rate_hz=100.0, max_frames=3)
+    result = run_dashboard(
+        fake_client(), show=views.append, keys=NoKeys(), target="fake", rate_hz=100.0, max_frames=3
+    )
     assert (result.frames, result.ended_by) == (3, "frames")
     assert len(views) == 3 and all(v.flight is not None for v in views)
     assert views[-1].flight is not None
@@ -267,16 +334,16 @@ def test_loop_shows_frames_from_the_fc_until_max_frames() -> None:
 def test_loop_quits_on_q_and_ignores_other_keys() -> None:
     keys = ScriptedKeys(None, "x", "q")
     views: list[DashboardView] = []
-    result = run_dashboard(fake_client(), show=views.append, keys=keys, target="fake",
-                           rate_hz=1.0)
+    result = run_dashboard(fake_client(), show=views.append, keys=keys, target="fake", rate_hz=1.0)
     assert result.ended_by == "key"
     assert result.frames == 2  # frame 1, no key; frame 2, "x" ignored then "q"
 
 
 def test_loop_treats_ctrl_c_as_a_clean_quit() -> None:
     keys = ScriptedKeys(None, KeyboardInterrupt())
-    result = run_dashboard(fake_client(), show=lambda view: None, keys=keys, target="fake",
-                           rate_hz=1.0)
+    result = run_dashboard(
+        fake_client(), show=lambda view: None, keys=keys, target="fake", rate_hz=1.0
+    )
     assert (result.ended_by, result.frames) == ("interrupt", 2)
 
 
@@ -290,8 +357,15 @@ def test_loop_counts_a_failed_poll_and_keeps_the_last_values_marked_stale() -> N
         if len(views) == 1:  # the FC stops answering telemetry after the first frame
             link.handlers[MspCommand.MULTIPLE_MSP] = lambda _request: None
 
-    result = run_dashboard(client, show=show, keys=NoKeys(), target="fake", rate_hz=100.0,
-                           max_frames=2, stale_after_s=0.05)
+    result = run_dashboard(
+        client,
+        show=show,
+        keys=NoKeys(),
+        target="fake",
+        rate_hz=100.0,
+        max_frames=2,
+        stale_after_s=0.05,
+    )
     assert result.link.updates == 1 and result.link.errors == 1
     assert "no MSP reply" in (result.link.last_error or "")
     last = views[-1]
@@ -303,14 +377,21 @@ def test_loop_ends_with_the_error_when_the_fc_closes_the_link() -> None:
     link = telemetry_link(**MESSAGES)
     link.closed_by_peer = True
     with pytest.raises(LinkClosedError):
-        run_dashboard(fake_client(link), show=lambda view: None, keys=NoKeys(),
-                      target="fake", rate_hz=100.0, max_frames=2)
+        run_dashboard(
+            fake_client(link),
+            show=lambda view: None,
+            keys=NoKeys(),
+            target="fake",
+            rate_hz=100.0,
+            max_frames=2,
+        )
 
 
 def test_loop_rejects_a_non_positive_rate() -> None:
     with pytest.raises(ValueError):
-        run_dashboard(fake_client(), show=lambda view: None, keys=NoKeys(), target="fake",
-                      rate_hz=0.0)
+        run_dashboard(
+            fake_client(), show=lambda view: None, keys=NoKeys(), target="fake", rate_hz=0.0
+        )
 
 
 def test_quit_keys() -> None:
@@ -320,6 +401,7 @@ def test_quit_keys() -> None:
 
 # --- the command -------------------------------------------------------------------------------
 
+
 def top_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(prog="bfsitl")
     top_command.add_top_parser(parser.add_subparsers(dest="command_name", required=True))
@@ -328,8 +410,12 @@ def top_parser() -> argparse.ArgumentParser:
 
 def test_top_arguments() -> None:
     args = top_parser().parse_args(["top", "--uri", "tcp://h:1", "--rate", "5", "--once"])
-    assert (args.uri, args.rate, args.once, args.func) == ("tcp://h:1", 5.0, True,
-                                                           top_command.cmd_top)
+    assert (args.uri, args.rate, args.once, args.func) == (
+        "tcp://h:1",
+        5.0,
+        True,
+        top_command.cmd_top,
+    )
     defaults = top_parser().parse_args(["top"])
     assert defaults.rate == 8.0 and not defaults.once and not defaults.start
     for bad in ("0", "-1", "fast"):
@@ -388,8 +474,14 @@ def test_live_screen_draws_frames_on_a_terminal_console() -> None:
 
     from bfsitl.dashboard.live import LiveScreen
 
-    console = Console(file=io.StringIO(), force_terminal=True, width=120, height=40,
-                      record=True, color_system=None)
+    console = Console(
+        file=io.StringIO(),
+        force_terminal=True,
+        width=120,
+        height=40,
+        record=True,
+        color_system=None,
+    )
     with LiveScreen(console) as screen:
         screen.show(build_view(None, link_stats(), target="t", rate_hz=8.0))
         screen.show(build_view(snapshot(), link_stats(), target="t", rate_hz=8.0))
@@ -405,10 +497,23 @@ def test_a_lost_reply_is_retried_when_asked_to() -> None:
     """--once retries: a frame from one poll must not come out empty for one lost reply."""
     link = telemetry_link(**MESSAGES)
     link.drop_next.add(MspCommand.MULTIPLE_MSP)
-    result = run_dashboard(fake_client(link), show=lambda view: None, keys=NoKeys(),
-                           target="fake", rate_hz=100.0, max_frames=1, retries=1)
+    result = run_dashboard(
+        fake_client(link),
+        show=lambda view: None,
+        keys=NoKeys(),
+        target="fake",
+        rate_hz=100.0,
+        max_frames=1,
+        retries=1,
+    )
     assert (result.link.updates, result.link.errors) == (1, 0)
     link.drop_next.add(MspCommand.MULTIPLE_MSP)
-    result = run_dashboard(fake_client(link), show=lambda view: None, keys=NoKeys(),
-                           target="fake", rate_hz=100.0, max_frames=1)
+    result = run_dashboard(
+        fake_client(link),
+        show=lambda view: None,
+        keys=NoKeys(),
+        target="fake",
+        rate_hz=100.0,
+        max_frames=1,
+    )
     assert (result.link.updates, result.link.errors) == (0, 1)

@@ -26,7 +26,8 @@ API_VERSION = msg.ApiVersion(0, 1, 47)
 def make_link(state: str = "msp", enter_silence_s: float = 0.02) -> FakeCliLink:
     link = FakeCliLink(
         {MspCommand.API_VERSION: fixed(API_VERSION.encode())},
-        state=state, enter_silence_s=enter_silence_s,
+        state=state,
+        enter_silence_s=enter_silence_s,
     )
     # Distinct values, so picking the wrong line of a substring match shows.
     link.settings["rc_smoothing_auto_factor_throttle"] = (45, 0, 250)
@@ -52,6 +53,7 @@ def session(fast_enter: None, link: FakeCliLink) -> Iterator[CliSession]:
 
 # --- entering and leaving -----------------------------------------------------------------------
 
+
 def test_enter_from_msp_state_with_firmware_timing() -> None:
     """With the firmware's 100 ms guard time, enter() gets the port into the CLI."""
     link = make_link(enter_silence_s=0.1)
@@ -72,7 +74,8 @@ def test_enter_tries_once_more_with_a_longer_silence(monkeypatch: pytest.MonkeyP
 
 
 def test_a_port_that_never_enters_fails_after_the_second_try(
-        monkeypatch: pytest.MonkeyPatch) -> None:
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
     monkeypatch.setattr(cli_session, "_ENTER_SILENCE_S", 0.03)
     monkeypatch.setattr(cli_session, "_ENTER_RETRY_SILENCE_S", 0.05)
     link = make_link(enter_silence_s=0.1)
@@ -87,7 +90,9 @@ def test_enter_when_port_was_left_in_cli(fast_enter: None) -> None:
     session = CliSession(link, timeout_s=1.0).enter()
     assert session.active and link.state == "cli"
     assert session.run("get small_angle").splitlines() == [
-        "small_angle = 25", "Allowed range: 0 - 180"]
+        "small_angle = 25",
+        "Allowed range: 0 - 180",
+    ]
     assert link.commands_run == [("cli", "get small_angle")]
 
 
@@ -136,6 +141,7 @@ def test_run_before_enter_is_refused(link: FakeCliLink) -> None:
 
 # --- run ----------------------------------------------------------------------------------------
 
+
 def test_run_returns_only_the_output(session: CliSession) -> None:
     """Echo, the prompt and the sync marker are stripped; the output lines remain."""
     output = session.run("get small_angle")
@@ -167,7 +173,11 @@ def test_successive_commands_stay_in_sync(session: CliSession, link: FakeCliLink
     assert session.run("get small_angle").startswith("small_angle = 25")
     assert session.run("set small_angle = 30") == "small_angle set to 30"
     assert [line for _, line in link.commands_run] == [
-        "diff all", "frobnicate", "get small_angle", "set small_angle = 30"]
+        "diff all",
+        "frobnicate",
+        "get small_angle",
+        "set small_angle = 30",
+    ]
 
 
 def test_error_output_raises_cli_command_error(session: CliSession) -> None:
@@ -219,7 +229,8 @@ def test_run_refuses_malformed_commands(
 
 
 @pytest.mark.parametrize(
-    "command", ["\x04", "get\tsmall_angle", "get small_angle\x7f"],
+    "command",
+    ["\x04", "get\tsmall_angle", "get small_angle\x7f"],
     ids=["ctrl-d", "tab", "del"],
 )
 def test_run_refuses_control_characters(
@@ -260,18 +271,15 @@ def test_defaults_nosave_is_allowed(session: CliSession, link: FakeCliLink) -> N
     assert link.state == "msp"
 
 
-def test_run_many_skips_blank_lines_and_comments(
-    session: CliSession, link: FakeCliLink
-) -> None:
+def test_run_many_skips_blank_lines_and_comments(session: CliSession, link: FakeCliLink) -> None:
     """run_many runs the command lines in order and skips blanks and ``#`` comments."""
-    outputs = session.run_many(["# a comment", "", "get small_angle", "  ",
-                                "set small_angle = 40"])
+    outputs = session.run_many(["# a comment", "", "get small_angle", "  ", "set small_angle = 40"])
     assert len(outputs) == 2
-    assert [line for _, line in link.commands_run] == ["get small_angle",
-                                                       "set small_angle = 40"]
+    assert [line for _, line in link.commands_run] == ["get small_angle", "set small_angle = 40"]
 
 
 # --- get / set ----------------------------------------------------------------------------------
+
 
 def test_get_returns_the_exact_setting(session: CliSession) -> None:
     """``get`` matches substrings; get() picks the line of exactly the name asked for."""
@@ -306,9 +314,7 @@ def test_set_out_of_range_raises(session: CliSession, link: FakeCliLink) -> None
     assert link.settings["small_angle"][0] == 25
 
 
-def test_set_without_set_to_confirmation_raises(
-    session: CliSession, link: FakeCliLink
-) -> None:
+def test_set_without_set_to_confirmation_raises(session: CliSession, link: FakeCliLink) -> None:
     """Output without "set to" (older firmware prints errors without ###ERROR) is a failure."""
     link.overrides["set small_angle = 31"] = "Invalid name\r\n"
     with pytest.raises(CliCommandError):
@@ -316,6 +322,7 @@ def test_set_without_set_to_confirmation_raises(
 
 
 # --- backup -------------------------------------------------------------------------------------
+
 
 def test_backup_writes_the_diff_atomically(session: CliSession, tmp_path: Path) -> None:
     """backup() writes the whole ``diff all`` with LF line ends and leaves no .partial file."""
@@ -344,6 +351,7 @@ def test_failed_backup_keeps_the_old_file(
 
 # --- save ---------------------------------------------------------------------------------------
 
+
 def test_save_survives_eof_and_restarts_once(session: CliSession, link: FakeCliLink) -> None:
     """save(): the FC reboots and the stream ends; restart is called once, after the EOF."""
     states: list[str] = []
@@ -364,13 +372,13 @@ def test_save_without_restart_callback(session: CliSession, link: FakeCliLink) -
 
 # --- batch (STX/ETX) ----------------------------------------------------------------------------
 
+
 def test_batch_uses_stx_etx_from_msp_state(fast_enter: None, link: FakeCliLink) -> None:
     """batch() frames the lines in 0x02 ... 0x03, never enters the interactive CLI, and
     returns the outputs; the port is back in MSP afterwards."""
     session = CliSession(link, timeout_s=1.0)
     output = session.batch(["get small_angle", "# comment", "set small_angle = 40"])
-    assert bytes(link.raw_written).endswith(
-        b"\x02get small_angle\nset small_angle = 40\n\x03")
+    assert bytes(link.raw_written).endswith(b"\x02get small_angle\nset small_angle = 40\n\x03")
     assert link.commands_run == [("stx", "get small_angle"), ("stx", "set small_angle = 40")]
     assert "small_angle = 25" in output and "small_angle set to 40" in output
     assert "\x02" not in output and "\x03" not in output
@@ -393,9 +401,7 @@ def test_batch_raises_on_error_line(link: FakeCliLink) -> None:
     assert "###ERROR" in session.batch(["set small_angle = 500"], check=False)
 
 
-def test_batch_refused_inside_interactive_session(
-    session: CliSession, link: FakeCliLink
-) -> None:
+def test_batch_refused_inside_interactive_session(session: CliSession, link: FakeCliLink) -> None:
     """batch() runs from MSP state only; inside the interactive CLI it is refused unsent."""
     before = bytes(link.raw_written)
     with pytest.raises(CliError):
@@ -414,7 +420,8 @@ def test_batch_refuses_rebooting_commands(link: FakeCliLink) -> None:
 
 
 def test_a_byte_changed_in_the_markers_echo_still_ends_the_output(
-        session: CliSession, link: FakeCliLink, monkeypatch: pytest.MonkeyPatch) -> None:
+    session: CliSession, link: FakeCliLink, monkeypatch: pytest.MonkeyPatch
+) -> None:
     """Seen once on CI: the SITL echoed '#bfsync-...' as '#ifsync-...'; waiting for the whole
     token timed out after 10 s. The tail (pid and counter) ends the output just as well."""
     original = link._interactive_char

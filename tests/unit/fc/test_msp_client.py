@@ -38,11 +38,19 @@ IMU = msg.RawImu(acc_raw=(0, 0, 256), gyro_raw=(1, -2, 3), mag_raw=(0, 0, 0))
 #: Armed, with flight-mode bit 4 set: on the stock SITL box list that is FAILSAFE (permanent id
 #: 27), not ANTIGRAVITY (permanent id 4).
 STATUS = msg.StatusEx(
-    cycle_time_us=125, i2c_errors=0, sensors_mask=0x23, flight_mode_flags=0b1_0001,
-    pid_profile=0, cpu_load_percent=12, pid_profile_count=4, rate_profile_index=0,
+    cycle_time_us=125,
+    i2c_errors=0,
+    sensors_mask=0x23,
+    flight_mode_flags=0b1_0001,
+    pid_profile=0,
+    cpu_load_percent=12,
+    pid_profile_count=4,
+    rate_profile_index=0,
     arming_disable_flag_count=29,
     arming_disable_flags=ArmingFlag.RX_FAILSAFE.mask | ArmingFlag.CLI.mask,
-    config_state=0, cpu_temp_c=0, rate_profile_count=4,
+    config_state=0,
+    cpu_temp_c=0,
+    rate_profile_count=4,
 )
 MODE_RANGE = msg.ModeRange.from_us(0, 0, 1700, 2100)
 
@@ -50,7 +58,13 @@ MODE_RANGE = msg.ModeRange.from_us(0, 0, 1700, 2100)
 def read_handlers() -> dict[int, Handler]:
     """Handlers for the reads the tests use, each answering its codec's encoding."""
     handlers = telemetry_handlers(
-        attitude=ATT, altitude=ALT, status=STATUS, analog=ANALOG, rc=RC, motor=MOTOR, imu=IMU,
+        attitude=ATT,
+        altitude=ALT,
+        status=STATUS,
+        analog=ANALOG,
+        rc=RC,
+        motor=MOTOR,
+        imu=IMU,
         box_ids=SITL_DEFAULT_BOX_IDS,
     )
     handlers[MspCommand.SET_MODE_RANGE] = fixed(b"")
@@ -69,6 +83,7 @@ def silent(_request: MspFrame) -> bytes | None:
 
 
 # --- request ------------------------------------------------------------------------------------
+
 
 def test_request_returns_the_reply_payload() -> None:
     """request() sends the command once and returns exactly the payload the FC answered."""
@@ -148,10 +163,11 @@ def test_retry_writes_etx_before_resending() -> None:
     raw = bytes(link.raw_written)
     first = raw.index(frame)
     second = raw.index(frame, first + len(frame))
-    assert raw[first + len(frame):second] == b"\x03"
+    assert raw[first + len(frame) : second] == b"\x03"
 
 
 # --- pipeline -----------------------------------------------------------------------------------
+
 
 def test_pipeline_results_are_in_request_order() -> None:
     """Replies, ``!`` errors and timeouts each land at the position of their own request."""
@@ -177,8 +193,9 @@ def test_pipeline_retries_a_read_lost_in_the_middle_without_waiting() -> None:
     replies still resolve their own requests."""
     link, client = make(timeout_s=1.0)
     link.drop_next.add(MspCommand.ALTITUDE)
-    requests = [MspRequest(c) for c in (MspCommand.ATTITUDE, MspCommand.ALTITUDE,
-                                        MspCommand.ANALOG)]
+    requests = [
+        MspRequest(c) for c in (MspCommand.ATTITUDE, MspCommand.ALTITUDE, MspCommand.ANALOG)
+    ]
     start = time.monotonic()
     results = client.pipeline(requests)
     assert time.monotonic() - start < 0.5  # far below the 1 s timeout
@@ -259,13 +276,17 @@ def test_pipeline_calls_on_reply_for_each_successful_reply() -> None:
     """on_reply gets (request, payload) once per good reply, in order, and not for errors."""
     _link, client = make()
     seen: list[tuple[MspRequest, bytes]] = []
-    requests = [MspRequest(MspCommand.ATTITUDE), MspRequest(MspCommand.NAME),
-                MspRequest(MspCommand.ALTITUDE)]
+    requests = [
+        MspRequest(MspCommand.ATTITUDE),
+        MspRequest(MspCommand.NAME),
+        MspRequest(MspCommand.ALTITUDE),
+    ]
     client.pipeline(requests, on_reply=lambda req, payload: seen.append((req, payload)))
     assert seen == [(requests[0], ATT.encode()), (requests[2], ALT.encode())]
 
 
 # --- robustness of matching ---------------------------------------------------------------------
+
 
 def test_garbage_before_and_between_replies_does_not_break_matching() -> None:
     """CLI text and junk around replies is skipped; every request gets its own reply."""
@@ -278,8 +299,11 @@ def test_garbage_before_and_between_replies_does_not_break_matching() -> None:
         return att_reply(request)
 
     link.handlers[MspCommand.ATTITUDE] = noisy
-    requests = [MspRequest(MspCommand.ALTITUDE), MspRequest(MspCommand.ATTITUDE),
-                MspRequest(MspCommand.ANALOG)]
+    requests = [
+        MspRequest(MspCommand.ALTITUDE),
+        MspRequest(MspCommand.ATTITUDE),
+        MspRequest(MspCommand.ANALOG),
+    ]
     assert client.pipeline(requests) == [ALT.encode(), ATT.encode(), ANALOG.encode()]
     assert client.stats.timeouts == 0
 
@@ -384,6 +408,7 @@ def test_ghost_of_an_earlier_call_does_not_block_the_next_request() -> None:
 
 # --- timeout messages ---------------------------------------------------------------------------
 
+
 def test_timeout_message_names_cli_mode_when_the_port_echoes() -> None:
     """On a port left in CLI mode (it echoes text) the timeout says so and how to fix it."""
     link, client = make(timeout_s=0.05)
@@ -424,6 +449,7 @@ def test_old_cli_text_does_not_blame_cli_for_a_later_timeout() -> None:
 
 # --- idempotence --------------------------------------------------------------------------------
 
+
 @pytest.mark.parametrize(
     ("command", "expected"),
     [
@@ -458,12 +484,20 @@ def test_camera_control_is_not_idempotent() -> None:
 
 # --- typed helpers and telemetry ----------------------------------------------------------------
 
+
 def test_telemetry_decodes_every_field_in_one_round_trip() -> None:
     """telemetry() asks MULTIPLE_MSP once and decodes each sub-reply with its codec."""
     link, client = make()
     t = client.telemetry()
     assert (t.attitude, t.altitude, t.status, t.analog, t.rc, t.motors, t.imu) == (
-        ATT, ALT, STATUS, ANALOG, RC, MOTOR, IMU)
+        ATT,
+        ALT,
+        STATUS,
+        ANALOG,
+        RC,
+        MOTOR,
+        IMU,
+    )
     assert t.armed is True
     assert t.arming_blockers == ("RXLOSS", "CLI")
     # Bit 4 is the fifth entry of BOXIDS (FAILSAFE on the stock SITL), not permanent id 4.
@@ -486,9 +520,17 @@ def test_telemetry_not_armed_without_bit_zero() -> None:
     """``armed`` follows bit 0 of the flight-mode flags, and no blockers means an empty tuple."""
     link, client = make()
     status = msg.StatusEx(
-        cycle_time_us=125, i2c_errors=0, sensors_mask=0, flight_mode_flags=0b10,
-        pid_profile=0, cpu_load_percent=0, pid_profile_count=4, rate_profile_index=0,
-        arming_disable_flag_count=29, arming_disable_flags=0, config_state=0,
+        cycle_time_us=125,
+        i2c_errors=0,
+        sensors_mask=0,
+        flight_mode_flags=0b10,
+        pid_profile=0,
+        cpu_load_percent=0,
+        pid_profile_count=4,
+        rate_profile_index=0,
+        arming_disable_flag_count=29,
+        arming_disable_flags=0,
+        config_state=0,
     )
     handlers = read_handlers()
     handlers[MspCommand.STATUS_EX] = fixed(status.encode())
@@ -523,12 +565,18 @@ def test_pipelined_telemetry_requests_decode() -> None:
     assert all(s.attitude == ATT and s.flight_modes == ("ARM", "FAILSAFE") for s in snapshots)
 
 
-def imu_snapshot(roll_decideg: int, pitch_decideg: int, acc_z: int, acc_x: int = 0,
-                 acc_y: int = 0) -> Telemetry:
+def imu_snapshot(
+    roll_decideg: int, pitch_decideg: int, acc_z: int, acc_x: int = 0, acc_y: int = 0
+) -> Telemetry:
     """A snapshot whose only meaningful parts are the attitude and the accelerometer."""
     return Telemetry(
-        received_at_s=0.0, attitude=msg.Attitude(roll_decideg, pitch_decideg, 0), altitude=ALT,
-        status=STATUS, analog=ANALOG, rc=RC, motors=MOTOR,
+        received_at_s=0.0,
+        attitude=msg.Attitude(roll_decideg, pitch_decideg, 0),
+        altitude=ALT,
+        status=STATUS,
+        analog=ANALOG,
+        rc=RC,
+        motors=MOTOR,
         imu=msg.RawImu((acc_x, acc_y, acc_z), (0, 0, 0), (0, 0, 0)),
     )
 
@@ -544,8 +592,7 @@ def test_accel_up_level_at_two_g_is_one_g_up() -> None:
 
 
 @pytest.mark.parametrize(("roll_decideg", "pitch_decideg"), [(600, 0), (-600, 0), (0, 600)])
-def test_accel_up_projects_body_z_onto_the_vertical(roll_decideg: int,
-                                                    pitch_decideg: int) -> None:
+def test_accel_up_projects_body_z_onto_the_vertical(roll_decideg: int, pitch_decideg: int) -> None:
     """Tilted 60 deg with 2 g along the thrust axis: cos(60) = 1/2 of it is up, holding 1 g."""
     t = imu_snapshot(roll_decideg, pitch_decideg, 512)
     assert t.accel_up_m_s2() == pytest.approx(0.0, abs=1e-9)
@@ -561,9 +608,13 @@ def test_accel_up_counts_the_body_x_and_y_readings_too(roll_deg: float, pitch_de
     vertical through the tilt."""
     r, p = math.radians(roll_deg), math.radians(pitch_deg)
     lsb = 256
-    t = imu_snapshot(round(roll_deg * 10), round(pitch_deg * 10),
-                     acc_z=round(lsb * math.cos(r) * math.cos(p)),
-                     acc_x=round(-lsb * math.sin(p)), acc_y=round(lsb * math.sin(r) * math.cos(p)))
+    t = imu_snapshot(
+        round(roll_deg * 10),
+        round(pitch_deg * 10),
+        acc_z=round(lsb * math.cos(r) * math.cos(p)),
+        acc_x=round(-lsb * math.sin(p)),
+        acc_y=round(lsb * math.sin(r) * math.cos(p)),
+    )
     assert t.accel_up_m_s2() == pytest.approx(0.0, abs=0.05)  # LSB rounding only
     # A pure forward push (x) while nose-down: part of it is "down", none of it "up".
     pushed = imu_snapshot(0, round(pitch_deg * 10), acc_z=lsb, acc_x=64)
@@ -574,13 +625,12 @@ def test_accel_up_counts_the_body_x_and_y_readings_too(roll_deg: float, pitch_de
 def test_accel_up_takes_the_sensor_scale() -> None:
     """A real IMU's 2048 LSB per g: the same reading means 1/8 of the SITL's g."""
     assert imu_snapshot(0, 0, 2048).accel_up_m_s2(acc_1g_lsb=2048) == pytest.approx(0.0)
-    assert imu_snapshot(0, 0, 3072).accel_up_m_s2(acc_1g_lsb=2048) == \
-        pytest.approx(0.5 * 9.80665)
+    assert imu_snapshot(0, 0, 3072).accel_up_m_s2(acc_1g_lsb=2048) == pytest.approx(0.5 * 9.80665)
     assert imu_snapshot(0, 0, 2048).accel_up_m_s2() == pytest.approx(7 * 9.80665)
 
 
-
 # --- identical requests after a loss (the telemetry poller's pattern) ----------------------------
+
 
 def test_one_dropped_poll_costs_at_most_one_timeout_in_a_pipeline() -> None:
     """A lost request among identical ones must not make every later poll time out.

@@ -85,13 +85,19 @@ def test_set_lines_whose_value_is_held_are_skipped_and_others_kept():
     from bfsitl.fc.provisioning import _lines_to_run
 
     cli = GetOnlyCli({"small_angle": "30", "serial_update_rate_hz": "100"})
-    lines = ("set small_angle = 30", "set serial_update_rate_hz=1000", "feature GPS",
-             "set no_such_setting = 1")
+    lines = (
+        "set small_angle = 30",
+        "set serial_update_rate_hz=1000",
+        "feature GPS",
+        "set no_such_setting = 1",
+    )
     assert _lines_to_run(cli, lines) == [  # type: ignore[arg-type]
-        "set serial_update_rate_hz=1000", "feature GPS", "set no_such_setting = 1"]
+        "set serial_update_rate_hz=1000",
+        "feature GPS",
+        "set no_such_setting = 1",
+    ]
     # One batch of gets, only for the set lines.
-    assert cli.batches == [["get small_angle", "get serial_update_rate_hz",
-                            "get no_such_setting"]]
+    assert cli.batches == [["get small_angle", "get serial_update_rate_hz", "get no_such_setting"]]
 
 
 def test_a_setting_set_twice_ends_at_its_last_value_even_when_that_is_the_current_one():
@@ -127,8 +133,10 @@ class SerialListingCli:
     def batch(self, commands: list[str], *, check: bool = True) -> str:
         self.batches.append(list(commands))
         assert commands == ["serial"]
-        return "".join(f"serial UART{n}  {self.functions.get(n, 0)} 115200 57600 0 115200\r\n"
-                       for n in range(1, 9))
+        return "".join(
+            f"serial UART{n}  {self.functions.get(n, 0)} 115200 57600 0 115200\r\n"
+            for n in range(1, 9)
+        )
 
 
 def test_serial_lines_a_port_already_has_are_skipped():
@@ -141,7 +149,9 @@ def test_serial_lines_a_port_already_has_are_skipped():
     # An older run directory with the GPS on UART2: both lines run (MSP there, GPS to UART3).
     older = SerialListingCli({1: 1, 2: 2})
     assert _lines_to_run(older, (MSP_SERIAL_4_6, GPS_SERIAL_4_6)) == [  # type: ignore[arg-type]
-        MSP_SERIAL_4_6, GPS_SERIAL_4_6]
+        MSP_SERIAL_4_6,
+        GPS_SERIAL_4_6,
+    ]
     # No serial line: the port listing is not asked for at all.
     untouched = SerialListingCli({})
     assert _lines_to_run(untouched, ("feature GPS",)) == ["feature GPS"]  # type: ignore[arg-type]

@@ -45,8 +45,9 @@ def drain(sock: socket.socket) -> list[RcPacket]:
 
 
 def test_channels_are_aetr_then_aux_and_clamped():
-    command = RcCommand(roll_us=900, pitch_us=2500, throttle_us=1234.6, yaw_us=1500,
-                        aux_us=(1800, 1000))
+    command = RcCommand(
+        roll_us=900, pitch_us=2500, throttle_us=1234.6, yaw_us=1500, aux_us=(1800, 1000)
+    )
     assert command.channels_aetr() == (1000, 2000, 1235, 1500, 1800, 1000)
     assert command.disarmed().channels_aetr() == (1500, 1500, 1000, 1500, 1000, 1000)
     assert RcCommand().with_aux(1, 1700).aux_us == (1000, 1700)

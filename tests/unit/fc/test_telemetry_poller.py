@@ -27,11 +27,19 @@ THREAD_NAME = "bfsitl-telemetry"
 
 #: A disarmed SITL before RC and fdm: RXLOSS and ANGLE block arming, ANGLE mode is on.
 IDLE_STATUS = msg.StatusEx(
-    cycle_time_us=125, i2c_errors=0, sensors_mask=0x23, flight_mode_flags=0b10,
-    pid_profile=0, cpu_load_percent=5, pid_profile_count=4, rate_profile_index=0,
+    cycle_time_us=125,
+    i2c_errors=0,
+    sensors_mask=0x23,
+    flight_mode_flags=0b10,
+    pid_profile=0,
+    cpu_load_percent=5,
+    pid_profile_count=4,
+    rate_profile_index=0,
     arming_disable_flag_count=29,
     arming_disable_flags=ArmingFlag.RX_FAILSAFE.mask | ArmingFlag.ANGLE.mask,
-    config_state=0, cpu_temp_c=0, rate_profile_count=4,
+    config_state=0,
+    cpu_temp_c=0,
+    rate_profile_count=4,
 )
 
 
@@ -48,9 +56,9 @@ def make_link() -> FakeFcLink:
     )
     # Yaw counts the attitude reads, so every snapshot is distinguishable.
     counter = itertools.count(1)
-    link.handlers[MspCommand.ATTITUDE] = (
-        lambda _request: msg.Attitude(0, 0, next(counter) % 360).encode()
-    )
+    link.handlers[MspCommand.ATTITUDE] = lambda _request: msg.Attitude(
+        0, 0, next(counter) % 360
+    ).encode()
     return link
 
 

@@ -81,8 +81,9 @@ def test_check_finds_gz_on_path_and_the_plugin_on_the_plugin_path(
     gz_bin: Path, plugin_dir: Path, tmp_path: Path, monkeypatch: pytest.MonkeyPatch
 ) -> None:
     monkeypatch.setenv("PATH", str(gz_bin))
-    monkeypatch.setenv("GZ_SIM_SYSTEM_PLUGIN_PATH",
-                       os.pathsep.join([str(tmp_path / "elsewhere"), str(plugin_dir)]))
+    monkeypatch.setenv(
+        "GZ_SIM_SYSTEM_PLUGIN_PATH", os.pathsep.join([str(tmp_path / "elsewhere"), str(plugin_dir)])
+    )
     found = check_gazebo()
     assert found.gz == gz_bin / "gz"
     assert found.plugin_library == (plugin_dir / PLUGIN_LIBRARY).resolve()
@@ -120,8 +121,7 @@ def test_missing_plugin_says_where_it_looked_and_how_to_build_it(
     with pytest.raises(GazeboPluginNotFoundError) as unset:
         check_gazebo()
     assert "GZ_SIM_SYSTEM_PLUGIN_PATH (not set)" in str(unset.value)
-    for hint in (PLUGIN_LIBRARY, "gz-sim8", "gz-transport13", "--gz-plugin-dir",
-                 "docs/gazebo.md"):
+    for hint in (PLUGIN_LIBRARY, "gz-sim8", "gz-transport13", "--gz-plugin-dir", "docs/gazebo.md"):
         assert hint in str(unset.value), hint
 
     searched = tmp_path / "no-plugin-here"
@@ -155,8 +155,7 @@ def test_plan_builds_the_headless_server_command(
     assert launch.argv == (str(gz_bin / "gz"), "sim", "-s", "-r", str(world_path()))
     assert launch.world_path == world_path()
     assert launch.plugin_library == (plugin_dir / PLUGIN_LIBRARY).resolve()
-    verbose_gui = plan_gazebo_launch(plugin_dir=plugin_dir, headless=False, run=False,
-                                     verbosity=4)
+    verbose_gui = plan_gazebo_launch(plugin_dir=plugin_dir, headless=False, run=False, verbosity=4)
     assert verbose_gui.argv[1:] == ("sim", "-v", "4", str(world_path()))
     with pytest.raises(ValueError):
         plan_gazebo_launch(plugin_dir=plugin_dir, verbosity=9)
@@ -172,13 +171,19 @@ def test_plan_environment_puts_our_folders_first_and_keeps_the_rest(
         "GZ_SIM_SYSTEM_PLUGIN_PATH": os.pathsep.join(["/opt/other", str(plugin_dir.resolve())]),
         "GZ_SIM_RESOURCE_PATH": "/opt/models",
     }
-    launch = plan_gazebo_launch(plugin_dir=plugin_dir, resource_dirs=[models], env=base,
-                                partition="bfsitl-1")
+    launch = plan_gazebo_launch(
+        plugin_dir=plugin_dir, resource_dirs=[models], env=base, partition="bfsitl-1"
+    )
     env = launch.env
     assert split_search_path(env["GZ_SIM_SYSTEM_PLUGIN_PATH"]) == [
-        str(plugin_dir.resolve()), "/opt/other"]  # first, and not twice
+        str(plugin_dir.resolve()),
+        "/opt/other",
+    ]  # first, and not twice
     assert split_search_path(env["GZ_SIM_RESOURCE_PATH"]) == [
-        str(WORLDS_DIR), str(models), "/opt/models"]
+        str(WORLDS_DIR),
+        str(models),
+        "/opt/models",
+    ]
     assert env["GZ_IP"] == "127.0.0.1"
     assert env["GZ_PARTITION"] == "bfsitl-1"
     # The complete environment: a namespace spawner replaces the child's environment.
@@ -191,7 +196,8 @@ def test_plan_environment_puts_our_folders_first_and_keeps_the_rest(
     assert launch.env["GZ_IP"] == "127.0.0.1"
     shown = launch.command_line()
     assert shown.startswith("GZ_SIM_SYSTEM_PLUGIN_PATH=") and shown.endswith(
-        f"sim -s -r {world_path()}")
+        f"sim -s -r {world_path()}"
+    )
 
 
 def test_plan_keeps_a_chosen_transport_interface_and_takes_a_world_file(
@@ -200,14 +206,16 @@ def test_plan_keeps_a_chosen_transport_interface_and_takes_a_world_file(
     custom = tmp_path / "worlds" / "field.sdf"
     custom.parent.mkdir()
     custom.write_text("<sdf/>")
-    launch = plan_gazebo_launch(custom, plugin_dir=plugin_dir,
-                                env={"PATH": str(gz_bin), "GZ_IP": "192.168.1.5"})
+    launch = plan_gazebo_launch(
+        custom, plugin_dir=plugin_dir, env={"PATH": str(gz_bin), "GZ_IP": "192.168.1.5"}
+    )
     assert launch.env["GZ_IP"] == "192.168.1.5"
     assert launch.argv[-1] == str(custom.resolve())
     assert split_search_path(launch.env["GZ_SIM_RESOURCE_PATH"])[0] == str(custom.parent)
     with pytest.raises(BfsitlError):
-        plan_gazebo_launch(tmp_path / "missing.sdf", plugin_dir=plugin_dir,
-                           env={"PATH": str(gz_bin)})
+        plan_gazebo_launch(
+            tmp_path / "missing.sdf", plugin_dir=plugin_dir, env={"PATH": str(gz_bin)}
+        )
 
 
 def test_search_path_helpers() -> None:
@@ -217,6 +225,7 @@ def test_search_path_helpers() -> None:
 
 
 # --- through the SITL's spawner ----------------------------------------------------------------
+
 
 def read_record(path: Path, timeout_s: float = 10.0) -> dict:
     deadline = time.monotonic() + timeout_s
@@ -233,8 +242,9 @@ def test_the_plan_runs_through_the_host_spawner(
     record = tmp_path / "record.json"
     env = {**os.environ, "PATH": str(gz_bin), "RECORD": str(record), "MARKER": "host"}
     launch = plan_gazebo_launch(plugin_dir=plugin_dir, env=env)
-    handle = HostNetwork().spawn(launch.argv, tmp_path, tmp_path / "gazebo.log",
-                                 env=launch.env_dict())
+    handle = HostNetwork().spawn(
+        launch.argv, tmp_path, tmp_path / "gazebo.log", env=launch.env_dict()
+    )
     try:
         seen = read_record(record)
         assert handle.wait(10.0) == 0
@@ -243,8 +253,9 @@ def test_the_plan_runs_through_the_host_spawner(
     assert seen["argv"] == ["sim", "-s", "-r", str(world_path())]
     assert seen["env"]["MARKER"] == "host"
     assert seen["env"]["GZ_IP"] == "127.0.0.1"
-    assert split_search_path(seen["env"]["GZ_SIM_SYSTEM_PLUGIN_PATH"])[0] == \
-        str(plugin_dir.resolve())
+    assert split_search_path(seen["env"]["GZ_SIM_SYSTEM_PLUGIN_PATH"])[0] == str(
+        plugin_dir.resolve()
+    )
 
 
 @pytest.mark.skipif(not unshare_available(), reason="unshare (util-linux) is missing")
@@ -253,14 +264,14 @@ def test_the_plan_runs_in_a_private_namespace_and_is_seen_listening(
 ) -> None:
     """In the SITL's kind of namespace: env arrives, UDP 9002 shows, SIGINT stops it."""
     record = tmp_path / "record.json"
-    env = {**os.environ, "PATH": str(gz_bin), "RECORD": str(record), "MARKER": "netns",
-           "BIND": "1"}
+    env = {**os.environ, "PATH": str(gz_bin), "RECORD": str(record), "MARKER": "netns", "BIND": "1"}
     launch = plan_gazebo_launch(plugin_dir=plugin_dir, env=env)
     with IsolatedNetwork() as network:
         assert not plugin_listening(network.netns_pid)
         check_plugin_port_free(network)
-        handle = network.spawn(launch.argv, tmp_path, tmp_path / "gazebo.log",
-                               env=launch.env_dict())
+        handle = network.spawn(
+            launch.argv, tmp_path, tmp_path / "gazebo.log", env=launch.env_dict()
+        )
         try:
             wait_for_plugin(network, handle, timeout_s=20.0, poll_s=0.02)
             assert plugin_listening(network.netns_pid)
@@ -274,13 +285,17 @@ def test_the_plan_runs_in_a_private_namespace_and_is_seen_listening(
 
 # --- waiting and stopping, with fakes ----------------------------------------------------------
 
-UDP_HEADER = ("  sl  local_address rem_address   st tx_queue rx_queue tr tm->when retrnsmt   uid"
-              "  timeout inode ref pointer drops\n")
+UDP_HEADER = (
+    "  sl  local_address rem_address   st tx_queue rx_queue tr tm->when retrnsmt   uid"
+    "  timeout inode ref pointer drops\n"
+)
 
 
 def udp_row(port: int) -> str:
-    return (f"  12: 0100007F:{port:04X} 00000000:0000 07 00000000:00000000 00:00000000 "
-            f"00000000  1000        0 4242 2 0000000000000000 0\n")
+    return (
+        f"  12: 0100007F:{port:04X} 00000000:0000 07 00000000:00000000 00:00000000 "
+        f"00000000  1000        0 4242 2 0000000000000000 0\n"
+    )
 
 
 class FakeNetwork:
@@ -335,8 +350,15 @@ def test_wait_for_plugin_returns_when_the_port_appears(tmp_path: Path) -> None:
         if len(polls) == 3:  # the plugin binds 9002 during the third wait
             network.udp.write_text(UDP_HEADER + udp_row(9003) + udp_row(9002))
 
-    wait_for_plugin(network, FakeGazebo(), timeout_s=10.0, poll_s=0.5, proc_root=tmp_path,
-                    clock=clock, sleep=sleep)
+    wait_for_plugin(
+        network,
+        FakeGazebo(),
+        timeout_s=10.0,
+        poll_s=0.5,
+        proc_root=tmp_path,
+        clock=clock,
+        sleep=sleep,
+    )
     assert len(polls) == 3
 
 
@@ -344,12 +366,24 @@ def test_wait_for_plugin_fails_clearly_when_gz_exits_or_times_out(tmp_path: Path
     network = FakeNetwork(tmp_path)
     network.udp.write_text(UDP_HEADER + udp_row(9003))  # someone else's port does not count
     with pytest.raises(GazeboStartError, match="exited with code 255"):
-        wait_for_plugin(network, FakeGazebo(code=255), proc_root=tmp_path,
-                        clock=StepClock(), sleep=lambda s: None)
+        wait_for_plugin(
+            network,
+            FakeGazebo(code=255),
+            proc_root=tmp_path,
+            clock=StepClock(),
+            sleep=lambda s: None,
+        )
     clock = StepClock()
     with pytest.raises(GazeboStartError, match="within 2 s"):
-        wait_for_plugin(network, FakeGazebo(), timeout_s=2.0, poll_s=0.5, proc_root=tmp_path,
-                        clock=clock, sleep=clock.sleep)
+        wait_for_plugin(
+            network,
+            FakeGazebo(),
+            timeout_s=2.0,
+            poll_s=0.5,
+            proc_root=tmp_path,
+            clock=clock,
+            sleep=clock.sleep,
+        )
     assert clock.now_s == pytest.approx(2.0)
 
 

@@ -29,8 +29,12 @@ from bfsitl.protocol.firmware_profile import DEFAULT_PROFILE, FirmwareProfile, p
 from bfsitl.protocol.sitl_packets import ServoPacket
 
 #: channel -> (rotor, multiplier): CCW (+838) front-right and rear-left, CW (-838) the others.
-EXPECTED_CONTROLS = {0: ("rotor_0", 838.0), 1: ("rotor_1", 838.0),
-                     2: ("rotor_2", -838.0), 3: ("rotor_3", -838.0)}
+EXPECTED_CONTROLS = {
+    0: ("rotor_0", 838.0),
+    1: ("rotor_1", 838.0),
+    2: ("rotor_2", -838.0),
+    3: ("rotor_3", -838.0),
+}
 NESTED = "iris_with_standoffs"
 
 
@@ -45,8 +49,11 @@ def world() -> ET.Element:
 
 @pytest.fixture(scope="module")
 def outer(world: ET.Element) -> ET.Element:
-    models = [m for m in world.findall("model") if m.find("plugin[@filename='BetaflightPlugin']")
-              is not None]
+    models = [
+        m
+        for m in world.findall("model")
+        if m.find("plugin[@filename='BetaflightPlugin']") is not None
+    ]
     assert len(models) == 1, "exactly one model carries the BetaflightPlugin"
     return models[0]
 
@@ -77,8 +84,14 @@ def numbers(value: str) -> list[float]:
 
 def rotation_rpy(roll: float, pitch: float, yaw: float) -> list[list[float]]:
     """The rotation of an SDF/gz-math pose: Rz(yaw) * Ry(pitch) * Rx(roll)."""
-    cr, sr, cp, sp, cy, sy = (math.cos(roll), math.sin(roll), math.cos(pitch),
-                              math.sin(pitch), math.cos(yaw), math.sin(yaw))
+    cr, sr, cp, sp, cy, sy = (
+        math.cos(roll),
+        math.sin(roll),
+        math.cos(pitch),
+        math.sin(pitch),
+        math.cos(yaw),
+        math.sin(yaw),
+    )
     return [
         [cy * cp, cy * sp * sr - sy * cr, cy * sp * cr + sy * sr],
         [sy * cp, sy * sp * sr + cy * cr, sy * sp * cr - cy * sr],
@@ -91,6 +104,7 @@ def column(matrix: list[list[float]], index: int) -> list[float]:
 
 
 # --- the file ----------------------------------------------------------------------------------
+
 
 def test_the_default_world_is_package_data() -> None:
     assert DEFAULT_WORLD in shipped_worlds()
@@ -119,6 +133,7 @@ def test_world_name_physics_and_systems(world: ET.Element) -> None:
 
 
 # --- the plugin block --------------------------------------------------------------------------
+
 
 def test_plugin_identity_ports_and_stepping(plugin: ET.Element) -> None:
     assert plugin.get("name") == "BetaFlightPlugin"  # the alias the library registers
@@ -161,20 +176,36 @@ def test_pressure_sensor_sits_where_the_plugin_listens(
     world: ET.Element, outer: ET.Element, nested: ET.Element
 ) -> None:
     """The plugin hard-codes its pressure topic: every name on that path must match."""
-    sensors = [(link.get("name"), s) for link in nested.findall("link")
-               for s in link.findall("sensor") if s.get("type") == "air_pressure"]
+    sensors = [
+        (link.get("name"), s)
+        for link in nested.findall("link")
+        for s in link.findall("sensor")
+        if s.get("type") == "air_pressure"
+    ]
     assert len(sensors) == 1
     link_name, sensor = sensors[0]
-    topic = (f"/world/{world.get('name')}/model/{outer.get('name')}/model/{nested.get('name')}"
-             f"/link/{link_name}/sensor/{sensor.get('name')}/air_pressure")
+    topic = (
+        f"/world/{world.get('name')}/model/{outer.get('name')}/model/{nested.get('name')}"
+        f"/link/{link_name}/sensor/{sensor.get('name')}/air_pressure"
+    )
     assert topic == PRESSURE_TOPIC
     assert numbers(text(sensor, "air_pressure/reference_altitude")) == [0.0]
 
 
 CONTROL_VALUES = {
-    "type": "VELOCITY", "useForce": "1", "offset": "0", "p_gain": "0.20", "i_gain": "0",
-    "d_gain": "0", "i_max": "0", "i_min": "0", "cmd_max": "2.5", "cmd_min": "-2.5",
-    "rotorVelocitySlowdownSim": "1", "servo_min": "1100", "servo_max": "1900",
+    "type": "VELOCITY",
+    "useForce": "1",
+    "offset": "0",
+    "p_gain": "0.20",
+    "i_gain": "0",
+    "d_gain": "0",
+    "i_max": "0",
+    "i_min": "0",
+    "cmd_max": "2.5",
+    "cmd_min": "-2.5",
+    "rotorVelocitySlowdownSim": "1",
+    "servo_min": "1100",
+    "servo_max": "1900",
 }
 
 
@@ -214,10 +245,15 @@ def test_channels_drive_the_rotors_bfsitl_assigns_to_those_servo_slots(
         assert (float(text(control, "multiplier")) > 0) == IRIS.rotor_spin_ccw[motor]
 
 
-def test_lift_drag_blades_follow_each_rotors_spin(outer: ET.Element, plugin: ET.Element,
-                                                  nested: ET.Element) -> None:
-    spin = {text(c, "jointName").split("::")[1].removesuffix("_joint"):
-            math.copysign(1.0, float(text(c, "multiplier"))) for c in plugin.findall("control")}
+def test_lift_drag_blades_follow_each_rotors_spin(
+    outer: ET.Element, plugin: ET.Element, nested: ET.Element
+) -> None:
+    spin = {
+        text(c, "jointName").split("::")[1].removesuffix("_joint"): math.copysign(
+            1.0, float(text(c, "multiplier"))
+        )
+        for c in plugin.findall("control")
+    }
     blades = outer.findall("plugin[@filename='gz-sim-lift-drag-system']")
     assert len(blades) == 8
     per_rotor: dict[str, int] = {}
@@ -242,8 +278,7 @@ def test_vehicle_matches_the_embedded_iris(outer: ET.Element, nested: ET.Element
         assert izz == pytest.approx(IRIS.rotor_inertia_kg_m2)
     blade = outer.find("plugin[@filename='gz-sim-lift-drag-system']")
     assert blade is not None
-    cla, a0, rho, area = (float(text(blade, name))
-                          for name in ("cla", "a0", "air_density", "area"))
+    cla, a0, rho, area = (float(text(blade, name)) for name in ("cla", "a0", "air_density", "area"))
     radius = abs(numbers(text(blade, "cp"))[0])
     # Two blade elements: T = 2 * cla * a0 * 1/2 rho A r^2 * omega^2.
     k_thrust = 2 * cla * a0 * 0.5 * rho * area * radius**2
@@ -273,8 +308,11 @@ def test_each_generations_world_spins_each_betaflight_motors_rotor(
     root = ET.parse(world_for_profile(profile, tmp_path)).getroot()
     world = root.find("world")
     assert world is not None and world.get("name") == WORLD_NAME
-    outer = next(m for m in world.findall("model")
-                 if m.find("plugin[@filename='BetaflightPlugin']") is not None)
+    outer = next(
+        m
+        for m in world.findall("model")
+        if m.find("plugin[@filename='BetaflightPlugin']") is not None
+    )
     plugin = outer.find("plugin[@filename='BetaflightPlugin']")
     nested = outer.find(f"model[@name='{NESTED}']")
     assert plugin is not None and nested is not None
@@ -295,11 +333,17 @@ def test_master_world_leaves_the_yaw_turn_to_the_firmware(tmp_path: Path) -> Non
     assert derived.parent == tmp_path
     plugin = ET.parse(derived).getroot().find(".//plugin[@filename='BetaflightPlugin']")
     assert plugin is not None
-    assert numbers(text(plugin, "gazeboXYZToNED")) == pytest.approx([0, 0, 0, math.pi, 0, 0],
-                                                                    abs=1e-6)
+    assert numbers(text(plugin, "gazeboXYZToNED")) == pytest.approx(
+        [0, 0, 0, math.pi, 0, 0], abs=1e-6
+    )
     shipped = ET.parse(world_path()).getroot().find(".//plugin[@filename='BetaflightPlugin']")
     assert shipped is not None
     # Everything else the plugin reads is the shipped world's.
-    for name in ("fdm_port_in", "fcu_port_out", "imuName", "modelXYZToAirplaneXForwardZDown",
-                 "lock_step"):
+    for name in (
+        "fdm_port_in",
+        "fcu_port_out",
+        "imuName",
+        "modelXYZToAirplaneXForwardZDown",
+        "lock_step",
+    ):
         assert text(plugin, name) == text(shipped, name)

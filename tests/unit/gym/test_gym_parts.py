@@ -36,7 +36,7 @@ def test_sticks_map_onto_pulses_in_the_receivers_order_and_keep_the_switches() -
     base = RcCommand(aux_us=(1800, 1800))
     rc = sticks_to_rc([0.5, -0.5, -1.0, 1.0], base)
     assert (rc.roll_us, rc.pitch_us, rc.throttle_us, rc.yaw_us) == (1750, 1250, 1000, 2000)
-    assert rc.aux_us == (1800, 1800)                      # ARM and ANGLE are not the policy's
+    assert rc.aux_us == (1800, 1800)  # ARM and ANGLE are not the policy's
     assert rc_to_sticks(rc) == (0.5, -0.5, -1.0, 1.0)
     assert stick_us(7.0) == 2000 and stick_us(-7.0) == 1000  # clipped to the stick's travel
     with pytest.raises(ValueError, match="NaN"):
@@ -45,16 +45,41 @@ def test_sticks_map_onto_pulses_in_the_receivers_order_and_keep_the_switches() -
 
 # -- the observation ---------------------------------------------------------------------------
 def snapshot(**truth_changes: object) -> Snapshot:
-    fc = FcView(roll_rad=0.1, pitch_rad=-0.2, yaw_rad=math.pi / 2, rates_flu_rad_s=(1, 2, 3),
-                accel_flu_m_s2=(0.1, 0.2, 9.8), accel_up_m_s2=0.05, alt_m=1.9, climb_m_s=0.3,
-                north_m=0.5,
-                east_m=-0.5, v_north_m_s=0.4, v_east_m_s=-0.4, has_gps=True,
-                motors=(0.4, 0.5, 0.6, 0.7), armed=True, arming_blockers=(),
-                flight_modes=("ANGLE",))
-    truth = dict(north_m=0.6, east_m=-0.6, alt_m=2.0, v_north_m_s=0.5, v_east_m_s=-0.5,
-                 v_up_m_s=0.2, roll_rad=0.11, pitch_rad=-0.21, yaw_rad=math.pi,
-                 rates_flu_rad_s=(1.1, 2.1, 3.1), accel_flu_m_s2=(0.0, 0.0, 9.81),
-                 motors=(0.41, 0.51, 0.61, 0.71), tilt_deg=10.0, on_ground=False)
+    fc = FcView(
+        roll_rad=0.1,
+        pitch_rad=-0.2,
+        yaw_rad=math.pi / 2,
+        rates_flu_rad_s=(1, 2, 3),
+        accel_flu_m_s2=(0.1, 0.2, 9.8),
+        accel_up_m_s2=0.05,
+        alt_m=1.9,
+        climb_m_s=0.3,
+        north_m=0.5,
+        east_m=-0.5,
+        v_north_m_s=0.4,
+        v_east_m_s=-0.4,
+        has_gps=True,
+        motors=(0.4, 0.5, 0.6, 0.7),
+        armed=True,
+        arming_blockers=(),
+        flight_modes=("ANGLE",),
+    )
+    truth = dict(
+        north_m=0.6,
+        east_m=-0.6,
+        alt_m=2.0,
+        v_north_m_s=0.5,
+        v_east_m_s=-0.5,
+        v_up_m_s=0.2,
+        roll_rad=0.11,
+        pitch_rad=-0.21,
+        yaw_rad=math.pi,
+        rates_flu_rad_s=(1.1, 2.1, 3.1),
+        accel_flu_m_s2=(0.0, 0.0, 9.81),
+        motors=(0.41, 0.51, 0.61, 0.71),
+        tilt_deg=10.0,
+        on_ground=False,
+    )
     truth.update(truth_changes)
     return Snapshot(12.0, fc, TrueView(**truth))  # type: ignore[arg-type]
 
@@ -63,18 +88,64 @@ def test_the_observation_puts_each_quantity_in_its_slot_for_the_fc_and_the_truth
     target = (1.0, 1.0, 3.0)
     fc = observe(snapshot(), target, "fc")
     assert fc.dtype == np.float32 and fc.shape == (20,)
-    np.testing.assert_allclose(fc, [0.5, 1.5, 1.1, 0.4, -0.4, 0.3, 0.1, -0.2, 1.0, 0.0,
-                                    1, 2, 3, 0.1, 0.2, 9.8, 0.4, 0.5, 0.6, 0.7], atol=1e-6)
+    np.testing.assert_allclose(
+        fc,
+        [
+            0.5,
+            1.5,
+            1.1,
+            0.4,
+            -0.4,
+            0.3,
+            0.1,
+            -0.2,
+            1.0,
+            0.0,
+            1,
+            2,
+            3,
+            0.1,
+            0.2,
+            9.8,
+            0.4,
+            0.5,
+            0.6,
+            0.7,
+        ],
+        atol=1e-6,
+    )
     truth = observe(snapshot(), target, "truth")
-    np.testing.assert_allclose(truth, [0.4, 1.6, 1.0, 0.5, -0.5, 0.2, 0.11, -0.21, 0.0, -1.0,
-                                       1.1, 2.1, 3.1, 0.0, 0.0, 9.81, 0.41, 0.51, 0.61, 0.71],
-                               atol=1e-6)
+    np.testing.assert_allclose(
+        truth,
+        [
+            0.4,
+            1.6,
+            1.0,
+            0.5,
+            -0.5,
+            0.2,
+            0.11,
+            -0.21,
+            0.0,
+            -1.0,
+            1.1,
+            2.1,
+            3.1,
+            0.0,
+            0.0,
+            9.81,
+            0.41,
+            0.51,
+            0.61,
+            0.71,
+        ],
+        atol=1e-6,
+    )
     assert observation_space().contains(fc) and observation_space().contains(truth)
 
 
 def test_a_value_beyond_the_space_is_clipped_into_it() -> None:
-    wild = observe(snapshot(north_m=-5000.0, rates_flu_rad_s=(500.0, 0.0, 0.0)), (0, 0, 0),
-                   "truth")
+    wild = observe(snapshot(north_m=-5000.0, rates_flu_rad_s=(500.0, 0.0, 0.0)), (0, 0, 0), "truth")
     assert wild[0] == 1000.0 and wild[10] == 100.0 and observation_space().contains(wild)
 
 
@@ -90,24 +161,33 @@ def test_the_reward_is_one_at_the_target_and_falls_with_distance_tilt_and_effort
     assert step_reward(tilted, at, still) == pytest.approx(1.0 - 0.1 * math.radians(30.0))
     # Throttle is free (holding height needs it); roll, pitch and yaw sticks cost.
     assert step_reward(level, at, np.array([0, 0, 1, 0], dtype=np.float32)) == 1.0
-    assert step_reward(level, at, np.array([1, -1, 0, 1], dtype=np.float32)) == \
-        pytest.approx(1.0 - 0.03)
+    assert step_reward(level, at, np.array([1, -1, 0, 1], dtype=np.float32)) == pytest.approx(
+        1.0 - 0.03
+    )
 
 
 def test_each_ending_is_named_and_a_calm_flight_goes_on() -> None:
     truth = snapshot(tilt_deg=5.0).truth
     here = (truth.north_m, truth.east_m, truth.alt_m)
     assert failure(truth, here, armed=True, has_flown=True) is None
-    assert "tilted" in failure(snapshot(tilt_deg=CRASH_TILT_DEG + 1).truth, here,  # type: ignore[operator]
-                               armed=True, has_flown=True)
+    assert "tilted" in failure(
+        snapshot(tilt_deg=CRASH_TILT_DEG + 1).truth,
+        here,  # type: ignore[operator]
+        armed=True,
+        has_flown=True,
+    )
     on_ground = snapshot(on_ground=True, alt_m=0.0).truth
     assert failure(on_ground, here, armed=True, has_flown=False) is None  # before take-off
     assert "back on the ground" in failure(on_ground, here, armed=True, has_flown=True)  # type: ignore[operator]
     assert failure(truth, here, armed=False, has_flown=True) == "the FC disarmed"
     far = (here[0] + MAX_DISTANCE_M + 0.1, here[1], here[2])
     assert "out of bounds" in failure(truth, far, armed=True, has_flown=True)  # type: ignore[operator]
-    assert "above" in failure(snapshot(alt_m=25.0).truth, (0.6, -0.6, 24.0),  # type: ignore[operator]
-                              armed=True, has_flown=True)
+    assert "above" in failure(
+        snapshot(alt_m=25.0).truth,
+        (0.6, -0.6, 24.0),  # type: ignore[operator]
+        armed=True,
+        has_flown=True,
+    )
 
 
 def test_targets_are_drawn_from_the_episodes_generator_inside_their_box() -> None:
@@ -115,7 +195,7 @@ def test_targets_are_drawn_from_the_episodes_generator_inside_their_box() -> Non
     task.reset(np.random.default_rng(7))
     first = task.target
     task.reset(np.random.default_rng(7))
-    assert task.target == first                            # the same seed, the same target
+    assert task.target == first  # the same seed, the same target
     targets = []
     for seed in range(200):
         task.reset(np.random.default_rng(seed))
@@ -123,7 +203,7 @@ def test_targets_are_drawn_from_the_episodes_generator_inside_their_box() -> Non
     north, east, up = np.array(targets).T
     assert abs(north).max() <= 2.0 and abs(east).max() <= 2.0
     assert 1.5 <= up.min() and up.max() <= 3.0
-    assert north.std() > 0.5 and east.std() > 0.5         # both axes are drawn
+    assert north.std() > 0.5 and east.std() > 0.5  # both axes are drawn
 
 
 def test_waypoints_advance_when_reached_pay_a_bonus_and_finish_at_the_last() -> None:
@@ -139,29 +219,42 @@ def test_waypoints_advance_when_reached_pay_a_bonus_and_finish_at_the_last() -> 
 
 
 # -- options refused before anything starts ---------------------------------------------------
-@pytest.mark.parametrize(("options", "fix"), [
-    ({"mode": "horizon"}, "mode must be one of angle, acro"),
-    ({"observation": "camera"}, "observation must be one of fc, truth"),
-    ({"start": "orbit"}, "start must be one of air, ground"),
-    ({"control_hz": 500.0}, r"control_hz 500.0 is outside 1..200 Hz"),
-    ({"max_episode_steps": 0}, "max_episode_steps 0 is not a number of steps"),
-    ({"start_alt_m": 40.0}, "start_alt_m 40.0 is outside 0.5..15 m"),
-    ({"timing": Timing(lockstep_exchange="pigeon")},  # type: ignore[arg-type]
-     "timing.lockstep_exchange must be one of auto, shm, udp"),
-    ({"timing": Timing(lockstep_spin=True), "pin_core": True},
-     "lockstep_spin=True with pin_core=True"),
-    ({"timing": Timing(lockstep=False)}, "timing.lockstep=False: the environment steps"),
-    ({"world": World(physics="gazebo")}, "world.physics='gazebo': the environment flies"),
-    # A group given as something else: what it takes, before anything is looked up.
-    ({"timing": {"lockstep_exchange": "udp"}},
-     r"timing must be a Timing \(bfsitl.Timing\(speed, lockstep, lockstep_spin, "
-     r"lockstep_exchange\), all optional\), not dict"),
-    ({"world": 3.0}, r"world must be a World \(bfsitl.World\(physics, .*\), not float"),
-    ({"sitl": "4.6.0-gps-lockstep"}, r"sitl must be a SitlLaunch \(bfsitl.SitlLaunch\("
-                                     r"firmware, workdir, isolate\), all optional\), not str"),
-])
+@pytest.mark.parametrize(
+    ("options", "fix"),
+    [
+        ({"mode": "horizon"}, "mode must be one of angle, acro"),
+        ({"observation": "camera"}, "observation must be one of fc, truth"),
+        ({"start": "orbit"}, "start must be one of air, ground"),
+        ({"control_hz": 500.0}, r"control_hz 500.0 is outside 1..200 Hz"),
+        ({"max_episode_steps": 0}, "max_episode_steps 0 is not a number of steps"),
+        ({"start_alt_m": 40.0}, "start_alt_m 40.0 is outside 0.5..15 m"),
+        (
+            {"timing": Timing(lockstep_exchange="pigeon")},  # type: ignore[arg-type]
+            "timing.lockstep_exchange must be one of auto, shm, udp",
+        ),
+        (
+            {"timing": Timing(lockstep_spin=True), "pin_core": True},
+            "lockstep_spin=True with pin_core=True",
+        ),
+        ({"timing": Timing(lockstep=False)}, "timing.lockstep=False: the environment steps"),
+        ({"world": World(physics="gazebo")}, "world.physics='gazebo': the environment flies"),
+        # A group given as something else: what it takes, before anything is looked up.
+        (
+            {"timing": {"lockstep_exchange": "udp"}},
+            r"timing must be a Timing \(bfsitl.Timing\(speed, lockstep, lockstep_spin, "
+            r"lockstep_exchange\), all optional\), not dict",
+        ),
+        ({"world": 3.0}, r"world must be a World \(bfsitl.World\(physics, .*\), not float"),
+        (
+            {"sitl": "4.6.0-gps-lockstep"},
+            r"sitl must be a SitlLaunch \(bfsitl.SitlLaunch\("
+            r"firmware, workdir, isolate\), all optional\), not str",
+        ),
+    ],
+)
 def test_an_option_the_environment_cannot_take_is_refused_with_what_it_takes(
-        options: dict, fix: str) -> None:
+    options: dict, fix: str
+) -> None:
     with pytest.raises(EnvironmentConfigError, match=fix):
         HoverEnv(**options)
     with pytest.raises(EnvironmentConfigError, match="count 0 is outside"):
@@ -178,7 +271,7 @@ def fake_lockstep_build(directory: Path) -> Path:
 
 def test_pinning_and_spin_default_by_where_the_environment_runs(tmp_path: Path) -> None:
     sitl = SitlLaunch(firmware=fake_lockstep_build(tmp_path))
-    here = HoverEnv(sitl=sitl)        # a main process: spin on two cores, no pinning
+    here = HoverEnv(sitl=sitl)  # a main process: spin on two cores, no pinning
     assert here.spin and not here.pin_core
     pinned = HoverEnv(sitl=sitl, pin_core=True)  # it shares the core with its SITL
     assert pinned.pin_core and not pinned.spin
@@ -186,24 +279,24 @@ def test_pinning_and_spin_default_by_where_the_environment_runs(tmp_path: Path) 
         env.close()
 
 
-def test_the_episode_limit_is_gymnasiums_max_episode_steps_counted_once(
-        tmp_path: Path) -> None:
+def test_the_episode_limit_is_gymnasiums_max_episode_steps_counted_once(tmp_path: Path) -> None:
     import gymnasium
 
     import bfsitl.gym
     from bfsitl.gym.env import DEFAULT_CONTROL_HZ
 
     # Registered with the ids: the default episodes (10 s, 20 s) at the default control rate.
-    assert bfsitl.gym.MAX_EPISODE_STEPS == {"bfsitl/Hover-v0": 10 * DEFAULT_CONTROL_HZ,
-                                            "bfsitl/Waypoints-v0": 20 * DEFAULT_CONTROL_HZ}
+    assert bfsitl.gym.MAX_EPISODE_STEPS == {
+        "bfsitl/Hover-v0": 10 * DEFAULT_CONTROL_HZ,
+        "bfsitl/Waypoints-v0": 20 * DEFAULT_CONTROL_HZ,
+    }
     for env_id, steps in bfsitl.gym.MAX_EPISODE_STEPS.items():
         assert gymnasium.spec(env_id).max_episode_steps == steps
     build = fake_lockstep_build(tmp_path)
     alone = HoverEnv(sitl=SitlLaunch(firmware=build), max_episode_steps=50)  # made directly
     assert alone._step_limit() == 50
     assert WaypointsEnv(sitl=SitlLaunch(firmware=build))._step_limit() == 2000
-    made = gymnasium.make("bfsitl/Hover-v0", sitl=SitlLaunch(firmware=build),
-                          max_episode_steps=70)
+    made = gymnasium.make("bfsitl/Hover-v0", sitl=SitlLaunch(firmware=build), max_episode_steps=70)
     # Made by Gymnasium: its TimeLimit counts make's max_episode_steps, the environment not.
     assert made.spec is not None and made.spec.max_episode_steps == 70
     assert made.unwrapped._step_limit() is None  # type: ignore[attr-defined]
@@ -215,8 +308,10 @@ def test_a_stock_build_is_refused_with_the_command_that_makes_a_lockstep_one(tmp
     stock = tmp_path / "betaflight_4.6.0_SITL"
     stock.write_bytes(b"\x00" * 64)
     stock.chmod(0o755)
-    with pytest.raises(EnvironmentConfigError,
-                       match=r"not a lockstep build.*bfsitl firmware build --gps --lockstep"):
+    with pytest.raises(
+        EnvironmentConfigError,
+        match=r"not a lockstep build.*bfsitl firmware build --gps --lockstep",
+    ):
         FlightEnv(Hover(), sitl=SitlLaunch(firmware=stock))
 
 
@@ -233,12 +328,12 @@ def test_the_hand_policy_steers_towards_the_target_whatever_the_heading() -> Non
 
     roll, pitch, throttle, yaw = hand_policy(offsets(1.0, 0.0, 0.0, 0.0))
     assert pitch > 0 and roll == 0 and throttle == pytest.approx(HOVER_THROTTLE) and yaw == 0
-    roll, pitch, *_ = hand_policy(offsets(0.0, 1.0, 0.0, 0.0))     # east of a north-facing quad
+    roll, pitch, *_ = hand_policy(offsets(0.0, 1.0, 0.0, 0.0))  # east of a north-facing quad
     assert roll > 0 and pitch == pytest.approx(0.0, abs=1e-6)
-    roll, pitch, *_ = hand_policy(offsets(1.0, 0.0, 0.0, 90.0))    # north of an east-facing one
-    assert roll < 0 and pitch == pytest.approx(0.0, abs=1e-6)     # it is on its left
+    roll, pitch, *_ = hand_policy(offsets(1.0, 0.0, 0.0, 90.0))  # north of an east-facing one
+    assert roll < 0 and pitch == pytest.approx(0.0, abs=1e-6)  # it is on its left
     _, _, throttle, _ = hand_policy(offsets(0.0, 0.0, 1.0, 0.0))
-    assert throttle > HOVER_THROTTLE                               # below the target: climb
+    assert throttle > HOVER_THROTTLE  # below the target: climb
 
 
 # -- recording an episode ----------------------------------------------------------------------
@@ -257,5 +352,9 @@ def test_a_step_becomes_a_flight_row_with_the_fc_the_truth_and_the_target() -> N
     assert row.pitch_deg == pytest.approx(math.degrees(-0.2))
     assert row.yaw_deg == pytest.approx(90.0) and row.sim_yaw_deg == pytest.approx(180.0)
     assert (row.rc_roll_us, row.rc_pitch_us, row.rc_throttle_us, row.rc_aux1_us) == (
-        1600, 1450, 1550, 1800)
+        1600,
+        1450,
+        1550,
+        1800,
+    )
     assert row.motor4 == 0.71 and row.armed and row.fc_accel_up_m_s2 == 0.05

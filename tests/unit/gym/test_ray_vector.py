@@ -15,8 +15,9 @@ from bfsitl.mission.session import SitlLaunch  # noqa: E402
 
 def test_a_workdir_is_refused_with_the_reason() -> None:
     with pytest.raises(EnvironmentConfigError, match="temporary directory of its node"):
-        RayVectorEnv("bfsitl.gym.env:HoverEnv", 2, address="127.0.0.1:1",
-                     sitl=SitlLaunch(workdir="runs"))
+        RayVectorEnv(
+            "bfsitl.gym.env:HoverEnv", 2, address="127.0.0.1:1", sitl=SitlLaunch(workdir="runs")
+        )
 
 
 @pytest.mark.parametrize("count", [0, 257])

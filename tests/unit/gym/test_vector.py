@@ -29,8 +29,9 @@ def test_each_step_comes_back_for_its_own_environment() -> None:
         assert list(observations[:, 3]) == [7.0, 8.0]  # one seed each, counted on
         assert envs.observation_space.shape == (2, 20) and envs.action_space.shape == (2, 4)
         observations, rewards, terminated, truncated, info = envs.step(
-            actions((0.25, 0, 0, 0), (-0.5, 0, 0, 0)))
-        assert list(rewards) == [0.25, -0.5]              # each its own action
+            actions((0.25, 0, 0, 0), (-0.5, 0, 0, 0))
+        )
+        assert list(rewards) == [0.25, -0.5]  # each its own action
         assert list(observations[:, 0]) == [1.0, 1.0]
         assert not terminated.any() and not truncated.any()
         assert info["distance_m"].tolist() == [1.5, 1.5] and info["_distance_m"].all()
@@ -50,7 +51,8 @@ def test_an_ended_episode_is_reset_in_the_same_step_with_its_end_beside_it() -> 
         envs.step(actions((0, 0, 0, 0), (0, 0, 0, 0)))
         # Environment 0 is told to crash; environment 1 reaches its time limit.
         observations, _rewards, terminated, truncated, info = envs.step(
-            actions((0, 0, -1, 0), (0, 0, 0, 0)))
+            actions((0, 0, -1, 0), (0, 0, 0, 0))
+        )
         assert terminated.tolist() == [True, False] and truncated.tolist() == [False, True]
         assert observations[:, 0].tolist() == [0.0, 0.0]  # the next episodes' first
         assert observations[:, 1].tolist() == [2.0, 2.0]
@@ -68,9 +70,11 @@ def test_an_ended_episode_is_reset_in_the_same_step_with_its_end_beside_it() -> 
 
 
 def test_workers_ask_for_a_core_each_and_no_spin_unless_told_otherwise() -> None:
-    for options, expected in (({}, [1.0, 0.0]), ({"pin_core": False}, [0.0, 0.0]),
-                              ({"timing": Timing(lockstep_spin=True), "pin_core": False},
-                               [0.0, 1.0])):
+    for options, expected in (
+        ({}, [1.0, 0.0]),
+        ({"pin_core": False}, [0.0, 0.0]),
+        ({"timing": Timing(lockstep_spin=True), "pin_core": False}, [0.0, 1.0]),
+    ):
         envs = FlightVectorEnv(FAKE, 2, **options)
         try:
             observations, _info = envs.reset()
@@ -108,8 +112,11 @@ def test_a_workers_error_is_raised_in_the_parent_and_ends_the_rest() -> None:
 def test_a_worker_that_dies_is_named_with_its_exit_code() -> None:
     envs = FlightVectorEnv(FAKE, 2)
     envs.reset(seed=0)
-    with pytest.raises(EnvironmentConfigError, match=r"environment 0: its worker process ended "
-                                                     r"\(exit code 3\)"):
+    with pytest.raises(
+        EnvironmentConfigError,
+        match=r"environment 0: its worker process ended "
+        r"\(exit code 3\)",
+    ):
         envs.step(actions((0, 1, 0, 0), (0, 0, 0, 0)))
 
 

@@ -13,8 +13,7 @@ from bfsitl.errors import KernelUnavailableError
 from bfsitl.kernel import compiler
 
 
-def test_no_compiler_says_what_to_install(monkeypatch: pytest.MonkeyPatch,
-                                          tmp_path: Path) -> None:
+def test_no_compiler_says_what_to_install(monkeypatch: pytest.MonkeyPatch, tmp_path: Path) -> None:
     monkeypatch.delenv("CC", raising=False)
     monkeypatch.setenv("PATH", str(tmp_path))  # nothing to run in it
     with pytest.raises(KernelUnavailableError, match=r"no C compiler.*apt-get install gcc"):
@@ -32,7 +31,8 @@ def no_compiler_anywhere(monkeypatch: pytest.MonkeyPatch, tmp_path: Path) -> Non
 
 
 def test_a_simulator_without_a_compiler_says_what_to_install(
-        monkeypatch: pytest.MonkeyPatch, tmp_path: Path) -> None:
+    monkeypatch: pytest.MonkeyPatch, tmp_path: Path
+) -> None:
     from bfsitl.physics import Simulator
 
     no_compiler_anywhere(monkeypatch, tmp_path)
@@ -41,7 +41,8 @@ def test_a_simulator_without_a_compiler_says_what_to_install(
 
 
 def test_a_session_without_a_compiler_says_what_to_install(
-        monkeypatch: pytest.MonkeyPatch, tmp_path: Path) -> None:
+    monkeypatch: pytest.MonkeyPatch, tmp_path: Path
+) -> None:
     from bfsitl.backend.factory import make_simulator
     from bfsitl.backend.options import World
 
@@ -51,8 +52,9 @@ def test_a_session_without_a_compiler_says_what_to_install(
         make_simulator(World())
 
 
-def test_a_compiler_that_fails_is_reported_with_its_words(monkeypatch: pytest.MonkeyPatch,
-                                                          tmp_path: Path) -> None:
+def test_a_compiler_that_fails_is_reported_with_its_words(
+    monkeypatch: pytest.MonkeyPatch, tmp_path: Path
+) -> None:
     script = tmp_path / "broken-cc"
     script.write_text("#!/bin/sh\necho 'broken-cc: no, not today' >&2\nexit 3\n")
     script.chmod(0o755)
@@ -63,8 +65,9 @@ def test_a_compiler_that_fails_is_reported_with_its_words(monkeypatch: pytest.Mo
 
 
 @pytest.mark.skipif(compiler.find_compiler() is None, reason="no C compiler here")
-def test_a_build_is_cached_under_its_hash_and_loads(monkeypatch: pytest.MonkeyPatch,
-                                                   tmp_path: Path) -> None:
+def test_a_build_is_cached_under_its_hash_and_loads(
+    monkeypatch: pytest.MonkeyPatch, tmp_path: Path
+) -> None:
     monkeypatch.setenv("BFSITL_CACHE_DIR", str(tmp_path))
     target = compiler.kernel_path()
     assert target.parent == tmp_path / "kernel" and compiler.kernel_key() in target.name
@@ -80,7 +83,8 @@ def test_the_sources_are_shipped_beside_the_loader() -> None:
 
 
 def test_doctor_fails_without_a_compiler_and_says_what_to_install(
-        monkeypatch: pytest.MonkeyPatch, tmp_path: Path) -> None:
+    monkeypatch: pytest.MonkeyPatch, tmp_path: Path
+) -> None:
     from bfsitl.cli.doctor import physics_check
 
     no_compiler_anywhere(monkeypatch, tmp_path)

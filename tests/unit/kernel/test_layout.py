@@ -18,9 +18,14 @@ from bfsitl.sim import lockstep_stepper
 
 SOURCES = Path(layout.__file__).parent
 C_TYPES: dict[str, object] = {
-    "double": ctypes.c_double, "int32_t": ctypes.c_int32, "uint32_t": ctypes.c_uint32,
-    "uint64_t": ctypes.c_uint64, "int64_t": ctypes.c_int64, "uint8_t *": ctypes.c_void_p,
-    "bk_rng": layout.Rng, "bk_reading": layout.Reading,
+    "double": ctypes.c_double,
+    "int32_t": ctypes.c_int32,
+    "uint32_t": ctypes.c_uint32,
+    "uint64_t": ctypes.c_uint64,
+    "int64_t": ctypes.c_int64,
+    "uint8_t *": ctypes.c_void_p,
+    "bk_rng": layout.Rng,
+    "bk_reading": layout.Reading,
 }
 
 
@@ -52,16 +57,21 @@ def ctypes_fields(structure: type[ctypes.Structure]) -> list[tuple[str, object, 
     return out
 
 
-@pytest.mark.parametrize(("source", "name", "mirror"), [
-    ("physics.h", "bk_sim", layout.Sim),
-    ("physics.h", "bk_rng", layout.Rng),
-    ("physics.h", "bk_reading", layout.Reading),
-    ("lockstep_loop.c", "bk_lockstep", lockstep_stepper._Lockstep),
-])
-def test_each_ctypes_mirror_is_its_c_struct(source: str, name: str,
-                                            mirror: type[ctypes.Structure]) -> None:
-    c_fields = [(field, C_TYPES[c_type], dims)
-                for field, c_type, dims in c_struct(SOURCES / source, name)]
+@pytest.mark.parametrize(
+    ("source", "name", "mirror"),
+    [
+        ("physics.h", "bk_sim", layout.Sim),
+        ("physics.h", "bk_rng", layout.Rng),
+        ("physics.h", "bk_reading", layout.Reading),
+        ("lockstep_loop.c", "bk_lockstep", lockstep_stepper._Lockstep),
+    ],
+)
+def test_each_ctypes_mirror_is_its_c_struct(
+    source: str, name: str, mirror: type[ctypes.Structure]
+) -> None:
+    c_fields = [
+        (field, C_TYPES[c_type], dims) for field, c_type, dims in c_struct(SOURCES / source, name)
+    ]
     assert ctypes_fields(mirror) == c_fields
 
 
@@ -86,8 +96,12 @@ def test_the_lockstep_statuses_are_the_loops() -> None:
 
 
 def _defines(path: Path) -> dict[str, float]:
-    return {name: float(value) for name, value in
-            re.findall(r"^#define (\w+) (-?[\d.]+(?:e-?\d+)?)$", path.read_text(), re.M)}
+    return {
+        name: float(value)
+        for name, value in re.findall(
+            r"^#define (\w+) (-?[\d.]+(?:e-?\d+)?)$", path.read_text(), re.M
+        )
+    }
 
 
 def test_the_constants_both_sides_use_are_the_same() -> None:
@@ -131,8 +145,9 @@ def _perturbed(value: object) -> object:
 NOT_IN_THE_MODEL = {"name"}
 
 
-@pytest.mark.parametrize("field", [f.name for f in dataclasses.fields(QuadParams)
-                                   if f.name not in NOT_IN_THE_MODEL])
+@pytest.mark.parametrize(
+    "field", [f.name for f in dataclasses.fields(QuadParams) if f.name not in NOT_IN_THE_MODEL]
+)
 def test_every_vehicle_parameter_reaches_the_c_model(field: str) -> None:
     # A parameter added to QuadParams but not written into bk_sim would change nothing.
     value = getattr(IRIS, field)

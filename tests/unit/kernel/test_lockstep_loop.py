@@ -26,8 +26,9 @@ from bfsitl.protocol.sitl_packets import FdmPacket
 from bfsitl.sim.lockstep import LockstepBridge
 from bfsitl.sim.lockstep_io import LockstepClock, LockstepRc
 
-pytestmark = pytest.mark.skipif(not shm_exchange_supported(),
-                                reason="the shared-memory exchange is x86-64 Linux only")
+pytestmark = pytest.mark.skipif(
+    not shm_exchange_supported(), reason="the shared-memory exchange is x86-64 Linux only"
+)
 
 HOME = GeoPoint(47.397742, 8.545594, 488.0)
 PROFILES = {
@@ -40,18 +41,21 @@ PROFILES = {
 def hover_motors(data: bytes) -> tuple[float, float, float, float]:
     """A stand-in controller in the FC: each slot's command depends on the packet's gyro,
     accelerometer, altitude and time, so any difference in a datagram changes the flight."""
-    fdm = FdmPacket.unpack(data[:FdmPacket.SIZE])
+    fdm = FdmPacket.unpack(data[: FdmPacket.SIZE])
     g, a = fdm.gyro_rad_s, fdm.accel_m_s2
     base = 0.58 + 0.04 * math.sin(7.0 * fdm.timestamp_s) - 0.002 * (a[2] + 9.80665)
     roll, pitch, yaw = 0.03 * g[0], 0.03 * g[1], 0.01 * g[2]
-    return (min(1.0, max(0.0, base - roll + pitch + yaw)),
-            min(1.0, max(0.0, base + roll + pitch - yaw)),
-            min(1.0, max(0.0, base + roll - pitch + yaw)),
-            min(1.0, max(0.0, base - roll - pitch - yaw)))
+    return (
+        min(1.0, max(0.0, base - roll + pitch + yaw)),
+        min(1.0, max(0.0, base + roll + pitch - yaw)),
+        min(1.0, max(0.0, base + roll - pitch + yaw)),
+        min(1.0, max(0.0, base - roll - pitch - yaw)),
+    )
 
 
-def fly(simulator: Simulator, tmp_path: Path, profile: FirmwareProfile, name: str,
-        compiled_loop: bool) -> tuple[list[bytes], LockstepBridge, object]:
+def fly(
+    simulator: Simulator, tmp_path: Path, profile: FirmwareProfile, name: str, compiled_loop: bool
+) -> tuple[list[bytes], LockstepBridge, object]:
     (tmp_path / name).mkdir()
     region = ShmExchange(tmp_path / name)
     fc = SharedFakeFc(region.path, motors=hover_motors)
@@ -71,8 +75,13 @@ def fly(simulator: Simulator, tmp_path: Path, profile: FirmwareProfile, name: st
         clock.sleep_s(0.1)
         rc.fault = None
         clock.sleep_s(0.4)
-        state = (simulator.state, simulator.read_sensors(), bridge.motors,
-                 bridge.lockstep_stats().steps, bridge.lockstep_stats().resends)
+        state = (
+            simulator.state,
+            simulator.read_sensors(),
+            bridge.motors,
+            bridge.lockstep_stats().steps,
+            bridge.lockstep_stats().resends,
+        )
         bridge.close()
     finally:
         fc.close()
@@ -81,11 +90,16 @@ def fly(simulator: Simulator, tmp_path: Path, profile: FirmwareProfile, name: st
 
 
 @pytest.mark.parametrize("generation", sorted(PROFILES))
-def test_the_compiled_loop_sends_and_flies_what_python_does(tmp_path: Path,
-                                                            generation: str) -> None:
+def test_the_compiled_loop_sends_and_flies_what_python_does(
+    tmp_path: Path, generation: str
+) -> None:
     def make() -> Simulator:
-        return Simulator(sensors=SensorConfig.typical_mems().with_typical_gps(),
-                         wind=Wind((2.0, -1.0, 0.0), gust_std_m_s=1.0), home=HOME, seed=7)
+        return Simulator(
+            sensors=SensorConfig.typical_mems().with_typical_gps(),
+            wind=Wind((2.0, -1.0, 0.0), gust_std_m_s=1.0),
+            home=HOME,
+            seed=7,
+        )
 
     profile = PROFILES[generation]
     python_sent, python_bridge, python_end = fly(make(), tmp_path, profile, "p", False)
@@ -99,8 +113,9 @@ def test_the_compiled_loop_sends_and_flies_what_python_does(tmp_path: Path,
 
 
 @contextmanager
-def compiled_bridge(tmp_path: Path, **fc_options: Any) -> Iterator[
-        tuple[LockstepBridge, SharedFakeFc, ShmExchange]]:
+def compiled_bridge(
+    tmp_path: Path, **fc_options: Any
+) -> Iterator[tuple[LockstepBridge, SharedFakeFc, ShmExchange]]:
     """A bridge on a region a stand-in FC answers, locked and stepped
     once (so the compiled loop has taken over); the FC and the region are closed after."""
     region = ShmExchange(tmp_path)
@@ -117,14 +132,15 @@ def compiled_bridge(tmp_path: Path, **fc_options: Any) -> Iterator[
 
 
 def test_a_late_reply_is_handed_to_the_python_wait_and_a_dead_sitl_is_noticed(
-        tmp_path: Path) -> None:
+    tmp_path: Path,
+) -> None:
     with compiled_bridge(tmp_path, delay_s=0.08) as (bridge, fc, _region):  # later than the
-        LockstepClock(bridge).sleep_s(0.002)                             # loop waits
+        LockstepClock(bridge).sleep_s(0.002)  # loop waits
         assert bridge.lockstep_stats().steps == 4
         assert bridge.lockstep_stats().resends == 0  # waited out, not resent
         # The lock (Python) resends its packet every 5 ms; each step's went out once.
         stamps = [stamp for stamp, _ in fc.received]
-        assert stamps[stamps.count(0.0):] == pytest.approx([0.001, 0.002, 0.003])
+        assert stamps[stamps.count(0.0) :] == pytest.approx([0.001, 0.002, 0.003])
         assert_a_silent_fc_is_asked_about(bridge, fc)
         bridge.close()
 

@@ -52,7 +52,8 @@ def test_bytes_go_both_ways_and_are_counted(server: socket.socket) -> None:
 
 
 def test_nothing_to_read_is_empty_after_the_timeout_and_a_zero_timeout_polls(
-        server: socket.socket) -> None:
+    server: socket.socket,
+) -> None:
     link, peer = connect(server)
     with link, peer:
         started = time.monotonic()
@@ -99,8 +100,11 @@ def test_nobody_listening_says_to_start_a_sitl() -> None:
     probe.bind(("127.0.0.1", 0))
     port = probe.getsockname()[1]
     probe.close()  # the port is free again, and nobody listens on it
-    with pytest.raises(LinkError, match=r"connection refused: nothing listens there.*"
-                                        r"bfsitl status --start"):
+    with pytest.raises(
+        LinkError,
+        match=r"connection refused: nothing listens there.*"
+        r"bfsitl status --start",
+    ):
         open_link(f"tcp://127.0.0.1:{port}")
 
 
@@ -168,22 +172,26 @@ def test_writers_on_two_threads_never_interleave_a_frame() -> None:
 
     link = ByteByByte()
     frames = (b"A" * 64, b"B" * 64)
-    threads = [threading.Thread(target=lambda f=f: [link.write(f) for _ in range(20)])
-               for f in frames]
+    threads = [
+        threading.Thread(target=lambda f=f: [link.write(f) for _ in range(20)]) for f in frames
+    ]
     for thread in threads:
         thread.start()
     for thread in threads:
         thread.join()
-    chunks = {bytes(link.wire[i:i + 64]) for i in range(0, len(link.wire), 64)}
+    chunks = {bytes(link.wire[i : i + 64]) for i in range(0, len(link.wire), 64)}
     assert len(link.wire) == 2 * 20 * 64 and chunks == set(frames)
 
 
-@pytest.mark.parametrize(("uri", "fix"), [
-    ("tcp://127.0.0.1", "needs a host and a port"),
-    ("serial://", "needs a device"),
-    ("serial:///dev/ttyACM0?baud=fast", "baud must be an integer"),
-    ("udp://127.0.0.1:5761", r"unknown link; use tcp://HOST:PORT .*serial:///dev/ttyACM0"),
-])
+@pytest.mark.parametrize(
+    ("uri", "fix"),
+    [
+        ("tcp://127.0.0.1", "needs a host and a port"),
+        ("serial://", "needs a device"),
+        ("serial:///dev/ttyACM0?baud=fast", "baud must be an integer"),
+        ("udp://127.0.0.1:5761", r"unknown link; use tcp://HOST:PORT .*serial:///dev/ttyACM0"),
+    ],
+)
 def test_a_uri_that_names_no_transport_says_what_would(uri: str, fix: str) -> None:
     with pytest.raises(LinkError, match=fix):
         open_link(uri)

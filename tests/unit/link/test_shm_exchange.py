@@ -34,8 +34,10 @@ from bfsitl.link.shm_exchange import (
 from bfsitl.sim.lockstep_io import LockstepClock, LockstepRc
 from bfsitl.sitl.firmware import FirmwareBinary
 
-pytestmark = pytest.mark.skipif(not shm_exchange_supported(),
-                                reason="the shared-memory exchange is x86-64 Linux only")
+pytestmark = pytest.mark.skipif(
+    not shm_exchange_supported(), reason="the shared-memory exchange is x86-64 Linux only"
+)
+
 
 @pytest.fixture
 def region(tmp_path: Path):
@@ -45,7 +47,8 @@ def region(tmp_path: Path):
 
 
 def test_steps_go_through_the_region_with_their_rc_and_apply_their_own_answer(
-        region: ShmExchange) -> None:
+    region: ShmExchange,
+) -> None:
     assert region.env == {SHM_ENV: str(region.path)} and region.path.exists()
     fc = SharedFakeFc(region.path)
     simulator = FakeSimulator()
@@ -62,12 +65,14 @@ def test_steps_go_through_the_region_with_their_rc_and_apply_their_own_answer(
         fc.close()
     assert all(motors == pytest.approx((0.1, 0.2, 0.3, 0.4)) for motors in simulator.applied)
     assert [stamp for stamp, _ in fc.received] == pytest.approx(
-        [0.0, 0.001, 0.002, 0.003, 0.004, 0.005])
+        [0.0, 0.001, 0.002, 0.003, 0.004, 0.005]
+    )
     assert fc.received[-1][1] == (1500, 1500, 1300, 1500, 1800, 1000)
 
 
 def test_until_the_fc_maps_the_region_the_lock_goes_over_udp_then_moves_over(
-        region: ShmExchange, tmp_path: Path) -> None:
+    region: ShmExchange, tmp_path: Path
+) -> None:
     simulator = FakeSimulator()
     bridge = bridge_on(region, simulator)
     started: list[SharedFakeFc] = []
@@ -114,11 +119,15 @@ def test_closing_removes_the_region_and_a_dead_owners_region_goes_too(tmp_path: 
     exchange.close()
     exchange.close()
     assert not exchange.path.exists()
-    dead = subprocess.run([sys.executable, "-c", "import os; print(os.getpid())"],
-                          capture_output=True, text=True, check=True).stdout.strip()
+    dead = subprocess.run(
+        [sys.executable, "-c", "import os; print(os.getpid())"],
+        capture_output=True,
+        text=True,
+        check=True,
+    ).stdout.strip()
     stale = tmp_path / f"bfsitl-lockstep-{dead}-0123456789ab"
     stale.write_bytes(b"\0" * 64)
-    forgotten = ShmExchange(tmp_path)          # never closed: removed when it goes
+    forgotten = ShmExchange(tmp_path)  # never closed: removed when it goes
     alive = forgotten.path
     assert not stale.exists() and alive.exists()
     del forgotten

@@ -77,25 +77,38 @@ class Board(StoringFc):
     (4.6.0), MSP_RAW_GPS (or ``!`` without a GPS), the accelerometer at rest, the configured
     features, telemetry (MSP_MULTIPLE_MSP), and MSP_SET_RAW_RC recorded."""
 
-    def __init__(self, *, acc_raw: tuple[int, int, int] = (0, 0, 4096),
-                 features: int = RX_MSP_AIRMODE_ANTI_GRAVITY, gps: bool = True,
-                 status: msg.StatusEx = STATUS,
-                 attitude: msg.Attitude = TILTED) -> None:
+    def __init__(
+        self,
+        *,
+        acc_raw: tuple[int, int, int] = (0, 0, 4096),
+        features: int = RX_MSP_AIRMODE_ANTI_GRAVITY,
+        gps: bool = True,
+        status: msg.StatusEx = STATUS,
+        attitude: msg.Attitude = TILTED,
+    ) -> None:
         super().__init__()
         self.rc = RcSeen()
         handlers = self.link.handlers
-        handlers.update(telemetry_handlers(
-            attitude=attitude, altitude=msg.Altitude(1234, -50),
-            status=status, analog=msg.Analog(126, 0, 0, 0, 1260),
-            rc=msg.Rc((1500, 1500, 1000, 1500, 1000, 1000)), motor=msg.Motor((1000,) * 8),
-            imu=msg.RawImu(acc_raw, (0, 0, 0), (0, 0, 0)), box_ids=SITL_DEFAULT_BOX_IDS))
+        handlers.update(
+            telemetry_handlers(
+                attitude=attitude,
+                altitude=msg.Altitude(1234, -50),
+                status=status,
+                analog=msg.Analog(126, 0, 0, 0, 1260),
+                rc=msg.Rc((1500, 1500, 1000, 1500, 1000, 1000)),
+                motor=msg.Motor((1000,) * 8),
+                imu=msg.RawImu(acc_raw, (0, 0, 0), (0, 0, 0)),
+                box_ids=SITL_DEFAULT_BOX_IDS,
+            )
+        )
         handlers[MspCommand.MULTIPLE_MSP] = multiple_msp(handlers)
         handlers[MspCommand.API_VERSION] = fixed(msg.ApiVersion(0, 1, 47).encode())
         handlers[MspCommand.FC_VERSION] = fixed(msg.FcVersion(4, 6, 0).encode())
         handlers[MspCommand.FEATURE_CONFIG] = fixed(msg.FeatureConfig(features).encode())
         if gps:
             handlers[MspCommand.RAW_GPS] = fixed(
-                msg.RawGps(2, 12, 473_977_000, 85_456_000, 400, 0, 0).encode())
+                msg.RawGps(2, 12, 473_977_000, 85_456_000, 400, 0, 0).encode()
+            )
         handlers[MspCommand.SET_RAW_RC] = self.rc.handle
         self.links: list[FakeFcLink] = []
         self.opened: list[tuple[str, float]] = []
@@ -139,19 +152,23 @@ def start(vehicles: list[BoardVehicle], **options: object) -> BoardVehicle:
 
 
 # -- connecting ---------------------------------------------------------------------------------
-@pytest.mark.parametrize(("acc_raw", "scale"), [
-    ((30, -40, 4100), ImuScale(4096.0)),   # a +-8 g part, nearly level
-    ((0, 700, 1925), ImuScale(2048.0)),    # +-16 g, tilted 20 deg: the magnitude counts
-    ((0, 0, 255), SITL_IMU),               # a SITL behind a serial bridge: its truncation too
-])
+@pytest.mark.parametrize(
+    ("acc_raw", "scale"),
+    [
+        ((30, -40, 4100), ImuScale(4096.0)),  # a +-8 g part, nearly level
+        ((0, 700, 1925), ImuScale(2048.0)),  # +-16 g, tilted 20 deg: the magnitude counts
+        ((0, 0, 255), SITL_IMU),  # a SITL behind a serial bridge: its truncation too
+    ],
+)
 def test_start_identifies_the_board_and_measures_its_accelerometer_at_rest(
-        plug_in, started, acc_raw, scale) -> None:
+    plug_in, started, acc_raw, scale
+) -> None:
     fc = plug_in(acc_raw=acc_raw)
     lines: list[str] = []
     vehicle = start(started, progress=lines.append)
     assert fc.opened == [(URI, BOARD_MSP_TIMEOUT_S)]
     assert isinstance(vehicle.backend, BoardBackend) and vehicle.backend.imu == scale
-    assert vehicle.clock is vehicle.backend.clock       # wall time, the backend's
+    assert vehicle.clock is vehicle.backend.clock  # wall time, the backend's
     assert vehicle.firmware is not None and vehicle.firmware.generation is Generation.V4_6
     assert vehicle.has_gps
     # Measured before the RC starts: five readings at rest, none after the first RC frame.
@@ -159,8 +176,10 @@ def test_start_identifies_the_board_and_measures_its_accelerometer_at_rest(
     commands = fc.link.sent_commands
     imu_reads = [i for i, c in enumerate(commands) if c == MspCommand.RAW_IMU]
     assert len(imu_reads) == 5 and imu_reads[-1] < commands.index(MspCommand.SET_RAW_RC)
-    assert lines[0] == (f"connected to {URI}: 4.6.0 (4.6 conventions +GPS), accelerometer "
-                        f"{scale.acc_1g_lsb:g} LSB per g")
+    assert lines[0] == (
+        f"connected to {URI}: 4.6.0 (4.6 conventions +GPS), accelerometer "
+        f"{scale.acc_1g_lsb:g} LSB per g"
+    )
 
 
 def test_a_started_vehicle_is_returned_as_it_is_and_connects_once(plug_in, started) -> None:
@@ -181,21 +200,23 @@ def test_without_a_gps_it_flies_the_altitude_only_and_says_so(plug_in, started) 
 
 # -- RC -----------------------------------------------------------------------------------------
 def test_rc_goes_out_by_msp_in_the_receivers_order_and_closing_sends_disarm(
-        plug_in, started) -> None:
+    plug_in, started
+) -> None:
     fc = plug_in()
     vehicle = start(started, rc_rate_hz=100.0)
     assert isinstance(vehicle.rc, MspRcLink) and vehicle.rc.rate_hz == 100.0
-    fc.rc.wait_for(DISARMED)                 # from the start: sticks at disarm
+    fc.rc.wait_for(DISARMED)  # from the start: sticks at disarm
     assert fc.rc.frames[0] == DISARMED
-    vehicle.set_rc(RcCommand(roll_us=1400, pitch_us=1600, throttle_us=1300, yaw_us=1550,
-                             aux_us=(1800, 1000)))
+    vehicle.set_rc(
+        RcCommand(roll_us=1400, pitch_us=1600, throttle_us=1300, yaw_us=1550, aux_us=(1800, 1000))
+    )
     fc.rc.wait_for((1400, 1600, 1300, 1550, 1800, 1000))  # AETR, then AUX1, AUX2
     vehicle.close()
     # The farewell goes out before the link closes: three frames at disarm, the last ones.
     assert fc.rc.frames[-3:] == [DISARMED] * 3
     assert vehicle.rc.closed and fc.link.closed
     sent = len(fc.rc.frames)
-    vehicle.close()                          # twice is fine: nothing more goes out
+    vehicle.close()  # twice is fine: nothing more goes out
     assert len(fc.rc.frames) == sent
 
 
@@ -222,8 +243,7 @@ def test_telemetry_reads_the_fcs_view(plug_in, started) -> None:
     plug_in(attitude=TILTED)
     sample = start(started).sample()
     assert (sample.fc_alt_m, sample.fc_climb_m_s) == (12.34, -0.5)
-    assert (sample.roll_deg, sample.pitch_deg, sample.yaw_deg) == pytest.approx(
-        (12.3, -4.5, 270.5))
+    assert (sample.roll_deg, sample.pitch_deg, sample.yaw_deg) == pytest.approx((12.3, -4.5, 270.5))
     assert not sample.armed and sample.rc.aux_us == (1000, 1000)
     assert math.isfinite(sample.time_s) and sample.time_s >= 0.0
 
@@ -233,15 +253,23 @@ def test_a_board_has_no_truth_and_nothing_to_disturb(plug_in, started) -> None:
     vehicle = start(started)
     sample = vehicle.sample()
     assert vehicle.truth is None and not vehicle.lockstep and vehicle.bridge_stats() is None
-    for unknown in (sample.sim_alt_m, sample.sim_climb_m_s, sample.sim_tilt_deg,
-                    sample.sim_north_m, sample.sim_east_m, *sample.motors):
+    for unknown in (
+        sample.sim_alt_m,
+        sample.sim_climb_m_s,
+        sample.sim_tilt_deg,
+        sample.sim_north_m,
+        sample.sim_east_m,
+        *sample.motors,
+    ):
         assert math.isnan(unknown)
-    assert not sample.on_ground                # unknown, not "landed"
+    assert not sample.on_ground  # unknown, not "landed"
     disturbances = vehicle.disturbances
-    for act in (lambda: disturbances.set_wind(Wind((3.0, 0.0, 0.0))),
-                lambda: disturbances.set_motor_thrust(1, 0.5),
-                lambda: disturbances.set_gps_lost(True),
-                lambda: disturbances.set_rc_fault(RcFault(silent=True))):
+    for act in (
+        lambda: disturbances.set_wind(Wind((3.0, 0.0, 0.0))),
+        lambda: disturbances.set_motor_thrust(1, 0.5),
+        lambda: disturbances.set_gps_lost(True),
+        lambda: disturbances.set_rc_fault(RcFault(silent=True)),
+    ):
         with pytest.raises(DisturbanceUnavailableError, match="a real board"):
             act()
 
@@ -286,7 +314,7 @@ def test_connect_provisions_the_autopilots_switches_unless_told_not_to(plug_in) 
 # -- errors that say what to do -------------------------------------------------------------------
 def assert_left_nothing_running(fc: Board, vehicle: BoardVehicle) -> None:
     assert all(link.closed for link in fc.links)
-    assert vehicle.rc is None and fc.rc.frames == []     # no RC ever went out
+    assert vehicle.rc is None and fc.rc.frames == []  # no RC ever went out
 
 
 def test_a_receiver_that_is_not_msp_stops_the_start_with_the_fix(plug_in) -> None:
@@ -298,7 +326,7 @@ def test_a_receiver_that_is_not_msp_stops_the_start_with_the_fix(plug_in) -> Non
     assert "receiver is not MSP (features: AIRMODE, ANTI_GRAVITY)" in text
     assert "Switch the receiver to MSP" in text and "reboot, and connect again" in text
     assert_left_nothing_running(fc, vehicle)
-    assert fc.sent(MspCommand.SET_MODE_RANGE) == 0       # refused before provisioning
+    assert fc.sent(MspCommand.SET_MODE_RANGE) == 0  # refused before provisioning
 
 
 def test_a_board_that_moves_while_connecting_is_refused_with_what_to_do(plug_in) -> None:
@@ -316,7 +344,7 @@ def test_settings_that_need_a_reboot_say_how_to_reboot(plug_in) -> None:
     vehicle = BoardVehicle(URI, profile=FLY_PROFILE, link_opener=fc.open_link)
     with pytest.raises(BoardSetupError, match=r"power-cycle or reboot the board .*connect again"):
         vehicle.start()
-    assert fc.eeprom_writes == 1                          # saved; only the reboot is missing
+    assert fc.eeprom_writes == 1  # saved; only the reboot is missing
     assert_left_nothing_running(fc, vehicle)
 
 
@@ -327,7 +355,7 @@ def test_before_start_it_says_it_is_not_started() -> None:
     with pytest.raises(SitlError, match="not started"):
         vehicle.set_rc(RcCommand())
     assert vehicle.firmware is None and not vehicle.has_gps
-    vehicle.close()                                       # nothing to close: fine
+    vehicle.close()  # nothing to close: fine
 
 
 def test_an_unknown_link_says_which_ones_exist() -> None:

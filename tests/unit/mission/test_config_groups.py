@@ -23,44 +23,90 @@ from bfsitl.mission.session import (
 
 #: SessionConfig's flat fields before the groups -> where each went.
 SESSION_FIELDS = {
-    "firmware": "sitl.firmware", "workdir": "sitl.workdir", "isolate": "sitl.isolate",
-    "speed": "timing.speed", "lockstep": "timing.lockstep",
-    "lockstep_spin": "timing.lockstep_spin", "lockstep_exchange": "timing.lockstep_exchange",
-    "profile": "fc.profile", "angle_mode": "fc.angle_mode", "arm_timeout_s": "fc.arm_timeout_s",
+    "firmware": "sitl.firmware",
+    "workdir": "sitl.workdir",
+    "isolate": "sitl.isolate",
+    "speed": "timing.speed",
+    "lockstep": "timing.lockstep",
+    "lockstep_spin": "timing.lockstep_spin",
+    "lockstep_exchange": "timing.lockstep_exchange",
+    "profile": "fc.profile",
+    "angle_mode": "fc.angle_mode",
+    "arm_timeout_s": "fc.arm_timeout_s",
     "rc_link": "fc.rc_link",
-    "physics": "world.physics", "gz_plugin_dir": "world.gz_plugin_dir", "quad": "world.quad",
-    "wind": "world.wind", "sensors": "world.sensors", "seed": "world.seed",
+    "physics": "world.physics",
+    "gz_plugin_dir": "world.gz_plugin_dir",
+    "quad": "world.quad",
+    "wind": "world.wind",
+    "sensors": "world.sensors",
+    "seed": "world.seed",
     "initial_heading_deg": "world.initial_heading_deg",
-    "configurator_port": "configurator.port", "allow_origins": "configurator.allow_origins",
+    "configurator_port": "configurator.port",
+    "allow_origins": "configurator.allow_origins",
 }
 #: The gym environment's flat options before the groups -> where each went (the wind's speed,
 #: direction and gusts are one Wind now, as the session's are).
 ENV_OPTIONS = {
-    "firmware": "sitl.firmware", "workdir": "sitl.workdir",
-    "wind": "world.wind", "wind_from_deg": "world.wind", "gusts": "world.wind",
-    "spin": "timing.lockstep_spin", "lockstep_exchange": "timing.lockstep_exchange",
-    **{name: name for name in ("control_hz", "mode", "observation", "disturbances",
-                               "max_episode_steps", "start", "start_alt_m", "pin_core",
-                               "warm_resets")},
+    "firmware": "sitl.firmware",
+    "workdir": "sitl.workdir",
+    "wind": "world.wind",
+    "wind_from_deg": "world.wind",
+    "gusts": "world.wind",
+    "spin": "timing.lockstep_spin",
+    "lockstep_exchange": "timing.lockstep_exchange",
+    **{
+        name: name
+        for name in (
+            "control_hz",
+            "mode",
+            "observation",
+            "disturbances",
+            "max_episode_steps",
+            "start",
+            "start_alt_m",
+            "pin_core",
+            "warm_resets",
+        )
+    },
 }
 #: Group fields the environment had no option for before: the session's meaning, new to it.
-NEW_TO_THE_ENV = {"sitl.isolate", "timing.speed", "timing.lockstep", "world.physics",
-                  "world.gz_plugin_dir", "world.quad", "world.sensors", "world.seed",
-                  "world.initial_heading_deg"}
+NEW_TO_THE_ENV = {
+    "sitl.isolate",
+    "timing.speed",
+    "timing.lockstep",
+    "world.physics",
+    "world.gz_plugin_dir",
+    "world.quad",
+    "world.sensors",
+    "world.seed",
+    "world.initial_heading_deg",
+}
 
-GROUPS: dict[str, type] = {"sitl": SitlLaunch, "timing": Timing, "fc": FcSetup,
-                           "world": World, "configurator": ConfiguratorBridge}
+GROUPS: dict[str, type] = {
+    "sitl": SitlLaunch,
+    "timing": Timing,
+    "fc": FcSetup,
+    "world": World,
+    "configurator": ConfiguratorBridge,
+}
 
 
 def leaves(groups: dict[str, type]) -> list[str]:
-    return [f"{name}.{field.name}" for name, group in groups.items()
-            for field in dataclasses.fields(group)]
+    return [
+        f"{name}.{field.name}"
+        for name, group in groups.items()
+        for field in dataclasses.fields(group)
+    ]
 
 
 def test_every_session_field_has_one_place_in_the_groups() -> None:
     assert {field.name: field.type for field in dataclasses.fields(SessionConfig)} == {
-        "sitl": "SitlLaunch", "timing": "Timing", "fc": "FcSetup", "world": "World",
-        "configurator": "ConfiguratorBridge | None"}
+        "sitl": "SitlLaunch",
+        "timing": "Timing",
+        "fc": "FcSetup",
+        "world": "World",
+        "configurator": "ConfiguratorBridge | None",
+    }
     places = leaves(GROUPS)
     assert len(places) == len(set(places))
     # Each old field went to one place, and each place holds one old field: none lost, none
@@ -98,13 +144,19 @@ def test_for_autopilot_sets_the_serial_rate_on_the_profile_it_is_given() -> None
         SessionConfig.for_autopilot(seed=4)
 
 
-@pytest.mark.parametrize(("config", "fix"), [
-    (SessionConfig(timing=Timing(speed=-1.0)), "speed -1.0 must be a positive number"),
-    (SessionConfig(configurator=ConfiguratorBridge(), fc=FcSetup(profile=None)),
-     "the Configurator bridge needs provisioning"),
-])
+@pytest.mark.parametrize(
+    ("config", "fix"),
+    [
+        (SessionConfig(timing=Timing(speed=-1.0)), "speed -1.0 must be a positive number"),
+        (
+            SessionConfig(configurator=ConfiguratorBridge(), fc=FcSetup(profile=None)),
+            "the Configurator bridge needs provisioning",
+        ),
+    ],
+)
 def test_a_wrong_value_in_a_group_is_refused_when_the_session_is_made(
-        config: SessionConfig, fix: str) -> None:
+    config: SessionConfig, fix: str
+) -> None:
     with pytest.raises(BfsitlError, match=fix):
         FlightSession(config)
 
@@ -113,8 +165,11 @@ def test_every_environment_option_has_one_place_in_the_groups_or_its_own() -> No
     pytest.importorskip("gymnasium")
     from bfsitl.gym.env import FlightEnv
 
-    keywords = [name for name, parameter in inspect.signature(FlightEnv).parameters.items()
-                if parameter.kind is inspect.Parameter.KEYWORD_ONLY]
+    keywords = [
+        name
+        for name, parameter in inspect.signature(FlightEnv).parameters.items()
+        if parameter.kind is inspect.Parameter.KEYWORD_ONLY
+    ]
     env_groups = {"sitl": SitlLaunch, "timing": Timing, "world": World}
     # The session's groups where they mean the same, then the environment's own options.
     assert keywords[:3] == list(env_groups)
@@ -126,15 +181,21 @@ def test_every_environment_option_has_one_place_in_the_groups_or_its_own() -> No
     assert not places & NEW_TO_THE_ENV
 
 
-@pytest.mark.parametrize(("options", "fix"), [
-    ({"timing": Timing(lockstep_exchange="pigeon")},  # type: ignore[arg-type]
-     "timing.lockstep_exchange must be one of auto, shm, udp, not 'pigeon'"),
-    ({"timing": "udp"}, "timing must be a Timing"),
-    ({"world": {"seed": 3}}, "world must be a World"),
-    ({"sitl": None}, "sitl must be a SitlLaunch"),
-])
+@pytest.mark.parametrize(
+    ("options", "fix"),
+    [
+        (
+            {"timing": Timing(lockstep_exchange="pigeon")},  # type: ignore[arg-type]
+            "timing.lockstep_exchange must be one of auto, shm, udp, not 'pigeon'",
+        ),
+        ({"timing": "udp"}, "timing must be a Timing"),
+        ({"world": {"seed": 3}}, "world must be a World"),
+        ({"sitl": None}, "sitl must be a SitlLaunch"),
+    ],
+)
 def test_a_wrong_type_in_an_environment_group_is_said_with_what_it_takes(
-        options: dict[str, Any], fix: str) -> None:
+    options: dict[str, Any], fix: str
+) -> None:
     pytest.importorskip("gymnasium")
     from bfsitl.errors import EnvironmentConfigError
     from bfsitl.gym.env import HoverEnv

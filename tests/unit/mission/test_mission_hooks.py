@@ -38,13 +38,14 @@ def test_a_stop_condition_ends_the_flying_where_it_is_without_an_exception() -> 
     def high_enough(sample) -> str | None:  # type: ignore[no-untyped-def]
         return "someone else has the sticks" if sample.sim_alt_m >= 1.0 else None
 
-    flown = flight_loop(vehicle, FlightHooks(on_step=lambda row, _s: rows.append(row),
-                                         stop=high_enough))
+    flown = flight_loop(
+        vehicle, FlightHooks(on_step=lambda row, _s: rows.append(row), stop=high_enough)
+    )
     fly_steps(flown, PLAN, after_step=steps.append)
     assert flown.stopped == "someone else has the sticks"
-    assert steps == []                                  # the take-off never finished
+    assert steps == []  # the take-off never finished
     assert rows[-1].phase == Phase.TAKEOFF and 1.0 <= rows[-1].sim_alt_m < 1.2
-    assert vehicle.armed                                # nobody disarmed: not ours to do
+    assert vehicle.armed  # nobody disarmed: not ours to do
     recorded = len(flown.rows)
     flown.hold(2.0)
     flown.land()
@@ -73,8 +74,12 @@ def test_the_time_a_run_has_left_cuts_the_hold() -> None:
 def test_short_hooks_fold_into_flight_hooks() -> None:
     rows: list[object] = []
     events: list[str] = []
-    flown = FlightLoop(FakeVehicle(), PController(), on_row=lambda r, _s: rows.append(r),  # type: ignore[arg-type]
-                    on_event=events.append)
+    flown = FlightLoop(
+        FakeVehicle(),
+        PController(),
+        on_row=lambda r, _s: rows.append(r),  # type: ignore[arg-type]
+        on_event=events.append,
+    )
     assert flown.hooks.on_step is not None and flown.hooks.on_event is not None
     flown.arm()
     flown.takeoff(1.0)

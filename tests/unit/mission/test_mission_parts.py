@@ -14,12 +14,39 @@ from bfsitl.records.csv_log import CsvFlightLog, read_flight_log
 
 
 def row(time_s: float, phase: str = "hold", alt_m: float = 2.0) -> FlightRow:
-    return FlightRow(time_s, phase, 2.0, alt_m, alt_m - 0.01, 0.0, 0.0, 0.1, 0.5, -0.5, 90.0,
-                     0.7, 0.45, -0.45, 90.2, 1500, 1500, 1543, 1500, 1800, 1800, 0.54, 0.54,
-                     0.55, 0.53, True, time_s)
+    return FlightRow(
+        time_s,
+        phase,
+        2.0,
+        alt_m,
+        alt_m - 0.01,
+        0.0,
+        0.0,
+        0.1,
+        0.5,
+        -0.5,
+        90.0,
+        0.7,
+        0.45,
+        -0.45,
+        90.2,
+        1500,
+        1500,
+        1543,
+        1500,
+        1800,
+        1800,
+        0.54,
+        0.54,
+        0.55,
+        0.53,
+        True,
+        time_s,
+    )
 
 
 # -- climb rate -------------------------------------------------------------------------------
+
 
 def test_climb_rate_is_the_slope_of_a_ramp_whatever_the_sample_spacing():
     estimator = ClimbRateEstimator(window_s=0.25)
@@ -52,6 +79,7 @@ def test_climb_rate_ignores_repeated_times_and_starts_at_zero():
 
 # -- flight log -------------------------------------------------------------------------------
 
+
 def test_log_rows_are_on_disk_as_soon_as_written(tmp_path):
     path = tmp_path / "sub" / "f.csv"
     log = CsvFlightLog(path)
@@ -67,8 +95,18 @@ def test_log_rows_are_on_disk_as_soon_as_written(tmp_path):
 
 
 def test_log_columns_have_units_and_the_issue_fields():
-    for name in ("time_s", "target_alt_m", "sim_alt_m", "fc_alt_m", "roll_deg", "pitch_deg",
-                 "yaw_deg", "rc_throttle_us", "motor1", "motor4"):
+    for name in (
+        "time_s",
+        "target_alt_m",
+        "sim_alt_m",
+        "fc_alt_m",
+        "roll_deg",
+        "pitch_deg",
+        "yaw_deg",
+        "rc_throttle_us",
+        "motor1",
+        "motor4",
+    ):
         assert name in COLUMNS
 
 
@@ -84,12 +122,14 @@ def test_unwritable_log_and_foreign_csv_are_clear_errors(tmp_path):
 
 # -- plot -------------------------------------------------------------------------------------
 
+
 def test_plot_writes_a_png(tmp_path):
     pytest.importorskip("matplotlib")
     from bfsitl.records.plot import write_flight_plot
 
-    rows = [row(t * 0.02, "takeoff" if t < 50 else "hold", alt_m=min(2.0, t * 0.04))
-            for t in range(150)]
+    rows = [
+        row(t * 0.02, "takeoff" if t < 50 else "hold", alt_m=min(2.0, t * 0.04)) for t in range(150)
+    ]
     out = write_flight_plot(rows, tmp_path / "f.png", title="test")
     assert out.read_bytes()[:4] == b"\x89PNG"
     with pytest.raises(BfsitlError, match="nothing to plot"):
@@ -97,6 +137,7 @@ def test_plot_writes_a_png(tmp_path):
 
 
 # -- the fly command's parts --------------------------------------------------------------------
+
 
 def test_gains_parse_and_bad_ones_say_how():
     from bfsitl.cli.fly_command import parse_gains
@@ -129,32 +170,54 @@ def test_live_progress_redraws_one_line_and_prints_events_on_their_own():
 def test_summary_text_names_outcome_hold_and_link():
     from bfsitl.cli.fly_command import render_summary
 
-    text = render_summary({
-        "outcome": "landed", "reason": "landed and disarmed", "controller": "cascade",
-        "blockers": [], "armed_after_s": 5.2,
-        "step_response": {"rise_time_s": 1.5, "overshoot_pct": 2.0},
-        "hold": {"rms_error_m": 0.012, "max_abs_error_m": 0.03, "mean_error_m": -0.004},
-        "rc_link": {"packets": 2000, "period_mean_ms": 10.0, "period_max_ms": 12.0},
-        "physics": {"answered_ratio": 0.97, "speed": 1.0},
-    })
+    text = render_summary(
+        {
+            "outcome": "landed",
+            "reason": "landed and disarmed",
+            "controller": "cascade",
+            "blockers": [],
+            "armed_after_s": 5.2,
+            "step_response": {"rise_time_s": 1.5, "overshoot_pct": 2.0},
+            "hold": {"rms_error_m": 0.012, "max_abs_error_m": 0.03, "mean_error_m": -0.004},
+            "rc_link": {"packets": 2000, "period_mean_ms": 10.0, "period_max_ms": 12.0},
+            "physics": {"answered_ratio": 0.97, "speed": 1.0},
+        }
+    )
     assert "landed" in text and "RMS 1.2 cm" in text and "97.0 %" in text
     assert "rise_time_s 1.500" in text
-    assert "findings" not in text    # not watched: nothing said
-    watched = render_summary({
-        "outcome": "landed", "reason": "landed", "controller": "fused",
-        "analysers": {"watched": ["crash", "hard_landing"], "skipped": {}},
-        "findings": [{"analyser": "hard_landing", "severity": "warning", "time_s": 12.5,
-                      "summary": "touched down at 1.9 m/s"}]})
-    assert "findings       warning  hard_landing: touched down at 1.9 m/s (t=12.50 s)" \
-        in watched
-    clean = render_summary({"outcome": "landed", "reason": "landed", "controller": "fused",
-                            "analysers": {"watched": ["crash"], "skipped": {}},
-                            "findings": []})
+    assert "findings" not in text  # not watched: nothing said
+    watched = render_summary(
+        {
+            "outcome": "landed",
+            "reason": "landed",
+            "controller": "fused",
+            "analysers": {"watched": ["crash", "hard_landing"], "skipped": {}},
+            "findings": [
+                {
+                    "analyser": "hard_landing",
+                    "severity": "warning",
+                    "time_s": 12.5,
+                    "summary": "touched down at 1.9 m/s",
+                }
+            ],
+        }
+    )
+    assert "findings       warning  hard_landing: touched down at 1.9 m/s (t=12.50 s)" in watched
+    clean = render_summary(
+        {
+            "outcome": "landed",
+            "reason": "landed",
+            "controller": "fused",
+            "analysers": {"watched": ["crash"], "skipped": {}},
+            "findings": [],
+        }
+    )
     assert "findings       none (1 analysers watched)" in clean
 
 
 def test_fly_with_gazebo_missing_says_how_to_install_before_starting_anything(
-        tmp_path, monkeypatch, capsys):
+    tmp_path, monkeypatch, capsys
+):
     from bfsitl.cli.main import main
 
     monkeypatch.setenv("PATH", str(tmp_path))  # no gz here

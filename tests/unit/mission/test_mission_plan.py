@@ -39,8 +39,10 @@ def test_a_mission_file_becomes_a_plan(tmp_path):
     path.write_text(SQUARE)
     plan = load_mission(path)
     assert plan.target_alt_m == 2.0 and plan.speed_m_s == 1.5 and plan.land
-    assert plan.waypoints == (Waypoint(10.0, 0, 2.0),
-                              Waypoint(10.0, 10.0, 3, hold_s=2.5, heading_deg=90))
+    assert plan.waypoints == (
+        Waypoint(10.0, 0, 2.0),
+        Waypoint(10.0, 10.0, 3, hold_s=2.5, heading_deg=90),
+    )
     assert plan.hold_s == 0.0  # with waypoints the hold after take-off defaults to none
     assert plan.needs_position
     assert not MissionPlan().needs_position
@@ -55,20 +57,29 @@ def test_the_shipped_example_mission_loads():
     assert len(plan.waypoints) == 4 and plan.waypoints[-1].north_m == 0.0
 
 
-@pytest.mark.parametrize(("text", "expected"), [
-    ("takeoff_alt_m = 2\nspeed = 3", "unknown key(s) speed"),
-    ("speed_m_s = 2", "takeoff_alt_m is missing"),
-    ("takeoff_alt_m = 2\n[[waypoint]]\nnorth_m = 1\neast_m = 2", "waypoint 1: missing alt_m"),
-    ("takeoff_alt_m = 2\n[[waypoint]]\nnorth_m = 1\neast_m = 2\nalt_m = 2\nhold = 3",
-     "waypoint 1: unknown key(s) hold"),
-    ("takeoff_alt_m = 2\n[[waypoint]]\nnorth_m = 1\neast_m = 2\nalt_m = 200",
-     "waypoint 1: waypoint alt_m 200"),
-    ("takeoff_alt_m = 2\n[[waypoint]]\nnorth_m = '1'\neast_m = 2\nalt_m = 2",
-     "north_m must be a number"),
-    ("takeoff_alt_m = 2\nland = 1", "land must be true or false"),
-    ("takeoff_alt_m = 0.1", "target altitude 0.1"),
-    ("takeoff_alt_m = 2\nwaypoint = 3", "[[waypoint]] tables"),
-])
+@pytest.mark.parametrize(
+    ("text", "expected"),
+    [
+        ("takeoff_alt_m = 2\nspeed = 3", "unknown key(s) speed"),
+        ("speed_m_s = 2", "takeoff_alt_m is missing"),
+        ("takeoff_alt_m = 2\n[[waypoint]]\nnorth_m = 1\neast_m = 2", "waypoint 1: missing alt_m"),
+        (
+            "takeoff_alt_m = 2\n[[waypoint]]\nnorth_m = 1\neast_m = 2\nalt_m = 2\nhold = 3",
+            "waypoint 1: unknown key(s) hold",
+        ),
+        (
+            "takeoff_alt_m = 2\n[[waypoint]]\nnorth_m = 1\neast_m = 2\nalt_m = 200",
+            "waypoint 1: waypoint alt_m 200",
+        ),
+        (
+            "takeoff_alt_m = 2\n[[waypoint]]\nnorth_m = '1'\neast_m = 2\nalt_m = 2",
+            "north_m must be a number",
+        ),
+        ("takeoff_alt_m = 2\nland = 1", "land must be true or false"),
+        ("takeoff_alt_m = 0.1", "target altitude 0.1"),
+        ("takeoff_alt_m = 2\nwaypoint = 3", "[[waypoint]] tables"),
+    ],
+)
 def test_a_wrong_mission_file_says_where_and_what(tmp_path, text, expected):
     path = tmp_path / "bad.toml"
     path.write_text(text)
@@ -127,9 +138,13 @@ def test_a_short_leg_peaks_below_the_cruise_speed_and_a_null_leg_is_done_at_once
 def test_cross_track_is_across_the_line_and_overshoot_along_it():
     assert cross_track_m(5.0, 1.0, (0, 0), (10, 0)) == pytest.approx(1.0)
     assert cross_track_m(12.0, -0.5, (0, 0), (10, 0)) == pytest.approx(0.5)  # past the end
-    stats = leg_stats(3, (0.0, 0.0), (10.0, 0.0, 2.0),
-                      [(0.0, 0.0, 2.0), (5.0, 0.3, 2.1), (10.6, -0.4, 2.0), (10.1, 0.0, 1.9)],
-                      took_s=7.5)
+    stats = leg_stats(
+        3,
+        (0.0, 0.0),
+        (10.0, 0.0, 2.0),
+        [(0.0, 0.0, 2.0), (5.0, 0.3, 2.1), (10.6, -0.4, 2.0), (10.1, 0.0, 1.9)],
+        took_s=7.5,
+    )
     assert stats.waypoint == 3 and stats.took_s == 7.5
     assert stats.arrival_error_m == pytest.approx(0.1)
     assert stats.arrival_alt_error_m == pytest.approx(-0.1)
@@ -139,8 +154,10 @@ def test_cross_track_is_across_the_line_and_overshoot_along_it():
 
 
 # -- heading ------------------------------------------------------------------------------------
-@pytest.mark.parametrize(("target", "heading", "error"), [
-    (90, 0, 90), (0, 90, -90), (10, 350, 20), (350, 10, -20), (180, 0, -180), (0, 0, 0)])
+@pytest.mark.parametrize(
+    ("target", "heading", "error"),
+    [(90, 0, 90), (0, 90, -90), (10, 350, 20), (350, 10, -20), (180, 0, -180), (0, 0, 0)],
+)
 def test_the_heading_error_is_the_short_way_round(target, heading, error):
     assert heading_error_deg(target, heading) == pytest.approx(error)
 
@@ -174,8 +191,9 @@ def _gps_errors(config: SensorConfig, seed: int, readings: int) -> list[tuple[fl
     for _ in range(readings):
         sim.step((0.0, 0.0, 0.0, 0.0), 0.01)
         reading = sim.read_sensors()
-        errors.append((math.radians(reading.geodetic[1]) * EARTH_RADIUS_M,
-                       reading.velocity_enu_m_s[1]))
+        errors.append(
+            (math.radians(reading.geodetic[1]) * EARTH_RADIUS_M, reading.velocity_enu_m_s[1])
+        )
     return errors
 
 

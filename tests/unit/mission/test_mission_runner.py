@@ -32,14 +32,23 @@ from bfsitl.records.csv_log import CsvFlightLog, read_flight_log
 def test_default_plan_takes_off_holds_lands_and_records_every_step(tmp_path):
     vehicle = FakeVehicle()
     log = CsvFlightLog(tmp_path / "f.csv")
-    result = fly(vehicle, MissionPlan(target_alt_m=2.0, hold_s=1.0), PController(),
-                 landing=Descend(), log=log)
+    result = fly(
+        vehicle,
+        MissionPlan(target_alt_m=2.0, hold_s=1.0),
+        PController(),
+        landing=Descend(),
+        log=log,
+    )
     log.close()
     assert result.outcome is Outcome.LANDED and result.succeeded
     phases = [row.phase for row in result.rows]
     assert phases[0] == "ground" and phases[-1] == "landed"
-    assert phases.index("ground") < phases.index("takeoff") < phases.index("hold") \
+    assert (
+        phases.index("ground")
+        < phases.index("takeoff")
+        < phases.index("hold")
         < phases.index("land")
+    )
     assert result.hold is not None and result.hold.max_abs_error_m < 0.06
     assert result.armed_after_s == 5.2
     written = read_flight_log(tmp_path / "f.csv")
@@ -76,8 +85,12 @@ def test_the_ground_phase_idles_feeds_observe_ground_and_restarts_a_plain_contro
     first_takeoff = next(r for r in result.rows if r.phase == "takeoff")
     assert len(resets) == 2 and resets[1] < first_takeoff.time_s
     # No ground phase at all when it is 0; a bad value is refused.
-    result = fly(FakeVehicle(), MissionPlan(target_alt_m=1.0, hold_s=0.2, ground_s=0.0),
-                 PController(), landing=Descend())
+    result = fly(
+        FakeVehicle(),
+        MissionPlan(target_alt_m=1.0, hold_s=0.2, ground_s=0.0),
+        PController(),
+        landing=Descend(),
+    )
     assert result.rows[0].phase == "takeoff"
     with pytest.raises(MissionError, match="ground time"):
         MissionPlan(ground_s=-1.0)
@@ -98,16 +111,22 @@ def test_controllers_get_the_fc_acceleration_and_the_log_records_it(tmp_path):
             return super().update(sample)
 
     log = CsvFlightLog(tmp_path / "f.csv")
-    result = fly(FakeVehicle(), MissionPlan(target_alt_m=1.0, hold_s=0.5), Recording(),
-                 landing=RecordingDescend(), log=log)
+    result = fly(
+        FakeVehicle(),
+        MissionPlan(target_alt_m=1.0, hold_s=0.5),
+        Recording(),
+        landing=RecordingDescend(),
+        log=log,
+    )
     log.close()
     assert result.outcome is Outcome.LANDED
     by_time = {row.time_s: row.fc_accel_up_m_s2 for row in result.rows}
     assert seen and all(accel == by_time[time_s] for time_s, accel in seen)
     assert any(accel != 0.0 for _time_s, accel in seen)
     written = read_flight_log(tmp_path / "f.csv")
-    assert [float(r["fc_accel_up_m_s2"]) for r in written] == \
-        pytest.approx([row.fc_accel_up_m_s2 for row in result.rows], abs=1e-4)
+    assert [float(r["fc_accel_up_m_s2"]) for r in written] == pytest.approx(
+        [row.fc_accel_up_m_s2 for row in result.rows], abs=1e-4
+    )
 
 
 def test_hold_lasts_its_simulation_time():
@@ -129,8 +148,7 @@ def test_arming_blocked_is_an_outcome_with_the_blockers():
 
 
 def test_tipping_over_is_a_crash():
-    result = fly(FakeVehicle(tilt_deg=85.0), MissionPlan(), PController(),
-                 landing=Descend())
+    result = fly(FakeVehicle(tilt_deg=85.0), MissionPlan(), PController(), landing=Descend())
     assert result.outcome is Outcome.CRASHED
     assert "tipped over" in result.reason
 
@@ -146,10 +164,13 @@ def test_a_slow_controller_times_out_with_the_altitude_in_the_reason():
     assert "target 2.00 m" in result.reason
 
 
-@pytest.mark.parametrize(("failure", "outcome"), [
-    (KeyboardInterrupt(), Outcome.INTERRUPTED),
-    (SitlExitedError("the SITL exited with code 139"), Outcome.SITL_EXITED),
-])
+@pytest.mark.parametrize(
+    ("failure", "outcome"),
+    [
+        (KeyboardInterrupt(), Outcome.INTERRUPTED),
+        (SitlExitedError("the SITL exited with code 139"), Outcome.SITL_EXITED),
+    ],
+)
 def test_interrupt_and_sitl_exit_end_with_the_sticks_at_disarm(failure, outcome, tmp_path):
     vehicle = FakeVehicle(fail_after=40, failure=failure)
     log = CsvFlightLog(tmp_path / "f.csv")
@@ -202,7 +223,10 @@ def test_a_stick_step_is_held_for_the_hold_and_centred_afterwards():
     assert stepped and all(r.rc_roll_us == 1600 and r.rc_yaw_us == 1400 for r in stepped)
     assert all(r.rc_pitch_us == 1500 for r in stepped)
     assert (vehicle.command.roll_us, vehicle.command.pitch_us, vehicle.command.yaw_us) == (
-        1500, 1500, 1500)
+        1500,
+        1500,
+        1500,
+    )
 
 
 def test_reached_also_counts_the_controllers_estimate_when_it_keeps_one():
@@ -278,10 +302,13 @@ def test_a_square_mission_flies_its_legs_turns_and_lands_at_its_start(tmp_path):
     vehicle = PlanarVehicle()
     log = CsvFlightLog(tmp_path / "square.csv")
     loop = planar_loop(vehicle, log)
-    square = (Waypoint(10, 0, 1.0), Waypoint(10, 10, 1.0, heading_deg=90.0),
-              Waypoint(0, 10, 1.5, hold_s=1.0), Waypoint(0, 0, 1.0))
-    fly_steps(loop, MissionPlan(target_alt_m=1.0, hold_s=0.0, ground_s=0.0,
-                                waypoints=square))
+    square = (
+        Waypoint(10, 0, 1.0),
+        Waypoint(10, 10, 1.0, heading_deg=90.0),
+        Waypoint(0, 10, 1.5, hold_s=1.0),
+        Waypoint(0, 0, 1.0),
+    )
+    fly_steps(loop, MissionPlan(target_alt_m=1.0, hold_s=0.0, ground_s=0.0, waypoints=square))
     log.close()
     assert [leg.waypoint for leg in loop.legs] == [1, 2, 3, 4]
     assert all(leg.arrival_error_m < 0.35 for leg in loop.legs)
@@ -292,8 +319,9 @@ def test_a_square_mission_flies_its_legs_turns_and_lands_at_its_start(tmp_path):
     # Waypoint 3 is 0.5 m higher: the altitude target moved with the leg.
     assert max(r.target_alt_m for r in loop.rows if r.waypoint == 3) == pytest.approx(1.5)
     rows = read_flight_log(tmp_path / "square.csv")
-    assert {"sim_north_m", "fc_east_m", "target_north_m", "target_heading_deg", "waypoint"} \
-        <= set(rows[0])
+    assert {"sim_north_m", "fc_east_m", "target_north_m", "target_heading_deg", "waypoint"} <= set(
+        rows[0]
+    )
     assert {r["waypoint"] for r in rows} == {"0", "1", "2", "3", "4"}
     assert not math.isnan(loop.rows[-1].sim_north_m)
 
@@ -333,8 +361,11 @@ def test_waypoints_on_a_firmware_without_gps_end_before_arming_with_the_fix():
 
     vehicle = FakeVehicle()
     vehicle.has_gps = False
-    result = fly(vehicle, MissionPlan(waypoints=(Waypoint(5, 0, 2),)),  # type: ignore[arg-type]
-                         PController())  # type: ignore[arg-type]
+    result = fly(
+        vehicle,
+        MissionPlan(waypoints=(Waypoint(5, 0, 2),)),  # type: ignore[arg-type]
+        PController(),
+    )  # type: ignore[arg-type]
     assert result.outcome is Outcome.ERROR
     assert "GPS build" in result.reason and "--gps" in result.reason
     assert not vehicle.armed and vehicle.samples == 0
@@ -349,8 +380,9 @@ def test_the_default_plan_on_a_gps_vehicle_holds_its_take_off_point(hold_positio
 
     vehicle = PlanarVehicle()
     loop = planar_loop(vehicle)
-    fly_steps(loop, MissionPlan(target_alt_m=1.0, hold_s=4.0, ground_s=0.0,
-                                hold_position=hold_position))
+    fly_steps(
+        loop, MissionPlan(target_alt_m=1.0, hold_s=4.0, ground_s=0.0, hold_position=hold_position)
+    )
     landed_m = landed_from_start_m(loop.rows)
     assert landed_m is not None
     assert (landed_m < 0.3) == stays, landed_m

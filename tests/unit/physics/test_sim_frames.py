@@ -72,8 +72,9 @@ def test_b_nose_down_ten_degrees_held_still():
     reading = held_reading(quaternion_wxyz=q)
     assert reading.gyro_frd_rad_s == (0.0, 0.0, 0.0)
     assert reading.specific_force_frd_m_s2 == pytest.approx((-1.70291, 0.0, -9.65766), abs=1e-5)
-    assert FdmEncoder(DEFAULT_PROFILE, GeoPoint(0.0, 0.0)).encode(
-        reading, 1.0).accel_m_s2[0] == pytest.approx(1.70291, abs=1e-5)
+    assert FdmEncoder(DEFAULT_PROFILE, GeoPoint(0.0, 0.0)).encode(reading, 1.0).accel_m_s2[
+        0
+    ] == pytest.approx(1.70291, abs=1e-5)
     # Betaflight: pitch +10 (nose down positive); acc raw (+44, 0, 252), (-44, ...) physical x.
     assert betaflight_attitude_deg(q) == pytest.approx((0.0, 10.0, 0.0))
     assert betaflight_acc_raw(reading.specific_force_frd_m_s2) == (44, 0, 252)
@@ -103,11 +104,15 @@ def test_d_hovering_tilted_the_accelerometer_does_not_point_at_gravity():
     # As the example: no drag, and no inflow (flying forward nose-down, air comes up through
     # the discs and costs thrust; 0.03 % after 10 ms, enough to move the third decimal).
     params = dataclasses.replace(
-        IRIS, drag_linear_n_s_per_m=(0.0, 0.0, 0.0), drag_quadratic_n_s2_per_m2=(0.0, 0.0, 0.0),
-        axial_inflow=False)
+        IRIS,
+        drag_linear_n_s_per_m=(0.0, 0.0, 0.0),
+        drag_quadratic_n_s2_per_m2=(0.0, 0.0, 0.0),
+        axial_inflow=False,
+    )
     # Thrust m g / cos 10 deg along -z body holds altitude while accelerating forward.
-    omega = math.sqrt(params.weight_n / math.cos(math.radians(10.0)) / 4
-                      / params.thrust_coefficient_n_per_rad2_s2)
+    omega = math.sqrt(
+        params.weight_n / math.cos(math.radians(10.0)) / 4 / params.thrust_coefficient_n_per_rad2_s2
+    )
     command = (params.rotor_damping_nm_s_per_rad + params.motor_p_gain_nm_s_per_rad) * omega
     command += params.torque_coefficient_nm_per_rad2_s2 * omega**2
     command /= params.motor_p_gain_nm_s_per_rad * params.motor_command_speed_rad_s

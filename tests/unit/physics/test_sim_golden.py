@@ -20,11 +20,20 @@ def test_every_script_is_recorded() -> None:
 def test_the_recorded_flight_repeats_bit_for_bit(name: str) -> None:
     flown, recorded = summary(SCRIPTS[name]()), GOLDEN[name]
     assert flown["records"] == recorded["records"]
-    parted = next((i for i, (a, b) in enumerate(zip(flown["checkpoints"],
-                                                    recorded["checkpoints"], strict=True))
-                   if a != b), None)
-    assert parted is None, (f"{name}: the flight parts from the recording within records "
-                            f"{parted * CHECKPOINT}..{(parted + 1) * CHECKPOINT}")
+    parted = next(
+        (
+            i
+            for i, (a, b) in enumerate(
+                zip(flown["checkpoints"], recorded["checkpoints"], strict=True)
+            )
+            if a != b
+        ),
+        None,
+    )
+    assert parted is None, (
+        f"{name}: the flight parts from the recording within records "
+        f"{parted * CHECKPOINT}..{(parted + 1) * CHECKPOINT}"
+    )
     assert flown["last_state"] == recorded["last_state"]
 
 

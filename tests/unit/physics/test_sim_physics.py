@@ -125,7 +125,8 @@ def test_body_drag_slows_the_fall_and_shows_on_the_accelerometer():
     quadratic = IRIS.drag_quadratic_n_s2_per_m2[2]
     assert G * 0.9 < speed < G  # drag is small at first ...
     assert sim.read_sensors().specific_force_frd_m_s2[2] == pytest.approx(
-        -quadratic * speed * speed / IRIS.mass_kg, rel=5e-3)  # ... and pushes up (-z FRD)
+        -quadratic * speed * speed / IRIS.mass_kg, rel=5e-3
+    )  # ... and pushes up (-z FRD)
     run(sim, OFF, 6.0)
     terminal = math.sqrt(IRIS.weight_n / quadratic)
     assert sim.state.velocity_ned_m_s[2] == pytest.approx(terminal, rel=0.02)
@@ -200,8 +201,11 @@ def test_rolling_with_net_rotor_momentum_precesses_nose_down():
     # rolling rotor's own inflow change also pitches this asymmetric frame a little.)
     fast, slow, p = 500.0, 400.0, 3.0
     speeds = (slow, fast, fast, slow)
-    sim = airborne(dataclasses.replace(IRIS, axial_inflow=False), speeds=speeds,
-                   angular_velocity_frd_rad_s=(p, 0.0, 0.0))
+    sim = airborne(
+        dataclasses.replace(IRIS, axial_inflow=False),
+        speeds=speeds,
+        angular_velocity_frd_rad_s=(p, 0.0, 0.0),
+    )
     sim.step(tuple(command_for(w) for w in speeds), DT)
     assert sim.state.motor_speeds_rad_s == pytest.approx(speeds, abs=1e-9)
     h = -1.67604e-4 * (2 * fast - 2 * slow)
@@ -291,7 +295,8 @@ def test_sideways_wind_below_the_friction_limit_does_not_creep():
 
 def drag_n(speed_m_s: float) -> float:
     return IRIS.drag_linear_n_s_per_m[1] * speed_m_s + IRIS.drag_quadratic_n_s2_per_m2[1] * (
-        speed_m_s**2)
+        speed_m_s**2
+    )
 
 
 def test_wind_just_below_the_friction_limit_holds_and_just_above_slides_upright():
@@ -387,8 +392,11 @@ def test_tilted_drops_come_to_rest_level():
     for k in range(12):
         sim = Simulator()
         tilt = (6.0, -9.0, 12.0)[k % 3]
-        sim.reset((0.0, 0.0, -(IRIS.resting_height_m + 0.05 + 0.037 * k)),
-                  roll_deg=tilt, pitch_deg=tilt / 2)
+        sim.reset(
+            (0.0, 0.0, -(IRIS.resting_height_m + 0.05 + 0.037 * k)),
+            roll_deg=tilt,
+            pitch_deg=tilt / 2,
+        )
         run(sim, OFF, 1.5)
         assert sim.at_rest, k
         assert sim.altitude_m == pytest.approx(IRIS.resting_height_m, abs=1e-4), k
@@ -412,8 +420,14 @@ def test_drops_do_not_rebound(drop_m):
 
 def test_tilted_landing_with_sideways_speed_settles_level_on_the_skids():
     sim = Simulator()
-    sim.reset((0.0, 0.0, -0.7), roll_deg=15.0, pitch_deg=-8.0, yaw_deg=30.0,
-              velocity_ned_m_s=(2.0, -1.0, 0.0), angular_velocity_frd_rad_s=(0.0, 0.0, 2.0))
+    sim.reset(
+        (0.0, 0.0, -0.7),
+        roll_deg=15.0,
+        pitch_deg=-8.0,
+        yaw_deg=30.0,
+        velocity_ned_m_s=(2.0, -1.0, 0.0),
+        angular_velocity_frd_rad_s=(0.0, 0.0, 2.0),
+    )
     run(sim, OFF, 3.0)
     assert sim.at_rest
     roll, pitch, _ = betaflight_attitude_deg(sim.state.quaternion_wxyz)
@@ -437,8 +451,9 @@ def test_a_roll_past_the_tipping_angle_ends_on_its_back():
 # ---- closed loop -------------------------------------------------------------------------------
 
 
-def toy_flight_controller(sim: Simulator, altitude_m: float, pitch_deg: float = 0.0,
-                          yaw_deg: float = 0.0) -> tuple[float, float, float, float]:
+def toy_flight_controller(
+    sim: Simulator, altitude_m: float, pitch_deg: float = 0.0, yaw_deg: float = 0.0
+) -> tuple[float, float, float, float]:
     """Altitude PD, angle P -> rate P, mixed like Betaflight's quad-X (in FRD senses)."""
     state = sim.state
     roll, pitch, yaw = euler_from_quat_rad(state.quaternion_wxyz)
@@ -482,7 +497,8 @@ def test_a_simple_controller_flies_a_mission_and_parks(wind):
         if k == 7999:
             assert sim.state.position_ned_m[0] - north_at_six > 1.5
             assert betaflight_attitude_deg(sim.state.quaternion_wxyz)[1] == pytest.approx(
-                10.0, abs=0.5)  # Betaflight reads nose-down positive
+                10.0, abs=0.5
+            )  # Betaflight reads nose-down positive
     # Still commanding 0.44 throttle into the ground, gusts or not: parked and frozen.
     assert sim.at_rest
     roll, pitch, _ = betaflight_attitude_deg(sim.state.quaternion_wxyz)
@@ -505,7 +521,8 @@ def test_hold_freezes_the_pose_and_reports_the_given_rates():
     reading = sim.read_sensors()
     assert reading.gyro_frd_rad_s == (1.0, 0.0, 0.0)
     assert reading.specific_force_frd_m_s2 == pytest.approx(
-        (0.0, -G * math.sin(math.radians(20)), -G * math.cos(math.radians(20))))
+        (0.0, -G * math.sin(math.radians(20)), -G * math.cos(math.radians(20)))
+    )
     assert sim.time_s == pytest.approx(0.5)
     sim.hold(False)
     sim.reset((0.0, 0.0, -3.0))
@@ -525,8 +542,11 @@ def test_reset_on_the_ground_rests_on_the_lowest_corner_and_keeps_time():
 
 def test_state_fields_and_altitude():
     sim = Simulator()
-    sim.reset((1.0, -2.0, -7.5), velocity_ned_m_s=(0.5, 0.0, -1.0),
-              motor_speeds_rad_s=(100.0, 200.0, 300.0, 400.0))
+    sim.reset(
+        (1.0, -2.0, -7.5),
+        velocity_ned_m_s=(0.5, 0.0, -1.0),
+        motor_speeds_rad_s=(100.0, 200.0, 300.0, 400.0),
+    )
     state = sim.state
     assert state.position_ned_m == (1.0, -2.0, -7.5)
     assert state.velocity_ned_m_s == (0.5, 0.0, -1.0)
@@ -541,8 +561,14 @@ def test_state_fields_and_altitude():
 
 @pytest.mark.parametrize(
     "motors",
-    [(0.5, float("nan"), 0.5, 0.5), (0.5, 0.5, float("inf"), 0.5), (0.5, 0.5, 0.5),
-     (0.5,) * 5, ("a", "b", "c", "d"), None],
+    [
+        (0.5, float("nan"), 0.5, 0.5),
+        (0.5, 0.5, float("inf"), 0.5),
+        (0.5, 0.5, 0.5),
+        (0.5,) * 5,
+        ("a", "b", "c", "d"),
+        None,
+    ],
 )
 def test_bad_motor_commands_raise_and_leave_the_state_alone(motors):
     sim = Simulator()
@@ -596,8 +622,9 @@ def test_bad_parameters_raise():
 
 def test_gusts_are_repeatable_with_the_seed():
     def trajectory(seed: int):
-        sim = Simulator(wind=Wind((2.0, 0.0, 0.0), gust_std_m_s=1.5, gust_time_constant_s=0.5),
-                        seed=seed)
+        sim = Simulator(
+            wind=Wind((2.0, 0.0, 0.0), gust_std_m_s=1.5, gust_time_constant_s=0.5), seed=seed
+        )
         sim.reset((0.0, 0.0, -20.0), motor_speeds_rad_s=(IRIS.hover_rotor_speed_rad_s,) * 4)
         run(sim, (IRIS.hover_command,) * 4, 2.0)
         return sim.state.position_ned_m, sim.wind_ned_m_s
@@ -615,12 +642,15 @@ def test_wind_blows_a_hovering_vehicle_downwind():
     assert vn / -ve == pytest.approx(1.5, rel=0.05)  # along the wind
 
 
-@pytest.mark.parametrize("make", [
-    lambda: Wind((51.0, 0.0, 0.0)),
-    lambda: Wind((0.0, 0.0, 0.0), gust_std_m_s=21.0),
-    lambda: Wind((0.0, 0.0, 0.0), gust_time_constant_s=0.0),
-    lambda: Wind.from_direction(60.0),
-])
+@pytest.mark.parametrize(
+    "make",
+    [
+        lambda: Wind((51.0, 0.0, 0.0)),
+        lambda: Wind((0.0, 0.0, 0.0), gust_std_m_s=21.0),
+        lambda: Wind((0.0, 0.0, 0.0), gust_time_constant_s=0.0),
+        lambda: Wind.from_direction(60.0),
+    ],
+)
 def test_one_wind_range_for_every_way_of_giving_one(make) -> None:
     """The CLI, a scenario's [wind] and the wind fault check against the same limits."""
     with pytest.raises(SimInputError):

@@ -26,9 +26,13 @@ HOME = GeoPoint(47.3977, 8.5456, 488.0)
 
 def flying(sensors: SensorConfig | None = None, seed: int = 0) -> Simulator:
     sim = Simulator(sensors=sensors, home=HOME, seed=seed)
-    sim.reset((30.0, -40.0, -12.0), yaw_deg=45.0, velocity_ned_m_s=(3.0, 4.0, -1.5),
-              angular_velocity_frd_rad_s=(0.1, -0.2, 0.3),
-              motor_speeds_rad_s=(IRIS.hover_rotor_speed_rad_s,) * 4)
+    sim.reset(
+        (30.0, -40.0, -12.0),
+        yaw_deg=45.0,
+        velocity_ned_m_s=(3.0, 4.0, -1.5),
+        angular_velocity_frd_rad_s=(0.1, -0.2, 0.3),
+        motor_speeds_rad_s=(IRIS.hover_rotor_speed_rad_s,) * 4,
+    )
     sim.step((IRIS.hover_command,) * 4, 0.001)
     return sim
 
@@ -62,7 +66,8 @@ def test_geodetic_reading_is_lon_lat_alt_and_enu_velocity():
     assert lat == pytest.approx(HOME.lat_deg + math.degrees(north / EARTH_RADIUS_M), abs=1e-12)
     assert lon == pytest.approx(
         HOME.lon_deg + math.degrees(east / (EARTH_RADIUS_M * math.cos(math.radians(HOME.lat_deg)))),
-        abs=1e-12)
+        abs=1e-12,
+    )
     assert lat > HOME.lat_deg and lon < HOME.lon_deg  # 30 m north, 40 m west of home
     assert alt == pytest.approx(HOME.alt_m - down)
     assert reading.velocity_enu_m_s == (ve, vn, -vd)
@@ -73,8 +78,9 @@ def test_geodetic_reading_is_lon_lat_alt_and_enu_velocity():
 
 
 def test_noise_is_repeatable_with_the_seed_and_has_the_configured_spread():
-    config = SensorConfig(gyro_noise_std_rad_s=0.01, accel_noise_std_m_s2=0.2,
-                          baro_noise_std_pa=3.0)
+    config = SensorConfig(
+        gyro_noise_std_rad_s=0.01, accel_noise_std_m_s2=0.2, baro_noise_std_pa=3.0
+    )
 
     def samples(seed: int) -> list[SensorReading]:
         sim = Simulator(sensors=config, seed=seed)  # parked: the true values are constant
@@ -100,8 +106,9 @@ def test_noise_is_repeatable_with_the_seed_and_has_the_configured_spread():
 
 
 def test_bias_shifts_readings_exactly():
-    config = SensorConfig(gyro_bias_rad_s=(0.01, -0.02, 0.03), accel_bias_m_s2=(0.1, 0.0, -0.2),
-                          baro_bias_pa=-12.5)
+    config = SensorConfig(
+        gyro_bias_rad_s=(0.01, -0.02, 0.03), accel_bias_m_s2=(0.1, 0.0, -0.2), baro_bias_pa=-12.5
+    )
     ideal, biased = Simulator().read_sensors(), Simulator(sensors=config).read_sensors()
     assert biased.gyro_frd_rad_s == (0.01, -0.02, 0.03)
     assert biased.specific_force_frd_m_s2 == pytest.approx((0.1, 0.0, -G - 0.2))
@@ -129,8 +136,12 @@ def test_typical_mems_noise_from_densities():
 
 @pytest.mark.parametrize(
     "kwargs",
-    [{"gyro_noise_std_rad_s": -0.1}, {"baro_noise_std_pa": float("nan")},
-     {"accel_bias_m_s2": (0.0, 0.0)}, {"gyro_bias_rad_s": (0.0, float("inf"), 0.0)}],
+    [
+        {"gyro_noise_std_rad_s": -0.1},
+        {"baro_noise_std_pa": float("nan")},
+        {"accel_bias_m_s2": (0.0, 0.0)},
+        {"gyro_bias_rad_s": (0.0, float("inf"), 0.0)},
+    ],
 )
 def test_bad_sensor_config_raises(kwargs):
     with pytest.raises(SimInputError):
@@ -152,7 +163,8 @@ def test_ten_metre_climb_reads_ten_metres_of_betaflight_altitude():
     # What the firmware computes from the truncated pascals (measured: MSP ~1008 cm,
     # docs/firmware-facts.md#sign-table).
     metres = betaflight_altitude_m(firmware_pressure_pa(climbed)) - betaflight_altitude_m(
-        firmware_pressure_pa(ground))
+        firmware_pressure_pa(ground)
+    )
     assert metres == pytest.approx(10.0, abs=0.1)
 
 

@@ -40,7 +40,7 @@ def section(docstring: str | None, title: str) -> list[str]:
             continue
         depth = len(header["indent"])
         body = []
-        for inner in lines[number + 1:]:
+        for inner in lines[number + 1 :]:
             if inner.strip() and len(inner) - len(inner.lstrip()) <= depth:
                 break
             body.append(inner)
@@ -66,9 +66,11 @@ def section_names(docstring: str | None, title: str) -> set[str]:
 
 def parameter_names(function: Callable[..., Any]) -> list[str]:
     """What a caller passes by name: every parameter but self, cls, *args and **kwargs."""
-    return [p.name for p in inspect.signature(function).parameters.values()
-            if p.name not in ("self", "cls")
-            and p.kind not in (p.VAR_POSITIONAL, p.VAR_KEYWORD)]
+    return [
+        p.name
+        for p in inspect.signature(function).parameters.values()
+        if p.name not in ("self", "cls") and p.kind not in (p.VAR_POSITIONAL, p.VAR_KEYWORD)
+    ]
 
 
 def _returns_something(function: Callable[..., Any]) -> bool:
@@ -92,21 +94,30 @@ def _documented_names() -> list[str]:
     return sorted(set(bfsitl.__all__) - set(CONSTANTS))
 
 
-def _problems_of_function(label: str, function: Callable[..., Any],
-                          also: str | None = None) -> list[str]:
+def _problems_of_function(
+    label: str, function: Callable[..., Any], also: str | None = None
+) -> list[str]:
     """``also``: a second docstring whose Args count too (a class's, for its __init__; the
     API reference merges the two)."""
     names = parameter_names(function)
     if not names:
         return []
     documented = section_names(function.__doc__, "Args") | section_names(also, "Args")
-    problems = [f"{label}: parameter {name!r} is not under Args:"
-                for name in names if name not in documented]
+    problems = [
+        f"{label}: parameter {name!r} is not under Args:"
+        for name in names
+        if name not in documented
+    ]
     every_name = set(inspect.signature(function).parameters)  # **fields may be documented
-    problems += [f"{label}: Args: names {name!r}, which it does not take"
-                 for name in sorted(documented - every_name)]
-    if (label.rsplit(".", 1)[-1] != "__init__" and _returns_something(function)
-            and not section(function.__doc__, "Returns")):
+    problems += [
+        f"{label}: Args: names {name!r}, which it does not take"
+        for name in sorted(documented - every_name)
+    ]
+    if (
+        label.rsplit(".", 1)[-1] != "__init__"
+        and _returns_something(function)
+        and not section(function.__doc__, "Returns")
+    ):
         problems.append(f"{label}: returns a value but has no Returns: section")
     return problems
 
@@ -123,17 +134,25 @@ def docstring_problems(name: str) -> list[str]:
     problems: list[str] = []
     attributes = section_names(obj.__doc__, "Attributes")
     if dataclasses.is_dataclass(obj):
-        problems += [f"{name}: field {field.name!r} is not under Attributes:"
-                     for field in dataclasses.fields(obj)
-                     if not field.name.startswith("_") and field.name not in attributes]
+        problems += [
+            f"{name}: field {field.name!r} is not under Attributes:"
+            for field in dataclasses.fields(obj)
+            if not field.name.startswith("_") and field.name not in attributes
+        ]
     elif issubclass(obj, enum.Enum):
-        problems += [f"{name}: member {member.name!r} is not under Attributes:"
-                     for member in obj if member.name not in attributes]
+        problems += [
+            f"{name}: member {member.name!r} is not under Attributes:"
+            for member in obj
+            if member.name not in attributes
+        ]
     else:
         owner = next(c for c in obj.__mro__ if "__init__" in vars(c))
         if owner.__module__.startswith("bfsitl."):
-            problems += _problems_of_function(f"{name}.__init__", owner.__init__,  # type: ignore[misc]
-                                              also=obj.__doc__)
+            problems += _problems_of_function(
+                f"{name}.__init__",
+                owner.__init__,  # type: ignore[misc]
+                also=obj.__doc__,
+            )
     seen: set[str] = set()
     for method_name, function in public_methods(obj):
         if function.__qualname__ in seen:
@@ -168,5 +187,4 @@ def test_the_section_is_parsed_not_searched() -> None:
         return height_m / speed_m_s
 
     assert section_names(fly.__doc__, "Args") == {"height_m"}
-    assert _problems_of_function("fly", fly) == [
-        "fly: parameter 'speed_m_s' is not under Args:"]
+    assert _problems_of_function("fly", fly) == ["fly: parameter 'speed_m_s' is not under Args:"]

@@ -15,13 +15,24 @@ import pytest
 REPO = Path(__file__).resolve().parents[3]
 README_MAX_LINES = 300
 #: Text the project reads or shows; a path outside the checkout must not appear in it.
-CHECKED = ("README.md", "Makefile", "mkdocs.yml", "pyproject.toml", "docs", "src", "tests",
-           "benchmarks", ".ci")
+CHECKED = (
+    "README.md",
+    "Makefile",
+    "mkdocs.yml",
+    "pyproject.toml",
+    "docs",
+    "src",
+    "tests",
+    "benchmarks",
+    ".ci",
+)
 TEXT_SUFFIXES = {".md", ".py", ".toml", ".yml", ".yaml", ".txt", ".c", ".sdf", ""}
 # A path to the steering folder beside the clone, spelled out or put together from parts
 # (``Path(...).parents[2] / "shared" / "firmware"``).
-_OUTSIDE = re.compile(r"(\.\./shared\b|(?<![\w.-])shared/(FIRMWARE_FACTS|research|firmware|"
-                      r"configurator|DESIGN)|[\"']shared[\"']\s*/)")
+_OUTSIDE = re.compile(
+    r"(\.\./shared\b|(?<![\w.-])shared/(FIRMWARE_FACTS|research|firmware|"
+    r"configurator|DESIGN)|[\"']shared[\"']\s*/)"
+)
 
 
 def test_the_readme_is_read_in_five_minutes() -> None:
@@ -30,8 +41,9 @@ def test_the_readme_is_read_in_five_minutes() -> None:
     text = "\n".join(lines)
     # The two quick-start commands and master the way users get it.
     assert "make demo" in text and "make test" in text
-    assert ("bfsitl firmware build --git https://github.com/betaflight/betaflight --ref master"
-            in text)
+    assert (
+        "bfsitl firmware build --git https://github.com/betaflight/betaflight --ref master" in text
+    )
 
 
 def _text_files() -> list[Path]:
@@ -40,10 +52,14 @@ def _text_files() -> list[Path]:
         path = REPO / name
         candidates = [path] if path.is_file() else sorted(path.rglob("*"))
         for candidate in candidates:
-            if (candidate.is_file() and candidate.suffix in TEXT_SUFFIXES
-                    and not any(part.endswith(".egg-info") or part == "__pycache__"
-                                for part in candidate.parts)
-                    and candidate != Path(__file__).resolve()):
+            if (
+                candidate.is_file()
+                and candidate.suffix in TEXT_SUFFIXES
+                and not any(
+                    part.endswith(".egg-info") or part == "__pycache__" for part in candidate.parts
+                )
+                and candidate != Path(__file__).resolve()
+            ):
                 found.append(candidate)
     return found
 
@@ -67,9 +83,14 @@ def test_the_docs_site_builds_strictly(tmp_path: Path) -> None:
             pytest.fail("BFSITL_REQUIRE_SITL=1 but mkdocs is missing: pip install -e '.[docs]'")
         pytest.skip("mkdocs is not installed: pip install -e '.[docs]'")
     env = {**os.environ, "NO_MKDOCS_2_WARNING": "1"}
-    run = subprocess.run([sys.executable, "-m", "mkdocs", "build", "--strict", "--site-dir",
-                          str(tmp_path / "site")], cwd=REPO, capture_output=True, text=True,
-                         timeout=300, env=env)
+    run = subprocess.run(
+        [sys.executable, "-m", "mkdocs", "build", "--strict", "--site-dir", str(tmp_path / "site")],
+        cwd=REPO,
+        capture_output=True,
+        text=True,
+        timeout=300,
+        env=env,
+    )
     assert run.returncode == 0, run.stdout + run.stderr
     assert (tmp_path / "site" / "index.html").is_file()
     api = (tmp_path / "site" / "api" / "index.html").read_text()
@@ -77,7 +98,7 @@ def test_the_docs_site_builds_strictly(tmp_path: Path) -> None:
     assert "launch_sitl" in api and "fetch_git_source" in api
     # With their Args sections as tables (docstring_style: google): one row per parameter.
     start = api.index('id="bfsitl.autopilot.launch_sitl"')
-    table = api[api.index("<table", start):api.index("</table>", start)]
+    table = api[api.index("<table", start) : api.index("</table>", start)]
     assert re.search(r"<td>\s*<code>gps_noise</code>\s*</td>", table), table
 
 
@@ -87,5 +108,7 @@ def test_the_sites_home_page_is_the_readme() -> None:
     readme = (REPO / "README.md").read_text()
     expected = readme.replace("](docs/", "](").replace(
         "The docs site builds from `docs/` with `mkdocs build --strict` "
-        "(`pip install -e '.[docs]'`):", "Pages of this site:")
+        "(`pip install -e '.[docs]'`):",
+        "Pages of this site:",
+    )
     assert (REPO / "docs" / "index.md").read_text() == expected

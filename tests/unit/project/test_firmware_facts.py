@@ -41,10 +41,13 @@ def _scanned_files() -> list[Path]:
         if not root.is_dir():
             continue
         for path in sorted(root.rglob("*")):
-            if (path.is_file() and path.suffix in SUFFIXES
-                    and "__pycache__" not in path.parts
-                    and not any(part.endswith(".egg-info") for part in path.parts)
-                    and path.resolve() not in DESCRIBES_THE_RULE):
+            if (
+                path.is_file()
+                and path.suffix in SUFFIXES
+                and "__pycache__" not in path.parts
+                and not any(part.endswith(".egg-info") for part in path.parts)
+                and path.resolve() not in DESCRIBES_THE_RULE
+            ):
                 found.append(path)
     return found
 
@@ -77,22 +80,30 @@ def page_anchors(markdown: str) -> list[str]:
 
 
 def outside_citations(files: list[Path], root: Path = REPO) -> list[str]:
-    return [f"{path.relative_to(root)}:{number}: {line.strip()}"
-            for path in files for number, line in _lines(path)
-            if _OUTSIDE_CITATION.search(line)]
+    return [
+        f"{path.relative_to(root)}:{number}: {line.strip()}"
+        for path in files
+        for number, line in _lines(path)
+        if _OUTSIDE_CITATION.search(line)
+    ]
 
 
-def dangling_facts_citations(files: list[Path], anchors: set[str],
-                             root: Path = REPO) -> list[str]:
-    return [f"{path.relative_to(root)}:{number}: #{anchor}"
-            for path in files for number, line in _lines(path)
-            for anchor in _FACTS_CITATION.findall(line) if anchor not in anchors]
+def dangling_facts_citations(files: list[Path], anchors: set[str], root: Path = REPO) -> list[str]:
+    return [
+        f"{path.relative_to(root)}:{number}: #{anchor}"
+        for path in files
+        for number, line in _lines(path)
+        for anchor in _FACTS_CITATION.findall(line)
+        if anchor not in anchors
+    ]
 
 
 def test_nothing_cites_notes_outside_the_repository() -> None:
     offenders = outside_citations(_scanned_files())
-    assert not offenders, ("cite a section of docs/firmware-facts.md instead "
-                           "(write the fact there first):\n" + "\n".join(offenders))
+    assert not offenders, (
+        "cite a section of docs/firmware-facts.md instead "
+        "(write the fact there first):\n" + "\n".join(offenders)
+    )
 
 
 def test_every_cited_section_of_the_facts_page_exists() -> None:
@@ -100,29 +111,39 @@ def test_every_cited_section_of_the_facts_page_exists() -> None:
     duplicated = sorted({anchor for anchor in anchors if anchors.count(anchor) > 1})
     assert not duplicated, f"docs/firmware-facts.md repeats anchors: {duplicated}"
     files = _scanned_files()
-    cited = [anchor for path in files for _, line in _lines(path)
-             for anchor in _FACTS_CITATION.findall(line)]
+    cited = [
+        anchor
+        for path in files
+        for _, line in _lines(path)
+        for anchor in _FACTS_CITATION.findall(line)
+    ]
     assert len(cited) >= 20, "the scan found too few citations of the facts page to be working"
     dangling = dangling_facts_citations(files, set(anchors))
-    assert not dangling, ("these sections are not on docs/firmware-facts.md (renamed? rename the "
-                          "citations too):\n" + "\n".join(dangling))
+    assert not dangling, (
+        "these sections are not on docs/firmware-facts.md (renamed? rename the "
+        "citations too):\n" + "\n".join(dangling)
+    )
 
 
 def test_the_checks_catch_what_they_are_for(tmp_path: Path) -> None:
     """Each check fails on the mistake it exists for (so a broken pattern cannot pass quietly)."""
-    page = ("# Facts\n\n## Packets {#packets}\n\n## Plain heading, no id\n\n"
-            "```\n## not a heading\n```\n")
+    page = (
+        "# Facts\n\n## Packets {#packets}\n\n## Plain heading, no id\n\n"
+        "```\n## not a heading\n```\n"
+    )
     assert page_anchors(page) == ["facts", "packets", "plain-heading-no-id"]
     source = tmp_path / "example.py"
     source.write_text(
         "# kept: docs/firmware-facts.md#packets and docs/firmware-facts.md#plain-heading-no-id\n"
         "# renamed: docs/firmware-facts.md#packet-layout\n"
         "# (research 3.5)\n# Research 4.5: mu = 1\n# research §2.9\n"
-        "# FIRMWARE_FACTS.md \"Arming\"\n"
-        "# see ../" "shared/notes\n"  # split, or test_docs_site would flag this file
+        '# FIRMWARE_FACTS.md "Arming"\n'
+        "# see ../"
+        "shared/notes\n"  # split, or test_docs_site would flag this file
         "# the research's 50 N s/m\n"
         "# research/physics-and-timing.md\n# the research notes, appendix A\n"
-        "# docs/research/scenarios-groundwork.md is in the repository\n")
+        "# docs/research/scenarios-groundwork.md is in the repository\n"
+    )
     outside = outside_citations([source], tmp_path)
     dangling = dangling_facts_citations([source], set(page_anchors(page)), tmp_path)
     assert [entry.split(":")[1] for entry in outside] == [str(n) for n in range(3, 11)]

@@ -22,7 +22,10 @@ def test_the_session_cache_is_its_own_and_not_the_users() -> None:
 
 def test_ci_runs_the_suite_with_an_empty_home() -> None:
     script = (Path(__file__).resolve().parents[3] / ".ci" / "run").read_text()
-    test_line = next(line for line in script.splitlines() if "make test" in line
-                     and not line.lstrip().startswith("#"))
+    test_line = next(
+        line
+        for line in script.splitlines()
+        if "make test" in line and not line.lstrip().startswith("#")
+    )
     assert 'HOME="$fresh_home"' in test_line and "-u XDG_CACHE_HOME" in test_line, test_line
     assert "-u BFSITL_CACHE_DIR" in test_line, test_line

@@ -14,24 +14,37 @@ import pytest
 
 ROOT = Path(__file__).resolve().parents[3]
 #: lint-imports itself, run by this interpreter (the script may not be on PATH).
-LINT_IMPORTS = ("import sys; from importlinter.cli import lint_imports_command; "
-                "sys.exit(lint_imports_command())")
+LINT_IMPORTS = (
+    "import sys; from importlinter.cli import lint_imports_command; "
+    "sys.exit(lint_imports_command())"
+)
 
 
 def test_every_contract_is_kept() -> None:
-    pytest.importorskip("importlinter",
-                        reason="import-linter is in the dev extra: pip install -e '.[dev]'")
+    pytest.importorskip(
+        "importlinter", reason="import-linter is in the dev extra: pip install -e '.[dev]'"
+    )
     # This tree's sources first, so an installed bfsitl elsewhere is not the one checked.
-    env = {**os.environ, "PYTHONPATH": os.pathsep.join(
-        [str(ROOT / "src"), *filter(None, [os.environ.get("PYTHONPATH")])])}
-    done = subprocess.run([sys.executable, "-c", LINT_IMPORTS, "--no-cache"], cwd=ROOT,
-                          env=env, capture_output=True, text=True, timeout=300)
+    env = {
+        **os.environ,
+        "PYTHONPATH": os.pathsep.join(
+            [str(ROOT / "src"), *filter(None, [os.environ.get("PYTHONPATH")])]
+        ),
+    }
+    done = subprocess.run(
+        [sys.executable, "-c", LINT_IMPORTS, "--no-cache"],
+        cwd=ROOT,
+        env=env,
+        capture_output=True,
+        text=True,
+        timeout=300,
+    )
     assert done.returncode == 0, done.stdout[-6000:] + done.stderr[-2000:]
 
 
-
-def _lazy_table_and_mirror(path: Path, package: str) -> tuple[set[tuple[str, str]],
-                                                                set[tuple[str, str]]]:
+def _lazy_table_and_mirror(
+    path: Path, package: str
+) -> tuple[set[tuple[str, str]], set[tuple[str, str]]]:
     """(name, module) pairs a package's ``_EXPORTS`` loads on first use, and those its
     ``if TYPE_CHECKING:`` block imports."""
     tree = ast.parse(path.read_text())
@@ -43,12 +56,16 @@ def _lazy_table_and_mirror(path: Path, package: str) -> tuple[set[tuple[str, str
             if getattr(target, "id", "") == "_EXPORTS":
                 for key, value in zip(node.value.keys, node.value.values, strict=True):
                     module = ast.literal_eval(value)
-                    table.add((ast.literal_eval(key),
-                               module if "." in module else f"{package}.{module}"))
+                    table.add(
+                        (ast.literal_eval(key), module if "." in module else f"{package}.{module}")
+                    )
         elif isinstance(node, ast.If) and getattr(node.test, "id", "") == "TYPE_CHECKING":
-            mirror.update((alias.name, statement.module) for statement in node.body
-                          if isinstance(statement, ast.ImportFrom) and statement.module
-                          for alias in statement.names)
+            mirror.update(
+                (alias.name, statement.module)
+                for statement in node.body
+                if isinstance(statement, ast.ImportFrom) and statement.module
+                for alias in statement.names
+            )
     return table, mirror
 
 

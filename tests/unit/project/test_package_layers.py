@@ -11,8 +11,12 @@ from pathlib import Path
 PACKAGE = Path(__file__).resolve().parents[3] / "src" / "bfsitl"
 #: What the physics may import of bfsitl: itself, the one exception tree, and the model it is
 #: the face of (its C source's ctypes layout and the loader that builds it).
-PHYSICS_MAY_IMPORT = ("bfsitl.physics", "bfsitl.errors", "bfsitl.kernel.compiler",
-                      "bfsitl.kernel.layout")
+PHYSICS_MAY_IMPORT = (
+    "bfsitl.physics",
+    "bfsitl.errors",
+    "bfsitl.kernel.compiler",
+    "bfsitl.kernel.layout",
+)
 
 
 def _imports(path: Path) -> list[str]:
@@ -27,24 +31,44 @@ def _imports(path: Path) -> list[str]:
 
 
 def test_the_physics_imports_nothing_above_it() -> None:
-    offenders = [f"{path.name}: {name}"
-                 for path in sorted((PACKAGE / "physics").glob("*.py"))
-                 for name in _imports(path)
-                 if not name.startswith(PHYSICS_MAY_IMPORT)]
+    offenders = [
+        f"{path.name}: {name}"
+        for path in sorted((PACKAGE / "physics").glob("*.py"))
+        for name in _imports(path)
+        if not name.startswith(PHYSICS_MAY_IMPORT)
+    ]
     assert not offenders, offenders
 
 
 def test_the_physics_modules_stay_small() -> None:
-    sizes = {path.name: len(path.read_text().splitlines())
-             for path in (PACKAGE / "physics").glob("*.py")}
+    sizes = {
+        path.name: len(path.read_text().splitlines()) for path in (PACKAGE / "physics").glob("*.py")
+    }
     assert max(sizes.values()) <= 600, sizes
 
 
 #: The kinds of backend, bridge, clock and link: what the factory picks and nobody asks.
-BACKEND_TYPES = {"SitlBridge", "LockstepBridge", "LockstepClock", "RealTimeClock", "WallClock",
-                 "Backend", "SitlBackend", "RealTimeBackend", "LockstepBackend",
-                 "GazeboBackend", "BoardBackend", "TcpLink", "SerialLink", "SteppedLink",
-                 "UdpRcLink", "MspRcLink", "LockstepRc", "FlightSession", "BoardVehicle"}
+BACKEND_TYPES = {
+    "SitlBridge",
+    "LockstepBridge",
+    "LockstepClock",
+    "RealTimeClock",
+    "WallClock",
+    "Backend",
+    "SitlBackend",
+    "RealTimeBackend",
+    "LockstepBackend",
+    "GazeboBackend",
+    "BoardBackend",
+    "TcpLink",
+    "SerialLink",
+    "SteppedLink",
+    "UdpRcLink",
+    "MspRcLink",
+    "LockstepRc",
+    "FlightSession",
+    "BoardVehicle",
+}
 
 
 def test_nobody_asks_which_kind_of_backend_or_link_it_has() -> None:
@@ -53,20 +77,24 @@ def test_nobody_asks_which_kind_of_backend_or_link_it_has() -> None:
         if path.relative_to(PACKAGE).as_posix() == "backend/factory.py":
             continue
         for node in ast.walk(ast.parse(path.read_text())):
-            if isinstance(node, ast.Call) and isinstance(node.func, ast.Name) \
-                    and node.func.id == "isinstance" and len(node.args) == 2:
-                kinds = node.args[1].elts if isinstance(node.args[1], ast.Tuple) \
-                    else [node.args[1]]
-                named = {k.id if isinstance(k, ast.Name) else getattr(k, "attr", "")
-                         for k in kinds}
+            if (
+                isinstance(node, ast.Call)
+                and isinstance(node.func, ast.Name)
+                and node.func.id == "isinstance"
+                and len(node.args) == 2
+            ):
+                kinds = node.args[1].elts if isinstance(node.args[1], ast.Tuple) else [node.args[1]]
+                named = {k.id if isinstance(k, ast.Name) else getattr(k, "attr", "") for k in kinds}
                 if named & BACKEND_TYPES:
                     offenders.append(f"{path.relative_to(PACKAGE)}:{node.lineno}")
     assert not offenders, offenders
 
 
 def test_no_source_file_is_over_about_600_lines() -> None:
-    sizes = {path.relative_to(PACKAGE).as_posix(): len(path.read_text().splitlines())
-             for path in PACKAGE.rglob("*.py")}
+    sizes = {
+        path.relative_to(PACKAGE).as_posix(): len(path.read_text().splitlines())
+        for path in PACKAGE.rglob("*.py")
+    }
     too_long = {name: lines for name, lines in sizes.items() if lines > 620}
     assert too_long == {}
 
@@ -81,8 +109,9 @@ NO_UNIT_FOLDER = {"library"}
 
 def test_the_unit_tests_mirror_the_packages() -> None:
     packages = {path.parent.name for path in PACKAGE.glob("*/__init__.py")}
-    folders = {path.name for path in UNIT_TESTS.iterdir()
-               if path.is_dir() and path.name != "__pycache__"}
+    folders = {
+        path.name for path in UNIT_TESTS.iterdir() if path.is_dir() and path.name != "__pycache__"
+    }
     assert folders - {PROJECT_CHECKS} <= packages, "a folder of tests/unit names no package"
     assert packages - NO_UNIT_FOLDER <= folders, "a package has no folder in tests/unit"
     # Tests of the top-level modules (autopilot.py, errors.py) stand at tests/unit itself.

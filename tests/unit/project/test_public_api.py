@@ -32,8 +32,8 @@ def test_an_unknown_name_is_an_attribute_error():
 
 
 def test_import_bfsitl_loads_no_flight_machinery():
-    code = ("import sys, bfsitl; "
-            "print(sorted(m for m in sys.modules if m.startswith('bfsitl.')))")
-    loaded = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
-                            check=True).stdout
+    code = "import sys, bfsitl; print(sorted(m for m in sys.modules if m.startswith('bfsitl.')))"
+    loaded = subprocess.run(
+        [sys.executable, "-c", code], capture_output=True, text=True, check=True
+    ).stdout
     assert "bfsitl.mission" not in loaded and "bfsitl.sim" not in loaded, loaded

@@ -35,8 +35,14 @@ MASTER = profile_for("1.49", "2026.12.0-alpha")
 
 def moving_reading(roll_deg: float = 12.0, pitch_deg: float = -7.0, yaw_deg: float = 63.0):
     sim = Simulator(home=HOME)
-    sim.reset((30.0, -40.0, -12.0), roll_deg=roll_deg, pitch_deg=pitch_deg, yaw_deg=yaw_deg,
-              velocity_ned_m_s=(3.0, 4.0, -1.5), angular_velocity_frd_rad_s=(0.1, -0.2, 0.3))
+    sim.reset(
+        (30.0, -40.0, -12.0),
+        roll_deg=roll_deg,
+        pitch_deg=pitch_deg,
+        yaw_deg=yaw_deg,
+        velocity_ned_m_s=(3.0, 4.0, -1.5),
+        angular_velocity_frd_rad_s=(0.1, -0.2, 0.3),
+    )
     sim.hold(True)
     return sim.read_sensors()
 
@@ -141,9 +147,10 @@ def test_4_6_takes_the_quaternion_and_the_pressure_as_they_are():
     assert packet.position == reading.position_ned_m  # ignored without GPS
 
 
-@pytest.mark.parametrize(("roll", "pitch", "yaw"),
-                         [(0, 0, 0), (20, 0, 0), (0, 15, 0), (0, 0, 90), (10, -10, 45),
-                          (-30, 25, 250)])
+@pytest.mark.parametrize(
+    ("roll", "pitch", "yaw"),
+    [(0, 0, 0), (20, 0, 0), (0, 15, 0), (0, 0, 90), (10, -10, 45), (-30, 25, 250)],
+)
 def test_master_reconstructs_the_true_attitude_from_the_gazebo_quaternion(roll, pitch, yaw):
     q = quat_from_euler_deg(roll, pitch, yaw)
     packet = FdmPacket(1.0, quaternion_wxyz=gazebo_quaternion(q))
@@ -210,9 +217,11 @@ def test_servo_slots_round_trip_through_the_profile(profile):
 def test_master_sends_motors_in_plain_order_and_4_6_remapped():
     raw = ServoPacket((0.1, 0.2, 0.3, 0.4))
     assert raw.betaflight_motors(MASTER.motor_slot_of_betaflight_motor) == pytest.approx(
-        (0.1, 0.2, 0.3, 0.4))
+        (0.1, 0.2, 0.3, 0.4)
+    )
     assert raw.betaflight_motors(V46.motor_slot_of_betaflight_motor) == pytest.approx(
-        (0.4, 0.1, 0.2, 0.3))
+        (0.4, 0.1, 0.2, 0.3)
+    )
 
 
 # -- arming flags -----------------------------------------------------------------------------
@@ -225,7 +234,9 @@ def test_the_flag_count_picks_the_arming_table():
     assert arming_flags_text((1 << 2) | (1 << 9), 30) == "RXLOSS BOOTGRACE"
     # A newer firmware with more flags: ARM_SWITCH is still the last one.
     assert [f.cli_name for f in decode_arming_flags((1 << 30) | (1 << 29), 31)] == [
-        "UNKNOWN_29", "ARM_SWITCH"]
+        "UNKNOWN_29",
+        "ARM_SWITCH",
+    ]
 
 
 # -- wind, health targets and attitude tracking -----------------------------------------------
@@ -257,12 +268,37 @@ def test_attitude_tracking_compares_the_fc_with_the_truth_in_the_air_only():
     from bfsitl.mission.flight_row import FlightRow
 
     def row(phase: str, alt_m: float, fc_roll: float, sim_roll: float) -> FlightRow:
-        return FlightRow(0.0, phase, 2.0, alt_m, alt_m, 0.0, 0.0, 0.0, fc_roll, 0.0, 0.0,
-                         abs(sim_roll), sim_roll, 0.0, 0.0, 1500, 1500, 1500, 1500, 1800,
-                         1800, 0.5, 0.5, 0.5, 0.5, True, 0.0)
+        return FlightRow(
+            0.0,
+            phase,
+            2.0,
+            alt_m,
+            alt_m,
+            0.0,
+            0.0,
+            0.0,
+            fc_roll,
+            0.0,
+            0.0,
+            abs(sim_roll),
+            sim_roll,
+            0.0,
+            0.0,
+            1500,
+            1500,
+            1500,
+            1500,
+            1800,
+            1800,
+            0.5,
+            0.5,
+            0.5,
+            0.5,
+            True,
+            0.0,
+        )
 
-    rows = [row("ground", 0.0, 9.0, 0.0), row("hold", 2.0, 1.0, 4.0),
-            row("hold", 2.0, 2.0, 2.0)]
+    rows = [row("ground", 0.0, 9.0, 0.0), row("hold", 2.0, 1.0, 4.0), row("hold", 2.0, 2.0, 2.0)]
     tracking = attitude_tracking(rows)
     assert tracking is not None and tracking.samples == 2
     assert tracking.max_abs_error_deg == pytest.approx(3.0)

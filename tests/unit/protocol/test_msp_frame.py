@@ -26,6 +26,7 @@ def frames_of(events):
 
 # --- encoder, against byte strings written out by hand from msp_serial.c ---------------------
 
+
 def test_v1_request_api_version_is_the_six_bytes_everyone_sends():
     assert encode_request(1) == b"$M<\x00\x01\x01"
 
@@ -75,6 +76,7 @@ def test_default_version_is_v2_for_ids_above_254():
 
 # --- parser --------------------------------------------------------------------------------
 
+
 def test_parses_the_sitl_api_version_reply():
     (frame,) = MspParser().feed(b"$M>\x03\x01\x00\x01/,")
     assert frame == MspFrame(1, b"\x00\x01\x2f", Direction.REPLY, MspVersion.V1)
@@ -94,11 +96,13 @@ def test_jumbo_reply_is_reassembled():
 
 
 def test_v2_over_v1_reply_is_unwrapped():
-    wire = encode_frame(MspFrame(0x3006, b"\x02\x03abc", Direction.REPLY,
-                                 MspVersion.V2_OVER_V1))
+    wire = encode_frame(MspFrame(0x3006, b"\x02\x03abc", Direction.REPLY, MspVersion.V2_OVER_V1))
     (frame,) = MspParser().feed(wire)
     assert (frame.command, frame.payload, frame.version) == (
-        0x3006, b"\x02\x03abc", MspVersion.V2_OVER_V1)
+        0x3006,
+        b"\x02\x03abc",
+        MspVersion.V2_OVER_V1,
+    )
 
 
 def test_bad_checksum_is_reported_and_the_next_frame_still_parses():
@@ -132,10 +136,12 @@ def test_garbage_header_claiming_a_huge_size_does_not_hide_later_frames_forever(
 def test_absurd_v2_length_is_rejected_at_once():
     good = encode_frame(MspFrame(1, b"\x00\x01\x2f"))
     assert frames_of(MspParser().feed(b"$X>\x00\x01\x00\xff\xff" + good)) == [
-        MspFrame(1, b"\x00\x01\x2f")]
+        MspFrame(1, b"\x00\x01\x2f")
+    ]
 
 
 # --- fuzz ----------------------------------------------------------------------------------
+
 
 def _make_frame(version: MspVersion, command: int, payload: bytes) -> MspFrame:
     # v1 carries ids 0..254 only (255 means "v2 inside"); v2 forms carry 16-bit ids.
@@ -171,11 +177,12 @@ def test_fuzz_every_frame_after_garbage_is_found_in_any_split(frames, garbage, s
     events: list = []
     position = 0
     for size in splits:
-        events += parser.feed(bytes(wire[position:position + size]))
+        events += parser.feed(bytes(wire[position : position + size]))
         position += size
     events += parser.feed(bytes(wire[position:]))
     assert [(f.command, f.payload) for f in frames_of(events)] == [
-        (f.command, f.payload) for f in frames]
+        (f.command, f.payload) for f in frames
+    ]
 
 
 @settings(max_examples=400, deadline=None)
@@ -184,7 +191,7 @@ def test_fuzz_random_bytes_never_raise(data, splits):
     parser = MspParser()
     position = 0
     for size in splits:
-        parser.feed(data[position:position + size])
+        parser.feed(data[position : position + size])
         position += size
     parser.feed(data[position:])
     while parser.pending_bytes:

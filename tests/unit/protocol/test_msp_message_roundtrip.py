@@ -50,8 +50,7 @@ def _message_classes() -> list[Any]:
     for info in pkgutil.iter_modules(messages.__path__):
         module = importlib.import_module(f"{messages.__name__}.{info.name}")
         for _, obj in inspect.getmembers(module, inspect.isclass):
-            if obj.__module__ == module.__name__ and isinstance(getattr(obj, "COMMAND", None),
-                                                                int):
+            if obj.__module__ == module.__name__ and isinstance(getattr(obj, "COMMAND", None), int):
                 found[obj.__name__] = obj
     return sorted(found.values(), key=lambda cls: cls.__name__)
 
@@ -98,8 +97,9 @@ U32 = st.integers(0, 0xFFFFFFFF)
 
 #: Values the __post_init__ checks (or the decoder) insist on, by (class, field).
 FIELD_VALUES: dict[tuple[str, str], st.SearchStrategy[Any]] = {
-    ("Rc", "channels_us"): st.one_of(st.just(()), st.lists(U16, min_size=4, max_size=18)
-                                     .map(tuple)),
+    ("Rc", "channels_us"): st.one_of(
+        st.just(()), st.lists(U16, min_size=4, max_size=18).map(tuple)
+    ),
     ("SetRawRc", "channels_us"): st.lists(U16, min_size=1, max_size=18).map(tuple),
     ("SetRxMap", "rcmap"): st.permutations(range(8)).map(tuple),
     ("SetModeRange", "index"): st.integers(0, 19),
@@ -107,8 +107,9 @@ FIELD_VALUES: dict[tuple[str, str], st.SearchStrategy[Any]] = {
     ("SetModeRange", "linked_to"): st.sampled_from(sorted(BOX_NAMES)),
     ("SetRtc", "unix_seconds"): st.integers(0, 2**31 - 1),
     ("SetRtc", "millis"): st.integers(0, 999),
-    ("MultipleMspRequest", "commands"): st.lists(st.integers(0, 254), min_size=1,
-                                                 max_size=192).map(tuple),
+    ("MultipleMspRequest", "commands"): st.lists(st.integers(0, 254), min_size=1, max_size=192).map(
+        tuple
+    ),
 }
 
 
@@ -122,8 +123,7 @@ def wire_values(wire: Any) -> st.SearchStrategy[Any]:
     if isinstance(wire, Raw):
         return st.binary(min_size=wire.size, max_size=wire.size)
     if isinstance(wire, Array):
-        return st.lists(wire_values(wire.item), min_size=wire.count, max_size=wire.count).map(
-            tuple)
+        return st.lists(wire_values(wire.item), min_size=wire.count, max_size=wire.count).map(tuple)
     if isinstance(wire, RestArray | Counted):
         return st.lists(item_values(wire.item), max_size=12).map(tuple)
     if isinstance(wire, Nested):
@@ -140,6 +140,7 @@ def record_values(record: Any) -> st.SearchStrategy[Any]:
 
 
 # The firmware's bytes for a value, written here field by field (not with the codec's structs).
+
 
 def wire_bytes(wire: Any, value: Any) -> bytes:
     if isinstance(wire, Int):
@@ -158,7 +159,8 @@ def wire_bytes(wire: Any, value: Any) -> bytes:
         return b"".join(item_bytes(wire.item, v) for v in value)
     if isinstance(wire, Counted):
         return wire_bytes(wire.count, len(value)) + b"".join(
-            item_bytes(wire.item, v) for v in value)
+            item_bytes(wire.item, v) for v in value
+        )
     if isinstance(wire, Nested):
         return item_bytes(wire.record, value)
     raise AssertionError(f"no bytes for wire type {wire!r}")
@@ -203,14 +205,14 @@ def layout_case(draw: st.DrawFn, cls: Any, whole_tail: bool = False) -> Case:
     always = max((i + 1 for i, f in enumerate(tail) if f.absent is not None), default=0)
     present = len(tail) if whole_tail else draw(st.integers(always, len(tail)))
     fields = head + tail[:present]
-    values = [draw(FIELD_VALUES.get((cls.__name__, f.name), wire_values(f.wire)))
-              for f in fields]
+    values = [draw(FIELD_VALUES.get((cls.__name__, f.name), wire_values(f.wire))) for f in fields]
     try:
         msg = cls(*values)
     except MspRequestError:
         assume(False)  # a combination __post_init__ refuses (mode_logic without linked_to)
-    payload = b"".join(bytes(f.pad_bytes) + wire_bytes(f.wire, v)
-                       for f, v in zip(fields, values, strict=True))
+    payload = b"".join(
+        bytes(f.pad_bytes) + wire_bytes(f.wire, v) for f, v in zip(fields, values, strict=True)
+    )
     cut_is_absent = layout.tail is not None and layout.tail.cut_is_absent
     bad = _bad_cuts(fields, values, cut_is_absent)
     if cls is m.Rtc:
@@ -220,6 +222,7 @@ def layout_case(draw: st.DrawFn, cls: Any, whole_tail: bool = False) -> Case:
 
 
 # The classes that decode and encode by hand: the firmware layout written out once more here.
+
 
 @st.composite
 def status_case(draw: st.DrawFn, cls: Any) -> Case:
@@ -239,8 +242,21 @@ def status_case(draw: st.DrawFn, cls: Any) -> Case:
     body = head + bytes([extra]) + (flags >> 32).to_bytes(extra, "little")
     body += struct.pack("<BIB", count, arming, config)
     payload = body + struct.pack("<hB"[: 1 + len(tail)], *tail)
-    msg = cls(cycle, i2c, sensors, flags, pid, cpu, *middle_values, count, arming, config,
-              *tail, *(None,) * (2 - len(tail)), flight_mode_extra_bytes=extra)
+    msg = cls(
+        cycle,
+        i2c,
+        sensors,
+        flags,
+        pid,
+        cpu,
+        *middle_values,
+        count,
+        arming,
+        config,
+        *tail,
+        *(None,) * (2 - len(tail)),
+        flight_mode_extra_bytes=extra,
+    )
     bad = set(range(len(body))) | ({len(body) + 1} if tail else set())
     return Case(msg, payload, frozenset(bad), len(tail) == 2)
 
@@ -255,8 +271,7 @@ def pid_advanced_case(draw: st.DrawFn, cls: Any) -> Case:
 def box_names_case(draw: st.DrawFn, cls: Any) -> Case:
     name = st.text(st.characters(max_codepoint=255, exclude_characters=";"), max_size=12)
     names = tuple(draw(st.lists(name, max_size=8)))
-    return Case(cls(names), "".join(f"{n};" for n in names).encode("latin-1"), frozenset(),
-                False)
+    return Case(cls(names), "".join(f"{n};" for n in names).encode("latin-1"), frozenset(), False)
 
 
 @st.composite
@@ -290,8 +305,11 @@ def test_the_hand_written_classes_are_the_expected_few() -> None:
     assert {cls.__name__ for cls in MESSAGES if cls.LAYOUT is None} == set(HAND_WRITTEN)
 
 
-EXAMPLES = settings(max_examples=60, deadline=None,
-                    suppress_health_check=[HealthCheck.filter_too_much, HealthCheck.too_slow])
+EXAMPLES = settings(
+    max_examples=60,
+    deadline=None,
+    suppress_health_check=[HealthCheck.filter_too_much, HealthCheck.too_slow],
+)
 
 
 @pytest.mark.parametrize("cls", MESSAGES, ids=_name)
@@ -321,8 +339,9 @@ def test_a_payload_cut_inside_a_field_raises_decode_error(cls: Any, data: st.Dat
 @pytest.mark.parametrize("cls", MESSAGES, ids=_name)
 @EXAMPLES
 @given(data=st.data(), junk=st.binary(min_size=1, max_size=8))
-def test_bytes_after_a_complete_payload_are_ignored(cls: Any, data: st.DataObject,
-                                                    junk: bytes) -> None:
+def test_bytes_after_a_complete_payload_are_ignored(
+    cls: Any, data: st.DataObject, junk: bytes
+) -> None:
     case = data.draw(cases(cls))
     if case.trailing_ignored:
         assert cls.decode(case.payload + junk) == case.msg
@@ -331,8 +350,12 @@ def test_bytes_after_a_complete_payload_are_ignored(cls: Any, data: st.DataObjec
 def _too_big(wire: Any, draw: Callable[[st.SearchStrategy[Any]], Any]) -> Any:
     """A value of the field's Python type that its wire type cannot carry."""
     if isinstance(wire, Int):
-        return draw(st.one_of(st.integers(wire.max + 1, wire.max + 2**40),
-                              st.integers(wire.min - 2**40, wire.min - 1)))
+        return draw(
+            st.one_of(
+                st.integers(wire.max + 1, wire.max + 2**40),
+                st.integers(wire.min - 2**40, wire.min - 1),
+            )
+        )
     if isinstance(wire, Text):
         return "x" * (wire.size + 1)
     if isinstance(wire, PStr):
@@ -382,8 +405,12 @@ def test_a_value_that_does_not_fit_raises_request_error(cls: Any, data: st.DataO
 
 def test_hand_written_values_that_do_not_fit_raise_request_error() -> None:
     status = m.Status(125, 0, 0x21, 0, 0, 0, 29, 0, 0)
-    for bad in ({"cycle_time_us": 70000}, {"arming_disable_flags": -1},
-                {"flight_mode_flags": 1 << 160}, {"cpu_temp_c": 40000, "rate_profile_count": 1}):
+    for bad in (
+        {"cycle_time_us": 70000},
+        {"arming_disable_flags": -1},
+        {"flight_mode_flags": 1 << 160},
+        {"cpu_temp_c": 40000, "rate_profile_count": 1},
+    ):
         with pytest.raises(MspRequestError):
             dataclasses.replace(status, **bad).encode()
     ex = m.StatusEx(125, 0, 0x21, 0, 0, 0, 4, 0, 29, 0, 0)

@@ -624,17 +624,29 @@ def test_short_payload_messages_name_the_first_missing_byte() -> None:
         (m.RawImu, bytes(7), "MSP RawImu: needs at least 8 bytes, got 7"),
         (m.Analog, h("a8 0201 ff03 6aff 90"), "MSP Analog: needs at least 9 bytes, got 8"),
         (m.StatusEx, STATUS_EX_SITL[:20], "MSP StatusEx: needs at least 21 bytes, got 20"),
-        (m.Status, h("7d00 0000 2100 03000000 01 0a00 0000 02 81"),
-         "MSP Status: needs at least 18 bytes, got 17"),
+        (
+            m.Status,
+            h("7d00 0000 2100 03000000 01 0a00 0000 02 81"),
+            "MSP Status: needs at least 18 bytes, got 17",
+        ),
         (m.ArmingConfig, h("05"), "MSP ArmingConfig: needs at least 2 bytes, got 1"),
         (m.SetArmingConfig, h("05 00 19"), "MSP SetArmingConfig: needs at least 4 bytes, got 3"),
-        (m.BoardInfo, b"SITL" + h("0000 00 00 05") + b"SIT",
-         "MSP BoardInfo: needs at least 14 bytes, got 12"),
-        (m.MotorTelemetry, h("01 10270000 10"),
-         "MSP MotorTelemetry: needs at least 7 bytes, got 6"),
+        (
+            m.BoardInfo,
+            b"SITL" + h("0000 00 00 05") + b"SIT",
+            "MSP BoardInfo: needs at least 14 bytes, got 12",
+        ),
+        (
+            m.MotorTelemetry,
+            h("01 10270000 10"),
+            "MSP MotorTelemetry: needs at least 7 bytes, got 6",
+        ),
         (m.MultipleMspReply, h("05 0001"), "MSP MultipleMspReply: needs at least 6 bytes, got 3"),
-        (m.BuildInfo, b"Nov 21 2026" + b"14:42:00" + b"abcdef0" + h("1f"),
-         "MSP BuildInfo options: 1 bytes is not a whole number of 2-byte items"),
+        (
+            m.BuildInfo,
+            b"Nov 21 2026" + b"14:42:00" + b"abcdef0" + h("1f"),
+            "MSP BuildInfo options: 1 bytes is not a whole number of 2-byte items",
+        ),
         (m.ModeRanges, bytes(5), "MSP ModeRanges: 5 bytes is not a whole number of 4-byte items"),
     ]
     for cls, payload, message in cases:
@@ -656,10 +668,14 @@ def test_optional_tails_half_present_and_read_only_when_whole() -> None:
 
 def test_values_that_do_not_fit_are_request_errors_everywhere() -> None:
     """Also where bytes() used to raise a bare ValueError; MspRequestError is a ValueError."""
-    for bad in (lambda: m.BoxIds((256,)).encode(), lambda: m.RxMap((0,) * 7 + (256,)).encode(),
-                lambda: m.McuInfo(0, "x" * 256).encode(), lambda: m.PidAdvanced(256).encode(),
-                lambda: m.Uid((1, 2)).encode(), lambda: m.RawImu((0, 0), (0, 0, 0),
-                                                                  (0, 0, 0)).encode()):
+    for bad in (
+        lambda: m.BoxIds((256,)).encode(),
+        lambda: m.RxMap((0,) * 7 + (256,)).encode(),
+        lambda: m.McuInfo(0, "x" * 256).encode(),
+        lambda: m.PidAdvanced(256).encode(),
+        lambda: m.Uid((1, 2)).encode(),
+        lambda: m.RawImu((0, 0), (0, 0, 0), (0, 0, 0)).encode(),
+    ):
         with pytest.raises(MspFrameError):
             bad()
     with pytest.raises(MspFrameError, match="a channel map has 8 entries, got 7"):

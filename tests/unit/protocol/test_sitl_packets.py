@@ -13,15 +13,36 @@ from bfsitl.protocol.sitl_packets import FdmPacket, RcPacket, ServoPacket, Servo
 
 def test_fdm_packet_is_144_bytes_in_declaration_order():
     packet = FdmPacket(
-        timestamp_s=1.5, gyro_rad_s=(0.1, 0.2, 0.3), accel_m_s2=(1.0, 2.0, -9.8),
-        quaternion_wxyz=(1.0, 0.0, 0.0, 0.0), velocity_m_s=(4.0, 5.0, 6.0),
-        position=(7.0, 8.0, 9.0), pressure_pa=101000.0,
+        timestamp_s=1.5,
+        gyro_rad_s=(0.1, 0.2, 0.3),
+        accel_m_s2=(1.0, 2.0, -9.8),
+        quaternion_wxyz=(1.0, 0.0, 0.0, 0.0),
+        velocity_m_s=(4.0, 5.0, 6.0),
+        position=(7.0, 8.0, 9.0),
+        pressure_pa=101000.0,
     )
     wire = packet.pack()
     assert len(wire) == 144
     assert struct.unpack("<18d", wire) == (
-        1.5, 0.1, 0.2, 0.3, 1.0, 2.0, -9.8, 1.0, 0.0, 0.0, 0.0, 4.0, 5.0, 6.0, 7.0, 8.0, 9.0,
-        101000.0)
+        1.5,
+        0.1,
+        0.2,
+        0.3,
+        1.0,
+        2.0,
+        -9.8,
+        1.0,
+        0.0,
+        0.0,
+        0.0,
+        4.0,
+        5.0,
+        6.0,
+        7.0,
+        8.0,
+        9.0,
+        101000.0,
+    )
     assert FdmPacket.unpack(wire) == packet
 
 

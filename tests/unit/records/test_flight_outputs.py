@@ -14,10 +14,14 @@ from bfsitl.records.outputs import FlightOutputs, OutputOptions
 
 
 def test_rows_and_events_reach_every_sink_and_the_files_agree(tmp_path):
-    outputs = FlightOutputs(OutputOptions(csv_path=tmp_path / "f.csv",
-                                          mcap_path=tmp_path / "f.mcap",
-                                          summary_path=tmp_path / "out" / "f.json",
-                                          plot_path=tmp_path / "f.png")).start()
+    outputs = FlightOutputs(
+        OutputOptions(
+            csv_path=tmp_path / "f.csv",
+            mcap_path=tmp_path / "f.mcap",
+            summary_path=tmp_path / "out" / "f.json",
+            plot_path=tmp_path / "f.png",
+        )
+    ).start()
     rows = [make_row(i) for i in range(40)]
     try:
         for row in rows[:10]:
@@ -33,8 +37,7 @@ def test_rows_and_events_reach_every_sink_and_the_files_agree(tmp_path):
     assert counts["/flight/altitude"] == 40
     take_off = [m for _s, m, d in messages["/events"] if d.message == "take-off to 2.00 m"]
     assert take_off[0].log_time == round(rows[9].time_s * 1e9)
-    result = SimpleNamespace(rows=rows, controller="fused", outcome=SimpleNamespace(
-        value="landed"))
+    result = SimpleNamespace(rows=rows, controller="fused", outcome=SimpleNamespace(value="landed"))
     written = outputs.finish(result, {"outcome": "landed"})  # type: ignore[arg-type]
     # The analysers watched every row: what they found (nothing here) is in the summary.
     summary = json.loads((tmp_path / "out" / "f.json").read_text())
@@ -50,8 +53,7 @@ def test_what_the_analysers_find_in_the_rows_goes_into_the_summary(tmp_path):
     for row in rows:
         outputs.on_row(row)
     outputs.close()
-    result = SimpleNamespace(rows=rows, controller="fused", outcome=SimpleNamespace(
-        value="landed"))
+    result = SimpleNamespace(rows=rows, controller="fused", outcome=SimpleNamespace(value="landed"))
     outputs.finish(result, {"outcome": "landed"})  # type: ignore[arg-type]
     (finding,) = json.loads((tmp_path / "f.json").read_text())["findings"]
     assert finding["analyser"] == "motor_saturation" and finding["severity"] == "warning"
@@ -64,8 +66,9 @@ def test_what_the_analysers_find_in_the_rows_goes_into_the_summary(tmp_path):
 
 
 def test_a_sink_that_fails_to_close_does_not_keep_the_others_open(tmp_path):
-    outputs = FlightOutputs(OutputOptions(csv_path=tmp_path / "f.csv",
-                                          mcap_path=tmp_path / "f.mcap")).start()
+    outputs = FlightOutputs(
+        OutputOptions(csv_path=tmp_path / "f.csv", mcap_path=tmp_path / "f.mcap")
+    ).start()
     outputs.on_row(make_row(0))
 
     class Broken:
@@ -83,8 +86,9 @@ def test_a_sink_that_fails_to_close_does_not_keep_the_others_open(tmp_path):
 
 def test_an_unwritable_log_fails_before_the_flight_and_opens_nothing(tmp_path):
     (tmp_path / "file").write_text("x")
-    outputs = FlightOutputs(OutputOptions(csv_path=tmp_path / "file" / "f.csv",
-                                          mcap_path=tmp_path / "f.mcap"))
+    outputs = FlightOutputs(
+        OutputOptions(csv_path=tmp_path / "file" / "f.csv", mcap_path=tmp_path / "f.mcap")
+    )
     with pytest.raises(BfsitlError, match="cannot write the flight log"):
         outputs.start()
     assert outputs.sinks == [] and not (tmp_path / "f.mcap").exists()
@@ -94,10 +98,17 @@ def test_an_unwritable_log_fails_before_the_flight_and_opens_nothing(tmp_path):
 def test_each_suffix_opens_its_sink_and_an_unknown_one_says_which_exist(tmp_path):
     from bfsitl.records.sinks import CsvSink, FoxgloveSink, PlotSink, SummarySink, open_sink
 
-    kinds = {suffix: type(open_sink(tmp_path / f"f{suffix}"))
-             for suffix in (".csv", ".CSV", ".png", ".svg", ".json")}
-    assert kinds == {".csv": CsvSink, ".CSV": CsvSink, ".png": PlotSink, ".svg": PlotSink,
-                     ".json": SummarySink}
+    kinds = {
+        suffix: type(open_sink(tmp_path / f"f{suffix}"))
+        for suffix in (".csv", ".CSV", ".png", ".svg", ".json")
+    }
+    assert kinds == {
+        ".csv": CsvSink,
+        ".CSV": CsvSink,
+        ".png": PlotSink,
+        ".svg": PlotSink,
+        ".json": SummarySink,
+    }
     mcap = open_sink(tmp_path / "f.mcap")
     assert isinstance(mcap, FoxgloveSink) and mcap.live_url is None
     mcap.close()
@@ -124,8 +135,9 @@ def test_a_registered_format_is_written_like_the_built_in_ones(tmp_path):
         sinks.register_sink("lines", Lines)
     sinks.register_sink(".lines", Lines)
     try:
-        outputs = FlightOutputs(OutputOptions(csv_path=tmp_path / "f.csv",
-                                              extra_paths=(tmp_path / "f.lines",))).start()
+        outputs = FlightOutputs(
+            OutputOptions(csv_path=tmp_path / "f.csv", extra_paths=(tmp_path / "f.lines",))
+        ).start()
         for index in range(5):
             outputs.on_row(make_row(index))
         outputs.close()
@@ -149,7 +161,8 @@ def test_the_autopilot_records_in_the_format_its_log_names(tmp_path):
 
 
 def test_the_autopilot_log_carries_its_events_and_refuses_a_format_written_only_at_the_end(
-        tmp_path):
+    tmp_path,
+):
     from support.fake_vehicles import FakeVehicle, PController
 
     from bfsitl.autopilot import Autopilot
@@ -157,8 +170,12 @@ def test_the_autopilot_log_carries_its_events_and_refuses_a_format_written_only_
 
     heard: list[str] = []
     vehicle = FakeVehicle()
-    pilot = Autopilot(vehicle, PController(), log=tmp_path / "flight.mcap",  # type: ignore[arg-type]
-                      on_event=heard.append)
+    pilot = Autopilot(
+        vehicle,
+        PController(),
+        log=tmp_path / "flight.mcap",  # type: ignore[arg-type]
+        on_event=heard.append,
+    )
     pilot.takeoff(1.0)
     vehicle.close()
     _counts, messages = read_mcap(tmp_path / "flight.mcap")

@@ -66,7 +66,8 @@ def test_mcap_holds_one_message_per_row_on_every_topic_in_simulation_time(tmp_pa
     assert (pose.parent_frame_id, pose.child_frame_id) == ("world", "sim_body")
     # ENU: x east, y north, z up.
     assert (pose.translation.x, pose.translation.y, pose.translation.z) == pytest.approx(
-        (-0.25, 0.5, 1.93))
+        (-0.25, 0.5, 1.93)
+    )
     assert pose.timestamp.seconds == 3 and pose.timestamp.nanos == 60_000_000  # protobuf names
     altitude = messages["/flight/altitude"][0][2]
     assert altitude["sim_alt_m"] == pytest.approx(1.9)
@@ -112,11 +113,15 @@ def advertised(ws) -> dict[str, int]:
 def test_live_server_advertises_the_channels_and_streams_rows(tmp_path):
     with FoxgloveRecorder(live_port=0) as recorder:
         assert recorder.live_url is not None
-        with connect(recorder.live_url, subprotocols=["foxglove.sdk.v1"],
-                     origin="http://127.0.0.1:8080") as ws:
+        with connect(
+            recorder.live_url, subprotocols=["foxglove.sdk.v1"], origin="http://127.0.0.1:8080"
+        ) as ws:
             channels = advertised(ws)
-            ws.send(json.dumps({"op": "subscribe", "subscriptions": [
-                {"id": 5, "channelId": channels["/rc"]}]}))
+            ws.send(
+                json.dumps(
+                    {"op": "subscribe", "subscriptions": [{"id": 5, "channelId": channels["/rc"]}]}
+                )
+            )
             deadline_rows = 0
             payload = b""
             while not payload and deadline_rows < 50:
@@ -152,8 +157,7 @@ def test_foxgloves_own_app_and_an_allowed_origin_are_served():
     with FoxgloveRecorder(live_port=0, allow_origins=["https://viewer.example"]) as recorder:
         assert recorder.live_url is not None
         for origin in ("https://app.foxglove.dev", "https://viewer.example", None):
-            with connect(recorder.live_url, subprotocols=["foxglove.sdk.v1"],
-                         origin=origin) as ws:
+            with connect(recorder.live_url, subprotocols=["foxglove.sdk.v1"], origin=origin) as ws:
                 assert "/sim/pose" in advertised(ws)
 
 

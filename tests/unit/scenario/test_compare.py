@@ -28,40 +28,68 @@ from bfsitl.scenario.planned_run import PlannedRun
 from bfsitl.scenario.result import CheckResult, ScenarioResult, Verdict
 from bfsitl.scenario.spec import scenario_from_dict
 
-SIDES = (Side("A", "4.6.0-gps-lockstep"), Side("B", "4.6.0-gps-lockstep",
-                                               ("set ap_hover_throttle = 1275",)))
+SIDES = (
+    Side("A", "4.6.0-gps-lockstep"),
+    Side("B", "4.6.0-gps-lockstep", ("set ap_hover_throttle = 1275",)),
+)
 
 
 def scenario(name: str = "drop", seed: int = 5):
-    return scenario_from_dict({"duration_s": 20, "seed": seed, "cli": ["set x = 1"],
-                               "flight": {"takeoff_alt_m": 3.0},
-                               "expect": {"disarmed": True}}, name=name)
+    return scenario_from_dict(
+        {
+            "duration_s": 20,
+            "seed": seed,
+            "cli": ["set x = 1"],
+            "flight": {"takeoff_alt_m": 3.0},
+            "expect": {"disarmed": True},
+        },
+        name=name,
+    )
 
 
-def result(name: str = "drop", *, touchdown: float = 1.0, tilt: float = 10.0,
-           phases: tuple[str, ...] = ("LANDING",), findings: tuple[Finding, ...] = (),
-           verdict: Verdict = Verdict.PASSED, failed: tuple[str, ...] = (),
-           **metrics: float | None) -> ScenarioResult:
+def result(
+    name: str = "drop",
+    *,
+    touchdown: float = 1.0,
+    tilt: float = 10.0,
+    phases: tuple[str, ...] = ("LANDING",),
+    findings: tuple[Finding, ...] = (),
+    verdict: Verdict = Verdict.PASSED,
+    failed: tuple[str, ...] = (),
+    **metrics: float | None,
+) -> ScenarioResult:
     run = ScenarioResult(name, "fw", verdict, "r")
     run.metrics = {"touchdown_m_s": touchdown, "max_tilt_deg": tilt, **metrics}
-    run.behaviour = {"phases": list(phases), "modes": ["ANGLE"],
-                     "ended": ["disarmed on the ground"]}
+    run.behaviour = {
+        "phases": list(phases),
+        "modes": ["ANGLE"],
+        "ended": ["disarmed on the ground"],
+    }
     run.findings = list(findings)
     run.checks = [CheckResult(e, e not in failed, e) for e in ("disarmed = true", *failed)]
     return run
 
 
 def judge(a: list[ScenarioResult], b: list[ScenarioResult], accepted: tuple[str, ...] = ()):
-    planned = [ComparedRun(side, seed, PlannedRun(scenario(r.name), "fw", Path("x")))
-               for side, runs in (("A", a), ("B", b)) for seed, r in enumerate(runs)]
+    planned = [
+        ComparedRun(side, seed, PlannedRun(scenario(r.name), "fw", Path("x")))
+        for side, runs in (("A", a), ("B", b))
+        for seed, r in enumerate(runs)
+    ]
     (comparison,) = compare_results(planned, [*a, *b], SIDES, accepted)
     return comparison
 
 
 def test_the_plan_flies_each_seed_on_each_side_with_the_sides_lines_first(tmp_path) -> None:
     planned = plan_comparison([scenario(seed=5)], SIDES, 3, tmp_path)
-    assert [(p.side, p.seed) for p in planned] == [("A", 5), ("B", 5), ("A", 6), ("B", 6),
-                                                   ("A", 7), ("B", 7)]
+    assert [(p.side, p.seed) for p in planned] == [
+        ("A", 5),
+        ("B", 5),
+        ("A", 6),
+        ("B", 6),
+        ("A", 7),
+        ("B", 7),
+    ]
     b = planned[1].run
     assert b.scenario.seed == 5 and b.firmware == "4.6.0-gps-lockstep"
     # A changed default goes before the scenario's own lines: a scenario that sets it wins.
@@ -116,14 +144,17 @@ def test_a_different_phase_sequence_or_failed_expectation_is_changed_behaviour()
     a = [result(phases=("LANDING", "RX_LOSS_MONITORING"))] * 2
     changed = judge(a, [result(phases=("RX_LOSS_MONITORING",))] * 2)
     assert changed.change is Change.CHANGED
-    assert changed.differences == ["failsafe phases: A LANDING -> RX_LOSS_MONITORING; "
-                                   "B RX_LOSS_MONITORING"]
+    assert changed.differences == [
+        "failsafe phases: A LANDING -> RX_LOSS_MONITORING; B RX_LOSS_MONITORING"
+    ]
     failing = judge([result()] * 2, [result(failed=("crashed = false",))] * 2)
     assert failing.change is Change.CHANGED
     assert failing.differences == ["expectations: A all met; B crashed = false failed"]
     # One seed of B like one of A: the seeds already disagree, no consistent change.
-    mixed = judge([result(phases=("LANDING",)), result(phases=("GPS_RESCUE",))],
-                  [result(phases=("GPS_RESCUE",)), result(phases=("LANDED",))])
+    mixed = judge(
+        [result(phases=("LANDING",)), result(phases=("GPS_RESCUE",))],
+        [result(phases=("GPS_RESCUE",)), result(phases=("LANDED",))],
+    )
     assert mixed.change is Change.SAME
 
 
@@ -146,7 +177,7 @@ def test_errors_skips_and_accepting() -> None:
     broken = result(verdict=Verdict.ERROR)
     comparison = judge([result()], [broken])
     assert comparison.change is Change.ERROR and comparison.fails
-    assert judge([result()], [broken], accepted=("drop",)).fails   # no waiving an error
+    assert judge([result()], [broken], accepted=("drop",)).fails  # no waiving an error
     skipped = result(verdict=Verdict.SKIPPED)
     assert judge([skipped], [skipped]).change is Change.SKIPPED
     a = [result(touchdown=1.0)]
@@ -161,13 +192,11 @@ def test_what_a_comparison_writes(tmp_path: Path) -> None:
     lines = comparison_lines(comparisons)
     assert lines[0].startswith("SAME") and lines[1].startswith("WORSE")
     assert lines[-1] == "1 same, 1 worse"
-    data = json.loads(write_comparison_json(comparisons, SIDES, tmp_path / "c.json")
-                      .read_text())
+    data = json.loads(write_comparison_json(comparisons, SIDES, tmp_path / "c.json").read_text())
     assert data["sides"][1]["cli"] == ["set ap_hover_throttle = 1275"]
     assert [s["change"] for s in data["scenarios"]] == ["same", "worse"]
     assert data["scenarios"][1]["fails"] is True
-    xml = JUnitXml.fromfile(str(write_comparison_junit(comparisons, SIDES,
-                                                       tmp_path / "c.xml")))
+    xml = JUnitXml.fromfile(str(write_comparison_junit(comparisons, SIDES, tmp_path / "c.xml")))
     (suite,) = list(xml)
     cases = {case.name: case for case in suite}
     assert not cases["hover"].result

@@ -18,8 +18,7 @@ from bfsitl.scenario.fc_mission import FcWaypoint, fc_mission_cli, read_fc_waypo
 from bfsitl.scenario.run import missing_features, scenario_profile
 from bfsitl.scenario.spec import scenario_from_dict
 
-BASE = {"duration_s": 60, "flight": {"takeoff_alt_m": 10.0},
-        "expect": {"mode_seen": "AUTOPILOT"}}
+BASE = {"duration_s": 60, "flight": {"takeoff_alt_m": 10.0}, "expect": {"mode_seen": "AUTOPILOT"}}
 
 
 def scenario(**extra: object):
@@ -27,36 +26,55 @@ def scenario(**extra: object):
 
 
 def test_waypoints_become_the_cli_lines_of_the_fcs_flight_plan() -> None:
-    waypoints = read_fc_waypoints([
-        {"north_m": 150.0, "east_m": 0.0, "alt_m": 10.0},
-        {"north_m": 40.0, "east_m": -25.0, "alt_m": 12.5, "speed_m_s": 3.0, "type": "LAND",
-         "duration_s": 5.0},
-        {"north_m": 40.0, "east_m": 0.0, "alt_m": 10.0, "type": "hold", "duration_s": 60,
-         "pattern": "figure8"}], where="f.toml")
+    waypoints = read_fc_waypoints(
+        [
+            {"north_m": 150.0, "east_m": 0.0, "alt_m": 10.0},
+            {
+                "north_m": 40.0,
+                "east_m": -25.0,
+                "alt_m": 12.5,
+                "speed_m_s": 3.0,
+                "type": "LAND",
+                "duration_s": 5.0,
+            },
+            {
+                "north_m": 40.0,
+                "east_m": 0.0,
+                "alt_m": 10.0,
+                "type": "hold",
+                "duration_s": 60,
+                "pattern": "figure8",
+            },
+        ],
+        where="f.toml",
+    )
     lines = fc_mission_cli(waypoints)
     assert lines[0] == "waypoint clear"
     first, land, hold = (line.split() for line in lines[1:])
     assert first[:3] == ["waypoint", "insert", "0"]
-    assert first[5:] == ["1000", "500", "flyover", "0", "none"]   # cm, cm/s, type, ds, pattern
+    assert first[5:] == ["1000", "500", "flyover", "0", "none"]  # cm, cm/s, type, ds, pattern
     assert land[5:] == ["1250", "300", "land", "50", "none"]
     assert hold[7:] == ["hold", "600", "figure8"]
     # The latitude and longitude are where the simulator puts 150 m north of home.
-    north, east, _ = geodetic_to_ned(GeoPoint(float(first[3]), float(first[4]), 10.0),
-                                     GeoPoint(0.0, 0.0, 0.0))
+    north, east, _ = geodetic_to_ned(
+        GeoPoint(float(first[3]), float(first[4]), 10.0), GeoPoint(0.0, 0.0, 0.0)
+    )
     assert north == pytest.approx(150.0, abs=0.01) and east == pytest.approx(0.0, abs=0.01)
-    assert float(land[4]) < 0                                      # west is negative
+    assert float(land[4]) < 0  # west is negative
     assert fc_mission_cli(()) == ()
 
 
-@pytest.mark.parametrize(("table", "message"), [
-    ({"north_m": 1.0, "east_m": 0.0}, "alt_m is missing"),
-    ({"north_m": 1.0, "east_m": 0.0, "alt_m": 5.0, "type": "loiter"}, "type = 'loiter' is not"),
-    ({"north_m": 1.0, "east_m": 0.0, "alt_m": 5.0, "pattern": "spiral"}, "pattern"),
-    ({"north_m": 1.0, "east_m": 0.0, "alt_m": 5.0, "heading": 3}, "unknown key"),
-    ({"north_m": 1e6, "east_m": 0.0, "alt_m": 5.0}, "north_m = 1000000.0 must be"),
-])
-def test_a_bad_waypoint_names_the_file_the_waypoint_and_the_key(table: dict, message: str
-                                                                ) -> None:
+@pytest.mark.parametrize(
+    ("table", "message"),
+    [
+        ({"north_m": 1.0, "east_m": 0.0}, "alt_m is missing"),
+        ({"north_m": 1.0, "east_m": 0.0, "alt_m": 5.0, "type": "loiter"}, "type = 'loiter' is not"),
+        ({"north_m": 1.0, "east_m": 0.0, "alt_m": 5.0, "pattern": "spiral"}, "pattern"),
+        ({"north_m": 1.0, "east_m": 0.0, "alt_m": 5.0, "heading": 3}, "unknown key"),
+        ({"north_m": 1e6, "east_m": 0.0, "alt_m": 5.0}, "north_m = 1000000.0 must be"),
+    ],
+)
+def test_a_bad_waypoint_names_the_file_the_waypoint_and_the_key(table: dict, message: str) -> None:
     with pytest.raises(ScenarioError, match=message) as caught:
         read_fc_waypoints([table], where="f.toml")
     assert "f.toml, fc_waypoint 1" in str(caught.value)
@@ -72,8 +90,10 @@ def test_a_scenario_with_the_fcs_waypoints_needs_gps_and_flight_plans() -> None:
 
 
 def test_lines_for_one_generation_go_after_the_common_ones() -> None:
-    lines = {"cli": ["set failsafe_delay = 10"],
-             "cli_for": {"master": ["set ap_yaw_mode = FIXED"], "4.6": ["set x = 1"]}}
+    lines = {
+        "cli": ["set failsafe_delay = 10"],
+        "cli_for": {"master": ["set ap_yaw_mode = FIXED"], "4.6": ["set x = 1"]},
+    }
     spec = scenario(fc_waypoint=[{"north_m": 50.0, "east_m": 0.0, "alt_m": 10.0}], **lines)
     on_master = scenario_profile(spec, MASTER, ()).cli_lines
     assert on_master[-2:] == ("set failsafe_delay = 10", "set ap_yaw_mode = FIXED")
@@ -86,8 +106,9 @@ def test_lines_for_one_generation_go_after_the_common_ones() -> None:
 
 
 def switch(mode: str):
-    return read_fault_spec({"kind": "mode_switch", "mode": mode, "at_s": 12.0},
-                           where="f.toml", number=1, run_s=60.0)
+    return read_fault_spec(
+        {"kind": "mode_switch", "mode": mode, "at_s": 12.0}, where="f.toml", number=1, run_s=60.0
+    )
 
 
 def test_a_mode_switch_is_provisioned_on_its_own_channel_and_the_fc_reads_it() -> None:
@@ -102,8 +123,10 @@ def test_a_mode_switch_is_provisioned_on_its_own_channel_and_the_fc_reads_it() -
     # A SITL reads AUX1-AUX6 only unless told: AUX7 needs max_aux_channels.
     assert "set max_aux_channels = 7" in profile.cli_lines
     (althold,) = make_faults((switch("ALTHOLD"),), V46)
-    assert not any("max_aux_channels" in line
-                   for line in scenario_profile(scenario(), V46, (althold,)).cli_lines)
+    assert not any(
+        "max_aux_channels" in line
+        for line in scenario_profile(scenario(), V46, (althold,)).cli_lines
+    )
 
 
 def test_a_mode_switch_must_name_a_mode_it_knows_and_a_firmware_with_gps() -> None:

@@ -30,8 +30,9 @@ SCENARIO = Scenario("hover", MissionPlan(), 10.0)
 
 
 def parcel_of(data: bytes, name: str = "4.6.0-lockstep") -> FirmwareParcel:
-    return FirmwareParcel(name, hashlib.sha256(data).hexdigest(), "betaflight_4.6.0_SITL",
-                          len(data), ref="the object")
+    return FirmwareParcel(
+        name, hashlib.sha256(data).hexdigest(), "betaflight_4.6.0_SITL", len(data), ref="the object"
+    )
 
 
 def test_a_build_is_fetched_once_kept_by_its_hash_and_runnable(tmp_path: Path) -> None:
@@ -72,14 +73,17 @@ def test_a_runs_files_come_home_under_its_directory(tmp_path: Path) -> None:
     (work / "sitl" / "sitl.log").write_text("booted\n")
     archive = pack_outputs(work, max_bytes=1_000_000)
     home = tmp_path / "driver" / "4.6.0" / "hover"
-    result = ScenarioResult("hover", "4.6.0", Verdict.PASSED, "all met",
-                            artifacts={"log": Path("flight.csv"),
-                                       "sitl_log": Path("sitl/sitl.log")})
+    result = ScenarioResult(
+        "hover",
+        "4.6.0",
+        Verdict.PASSED,
+        "all met",
+        artifacts={"log": Path("flight.csv"), "sitl_log": Path("sitl/sitl.log")},
+    )
     run = PlannedRun(SCENARIO, "4.6.0", home)
     brought = bring_home(RemoteOutcome(result, archive, "node-1"), run)
     assert (home / "flight.csv").read_text() == "time_s\n0.0\n"
-    assert brought.artifacts == {"log": home / "flight.csv",
-                                 "sitl_log": home / "sitl" / "sitl.log"}
+    assert brought.artifacts == {"log": home / "flight.csv", "sitl_log": home / "sitl" / "sitl.log"}
     assert all(path.is_file() for path in brought.artifacts.values())
 
 
@@ -90,8 +94,7 @@ def test_files_past_the_bound_are_an_error_that_says_what_to_do(tmp_path: Path) 
 
 
 @pytest.mark.parametrize("name", ["../escape.txt", "/etc/passwd-like", "a/../../b"])
-def test_an_archive_member_that_would_land_outside_is_refused(tmp_path: Path,
-                                                             name: str) -> None:
+def test_an_archive_member_that_would_land_outside_is_refused(tmp_path: Path, name: str) -> None:
     buffer = io.BytesIO()
     with tarfile.open(fileobj=buffer, mode="w:gz") as archive:
         info = tarfile.TarInfo(name)
@@ -114,8 +117,11 @@ class Cancelled(LostNode):
     pass
 
 
-FAKE_RAY = SimpleNamespace(exceptions=SimpleNamespace(
-    RayError=LostNode, RayTaskError=TaskRaised, TaskCancelledError=Cancelled))
+FAKE_RAY = SimpleNamespace(
+    exceptions=SimpleNamespace(
+        RayError=LostNode, RayTaskError=TaskRaised, TaskCancelledError=Cancelled
+    )
+)
 
 
 def test_only_a_lost_worker_is_worth_another_try() -> None:

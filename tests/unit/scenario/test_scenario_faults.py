@@ -40,7 +40,7 @@ def test_a_delay_sends_the_command_of_that_long_ago() -> None:
     state.fault = RcFault(delay_s=0.1)
     early, late = RcCommand(throttle_us=1200), RcCommand(throttle_us=1700)
     state.note(0.0, early)
-    assert state.channels(0.05, late)[2] == 1200   # 0.05 s after: still the old one
+    assert state.channels(0.05, late)[2] == 1200  # 0.05 s after: still the old one
     assert state.channels(0.149, late)[2] == 1200
     assert state.channels(0.151, late)[2] == 1700  # the new one set at 0.05 s, 0.1 s later
 
@@ -48,13 +48,13 @@ def test_a_delay_sends_the_command_of_that_long_ago() -> None:
 def test_a_command_set_just_after_a_delay_begins_waits_too() -> None:
     state = RcFaultState()
     before, after = RcCommand(throttle_us=1200), RcCommand(throttle_us=1700)
-    assert state.channels(0.00, before)[2] == 1200   # healthy: what goes out
+    assert state.channels(0.00, before)[2] == 1200  # healthy: what goes out
     state.inject(RcFault(delay_s=0.2), before)
-    assert state.channels(0.01, after)[2] == 1200    # set after the delay began
+    assert state.channels(0.01, after)[2] == 1200  # set after the delay began
     assert state.channels(0.20, after)[2] == 1200
     assert state.channels(0.22, after)[2] == 1700
     state.inject(None, after)
-    assert state.channels(0.23, before)[2] == 1200   # over: at once again
+    assert state.channels(0.23, before)[2] == 1200  # over: at once again
 
 
 def test_jitter_is_repeatable_with_its_seed_and_within_its_bound() -> None:
@@ -73,8 +73,9 @@ def test_jitter_is_repeatable_with_its_seed_and_within_its_bound() -> None:
     assert min(lags) >= 0 and max(lags) <= 5 and len(set(lags)) > 2  # 0..50 ms, varied
 
 
-@pytest.mark.parametrize("fault", [dict(pulses_us=((16, 1000),)), dict(pulses_us=((0, 70000),)),
-                                   dict(delay_s=-1.0)])
+@pytest.mark.parametrize(
+    "fault", [dict(pulses_us=((16, 1000),)), dict(pulses_us=((0, 70000),)), dict(delay_s=-1.0)]
+)
 def test_impossible_rc_faults_are_refused(fault: dict) -> None:
     with pytest.raises(BfsitlError):
         RcFault(**fault)
@@ -97,7 +98,7 @@ def test_a_weak_rear_left_motor_rolls_left_and_pitches_the_nose_up() -> None:
     # Betaflight's quad X: M1 rear right, M2 front right, M3 rear left, M4 front left.
     p, q, _ = _spin(hover, 3)
     assert p < -0.01 and q > 0.01
-    p, q, _ = _spin(hover, 2)   # front right: roll right, nose down
+    p, q, _ = _spin(hover, 2)  # front right: roll right, nose down
     assert p > 0.01 and q < -0.01
 
 
@@ -159,8 +160,9 @@ def test_a_wind_step_takes_effect_at_once() -> None:
 
 # -- the catalog ---------------------------------------------------------------------------
 def spec(kind: str, **params: object) -> FaultSpec:
-    return read_fault_spec({"kind": kind, "at_s": 5.0, **params}, where="x.toml", number=1,
-                           run_s=60.0)
+    return read_fault_spec(
+        {"kind": kind, "at_s": 5.0, **params}, where="x.toml", number=1, run_s=60.0
+    )
 
 
 def test_rc_loss_auto_is_silence_on_master_and_the_switch_on_46() -> None:
@@ -174,7 +176,8 @@ def test_silence_on_46_is_refused_with_what_works_there() -> None:
     with pytest.raises(FaultNotSupportedError, match="holds the last sticks.*switch"):
         make_fault(spec("rc_loss", method="silence"), V46)
     assert make_fault(spec("rc_loss", method="invalid_pulses"), V46).title.endswith(
-        "(invalid pulses)")
+        "(invalid pulses)"
+    )
     assert LOST_PULSE_US < 885  # below rx_min_usec: a lost channel to every firmware
 
 
@@ -187,16 +190,18 @@ def test_gps_faults_follow_the_firmware() -> None:
     assert make_fault(spec("gps_glitch", north_m=5.0), V46_GPS).takes_sticks is False
 
 
-@pytest.mark.parametrize(("kind", "params", "message"), [
-    ("rc_loss", {"method": "radio off"}, "not one of"),
-    ("motor_thrust", {"motor": 7, "fraction": 0.5}, "motor = 1..4"),
-    ("motor_thrust", {"motor": 1, "fraction": 2.0}, r"fraction = 2.0 must be a number in 0..1"),
-    ("motor_thrust", {"motor": 1, "fraction": 0.7, "speed": 3}, "no parameter"),
-    ("gyro_noise", {}, "needs std_deg_s"),
-    ("earthquake", {}, "unknown fault kind 'earthquake'"),
-])
-def test_bad_fault_tables_name_the_fault_and_the_key(kind: str, params: dict,
-                                                     message: str) -> None:
+@pytest.mark.parametrize(
+    ("kind", "params", "message"),
+    [
+        ("rc_loss", {"method": "radio off"}, "not one of"),
+        ("motor_thrust", {"motor": 7, "fraction": 0.5}, "motor = 1..4"),
+        ("motor_thrust", {"motor": 1, "fraction": 2.0}, r"fraction = 2.0 must be a number in 0..1"),
+        ("motor_thrust", {"motor": 1, "fraction": 0.7, "speed": 3}, "no parameter"),
+        ("gyro_noise", {}, "needs std_deg_s"),
+        ("earthquake", {}, "unknown fault kind 'earthquake'"),
+    ],
+)
+def test_bad_fault_tables_name_the_fault_and_the_key(kind: str, params: dict, message: str) -> None:
     with pytest.raises(ScenarioError, match=message) as caught:
         spec(kind, **params)  # refused when the file is read, on any firmware
     assert str(caught.value).startswith("x.toml, fault 1: ")
@@ -233,9 +238,13 @@ def embedded_vehicle() -> tuple[Vehicle, Simulator]:
 def test_each_fault_acts_through_the_disturbance_surface_and_undoes_exactly() -> None:
     vehicle, simulator = embedded_vehicle()
     before = (simulator.motor_thrust, simulator.sensor_config, simulator.wind)
-    for kind, params in (("motor_thrust", {"motor": 3, "fraction": 0.6}),
-                         ("gps_glitch", {"north_m": 5.0}), ("gyro_bias", {"z_deg_s": 2.0}),
-                         ("baro_drift", {"rate_m_s": 0.5}), ("wind", {"north_m_s": 4.0})):
+    for kind, params in (
+        ("motor_thrust", {"motor": 3, "fraction": 0.6}),
+        ("gps_glitch", {"north_m": 5.0}),
+        ("gyro_bias", {"z_deg_s": 2.0}),
+        ("baro_drift", {"rate_m_s": 0.5}),
+        ("wind", {"north_m_s": 4.0}),
+    ):
         undo = make_fault(spec(kind, **params), MASTER).apply(vehicle)  # type: ignore[arg-type]
         assert (simulator.motor_thrust, simulator.sensor_config, simulator.wind) != before
         undo()

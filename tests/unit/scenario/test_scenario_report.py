@@ -21,13 +21,25 @@ MASTER = "master-lockstep"
 OLDER = "4.6.0-gps-lockstep"
 EVIL = "<script>alert(1)</script>"
 
-OK = CheckResult("disarmed = true", True, "disarmed = true: the FC was disarmed at the end",
-                 "disarmed", 11.2)
-BAD = CheckResult("disarmed_within_s = 0.2", False,
-                  "disarmed_within_s = 0.2: disarmed 0.52 s after the fault (expected within "
-                  "0.2 s) at t=8.53 s", 0.52, 8.53)
-CRASH = Finding("crash", Severity.FAILURE, "hit the ground at 7.0 m/s, upside down", 9.3, 7.0,
-                "m/s", {"touchdown_speed_m_s": 7.0, "tilt_at_rest_deg": 171.2})
+OK = CheckResult(
+    "disarmed = true", True, "disarmed = true: the FC was disarmed at the end", "disarmed", 11.2
+)
+BAD = CheckResult(
+    "disarmed_within_s = 0.2",
+    False,
+    "disarmed_within_s = 0.2: disarmed 0.52 s after the fault (expected within 0.2 s) at t=8.53 s",
+    0.52,
+    8.53,
+)
+CRASH = Finding(
+    "crash",
+    Severity.FAILURE,
+    "hit the ground at 7.0 m/s, upside down",
+    9.3,
+    7.0,
+    "m/s",
+    {"touchdown_speed_m_s": 7.0, "tilt_at_rest_deg": 171.2},
+)
 
 
 def make_results(root: Path) -> list[ScenarioResult]:
@@ -41,24 +53,48 @@ def make_results(root: Path) -> list[ScenarioResult]:
     source.parent.mkdir()
     source.write_text("# a scenario\n")
     return [
-        ScenarioResult("drop", MASTER, Verdict.FAILED, BAD.message, source=source,
-                       firmware_version="2026.12.0-alpha", checks=[OK, BAD],
-                       events=[TimedEvent(8.0, "RC lost (silence)"),
-                               TimedEvent(8.52, "disarmed")],
-                       sim_time_s=11.2, wall_time_s=2.0,
-                       findings=[CRASH], watched=["crash", "failsafe"],
-                       unwatched={"gps_glitch": "the flight track has no fc_north_m"},
-                       artifacts={"plot": run_dir / "plot.png",
-                                  "log": run_dir / "flight log.csv",
-                                  "blackbox": run_dir / "never-written.bbl"}),
-        ScenarioResult("hover", MASTER, Verdict.PASSED, "all 1 expectations met",
-                       firmware_version="2026.12.0-alpha", checks=[OK],
-                       sim_time_s=20.0, wall_time_s=3.0),
-        ScenarioResult("gps-loss", OLDER, Verdict.SKIPPED,
-                       "gps_loss cannot happen on Betaflight 4.6.0"),
-        ScenarioResult(EVIL, OLDER, Verdict.ERROR, "the SITL exited with code 1",
-                       events=[TimedEvent(0.5, "SITL started")], sim_time_s=0.5,
-                       wall_time_s=1.0),
+        ScenarioResult(
+            "drop",
+            MASTER,
+            Verdict.FAILED,
+            BAD.message,
+            source=source,
+            firmware_version="2026.12.0-alpha",
+            checks=[OK, BAD],
+            events=[TimedEvent(8.0, "RC lost (silence)"), TimedEvent(8.52, "disarmed")],
+            sim_time_s=11.2,
+            wall_time_s=2.0,
+            findings=[CRASH],
+            watched=["crash", "failsafe"],
+            unwatched={"gps_glitch": "the flight track has no fc_north_m"},
+            artifacts={
+                "plot": run_dir / "plot.png",
+                "log": run_dir / "flight log.csv",
+                "blackbox": run_dir / "never-written.bbl",
+            },
+        ),
+        ScenarioResult(
+            "hover",
+            MASTER,
+            Verdict.PASSED,
+            "all 1 expectations met",
+            firmware_version="2026.12.0-alpha",
+            checks=[OK],
+            sim_time_s=20.0,
+            wall_time_s=3.0,
+        ),
+        ScenarioResult(
+            "gps-loss", OLDER, Verdict.SKIPPED, "gps_loss cannot happen on Betaflight 4.6.0"
+        ),
+        ScenarioResult(
+            EVIL,
+            OLDER,
+            Verdict.ERROR,
+            "the SITL exited with code 1",
+            events=[TimedEvent(0.5, "SITL started")],
+            sim_time_s=0.5,
+            wall_time_s=1.0,
+        ),
     ]
 
 
@@ -81,8 +117,9 @@ def test_junit_has_one_suite_per_firmware_with_the_right_counts(tmp_path: Path) 
     assert master.time == pytest.approx(5.0)
 
 
-def test_junit_cases_carry_name_classname_time_and_file(tmp_path: Path,
-                                                        monkeypatch: pytest.MonkeyPatch) -> None:
+def test_junit_cases_carry_name_classname_time_and_file(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
     monkeypatch.chdir(tmp_path)
     path = write_junit(make_results(tmp_path), tmp_path / "results.xml")
     master = suites_by_name(path)[f"bfsitl scenarios [{MASTER}]"]
@@ -91,14 +128,17 @@ def test_junit_cases_carry_name_classname_time_and_file(tmp_path: Path,
     assert drop.time == pytest.approx(2.0)
     older = suites_by_name(path)[f"bfsitl scenarios [{OLDER}]"]
     assert {case.classname for case in older} == {"scenarios.4_6_0-gps-lockstep"}
-    files = {case.get("name"): case.get("file")
-             for case in ElementTree.parse(path).getroot().iter("testcase")}
+    files = {
+        case.get("name"): case.get("file")
+        for case in ElementTree.parse(path).getroot().iter("testcase")
+    }
     assert files["drop"] == "scenarios/drop.toml"  # relative to the current directory
     assert files["hover"] is None  # no source, no attribute
 
 
 def test_junit_failure_message_is_the_reason_and_its_text_lists_checks_and_events(
-        tmp_path: Path) -> None:
+    tmp_path: Path,
+) -> None:
     path = write_junit(make_results(tmp_path), tmp_path / "results.xml")
     master = suites_by_name(path)[f"bfsitl scenarios [{MASTER}]"]
     drop = next(case for case in master if case.name == "drop")
@@ -126,9 +166,9 @@ def test_junit_error_and_skipped_carry_their_reasons(tmp_path: Path) -> None:
     assert "SITL started" in error.text
 
 
-def test_junit_properties_hold_version_sim_time_and_files(tmp_path: Path,
-                                                          monkeypatch: pytest.MonkeyPatch
-                                                          ) -> None:
+def test_junit_properties_hold_version_sim_time_and_files(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
     monkeypatch.chdir(tmp_path)
     path = write_junit(make_results(tmp_path), tmp_path / "results.xml")
     master = suites_by_name(path)[f"bfsitl scenarios [{MASTER}]"]
@@ -138,8 +178,10 @@ def test_junit_properties_hold_version_sim_time_and_files(tmp_path: Path,
     assert properties["hover.sim_time_s"] == "20"
     assert properties["drop.plot"] == "runs/drop/plot.png"
     assert properties["drop.log"] == "runs/drop/flight log.csv"
-    assert properties["drop.finding.crash"] == \
-        "failure at t=9.30 s: hit the ground at 7.0 m/s, upside down"
+    assert (
+        properties["drop.finding.crash"]
+        == "failure at t=9.30 s: hit the ground at 7.0 m/s, upside down"
+    )
     assert not any(".finding." in name for name in properties if name.startswith("hover"))
     older = suites_by_name(path)[f"bfsitl scenarios [{OLDER}]"]
     assert "firmware_version" not in {p.name for p in older.properties()}
@@ -147,8 +189,13 @@ def test_junit_properties_hold_version_sim_time_and_files(tmp_path: Path,
 
 def test_junit_survives_control_characters_in_messages(tmp_path: Path) -> None:
     """A SITL's stdout can hold ANSI escapes and NULs, which XML 1.0 cannot carry."""
-    broken = ScenarioResult("noisy", MASTER, Verdict.ERROR, "exited: \x1b[31mboom\x00",
-                            events=[TimedEvent(1.0, "bell \x07")])
+    broken = ScenarioResult(
+        "noisy",
+        MASTER,
+        Verdict.ERROR,
+        "exited: \x1b[31mboom\x00",
+        events=[TimedEvent(1.0, "bell \x07")],
+    )
     path = write_junit([broken], tmp_path / "results.xml")
     ElementTree.parse(path)
     (case,) = next(iter(JUnitXml.fromfile(str(path))))
@@ -164,7 +211,8 @@ def test_junit_replaces_an_older_file_whole(tmp_path: Path) -> None:
 
 
 def test_an_interrupted_write_leaves_the_old_file_and_no_temporary(
-        tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
     path = tmp_path / "results.xml"
     path.write_text("an older run")
 
@@ -229,8 +277,9 @@ def test_the_report_lists_every_run_and_verdict(tmp_path: Path) -> None:
 
 
 def test_the_report_escapes_user_text_and_runs_no_script(tmp_path: Path) -> None:
-    page, parser = parse_page(write_report(make_results(tmp_path), tmp_path / "report",
-                                           title="<b>nightly</b>"))
+    page, parser = parse_page(
+        write_report(make_results(tmp_path), tmp_path / "report", title="<b>nightly</b>")
+    )
     assert "&lt;script&gt;alert(1)&lt;/script&gt;" in page
     assert "<script" not in page and "script" not in parser.tags
     assert "&lt;b&gt;nightly&lt;/b&gt;" in page and "<b>nightly</b>" in " ".join(parser.text)
@@ -268,17 +317,25 @@ def test_the_report_replaces_an_older_page_whole(tmp_path: Path) -> None:
     assert [p.name for p in directory.iterdir()] == ["index.html"]
 
 
-def test_a_run_retried_on_a_cluster_says_so_once_in_junit_and_in_the_report(
-        tmp_path: Path) -> None:
-    retried = ScenarioResult("hover", "4.6.0", Verdict.PASSED, "all 2 expectations met",
-                             retried=("its Ray worker or node was lost (NodeDiedError)",))
+def test_a_run_retried_on_a_cluster_says_so_once_in_junit_and_in_the_report(tmp_path: Path) -> None:
+    retried = ScenarioResult(
+        "hover",
+        "4.6.0",
+        Verdict.PASSED,
+        "all 2 expectations met",
+        retried=("its Ray worker or node was lost (NodeDiedError)",),
+    )
     other = ScenarioResult("drop", "4.6.0", Verdict.PASSED, "all 1 expectations met")
     write_junit([retried, other], tmp_path / "results.xml")
-    cases = {case.name: case for suite in JUnitXml.fromfile(str(tmp_path / "results.xml"))
-             for case in suite}
+    cases = {
+        case.name: case
+        for suite in JUnitXml.fromfile(str(tmp_path / "results.xml"))
+        for case in suite
+    }
     assert sorted(cases) == ["drop", "hover"]  # once each
     assert (cases["hover"].system_out or "").startswith(
-        "retried: attempt 1 was lost: its Ray worker or node was lost (NodeDiedError)")
+        "retried: attempt 1 was lost: its Ray worker or node was lost (NodeDiedError)"
+    )
     assert "retried" not in (cases["drop"].system_out or "")
     write_report([retried, other], tmp_path / "report")
     html = (tmp_path / "report" / "index.html").read_text()

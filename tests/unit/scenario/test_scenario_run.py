@@ -36,14 +36,15 @@ def test_a_run_provisions_the_blackbox_the_hover_throttle_and_the_scenarios_line
     lines = profile.cli_lines
     assert "set blackbox_device = VIRTUAL" in lines and "set debug_mode = FAILSAFE" in lines
     assert hover_throttle_line(IRIS) in lines and hover_throttle_line(IRIS).endswith("1545")
-    assert lines[-1] == "set failsafe_procedure = DROP"   # the scenario's own lines win
+    assert lines[-1] == "set failsafe_procedure = DROP"  # the scenario's own lines win
     assert not any(r.box_id == BoxId.FAILSAFE for r in profile.mode_ranges)
     switch = make_faults(
-        (read_fault_spec({"kind": "rc_loss", "at_s": 5.0}, where="t", number=1, run_s=20.0),),
-        V46)
+        (read_fault_spec({"kind": "rc_loss", "at_s": 5.0}, where="t", number=1, run_s=20.0),), V46
+    )
     with_switch = scenario_profile(plain, V46, switch)
-    assert any(r.box_id == BoxId.FAILSAFE and r.aux_channel_index == 2
-               for r in with_switch.mode_ranges)
+    assert any(
+        r.box_id == BoxId.FAILSAFE and r.aux_channel_index == 2 for r in with_switch.mode_ranges
+    )
     assert "1/16" in " ".join(blackbox_cli(V46)) and "1/4" in " ".join(blackbox_cli(MASTER))
 
 
@@ -66,39 +67,75 @@ class Vehicle:
         self.rc_command = command
 
 
-def sample(time_s: float, *, armed: bool = True, modes: tuple[str, ...] = ("ANGLE",)
-           ) -> FlightSample:
+def sample(
+    time_s: float, *, armed: bool = True, modes: tuple[str, ...] = ("ANGLE",)
+) -> FlightSample:
     return FlightSample(
-        time_s=time_s, wall_s=0.0, fc_alt_m=1.0, fc_climb_m_s=0.0, fc_accel_up_m_s2=0.0,
-        roll_deg=0.0, pitch_deg=0.0, yaw_deg=0.0, sim_alt_m=1.0, sim_climb_m_s=0.0,
-        sim_tilt_deg=0.0, sim_roll_deg=0.0, sim_pitch_deg=0.0, sim_yaw_deg=0.0,
-        on_ground=False, armed=armed, arming_blockers=(), flight_modes=modes,
-        motors=(0.5,) * 4, rc=RcCommand())
+        time_s=time_s,
+        wall_s=0.0,
+        fc_alt_m=1.0,
+        fc_climb_m_s=0.0,
+        fc_accel_up_m_s2=0.0,
+        roll_deg=0.0,
+        pitch_deg=0.0,
+        yaw_deg=0.0,
+        sim_alt_m=1.0,
+        sim_climb_m_s=0.0,
+        sim_tilt_deg=0.0,
+        sim_roll_deg=0.0,
+        sim_pitch_deg=0.0,
+        sim_yaw_deg=0.0,
+        on_ground=False,
+        armed=armed,
+        arming_blockers=(),
+        flight_modes=modes,
+        motors=(0.5,) * 4,
+        rc=RcCommand(),
+    )
 
 
 def test_the_injector_applies_each_fault_on_time_undoes_it_and_keeps_the_trace() -> None:
-    specs = tuple(read_fault_spec(raw, where="t", number=n, run_s=20.0) for n, raw in (
-        (1, {"kind": "motor_thrust", "motor": 2, "fraction": 0.5, "at_s": 1.0,
-             "duration_s": 1.0}),
-        (2, {"kind": "rc_loss", "at_s": 3.0})))
+    specs = tuple(
+        read_fault_spec(raw, where="t", number=n, run_s=20.0)
+        for n, raw in (
+            (
+                1,
+                {
+                    "kind": "motor_thrust",
+                    "motor": 2,
+                    "fraction": 0.5,
+                    "at_s": 1.0,
+                    "duration_s": 1.0,
+                },
+            ),
+            (2, {"kind": "rc_loss", "at_s": 3.0}),
+        )
+    )
     vehicle = Vehicle()
     trace, events, recorded = Trace(), [], []
-    injector = _Injector(vehicle, make_faults(specs, V46), trace, events,  # type: ignore[arg-type]
-                         progress=lambda _line: None, record=recorded.append)
+    injector = _Injector(
+        vehicle,
+        make_faults(specs, V46),
+        trace,
+        events,  # type: ignore[arg-type]
+        progress=lambda _line: None,
+        record=recorded.append,
+    )
     injector.on_row(make_row(0), sample(0.5))
-    assert trace.rows == []                        # not armed yet: nothing is watched
+    assert trace.rows == []  # not armed yet: nothing is watched
     injector.armed_at_s = 10.0
     thrust = []
     for step in range(1, 45):
         t = 10.0 + step * 0.1
-        injector.on_row(make_row(step),
-                        sample(t, modes=("ANGLE",) if t < 13.5 else ("ANGLE", "FS")))
+        injector.on_row(
+            make_row(step), sample(t, modes=("ANGLE",) if t < 13.5 else ("ANGLE", "FS"))
+        )
         thrust.append(vehicle.simulator.motor_thrust[1])
         stop = injector.stop(sample(t))
         assert (stop is not None) == (t >= 13.0 - 1e-9)
     assert trace.fault_times_s == pytest.approx([1.0, 3.0])
-    assert 0.5 in thrust and thrust[-1] == 1.0      # weak for a second, then recovered
-    assert vehicle.rc_command.aux_us[2] == 1800     # the failsafe switch is on
+    assert 0.5 in thrust and thrust[-1] == 1.0  # weak for a second, then recovered
+    assert vehicle.rc_command.aux_us[2] == 1800  # the failsafe switch is on
     texts = [e.text for e in events]
     assert texts[0].startswith("motor 2 at 50 %") and "motor 2 at 50 % thrust: over" in texts
     assert "flight mode FS on" in texts and texts == recorded
@@ -123,7 +160,7 @@ def test_a_fault_the_firmware_cannot_express_skips_before_anything_starts(tmp_pa
     silence = scenario(fault=[{"kind": "rc_loss", "method": "silence", "at_s": 5.0}])
     result = run_scenario(silence, str(binary), RunOptions(tmp_path / "out"))
     assert result.verdict is Verdict.SKIPPED and "holds the last sticks" in result.reason
-    assert not (tmp_path / "out" / "sitl").exists()     # no SITL was started
+    assert not (tmp_path / "out" / "sitl").exists()  # no SITL was started
 
 
 def test_a_missing_firmware_is_an_error_with_its_summary(tmp_path) -> None:

@@ -50,7 +50,7 @@ from bfsitl.scenario.trace import read_trace_csv
 #: from the session's own.
 BOOT_S = 3.0
 IDLE, RX_LOSS_DETECTED, LANDING, LANDED = 0, 1, 2, 3
-RC_LOST_AT_8 = {"kind": "rc_loss", "at_s": 8.0}     # on 4.6.0: the FAILSAFE switch, AUX3
+RC_LOST_AT_8 = {"kind": "rc_loss", "at_s": 8.0}  # on 4.6.0: the FAILSAFE switch, AUX3
 FLIGHT = {"takeoff_alt_m": 2.0, "hold_s": 30.0, "ground_s": 0.5}
 
 
@@ -60,9 +60,17 @@ class FailsafeSession(FakeVehicle):
     4.6.0's failsafe does: RX_LOSS_DETECTED, then LANDING at 1 m/s whatever the throttle,
     LANDED and disarmed on the ground.  MSP_DEBUG answers the phase (``debug[3]``)."""
 
-    def __init__(self, config: SessionConfig, *, progress: Any = None,
-                 failsafe_lands: bool = True, firmware: Any = None, sitl: Any = None,
-                 embedded: bool = False, **fake: Any) -> None:
+    def __init__(
+        self,
+        config: SessionConfig,
+        *,
+        progress: Any = None,
+        failsafe_lands: bool = True,
+        firmware: Any = None,
+        sitl: Any = None,
+        embedded: bool = False,
+        **fake: Any,
+    ) -> None:
         super().__init__(**fake)
         self.session_config = config
         self.progress = progress
@@ -135,7 +143,7 @@ class Sessions:
 
     @property
     def one(self) -> FailsafeSession:
-        session, = self.made
+        (session,) = self.made
         return session
 
 
@@ -152,11 +160,13 @@ def fly(monkeypatch: pytest.MonkeyPatch, tmp_path: Path):  # type: ignore[no-unt
 
     monkeypatch.setattr(run, "make_controller", controller)
 
-    def flown(spec: Any, *, options: RunOptions | None = None, **session_options: Any
-              ) -> tuple[ScenarioResult, FailsafeSession]:
+    def flown(
+        spec: Any, *, options: RunOptions | None = None, **session_options: Any
+    ) -> tuple[ScenarioResult, FailsafeSession]:
         sessions = Sessions(**session_options)
-        options = dataclasses.replace(options or RunOptions(tmp_path / "out", plot=False),
-                                      session_factory=sessions)
+        options = dataclasses.replace(
+            options or RunOptions(tmp_path / "out", plot=False), session_factory=sessions
+        )
         result = run.run_scenario(spec, str(binary), options)
         assert asked[-1] == DEFAULT_CONTROLLER
         return result, sessions.one
@@ -176,30 +186,39 @@ def at(result: ScenarioResult, text: str) -> float:
 def test_a_run_provisions_the_fly_profile_then_the_blackbox_the_hover_and_its_own_lines() -> None:
     plain = scenario(cli=["set failsafe_procedure = DROP", "set failsafe_delay = 5"])
     profile = scenario_profile(plain, V46, ())
-    assert profile.mode_ranges == FLY_PROFILE.mode_ranges          # ARM on AUX1, ANGLE on AUX2
+    assert profile.mode_ranges == FLY_PROFILE.mode_ranges  # ARM on AUX1, ANGLE on AUX2
     lines = profile.cli_lines
     assert lines.count(FAST_SERIAL_LINE) == 1 and lines[0] == FAST_SERIAL_LINE
     blackbox = list(blackbox_cli(V46))
-    assert lines[1:1 + len(blackbox)] == tuple(blackbox)
-    assert lines[-3:] == (hover_throttle_line(IRIS), "set failsafe_procedure = DROP",
-                          "set failsafe_delay = 5")
+    assert lines[1 : 1 + len(blackbox)] == tuple(blackbox)
+    assert lines[-3:] == (
+        hover_throttle_line(IRIS),
+        "set failsafe_procedure = DROP",
+        "set failsafe_delay = 5",
+    )
 
 
 def test_the_failsafe_switch_is_provisioned_once_on_aux3_only_when_a_fault_uses_it() -> None:
     def faults(*tables: dict) -> tuple:
-        specs = tuple(read_fault_spec(t, where="t", number=n, run_s=20.0)
-                      for n, t in enumerate(tables, 1))
+        specs = tuple(
+            read_fault_spec(t, where="t", number=n, run_s=20.0) for n, t in enumerate(tables, 1)
+        )
         return make_faults(specs, V46)
 
     plain = scenario()
-    two_switches = scenario_profile(plain, V46, faults(RC_LOST_AT_8, {**RC_LOST_AT_8,
-                                                                       "at_s": 12.0}))
+    two_switches = scenario_profile(
+        plain, V46, faults(RC_LOST_AT_8, {**RC_LOST_AT_8, "at_s": 12.0})
+    )
     failsafe = [r for r in two_switches.mode_ranges if r.box_id == BoxId.FAILSAFE]
     assert len(failsafe) == 1 and two_switches.mode_ranges[:2] == FLY_PROFILE.mode_ranges
     assert (failsafe[0].aux_channel_index, failsafe[0].start_us, failsafe[0].end_us) == (
-        2, 1700, 2100)
-    wind_only = scenario_profile(plain, V46, faults({"kind": "wind", "at_s": 1.0,
-                                                     "north_m_s": 3.0}))
+        2,
+        1700,
+        2100,
+    )
+    wind_only = scenario_profile(
+        plain, V46, faults({"kind": "wind", "at_s": 1.0, "north_m_s": 3.0})
+    )
     assert wind_only.mode_ranges == FLY_PROFILE.mode_ranges
 
 
@@ -213,11 +232,21 @@ def test_a_heavier_quad_gets_a_higher_hover_throttle_in_proportion() -> None:
 
 # -- a flight ---------------------------------------------------------------------------------
 def test_rc_lost_in_a_hover_the_fc_lands_disarms_and_the_run_passes(fly, tmp_path) -> None:
-    spec = scenario(flight=FLIGHT, seed=7, wind={"north_m_s": 1.0}, fault=[RC_LOST_AT_8],
-                    expect={"disarmed": True, "disarmed_within_s": 3.0,
-                            "failsafe_phase": ["RX_LOSS_DETECTED", "LANDING", "LANDED"],
-                            "failsafe_within_s": 0.1, "mode_seen": "FAILSAFE",
-                            "min_alt_m": 1.9, "max_touchdown_m_s": 1.5})
+    spec = scenario(
+        flight=FLIGHT,
+        seed=7,
+        wind={"north_m_s": 1.0},
+        fault=[RC_LOST_AT_8],
+        expect={
+            "disarmed": True,
+            "disarmed_within_s": 3.0,
+            "failsafe_phase": ["RX_LOSS_DETECTED", "LANDING", "LANDED"],
+            "failsafe_within_s": 0.1,
+            "mode_seen": "FAILSAFE",
+            "min_alt_m": 1.9,
+            "max_touchdown_m_s": 1.5,
+        },
+    )
     result, session = fly(spec)
     assert result.verdict is Verdict.PASSED, result.reason
     assert result.reason == "all 6 expectations met" and all(c.passed for c in result.checks)
@@ -226,7 +255,11 @@ def test_rc_lost_in_a_hover_the_fc_lands_disarms_and_the_run_passes(fly, tmp_pat
     out = tmp_path / "out"
     world = config.world
     assert (config.sitl.workdir, world.seed, world.wind, world.quad) == (
-        out / "sitl", 7, spec.wind, spec.quad)
+        out / "sitl",
+        7,
+        spec.wind,
+        spec.quad,
+    )
     assert config.sitl.firmware == tmp_path / "betaflight_4.6.0_SITL"
     assert config.fc.profile == scenario_profile(spec, V46, make_faults(spec.faults, V46))
     assert config.timing.lockstep_spin and session.closed
@@ -235,12 +268,18 @@ def test_rc_lost_in_a_hover_the_fc_lands_disarms_and_the_run_passes(fly, tmp_pat
     assert 8.0 <= fault_s < 8.03
     events = texts(result)
     assert events[0] == "armed" and result.events[0].time_s == 0.0
-    order = ["RC lost (failsafe switch on AUX3)", "the sticks are the FC's now: watching",
-             "failsafe phase RX_LOSS_DETECTED", "flight mode FAILSAFE on",
-             "failsafe phase LANDING", "failsafe phase LANDED", "the FC disarmed"]
+    order = [
+        "RC lost (failsafe switch on AUX3)",
+        "the sticks are the FC's now: watching",
+        "failsafe phase RX_LOSS_DETECTED",
+        "flight mode FAILSAFE on",
+        "failsafe phase LANDING",
+        "failsafe phase LANDED",
+        "the FC disarmed",
+    ]
     assert [e for e in events if e in order] == order
     disarmed_s = at(result, "the FC disarmed")
-    assert disarmed_s - fault_s == pytest.approx(2.0, abs=0.1)   # 2 m at 1 m/s
+    assert disarmed_s - fault_s == pytest.approx(2.0, abs=0.1)  # 2 m at 1 m/s
     # Disarmed at rest: the run ends settle_s (2 s) later, not at duration_s (20 s).
     assert result.sim_time_s == pytest.approx(disarmed_s + 2.0, abs=0.05)
     checks = {c.expectation.split(" =")[0]: c for c in result.checks}
@@ -258,7 +297,7 @@ def test_rc_lost_in_a_hover_the_fc_lands_disarms_and_the_run_passes(fly, tmp_pat
     summary = json.loads((out / "result.json").read_text())
     assert summary["verdict"] == "passed" and summary["sim_time_s"] == result.sim_time_s
     assert [e["text"] for e in summary["events"]] == events
-    assert set(summary["artifacts"]) == {"log", "trace"}            # no plot, no blackbox
+    assert set(summary["artifacts"]) == {"log", "trace"}  # no plot, no blackbox
     assert result.artifacts["summary"] == out / "result.json"
     # trace.csv holds the trace's rows (a comparison overlays two of them), and the run's
     # figures and behaviour are in result.json.
@@ -266,27 +305,33 @@ def test_rc_lost_in_a_hover_the_fc_lands_disarms_and_the_run_passes(fly, tmp_pat
     assert len(again.rows) > 100
     assert again.rows[-1].armed is False and again.rows[-1].on_ground is True
     assert summary["metrics"]["fault_to_disarm_s"] == pytest.approx(2.0, abs=0.1)
-    assert summary["metrics"]["touchdown_m_s"] == pytest.approx(1.0)   # 2 m at 1 m/s
-    assert summary["metrics"]["landed_distance_m"] is None   # this physics has no position
+    assert summary["metrics"]["touchdown_m_s"] == pytest.approx(1.0)  # 2 m at 1 m/s
+    assert summary["metrics"]["landed_distance_m"] is None  # this physics has no position
     assert summary["behaviour"]["ended"] == ["disarmed on the ground"]
     assert summary["behaviour"]["phases"][0] == "RX_LOSS_DETECTED"
 
 
 def test_an_fc_that_never_disarms_fails_the_run_after_its_whole_duration(fly) -> None:
-    spec = scenario(flight=FLIGHT, fault=[RC_LOST_AT_8],
-                    expect={"disarmed_within_s": 3.0, "disarmed": True, "mode_never": "ANGLE"})
+    spec = scenario(
+        flight=FLIGHT,
+        fault=[RC_LOST_AT_8],
+        expect={"disarmed_within_s": 3.0, "disarmed": True, "mode_never": "ANGLE"},
+    )
     result, session = fly(spec, failsafe_lands=False)
     assert result.verdict is Verdict.FAILED
     assert result.reason.startswith("disarmed_within_s = 3: still armed 12.0")
     assert [c.passed for c in result.checks] == [False, False, False]
-    assert result.sim_time_s == pytest.approx(20.0, abs=0.03)       # watched to the end
+    assert result.sim_time_s == pytest.approx(20.0, abs=0.03)  # watched to the end
     assert "the FC disarmed" not in texts(result) and session.closed
 
 
 def test_a_timed_fault_is_undone_when_it_ends_and_the_autopilot_flies_through_it(fly) -> None:
-    spec = scenario(flight={**FLIGHT, "hold_s": 6.0}, duration_s=16.0,
-                    fault=[{"kind": "wind", "at_s": 4.0, "duration_s": 2.0, "north_m_s": 5.0}],
-                    expect={"disarmed": True, "max_alt_m": 2.3})
+    spec = scenario(
+        flight={**FLIGHT, "hold_s": 6.0},
+        duration_s=16.0,
+        fault=[{"kind": "wind", "at_s": 4.0, "duration_s": 2.0, "north_m_s": 5.0}],
+        expect={"disarmed": True, "max_alt_m": 2.3},
+    )
     result, session = fly(spec, embedded=True)
     assert result.verdict is Verdict.PASSED, result.reason
     start_s = at(result, "wind to 5 m/s north, 0 m/s east (gusts 0 m/s) for 2 s")
@@ -297,7 +342,7 @@ def test_a_timed_fault_is_undone_when_it_ends_and_the_autopilot_flies_through_it
     assert min(blowing) == pytest.approx(start_s + 0.02, abs=1e-3)
     assert max(blowing) == pytest.approx(over_s, abs=1e-3)
     assert session.simulator is not None and session.simulator.wind is None
-    assert "the autopilot landed" in texts(result)                  # the plan went on
+    assert "the autopilot landed" in texts(result)  # the plan went on
     assert not any("watching" in text for text in texts(result))
 
 
@@ -330,15 +375,19 @@ def test_arming_blocked_is_an_error_with_the_blockers_and_the_session_closed(fly
 
 def test_a_sitl_that_exits_mid_flight_is_an_error_and_what_was_flown_is_kept(fly) -> None:
     spec = scenario(flight=FLIGHT)
-    result, session = fly(spec, fail_after=120, failure=SitlExitedError(
-        "the SITL exited with code 139\nits last output: ..."))
+    result, session = fly(
+        spec,
+        fail_after=120,
+        failure=SitlExitedError("the SITL exited with code 139\nits last output: ..."),
+    )
     assert result.verdict is Verdict.ERROR
-    assert result.reason == "the SITL exited with code 139"             # the first line
+    assert result.reason == "the SITL exited with code 139"  # the first line
     assert session.closed and len(read_flight_log(result.artifacts["log"])) == 120
 
 
 def test_ctrl_c_propagates_after_the_session_closed_and_the_summary_is_written(
-        fly, tmp_path) -> None:
+    fly, tmp_path
+) -> None:
     with pytest.raises(KeyboardInterrupt):
         fly(scenario(flight=FLIGHT), fail_after=50, failure=KeyboardInterrupt())
     summary = json.loads((tmp_path / "out" / "result.json").read_text())
@@ -351,7 +400,7 @@ def test_the_firmware_version_is_the_one_the_running_fc_reports(fly) -> None:
     result, _session = fly(scenario(flight={**FLIGHT, "hold_s": 1.0}), firmware=reported)
     assert result.firmware_version == "4.6.1"
     result, _session = fly(scenario(flight={**FLIGHT, "hold_s": 1.0}))
-    assert result.firmware_version == "4.6.0"                       # the binary's, unasked
+    assert result.firmware_version == "4.6.0"  # the binary's, unasked
 
 
 # -- the files ----------------------------------------------------------------------------------
@@ -361,24 +410,28 @@ def test_the_files_of_a_run_blackbox_sitl_log_plot_and_mcap(fly, tmp_path) -> No
     out = tmp_path / "out"
     (out / "sitl").mkdir(parents=True)
     (out / "sitl" / "LOG00001.BFL").write_bytes(b"not a log")
-    spec = scenario(flight={**FLIGHT, "hold_s": 1.0},
-                    expect={"disarmed": True, "blackbox_disarm_reason": "SWITCH"})
+    spec = scenario(
+        flight={**FLIGHT, "hold_s": 1.0},
+        expect={"disarmed": True, "blackbox_disarm_reason": "SWITCH"},
+    )
     sitl = SimpleNamespace(log_path=out / "sitl" / "sitl.log")
-    result, _session = fly(spec, sitl=sitl,
-                           options=RunOptions(out, plot=True, mcap=True, shares_cores=True))
+    result, _session = fly(
+        spec, sitl=sitl, options=RunOptions(out, plot=True, mcap=True, shares_cores=True)
+    )
     assert result.verdict is Verdict.FAILED
     assert result.reason == "blackbox_disarm_reason = 'SWITCH': no disarm event in the blackbox"
     assert result.artifacts["blackbox"] == out / "blackbox" / "LOG00001.BFL"
     assert result.artifacts["blackbox"].read_bytes() == b"not a log"
-    assert any(t.startswith("blackbox LOG00001.BFL: ") and "is not a blackbox log" in t
-               for t in texts(result))
+    assert any(
+        t.startswith("blackbox LOG00001.BFL: ") and "is not a blackbox log" in t
+        for t in texts(result)
+    )
     assert result.artifacts["sitl_log"] == sitl.log_path
     assert result.artifacts["plot"] == out / "plot.png" and (out / "plot.png").stat().st_size
     assert result.artifacts["mcap"] == out / "flight.mcap" and (out / "flight.mcap").stat().st_size
-    assert "blackbox_plot" not in result.artifacts                  # nothing decoded to plot
+    assert "blackbox_plot" not in result.artifacts  # nothing decoded to plot
     summary = json.loads((out / "result.json").read_text())
-    assert set(summary["artifacts"]) == {"log", "mcap", "sitl_log", "blackbox", "plot",
-                                         "trace"}
+    assert set(summary["artifacts"]) == {"log", "mcap", "sitl_log", "blackbox", "plot", "trace"}
 
 
 def test_runs_that_share_the_cores_do_not_spin(fly, tmp_path) -> None:

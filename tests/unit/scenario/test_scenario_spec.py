@@ -51,24 +51,28 @@ def test_a_minimal_file_gets_its_name_and_defaults(tmp_path: Path) -> None:
     assert scenario.wind is None and scenario.settle_s == 2.0 and not scenario.requires_gps
 
 
-@pytest.mark.parametrize(("change", "message"), [
-    (("duration_s = 20", "duration = 20"), r"unknown key\(s\) duration"),
-    (("duration_s = 20", ""), "duration_s is missing"),
-    (('kind = "rc_loss"', 'kind = "rc_loss"\nmotor = 3'), "fault 1: rc_loss has no parameter"),
-    (("at_s = 8.0", "at_s = 80.0"), r"fault 1 at_s = 80.0 must be a number in 0..20"),
-    (("disarmed = true", "disarmd = true"), "unknown key 'disarmd'"),
-    (("disarmed = true", "disarmed = 1"), "disarmed must be true or false"),
-    (("disarmed = true", 'failsafe_phase = "LANDIT"'), "unknown phase"),
-    (("disarmed = true", "failsafe_within_s = 1.0"), "needs failsafe_phase"),
-    (("disarmed = true", 'min_alt_m = { value = 1, after_s = 2 }'), "takes a number or"),
-    (("disarmed = true", 'finding = "crsh"'), "unknown analyser.*'crsh'.*known: crash"),
-    (("disarmed = true", 'no_finding = []'), "unknown analyser"),
-    (("disarmed = true", 'worst_finding = "bad"'), "is not one of none, info, warning"),
-    (("[expect]\ndisarmed = true", ""), r"\[expect\] is missing"),
-    (("takeoff_alt_m = 3.0", "takeoff_alt_m = 300.0"), r"\[flight\]: target altitude"),
-])
-def test_mistakes_fail_before_flying_naming_file_and_key(tmp_path: Path, change: tuple,
-                                                         message: str) -> None:
+@pytest.mark.parametrize(
+    ("change", "message"),
+    [
+        (("duration_s = 20", "duration = 20"), r"unknown key\(s\) duration"),
+        (("duration_s = 20", ""), "duration_s is missing"),
+        (('kind = "rc_loss"', 'kind = "rc_loss"\nmotor = 3'), "fault 1: rc_loss has no parameter"),
+        (("at_s = 8.0", "at_s = 80.0"), r"fault 1 at_s = 80.0 must be a number in 0..20"),
+        (("disarmed = true", "disarmd = true"), "unknown key 'disarmd'"),
+        (("disarmed = true", "disarmed = 1"), "disarmed must be true or false"),
+        (("disarmed = true", 'failsafe_phase = "LANDIT"'), "unknown phase"),
+        (("disarmed = true", "failsafe_within_s = 1.0"), "needs failsafe_phase"),
+        (("disarmed = true", "min_alt_m = { value = 1, after_s = 2 }"), "takes a number or"),
+        (("disarmed = true", 'finding = "crsh"'), "unknown analyser.*'crsh'.*known: crash"),
+        (("disarmed = true", "no_finding = []"), "unknown analyser"),
+        (("disarmed = true", 'worst_finding = "bad"'), "is not one of none, info, warning"),
+        (("[expect]\ndisarmed = true", ""), r"\[expect\] is missing"),
+        (("takeoff_alt_m = 3.0", "takeoff_alt_m = 300.0"), r"\[flight\]: target altitude"),
+    ],
+)
+def test_mistakes_fail_before_flying_naming_file_and_key(
+    tmp_path: Path, change: tuple, message: str
+) -> None:
     path = write(tmp_path, MINIMAL.replace(*change))
     with pytest.raises(ScenarioError, match=message) as caught:
         load_scenario(path)
@@ -97,9 +101,18 @@ def test_directories_twins_and_missing_paths(tmp_path: Path) -> None:
 
 
 # -- expectations on traces ---------------------------------------------------------------------
-def row(t: float, alt: float = 3.0, *, armed: bool = True, ground: bool = False,
-        climb: float = 0.0, phase: int | None = 0, modes: tuple[str, ...] = ("ANGLE",),
-        north: float = 0.0, tilt: float = 2.0) -> TraceRow:
+def row(
+    t: float,
+    alt: float = 3.0,
+    *,
+    armed: bool = True,
+    ground: bool = False,
+    climb: float = 0.0,
+    phase: int | None = 0,
+    modes: tuple[str, ...] = ("ANGLE",),
+    north: float = 0.0,
+    tilt: float = 2.0,
+) -> TraceRow:
     return TraceRow(t, alt, north, 0.0, climb, tilt, ground, armed, modes, (), phase)
 
 
@@ -107,35 +120,63 @@ def drop_trace() -> Trace:
     """Hover at 3 m, RC lost at 8 s, DROP at 8.5 s: falls, hits the ground at 7 m/s at 9.3 s."""
     trace = Trace(fault_times_s=[8.0], takeoff_done_s=4.0)
     trace.rows = [row(t / 10) for t in range(40, 85)]
-    trace.rows += [row(8.5 + k / 10, 3.0 - 0.4 * k, armed=False, phase=4, climb=-1.0 * k,
-                       modes=("ANGLE", "FAILSAFE")) for k in range(1, 8)]
-    trace.rows += [row(9.3, 0.0, armed=False, ground=True, climb=-7.0, phase=4),
-                   row(10.0, 0.0, armed=False, ground=True, phase=4, north=1.5)]
+    trace.rows += [
+        row(
+            8.5 + k / 10,
+            3.0 - 0.4 * k,
+            armed=False,
+            phase=4,
+            climb=-1.0 * k,
+            modes=("ANGLE", "FAILSAFE"),
+        )
+        for k in range(1, 8)
+    ]
+    trace.rows += [
+        row(9.3, 0.0, armed=False, ground=True, climb=-7.0, phase=4),
+        row(10.0, 0.0, armed=False, ground=True, phase=4, north=1.5),
+    ]
     return trace
 
 
 def scenario_expecting(**expect: object):
-    data = {"duration_s": 20, "flight": {"takeoff_alt_m": 3.0},
-            "fault": [{"at_s": 8.0, "kind": "rc_loss"}], "expect": expect}
+    data = {
+        "duration_s": 20,
+        "flight": {"takeoff_alt_m": 3.0},
+        "fault": [{"at_s": 8.0, "kind": "rc_loss"}],
+        "expect": expect,
+    }
     return scenario_from_dict(data, name="drop")
 
 
 def test_a_drop_meets_what_a_drop_does() -> None:
-    checks = judge(scenario_expecting(
-        disarmed=True, disarmed_within_s=1.0, failsafe_phase="RX_LOSS_MONITORING",
-        failsafe_within_s=1.0, mode_seen="FAILSAFE", crashed=True, landed_within_m=2.0,
-        min_alt_m=2.5), drop_trace())
+    checks = judge(
+        scenario_expecting(
+            disarmed=True,
+            disarmed_within_s=1.0,
+            failsafe_phase="RX_LOSS_MONITORING",
+            failsafe_within_s=1.0,
+            mode_seen="FAILSAFE",
+            crashed=True,
+            landed_within_m=2.0,
+            min_alt_m=2.5,
+        ),
+        drop_trace(),
+    )
     assert len(checks) == 7  # failsafe_within_s is judged with failsafe_phase
     assert [c.passed for c in checks] == [True] * 7, [c.message for c in checks if not c.passed]
 
 
 def test_a_wrong_expectation_names_itself_the_measured_value_and_the_time() -> None:
-    checks = judge(scenario_expecting(disarmed_within_s=0.2, landed_within_m=1.0,
-                                      max_touchdown_m_s=2.0), drop_trace())
+    checks = judge(
+        scenario_expecting(disarmed_within_s=0.2, landed_within_m=1.0, max_touchdown_m_s=2.0),
+        drop_trace(),
+    )
     disarm, landed, touchdown = checks
     assert not disarm.passed and disarm.measured == 0.6 and disarm.at_time_s == 8.6
-    assert disarm.message == ("disarmed_within_s = 0.2: disarmed 0.60 s after the fault "
-                              "(expected within 0.2 s) at t=8.60 s")
+    assert disarm.message == (
+        "disarmed_within_s = 0.2: disarmed 0.60 s after the fault "
+        "(expected within 0.2 s) at t=8.60 s"
+    )
     assert not landed.passed and landed.measured == 1.5
     assert "landed 1.50 m from the take-off point" in landed.message
     assert not touchdown.passed and touchdown.measured == 7.0 and touchdown.at_time_s == 9.3
@@ -143,11 +184,13 @@ def test_a_wrong_expectation_names_itself_the_measured_value_and_the_time() -> N
 
 def test_phases_must_come_in_order_and_within_time() -> None:
     trace = drop_trace()
-    wrong_order = judge(scenario_expecting(
-        failsafe_phase=["RX_LOSS_MONITORING", "LANDING"]), trace)[0]
+    wrong_order = judge(
+        scenario_expecting(failsafe_phase=["RX_LOSS_MONITORING", "LANDING"]), trace
+    )[0]
     assert not wrong_order.passed and "never reached LANDING" in wrong_order.message
-    late = judge(scenario_expecting(failsafe_phase="RX_LOSS_MONITORING",
-                                    failsafe_within_s=0.3), trace)[0]
+    late = judge(
+        scenario_expecting(failsafe_phase="RX_LOSS_MONITORING", failsafe_within_s=0.3), trace
+    )[0]
     assert not late.passed and late.measured == 0.6
 
 
@@ -171,14 +214,22 @@ def test_findings_are_expectations_too() -> None:
     trace = drop_trace()
     trace.findings = [
         Finding("crash", Severity.FAILURE, "hit the ground at 7.0 m/s", 9.3, 7.0, "m/s"),
-        Finding("failsafe", Severity.INFO, "failsafe: RX_LOSS_MONITORING at 8.5 s", 8.5,
-                1.0, "phases")]
-    found, absent, worst = judge(scenario_expecting(
-        finding=["crash", "failsafe"], no_finding="fly_away", worst_finding="failure"), trace)
+        Finding(
+            "failsafe", Severity.INFO, "failsafe: RX_LOSS_MONITORING at 8.5 s", 8.5, 1.0, "phases"
+        ),
+    ]
+    found, absent, worst = judge(
+        scenario_expecting(
+            finding=["crash", "failsafe"], no_finding="fly_away", worst_finding="failure"
+        ),
+        trace,
+    )
     assert found.passed and absent.passed and worst.passed
     assert found.measured == "failure" and found.at_time_s == 9.3
-    wrong = judge(scenario_expecting(finding="motor_saturation", no_finding="crash",
-                                     worst_finding="warning"), trace)
+    wrong = judge(
+        scenario_expecting(finding="motor_saturation", no_finding="crash", worst_finding="warning"),
+        trace,
+    )
     assert [c.passed for c in wrong] == [False, False, False]
     assert "motor_saturation found nothing" in wrong[0].message
     assert "crash: failure: hit the ground at 7.0 m/s" in wrong[1].message
@@ -197,8 +248,9 @@ def test_a_vehicle_table_makes_the_quad_and_its_hover_throttle(tmp_path: Path) -
     from bfsitl.scenario.run import hover_throttle_line
 
     default = load_scenario(write(tmp_path, MINIMAL, "a.toml"))
-    heavy = load_scenario(write(tmp_path, MINIMAL + '[vehicle]\nmodel = "iris"\n'
-                                "mass_kg = 2.2\n", "b.toml"))
+    heavy = load_scenario(
+        write(tmp_path, MINIMAL + '[vehicle]\nmodel = "iris"\nmass_kg = 2.2\n', "b.toml")
+    )
     assert default.quad is IRIS and heavy.quad.mass_kg == 2.2
     assert hover_throttle_line(IRIS) == "set ap_hover_throttle = 1545"  # measured
     heavier_us = int(hover_throttle_line(heavy.quad).split("= ")[1])

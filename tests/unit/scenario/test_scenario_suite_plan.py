@@ -41,8 +41,14 @@ def test_with_every_build_there_nothing_is_set_aside(tmp_path: Path) -> None:
 def _bfsitl(*args: str, cache: Path) -> subprocess.CompletedProcess[str]:
     env = {**os.environ, "BFSITL_CACHE_DIR": str(cache)}
     env.pop("BFSITL_FIRMWARE", None)
-    return subprocess.run([sys.executable, "-m", "bfsitl.cli.main", *args], capture_output=True,
-                          text=True, env=env, timeout=60, cwd=cache)
+    return subprocess.run(
+        [sys.executable, "-m", "bfsitl.cli.main", *args],
+        capture_output=True,
+        text=True,
+        env=env,
+        timeout=60,
+        cwd=cache,
+    )
 
 
 def test_scenario_list_with_no_path_lists_the_shipped_library(tmp_path: Path) -> None:

@@ -27,9 +27,17 @@ pytestmark = pytest.mark.skipif(not unshare_available(), reason="needs unshare")
 
 def _reading(altitude_m: float) -> SensorReading:
     """A level vehicle at rest ``altitude_m`` above home (the stock 4.6.0 build sends NED)."""
-    return SensorReading(0.0, (0.0, 0.0, 0.0), (0.0, 0.0, -9.80665), (1.0, 0.0, 0.0, 0.0),
-                         101325.0, (0.0, 0.0, -altitude_m), (0.0, 0.0, 0.0),
-                         (0.0, 0.0, altitude_m), (0.0, 0.0, 0.0))
+    return SensorReading(
+        0.0,
+        (0.0, 0.0, 0.0),
+        (0.0, 0.0, -9.80665),
+        (1.0, 0.0, 0.0, 0.0),
+        101325.0,
+        (0.0, 0.0, -altitude_m),
+        (0.0, 0.0, 0.0),
+        (0.0, 0.0, altitude_m),
+        (0.0, 0.0, 0.0),
+    )
 
 
 class RecordingSim:
@@ -138,8 +146,9 @@ def test_speed_below_one_sends_one_calibration_pair(network, fake_sitl):
     run_for(bridge, 0.3)
     bridge.close()
     stamps = fake_sitl.timestamps
-    inside = [b - a for a, b in zip(stamps, stamps[1:], strict=False)
-              if 0 < b - a < ESTIMATOR_WINDOW_S]
+    inside = [
+        b - a for a, b in zip(stamps, stamps[1:], strict=False) if 0 < b - a < ESTIMATOR_WINDOW_S
+    ]
     assert len(inside) == 1  # exactly one pair sets simRate; every other step is frozen
     stats = bridge.stats()
     assert 0.4 < stats.speed < 0.6
@@ -208,7 +217,7 @@ def test_foreign_datagrams_on_the_motor_port_are_ignored(network, fake_sitl):
     bridge.start()
     junk = network.socket(socket.AF_INET, socket.SOCK_DGRAM)
     for _ in range(20):
-        junk.sendto(b"\x00" * 15, ("127.0.0.1", SERVO_PORT))       # wrong size
+        junk.sendto(b"\x00" * 15, ("127.0.0.1", SERVO_PORT))  # wrong size
         junk.sendto(struct.pack("<4f", float("nan"), 0, 0, 0), ("127.0.0.1", SERVO_PORT))
         time.sleep(0.005)
     time.sleep(0.05)

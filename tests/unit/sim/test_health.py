@@ -51,8 +51,11 @@ def test_boot_pair_error_is_not_carried_into_later_pairs():
 def test_random_errors_do_not_compound():
     # Compounding the corrections would multiply these and drift away; the median does not.
     bridge = ScriptedBridge([1.15, 0.97, 1.03, 0.97, 1.03, 0.97, 1.03, 1.0])
-    ratio = lock_clock(ScriptedMonitor(bridge), attempts=6,  # type: ignore[arg-type]
-                       sleep=lambda _s: None)
+    ratio = lock_clock(
+        ScriptedMonitor(bridge),
+        attempts=6,  # type: ignore[arg-type]
+        sleep=lambda _s: None,
+    )
     assert ratio is not None and abs(ratio - 1.0) <= 0.04
 
 

@@ -117,8 +117,8 @@ class FakeFc:
                 data, _ = self.sock.recvfrom(512)
             except TimeoutError:
                 continue
-            fdm = FdmPacket.unpack(data[:FdmPacket.SIZE])
-            rc = RcPacket.unpack(data[FdmPacket.SIZE:])
+            fdm = FdmPacket.unpack(data[: FdmPacket.SIZE])
+            rc = RcPacket.unpack(data[FdmPacket.SIZE :])
             self.received.append((fdm.timestamp_s, rc.channels_us[:6]))
             if self.drop_first > 0:
                 self.drop_first -= 1
@@ -126,11 +126,12 @@ class FakeFc:
             out = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
             if self.stale_first:
                 self.stale_first = False
-                out.sendto(REPLY_FORMAT.pack(0.9, 0.9, 0.9, 0.9, fdm.timestamp_s - 1.0),
-                           ("127.0.0.1", 9002))
+                out.sendto(
+                    REPLY_FORMAT.pack(0.9, 0.9, 0.9, 0.9, fdm.timestamp_s - 1.0),
+                    ("127.0.0.1", 9002),
+                )
             # 4.6 slot order: motor_speed[3] is motor 1.
-            out.sendto(REPLY_FORMAT.pack(0.2, 0.3, 0.4, 0.1, fdm.timestamp_s),
-                       ("127.0.0.1", 9002))
+            out.sendto(REPLY_FORMAT.pack(0.2, 0.3, 0.4, 0.1, fdm.timestamp_s), ("127.0.0.1", 9002))
             out.close()
 
     def close(self) -> None:
@@ -214,8 +215,10 @@ def test_a_dead_sitl_ends_the_wait_with_its_own_error(fake_fc_factory) -> None:
 
 
 def test_stepping_before_a_lock_is_refused() -> None:
-    with LockstepBridge(FakeSimulator(), HostSockets()) as bridge, \
-            pytest.raises(SitlError, match="lock"):
+    with (
+        LockstepBridge(FakeSimulator(), HostSockets()) as bridge,
+        pytest.raises(SitlError, match="lock"),
+    ):
         bridge.step()
 
 

@@ -62,21 +62,33 @@ def master_profile() -> FirmwareProfile:
 
 
 def reading_of(record: dict[str, Any]) -> SensorReading:
-    fields = {key: tuple(value) if isinstance(value, list) else value
-              for key, value in record["reading"].items()}
+    fields = {
+        key: tuple(value) if isinstance(value, list) else value
+        for key, value in record["reading"].items()
+    }
     return SensorReading(**fields)
 
 
 def _field_differences(made: bytes, recorded: bytes) -> list[str]:
     ours, theirs = FdmPacket.unpack(made), FdmPacket.unpack(recorded)
-    return [f"{name}: encoder {getattr(ours, name)} != recorded {getattr(theirs, name)}"
-            for name in ("timestamp_s", "gyro_rad_s", "accel_m_s2", "quaternion_wxyz",
-                         "velocity_m_s", "position", "pressure_pa")
-            # repr, not ==: a sign flipped on a zero (-0.0) is a changed byte too
-            if repr(getattr(ours, name)) != repr(getattr(theirs, name))] or ["(padding)"]
+    return [
+        f"{name}: encoder {getattr(ours, name)} != recorded {getattr(theirs, name)}"
+        for name in (
+            "timestamp_s",
+            "gyro_rad_s",
+            "accel_m_s2",
+            "quaternion_wxyz",
+            "velocity_m_s",
+            "position",
+            "pressure_pa",
+        )
+        # repr, not ==: a sign flipped on a zero (-0.0) is a changed byte too
+        if repr(getattr(ours, name)) != repr(getattr(theirs, name))
+    ] or ["(padding)"]
 
 
 # --- what today's code makes of the recorded inputs -----------------------------------------
+
 
 def test_the_encoder_makes_every_recorded_fdm_packet_from_its_reading() -> None:
     meta = exchange()["meta"]
@@ -87,16 +99,22 @@ def test_the_encoder_makes_every_recorded_fdm_packet_from_its_reading() -> None:
         encoder.gps_lost = record["gps_lost"]
         made = encoder.encode(reading_of(record), record["t"]).pack()
         recorded = bytes.fromhex(record["fdm_hex"])
-        assert made == recorded, (f"t={record['t']}: the master encoder no longer makes the "
-                                  f"packet master flew on: {_field_differences(made, recorded)}")
+        assert made == recorded, (
+            f"t={record['t']}: the master encoder no longer makes the "
+            f"packet master flew on: {_field_differences(made, recorded)}"
+        )
 
 
 def test_the_recording_exercises_every_field_the_encoder_writes() -> None:
     """A packet stream of zeros would let a broken axis pass: the flight moved every one."""
     packets = [FdmPacket.unpack(bytes.fromhex(r["fdm_hex"])) for r in exchange()["fdm"]]
     # (position is longitude and latitude in degrees, then metres up: 1e-6 deg is 0.1 m.)
-    least = {"gyro_rad_s": (0.05,) * 3, "accel_m_s2": (0.1,) * 3,
-             "velocity_m_s": (0.1,) * 3, "position": (1e-6, 1e-6, 1.0)}
+    least = {
+        "gyro_rad_s": (0.05,) * 3,
+        "accel_m_s2": (0.1,) * 3,
+        "velocity_m_s": (0.1,) * 3,
+        "position": (1e-6, 1e-6, 1.0),
+    }
     for name, spans in least.items():
         values = [getattr(packet, name) for packet in packets]
         for axis in range(3):
@@ -109,8 +127,10 @@ def test_the_recording_exercises_every_field_the_encoder_writes() -> None:
 
 def test_servo_replies_decode_to_the_recorded_motor_order() -> None:
     profile = master_profile()
-    assert list(profile.motor_slot_of_betaflight_motor) == \
-        exchange()["meta"]["motor_slot_of_betaflight_motor"]
+    assert (
+        list(profile.motor_slot_of_betaflight_motor)
+        == exchange()["meta"]["motor_slot_of_betaflight_motor"]
+    )
     for record in exchange()["servo"]:
         speeds, answered_s = decode_reply(bytes.fromhex(record["reply_hex"]))
         assert answered_s == record["answered_t"]
@@ -123,13 +143,18 @@ def _motors(phase: str, first_s: float) -> list[tuple[float, ...]]:
     profile = master_profile()
     records = [r for r in exchange()["servo"] if r["phase"] == phase]
     start = records[0]["answered_t"]
-    return [ServoPacket(decode_reply(bytes.fromhex(r["reply_hex"]))[0]).betaflight_motors(
-        profile.motor_slot_of_betaflight_motor)
-        for r in records if r["answered_t"] - start <= first_s]
+    return [
+        ServoPacket(decode_reply(bytes.fromhex(r["reply_hex"]))[0]).betaflight_motors(
+            profile.motor_slot_of_betaflight_motor
+        )
+        for r in records
+        if r["answered_t"] - start <= first_s
+    ]
 
 
-def _difference(motors: list[tuple[float, ...]], more: tuple[int, int],
-                less: tuple[int, int]) -> float:
+def _difference(
+    motors: list[tuple[float, ...]], more: tuple[int, int], less: tuple[int, int]
+) -> float:
     return statistics.fmean(m[more[0]] + m[more[1]] - m[less[0]] - m[less[1]] for m in motors)
 
 
@@ -156,11 +181,13 @@ def test_each_stick_step_moved_the_motors_a_quad_x_must() -> None:
 
 # --- what the firmware did: its replies against the truth -----------------------------------
 
+
 def snapshots(*, armed_only: bool = False) -> list[dict[str, Any]]:
     found = msp()["snapshots"]
     if armed_only:
-        found = [s for s in found if msg.StatusEx.decode(bytes.fromhex(
-            s["replies"]["STATUS_EX"])).armed]
+        found = [
+            s for s in found if msg.StatusEx.decode(bytes.fromhex(s["replies"]["STATUS_EX"])).armed
+        ]
     return found
 
 
@@ -229,8 +256,12 @@ def test_master_status_box_names_and_identity_decode() -> None:
     assert msg.ApiVersion.decode(identity["API_VERSION"]).api >= (1, 49)
     status = msg.StatusEx.decode(identity["STATUS_EX"])
     assert status.arming_disable_flag_count == 30  # master: AUTOPILOT at 28, ARM_SWITCH at 29
-    names = {flag.cli_name for flag in decode_arming_flags(status.arming_disable_flags,
-                                                           status.arming_disable_flag_count)}
+    names = {
+        flag.cli_name
+        for flag in decode_arming_flags(
+            status.arming_disable_flags, status.arming_disable_flag_count
+        )
+    }
     assert names and all(name.isupper() for name in names), names
     boxes = msg.BoxNames.decode(identity["BOXNAMES"]).names
     ids = msg.BoxIds.decode(identity["BOXIDS"]).ids
@@ -262,6 +293,6 @@ def test_master_read_the_sticks_bfsitl_sent_on_the_right_channels() -> None:
         roll, pitch, throttle, yaw, *aux = snap["rc_aetr"]
         channels = msg.Rc.decode(bytes.fromhex(snap["replies"]["RC"])).channels_us
         assert channels[:4] == (roll, pitch, yaw, throttle), snap["label"]
-        assert list(channels[4:4 + len(aux)]) == aux, snap["label"]
+        assert list(channels[4 : 4 + len(aux)]) == aux, snap["label"]
         moved |= {i for i, value in enumerate((roll, pitch, yaw)) if value != 1500}
     assert moved == {0, 1, 2}  # each stick step is in the recording

@@ -27,8 +27,9 @@ time.sleep(60)
 
 def hold_a_core(lock_dir: Path) -> tuple[subprocess.Popen[str], int]:
     """Another process that claims a core and keeps it; (the process, its core)."""
-    holder = subprocess.Popen([sys.executable, "-c", HOLDER, str(lock_dir)],
-                              stdout=subprocess.PIPE, text=True)
+    holder = subprocess.Popen(
+        [sys.executable, "-c", HOLDER, str(lock_dir)], stdout=subprocess.PIPE, text=True
+    )
     assert holder.stdout is not None
     return holder, int(holder.stdout.readline())
 
@@ -38,15 +39,18 @@ def test_claims_spread_over_the_cores_and_pin_the_process(tmp_path: Path) -> Non
     before = os.sched_getaffinity(0)
     holders = [hold_a_core(tmp_path) for _ in CORES]
     try:
-        assert [core for _holder, core in holders] == CORES   # one each first
+        assert [core for _holder, core in holders] == CORES  # one each first
         claim = claim_core(tmp_path)
         assert claim is not None
-        assert (claim.core, claim.round) == (CORES[0], 1)    # then the next round
-        assert os.sched_getaffinity(0) == {CORES[0]}          # the claim pinned us
-        child = subprocess.run([sys.executable, "-c",
-                                "import os; print(sorted(os.sched_getaffinity(0)))"],
-                               capture_output=True, text=True, check=True)
-        assert child.stdout.strip() == f"[{CORES[0]}]"        # and what we start from now on
+        assert (claim.core, claim.round) == (CORES[0], 1)  # then the next round
+        assert os.sched_getaffinity(0) == {CORES[0]}  # the claim pinned us
+        child = subprocess.run(
+            [sys.executable, "-c", "import os; print(sorted(os.sched_getaffinity(0)))"],
+            capture_output=True,
+            text=True,
+            check=True,
+        )
+        assert child.stdout.strip() == f"[{CORES[0]}]"  # and what we start from now on
         claim.release()
         claim.release()  # twice is harmless
         assert os.sched_getaffinity(0) == before
@@ -69,7 +73,7 @@ def test_a_killed_holders_claim_is_free_again(tmp_path: Path) -> None:
         holder.kill()
         holder.wait()
     mine = claim_core(tmp_path)
-    assert mine is not None and mine.core == CORES[0]      # the lock died with its holder
+    assert mine is not None and mine.core == CORES[0]  # the lock died with its holder
     mine.release()
 
 
@@ -91,11 +95,11 @@ def test_a_forked_child_of_a_pinned_process_claims_among_all_the_cores(tmp_path:
         child = context.Process(target=_claim_in_child, args=(str(tmp_path), writer))
         child.start()
         child.join(10)
-        assert reader.recv() == CORES[1]       # not the parent's one core, nor "no choice"
+        assert reader.recv() == CORES[1]  # not the parent's one core, nor "no choice"
     finally:
         mine.release()
     assert os.sched_getaffinity(0) == before
-    again = claim_core(tmp_path)               # the child's copy of our lock did not keep it
+    again = claim_core(tmp_path)  # the child's copy of our lock did not keep it
     assert again is not None and again.core == CORES[0]
     again.release()
 

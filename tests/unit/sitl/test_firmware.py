@@ -14,8 +14,9 @@ from bfsitl.sitl import firmware
 from bfsitl.sitl.firmware import FirmwareBinary, find_firmware, firmware_candidates
 
 
-def make_exe(path: Path, *, executable: bool = True, content: bytes = b"#!/bin/sh\nexit 0\n"
-             ) -> Path:
+def make_exe(
+    path: Path, *, executable: bool = True, content: bytes = b"#!/bin/sh\nexit 0\n"
+) -> Path:
     """A stand-in for the SITL: a file with the right name (contents never run, only read)."""
     path.parent.mkdir(parents=True, exist_ok=True)
     path.write_bytes(content)
@@ -63,8 +64,7 @@ def test_command_form_comes_from_content_not_name(tmp_path: Path) -> None:
 
 def test_version_of_other_names() -> None:
     assert FirmwareBinary(Path("betaflight_2025.12.1_SITL.elf"), "x").version == "2025.12.1"
-    assert FirmwareBinary(Path("betaflight_2026.12.0-alpha_SITL"), "x").version == \
-        "2026.12.0-alpha"
+    assert FirmwareBinary(Path("betaflight_2026.12.0-alpha_SITL"), "x").version == "2026.12.0-alpha"
     assert FirmwareBinary(Path("my_sitl"), "x").version is None
 
 

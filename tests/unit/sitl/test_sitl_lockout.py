@@ -23,8 +23,9 @@ class StubClient:
 
     def status(self) -> SimpleNamespace:
         self.asked += 1
-        value = self.cycle_times_us.pop(0) if len(self.cycle_times_us) > 1 \
-            else self.cycle_times_us[0]
+        value = (
+            self.cycle_times_us.pop(0) if len(self.cycle_times_us) > 1 else self.cycle_times_us[0]
+        )
         return SimpleNamespace(cycle_time_us=value)
 
 
@@ -88,8 +89,7 @@ def startable(clients: list[StubClient], monkeypatch, tmp_path) -> SitlProcess:
     return sitl
 
 
-def test_a_locked_out_launch_is_retried_and_counts_as_a_launch_not_a_start(monkeypatch,
-                                                                          tmp_path):
+def test_a_locked_out_launch_is_retried_and_counts_as_a_launch_not_a_start(monkeypatch, tmp_path):
     sitl = startable([StubClient(0), StubClient(125)], monkeypatch, tmp_path)
     sitl.start()
     # Tests and callers count starts to see reboots; a retried launch must not look like one.
@@ -100,8 +100,9 @@ def test_a_locked_out_launch_is_retried_and_counts_as_a_launch_not_a_start(monke
 def test_a_launch_locked_out_every_time_is_reported(monkeypatch, tmp_path):
     locked_out = [StubClient(0) for _ in range(process._START_ATTEMPTS)]
     sitl = startable(locked_out, monkeypatch, tmp_path)
-    with pytest.raises(SitlLockedOutError, match="launches in a row failed at boot.*"
-                       "load average.*--lockstep"):
+    with pytest.raises(
+        SitlLockedOutError, match="launches in a row failed at boot.*load average.*--lockstep"
+    ):
         sitl.start()
     assert (sitl.starts, sitl.launches) == (0, process._START_ATTEMPTS)
     # Each retry said why, how busy the machine was, and how long it waits.

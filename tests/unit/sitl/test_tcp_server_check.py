@@ -34,8 +34,9 @@ def listener() -> Iterator[socket.socket]:
 def check_for(port: int, tmp_path, log_text: str = "", offset: int = 0) -> TcpServerCheck:
     log_path = tmp_path / "sitl.log"
     log_path.write_text(log_text)
-    return TcpServerCheck(log_path=log_path, log_offset=offset, netns_pid=None, port=port,
-                          stall_s=0.5)
+    return TcpServerCheck(
+        log_path=log_path, log_offset=offset, netns_pid=None, port=port, stall_s=0.5
+    )
 
 
 def test_a_port_nobody_accepts_on_is_reported_after_the_stall_time(listener, tmp_path):
@@ -43,7 +44,7 @@ def test_a_port_nobody_accepts_on_is_reported_after_the_stall_time(listener, tmp
     check = check_for(port, tmp_path)
     with closing(socket.create_connection(("127.0.0.1", port), timeout=1.0)):
         assert check.accept_queue() == 1
-        check.check(10.0)   # first seen queued: not yet a verdict
+        check.check(10.0)  # first seen queued: not yet a verdict
         check.check(10.4)
         with pytest.raises(SitlTcpServerLostError, match="accepted no connection") as caught:
             check.check(10.5)

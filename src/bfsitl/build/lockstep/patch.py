@@ -30,7 +30,7 @@ class Edit:
     """Insert ``text`` after (or instead of) the one match of ``anchor`` in sitl.c."""
 
     name: str
-    anchor: str          # a regular expression (re.MULTILINE)
+    anchor: str  # a regular expression (re.MULTILINE)
     text: str
     replace: bool = False
 
@@ -44,8 +44,8 @@ class Edit:
             )
         match = matches[0]
         if self.replace:
-            return source[:match.start()] + self.text + source[match.end():]
-        return source[:match.end()] + self.text + source[match.end():]
+            return source[: match.start()] + self.text + source[match.end() :]
+        return source[: match.end()] + self.text + source[match.end() :]
 
 
 def _body_start(signature: str) -> str:
@@ -55,8 +55,7 @@ def _body_start(signature: str) -> str:
 
 def _thread_start(name: str) -> str:
     """A thread function's opening, through its ``UNUSED(data);`` line."""
-    return _body_start(rf"static void\s*\*\s*{name}\(void\s*\*\s*data\)") + \
-        r"    UNUSED\(data\);\n"
+    return _body_start(rf"static void\s*\*\s*{name}\(void\s*\*\s*data\)") + r"    UNUSED\(data\);\n"
 
 
 def _early_return(value: str) -> str:
@@ -64,47 +63,76 @@ def _early_return(value: str) -> str:
 
 
 EDITS: tuple[Edit, ...] = (
-    Edit("includes (#include \"udplink.h\")", r'^#include "udplink\.h"\n',
-         "\n#define SITL_LOCKSTEP 1\n"
-         "static uint64_t lockstepNowUs(void);\n"
-         "static uint32_t lockstepCycleCounter(void);\n"
-         "static void lockstepAdvanceBy(uint64_t us);\n"
-         "static void lockstepLoopEnd(void);\n"
-         "static void lockstepInit(void);\n"),
-    Edit("fdm thread (udpThread)",
-         _thread_start("udpThread"),
-         "#if defined(SITL_LOCKSTEP)\n    return NULL;  // the main loop reads fdm packets\n"
-         "#endif\n"),
-    Edit("TCP thread (tcpThread)",
-         _thread_start("tcpThread"),
-         "#if defined(SITL_LOCKSTEP)\n    return NULL;  // the main loop services dyad\n"
-         "#endif\n"),
-    Edit("system start (systemInit's clock_gettime)",
-         r"^    clock_gettime\(CLOCK_MONOTONIC, &start_time\);\n",
-         "#if defined(SITL_LOCKSTEP)\n    lockstepInit();\n#endif\n"),
-    Edit("clock (micros64)", _body_start(r"uint64_t micros64\(void\)"),
-         _early_return("lockstepNowUs()")),
-    Edit("clock (millis64)", _body_start(r"uint64_t millis64\(void\)"),
-         _early_return("lockstepNowUs() / 1000")),
-    Edit("cycle counter (getCycleCounter)", _body_start(r"uint32_t getCycleCounter\(void\)"),
-         _early_return("lockstepCycleCounter()")),
-    Edit("delay (delayMicroseconds)",
-         _body_start(r"void delayMicroseconds\(uint32_t us\)"),
-         "#if defined(SITL_LOCKSTEP)\n    lockstepAdvanceBy(us);\n    return;\n#endif\n"),
-    Edit("delay (delay)", _body_start(r"void delay\(uint32_t ms\)"),
-         "#if defined(SITL_LOCKSTEP)\n    lockstepAdvanceBy((uint64_t)ms * 1000);\n"
-         "    return;\n#endif\n"),
-    Edit("main-loop pause (delayMicroseconds_real)",
-         _body_start(r"void delayMicroseconds_real\(uint32_t us\)"),
-         "#if defined(SITL_LOCKSTEP)\n    UNUSED(us);\n    lockstepLoopEnd();\n    return;\n"
-         "#endif\n"),
-    Edit("motor output (pwmCompleteMotorUpdate's reply)",
-         r'^    // get one "fdm_packet" can only send one "servo_packet"!!\n',
-         "#if defined(SITL_LOCKSTEP)\n    return;  // the main loop sends one reply per packet\n"
-         "#endif\n"),
-    Edit("fdm wall-clock timeout (updateState)",
-         r"^    if \(realtime_now > last_realtime \+ 500\*1e3\) \{",
-         "    if (!SITL_LOCKSTEP && realtime_now > last_realtime + 500*1e3) {", replace=True),
+    Edit(
+        'includes (#include "udplink.h")',
+        r'^#include "udplink\.h"\n',
+        "\n#define SITL_LOCKSTEP 1\n"
+        "static uint64_t lockstepNowUs(void);\n"
+        "static uint32_t lockstepCycleCounter(void);\n"
+        "static void lockstepAdvanceBy(uint64_t us);\n"
+        "static void lockstepLoopEnd(void);\n"
+        "static void lockstepInit(void);\n",
+    ),
+    Edit(
+        "fdm thread (udpThread)",
+        _thread_start("udpThread"),
+        "#if defined(SITL_LOCKSTEP)\n    return NULL;  // the main loop reads fdm packets\n"
+        "#endif\n",
+    ),
+    Edit(
+        "TCP thread (tcpThread)",
+        _thread_start("tcpThread"),
+        "#if defined(SITL_LOCKSTEP)\n    return NULL;  // the main loop services dyad\n#endif\n",
+    ),
+    Edit(
+        "system start (systemInit's clock_gettime)",
+        r"^    clock_gettime\(CLOCK_MONOTONIC, &start_time\);\n",
+        "#if defined(SITL_LOCKSTEP)\n    lockstepInit();\n#endif\n",
+    ),
+    Edit(
+        "clock (micros64)",
+        _body_start(r"uint64_t micros64\(void\)"),
+        _early_return("lockstepNowUs()"),
+    ),
+    Edit(
+        "clock (millis64)",
+        _body_start(r"uint64_t millis64\(void\)"),
+        _early_return("lockstepNowUs() / 1000"),
+    ),
+    Edit(
+        "cycle counter (getCycleCounter)",
+        _body_start(r"uint32_t getCycleCounter\(void\)"),
+        _early_return("lockstepCycleCounter()"),
+    ),
+    Edit(
+        "delay (delayMicroseconds)",
+        _body_start(r"void delayMicroseconds\(uint32_t us\)"),
+        "#if defined(SITL_LOCKSTEP)\n    lockstepAdvanceBy(us);\n    return;\n#endif\n",
+    ),
+    Edit(
+        "delay (delay)",
+        _body_start(r"void delay\(uint32_t ms\)"),
+        "#if defined(SITL_LOCKSTEP)\n    lockstepAdvanceBy((uint64_t)ms * 1000);\n"
+        "    return;\n#endif\n",
+    ),
+    Edit(
+        "main-loop pause (delayMicroseconds_real)",
+        _body_start(r"void delayMicroseconds_real\(uint32_t us\)"),
+        "#if defined(SITL_LOCKSTEP)\n    UNUSED(us);\n    lockstepLoopEnd();\n    return;\n"
+        "#endif\n",
+    ),
+    Edit(
+        "motor output (pwmCompleteMotorUpdate's reply)",
+        r'^    // get one "fdm_packet" can only send one "servo_packet"!!\n',
+        "#if defined(SITL_LOCKSTEP)\n    return;  // the main loop sends one reply per packet\n"
+        "#endif\n",
+    ),
+    Edit(
+        "fdm wall-clock timeout (updateState)",
+        r"^    if \(realtime_now > last_realtime \+ 500\*1e3\) \{",
+        "    if (!SITL_LOCKSTEP && realtime_now > last_realtime + 500*1e3) {",
+        replace=True,
+    ),
 )
 
 
@@ -121,9 +149,11 @@ def patch_sitl_source(source: str) -> str:
         patched = edit.apply(patched)
     # master feeds UDP RC through rx.c's rxUpdateUdpChannels; 4.6 sets the rx callbacks itself.
     rc_via_rx_udp = int("rxUpdateUdpChannels(" in source)
-    return (patched.rstrip("\n") + "\n\n/* bfsitl lockstep (see sitl_lockstep.c) */\n"
-            f"#define LOCKSTEP_RC_VIA_RX_UDP {rc_via_rx_udp}\n"
-            f'#include "{LOCKSTEP_C_NAME}"\n')
+    return (
+        patched.rstrip("\n") + "\n\n/* bfsitl lockstep (see sitl_lockstep.c) */\n"
+        f"#define LOCKSTEP_RC_VIA_RX_UDP {rc_via_rx_udp}\n"
+        f'#include "{LOCKSTEP_C_NAME}"\n'
+    )
 
 
 @dataclass(frozen=True)
@@ -143,6 +173,7 @@ class LockstepPatch:
         if not sitl_c.is_file():
             raise FirmwareBuildError(
                 f"--lockstep: this tree has no {SITL_C} (the SIMULATOR platform the patch "
-                f"changes); build it without --lockstep")
+                f"changes); build it without --lockstep"
+            )
         sitl_c.write_text(patch_sitl_source(sitl_c.read_text()))
         (sitl_c.parent / LOCKSTEP_C_NAME).write_text(lockstep_source())

@@ -183,8 +183,16 @@ def _count_check(name: str, wire: Array) -> Callable[[Sequence[int]], Sequence[i
 class _Run:
     """Consecutive fixed-size fields, one struct for all of them."""
 
-    __slots__ = ("struct", "size", "ends", "count", "regroup", "converters", "flatteners",
-                 "array_counts")
+    __slots__ = (
+        "struct",
+        "size",
+        "ends",
+        "count",
+        "regroup",
+        "converters",
+        "flatteners",
+        "array_counts",
+    )
 
     def __init__(self, parts: Sequence[_Part]) -> None:
         self.struct = struct.Struct("<" + "".join(p.fmt for p in parts))
@@ -419,8 +427,10 @@ class Layout:
                 raise TypeError(f"{record_name}.{field.name} runs to the end: it must be last")
         head = [f for f in self.fields if not f.in_tail]
         tail_fields = [f for f in self.fields if f.in_tail]
-        if tail is not None and tail.cut_is_absent and any(
-            f.fixed_size is None for f in tail_fields
+        if (
+            tail is not None
+            and tail.cut_is_absent
+            and any(f.fixed_size is None for f in tail_fields)
         ):
             raise TypeError(f"{record_name}: a tail read only when whole needs fixed sizes")
         self._head_steps = _steps(head)

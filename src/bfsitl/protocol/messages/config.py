@@ -68,8 +68,10 @@ class PidAdvanced(WireRecord):
     @classmethod
     def decode(cls, payload: bytes) -> Self:
         if len(payload) <= cls.ANGLE_LIMIT_OFFSET:
-            raise MspDecodeError(f"MSP_PID_ADVANCED: {len(payload)} bytes, angle_limit is "
-                                 f"byte {cls.ANGLE_LIMIT_OFFSET}")
+            raise MspDecodeError(
+                f"MSP_PID_ADVANCED: {len(payload)} bytes, angle_limit is "
+                f"byte {cls.ANGLE_LIMIT_OFFSET}"
+            )
         return cls(payload[cls.ANGLE_LIMIT_OFFSET], bytes(payload))
 
     def encode(self) -> bytes:

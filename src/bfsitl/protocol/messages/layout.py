@@ -124,8 +124,11 @@ def _wire_fields(cls: type) -> tuple[list[WireField], Tail | None, str | None]:
         extras, plain = _annotation_parts(hints[field.name])
         wires = [extra for extra in extras if isinstance(extra, WIRE_TYPES)]
         if not wires:  # a record class as the type: inline
-            wires = [Nested(t) for t in plain if isinstance(t, type)
-                     and issubclass(t, WireRecord) and t.LAYOUT is not None]
+            wires = [
+                Nested(t)
+                for t in plain
+                if isinstance(t, type) and issubclass(t, WireRecord) and t.LAYOUT is not None
+            ]
         if not wires:
             return fields, tail, field.name
         if len(wires) > 1:
@@ -136,8 +139,7 @@ def _wire_fields(cls: type) -> tuple[list[WireField], Tail | None, str | None]:
                 raise TypeError(f"{cls.__name__}.{field.name}: the tail was marked before")
             tail = marks[0]
         no_default = dataclasses.MISSING
-        if tail is not None and field.default is no_default \
-                and field.default_factory is no_default:
+        if tail is not None and field.default is no_default and field.default_factory is no_default:
             raise TypeError(f"{cls.__name__}.{field.name} is in the tail: it needs a default")
         pad = sum(extra.size for extra in extras if isinstance(extra, Pad))
         fields.append(WireField(field.name, wires[0], pad, tail is not None, field.default))

@@ -73,8 +73,9 @@ class Rc(WireRecord):
         # The layout reads any number of channels; a receiver has none or at least the sticks.
         (channels,) = declared_layout(cls).decode_values(payload)
         if 0 < len(channels) < 4:
-            raise MspDecodeError(f"MSP Rc: needs 0 or at least 4 channels (8 bytes), got "
-                                 f"{len(payload)} bytes")
+            raise MspDecodeError(
+                f"MSP Rc: needs 0 or at least 4 channels (8 bytes), got {len(payload)} bytes"
+            )
         return cls(channels)
 
 

@@ -92,15 +92,23 @@ def _encode_status(msg: Status | StatusEx, middle: Sequence[int], head_run: IntR
         raise MspRequestError("flight-mode flags above bit 159 do not fit MSP_STATUS")
     try:
         parts = [
-            head_run.struct.pack(msg.cycle_time_us, msg.i2c_errors, msg.sensors_mask,
-                                 flags & 0xFFFFFFFF, msg.pid_profile, msg.cpu_load_percent,
-                                 *middle, extra),
+            head_run.struct.pack(
+                msg.cycle_time_us,
+                msg.i2c_errors,
+                msg.sensors_mask,
+                flags & 0xFFFFFFFF,
+                msg.pid_profile,
+                msg.cpu_load_percent,
+                *middle,
+                extra,
+            ),
             (flags >> 32).to_bytes(extra, "little"),
         ]
         after = (msg.arming_disable_flag_count, msg.arming_disable_flags, msg.config_state)
         if msg.cpu_temp_c is not None and msg.rate_profile_count is not None:
-            parts.append(_AFTER_FLAGS_AND_TAIL.struct.pack(
-                *after, msg.cpu_temp_c, msg.rate_profile_count))
+            parts.append(
+                _AFTER_FLAGS_AND_TAIL.struct.pack(*after, msg.cpu_temp_c, msg.rate_profile_count)
+            )
         else:
             parts.append(_AFTER_FLAGS.struct.pack(*after))
             if msg.cpu_temp_c is not None:  # the tail up to its first None
@@ -144,8 +152,20 @@ class Status(_StatusView):
         cycle, i2c, sensors, _, pid_profile, cpu, _gyro_cycle, *after = values
         arming_count, arming_flags, config, *tail = after
         cpu_temp, rate_count = (*tail, None, None)[:2]
-        return cls(cycle, i2c, sensors, flags, pid_profile, cpu, arming_count, arming_flags,
-                   config, cpu_temp, rate_count, extra)
+        return cls(
+            cycle,
+            i2c,
+            sensors,
+            flags,
+            pid_profile,
+            cpu,
+            arming_count,
+            arming_flags,
+            config,
+            cpu_temp,
+            rate_count,
+            extra,
+        )
 
     def encode(self) -> bytes:
         return _encode_status(self, (0,), _STATUS_HEAD)
@@ -178,8 +198,22 @@ class StatusEx(_StatusView):
         cycle, i2c, sensors, _, pid_profile, cpu, profile_count, rate_index, *after = values
         arming_count, arming_flags, config, *tail = after
         cpu_temp, rate_count = (*tail, None, None)[:2]
-        return cls(cycle, i2c, sensors, flags, pid_profile, cpu, profile_count, rate_index,
-                   arming_count, arming_flags, config, cpu_temp, rate_count, extra)
+        return cls(
+            cycle,
+            i2c,
+            sensors,
+            flags,
+            pid_profile,
+            cpu,
+            profile_count,
+            rate_index,
+            arming_count,
+            arming_flags,
+            config,
+            cpu_temp,
+            rate_count,
+            extra,
+        )
 
     def encode(self) -> bytes:
         return _encode_status(

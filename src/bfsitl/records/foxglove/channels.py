@@ -47,22 +47,55 @@ def _schema(title: str, properties: dict[str, Any]) -> dict[str, Any]:
 
 #: JSON topics and their schemas (what Foxglove's plot and raw-message panels show).
 JSON_TOPICS: dict[str, dict[str, Any]] = {
-    "/flight/altitude": _schema("bfsitl.Altitude", {
-        name: _NUMBER for name in ("target_alt_m", "sim_alt_m", "fc_alt_m", "climb_m_s",
-                                   "sim_climb_m_s", "fc_accel_up_m_s2")}),
-    "/flight/position": _schema("bfsitl.Position", {
-        name: _NUMBER for name in ("target_north_m", "target_east_m", "sim_north_m",
-                                   "sim_east_m", "fc_north_m", "fc_east_m",
-                                   "target_heading_deg", "sim_yaw_deg", "yaw_deg")}),
-    "/rc": _schema("bfsitl.Rc", {
-        name: _INTEGER for name in ("roll_us", "pitch_us", "throttle_us", "yaw_us", "aux1_us",
-                                    "aux2_us")}),
-    "/motors": _schema("bfsitl.Motors", {
-        f"motor{n}": _NUMBER for n in range(1, 5)}),
-    "/fc/state": _schema("bfsitl.FcState", {
-        "armed": {"type": "boolean"}, "phase": {"type": "string"}, "waypoint": _INTEGER,
-        "arming_blockers": {"type": "array", "items": {"type": "string"}},
-        "flight_modes": {"type": "array", "items": {"type": "string"}}}),
+    "/flight/altitude": _schema(
+        "bfsitl.Altitude",
+        {
+            name: _NUMBER
+            for name in (
+                "target_alt_m",
+                "sim_alt_m",
+                "fc_alt_m",
+                "climb_m_s",
+                "sim_climb_m_s",
+                "fc_accel_up_m_s2",
+            )
+        },
+    ),
+    "/flight/position": _schema(
+        "bfsitl.Position",
+        {
+            name: _NUMBER
+            for name in (
+                "target_north_m",
+                "target_east_m",
+                "sim_north_m",
+                "sim_east_m",
+                "fc_north_m",
+                "fc_east_m",
+                "target_heading_deg",
+                "sim_yaw_deg",
+                "yaw_deg",
+            )
+        },
+    ),
+    "/rc": _schema(
+        "bfsitl.Rc",
+        {
+            name: _INTEGER
+            for name in ("roll_us", "pitch_us", "throttle_us", "yaw_us", "aux1_us", "aux2_us")
+        },
+    ),
+    "/motors": _schema("bfsitl.Motors", {f"motor{n}": _NUMBER for n in range(1, 5)}),
+    "/fc/state": _schema(
+        "bfsitl.FcState",
+        {
+            "armed": {"type": "boolean"},
+            "phase": {"type": "string"},
+            "waypoint": _INTEGER,
+            "arming_blockers": {"type": "array", "items": {"type": "string"}},
+            "flight_modes": {"type": "array", "items": {"type": "string"}},
+        },
+    ),
 }
 TRANSFORM_TOPICS = ("/sim/pose", "/fc/pose")
 EVENT_TOPIC = "/events"
@@ -87,31 +120,51 @@ def row_messages(row: FlightRow, sample: FlightSample | None = None) -> dict[str
     """The JSON messages of one row, by topic."""
     return {
         "/flight/altitude": {
-            "target_alt_m": _finite(row.target_alt_m), "sim_alt_m": _finite(row.sim_alt_m),
-            "fc_alt_m": _finite(row.fc_alt_m), "climb_m_s": _finite(row.climb_m_s),
+            "target_alt_m": _finite(row.target_alt_m),
+            "sim_alt_m": _finite(row.sim_alt_m),
+            "fc_alt_m": _finite(row.fc_alt_m),
+            "climb_m_s": _finite(row.climb_m_s),
             "sim_climb_m_s": _finite(row.sim_climb_m_s),
-            "fc_accel_up_m_s2": _finite(row.fc_accel_up_m_s2)},
+            "fc_accel_up_m_s2": _finite(row.fc_accel_up_m_s2),
+        },
         "/flight/position": {
             "target_north_m": _finite(row.target_north_m),
             "target_east_m": _finite(row.target_east_m),
-            "sim_north_m": _finite(row.sim_north_m), "sim_east_m": _finite(row.sim_east_m),
-            "fc_north_m": _finite(row.fc_north_m), "fc_east_m": _finite(row.fc_east_m),
+            "sim_north_m": _finite(row.sim_north_m),
+            "sim_east_m": _finite(row.sim_east_m),
+            "fc_north_m": _finite(row.fc_north_m),
+            "fc_east_m": _finite(row.fc_east_m),
             "target_heading_deg": _finite(row.target_heading_deg),
-            "sim_yaw_deg": _finite(row.sim_yaw_deg), "yaw_deg": _finite(row.yaw_deg)},
-        "/rc": {"roll_us": row.rc_roll_us, "pitch_us": row.rc_pitch_us,
-                "throttle_us": row.rc_throttle_us, "yaw_us": row.rc_yaw_us,
-                "aux1_us": row.rc_aux1_us, "aux2_us": row.rc_aux2_us},
-        "/motors": {"motor1": row.motor1, "motor2": row.motor2, "motor3": row.motor3,
-                    "motor4": row.motor4},
+            "sim_yaw_deg": _finite(row.sim_yaw_deg),
+            "yaw_deg": _finite(row.yaw_deg),
+        },
+        "/rc": {
+            "roll_us": row.rc_roll_us,
+            "pitch_us": row.rc_pitch_us,
+            "throttle_us": row.rc_throttle_us,
+            "yaw_us": row.rc_yaw_us,
+            "aux1_us": row.rc_aux1_us,
+            "aux2_us": row.rc_aux2_us,
+        },
+        "/motors": {
+            "motor1": row.motor1,
+            "motor2": row.motor2,
+            "motor3": row.motor3,
+            "motor4": row.motor4,
+        },
         "/fc/state": {
-            "armed": row.armed, "phase": row.phase, "waypoint": row.waypoint,
+            "armed": row.armed,
+            "phase": row.phase,
+            "waypoint": row.waypoint,
             "arming_blockers": list(sample.arming_blockers) if sample is not None else [],
-            "flight_modes": list(sample.flight_modes) if sample is not None else []},
+            "flight_modes": list(sample.flight_modes) if sample is not None else [],
+        },
     }
 
 
-def pose_of(row: FlightRow, which: str) -> tuple[tuple[float, float, float],
-                                                 tuple[float, float, float, float]]:
+def pose_of(
+    row: FlightRow, which: str
+) -> tuple[tuple[float, float, float], tuple[float, float, float, float]]:
     """(translation ENU m, rotation xyzw) of the truth (``"sim"``) or the FC (``"fc"``).
 
     Unknown truth (Gazebo) sits at the origin, level; the FC without a GPS position is drawn at
@@ -122,8 +175,11 @@ def pose_of(row: FlightRow, which: str) -> tuple[tuple[float, float, float],
         translation = (sim_east, sim_north, _or(row.sim_alt_m, 0.0))
         angles = (row.sim_roll_deg, row.sim_pitch_deg, row.sim_yaw_deg)
     else:
-        translation = (_or(row.fc_east_m, sim_east), _or(row.fc_north_m, sim_north),
-                       _or(row.fc_alt_m, 0.0))
+        translation = (
+            _or(row.fc_east_m, sim_east),
+            _or(row.fc_north_m, sim_north),
+            _or(row.fc_alt_m, 0.0),
+        )
         angles = (row.roll_deg, row.pitch_deg, row.yaw_deg)
     roll, pitch, yaw = (_or(angle, 0.0) for angle in angles)
     return translation, betaflight_to_enu_quaternion(roll, pitch, yaw)
@@ -138,12 +194,19 @@ class FlightChannels:
 
         self._foxglove = foxglove
         self.transforms = {
-            topic: FrameTransformChannel(topic, context=context) for topic in TRANSFORM_TOPICS}
+            topic: FrameTransformChannel(topic, context=context) for topic in TRANSFORM_TOPICS
+        }
         self.json = {
-            topic: foxglove.Channel(topic, schema=foxglove.Schema(
-                name=schema["title"], encoding="jsonschema",
-                data=json.dumps(schema).encode()), message_encoding="json", context=context)
-            for topic, schema in JSON_TOPICS.items()}
+            topic: foxglove.Channel(
+                topic,
+                schema=foxglove.Schema(
+                    name=schema["title"], encoding="jsonschema", data=json.dumps(schema).encode()
+                ),
+                message_encoding="json",
+                context=context,
+            )
+            for topic, schema in JSON_TOPICS.items()
+        }
         self.events = LogChannel(EVENT_TOPIC, context=context)
         self._armed: bool | None = None
 
@@ -152,27 +215,42 @@ class FlightChannels:
 
         stamp_ns = time_ns(row.time_s)
         stamp = Timestamp(sec=stamp_ns // 1_000_000_000, nsec=stamp_ns % 1_000_000_000)
-        for topic, which, child in (("/sim/pose", "sim", SIM_BODY_FRAME),
-                                    ("/fc/pose", "fc", FC_BODY_FRAME)):
+        for topic, which, child in (
+            ("/sim/pose", "sim", SIM_BODY_FRAME),
+            ("/fc/pose", "fc", FC_BODY_FRAME),
+        ):
             (x, y, z), (qx, qy, qz, qw) = pose_of(row, which)
-            self.transforms[topic].log(FrameTransform(
-                timestamp=stamp, parent_frame_id=WORLD_FRAME, child_frame_id=child,
-                translation=Vector3(x=x, y=y, z=z),
-                rotation=Quaternion(x=qx, y=qy, z=qz, w=qw)), log_time=stamp_ns)
+            self.transforms[topic].log(
+                FrameTransform(
+                    timestamp=stamp,
+                    parent_frame_id=WORLD_FRAME,
+                    child_frame_id=child,
+                    translation=Vector3(x=x, y=y, z=z),
+                    rotation=Quaternion(x=qx, y=qy, z=qz, w=qw),
+                ),
+                log_time=stamp_ns,
+            )
         for topic, message in row_messages(row, sample).items():
             self.json[topic].log(json.dumps(message).encode(), log_time=stamp_ns)
         if self._armed is not None and row.armed != self._armed:
             self.log_event(row.time_s, "FC armed" if row.armed else "FC disarmed")
         self._armed = row.armed
 
-    def log_event(self, time_s: float, text: str, *, level: str = "Info",
-                  name: str = "bfsitl") -> None:
+    def log_event(
+        self, time_s: float, text: str, *, level: str = "Info", name: str = "bfsitl"
+    ) -> None:
         from foxglove.messages import Log, LogLevel, Timestamp
 
         stamp_ns = time_ns(time_s)
-        self.events.log(Log(
-            timestamp=Timestamp(sec=stamp_ns // 1_000_000_000, nsec=stamp_ns % 1_000_000_000),
-            level=getattr(LogLevel, level), message=text, name=name), log_time=stamp_ns)
+        self.events.log(
+            Log(
+                timestamp=Timestamp(sec=stamp_ns // 1_000_000_000, nsec=stamp_ns % 1_000_000_000),
+                level=getattr(LogLevel, level),
+                message=text,
+                name=name,
+            ),
+            log_time=stamp_ns,
+        )
 
 
 #: A callback taking one line of text.

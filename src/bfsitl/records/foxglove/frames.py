@@ -19,7 +19,8 @@ Matrix = tuple[tuple[float, float, float], tuple[float, float, float], tuple[flo
 
 def _multiply(a: Matrix, b: Matrix) -> Matrix:
     return tuple(  # type: ignore[return-value]
-        tuple(sum(a[i][k] * b[k][j] for k in range(3)) for j in range(3)) for i in range(3))
+        tuple(sum(a[i][k] * b[k][j] for k in range(3)) for j in range(3)) for i in range(3)
+    )
 
 
 #: NED vector -> ENU vector, and FLU body vector -> FRD body vector.
@@ -30,8 +31,14 @@ _FLU_TO_FRD: Matrix = ((1.0, 0.0, 0.0), (0.0, -1.0, 0.0), (0.0, 0.0, -1.0))
 def enu_flu_rotation(roll_deg: float, pitch_deg: float, yaw_deg: float) -> Matrix:
     """The rotation taking FLU body vectors to ENU world vectors, from Betaflight's angles."""
     phi, theta, psi = (math.radians(roll_deg), math.radians(-pitch_deg), math.radians(yaw_deg))
-    cf, sf, ct, st, cp, sp = (math.cos(phi), math.sin(phi), math.cos(theta), math.sin(theta),
-                              math.cos(psi), math.sin(psi))
+    cf, sf, ct, st, cp, sp = (
+        math.cos(phi),
+        math.sin(phi),
+        math.cos(theta),
+        math.sin(theta),
+        math.cos(psi),
+        math.sin(psi),
+    )
     ned_frd: Matrix = (
         (cp * ct, cp * st * sf - sp * cf, cp * st * cf + sp * sf),
         (sp * ct, sp * st * sf + cp * cf, sp * st * cf - cp * sf),
@@ -62,7 +69,8 @@ def quaternion_xyzw(rotation: Matrix) -> tuple[float, float, float, float]:
     return x / norm, y / norm, z / norm, w / norm
 
 
-def betaflight_to_enu_quaternion(roll_deg: float, pitch_deg: float,
-                                 yaw_deg: float) -> tuple[float, float, float, float]:
+def betaflight_to_enu_quaternion(
+    roll_deg: float, pitch_deg: float, yaw_deg: float
+) -> tuple[float, float, float, float]:
     """Betaflight's roll/pitch/yaw as the (x, y, z, w) quaternion of the FLU body in ENU."""
     return quaternion_xyzw(enu_flu_rotation(roll_deg, pitch_deg, yaw_deg))

@@ -33,7 +33,8 @@ def _import_foxglove() -> Any:
         import foxglove
     except ImportError as exc:
         raise ExtraMissingError(
-            f"--mcap and --foxglove need the Foxglove SDK: {INSTALL_HINT}") from exc
+            f"--mcap and --foxglove need the Foxglove SDK: {INSTALL_HINT}"
+        ) from exc
     return foxglove
 
 
@@ -44,9 +45,14 @@ class FoxgloveRecorder:
     finishes the file (its summary and index) on every way out.
     """
 
-    def __init__(self, *, mcap_path: Path | None = None, live_port: int | None = None,
-                 allow_origins: Iterable[str] = (),
-                 on_event: Callable[[str], None] | None = None) -> None:
+    def __init__(
+        self,
+        *,
+        mcap_path: Path | None = None,
+        live_port: int | None = None,
+        allow_origins: Iterable[str] = (),
+        on_event: Callable[[str], None] | None = None,
+    ) -> None:
         self.mcap_path = mcap_path
         self.live_port = live_port
         self.origins = OriginPolicy.with_extra(allow_origins)
@@ -87,11 +93,17 @@ class FoxgloveRecorder:
         from bfsitl.bridges.websocket_guard import OriginGuard
 
         # No capabilities: viewers may subscribe, nothing else (no publishing into the flight).
-        self._server = foxglove.start_server(host="127.0.0.1", port=0, context=context,
-                                             name="bfsitl", capabilities=[])
-        guard = OriginGuard(f"ws://127.0.0.1:{self._server.port}", port=port,
-                            subprotocols=FOXGLOVE_SUBPROTOCOLS, origins=self.origins,
-                            on_event=self._on_event, port_option="--foxglove-port")
+        self._server = foxglove.start_server(
+            host="127.0.0.1", port=0, context=context, name="bfsitl", capabilities=[]
+        )
+        guard = OriginGuard(
+            f"ws://127.0.0.1:{self._server.port}",
+            port=port,
+            subprotocols=FOXGLOVE_SUBPROTOCOLS,
+            origins=self.origins,
+            on_event=self._on_event,
+            port_option="--foxglove-port",
+        )
         self.live_url = self._stack.enter_context(guard.running())
 
     def write(self, row: FlightRow, sample: FlightSample | None = None) -> None:

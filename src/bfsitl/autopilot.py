@@ -29,7 +29,7 @@ from collections.abc import Callable
 from dataclasses import replace
 from pathlib import Path
 
-from bfsitl.backend.options import Timing, World, fly_sensors
+from bfsitl.backend.options import Physics, Timing, World, fly_sensors
 from bfsitl.control import DEFAULT_CONTROLLER, make_controller
 from bfsitl.control.base import AltitudeController
 from bfsitl.control.horizontal_estimator import HorizontalEstimator
@@ -56,7 +56,7 @@ GROUND_WAIT_S = 2.0
 def launch_sitl(
     firmware: str | Path | None = None,
     *,
-    physics: str = "embedded",
+    physics: Physics = "embedded",
     wind: Wind | None = None,
     speed: float | None = None,
     seed: int = 0,

@@ -17,7 +17,8 @@ from bfsitl.physics.sensors import SensorConfig
 from bfsitl.physics.wind import Wind
 
 #: The physics under the FC: bfsitl's own simulator, or Gazebo with the BetaflightPlugin.
-PHYSICS = ("embedded", "gazebo")
+Physics = Literal["embedded", "gazebo"]
+PHYSICS: tuple[Physics, ...] = get_args(Physics)
 
 #: How packets pass between the physics and a lockstep firmware: shared memory where the
 #: build and the machine have it (``auto``), always (``shm``), or UDP.
@@ -76,7 +77,7 @@ class World:
             from north.  A firmware without a compass believes north at boot whatever it is.
     """
 
-    physics: str = "embedded"
+    physics: Physics = "embedded"
     gz_plugin_dir: str | Path | None = None
     quad: QuadParams = IRIS
     wind: Wind | None = None

@@ -34,24 +34,8 @@ from bfsitl.sitl.process import SitlProcess
 pytestmark = pytest.mark.sitl
 
 API_VERSION_REQUEST = encode_request(MspCommand.API_VERSION)
-#: The two commands on a parser of their own, with bfsitl's error convention (one line, exit
-#: code 1), so these tests do not depend on how cli/main.py wires them.
-_BRIDGE_MAIN = (
-    "import argparse, sys\n"
-    "from bfsitl.cli.bridge_commands import add_configurator_parser, "
-    "add_serial_bridge_parser\n"
-    "parser = argparse.ArgumentParser(prog='bfsitl')\n"
-    "sub = parser.add_subparsers(required=True)\n"
-    "add_configurator_parser(sub)\n"
-    "add_serial_bridge_parser(sub)\n"
-    "args = parser.parse_args()\n"
-    "from bfsitl.errors import BfsitlError\n"
-    "try:\n"
-    "    sys.exit(args.func(args))\n"
-    "except BfsitlError as exc:\n"
-    "    print(f'bfsitl: error: {exc}', file=sys.stderr)\n"
-    "    sys.exit(1)\n"
-)
+#: The real command line: its stop signals (SIGTERM like Ctrl-C) and its one-line errors.
+BFSITL = [sys.executable, "-m", "bfsitl.cli.main"]
 
 
 #: MSP API of each generation (4.6.0 msp.c; master 301d01a msp_protocol.h).
@@ -126,7 +110,7 @@ def test_reboot_ends_the_client_and_the_started_sitl_comes_back(sitl, relay_url)
 def run_bridge(*args: str) -> Iterator[tuple[subprocess.Popen[str], str]]:
     """Start a bridge command; yield it and the first line it prints (its URL or path)."""
     process = subprocess.Popen(
-        [sys.executable, "-c", _BRIDGE_MAIN, *args],
+        [*BFSITL, *args],
         stdout=subprocess.PIPE,
         stderr=subprocess.PIPE,
         text=True,
@@ -152,7 +136,11 @@ def _sitl_pid(stderr: str) -> int:
     return int(line.split("(pid ")[1].split(")")[0])
 
 
-def test_serial_bridge_command_start_and_ctrl_c(firmware, tmp_path):
+STOPS = [pytest.param(signal.SIGINT, id="ctrl-c"), pytest.param(signal.SIGTERM, id="sigterm")]
+
+
+@pytest.mark.parametrize("stop", STOPS)
+def test_serial_bridge_command_start_and_stop(firmware, tmp_path, stop):
     link = tmp_path / "ttyBF"
     with run_bridge("serial-bridge", "--start", "--link", str(link)) as (process, printed):
         assert printed == str(link) and link.is_symlink()
@@ -163,7 +151,7 @@ def test_serial_bridge_command_start_and_ctrl_c(firmware, tmp_path):
             while not frames and time.monotonic() < deadline:
                 frames = [e for e in parser.feed(port.read(64)) if isinstance(e, MspFrame)]
         assert frames and msg.ApiVersion.decode(frames[0].payload).api == (1, 47)
-        process.send_signal(signal.SIGINT)
+        process.send_signal(stop)
         assert process.wait(timeout=15) == 0
         stderr = process.stderr.read() if process.stderr else ""
     assert not link.exists() and not link.is_symlink()
@@ -171,12 +159,13 @@ def test_serial_bridge_command_start_and_ctrl_c(firmware, tmp_path):
     assert not process_alive(_sitl_pid(stderr))
 
 
-def test_configurator_command_start_and_ctrl_c(firmware):
+@pytest.mark.parametrize("stop", STOPS)
+def test_configurator_command_start_and_stop(firmware, stop):
     with run_bridge("configurator", "--start", "--port", "0") as (process, url):
         assert url.startswith("ws://127.0.0.1:")
         with connect(url, subprotocols=["wsSerial"]) as ws:
             assert api_over_websocket(ws).api == (1, 47)
-            process.send_signal(signal.SIGINT)
+            process.send_signal(stop)
             with pytest.raises(ConnectionClosed):
                 ws.recv(timeout=10.0)
         assert process.wait(timeout=15) == 0
@@ -189,7 +178,7 @@ def test_configurator_command_errors_are_one_clear_line(tmp_path):
     with socket.create_server(("127.0.0.1", 0)) as taken:
         port = str(taken.getsockname()[1])
         refused = subprocess.run(
-            [sys.executable, "-c", _BRIDGE_MAIN, "configurator", "--uri", "tcp://127.0.0.1:1"],
+            [*BFSITL, "configurator", "--uri", "tcp://127.0.0.1:1"],
             capture_output=True,
             text=True,
             timeout=30,
@@ -197,7 +186,7 @@ def test_configurator_command_errors_are_one_clear_line(tmp_path):
         assert refused.returncode == 1 and "connection refused" in refused.stderr
         assert len(refused.stderr.strip().splitlines()) == 1
         not_tcp = subprocess.run(
-            [sys.executable, "-c", _BRIDGE_MAIN, "serial-bridge", "--uri", "serial:///dev/x"],
+            [*BFSITL, "serial-bridge", "--uri", "serial:///dev/x"],
             capture_output=True,
             text=True,
             timeout=30,
@@ -208,9 +197,7 @@ def test_configurator_command_errors_are_one_clear_line(tmp_path):
         # A listening socket stands in for a SITL: the path check must come first anyway.
         occupied = subprocess.run(
             [
-                sys.executable,
-                "-c",
-                _BRIDGE_MAIN,
+                *BFSITL,
                 "serial-bridge",
                 "--uri",
                 f"tcp://127.0.0.1:{port}",

@@ -16,7 +16,6 @@ from __future__ import annotations
 import argparse
 import asyncio
 import contextlib
-import signal
 import sys
 from collections.abc import Callable, Iterator
 from urllib.parse import urlsplit
@@ -106,8 +105,6 @@ def cmd_configurator(args: argparse.Namespace) -> int:
             print(url, flush=True)
 
         async def serve() -> None:
-            loop = asyncio.get_running_loop()
-            loop.add_signal_handler(signal.SIGTERM, relay.stop)
             await relay.serve(started=listening)
 
         with _stopped_by_ctrl_c():
@@ -120,7 +117,7 @@ def cmd_serial_bridge(args: argparse.Namespace) -> int:
 
     with _upstream(args) as upstream:
         relay = PtyRelay(upstream, link_path=args.link, on_event=progress)
-        with relay as endpoint, _stopped_by_ctrl_c(), _on_sigterm(relay.stop):
+        with relay as endpoint, _stopped_by_ctrl_c():
             progress(f"pty {endpoint.device} relayed to {upstream.uri}; Ctrl-C stops")
             print(endpoint.path, flush=True)
             relay.serve()
@@ -205,19 +202,11 @@ def _restart_when_exited(sitl: SitlProcess) -> Callable[[], None]:
 
 @contextlib.contextmanager
 def _stopped_by_ctrl_c() -> Iterator[None]:
-    """Ctrl-C is how a bridge is meant to stop: a clean exit, not an interruption."""
+    """Ctrl-C is how a bridge is meant to stop: a clean exit, not an interruption.  SIGTERM
+    and SIGHUP arrive the same way (:mod:`bfsitl.stop_signals`), so the symlink and a started
+    SITL are cleaned up whichever stops it."""
     try:
         yield
     except KeyboardInterrupt:
         print(file=sys.stderr)
         progress("stopping")
-
-
-@contextlib.contextmanager
-def _on_sigterm(stop: Callable[[], None]) -> Iterator[None]:
-    """SIGTERM stops like Ctrl-C, so the symlink and a started SITL are cleaned up."""
-    previous = signal.signal(signal.SIGTERM, lambda _signum, _frame: stop())
-    try:
-        yield
-    finally:
-        signal.signal(signal.SIGTERM, previous)

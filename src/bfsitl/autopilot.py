@@ -45,8 +45,10 @@ from bfsitl.mission.plan_driver import fly_plan
 from bfsitl.mission.results import MissionResult
 from bfsitl.mission.session import FLY_PROFILE, FlightSession, SessionConfig, SitlLaunch
 from bfsitl.mission.vehicle import Vehicle
+from bfsitl.physics.params import QuadParams
 from bfsitl.physics.wind import Wind
 from bfsitl.records.outputs import FlightOutputs, OutputOptions
+from bfsitl.vehicles import load_vehicle
 
 #: Armed at idle before the first take-off: the FC's altitude settles, and the fused
 #: controller learns the barometer's zero from the vehicle at rest.
@@ -57,6 +59,7 @@ def launch_sitl(
     firmware: str | Path | None = None,
     *,
     physics: Physics = "embedded",
+    vehicle: str | Path | QuadParams = "iris",
     wind: Wind | None = None,
     speed: float | None = None,
     seed: int = 0,
@@ -72,6 +75,8 @@ def launch_sitl(
             searches as :func:`~bfsitl.sitl.firmware.find_firmware` does.
         physics: ``"embedded"`` (bfsitl's simulator) or ``"gazebo"`` (``gz sim`` with the
             BetaflightPlugin; no truth is then known).
+        vehicle: The embedded physics' quad: ``"iris"`` (Gazebo's, the default), a shipped
+            profile's name (``"5inch-freestyle"``), a profile file, or its parameters.
         wind: Wind and gusts of the embedded physics; None is still air.
         speed: Simulation speed as a multiple of real time.  None: real time on a stock
             build, as fast as possible on a lockstep one.
@@ -89,14 +94,20 @@ def launch_sitl(
         SitlError: The SITL would not start or answer (``SitlNotReadyError``,
             ``SitlExitedError``, ``PortInUseError`` are kinds of it).
         ProvisioningError: The FC's configuration could not be applied.
+        VehicleProfileError: ``vehicle`` is no known name and no readable profile.
         BfsitlError: Anything else bfsitl refuses (a speed out of range, a missing extra).
     """
+    quad = vehicle if isinstance(vehicle, QuadParams) else load_vehicle(vehicle)
     config = SessionConfig.for_autopilot(
         control_rate_hz=FlightSession.control_rate_hz,
         sitl=SitlLaunch(firmware=firmware, workdir=workdir),
         timing=Timing(speed=speed),
         world=World(
-            physics=physics, wind=wind, seed=seed, sensors=fly_sensors(gps_noise=gps_noise)
+            physics=physics,
+            quad=quad,
+            wind=wind,
+            seed=seed,
+            sensors=fly_sensors(gps_noise=gps_noise),
         ),
     )
     return FlightSession(config, progress=progress).start()
@@ -175,7 +186,11 @@ class Autopilot:
         on_event: Callable[[str], None] | None = None,
     ) -> None:
         self.vehicle = vehicle
-        self.controller = make_controller(controller) if isinstance(controller, str) else controller
+        self.controller = (
+            make_controller(controller, quad=vehicle.quad)
+            if isinstance(controller, str)
+            else controller
+        )
         # The record format comes from the file's suffix (bfsitl.records.sinks): rows and
         # events stream to it as they are flown, and it is closed with the vehicle.
         self._outputs = FlightOutputs(OutputOptions(extra_paths=(log,) if log is not None else ()))

@@ -28,6 +28,7 @@ Messages are written for the person at the terminal: what went wrong, then what 
     ├── ProvisioningError              the FC's configuration could not be applied or verified
     │   └── BoardSetupError            a board is not ready for an autopilot (receiver, reboot)
     ├── SimInputError                  (also ValueError) a value the simulator cannot use
+    │   └── VehicleProfileError        a vehicle profile: unknown name, bad fields (one line each)
     ├── ControllerConfigError          (also ValueError) an unknown controller or gain, a bad value
     ├── EnvironmentConfigError         (also ValueError) a bfsitl.gym option it cannot take
     ├── MetricsInputError              (also ValueError) series that are no step response
@@ -175,6 +176,11 @@ class SimInputError(BfsitlError, ValueError):
 
     Also a :class:`ValueError`, so generic callers that validate input keep working.
     """
+
+
+class VehicleProfileError(SimInputError):
+    """A vehicle profile that cannot be used: an unknown name, an unreadable file, or bad
+    fields (one line each)."""
 
 
 class ControllerConfigError(BfsitlError, ValueError):

@@ -5,7 +5,9 @@ in a conftest).  Options:
 
 * ``--bfsitl-firmware NAME`` (repeat for several): the builds to fly; each scenario file and
   each test using ``bfsitl_firmware`` runs once per build;
-* ``--bfsitl-out DIR``: where the runs' files go (default: pytest's temporary directory).
+* ``--bfsitl-out DIR``: where the runs' files go (default: pytest's temporary directory);
+* ``--bfsitl-vehicle NAME|FILE``: the quad of ``bfsitl_vehicle`` and of the scenarios whose
+  ``[vehicle]`` names none (default: IRIS; ``bfsitl vehicle list`` shows the names).
 
 With at least one ``--bfsitl-firmware``, every ``*.toml`` file pytest is pointed at that is a
 scenario (it has ``[flight]`` and ``[expect]``) becomes one test per firmware; a failed
@@ -35,9 +37,11 @@ import pytest
 from bfsitl.errors import ScenarioFailedError
 from bfsitl.scenario.load import load_scenario
 from bfsitl.scenario.result import ScenarioResult, Verdict
-from bfsitl.scenario.spec import Scenario
+from bfsitl.scenario.spec import Scenario, on_vehicle
 
 FIRMWARE_OPTION = "--bfsitl-firmware"
+VEHICLE_OPTION = "--bfsitl-vehicle"
+_QUAD = pytest.StashKey[Any]()
 
 
 def pytest_addoption(parser: pytest.Parser) -> None:
@@ -51,11 +55,34 @@ def pytest_addoption(parser: pytest.Parser) -> None:
         "bfsitl_vehicle tests on; repeat for several",
     )
     group.addoption(
+        VEHICLE_OPTION,
+        default=None,
+        metavar="NAME|FILE",
+        help="the simulated quad: a shipped vehicle or a profile file (default: IRIS, or "
+        "the scenario's own [vehicle])",
+    )
+    group.addoption(
         "--bfsitl-out",
         default=None,
         metavar="DIR",
         help="where scenario runs write their files (default: pytest's tmp dir)",
     )
+
+
+def _quad(config: pytest.Config) -> Any:
+    """``--bfsitl-vehicle`` read (once per session), or None."""
+    given = config.getoption(VEHICLE_OPTION)
+    if given is None:
+        return None
+    if _QUAD not in config.stash:
+        from bfsitl.vehicles import load_vehicle
+
+        config.stash[_QUAD] = load_vehicle(given)
+    return config.stash[_QUAD]
+
+
+def _on_vehicle(config: pytest.Config, scenario: Scenario) -> Scenario:
+    return on_vehicle([scenario], _quad(config))[0]
 
 
 def _firmwares(config: pytest.Config) -> list[str]:
@@ -84,10 +111,15 @@ def bfsitl_firmware(request: pytest.FixtureRequest) -> str:
 
 
 @pytest.fixture
-def bfsitl_vehicle(bfsitl_firmware: str, tmp_path: Path) -> Iterator[Any]:
+def bfsitl_vehicle(
+    bfsitl_firmware: str, tmp_path: Path, request: pytest.FixtureRequest
+) -> Iterator[Any]:
     from bfsitl.autopilot import launch_sitl
 
-    with launch_sitl(bfsitl_firmware, workdir=tmp_path / "sitl") as vehicle:
+    quad = _quad(request.config)
+    with launch_sitl(
+        bfsitl_firmware, workdir=tmp_path / "sitl", vehicle=quad if quad is not None else "iris"
+    ) as vehicle:
         yield vehicle
 
 
@@ -106,13 +138,13 @@ def _out_dir(config: pytest.Config, name: str) -> Path:
 
 @pytest.fixture
 def bfsitl_scenario(
-    bfsitl_firmware: str, tmp_path: Path
+    bfsitl_firmware: str, tmp_path: Path, request: pytest.FixtureRequest
 ) -> Callable[[str | Path | Scenario], ScenarioResult]:
     from bfsitl.scenario.run import RunOptions, run_scenario
 
     def run(scenario: str | Path | Scenario) -> ScenarioResult:
         if not isinstance(scenario, Scenario):
-            scenario = load_scenario(scenario)
+            scenario = _on_vehicle(request.config, load_scenario(scenario))
         return run_scenario(
             scenario, bfsitl_firmware, RunOptions(tmp_path / scenario.name, plot=False)
         )
@@ -141,7 +173,8 @@ class ScenarioFile(pytest.File):
     """A scenario file: one item per firmware."""
 
     def collect(self) -> Iterator[pytest.Item]:
-        scenario = load_scenario(self.path)  # a broken file is a collection error
+        # A broken file (or a bad --bfsitl-vehicle) is a collection error.
+        scenario = _on_vehicle(self.config, load_scenario(self.path))
         for firmware in _firmwares(self.config):
             yield ScenarioItem.from_parent(
                 self, name=f"{scenario.name}[{firmware}]", scenario=scenario, firmware=firmware

@@ -34,7 +34,7 @@ from dataclasses import dataclass, field
 
 from bfsitl.control.base import AltitudeController, AltitudeInput
 from bfsitl.mission.climb_rate import ClimbRateEstimator
-from bfsitl.physics import GeoPoint, SensorConfig, Simulator
+from bfsitl.physics import IRIS, GeoPoint, QuadParams, SensorConfig, Simulator
 
 #: Betaflight's pt2FilterGain shifts the cut-off so two PT1 stages give -3 dB there.
 _PT2_CUTOFF_CORRECTION = 1.553773974
@@ -117,12 +117,15 @@ class AltitudePlant:
         baro_noise_pa: float = 0.0,
         accel_noise_m_s2: float = 0.0,
         seed: int = 0,
+        quad: QuadParams = IRIS,
     ) -> None:
-        """``hover_scale`` multiplies every motor command (< 1: a heavier vehicle, whose hover
-        throttle the controller does not know); ``baro_noise_pa`` and ``accel_noise_m_s2`` add
-        white noise to the pressure and the acceleration the FC reads."""
+        """``quad`` is the vehicle (IRIS by default); ``hover_scale`` multiplies every motor
+        command (< 1: a heavier vehicle, whose hover throttle the controller does not know);
+        ``baro_noise_pa`` and ``accel_noise_m_s2`` add white noise to the pressure and the
+        acceleration the FC reads."""
         self.fc = fc or FcModel()
         self.sim = Simulator(
+            quad,
             home=GeoPoint(0.0, 0.0, home_alt_m),
             seed=seed,
             sensors=SensorConfig(

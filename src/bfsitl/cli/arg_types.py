@@ -10,6 +10,10 @@ from __future__ import annotations
 import argparse
 import math
 from collections.abc import Callable
+from typing import TYPE_CHECKING
+
+if TYPE_CHECKING:
+    from bfsitl.physics.params import QuadParams
 
 
 def number_in(
@@ -85,3 +89,20 @@ def parse_speed(text: str) -> float:
     if not (value > 0 and math.isfinite(value)):
         raise argparse.ArgumentTypeError(f"{text!r} must be a positive number or 'max'")
     return value
+
+
+def vehicle(text: str) -> QuadParams:
+    """``--vehicle``: a shipped vehicle's name or a profile file, read now."""
+    from bfsitl.errors import VehicleProfileError
+    from bfsitl.vehicles import load_vehicle
+
+    try:
+        return load_vehicle(text)
+    except VehicleProfileError as exc:
+        raise argparse.ArgumentTypeError(str(exc)) from None
+
+
+VEHICLE_HELP = (
+    "the simulated quad: iris (the default, Gazebo's), a shipped profile (`bfsitl vehicle "
+    "list`: 5inch-freestyle, 3inch-cinewhoop, 7inch-longrange) or a profile file NAME.toml"
+)

@@ -7,7 +7,7 @@ import argparse
 import time
 from pathlib import Path
 
-from bfsitl.cli.arg_types import parse_speed, whole_number_at_least
+from bfsitl.cli.arg_types import VEHICLE_HELP, parse_speed, vehicle, whole_number_at_least
 from bfsitl.cli.target import progress
 
 EXIT_OK = 0
@@ -38,6 +38,14 @@ def add_compare_parser(actions: argparse._SubParsersAction) -> None:  # type: ig
         nargs="*",
         metavar="FILE_OR_DIR",
         help="scenario files, directories or library names (default: the shipped library)",
+    )
+    compare.add_argument(
+        "--vehicle",
+        type=vehicle,
+        default=None,
+        metavar="NAME|FILE",
+        help=VEHICLE_HELP + " (default: each scenario's own; those whose [vehicle] names a "
+        "model or a mass keep theirs)",
     )
     compare.add_argument(
         "--firmware",
@@ -131,6 +139,7 @@ def cmd_scenario_compare(args: argparse.Namespace) -> int:
         write_comparison_report,
     )
     from bfsitl.scenario.load import find_scenarios
+    from bfsitl.scenario.spec import on_vehicle
     from bfsitl.scenario.suite import run_suite
 
     if len(args.firmware) > 2:
@@ -143,7 +152,7 @@ def cmd_scenario_compare(args: argparse.Namespace) -> int:
         Side("A", args.firmware[0], tuple(args.a_cli)),
         Side("B", firmware_b, tuple(args.b_cli)),
     )
-    scenarios = find_scenarios(paths_or_library(args.paths))
+    scenarios = on_vehicle(find_scenarios(paths_or_library(args.paths)), args.vehicle)
     unknown = sorted(set(args.accept) - {s.name for s in scenarios})
     if unknown:
         raise ScenarioError(

@@ -142,7 +142,11 @@ def cmd_fly(args: argparse.Namespace) -> int:
         for name, default in gain_names(args.controller).items():
             print(f"{name} = {default:g}")
         return EXIT_OK
-    controller = make_controller(args.controller, parse_gains(args.gain))
+    if args.physics == "gazebo" and args.vehicle.name != "iris":
+        raise BfsitlError(
+            "--vehicle is the embedded physics' quad; Gazebo flies its world's own model"
+        )
+    controller = make_controller(args.controller, parse_gains(args.gain), quad=args.vehicle)
     plan = _plan_from_args(args)
     if args.rate is None:
         args.rate = POSITION_RATE_HZ if plan.needs_position else DEFAULT_RATE_HZ
@@ -172,6 +176,7 @@ def cmd_fly(args: argparse.Namespace) -> int:
         world=World(
             physics=args.physics,
             gz_plugin_dir=args.gz_plugin_dir,
+            quad=args.vehicle,
             wind=wind,
             seed=args.seed,
             sensors=fly_sensors(

@@ -26,6 +26,7 @@ from bfsitl.cli.scenario_command import add_scenario_parser
 from bfsitl.cli.sim_command import add_sim_parser
 from bfsitl.cli.target import add_target_arguments, open_target, progress
 from bfsitl.cli.top_command import add_top_parser
+from bfsitl.cli.vehicle_command import add_vehicle_parser
 from bfsitl.errors import BfsitlError, CliError
 from bfsitl.fc.cli_session import CliSession
 from bfsitl.fc.identity import read_identity
@@ -247,6 +248,7 @@ def build_parser() -> argparse.ArgumentParser:
     add_serial_bridge_parser(sub)
     add_firmware_parser(sub)
     add_log_parser(sub)
+    add_vehicle_parser(sub)
     return parser
 
 

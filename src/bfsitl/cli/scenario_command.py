@@ -7,7 +7,13 @@ import sys
 import time
 from pathlib import Path
 
-from bfsitl.cli.arg_types import number_in, parse_speed, whole_number_at_least
+from bfsitl.cli.arg_types import (
+    VEHICLE_HELP,
+    number_in,
+    parse_speed,
+    vehicle,
+    whole_number_at_least,
+)
 from bfsitl.cli.compare_command import add_compare_parser
 from bfsitl.cli.scenario_inputs import check_builds, paths_or_library
 from bfsitl.cli.target import progress
@@ -50,6 +56,14 @@ def add_scenario_parser(sub: argparse._SubParsersAction) -> None:  # type: ignor
         help="scenario files (.toml), directories of them, or names of the "
         "shipped library's scenarios (default: the "
         "library shipped with bfsitl; `bfsitl scenario list` shows it)",
+    )
+    run.add_argument(
+        "--vehicle",
+        type=vehicle,
+        default=None,
+        metavar="NAME|FILE",
+        help=VEHICLE_HELP + " (default: each scenario's own; those whose [vehicle] names a "
+        "model or a mass keep theirs)",
     )
     run.add_argument(
         "--firmware",
@@ -154,9 +168,10 @@ def add_scenario_parser(sub: argparse._SubParsersAction) -> None:  # type: ignor
 
 def cmd_scenario_run(args: argparse.Namespace) -> int:
     from bfsitl.scenario.load import find_scenarios
+    from bfsitl.scenario.spec import on_vehicle
     from bfsitl.scenario.suite import plan_runs, run_suite
 
-    scenarios = find_scenarios(paths_or_library(args.paths))
+    scenarios = on_vehicle(find_scenarios(paths_or_library(args.paths)), args.vehicle)
     runs = plan_runs(scenarios, args.firmware, args.out)
     if not args.firmware:
         runs = _runs_on_made_builds(runs)

@@ -8,7 +8,7 @@ import json
 import time
 from collections.abc import Iterator
 
-from bfsitl.cli.arg_types import number_in, port_number
+from bfsitl.cli.arg_types import VEHICLE_HELP, number_in, port_number, vehicle
 from bfsitl.cli.bridge_commands import add_allow_origin_argument
 from bfsitl.cli.target import add_target_arguments, progress
 from bfsitl.fc.msp_client import MspClient
@@ -70,6 +70,9 @@ def add_sim_parser(sub: argparse._SubParsersAction) -> None:  # type: ignore[typ
     )
     sim.add_argument("--json", action="store_true", help="one JSON object per second")
     sim.add_argument(
+        "--vehicle", type=vehicle, default="iris", metavar="NAME|FILE", help=VEHICLE_HELP
+    )
+    sim.add_argument(
         "--configurator",
         action="store_true",
         help="let the Betaflight Configurator watch: MSP on UART2 (TCP 5762) too "
@@ -91,7 +94,7 @@ def add_sim_parser(sub: argparse._SubParsersAction) -> None:  # type: ignore[typ
 def _sitl_and_bridge(args: argparse.Namespace) -> Iterator[tuple[SitlBridge, MspClient]]:
     from bfsitl.physics import Simulator  # the physics loads only for this command
 
-    simulator = Simulator()
+    simulator = Simulator(args.vehicle)
     step_s = args.step_ms / 1000.0
     if args.attach:
         bridge = SitlBridge(

@@ -33,7 +33,9 @@ from bfsitl.control.tutorial import (
     TutorialPid,
     TutorialPidGains,
 )
+from bfsitl.control.vehicle_gains import vehicle_gains
 from bfsitl.errors import ControllerConfigError
+from bfsitl.physics.params import QuadParams
 
 DEFAULT_CONTROLLER = "fused"
 
@@ -74,6 +76,8 @@ def gain_names(name: str) -> dict[str, float]:
 def make_controller(
     name: str = DEFAULT_CONTROLLER,
     gains: Mapping[str, float] | None = None,
+    *,
+    quad: QuadParams | None = None,
 ) -> AltitudeController:
     """Controller ``name`` with its default gains, overridden by ``gains``.
 
@@ -81,6 +85,8 @@ def make_controller(
         name: ``"fused"`` (the default), ``"cascade"``, ``"tutorial-pid"`` or ``"open-loop"``.
         gains: Gain name to value, for the gains to change (:func:`gain_names` lists a
             controller's gains and their defaults); None keeps every default.
+        quad: The vehicle flown: the defaults are carried over to it from IRIS
+            (:mod:`bfsitl.control.vehicle_gains`); None (a board) or IRIS keeps them.
 
     Returns:
         A new controller, ready to be reset at arming.
@@ -92,6 +98,7 @@ def make_controller(
     """
     gains_type = _gains_type(name)
     overrides = dict(gains or {})
+    carried = vehicle_gains(gains_type, quad) if quad is not None else {}
     known = gain_names(name)
     unknown = sorted(set(overrides) - set(known))
     if unknown:
@@ -110,7 +117,20 @@ def make_controller(
         if not math.isfinite(number):
             raise ControllerConfigError(f"gain {key} of {name!r} must be finite, got {value!r}")
         values[key] = number
-    return CONTROLLERS[name](gains_type(**values))
+    return CONTROLLERS[name](gains_type(**(carried | values)))
+
+
+def make_landing(quad: QuadParams | None = None) -> LandingController:
+    """The usual landing controller, its defaults carried over to ``quad`` (None: IRIS's).
+
+    Args:
+        quad: The vehicle flown; None (a board) or IRIS keeps the defaults.
+
+    Returns:
+        A new landing controller.
+    """
+    carried = vehicle_gains(LandingGains, quad) if quad is not None else {}
+    return LandingController(LandingGains(**carried))
 
 
 __all__ = [
@@ -133,5 +153,6 @@ __all__ = [
     "TutorialPidGains",
     "gain_names",
     "make_controller",
+    "make_landing",
     "step_response",
 ]

@@ -10,9 +10,26 @@ from __future__ import annotations
 
 import numpy as np
 
+from bfsitl.physics.params import QuadParams
+from bfsitl.vehicles.throttle import IRIS_HOVER_THROTTLE_US, THROTTLE_LOW_US, hover_throttle_us
+
+#: A stick of -1..1 spans 1000..2000 us.
+STICK_MID_US, STICK_HALF_US = 1500.0, 500.0
+
 #: The throttle stick (-1..1) about which the IRIS of the embedded physics hovers in ANGLE
 #: mode on 4.6.0 (measured: 0.05 and 0.15 hold worse than this).
 HOVER_THROTTLE = 0.1
+
+
+def hover_stick(quad: QuadParams) -> float:
+    """The throttle stick (-1..1) about which ``quad`` hovers: IRIS's, carried over as its
+    hover throttle is (:mod:`bfsitl.vehicles.throttle`); exactly :data:`HOVER_THROTTLE` on
+    IRIS."""
+    iris_us = STICK_MID_US + HOVER_THROTTLE * STICK_HALF_US
+    scale = (hover_throttle_us(quad) - THROTTLE_LOW_US) / (IRIS_HOVER_THROTTLE_US - THROTTLE_LOW_US)
+    return (THROTTLE_LOW_US + (iris_us - THROTTLE_LOW_US) * scale - STICK_MID_US) / STICK_HALF_US
+
+
 _POSITION_GAIN, _VELOCITY_GAIN, _TILT_STICK_LIMIT = 0.15, 0.25, 0.4
 _HEIGHT_GAIN, _CLIMB_GAIN = 0.25, 0.3
 

@@ -50,7 +50,7 @@ from bfsitl.backend.options import LOCKSTEP_EXCHANGES, Timing, World
 from bfsitl.control import make_controller
 from bfsitl.errors import EnvironmentConfigError, LinkError, MspError, SitlError
 from bfsitl.fc.rc_link import RcCommand
-from bfsitl.gym.baseline import HOVER_THROTTLE
+from bfsitl.gym.baseline import hover_stick
 from bfsitl.gym.observation import (
     OBSERVATIONS,
     ObservationSource,
@@ -116,9 +116,10 @@ class FlightEnv(gymnasium.Env[np.ndarray, np.ndarray]):
     close), ``timing`` (the lockstep: always on here; ``lockstep_spin`` None spins unless the
     environment is pinned to a core or in a vector environment's worker) and ``world`` (the
     quad, wind, sensors and heading of the embedded physics; its seed is replaced by each
-    episode's).  The rest are the environment's own: the policy's rate, mode and
-    observation, the episode's start and length, the disturbances, the core pinning and the
-    warm resets.
+    episode's).  Another quad: ``world=World(quad=load_vehicle("5inch-freestyle"))``
+    (:func:`bfsitl.vehicles.load_vehicle`; a profile file too).  The rest are the
+    environment's own: the policy's rate, mode and observation, the episode's start and
+    length, the disturbances, the core pinning and the warm resets.
     """
 
     metadata: dict[str, Any] = {"render_modes": []}
@@ -246,7 +247,9 @@ class FlightEnv(gymnasium.Env[np.ndarray, np.ndarray]):
         vehicle = self._new_session(episode_seed).start()
         self._vehicle = vehicle
         if self.start == "air":
-            loop = FlightLoop(vehicle, make_controller("fused"), rate_hz=self.control_hz)
+            loop = FlightLoop(
+                vehicle, make_controller("fused", quad=self.world.quad), rate_hz=self.control_hz
+            )
             loop.arm()
             self._mark_arming(vehicle)
             loop.wait_on_ground(_GROUND_S)
@@ -336,7 +339,7 @@ class FlightEnv(gymnasium.Env[np.ndarray, np.ndarray]):
         hover_rad_s = vehicle.simulator.params.hover_rotor_speed_rad_s
         hands.place(start, motor_speeds_rad_s=(hover_rad_s,) * 4)
         hands.hold_still(True)
-        for throttle in (-1.0, HOVER_THROTTLE):
+        for throttle in (-1.0, hover_stick(self.world.quad)):
             vehicle.set_rc(sticks_to_rc([0.0, 0.0, throttle, 0.0], vehicle.rc_command))
             vehicle.clock.sleep_s(WARM_SETTLE_S / 2)
         hands.place(start, motor_speeds_rad_s=(hover_rad_s,) * 4)

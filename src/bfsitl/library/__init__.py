@@ -1,7 +1,9 @@
-"""What ships inside the wheel beside the code: the scenario library and example missions.
+"""What ships inside the wheel beside the code: the scenario library, example missions and
+vehicle profiles.
 
 ``bfsitl scenario list`` and ``bfsitl scenario run`` with no path use :func:`scenarios_dir`;
 ``bfsitl fly --mission square`` finds a shipped mission by its name (:func:`find_mission`).
+``--vehicle 5inch-freestyle`` finds a shipped vehicle profile (:func:`vehicle_files`).
 The files are package data, so an installed wheel has them with no checkout anywhere.
 """
 
@@ -10,7 +12,14 @@ from __future__ import annotations
 from importlib import resources
 from pathlib import Path
 
-__all__ = ["find_mission", "mission_files", "missions_dir", "scenario_files", "scenarios_dir"]
+__all__ = [
+    "find_mission",
+    "mission_files",
+    "missions_dir",
+    "scenario_files",
+    "scenarios_dir",
+    "vehicle_files",
+]
 
 
 def _package_dir(name: str) -> Path:
@@ -46,3 +55,8 @@ def find_mission(name: str) -> Path | None:
         return None
     path = missions_dir() / f"{stem}.toml"
     return path if path.is_file() else None
+
+
+def vehicle_files() -> list[Path]:
+    """Every shipped vehicle profile (``5inch-freestyle.toml``...), sorted by name."""
+    return sorted(_package_dir("vehicles").glob("*.toml"))

@@ -89,9 +89,9 @@ class FlightLoop(PositionManoeuvres):
         self.vehicle = vehicle
         self.controller = controller
         if landing is None:
-            from bfsitl.control.landing import LandingController
+            from bfsitl.control import make_landing
 
-            landing = LandingController()
+            landing = make_landing(vehicle.quad)
         self.landing = landing
         self.rate_hz = rate_hz
         self.log = log

@@ -208,6 +208,8 @@ class FlightSession(Vehicle):
             angle_mode=config.fc.angle_mode,
         )
         self.config = config
+        if config.world.physics == "embedded":
+            self.quad = config.world.quad
         check_speed(config.timing.speed)
         self.sitl: SitlProcess | None = None
         #: Chosen at start, from the firmware's build record (bfsitl.backend.factory).

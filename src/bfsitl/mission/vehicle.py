@@ -30,6 +30,7 @@ from bfsitl.errors import ArmingBlockedError, LinkError, MspError, SitlError
 from bfsitl.fc.msp_client import MspClient, Telemetry
 from bfsitl.fc.rc_link import RC_MIN_US, RcCommand, RcLinkStats
 from bfsitl.physics.constants import STANDARD_GRAVITY_M_S2
+from bfsitl.physics.params import QuadParams
 from bfsitl.protocol import messages as msg
 from bfsitl.protocol.boxes import BoxId
 
@@ -150,6 +151,9 @@ class Vehicle:
     #: budget sustains (a SITL with the fast serial task: 100; a board at the default
     #: serial rate: less).
     control_rate_hz: float = 50.0
+    #: The simulated quad, when bfsitl knows its physics (None: a board, or Gazebo's world):
+    #: the controllers' defaults are carried over to it.
+    quad: QuadParams | None = None
 
     # -- to be given by the kind of vehicle -----------------------------------------------------
     def start(self) -> Self:

@@ -58,7 +58,7 @@ from bfsitl.mission.session import (
     with_fast_serial,
 )
 from bfsitl.mission.vehicle import FlightSample
-from bfsitl.physics.params import IRIS, QuadParams
+from bfsitl.physics.params import QuadParams
 from bfsitl.protocol import messages as msg
 from bfsitl.protocol.firmware_profile import FirmwareProfile, Generation
 from bfsitl.records.outputs import FlightOutputs, OutputOptions
@@ -70,21 +70,18 @@ from bfsitl.scenario.result import ScenarioResult, TimedEvent, Verdict
 from bfsitl.scenario.spec import Scenario
 from bfsitl.scenario.trace import Trace, TraceRow, phase_name, write_trace_csv
 from bfsitl.sitl.firmware import find_firmware
+from bfsitl.vehicles.throttle import hover_throttle_us
 
 #: debug[] index of the failsafe phase with ``debug_mode = FAILSAFE`` (flight/failsafe.c).
 FAILSAFE_PHASE_DEBUG_INDEX = 3
-#: IRIS's hover throttle, measured: the autopilot's mean throttle in a hold, 4.6.0 and
-#: master alike.
-IRIS_HOVER_THROTTLE_US = 1545
 
 
 def hover_throttle_line(quad: QuadParams) -> str:
     """The simulated quad's hover throttle, as a pilot sets it for theirs: the firmware's own
     altitude hold (a failsafe landing, GPS Rescue, ALTHOLD) starts from it.  Its default,
     1275 us, is a light racer's; with it the FC's failsafe landing fell 4 m at nearly free
-    fall.  Another quad's is IRIS's measured one scaled by the physics' hover command."""
-    scale = quad.hover_command / IRIS.hover_command
-    return f"set ap_hover_throttle = {round(1000 + (IRIS_HOVER_THROTTLE_US - 1000) * scale)}"
+    fall on IRIS (:mod:`bfsitl.vehicles.throttle` says how another quad's is found)."""
+    return f"set ap_hover_throttle = {round(hover_throttle_us(quad))}"
 
 
 #: The AUX channels a SITL reads by default (max_aux_channels).
@@ -429,7 +426,7 @@ def _fly(
                 result.artifacts["sitl_log"] = session.sitl.log_path
             loop = FlightLoop(
                 session,
-                make_controller(options.controller),
+                make_controller(options.controller, quad=scenario.quad),
                 rate_hz=session.control_rate_hz,
                 hooks=FlightHooks(on_step=on_row, stop=injector.stop),
             )

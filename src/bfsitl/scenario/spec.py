@@ -7,7 +7,8 @@
     cli = ["set failsafe_procedure = DROP"]   # provisioned before the flight
 
     [vehicle]                # optional: the simulated quad (default Gazebo's IRIS)
-    model = "iris"
+    model = "iris"           # a shipped vehicle (`bfsitl vehicle list`) or a
+                             # profile file, relative to this file (docs/vehicles.md)
     mass_kg = 1.9            # heavier: a payload
     heading_deg = 90         # where the nose points at the start (default north)
 
@@ -39,7 +40,7 @@ from pathlib import Path
 from typing import Any
 
 from bfsitl.build.binary_scan import FEATURE_MARKERS
-from bfsitl.errors import MissionError, ScenarioError, SimInputError
+from bfsitl.errors import MissionError, ScenarioError, SimInputError, VehicleProfileError
 from bfsitl.mission.plan import MissionPlan, plan_from_dict
 from bfsitl.physics.params import IRIS, QuadParams
 from bfsitl.physics.wind import (
@@ -52,6 +53,7 @@ from bfsitl.physics.wind import (
 from bfsitl.scenario.faults import FaultSpec, read_fault_spec
 from bfsitl.scenario.fc_mission import FcWaypoint, read_fc_waypoints
 from bfsitl.scenario.values import number_in
+from bfsitl.vehicles.catalogue import DEFAULT_VEHICLE, load_vehicle
 
 #: A scenario's file name pattern inside a directory.
 SCENARIO_GLOB = "*.toml"
@@ -76,8 +78,6 @@ _TOP_KEYS = {
     "fc_waypoint",
     "cli_for",
 }
-#: ``[vehicle] model``: the quads the embedded physics knows.
-VEHICLE_MODELS = {"iris": IRIS}
 _WIND_KEYS = {"north_m_s", "east_m_s", "down_m_s", "gust_std_m_s", "gust_time_constant_s"}
 
 
@@ -110,6 +110,8 @@ class Scenario:
         settle_s: The run ends early once the FC is disarmed and the vehicle at rest this
             many seconds.
         source: The file it was read from; None when built in Python.
+        own_vehicle: ``[vehicle]`` names a model or a mass: the scenario is about that quad,
+            and ``--vehicle`` (:func:`on_vehicle`) leaves it.
     """
 
     name: str
@@ -142,6 +144,8 @@ class Scenario:
     #: The run ends early once the FC is disarmed and the vehicle at rest this long.
     settle_s: float = DEFAULT_SETTLE_S
     source: Path | None = None
+    #: ``[vehicle]`` names a model or a mass: ``--vehicle`` does not replace its quad.
+    own_vehicle: bool = False
 
     @property
     def where(self) -> str:
@@ -180,8 +184,9 @@ def _wind(where: str, raw: Any) -> Wind:
     )
 
 
-def _vehicle(where: str, raw: Any) -> QuadParams:
-    """``[vehicle]``: a known model, optionally heavier or lighter (payload, battery)."""
+def _vehicle(where: str, raw: Any, source: Path | None) -> QuadParams:
+    """``[vehicle]``: a shipped vehicle or a profile file (relative to the scenario file),
+    optionally heavier or lighter (payload, battery)."""
     if not isinstance(raw, dict):
         raise ScenarioError(f"{where}: [vehicle] must be a table")
     unknown = set(raw) - {"model", "mass_kg", "heading_deg"}
@@ -190,14 +195,15 @@ def _vehicle(where: str, raw: Any) -> QuadParams:
             f"{where}: [vehicle] has unknown key(s) "
             f"{', '.join(sorted(unknown))}; known: heading_deg, mass_kg, model"
         )
-    model = raw.get("model", "iris")
-    if model not in VEHICLE_MODELS:
-        raise ScenarioError(
-            f"{where}: [vehicle] model {model!r} is not one of {', '.join(VEHICLE_MODELS)}"
-        )
-    quad = VEHICLE_MODELS[model]
+    model = raw.get("model", DEFAULT_VEHICLE)
+    if not isinstance(model, str) or not model:
+        raise ScenarioError(f"{where}: [vehicle] model must be a vehicle's name or a file")
+    try:
+        quad = load_vehicle(model, relative_to=source.parent if source is not None else None)
+    except VehicleProfileError as exc:
+        raise ScenarioError(f"{where}: [vehicle] {exc}") from None
     if "mass_kg" in raw:
-        mass_kg = number_in(where, "vehicle.mass_kg", raw["mass_kg"], 0.2, 20.0)
+        mass_kg = number_in(where, "vehicle.mass_kg", raw["mass_kg"], 0.05, 20.0)
         quad = replace(quad, name=f"{quad.name}, {mass_kg:g} kg", mass_kg=mass_kg)
         try:
             quad.hover_command  # noqa: B018 - raises when its motors cannot lift it
@@ -296,7 +302,8 @@ def scenario_from_dict(data: dict[str, Any], *, name: str, source: Path | None =
         cli_for=_cli_for(where, data),
         wind=_wind(where, data["wind"]) if "wind" in data else None,
         seed=seed,
-        quad=_vehicle(where, data["vehicle"]) if "vehicle" in data else IRIS,
+        quad=_vehicle(where, data["vehicle"], source) if "vehicle" in data else IRIS,
+        own_vehicle=bool({"model", "mass_kg"} & set(data.get("vehicle", {}))),
         initial_heading_deg=number_in(
             where,
             "vehicle.heading_deg",
@@ -313,3 +320,11 @@ def scenario_from_dict(data: dict[str, Any], *, name: str, source: Path | None =
         settle_s=number_in(where, "settle_s", data.get("settle_s", DEFAULT_SETTLE_S), 0.0, 60.0),
         source=source,
     )
+
+
+def on_vehicle(scenarios: list[Scenario], quad: QuadParams | None) -> list[Scenario]:
+    """The scenarios flown on ``quad`` (``--vehicle``), but for those about a quad of their
+    own (``[vehicle] model`` or ``mass_kg``); None changes nothing."""
+    if quad is None:
+        return scenarios
+    return [s if s.own_vehicle else replace(s, quad=quad) for s in scenarios]

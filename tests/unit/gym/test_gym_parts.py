@@ -358,3 +358,15 @@ def test_a_step_becomes_a_flight_row_with_the_fc_the_truth_and_the_target() -> N
         1800,
     )
     assert row.motor4 == 0.71 and row.armed and row.fc_accel_up_m_s2 == 0.05
+
+
+def test_the_warm_reset_holds_each_quad_about_its_own_hover_stick() -> None:
+    from bfsitl.gym.baseline import HOVER_THROTTLE, hover_stick
+    from bfsitl.physics import IRIS
+    from bfsitl.vehicles import hover_throttle_us, load_vehicle
+
+    assert hover_stick(IRIS) == HOVER_THROTTLE  # unchanged to the bit
+    five = load_vehicle("5inch-freestyle")
+    # A quarter of the stick for a 5-inch: well below the middle, a little above its hover.
+    stick_us = 1500 + 500 * hover_stick(five)
+    assert hover_throttle_us(five) < stick_us < hover_throttle_us(five) + 10

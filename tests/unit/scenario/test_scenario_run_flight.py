@@ -154,7 +154,7 @@ def fly(monkeypatch: pytest.MonkeyPatch, tmp_path: Path):  # type: ignore[no-unt
     binary = fake_binary(tmp_path)
     asked: list[str] = []
 
-    def controller(name: str) -> PController:
+    def controller(name: str, *, quad: Any = None) -> PController:
         asked.append(name)
         return PController()
 

@@ -255,7 +255,42 @@ def test_a_vehicle_table_makes_the_quad_and_its_hover_throttle(tmp_path: Path) -
     assert hover_throttle_line(IRIS) == "set ap_hover_throttle = 1545"  # measured
     heavier_us = int(hover_throttle_line(heavy.quad).split("= ")[1])
     assert 1545 < heavier_us < 1700
-    with pytest.raises(ScenarioError, match="model 'x500' is not one of iris"):
+    with pytest.raises(ScenarioError, match="unknown vehicle 'x500': give one of iris, 3inch"):
         load_scenario(write(tmp_path, MINIMAL + '[vehicle]\nmodel = "x500"\n', "c.toml"))
     with pytest.raises(ScenarioError, match="cannot hover"):
         load_scenario(write(tmp_path, MINIMAL + "[vehicle]\nmass_kg = 19.0\n", "d.toml"))
+
+
+def test_a_scenario_flies_a_shipped_profile_or_a_file_beside_it(tmp_path: Path) -> None:
+    from bfsitl.scenario.run import hover_throttle_line
+    from bfsitl.scenario.spec import on_vehicle
+    from bfsitl.vehicles import load_vehicle, profile_text, shipped_profiles
+
+    five = load_scenario(
+        write(tmp_path, MINIMAL + '[vehicle]\nmodel = "5inch-freestyle"\n', "five.toml")
+    )
+    assert five.quad == load_vehicle("5inch-freestyle") and five.own_vehicle
+    assert five.quad.mass_kg == pytest.approx(0.65)
+    # A light quad's hover throttle is well below IRIS's (a 5-inch hovers near a quarter).
+    assert 1150 < int(hover_throttle_line(five.quad).split("= ")[1]) < 1350
+    spec = shipped_profiles()["7inch-longrange"]
+    (tmp_path / "quads").mkdir()
+    (tmp_path / "quads" / "mine.toml").write_text(profile_text(spec).replace("884.0", "900.0"))
+    mine = load_scenario(
+        write(tmp_path, MINIMAL + '[vehicle]\nmodel = "quads/mine.toml"\n', "mine.toml")
+    )
+    assert mine.quad.mass_kg == pytest.approx(0.9) and mine.quad.name == "7inch-longrange"
+    with pytest.raises(
+        ScenarioError, match="(?s)mine.toml: .*bad.toml: 1 bad field:\n  mass_g: must be > 0"
+    ):
+        (tmp_path / "quads" / "bad.toml").write_text(profile_text(spec).replace("884.0", "-1.0"))
+        load_scenario(
+            write(tmp_path, MINIMAL + '[vehicle]\nmodel = "quads/bad.toml"\n', "mine.toml")
+        )
+    # --vehicle replaces the quad of the scenarios that name none, and only theirs.
+    plain = load_scenario(write(tmp_path, MINIMAL, "plain.toml"))
+    assert not plain.own_vehicle
+    cinewhoop = load_vehicle("3inch-cinewhoop")
+    flown = on_vehicle([plain, five], cinewhoop)
+    assert flown[0].quad == cinewhoop and flown[1].quad == five.quad
+    assert on_vehicle([plain], None)[0] is plain

@@ -45,6 +45,7 @@ _EXPORTS: dict[str, str] = {
     "Vehicle": "bfsitl.mission.vehicle",
     "BoardVehicle": "bfsitl.mission.board",
     "make_controller": "bfsitl.control",
+    "load_vehicle": "bfsitl.vehicles",
     # scenarios: faults and expectations, the FC's blackbox
     "Scenario": "bfsitl.scenario.spec",
     "load_scenario": "bfsitl.scenario.load",
@@ -109,6 +110,7 @@ __all__ = [
     "launch_sitl",
     "load_mission",
     "load_scenario",
+    "load_vehicle",
     "make_controller",
     "open_link",
     "provision",
@@ -161,3 +163,4 @@ if TYPE_CHECKING:  # what type checkers and IDEs see; nothing is imported at run
     from bfsitl.scenario.spec import Scenario
     from bfsitl.sitl.firmware import FirmwareBinary, find_firmware
     from bfsitl.sitl.process import SitlProcess
+    from bfsitl.vehicles import load_vehicle

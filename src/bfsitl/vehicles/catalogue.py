@@ -34,6 +34,14 @@ def load_vehicle(given: str | Path, *, relative_to: Path | None = None) -> QuadP
     """The physics of a vehicle named ``given`` (``iris``, ``5inch-freestyle``), or of the
     profile file at that path (relative to ``relative_to`` when given and relative).
 
+    Args:
+        given: A vehicle's name (:func:`vehicle_names`) or a profile file's path.
+        relative_to: Where a relative path is taken from (a scenario file's folder); None:
+            the working directory.
+
+    Returns:
+        The embedded physics' parameters of the vehicle (for ``World(quad=...)``).
+
     Raises:
         VehicleProfileError: Neither a known name nor a readable profile (the message lists
             the names), or a profile with bad fields.

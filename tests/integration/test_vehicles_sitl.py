@@ -9,6 +9,7 @@ the position loop does not fly this quad.
 
 from __future__ import annotations
 
+import json
 import math
 import statistics
 import subprocess
@@ -116,3 +117,56 @@ def test_fly_takes_the_vehicle_from_the_command_line(
     hold = [float(r["rc_throttle_us"]) for r in rows if r["phase"] == "hold"]
     five_us = hover_throttle_us(load_vehicle("5inch-freestyle"))
     assert abs(statistics.fmean(hold) - five_us) < 60
+
+
+def test_the_pytest_plugin_flies_the_vehicle_it_is_given(
+    lockstep_gps_46_firmware: Path, tmp_path: Path
+) -> None:
+    """``--bfsitl-vehicle``: the fixture's vehicle and a library scenario that names no quad
+    fly the 5-inch (its hover throttle, far below IRIS's 1545)."""
+    (tmp_path / "test_five.py").write_text(
+        "import statistics\n"
+        "from bfsitl import Autopilot\n"
+        "def test_it_is_the_5_inch(bfsitl_vehicle):\n"
+        "    assert bfsitl_vehicle.quad.name == '5inch-freestyle'\n"
+        "    pilot = Autopilot(bfsitl_vehicle)\n"
+        "    pilot.takeoff(2.0)\n"
+        "    first = len(pilot.loop.rows)\n"
+        "    pilot.hold(3.0)\n"
+        "    held = pilot.loop.rows[first:]\n"
+        "    assert statistics.fmean(r.rc_throttle_us for r in held) < 1300\n"
+        "    pilot.land()\n"
+    )
+    library = Path(__import__("bfsitl.library", fromlist=["x"]).scenarios_dir())
+    (tmp_path / "rc-loss-hover-drop.toml").write_text(
+        (library / "rc-loss-hover-drop.toml").read_text()
+    )
+    run = subprocess.run(
+        [
+            sys.executable,
+            "-m",
+            "pytest",
+            "-p",
+            "bfsitl.pytest_plugin",
+            "-p",
+            "no:cacheprovider",
+            "--bfsitl-firmware",
+            str(lockstep_gps_46_firmware),
+            "--bfsitl-vehicle",
+            "5inch-freestyle",
+            "--bfsitl-out",
+            str(tmp_path / "runs"),
+            "-q",
+            "--rootdir",
+            str(tmp_path),
+            str(tmp_path),
+        ],
+        capture_output=True,
+        text=True,
+        timeout=280,
+        cwd=tmp_path,
+    )
+    assert run.returncode == 0, run.stdout[-3000:] + run.stderr[-2000:]
+    assert "2 passed" in run.stdout
+    result = json.loads(next((tmp_path / "runs").rglob("result.json")).read_text())
+    assert result["vehicle"] == "5inch-freestyle" and result["verdict"] == "passed"

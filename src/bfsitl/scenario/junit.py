@@ -118,6 +118,7 @@ def _suite(name: str, runs: Sequence[ScenarioResult]) -> TestSuite:
         suite.add_property("firmware_version", _xml_safe(version))
     for result in runs:
         prefix = _xml_safe(result.name) + "."
+        suite.add_property(prefix + "vehicle", _xml_safe(result.vehicle))
         suite.add_property(prefix + "sim_time_s", f"{result.sim_time_s:g}")
         for finding in result.findings:
             suite.add_property(

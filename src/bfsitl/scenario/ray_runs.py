@@ -272,6 +272,7 @@ def _collect(
             Verdict.ERROR,
             f"the Ray task failed: {exc!r}"[:500],
             source=run.scenario.source,
+            vehicle=run.scenario.quad.name,
             retried=attempt.why,
         )
     result = bring_home(outcome, run)

@@ -204,8 +204,8 @@ def _section(index: int, result: ScenarioResult, directory: Path) -> str:
         f'<section id="run-{index}"><h2>{escape(result.name)} on '
         f"{escape(result.firmware)}: {_verdict(result.verdict)}</h2>"
     ]
-    if result.firmware_version:
-        parts.append(f"<p>Betaflight {escape(result.firmware_version)}</p>")
+    flew = f"Betaflight {result.firmware_version}, " if result.firmware_version else ""
+    parts.append(f"<p>{escape(flew)}vehicle {escape(result.vehicle)}</p>")
     if result.description:
         parts.append(f"<p>{escape(' '.join(result.description.split()))}</p>")
     parts.extend(

@@ -61,6 +61,7 @@ class ScenarioResult:
         verdict: Passed, failed, error or skipped.
         reason: One line: the first failed check, the error, or "all N expectations met".
         source: The scenario file, when it came from one.
+        vehicle: The simulated quad's name (``iris``, ``5inch-freestyle``, a profile's).
         firmware_version: As the FC reported it (MSP_FC_VERSION); "" when it never
             answered.
         description: The scenario's one line saying what it tests.
@@ -94,6 +95,8 @@ class ScenarioResult:
     source: Path | None = None
     #: As the FC reported it (MSP_FC_VERSION); "" when it never answered.
     firmware_version: str = ""
+    #: The simulated quad's name (``iris``, ``5inch-freestyle``, a profile's).
+    vehicle: str = "iris"
     description: str = ""
     checks: list[CheckResult] = field(default_factory=list)
     events: list[TimedEvent] = field(default_factory=list)

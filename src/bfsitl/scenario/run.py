@@ -304,6 +304,7 @@ def run_scenario(
         "",
         source=scenario.source,
         description=scenario.description,
+        vehicle=scenario.quad.name,
     )
     out = options.out_dir
     try:
@@ -559,6 +560,7 @@ def write_summary(result: ScenarioResult, out: Path) -> None:
         "name": result.name,
         "firmware": result.firmware,
         "firmware_version": result.firmware_version,
+        "vehicle": result.vehicle,
         "verdict": result.verdict.value,
         "reason": result.reason,
         "sim_time_s": result.sim_time_s,

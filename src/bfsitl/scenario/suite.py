@@ -256,6 +256,7 @@ def _take(
             Verdict.ERROR,
             f"the worker process failed: {exc!r}",
             source=run.scenario.source,
+            vehicle=run.scenario.quad.name,
         )
     results[index] = result
     done(result)
@@ -296,4 +297,5 @@ def _interrupted(run: PlannedRun, how: str = "Ctrl-C") -> ScenarioResult:
         Verdict.SKIPPED,
         f"not run: interrupted ({how})",
         source=run.scenario.source,
+        vehicle=run.scenario.quad.name,
     )

@@ -175,6 +175,7 @@ def test_junit_properties_hold_version_sim_time_and_files(
     properties = {p.name: p.value for p in master.properties()}
     assert properties["firmware_version"] == "2026.12.0-alpha"
     assert properties["drop.sim_time_s"] == "11.2"
+    assert properties["drop.vehicle"] == "iris"
     assert properties["hover.sim_time_s"] == "20"
     assert properties["drop.plot"] == "runs/drop/plot.png"
     assert properties["drop.log"] == "runs/drop/flight log.csv"

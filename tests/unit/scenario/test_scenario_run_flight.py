@@ -296,6 +296,7 @@ def test_rc_lost_in_a_hover_the_fc_lands_disarms_and_the_run_passes(fly, tmp_pat
     assert first_watch - BOOT_S == pytest.approx(fault_s, abs=0.03)
     summary = json.loads((out / "result.json").read_text())
     assert summary["verdict"] == "passed" and summary["sim_time_s"] == result.sim_time_s
+    assert summary["vehicle"] == result.vehicle == "iris"  # which quad flew, IRIS by default
     assert [e["text"] for e in summary["events"]] == events
     assert set(summary["artifacts"]) == {"log", "trace"}  # no plot, no blackbox
     assert result.artifacts["summary"] == out / "result.json"

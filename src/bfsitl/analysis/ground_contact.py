@@ -4,6 +4,8 @@
 from __future__ import annotations
 
 import math
+import statistics
+from collections.abc import Callable
 from dataclasses import dataclass
 
 from bfsitl.analysis.findings import Finding, Severity
@@ -131,28 +133,108 @@ def _crash_in_log(track: Track) -> Finding | None:
     )
 
 
+def _thrust_explained_g(track: Track) -> Callable[[TrackPoint], float]:
+    """What the motors explain of the accelerometer: the log's own median reading at each
+    level of the mean motor command (bins of 5 %).  A quad's thrust-to-weight ratio is in
+    it without being known: a punch-out's 6 g sits in its own bin."""
+    bins: dict[int, list[float]] = {}
+    for p in track.points:
+        if p.motors and finite(p.accel_g):
+            level = min(19, int(20 * sum(p.motors) / len(p.motors)))
+            bins.setdefault(level, []).append(p.accel_g)
+    medians = {level: statistics.median(values) for level, values in bins.items()}
+
+    def explained(point: TrackPoint) -> float:
+        if not point.motors:
+            return 1.0
+        level = min(19, int(20 * sum(point.motors) / len(point.motors)))
+        return medians.get(level, 1.0)
+
+    return explained
+
+
+def _flight_ended_at(track: Track, index: int, within_s: float) -> bool:
+    """Whether the flight ended at the point: within ``within_s`` the vehicle comes to rest
+    (1 g, the gyro quiet, the motors low, for 0.2 s) or the log ends, before it is seen
+    flying on (0.15 s of controlled thrust: over 1.2 g with the motors up and the gyro near
+    its setpoint) or falling freely (under 0.3 g)."""
+    points = track.points
+    start_s = points[index].time_s
+    since: dict[str, float | None] = {"rest": None, "flying": None, "falling": None}
+    needed_s = {"rest": 0.2, "flying": 0.15, "falling": 0.15}
+    for p in points[index + 1 :]:
+        if p.time_s - start_s > within_s:
+            return False
+        mean_motor = sum(p.motors) / len(p.motors) if p.motors else math.nan
+        off_setpoint = max(
+            (abs(g - s) for g, s in zip(p.gyro_deg_s, p.setpoint_deg_s, strict=False)),
+            default=0.0,
+        )
+        states = {
+            "rest": finite(p.accel_g)
+            and abs(p.accel_g - 1.0) < 0.25
+            and all(abs(g) < 50.0 for g in p.gyro_deg_s)
+            and not mean_motor >= 0.3,
+            "flying": finite(p.accel_g)
+            and p.accel_g > 1.2
+            and mean_motor >= 0.25
+            and off_setpoint < 200.0,
+            "falling": finite(p.accel_g) and p.accel_g < 0.3,
+        }
+        for state, now in states.items():
+            if not now:
+                since[state] = None
+                continue
+            began = since[state]
+            if began is None:
+                since[state] = p.time_s
+            elif p.time_s - began >= needed_s[state]:
+                return state == "rest"
+    return True  # the log ended first: cut by the impact
+
+
+def _impact_in_log(track: Track, limits: Limits) -> Finding | None:
+    """A log's hardest landing: a peak of the accelerometer the motors do not explain, after
+    a descent at landing speed (with a barometer) or that ends the flight (without one)."""
+    require(track, "accel_g")
+    explained = _thrust_explained_g(track)
+    candidates = [
+        (p.accel_g - explained(p), i, p)
+        for i, p in enumerate(track.points)
+        if finite(p.accel_g) and p.accel_g >= limits.impact_g
+    ]
+    impacts = []
+    for beyond_g, index, point in candidates:
+        if beyond_g < limits.impact_over_thrust_g:
+            continue
+        descent = descent_before(track, point.time_s)
+        if finite(descent):
+            # With a barometer the descent before the peak decides (a simulator's rigid
+            # ground gives 4-5 g at 0.8 m/s, no landing speed).
+            if descent >= limits.hard_landing_speed_m_s:
+                impacts.append((beyond_g, point, descent))
+        elif _flight_ended_at(track, index, limits.landing_rest_within_s):
+            impacts.append((beyond_g, point, descent))
+    if not impacts:
+        return None
+    beyond_g, peak, descent = max(impacts, key=lambda c: c[1].accel_g)
+    speed = f", after descending at {descent:.1f} m/s (barometer)" if finite(descent) else ""
+    return Finding(
+        "hard_landing",
+        Severity.WARNING,
+        f"an impact of {peak.accel_g:.1f} g on the accelerometer, {beyond_g:.1f} g more "
+        f"than the motors push{speed}",
+        peak.time_s,
+        peak.accel_g,
+        "g",
+        {"baro_descent_m_s": descent, "beyond_thrust_g": beyond_g, "sample": evidence_of(peak)},
+        track.source,
+    )
+
+
 def hard_landing(track: Track, limits: Limits) -> Finding | None:
     if track.source == "blackbox":
-        require(track, "accel_g")
-        peak = max((p for p in track.points if finite(p.accel_g)), key=lambda p: p.accel_g)
-        if peak.accel_g < limits.impact_g:
-            return None
-        descent = descent_before(track, peak.time_s)
-        if finite(descent) and descent < limits.hard_landing_speed_m_s:
-            # The peak alone is no landing speed (a simulator's rigid ground gives 4-5 g at
-            # 0.8 m/s); with a barometer the descent before it decides.
-            return None
-        speed = f" after descending at {descent:.1f} m/s (barometer)" if finite(descent) else ""
-        return Finding(
-            "hard_landing",
-            Severity.WARNING,
-            f"an impact of {peak.accel_g:.1f} g on the accelerometer{speed}",
-            peak.time_s,
-            peak.accel_g,
-            "g",
-            {"baro_descent_m_s": descent, "sample": evidence_of(peak)},
-            track.source,
-        )
+        return _impact_in_log(track, limits)
     require(track, "airborne", "climb_m_s")
     hard = [
         t

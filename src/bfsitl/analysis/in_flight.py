@@ -179,11 +179,13 @@ def motor_saturation(track: Track, limits: Limits) -> Finding | None:
     def flying(p: TrackPoint) -> bool:
         return p.armed and bool(p.motors) and p.airborne is not False
 
+    def saturated(p: TrackPoint) -> bool:
+        # Full motors under a full throttle are the pilot's punch-out, not lost authority.
+        punch_out = finite(p.throttle) and p.throttle >= limits.punch_out_throttle
+        return flying(p) and max(p.motors) >= limits.saturated_motor and not punch_out
+
     stretches = [
-        (first, last, span_s(points, first, last))
-        for first, last in runs(
-            points, lambda p: flying(p) and max(p.motors) >= limits.saturated_motor
-        )
+        (first, last, span_s(points, first, last)) for first, last in runs(points, saturated)
     ]
     long_ones = [s for s in stretches if s[2] >= limits.saturation_min_s]
     if not long_ones:

@@ -17,8 +17,15 @@ class Limits:
     #: Tilt on the ground (or at contact) that is no landing: on its side or worse.
     tipped_over_deg: float = 60.0
     #: A log's accelerometer peak that is an impact (1 g at rest, about 2 g in a hard
-    #: manoeuvre).
+    #: manoeuvre) ...
     impact_g: float = 3.0
+    #: ... when the motors explain no more than this much less of it: a 5-inch's punch-out
+    #: reads 6 g of thrust (real logs: 5.8-6.4 g with every motor near full), an impact
+    #: comes on top of what the motors push.
+    impact_over_thrust_g: float = 2.0
+    #: A landing ends at rest (1 g, the gyro quiet) this soon after its impact, or the log
+    #: ends: a bump the quad flies on from is no landing.
+    landing_rest_within_s: float = 2.0
     #: How far beyond the farthest target the vehicle may go before it is flying away.
     fly_away_margin_m: float = 25.0
     #: Betaflight's ANGLE mode limits the tilt to angle_limit (60 deg by default) and GPS
@@ -41,6 +48,9 @@ class Limits:
     #: A motor this close to full counts as saturated; for this long it is a finding.
     saturated_motor: float = 0.98
     saturation_min_s: float = 0.25
+    #: A throttle at or above this share of the stick asks for full power (a punch-out):
+    #: motors at full then do what the pilot asked, no control is lost.
+    punch_out_throttle: float = 0.9
     #: The FC's GPS this far off the truth is a glitch; moving this far during one is
     #: following it.
     gps_glitch_m: float = 10.0

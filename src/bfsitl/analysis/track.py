@@ -57,6 +57,8 @@ class TrackPoint:
     setpoint_deg_s: tuple[float, ...] = ()
     #: The accelerometer's magnitude, g (1 at rest; NaN when not known).
     accel_g: float = _NAN
+    #: The throttle commanded, a share of the stick's travel (0 low, 1 full; NaN: not known).
+    throttle: float = _NAN
     #: ``failsafePhase_e`` (None: not read).
     failsafe_phase: int | None = None
     #: The receiver: a signal and valid flight channels (None: not known).
@@ -103,6 +105,11 @@ class Track:
         return False
 
 
+def stick_share(throttle_us: float) -> float:
+    """A throttle in microseconds (rcCommand: 1000 low, 2000 full) as a share of the stick."""
+    return min(1.0, max(0.0, (throttle_us - 1000.0) / 1000.0))
+
+
 def point_from_row(
     row: FlightRow,
     sample: FlightSample | None = None,
@@ -137,6 +144,7 @@ def point_from_row(
         target_east_m=row.target_east_m,
         motors=(row.motor1, row.motor2, row.motor3, row.motor4),
         accel_g=accel,
+        throttle=stick_share(row.rc_throttle_us),
         failsafe_phase=failsafe_phase,
         modes=modes,
         fc_alt_m=row.fc_alt_m,
@@ -200,6 +208,7 @@ def track_from_blackbox(log: BlackboxLog) -> Track:
                 gyro_deg_s=tuple(g / scale for g in frame.gyro_adc),
                 setpoint_deg_s=tuple(s / scale for s in frame.setpoint[:3]),
                 accel_g=accel,
+                throttle=stick_share(frame.rc_command[3]) if len(frame.rc_command) > 3 else _NAN,
                 failsafe_phase=frame.failsafe_phase,
                 rx_ok=None
                 if frame.rx_signal_received is None

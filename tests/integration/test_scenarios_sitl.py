@@ -23,6 +23,7 @@ import pytest
 from firmware_builds import master_source_given
 from junitparser import Failure, JUnitXml, Skipped
 from mcap.reader import make_reader
+from plugin_runs import pytest_with_the_plugin
 
 from bfsitl.autopilot import Autopilot
 from bfsitl.build import FirmwareCache
@@ -174,28 +175,12 @@ def test_a_wrong_expectation_fails_naming_the_value_and_the_time_and_python_test
     (tmp_path / "rc-loss-hover-drop.toml").write_text(
         (LIBRARY / "rc-loss-hover-drop.toml").read_text()
     )
-    run = subprocess.run(
-        [
-            sys.executable,
-            "-m",
-            "pytest",
-            "-p",
-            "bfsitl.pytest_plugin",
-            "-p",
-            "no:cacheprovider",
-            "--bfsitl-firmware",
-            build,
-            "--bfsitl-out",
-            str(tmp_path / "runs"),
-            "-q",
-            "--rootdir",
-            str(tmp_path),
-            str(tmp_path),
-        ],
-        capture_output=True,
-        text=True,
-        timeout=280,
-        cwd=tmp_path,
+    run = pytest_with_the_plugin(
+        tmp_path,
+        "--bfsitl-firmware",
+        build,
+        "--bfsitl-out",
+        str(tmp_path / "runs"),
         env=env_for(firmware_build_cache),
     )
     output = run.stdout

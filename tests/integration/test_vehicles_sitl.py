@@ -17,6 +17,7 @@ import sys
 from pathlib import Path
 
 import pytest
+from plugin_runs import pytest_with_the_plugin
 
 from bfsitl import FcSetup, FlightLoop, FlightSession, SessionConfig, SitlLaunch, World
 from bfsitl.control import make_controller
@@ -141,30 +142,14 @@ def test_the_pytest_plugin_flies_the_vehicle_it_is_given(
     (tmp_path / "rc-loss-hover-drop.toml").write_text(
         (library / "rc-loss-hover-drop.toml").read_text()
     )
-    run = subprocess.run(
-        [
-            sys.executable,
-            "-m",
-            "pytest",
-            "-p",
-            "bfsitl.pytest_plugin",
-            "-p",
-            "no:cacheprovider",
-            "--bfsitl-firmware",
-            str(lockstep_gps_46_firmware),
-            "--bfsitl-vehicle",
-            "5inch-freestyle",
-            "--bfsitl-out",
-            str(tmp_path / "runs"),
-            "-q",
-            "--rootdir",
-            str(tmp_path),
-            str(tmp_path),
-        ],
-        capture_output=True,
-        text=True,
-        timeout=280,
-        cwd=tmp_path,
+    run = pytest_with_the_plugin(
+        tmp_path,
+        "--bfsitl-firmware",
+        str(lockstep_gps_46_firmware),
+        "--bfsitl-vehicle",
+        "5inch-freestyle",
+        "--bfsitl-out",
+        str(tmp_path / "runs"),
     )
     assert run.returncode == 0, run.stdout[-3000:] + run.stderr[-2000:]
     assert "2 passed" in run.stdout

@@ -106,3 +106,23 @@ VEHICLE_HELP = (
     "the simulated quad: iris (the default, Gazebo's), a shipped profile (`bfsitl vehicle "
     "list`: 5inch-freestyle, 3inch-cinewhoop, 7inch-longrange) or a profile file NAME.toml"
 )
+
+
+def add_vehicle_argument(
+    parser: argparse.ArgumentParser | argparse._ArgumentGroup, *, per_scenario: bool = False
+) -> None:
+    """``--vehicle NAME|FILE``, read when the command line is: IRIS by default, or (for the
+    scenario commands) each scenario's own."""
+    parser.add_argument(
+        "--vehicle",
+        type=vehicle,
+        default=None if per_scenario else "iris",
+        metavar="NAME|FILE",
+        help=VEHICLE_HELP
+        + (
+            " (default: each scenario's own; those whose [vehicle] names a model or a mass "
+            "keep theirs)"
+            if per_scenario
+            else ""
+        ),
+    )

@@ -7,7 +7,7 @@ import argparse
 import time
 from pathlib import Path
 
-from bfsitl.cli.arg_types import VEHICLE_HELP, parse_speed, vehicle, whole_number_at_least
+from bfsitl.cli.arg_types import add_vehicle_argument, parse_speed, whole_number_at_least
 from bfsitl.cli.target import progress
 
 EXIT_OK = 0
@@ -39,14 +39,7 @@ def add_compare_parser(actions: argparse._SubParsersAction) -> None:  # type: ig
         metavar="FILE_OR_DIR",
         help="scenario files, directories or library names (default: the shipped library)",
     )
-    compare.add_argument(
-        "--vehicle",
-        type=vehicle,
-        default=None,
-        metavar="NAME|FILE",
-        help=VEHICLE_HELP + " (default: each scenario's own; those whose [vehicle] names a "
-        "model or a mass keep theirs)",
-    )
+    add_vehicle_argument(compare, per_scenario=True)
     compare.add_argument(
         "--firmware",
         action="append",

@@ -5,7 +5,7 @@ from __future__ import annotations
 
 import argparse
 
-from bfsitl.cli.arg_types import VEHICLE_HELP, number_in, parse_speed, port_number, vehicle
+from bfsitl.cli.arg_types import add_vehicle_argument, number_in, parse_speed, port_number
 from bfsitl.cli.fly_command import cmd_fly
 from bfsitl.physics.wind import MAX_GUST_STD_M_S, MAX_WIND_COMPONENT_M_S
 
@@ -217,13 +217,7 @@ def add_fly_parser(sub: argparse._SubParsersAction) -> None:  # type: ignore[typ
         help="accelerometer noise std, m/s^2 (default 0.05: dithers the SITL's "
         "truncated acceleration; 0 for a noiseless accelerometer)",
     )
-    sitl.add_argument(
-        "--vehicle",
-        type=vehicle,
-        default="iris",
-        metavar="NAME|FILE",
-        help=VEHICLE_HELP,
-    )
+    add_vehicle_argument(sitl)
     sitl.add_argument(
         "--wind",
         type=WIND_M_S,

@@ -8,10 +8,9 @@ import time
 from pathlib import Path
 
 from bfsitl.cli.arg_types import (
-    VEHICLE_HELP,
+    add_vehicle_argument,
     number_in,
     parse_speed,
-    vehicle,
     whole_number_at_least,
 )
 from bfsitl.cli.compare_command import add_compare_parser
@@ -57,14 +56,7 @@ def add_scenario_parser(sub: argparse._SubParsersAction) -> None:  # type: ignor
         "shipped library's scenarios (default: the "
         "library shipped with bfsitl; `bfsitl scenario list` shows it)",
     )
-    run.add_argument(
-        "--vehicle",
-        type=vehicle,
-        default=None,
-        metavar="NAME|FILE",
-        help=VEHICLE_HELP + " (default: each scenario's own; those whose [vehicle] names a "
-        "model or a mass keep theirs)",
-    )
+    add_vehicle_argument(run, per_scenario=True)
     run.add_argument(
         "--firmware",
         action="append",

@@ -8,7 +8,7 @@ import json
 import time
 from collections.abc import Iterator
 
-from bfsitl.cli.arg_types import VEHICLE_HELP, number_in, port_number, vehicle
+from bfsitl.cli.arg_types import add_vehicle_argument, number_in, port_number
 from bfsitl.cli.bridge_commands import add_allow_origin_argument
 from bfsitl.cli.target import add_target_arguments, progress
 from bfsitl.fc.msp_client import MspClient
@@ -69,9 +69,7 @@ def add_sim_parser(sub: argparse._SubParsersAction) -> None:  # type: ignore[typ
         "(default); 'sim' sends sim time like Gazebo (the clock drifts)",
     )
     sim.add_argument("--json", action="store_true", help="one JSON object per second")
-    sim.add_argument(
-        "--vehicle", type=vehicle, default="iris", metavar="NAME|FILE", help=VEHICLE_HELP
-    )
+    add_vehicle_argument(sim)
     sim.add_argument(
         "--configurator",
         action="store_true",

@@ -18,7 +18,11 @@ own, so a changed default reaches every scenario that does not set it.  Judging
   without (the time to a failsafe phase, the path) is a change.
 
 Verdicts: ``same``, ``better``, ``worse``, ``changed`` (behaviour, a neutral figure, or better
-and worse at once), ``error`` (a run could not be flown), ``skipped``.
+and worse at once), ``error`` (a run could not be flown), ``skipped``.  Severity comes first:
+a failure-severity finding (a crash, lost control) on any seed of B that no seed of A had makes
+B **worse**, whatever else changed, and one A had on every seed that B never has makes it
+better.  A figure of flights that ended otherwise (fell instead of landing) is never better:
+less time on the throttle is how a fall looks.
 """
 
 from __future__ import annotations
@@ -176,6 +180,11 @@ def _compare_one(
     out.differences = _behaviour_differences(a, b)
     found_worse, found_better = _finding_differences(a, b, out.differences)
     out.figures = _figures(a, b)
+    if any(d.startswith(BEHAVIOUR_KEYS["ended"]) for d in out.differences):
+        # A figure of a flight that ended otherwise (fell instead of landing) is no
+        # improvement: less throttle time is how a fall looks.
+        out.figures = [_not_comparable(f) for f in out.figures]
+    new_failures = _new_failures(a, b)
     worse = [f for f in out.figures if f.change is Change.WORSE] + found_worse
     better = [f for f in out.figures if f.change is Change.BETTER] + found_better
     neutral = [f for f in out.figures if f.change is Change.CHANGED]
@@ -183,7 +192,13 @@ def _compare_one(
     out.change = _verdict(
         behaviour_changed or bool(neutral), found_worse, found_better, bool(worse), bool(better)
     )
-    notes = [d for d in out.differences if not d.startswith("finding")] + [
+    if new_failures:
+        # A failure A never had (a crash, lost control) makes B worse, whatever else changed.
+        out.change = Change.WORSE
+    elif _new_failures(b, a, every_seed=True):
+        out.change = Change.BETTER
+    notes = [f"new failure: {name}" for name in new_failures]
+    notes += [d for d in out.differences if not d.startswith("finding")] + [
         _said(f) for f in (*worse, *better, *neutral)
     ]
     out.reason = (
@@ -208,6 +223,32 @@ def _verdict(
     if worse and better:
         return Change.CHANGED
     return Change.WORSE if worse else Change.BETTER if better else Change.SAME
+
+
+def _new_failures(
+    a: list[ScenarioResult], b: list[ScenarioResult], *, every_seed: bool = False
+) -> list[str]:
+    """Analysers that found a failure in B (on any seed; ``every_seed``: on each) and never in
+    A, named as "crash (failure on 2 of 2 seeds)"."""
+    failure = int(Severity.FAILURE)
+    names = sorted({f.analyser for r in b for f in r.findings if int(f.severity) >= failure})
+    out = []
+    for name in names:
+        if any(_severities(r).get(name, 0) >= failure for r in a):
+            continue
+        seeds = sum(_severities(r).get(name, 0) >= failure for r in b)
+        if every_seed and seeds < len(b):
+            continue
+        out.append(f"{name} (failure on {seeds} of {len(b)} seed{'s' if len(b) > 1 else ''})")
+    return out
+
+
+def _not_comparable(figure: FigureDiff) -> FigureDiff:
+    if figure.change is not Change.BETTER:
+        return figure
+    return replace(
+        figure, change=Change.CHANGED, note=f"{figure.note} (the flights ended otherwise)"
+    )
 
 
 def _said(item: FigureDiff | str) -> str:

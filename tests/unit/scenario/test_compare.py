@@ -169,8 +169,9 @@ def test_a_new_finding_on_every_seed_is_worse_even_with_a_better_figure() -> Non
     assert worse.change is Change.WORSE
     assert worse.differences == ["finding crash: A none,none, B failure,failure"]
     assert judge(b, a).change is Change.BETTER
-    # On some seeds only: no consistent difference.
-    assert judge(a, [b[0], a[0]]).change is Change.SAME
+    # A warning on some seeds only: no consistent difference (a failure would be: see below).
+    warned = result(touchdown=1.1, throttle_s=8.0, findings=(crash(Severity.WARNING),))
+    assert judge(a, [warned, a[0]]).change is Change.SAME
 
 
 def test_errors_skips_and_accepting() -> None:
@@ -208,3 +209,23 @@ def test_what_a_comparison_writes(tmp_path: Path) -> None:
     page = write_comparison_report(comparisons, SIDES, tmp_path / "report").read_text()
     assert "B: 4.6.0-gps-lockstep + set ap_hover_throttle = 1275" in page
     assert 'class="verdict worse"' in page and "finding crash" in page
+
+
+def test_a_new_failure_is_worse_whatever_else_changed() -> None:
+    """The hover throttle set too low: B falls instead of landing (a crash on every seed, a
+    failed expectation, another ending, less throttle time).  Before, that read "changed",
+    with the shorter throttle time as an improvement."""
+    a = [result(throttle_s=15.0, findings=(crash(Severity.WARNING),))] * 2
+    fell = result(throttle_s=8.0, findings=(crash(),), failed=("max_touchdown_m_s = 2",))
+    fell.behaviour["ended"] = ["crashed"]
+    verdict = judge(a, [fell, fell])
+    assert verdict.change is Change.WORSE
+    assert verdict.reason.startswith("new failure: crash (failure on 2 of 2 seeds)")
+    (throttle,) = [f for f in verdict.figures if f.name == "throttle_s"]
+    assert throttle.change is Change.CHANGED and "ended otherwise" in throttle.note
+    # A crash on one seed of B that A never had is enough.
+    assert judge(a, [fell, a[0]]).change is Change.WORSE
+    # Back the other way: the crash A had on every seed is gone.
+    assert judge([fell, fell], a).change is Change.BETTER
+    # A crash both sides have is no news.
+    assert judge([fell, fell], [fell, fell]).change is Change.SAME

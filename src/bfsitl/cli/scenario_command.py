@@ -22,7 +22,13 @@ EXIT_FAILED = 1
 EXIT_INTERRUPTED = 130
 DEFAULT_OUT = "scenario-runs"
 
-_MARK = {"passed": "PASS", "failed": "FAIL", "error": "ERROR", "skipped": "SKIP"}
+_MARK = {
+    "passed": "PASS",
+    "failed": "FAIL",
+    "known failure": "KNOWN",
+    "error": "ERROR",
+    "skipped": "SKIP",
+}
 
 
 def add_scenario_parser(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]
@@ -39,7 +45,8 @@ def add_scenario_parser(sub: argparse._SubParsersAction) -> None:  # type: ignor
         "run",
         help="fly scenario files and judge them",
         description="Fly each scenario on each firmware, each in its own SITL and network "
-        "namespace. Exit 0 when every run passed (or was skipped: a fault the "
+        "namespace. Exit 0 when every run passed, was a known failure (a firmware "
+        "defect the scenario declares, and it happened) or was skipped (a fault the "
         "firmware cannot express, a GPS scenario on a build without GPS), 1 "
         "otherwise.",
         epilog="Examples:\n  bfsitl scenario run                       the shipped library, on the "
@@ -196,11 +203,12 @@ def cmd_scenario_run(args: argparse.Namespace) -> int:
     _write_outputs(args, results)
     counts = {
         v: sum(1 for r in results if r.verdict.value == v)
-        for v in ("passed", "failed", "error", "skipped")
+        for v in ("passed", "failed", "known failure", "error", "skipped")
     }
     simulated = sum(r.sim_time_s for r in results)
+    known = f"{counts['known failure']} known failures, " if counts["known failure"] else ""
     print(
-        f"{counts['passed']} passed, {counts['failed']} failed, {counts['error']} errors, "
+        f"{counts['passed']} passed, {counts['failed']} failed, {known}{counts['error']} errors, "
         f"{counts['skipped']} skipped; {simulated:.0f} s simulated in {wall_s:.0f} s "
         f"({simulated / wall_s if wall_s > 0 else 0:.1f}x real time)"
     )
@@ -277,6 +285,9 @@ def cmd_scenario_list(args: argparse.Namespace) -> int:
             )
         for key, value in scenario.expect:
             print(f"    expect {key} = {value!r}")
+        for known in scenario.known_failures:
+            on = f" on {known.generation}" if known.generation else ""
+            print(f"    known failure{on}: {known.finding}: {known.why}")
     return EXIT_OK
 
 

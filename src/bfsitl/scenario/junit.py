@@ -91,6 +91,9 @@ def _outcome(result: ScenarioResult) -> Failure | Error | Skipped | None:
         return error
     if result.verdict is Verdict.SKIPPED:
         return Skipped(reason)
+    if result.verdict is Verdict.KNOWN:
+        # As pytest writes an xfail: skipped, with the type saying why.
+        return Skipped(reason, "known failure")
     return None
 
 

@@ -33,6 +33,7 @@ th { background: #f6f8fa; }
 .verdict { font-weight: 600; }
 .passed { color: #1a7f37; } .failed { color: #cf222e; }
 .error { color: #9a6700; } .skipped { color: #6e7781; }
+.known { color: #9a6700; background: #fff8c5; padding: 0 .3em; }
 .missing { color: #6e7781; text-decoration: line-through; }
 section { border-top: 2px solid #d0d7de; margin-top: 2em; }
 pre { background: #f6f8fa; padding: .6em; overflow-x: auto; font-size: 12px; }
@@ -56,13 +57,18 @@ def href(target: Path, directory: Path) -> str:
 
 
 def _verdict(verdict: Verdict) -> str:
-    return f'<span class="verdict {verdict.value}">{escape(verdict.value.upper())}</span>'
+    return f'<span class="verdict {verdict.name.lower()}">{escape(verdict.value.upper())}</span>'
 
 
 def _summary(results: Sequence[ScenarioResult]) -> str:
     """Counts per verdict and how fast the runs flew; the wall time is summed over runs, so
     with ``--jobs`` the ratio is per run, not the batch's."""
-    counts = ", ".join(f"{sum(1 for r in results if r.verdict is v)} {v.value}" for v in Verdict)
+    tally = {v: sum(1 for r in results if r.verdict is v) for v in Verdict}
+    counts = ", ".join(
+        f"{n} {v.value}{'s' if v is Verdict.KNOWN and n > 1 else ''}"
+        for v, n in tally.items()
+        if n or v is not Verdict.KNOWN
+    )
     simulated = sum(r.sim_time_s for r in results)
     wall = sum(r.wall_time_s for r in results)
     ratio = f"{simulated / wall:.1f}x real time" if wall > 0 else "no run time measured"

@@ -21,6 +21,9 @@ class Verdict(enum.Enum):
     PASSED = "passed"
     #: Flown to its end, at least one expectation not met.
     FAILED = "failed"
+    #: Flown to its end, every expectation met, and a firmware defect the scenario declares
+    #: (``[[known_failure]]``) happened as it was known to.
+    KNOWN = "known failure"
     #: It could not be flown as written (the SITL exited, a fault the firmware cannot take,
     #: arming blocked, a bfsitl error): nothing was judged.
     ERROR = "error"

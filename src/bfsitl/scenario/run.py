@@ -65,6 +65,7 @@ from bfsitl.records.outputs import FlightOutputs, OutputOptions
 from bfsitl.scenario.expectations import judge
 from bfsitl.scenario.faults import Fault, Undo, make_faults
 from bfsitl.scenario.fc_mission import fc_mission_cli
+from bfsitl.scenario.known_failures import judge_known, known_reason
 from bfsitl.scenario.metrics import run_metrics
 from bfsitl.scenario.result import ScenarioResult, TimedEvent, Verdict
 from bfsitl.scenario.spec import Scenario
@@ -456,10 +457,18 @@ def _fly(
     if trace.rows:
         result.artifacts["trace"] = write_trace_csv(trace, out / "trace.csv")
     checks = judge(scenario, trace, profile.generation.value)
-    result.checks = checks
-    failed = [c for c in checks if not c.passed]
-    result.verdict = Verdict.FAILED if failed else Verdict.PASSED
-    result.reason = failed[0].message if failed else f"all {len(checks)} expectations met"
+    known_checks, happened = judge_known(
+        scenario.known_failures, profile.generation.value, result.findings
+    )
+    result.checks = checks + known_checks
+    failed = [c for c in result.checks if not c.passed]
+    if failed:
+        result.verdict, result.reason = Verdict.FAILED, failed[0].message
+    elif happened:
+        result.verdict, result.reason = Verdict.KNOWN, known_reason(happened)
+    else:
+        result.verdict = Verdict.PASSED
+        result.reason = f"all {len(checks)} expectations met"
     if options.plot and trace.rows:
         from bfsitl.scenario.plot import write_scenario_plot
 

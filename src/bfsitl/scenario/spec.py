@@ -29,6 +29,11 @@
     disarmed_within_s = 2.5
     failsafe_phase = "LANDED"
 
+    [[known_failure]]        # optional: a firmware defect it flies into on purpose
+    finding = "crash"        # (see bfsitl.scenario.known_failures)
+    generation = "master"
+    why = "master's LAND leg aims 200 m below the quad"
+
 Everything is checked when the file is read, so a typo fails before any SITL starts, with
 the file, the table and the key in the message.
 """
@@ -52,6 +57,7 @@ from bfsitl.physics.wind import (
 )
 from bfsitl.scenario.faults import FaultSpec, read_fault_spec
 from bfsitl.scenario.fc_mission import FcWaypoint, read_fc_waypoints
+from bfsitl.scenario.known_failures import KnownFailure, read_known_failures
 from bfsitl.scenario.values import number_in
 from bfsitl.vehicles.catalogue import DEFAULT_VEHICLE, load_vehicle
 
@@ -77,6 +83,7 @@ _TOP_KEYS = {
     "expect",
     "fc_waypoint",
     "cli_for",
+    "known_failure",
 }
 _WIND_KEYS = {"north_m_s", "east_m_s", "down_m_s", "gust_std_m_s", "gust_time_constant_s"}
 
@@ -112,6 +119,8 @@ class Scenario:
         source: The file it was read from; None when built in Python.
         own_vehicle: ``[vehicle]`` names a model or a mass: the scenario is about that quad,
             and ``--vehicle`` (:func:`on_vehicle`) leaves it.
+        known_failures: Firmware defects it flies into on purpose (``[[known_failure]]``,
+            :mod:`bfsitl.scenario.known_failures`).
     """
 
     name: str
@@ -146,6 +155,8 @@ class Scenario:
     source: Path | None = None
     #: ``[vehicle]`` names a model or a mass: ``--vehicle`` does not replace its quad.
     own_vehicle: bool = False
+    #: Firmware defects it flies into on purpose (``[[known_failure]]``).
+    known_failures: tuple[KnownFailure, ...] = ()
 
     @property
     def where(self) -> str:
@@ -304,6 +315,7 @@ def scenario_from_dict(data: dict[str, Any], *, name: str, source: Path | None =
         seed=seed,
         quad=_vehicle(where, data["vehicle"], source) if "vehicle" in data else IRIS,
         own_vehicle=bool({"model", "mass_kg"} & set(data.get("vehicle", {}))),
+        known_failures=read_known_failures(data.get("known_failure", []), where),
         initial_heading_deg=number_in(
             where,
             "vehicle.heading_deg",

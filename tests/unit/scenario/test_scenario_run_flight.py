@@ -27,6 +27,7 @@ from support.fake_fc import FakeFcLink
 from support.fake_vehicles import HOVER_US, FakeVehicle, PController
 from support.scenario_files import V46, fake_binary, scenario
 
+from bfsitl.analysis import Finding, Severity
 from bfsitl.backend.embedded import RealTimeBackend
 from bfsitl.control import DEFAULT_CONTROLLER
 from bfsitl.errors import ArmingBlockedError, SitlExitedError
@@ -441,3 +442,41 @@ def test_runs_that_share_the_cores_do_not_spin(fly, tmp_path) -> None:
     _result, session = fly(spec, options=run_options)
     timing = session.session_config.timing
     assert not timing.lockstep_spin and timing.speed == 3.0
+
+
+# -- known firmware defects ----------------------------------------------------------------------
+KNOWN_CRASH = [{"finding": "crash", "why": "a known defect", "see": "firmware finding 9"}]
+
+
+def test_a_declared_defect_that_happens_is_a_known_failure_not_a_pass(
+    fly, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    # The crash analyser's finding, as a real fall gives it (the analysers have tests of
+    # their own; here the verdict is judged).
+    analysed = run._analyse
+
+    def with_a_crash(watch: Any, trace: Any, result: Any) -> None:
+        analysed(watch, trace, result)
+        crash = Finding("crash", Severity.FAILURE, "hit the ground at 7 m/s", 1.0, 7.0, "m/s")
+        result.findings = trace.findings = [crash, *result.findings]
+
+    monkeypatch.setattr(run, "_analyse", with_a_crash)
+    spec = scenario(flight=FLIGHT, expect={"crashed": True}, known_failure=KNOWN_CRASH)
+    result, _session = fly(spec, tilt_deg=85.0)
+    assert result.verdict is Verdict.KNOWN
+    assert result.reason == "known failure: a known defect (firmware finding 9)"
+    (known,) = [c for c in result.checks if c.expectation.startswith("known_failure")]
+    assert known.passed and "crash found failure" in known.message
+
+
+def test_a_declared_defect_that_does_not_happen_fails_saying_it_may_be_fixed(fly) -> None:
+    spec = scenario(flight=FLIGHT, known_failure=KNOWN_CRASH)
+    result, _session = fly(spec)
+    assert result.verdict is Verdict.FAILED
+    assert "the known failure did not happen (crash found nothing): fixed?" in result.reason
+
+
+def test_a_defect_of_the_other_generation_is_not_expected(fly) -> None:
+    only_master = [{**KNOWN_CRASH[0], "generation": "master"}]
+    result, _session = fly(scenario(flight=FLIGHT, known_failure=only_master))
+    assert result.verdict is Verdict.PASSED  # the fake is a 4.6.0

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import re
 from pathlib import Path
 
 import pytest
@@ -294,3 +295,24 @@ def test_a_scenario_flies_a_shipped_profile_or_a_file_beside_it(tmp_path: Path) 
     flown = on_vehicle([plain, five], cinewhoop)
     assert flown[0].quad == cinewhoop and flown[1].quad == five.quad
     assert on_vehicle([plain], None)[0] is plain
+
+
+@pytest.mark.parametrize(
+    ("entry", "says"),
+    [
+        ({"finding": "crsh", "why": "x"}, "finding = 'crsh' is no analyser; one of"),
+        ({"finding": "crash"}, 'why = "..." says what the defect is (missing)'),
+        ({"finding": "crash", "why": "x", "generation": "4.5"}, "generation = '4.5'; one of 4.6"),
+        ({"finding": "crash", "why": "x", "seen": "y"}, "unknown key(s) seen; known: finding"),
+    ],
+)
+def test_a_bad_known_failure_is_one_clear_line(
+    tmp_path: Path, entry: dict[str, str], says: str
+) -> None:
+    import tomli_w
+
+    data = {"duration_s": 20, "flight": {"takeoff_alt_m": 2.0}, "expect": {"disarmed": True}}
+    path = tmp_path / "k.toml"
+    path.write_text(tomli_w.dumps({**data, "known_failure": [entry]}))
+    with pytest.raises(ScenarioError, match=re.escape(f"k.toml, known_failure 1: {says}")):
+        load_scenario(path)

@@ -67,6 +67,8 @@ Apart from the tree, one stop that is no error:
 
 from __future__ import annotations
 
+import re
+
 
 class BfsitlError(Exception):
     """Root of every error bfsitl raises on purpose."""
@@ -158,8 +160,15 @@ class CliCommandError(CliError):
     def __init__(self, command: str, output: str) -> None:
         self.command = command
         self.output = output
-        first = next((ln for ln in output.splitlines() if ln.startswith("###ERROR")), output)
-        super().__init__(f"CLI command {command!r} failed: {first.strip()}")
+        # The error alone, even where the firmware printed it straight after other lines'
+        # echoes with no newline between ("...1000###ERROR IN set: ...###").
+        found = re.search(r"###ERROR.*?###|ERR_CMD_NA[^\n]*", output)
+        if found:
+            reason = found.group(0)
+        else:
+            lines = output.strip().splitlines()
+            reason = lines[-1] if lines else "no output"
+        super().__init__(f"CLI command {command!r} failed: {reason.strip()}")
 
 
 class ProvisioningError(BfsitlError):

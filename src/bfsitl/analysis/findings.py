@@ -98,6 +98,8 @@ def worst(findings: list[Finding]) -> Severity | None:
 
 
 def _plain(value: Any) -> Any:
+    if isinstance(value, enum.Enum):
+        return value.value
     if isinstance(value, float):
         return round(value, 4) if math.isfinite(value) else None
     if isinstance(value, (list, tuple)):
@@ -105,3 +107,21 @@ def _plain(value: Any) -> Any:
     if isinstance(value, dict):
         return {k: _plain(v) for k, v in value.items()}
     return value
+
+
+def evidence_text(evidence: dict[str, Any]) -> str:
+    """The evidence as a person reads it: ``key=value`` pairs, numbers rounded, names as
+    they are spelled in the flight's record (``phase=watch``, not a Python repr), a nested
+    sample in parentheses."""
+
+    def shown(value: Any) -> str:
+        value = _plain(value)
+        if value is None:
+            return "n/a"
+        if isinstance(value, dict):
+            return "(" + evidence_text(value) + ")"
+        if isinstance(value, list):
+            return "[" + ", ".join(shown(v) for v in value) + "]"
+        return str(value)
+
+    return ", ".join(f"{key}={shown(value)}" for key, value in evidence.items())

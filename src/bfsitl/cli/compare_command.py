@@ -123,7 +123,7 @@ def add_compare_parser(actions: argparse._SubParsersAction) -> None:  # type: ig
 def cmd_scenario_compare(args: argparse.Namespace) -> int:
     from bfsitl.cli.scenario_inputs import check_builds, paths_or_library
     from bfsitl.errors import ScenarioError
-    from bfsitl.scenario.compare import Side, compare_results, plan_comparison
+    from bfsitl.scenario.compare import Change, Side, compare_results, plan_comparison
     from bfsitl.scenario.compare_output import (
         comparison_lines,
         draw_overlays,
@@ -164,9 +164,15 @@ def cmd_scenario_compare(args: argparse.Namespace) -> int:
         progress(side.title)
     started = time.monotonic()
 
+    # Which side and seed a result is: its files' folder (both sides may fly one build).
+    where = {entry.run.out_dir.resolve(): entry for entry in planned}
+
     def finished(result) -> None:  # type: ignore[no-untyped-def]
+        summary = result.artifacts.get("summary")
+        entry = where.get(Path(summary).parent.resolve()) if summary else None
+        which = f" (side {entry.side}, seed {entry.seed})" if entry is not None else ""
         print(
-            f"  ran {result.test_id}: {result.verdict.value} ({result.wall_time_s:.1f} s)",
+            f"  ran {result.test_id}{which}: {result.verdict.value} ({result.wall_time_s:.1f} s)",
             flush=True,
         )
 
@@ -194,10 +200,18 @@ def cmd_scenario_compare(args: argparse.Namespace) -> int:
         progress(suite.stop_line())
         return EXIT_INTERRUPTED
     failing = [c for c in comparisons if c.fails]
-    if failing:
+    unflown = [c for c in failing if c.change is Change.ERROR]
+    different = [c for c in failing if c.change is not Change.ERROR]
+    if different:
+        # Only a difference can be expected; a run that could not be flown cannot be waived.
         progress(
-            f"{len(failing)} scenario(s) "
-            f"{'/'.join(sorted({c.change.value for c in failing}))}: "
-            f"{', '.join(c.name for c in failing)} (--accept NAME if expected)"
+            f"{len(different)} scenario(s) "
+            f"{'/'.join(sorted({c.change.value for c in different}))}: "
+            f"{', '.join(c.name for c in different)} (--accept NAME if expected)"
+        )
+    if unflown:
+        progress(
+            f"{len(unflown)} scenario(s) could not be judged (a run errored): "
+            f"{', '.join(c.name for c in unflown)}; the reasons are above"
         )
     return EXIT_DIFFERENT if failing else EXIT_OK

@@ -21,8 +21,8 @@ Verdicts: ``same``, ``better``, ``worse``, ``changed`` (behaviour, a neutral fig
 and worse at once), ``error`` (a run could not be flown), ``skipped``.  Severity comes first:
 a failure-severity finding (a crash, lost control) on any seed of B that no seed of A had makes
 B **worse**, whatever else changed, and one A had on every seed that B never has makes it
-better.  A figure of flights that ended otherwise (fell instead of landing) is never better:
-less time on the throttle is how a fall looks.
+better.  A figure of flights that ended otherwise (fell instead of landing) or worse (a harder
+touchdown, farther from home) is never better: less time on the throttle is how a fall looks.
 """
 
 from __future__ import annotations
@@ -48,6 +48,11 @@ BEHAVIOUR_KEYS = {
     "ended": "ended",
     "expectations": "expectations",
 }
+
+
+#: The figures that say how a flight ended; when one is worse on B, no other figure of B's
+#: flights counts as better.
+OUTCOME_FIGURES = frozenset({"touchdown_m_s", "landed_distance_m"})
 
 
 class Change(enum.Enum):
@@ -180,9 +185,10 @@ def _compare_one(
     out.differences = _behaviour_differences(a, b)
     found_worse, found_better = _finding_differences(a, b, out.differences)
     out.figures = _figures(a, b)
-    if any(d.startswith(BEHAVIOUR_KEYS["ended"]) for d in out.differences):
-        # A figure of a flight that ended otherwise (fell instead of landing) is no
-        # improvement: less throttle time is how a fall looks.
+    ended_worse = any(f.name in OUTCOME_FIGURES and f.change is Change.WORSE for f in out.figures)
+    if ended_worse or any(d.startswith(BEHAVIOUR_KEYS["ended"]) for d in out.differences):
+        # A figure of a flight that ended otherwise, or worse (fell instead of landing, hit
+        # harder), is no improvement: less throttle time is how a fall looks.
         out.figures = [_not_comparable(f) for f in out.figures]
     new_failures = _new_failures(a, b)
     worse = [f for f in out.figures if f.change is Change.WORSE] + found_worse
@@ -246,8 +252,9 @@ def _new_failures(
 def _not_comparable(figure: FigureDiff) -> FigureDiff:
     if figure.change is not Change.BETTER:
         return figure
+    # Not judged: shown, but it counts neither way (the ending decides).
     return replace(
-        figure, change=Change.CHANGED, note=f"{figure.note} (the flights ended otherwise)"
+        figure, change=Change.SKIPPED, note=f"{figure.note} (B's flights ended otherwise or worse)"
     )
 
 

@@ -16,7 +16,7 @@ from junitparser import Error, Failure, JUnitXml, Skipped, TestCase, TestSuite
 from bfsitl.atomic_file import write_atomically
 from bfsitl.errors import BfsitlError
 from bfsitl.scenario.compare import Change, ScenarioComparison, Side
-from bfsitl.scenario.report import STYLE, href
+from bfsitl.scenario.report import STYLE, embedded_image
 from bfsitl.scenario.suite import dir_name
 
 
@@ -203,7 +203,7 @@ def _section(
     differences = "".join(f"<li>{escape(d)}</li>" for d in comparison.differences)
     overlay = comparison.a_runs[0].artifacts.get("overlay") if comparison.a_runs else None
     image = (
-        f'<img src="{href(Path(overlay), directory)}" alt="{escape(comparison.name)}: '
+        f'<img src="{embedded_image(Path(overlay))}" alt="{escape(comparison.name)}: '
         f'A and B overlaid">'
         if overlay and Path(overlay).is_file()
         else ""

@@ -9,6 +9,7 @@ descriptions and messages are user input.
 
 from __future__ import annotations
 
+import base64
 import os
 from collections.abc import Sequence
 from datetime import UTC, datetime
@@ -16,6 +17,7 @@ from html import escape
 from pathlib import Path
 from urllib.parse import quote
 
+from bfsitl.analysis.findings import evidence_text
 from bfsitl.atomic_file import write_atomically
 from bfsitl.scenario.result import CheckResult, ScenarioResult, Verdict
 
@@ -54,6 +56,14 @@ def href(target: Path, directory: Path) -> str:
     except ValueError:  # another drive on Windows: no relative path exists
         return escape(Path(target).resolve().as_uri(), quote=True)
     return escape(quote(relative), quote=True)
+
+
+def embedded_image(path: Path) -> str:
+    """A plot as a ``data:`` URI: the page shows it wherever it is copied (a CI artefact, an
+    e-mail), with no file beside it."""
+    kind = "image/svg+xml" if path.suffix.lower() == ".svg" else f"image/{path.suffix.lower()[1:]}"
+    data = base64.b64encode(path.read_bytes()).decode("ascii")
+    return escape(f"data:{kind};base64,{data}", quote=True)
 
 
 def _verdict(verdict: Verdict) -> str:
@@ -154,7 +164,7 @@ def _findings(result: ScenarioResult) -> str:
         f'<tr><td class="finding {f.severity.label}">{f.severity.label}</td>'
         f"<td>{escape(f.analyser)}</td><td>{escape(f.summary)}</td>"
         f'<td class="num">{f.time_s:.2f}</td><td>{escape(f.source)}</td>'
-        f"<td><code>{escape(_evidence(f.evidence))}</code></td></tr>"
+        f"<td><code>{escape(evidence_text(f.evidence))}</code></td></tr>"
         for f in result.findings
     )
     table = (
@@ -175,15 +185,6 @@ def _findings(result: ScenarioResult) -> str:
     return f"<h3>findings</h3>{table}{unwatched}"
 
 
-def _evidence(evidence: dict[str, object]) -> str:
-    parts = []
-    for key, value in evidence.items():
-        if isinstance(value, float):
-            value = round(value, 3)
-        parts.append(f"{key}={value}")
-    return ", ".join(parts)
-
-
 def _timeline(result: ScenarioResult) -> str:
     if not result.events:
         return ""
@@ -199,7 +200,7 @@ def _images(result: ScenarioResult, directory: Path) -> str:
         path = Path(result.artifacts[kind])
         if path.suffix.lower() in _IMAGE_SUFFIXES and path.exists():
             images.append(
-                f'<img src="{href(path, directory)}" '
+                f'<img src="{embedded_image(path)}" '
                 f'alt="{escape(kind, quote=True)} of {escape(result.name, quote=True)}">'
             )
     return "".join(images)

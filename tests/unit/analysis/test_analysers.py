@@ -369,3 +369,19 @@ def test_a_finding_survives_json() -> None:
     assert again.evidence["fell_from_m"] == pytest.approx(3.0)
     with pytest.raises(ValueError, match="unknown severity"):
         Severity.parse("catastrophic")
+
+
+def test_evidence_reads_as_text_not_python() -> None:
+    from bfsitl.analysis.findings import evidence_text
+    from bfsitl.mission.phase import Phase
+
+    evidence = {
+        "touchdown_speed_m_s": 7.412345,
+        "sample": {"phase": Phase.WATCH, "alt_m": math.nan, "motors": (0.5, 0.25)},
+    }
+    text = evidence_text(evidence)
+    assert text == "touchdown_speed_m_s=7.4123, sample=(phase=watch, alt_m=n/a, motors=[0.5, 0.25])"
+    assert "<Phase" not in text
+    # And in JSON: the enum's value, not its repr.
+    finding = Finding("crash", Severity.FAILURE, "x", 1.0, 7.4, "m/s", evidence)
+    assert finding.as_dict()["evidence"]["sample"]["phase"] == "watch"

@@ -438,3 +438,19 @@ def test_a_byte_changed_in_the_markers_echo_still_ends_the_output(
     assert changed, "the fake did not see the marker"
     assert output.splitlines() == ["small_angle = 25", "Allowed range: 0 - 180"]
     assert session.run("get small_angle").startswith("small_angle = 25")  # still in step
+
+
+def test_a_failed_command_says_the_error_alone_even_among_run_together_echoes() -> None:
+    from bfsitl.errors import CliCommandError
+
+    output = (
+        "set blackbox_sample_rate = 1/16blackbox_device set to VIRTUAL"
+        "###ERROR IN set: INVALID NAME: ap_hover_throtle###\nset debug_mode = FAILSAFE"
+    )
+    error = CliCommandError("set ap_hover_throtle = 1275", output)
+    assert str(error) == (
+        "CLI command 'set ap_hover_throtle = 1275' failed: "
+        "###ERROR IN set: INVALID NAME: ap_hover_throtle###"
+    )
+    assert error.output == output  # the whole output is kept for whoever wants it
+    assert str(CliCommandError("x", "ERR_CMD_NA\n")).endswith("failed: ERR_CMD_NA")

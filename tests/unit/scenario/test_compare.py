@@ -136,8 +136,12 @@ def test_a_neutral_figure_beyond_the_spread_is_a_change() -> None:
 
 
 def test_better_and_worse_figures_together_are_a_change() -> None:
-    a = [result(touchdown=1.0, tilt=30.0)] * 2
-    assert judge(a, [result(touchdown=3.0, tilt=10.0)] * 2).change is Change.CHANGED
+    a = [result(tilt=30.0, hold_rms_m=0.05)] * 2
+    assert judge(a, [result(tilt=10.0, hold_rms_m=0.5)] * 2).change is Change.CHANGED
+    # Unless the worse one is how the flight ended: a harder touchdown is worse, however
+    # little it tilted on the way down.
+    harder = judge([result(touchdown=1.0, tilt=30.0)] * 2, [result(touchdown=3.0, tilt=10.0)] * 2)
+    assert harder.change is Change.WORSE
 
 
 def test_a_different_phase_sequence_or_failed_expectation_is_changed_behaviour() -> None:
@@ -222,10 +226,23 @@ def test_a_new_failure_is_worse_whatever_else_changed() -> None:
     assert verdict.change is Change.WORSE
     assert verdict.reason.startswith("new failure: crash (failure on 2 of 2 seeds)")
     (throttle,) = [f for f in verdict.figures if f.name == "throttle_s"]
-    assert throttle.change is Change.CHANGED and "ended otherwise" in throttle.note
+    assert throttle.change is Change.SKIPPED and "ended otherwise or worse" in throttle.note
     # A crash on one seed of B that A never had is enough.
     assert judge(a, [fell, a[0]]).change is Change.WORSE
     # Back the other way: the crash A had on every seed is gone.
     assert judge([fell, fell], a).change is Change.BETTER
     # A crash both sides have is no news.
     assert judge([fell, fell], [fell, fell]).change is Change.SAME
+
+
+def test_a_harder_fall_is_worse_however_little_throttle_it_took() -> None:
+    """Both sides crash (no new failure), B at twice the speed and sooner: its shorter
+    throttle time is no improvement, so the harder touchdown decides."""
+    a = [result(touchdown=3.2, throttle_s=15.1, findings=(crash(),))] * 2
+    b = [result(touchdown=6.7, throttle_s=8.6, findings=(crash(),))] * 2
+    verdict = judge(a, b)
+    assert verdict.change is Change.WORSE
+    (throttle,) = [f for f in verdict.figures if f.name == "throttle_s"]
+    assert throttle.change is Change.SKIPPED  # shown, not judged: the ending decides
+    # The other way round B lands softer, and takes longer over it: both figures count.
+    assert judge(b, a).change is Change.CHANGED

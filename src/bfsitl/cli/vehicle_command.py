@@ -6,7 +6,10 @@ from __future__ import annotations
 import argparse
 import json
 import math
-from typing import Any
+from typing import TYPE_CHECKING, Any
+
+if TYPE_CHECKING:
+    from bfsitl.physics.params import QuadParams
 
 EXIT_OK = 0
 
@@ -48,7 +51,7 @@ def figures(name: str) -> dict[str, Any]:
     }
 
 
-def _thrust_to_weight(quad: Any) -> float:
+def _thrust_to_weight(quad: QuadParams) -> float:
     """Four rotors' thrust at the top steady speed over the weight."""
     top_rad_s = min(quad.steady_rotor_speed_rad_s(1.0), quad.max_rotor_speed_rad_s)
     return 4.0 * quad.thrust_coefficient_n_per_rad2_s2 * top_rad_s**2 / quad.weight_n

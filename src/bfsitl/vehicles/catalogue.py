@@ -7,7 +7,10 @@ else is read as a profile file.
 
 from __future__ import annotations
 
+import functools
+from collections.abc import Mapping
 from pathlib import Path
+from types import MappingProxyType
 
 from bfsitl.errors import VehicleProfileError
 from bfsitl.library import vehicle_files
@@ -19,10 +22,11 @@ from bfsitl.vehicles.spec import VehicleSpec, quad_params
 DEFAULT_VEHICLE = "iris"
 
 
-def shipped_profiles() -> dict[str, VehicleSpec]:
-    """The profiles shipped with bfsitl, by name."""
+@functools.cache
+def shipped_profiles() -> Mapping[str, VehicleSpec]:
+    """The profiles shipped with bfsitl, by name (read once: they are package data)."""
     specs = (read_profile(path) for path in vehicle_files())
-    return {spec.name: spec for spec in specs}
+    return MappingProxyType({spec.name: spec for spec in specs})
 
 
 def vehicle_names() -> tuple[str, ...]:

@@ -46,7 +46,8 @@ _NON_NEGATIVE = ("yaw_torque_per_thrust_mm", "com_to_top_mm", "rotors_above_com_
 _TRIPLES_POSITIVE = ("inertia_kg_m2",)
 _TRIPLES_NON_NEGATIVE = ("drag_linear_n_s_per_m", "drag_quadratic_n_s2_per_m2")
 _TEXT = ("name", "description")
-_OPTIONAL = {f.name for f in fields(VehicleSpec) if f.name in ("rotors_above_com_mm",)}
+#: Fields with a default (VehicleSpec's own).
+_OPTIONAL = {"rotors_above_com_mm"}
 _KEYS = tuple(f.name for f in fields(VehicleSpec) if f.name != "sources")
 #: Below this thrust-to-weight ratio a quad cannot hold a hover and manoeuvre.
 MIN_THRUST_TO_WEIGHT = 1.5

@@ -137,18 +137,18 @@ def _thrust_explained_g(track: Track) -> Callable[[TrackPoint], float]:
     """What the motors explain of the accelerometer: the log's own median reading at each
     level of the mean motor command (bins of 5 %).  A quad's thrust-to-weight ratio is in
     it without being known: a punch-out's 6 g sits in its own bin."""
+
+    def level(point: TrackPoint) -> int:
+        return min(19, int(20 * sum(point.motors) / len(point.motors)))
+
     bins: dict[int, list[float]] = {}
     for p in track.points:
         if p.motors and finite(p.accel_g):
-            level = min(19, int(20 * sum(p.motors) / len(p.motors)))
-            bins.setdefault(level, []).append(p.accel_g)
-    medians = {level: statistics.median(values) for level, values in bins.items()}
+            bins.setdefault(level(p), []).append(p.accel_g)
+    medians = {key: statistics.median(values) for key, values in bins.items()}
 
     def explained(point: TrackPoint) -> float:
-        if not point.motors:
-            return 1.0
-        level = min(19, int(20 * sum(point.motors) / len(point.motors)))
-        return medians.get(level, 1.0)
+        return medians.get(level(point), 1.0) if point.motors else 1.0
 
     return explained
 

@@ -100,13 +100,16 @@ def test_the_same_shim_with_a_stall_inside_the_window_starts(
     firmware, tmp_path, monkeypatch, stalled_first_pass
 ):
     # The control: 60 us is less than one gyro period, so the first window is still met and
-    # the first launch is ready; the shim itself does not break a start.
+    # the SITL starts; the shim itself does not break a start (with a 1 ms stall, above, no
+    # launch ever does).  A launch may still lose the natural race the module doc describes
+    # (a few in a hundred on a loaded machine, more with 60 us less to spare): SitlProcess
+    # starts it again, as it is built to, so the control counts starts, not launches.
     monkeypatch.setenv("LD_PRELOAD", str(stalled_first_pass))
     monkeypatch.setenv("STALL_US", "60")
     sitl = SitlProcess(firmware, workdir=tmp_path / "run", isolate=True)
     try:
         sitl.start()
-        assert (sitl.launches, sitl.starts) == (1, 1)
+        assert sitl.starts == 1 and sitl.launches < process._START_ATTEMPTS
         assert sitl.client is not None and sitl.client.status().cycle_time_us > 0
     finally:
         sitl.stop()

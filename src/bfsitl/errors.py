@@ -45,6 +45,7 @@ Messages are written for the person at the terminal: what went wrong, then what 
     │   └── ScenarioFailedError        a scenario run as a pytest item did not pass
     ├── DisturbanceUnavailableError    this backend cannot do that to a flight (Gazebo, a board)
     ├── BlackboxError                  a blackbox log that cannot be read
+    │   └── FitError                   a log that cannot identify a quad (too short, no motors)
     ├── TrackDataMissingError          a flight record lacks what an analyser reads (it is skipped)
     ├── KernelUnavailableError         the compiled physics cannot be built here (no C compiler)
     └── SitlError                      the SITL process
@@ -266,6 +267,11 @@ class DisturbanceUnavailableError(BfsitlError):
 
 class BlackboxError(BfsitlError):
     """A blackbox log that cannot be found or decoded."""
+
+
+class FitError(BlackboxError):
+    """A log that cannot identify a quad: too little flight, no motors or gyro, a fit that
+    does not converge.  The message says what the log lacks."""
 
 
 class TrackDataMissingError(BfsitlError):

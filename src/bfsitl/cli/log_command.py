@@ -9,6 +9,8 @@ import sys
 from pathlib import Path
 from typing import Any
 
+from bfsitl.cli.log_fit_command import add_log_fit_parser
+
 EXIT_OK = 0
 EXIT_FOUND = 1
 EXIT_UNREADABLE = 2
@@ -18,7 +20,7 @@ FAIL_ON_CHOICES = ("info", "warning", "failure", "never")
 def add_log_parser(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]
     log = sub.add_parser(
         "log",
-        help="check blackbox logs with bfsitl's analysers",
+        help="check blackbox logs with bfsitl's analysers, or fit a vehicle profile to one",
         description="The FC's own blackbox logs (.BFL, .BBL, .BF: from a SITL run or a real "
         "flight), read with the decoder scenario runs use.",
     )
@@ -57,6 +59,7 @@ def add_log_parser(sub: argparse._SubParsersAction) -> None:  # type: ignore[typ
         "--list", action="store_true", help="list the analysers and what each looks for, then exit"
     )
     check.set_defaults(func=cmd_log_check)
+    add_log_fit_parser(actions)
 
 
 def _entry(

@@ -120,7 +120,10 @@ def _print_summary(fit: LogFit, profile_path: Path, out: Path) -> None:
         f"{1.0 / data.dt_s:.0f} Hz; fitted on {len(fit.train_windows)} windows, scored on "
         f"{len(fit.test_windows)}"
     )
-    print(f"  motor time constant   {rotation.time_constant_s * 1000:.1f} ms")
+    print(
+        f"  motor time constant   {rotation.time_constant_s * 1000:.1f} ms (the gyro "
+        f"{rotation.delay_s * 1000:.0f} ms behind)"
+    )
     tw = thrust.thrust_to_weight
     print(
         f"  thrust-to-weight      {tw.value:.2f} +- {tw.std:.2f} (read at the hover, with "

@@ -121,9 +121,10 @@ def fit_log(
         thrust=thrust,
     )
     quad = quad_params(spec)
-    replayed = replay(data, test, quad)
+    delay = rotation.delay_frames
+    replayed = replay(data, test, quad, delay_frames=delay)
     shipped = {
-        key: score(replay(data, test, quad_params(other)), data.dt_s)
+        key: score(replay(data, test, quad_params(other), delay_frames=delay), data.dt_s)
         for key, other in sorted(shipped_profiles().items())
     }
     return LogFit(

@@ -69,6 +69,7 @@ def report_dict(fit: LogFit, profile_path: Path | None) -> dict[str, Any]:
         "trusted": trusted(fit),
         "fitted": {
             "motor_time_constant_ms": rotation.time_constant_s * 1000.0,
+            "gyro_delay_ms": rotation.delay_s * 1000.0,
             "thrust_to_weight": thrust.thrust_to_weight.as_dict(),
             "thrust_curve_beta": thrust.beta,
             "thrust_span_g": list(thrust.span_g),

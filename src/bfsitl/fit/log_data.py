@@ -8,7 +8,8 @@ on a uniform clock at the log's median frame interval.  What a fit must not read
 of :attr:`FlightData.usable`: the time inside a gap in the log (logging paused, or corrupt
 frames skipped), a second either side of a saturated gyro (a crash or a tumble), and the first
 and last :data:`EDGE_S` of each stretch in the air (the take-off and the touchdown, where the
-ground pushes on the quad).
+ground pushes on the quad), and what follows an impact in that stretch (a touchdown the motors
+did not see coming).
 """
 
 from __future__ import annotations
@@ -17,6 +18,7 @@ import math
 from dataclasses import dataclass
 
 import numpy as np
+from scipy import ndimage
 
 from bfsitl.blackbox.decode import BlackboxLog
 from bfsitl.errors import FitError
@@ -36,6 +38,13 @@ GYRO_SATURATED_DEG_S = 1900.0
 #: Kept out around a saturated gyro, and at each end of a stretch in the air.
 SATURATION_MARGIN_S = 1.0
 EDGE_S = 1.5
+#: An impact reads more than IMPACT_G and more than IMPACT_SHARE times the g the motors of the
+#: last IMPACT_LOOKBACK_S could give (a punch-out reads as much, with the motors up).
+IMPACT_G = 2.0
+IMPACT_SHARE = 2.0
+IMPACT_LOOKBACK_S = 0.3
+IMPACT_REACTION_S = 0.02
+TOUCHDOWN_S = 5.0
 
 
 @dataclass(frozen=True)
@@ -137,7 +146,9 @@ def flight_data(log: BlackboxLog) -> FlightData:
     accel_up_g = column([f.acc for f in frames], 2) / one_g
     throttle = np.clip((column([f.rc_command for f in frames], 3) - 1000.0) / 1000.0, 0.0, 1.0)
     flying = _airborne(motors.mean(axis=0), accel_up_g)
-    usable = _usable(flying, in_gap, gyro_flu, dt_s)
+    usable = _usable(flying, in_gap, gyro_flu, dt_s) & ~_after_impact(
+        flying, motors.mean(axis=0), accel_up_g, dt_s
+    )
     data = FlightData(
         label=label,
         firmware=log.firmware_revision,
@@ -162,15 +173,56 @@ def flight_data(log: BlackboxLog) -> FlightData:
     return data
 
 
+def _hover_level(motor_level: np.ndarray, accel_up_g: np.ndarray) -> float | None:
+    """The median motor level where the quad reads about 1 g with its motors running."""
+    near_1g = (motor_level > FLYING_MOTOR) & (np.abs(accel_up_g - 1.0) < 0.1)
+    return float(np.median(motor_level[near_1g])) if near_1g.any() else None
+
+
+def _after_impact(
+    flying: np.ndarray, motor_level: np.ndarray, accel_up_g: np.ndarray, dt_s: float
+) -> np.ndarray:
+    """From :data:`SATURATION_MARGIN_S` before a touchdown's impact to the end of that
+    stretch in the air (the impact at most :data:`TOUCHDOWN_S` before it): the ground is not
+    in the physics the fit replays.  An impact reads more than
+    :data:`IMPACT_G`, and more than :data:`IMPACT_SHARE` times what the motors could give: the
+    thrust grows about as the command squared (the hover's level gives 1 g), from the highest
+    motor level of the last :data:`IMPACT_LOOKBACK_S` before the hit (the accelerometer is
+    low-passed, so a punch-out's g outlasts its motors; the FC answers a hit with its motors
+    in the same frame, so the last :data:`IMPACT_REACTION_S` are not counted)."""
+    hover_level = _hover_level(motor_level, accel_up_g)
+    hit = np.zeros_like(flying)
+    if hover_level is None:
+        return hit
+    lookback = max(1, int(IMPACT_LOOKBACK_S / dt_s))
+    trailing = ndimage.maximum_filter1d(motor_level, size=lookback, origin=(lookback - 1) // 2)
+    # The motors before the hit, not the FC's answer to it (in the same frame as the spike).
+    before = delayed_by(trailing, max(1, int(IMPACT_REACTION_S / dt_s)))
+    thrust_g = (before / hover_level) ** 2
+    impacts = np.flatnonzero(
+        flying & (accel_up_g > IMPACT_G) & (accel_up_g > IMPACT_SHARE * thrust_g)
+    )
+    margin = max(1, int(SATURATION_MARGIN_S / dt_s))
+    for impact in impacts:
+        if hit[impact]:
+            continue
+        landed = np.flatnonzero(~flying[impact:])
+        end = impact + int(landed[0]) if len(landed) else len(flying)
+        # Only a touchdown: mid-flight, a fast quad's rotors give more than the hover's
+        # thrust per command (they meet more air), which reads the same.
+        if (end - impact) * dt_s <= TOUCHDOWN_S:
+            hit[max(0, impact - margin) : end] = True
+    return hit
+
+
 def _airborne(motor_level: np.ndarray, accel_up_g: np.ndarray) -> np.ndarray:
     """Frames in the air: the motors above idle, and not held up by the ground (the
     accelerometer reading more than :data:`GROUND_ACCEL_G` while the motors give less than
     the hover's thrust: in the air a quad at idle falls, and reads nearly nothing)."""
     running = motor_level > FLYING_MOTOR
-    near_1g = running & (np.abs(accel_up_g - 1.0) < 0.1)
-    if not near_1g.any():
+    hover_level = _hover_level(motor_level, accel_up_g)
+    if hover_level is None:
         return running
-    hover_level = float(np.median(motor_level[near_1g]))
     grounded = (motor_level < GROUND_MOTOR_SHARE * hover_level) & (accel_up_g > GROUND_ACCEL_G)
     return np.asarray(running & ~grounded)
 
@@ -183,6 +235,11 @@ def _usable(
     near_saturation = _widened(saturated, max(1, int(SATURATION_MARGIN_S / dt_s)))
     near_ground = _widened(~(flying & ~in_gap), max(1, int(EDGE_S / dt_s)))
     return np.asarray(~near_ground & ~near_saturation)
+
+
+def delayed_by(values: np.ndarray, frames: int) -> np.ndarray:
+    """``values`` as seen ``frames`` later, the first value held at the start."""
+    return np.concatenate([np.repeat(values[:1], frames), values[:-frames]])
 
 
 def _widened(mask: np.ndarray, frames: int) -> np.ndarray:

@@ -20,6 +20,7 @@ import numpy as np
 
 from bfsitl.fit.log_data import FlightData
 from bfsitl.fit.motor_model import low_pass, pt2, rotor_speeds
+from bfsitl.fit.rotation import delayed
 from bfsitl.fit.windows import Windows
 from bfsitl.physics import Simulator
 from bfsitl.physics.constants import STANDARD_GRAVITY_M_S2
@@ -58,16 +59,20 @@ def _beta(quad: QuadParams) -> float:
     return quad.torque_coefficient_nm_per_rad2_s2 * top / quad.motor_p_gain_nm_s_per_rad
 
 
-def replay(data: FlightData, windows: Windows, quad: QuadParams) -> Replay:
-    """Fly each window of ``data`` with ``quad`` (see the module doc)."""
+def replay(
+    data: FlightData, windows: Windows, quad: QuadParams, *, delay_frames: int = 0
+) -> Replay:
+    """Fly each window of ``data`` with ``quad`` (see the module doc), the motors seen
+    ``delay_frames`` late (the log's gyro filtering, as the fit found it)."""
     top = quad.steady_rotor_speed_rad_s(1.0)
-    speeds = rotor_speeds(data.motors, _beta(quad), quad.motor_time_constant_s, data.dt_s) * top
+    commands = delayed(data.motors, delay_frames)
+    speeds = rotor_speeds(commands, _beta(quad), quad.motor_time_constant_s, data.dt_s) * top
     sim = Simulator(quad)
     count, length = len(windows), windows.length
     rates = np.empty((3, count, length))
     accel = np.empty((count, length))
-    motors = data.motors.T.tolist()
     for row, start in enumerate(windows.starts.tolist()):
+        motors = commands[:, start : start + length].T.tolist()
         roll, pitch, yaw = (float(v) for v in data.gyro_frd_rad_s[:, start])
         m1, m2, m3, m4 = (float(v) for v in speeds[:, start])
         sim.reset(
@@ -76,7 +81,7 @@ def replay(data: FlightData, windows: Windows, quad: QuadParams) -> Replay:
             motor_speeds_rad_s=(m1, m2, m3, m4),
         )
         for column in range(length):
-            sim.step(motors[start + column], data.dt_s)
+            sim.step(motors[column], data.dt_s)
             rates[:, row, column] = sim.state.angular_velocity_frd_rad_s
             accel[row, column] = -sim.specific_force_frd_m_s2[2] / STANDARD_GRAVITY_M_S2
     logged_accel = windows.spans(data.accel_up_g)

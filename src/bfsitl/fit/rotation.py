@@ -14,9 +14,11 @@ I_zz) / I_xx`` on roll) and, on yaw, ``X`` the rotors' speed shares with the yaw
 spin-up reaction).  The
 equation is linear in the coefficients, so numpy's least squares solves it exactly for a given
 motor model; the motor time constant is the one (5-150 ms) that leaves the least roll and
-pitch error, found by scipy's bounded scalar search.  Integrated sums average the motors' noise
-out where a derivative of the gyro would amplify it: differentiating the rates biases the
-effectiveness several times low (measured on a SITL log of a known quad).
+pitch error, found by scipy's bounded scalar search, for each delay of 0 to
+:data:`MAX_DELAY_MS` by which the logged gyro may trail the motors (the FC's own gyro filters:
+that delay is the log's, not the quad's, so the profile does not carry it).  Integrated sums
+average the motors' noise out where a derivative of the gyro would amplify it: differentiating
+the rates biases the effectiveness several times low (measured on a SITL log of a known quad).
 
 Uncertainties come from resampling the windows (a bootstrap): neighbouring frames are not
 independent samples, windows nearly are.
@@ -35,6 +37,9 @@ from bfsitl.fit.motor_model import PITCH_SIGNS, ROLL_SIGNS, YAW_SIGNS, rotor_spe
 from bfsitl.fit.windows import Windows
 
 TIME_CONSTANT_RANGE_S = (0.005, 0.150)
+#: The gyro's filtering delays what it reads by a few milliseconds (a PT1 at 100 Hz by
+#: 1.6 ms); delays of 0 to this many milliseconds are tried, in whole frames.
+MAX_DELAY_MS = 5
 BOOTSTRAP_DRAWS = 40
 AXES = ("roll", "pitch", "yaw")
 
@@ -67,7 +72,11 @@ class AxisFit:
 
 @dataclass(frozen=True, slots=True)
 class RotationFit:
+    """The motors' lag, how late the gyro sees them (its filtering), and each axis."""
+
     time_constant_s: float
+    delay_frames: int
+    delay_s: float
     roll: AxisFit
     pitch: AxisFit
     yaw: AxisFit
@@ -89,9 +98,21 @@ def _integral(values: np.ndarray, dt_s: float) -> np.ndarray:
     return np.concatenate([np.zeros(values.shape[:-1] + (1,)), total[..., :-1]], axis=-1)
 
 
-def axis_terms(data: FlightData, beta: float, time_constant_s: float) -> list[np.ndarray]:
-    """Each axis' integrated regressors (terms, N) in the order of the module doc."""
-    speeds = rotor_speeds(data.motors, beta, time_constant_s, data.dt_s)
+def delayed(values: np.ndarray, frames: int) -> np.ndarray:
+    """``values`` (..., N) as seen ``frames`` later: the first value held at the start."""
+    if frames <= 0:
+        return values
+    head = np.repeat(values[..., :1], frames, axis=-1)
+    return np.concatenate([head, values[..., :-frames]], axis=-1)
+
+
+def axis_terms(
+    data: FlightData, beta: float, time_constant_s: float, delay_frames: int = 0
+) -> list[np.ndarray]:
+    """Each axis' integrated regressors (terms, N) in the order of the module doc, with the
+    motors seen ``delay_frames`` late (the gyro's filtering delay)."""
+    motors = delayed(data.motors, delay_frames)
+    speeds = rotor_speeds(motors, beta, time_constant_s, data.dt_s)
     thrust = speeds**2
     total = _integral(thrust.sum(axis=0), data.dt_s)
     ramp = data.time_s - data.time_s[0]
@@ -135,11 +156,11 @@ def _rms(values: np.ndarray) -> float:
 
 
 def _axes_fit(
-    data: FlightData, windows: Windows, beta: float, time_constant_s: float
+    data: FlightData, windows: Windows, beta: float, time_constant_s: float, delay_frames: int
 ) -> tuple[list[np.ndarray], list[float], list[tuple[np.ndarray, np.ndarray]]]:
     everything = np.arange(len(windows))
     solutions, errors, designs = [], [], []
-    for index, terms in enumerate(axis_terms(data, beta, time_constant_s)):
+    for index, terms in enumerate(axis_terms(data, beta, time_constant_s, delay_frames)):
         design, change = _design(terms, data.gyro_frd_rad_s[index], windows)
         solution = _solve(design, change, everything)
         rate = windows.spans(data.gyro_frd_rad_s[index])
@@ -161,15 +182,26 @@ def fit_rotation(data: FlightData, windows: Windows, beta: float, *, seed: int =
             "at least 10"
         )
 
-    def roll_pitch_error(time_constant_s: float) -> float:
-        _, errors, _ = _axes_fit(data, windows, beta, time_constant_s)
-        return errors[0] + errors[1]
+    def lag_for(delay_frames: int) -> tuple[float, float]:
+        """The best time constant with this delay, and its roll and pitch error."""
 
-    search = optimize.minimize_scalar(
-        roll_pitch_error, bounds=TIME_CONSTANT_RANGE_S, method="bounded", options={"xatol": 1e-3}
-    )
-    time_constant_s = float(search.x)
-    solutions, errors, designs = _axes_fit(data, windows, beta, time_constant_s)
+        def roll_pitch_error(time_constant_s: float) -> float:
+            _, errors, _ = _axes_fit(data, windows, beta, time_constant_s, delay_frames)
+            return errors[0] + errors[1]
+
+        search = optimize.minimize_scalar(
+            roll_pitch_error,
+            bounds=TIME_CONSTANT_RANGE_S,
+            method="bounded",
+            options={"xatol": 1e-3},
+        )
+        return float(search.x), float(search.fun)
+
+    delays = sorted({round(ms / 1000.0 / data.dt_s) for ms in range(MAX_DELAY_MS + 1)})
+    lags = {delay: lag_for(delay) for delay in delays}
+    delay_frames = min(lags, key=lambda delay: lags[delay][1])
+    time_constant_s = lags[delay_frames][0]
+    solutions, errors, designs = _axes_fit(data, windows, beta, time_constant_s, delay_frames)
     rng = np.random.default_rng(seed)
     draws = [
         [_solve(design, change, rng.integers(0, len(windows), len(windows)))[0]]
@@ -197,6 +229,8 @@ def fit_rotation(data: FlightData, windows: Windows, beta: float, *, seed: int =
             )
     return RotationFit(
         time_constant_s,
+        delay_frames=delay_frames,
+        delay_s=delay_frames * data.dt_s,
         roll=axes[0],
         pitch=axes[1],
         yaw=axes[2],

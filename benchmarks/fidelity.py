@@ -43,7 +43,7 @@ from bfsitl.scenario.run import RunOptions, run_scenario
 from bfsitl.vehicles import shipped_profiles
 
 REPO = Path(__file__).resolve().parents[1]
-REAL_LOGS = REPO.parent / "shared" / "blackbox" / "real"
+REAL_LOGS = REPO.parent / "shared/blackbox/real"
 SCENARIO = REPO / "tests" / "data" / "fit" / "excite-5inch.toml"
 #: The mass each log is fitted with, by the start of its file name; others get DEFAULT_MASS_G.
 MASSES_G = {"cs110": 110.0, "roma-f5": 650.0, "zeez-f7": 650.0, "SITL": 650.0}

@@ -67,7 +67,7 @@ def fitted_spec(
         "thrust and lag"
     )
     fitted = f"fitted from {label}"
-    sources = {key: f"{base.name}'s" for key in base.sources}
+    sources = {key: f"{base.name}'s: {text}" for key, text in base.sources.items()}
     sources.update(
         {
             "mass_g": "stated by the user (a log cannot give it)",

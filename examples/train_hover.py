@@ -66,6 +66,7 @@ def train(args: argparse.Namespace) -> tuple[object, object, list[tuple[float, i
     import torch
     from stable_baselines3 import PPO
     from stable_baselines3.common.callbacks import BaseCallback
+    from stable_baselines3.common.logger import Logger
     from stable_baselines3.common.vec_env import SubprocVecEnv, VecNormalize
 
     # One thread for the learner: a network this small gains nothing from a second, and
@@ -137,6 +138,9 @@ def train(args: argparse.Namespace) -> tuple[object, object, list[tuple[float, i
             policy_kwargs={"log_std_init": -1.0, "net_arch": [64, 64]},
             device="cpu",
         )
+    # SB3 makes an empty SB3-<date> folder in the temporary directory on every learn() unless
+    # it is given a logger: one that writes nothing leaves nothing behind.
+    model.set_logger(Logger(folder=None, output_formats=[]))
     try:
         model.learn(
             total_timesteps=args.steps, callback=Curve(), reset_num_timesteps=not args.resume

@@ -7,6 +7,7 @@ from __future__ import annotations
 
 import importlib.util
 import json
+import os
 import subprocess
 import sys
 from pathlib import Path
@@ -26,6 +27,8 @@ EXAMPLE = Path(__file__).resolve().parents[2] / "examples" / "train_hover.py"
 def test_the_training_example_runs_and_writes_its_outputs(
     lockstep_gps_46_firmware: Path, tmp_path: Path
 ) -> None:
+    scratch = tmp_path / "tmp"
+    scratch.mkdir()
     run = subprocess.run(
         [
             sys.executable,
@@ -40,8 +43,12 @@ def test_the_training_example_runs_and_writes_its_outputs(
         text=True,
         timeout=300,
         cwd=tmp_path,
+        env={**os.environ, "TMPDIR": str(scratch)},
     )
     assert run.returncode == 0, run.stdout[-2000:] + run.stderr[-4000:]
+    # No SB3 logger folder left in the temporary directory (SB3 makes one unless told).
+    # bfsitl-cores-<uid> stays by design: the core claims' lock files, shared by every run.
+    assert not list(scratch.glob("SB3-*")), list(scratch.iterdir())
     out = tmp_path / "run"
     for name in (
         "policy.zip",

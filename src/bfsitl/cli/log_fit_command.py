@@ -110,6 +110,10 @@ def cmd_log_fit(args: argparse.Namespace) -> int:
     return EXIT_OK
 
 
+def _fmt_triple(values: tuple[float, float, float]) -> str:
+    return " / ".join(f"{v:.2f}" for v in values)
+
+
 def _print_summary(fit: LogFit, profile_path: Path, out: Path) -> None:
     from bfsitl.fit.rotation import AXES
 
@@ -138,6 +142,12 @@ def _print_summary(fit: LogFit, profile_path: Path, out: Path) -> None:
             f"  {name + ' effectiveness':<21} {axis.effectiveness.value:.0f} +- "
             f"{axis.effectiveness.std:.0f} rad/s^2 per rotor's full thrust"
         )
+    noise = fit.noise
+    print(
+        f"  noise floor           gyro {_fmt_triple(noise.gyro_deg_s)} deg/s, accel "
+        f"{noise.accel_up_g:.3f} g RMS above {noise.above_hz:.0f} Hz, as logged (after the "
+        "FC's filters)"
+    )
     closest_name, closest = fit.closest_shipped
     print("  replay error over signal (roll / pitch / yaw / vertical acceleration):")
     for label, result in (

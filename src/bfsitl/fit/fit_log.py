@@ -20,6 +20,7 @@ from bfsitl.blackbox import BlackboxLog, decode_blackbox
 from bfsitl.errors import FitError
 from bfsitl.fit.fitted_profile import closest_base, fitted_spec, spec_beta
 from bfsitl.fit.log_data import FlightData, flight_data
+from bfsitl.fit.noise_floor import NoiseFloor, noise_floor
 from bfsitl.fit.replay import Replay, ReplayScore, hold_score, replay, score
 from bfsitl.fit.rotation import RotationFit, fit_rotation
 from bfsitl.fit.thrust import ThrustFit, fit_thrust, hover_command
@@ -43,6 +44,7 @@ class LogFit:
         fitted: The fitted profile's replay score; ``replayed`` its traces.
         shipped: Each shipped profile's score, unfitted, by name.
         hold: The score of predicting no change.
+        noise: The gyro's and the accelerometer's noise floor as logged.
         notes: What the reader of the report must know (a shape not fitted, props out).
     """
 
@@ -59,6 +61,7 @@ class LogFit:
     replayed: Replay
     shipped: dict[str, ReplayScore]
     hold: ReplayScore
+    noise: NoiseFloor
     notes: list[str] = field(default_factory=list)
 
     @property
@@ -141,6 +144,7 @@ def fit_log(
         replayed=replayed,
         shipped=shipped,
         hold=hold_score(data, test),
+        noise=noise_floor(data),
         notes=notes,
     )
 

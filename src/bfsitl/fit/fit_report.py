@@ -79,6 +79,13 @@ def report_dict(fit: LogFit, profile_path: Path | None) -> dict[str, Any]:
             "train_error": dict(zip(AXES, rotation.train_error, strict=True)),
         },
         "hover_command": {"logged": fit.hover_logged, "model": fit.hover_model},
+        "noise_floor": {
+            "above_hz": fit.noise.above_hz,
+            "gyro_deg_s": [_number(v) for v in fit.noise.gyro_deg_s],
+            "accel_up_g": _number(fit.noise.accel_up_g),
+            "calm_s": fit.noise.calm_s,
+            "as_logged": "after the FC's own gyro and accelerometer filters",
+        },
         "profile_figures": {
             "mass_g": fit.spec.mass_g,
             "max_thrust_g": fit.spec.max_thrust_g,

@@ -86,7 +86,7 @@ def _hover_ratio(
 ) -> ThrustFit:
     """The ratio from the frames that hang near 1 g: what the accelerometer reads over the
     model's thrust share there (a median: a gust or a climb moves a frame, not the figure)."""
-    calm = use & _hovering(data)
+    calm = use & hovering(data)
     if calm.sum() * data.dt_s < MIN_HOVER_S:
         raise FitError(
             f"{data.label}: the quad never hangs near 1 g for {MIN_HOVER_S:g} s, so its thrust "
@@ -104,7 +104,8 @@ def _hover_ratio(
     return ThrustFit(Estimate(value, std), beta, (float(low), float(high)), explained)
 
 
-def _hovering(data: FlightData) -> np.ndarray:
+def hovering(data: FlightData) -> np.ndarray:
+    """Frames where the quad hangs near 1 g with calm rates."""
     return (
         data.usable
         & (np.abs(data.accel_up_g - 1.0) < HOVER_BAND_G)
@@ -118,7 +119,7 @@ def hover_command(data: FlightData) -> float:
     Raises:
         FitError: The quad never hangs near 1 g long enough to read it.
     """
-    calm = _hovering(data)
+    calm = hovering(data)
     if calm.sum() * data.dt_s < MIN_HOVER_S:
         raise FitError(
             f"{data.label}: the quad never hangs near 1 g for {MIN_HOVER_S:g} s, so its hover "

@@ -19,6 +19,7 @@ from support.synthetic_flight import synthetic_flight
 from bfsitl.errors import FitError
 from bfsitl.fit.fitted_profile import arm_m, fitted_spec, spec_beta
 from bfsitl.fit.log_data import FlightData
+from bfsitl.fit.noise_floor import noise_floor
 from bfsitl.fit.replay import hold_score, replay, score
 from bfsitl.fit.rotation import fit_rotation
 from bfsitl.fit.thrust import fit_thrust, hover_command
@@ -147,3 +148,17 @@ def test_too_little_flight_is_one_clear_line(flown: tuple[VehicleSpec, FlightDat
     with pytest.raises(FitError) as caught:
         fit_rotation(_broken(data, usable=short), train, spec_beta(spec))
     assert "windows of usable flight" in str(caught.value) and "\n" not in str(caught.value)
+
+
+def test_the_noise_floor_reads_the_noise_that_was_added(
+    flown: tuple[VehicleSpec, FlightData],
+) -> None:
+    _, data = flown
+    quiet = noise_floor(data)
+    assert max(quiet.gyro_deg_s) < 0.2 and quiet.calm_s > 1.0 and quiet.above_hz == 100.0
+    rng = np.random.default_rng(7)
+    # White noise of 1 deg/s: 80 % of its power lies above 100 Hz at a 1 kHz log.
+    noisy_gyro = data.gyro_frd_rad_s + np.radians(rng.normal(0.0, 1.0, data.gyro_frd_rad_s.shape))
+    noisy = noise_floor(_broken(data, gyro_frd_rad_s=noisy_gyro))
+    for axis in range(3):
+        assert noisy.gyro_deg_s[axis] == pytest.approx(0.89, abs=0.08), noisy

@@ -121,21 +121,19 @@ def write_report_png(fit: LogFit, path: Path) -> None:
         start = fit.test_windows.starts[row]
         time_s = fit.data.time_s[start + 1 : start + 1 + fit.test_windows.length]
         first = row == 0
+        traces = (
+            (replayed.logged_rates, "black", "logged"),
+            (replayed.predicted_rates, "tab:red", "replayed (fitted)"),
+        )
         for axis in range(3):
-            axes[axis].plot(
-                time_s,
-                np.degrees(replayed.logged_rates[axis, row]),
-                color="black",
-                lw=1,
-                label="logged" if first else None,
-            )
-            axes[axis].plot(
-                time_s,
-                np.degrees(replayed.predicted_rates[axis, row]),
-                color="tab:red",
-                lw=1,
-                label="replayed (fitted)" if first else None,
-            )
+            for rates, color, label in traces:
+                axes[axis].plot(
+                    time_s,
+                    np.degrees(rates[axis, row]),
+                    color=color,
+                    lw=1,
+                    label=label if first else None,
+                )
         axes[3].plot(time_s, replayed.logged_accel_up_g[row], color="black", lw=1)
         axes[3].plot(time_s, replayed.predicted_accel_up_g[row], color="tab:red", lw=1)
     scores = fit.fitted.rates

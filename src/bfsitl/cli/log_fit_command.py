@@ -84,6 +84,15 @@ def cmd_log_fit(args: argparse.Namespace) -> int:
             )
             return EXIT_UNREADABLE
         base = profiles[args.base]
+    if args.name is not None and (not args.name.strip() or any(c in args.name for c in "/\\")):
+        print(f"bfsitl: error: --name {args.name!r} must be a plain name", file=sys.stderr)
+        return EXIT_UNREADABLE
+    # The folder is made before the fit, which takes a while: a bad --out says so at once.
+    try:
+        args.out.mkdir(parents=True, exist_ok=True)
+    except OSError as exc:
+        print(f"bfsitl: error: cannot make the folder --out {args.out}: {exc}", file=sys.stderr)
+        return EXIT_UNREADABLE
     print(f"bfsitl: reading {args.file} ...", file=sys.stderr)
     try:
         log = pick_log(Path(args.file), args.index)
@@ -92,11 +101,14 @@ def cmd_log_fit(args: argparse.Namespace) -> int:
     except BfsitlError as exc:
         print(f"bfsitl: error: {exc}", file=sys.stderr)
         return EXIT_UNREADABLE
-    args.out.mkdir(parents=True, exist_ok=True)
     profile_path = args.out / f"{fit.spec.name}.toml"
-    write_profile(fit.spec, profile_path)
-    write_report_json(fit, args.out / "fit-report.json", profile_path)
-    write_report_png(fit, args.out / "fit-report.png")
+    try:
+        write_profile(fit.spec, profile_path)
+        write_report_json(fit, args.out / "fit-report.json", profile_path)
+        write_report_png(fit, args.out / "fit-report.png")
+    except OSError as exc:
+        print(f"bfsitl: error: cannot write the fit to {args.out}: {exc}", file=sys.stderr)
+        return EXIT_UNREADABLE
     _print_summary(fit, profile_path, args.out)
     if not trusted(fit):
         print(

@@ -45,7 +45,8 @@ class LogFit:
         shipped: Each shipped profile's score, unfitted, by name.
         hold: The score of predicting no change.
         noise: The gyro's and the accelerometer's noise floor as logged.
-        notes: What the reader of the report must know (a shape not fitted, props out).
+        notes: What the reader of the report must know (props out, a yaw the log does not
+            show, a figure at the edge of its search, gaps).
     """
 
     data: FlightData
@@ -109,10 +110,11 @@ def fit_log(
             f"{TRAIN_SHARE:.0%}; a fit needs a longer flight (give another log with --index)"
         )
     base_beta = spec_beta(base)
+    until = data.split_index(TRAIN_SHARE)
+    # The hover is checked first: the lag search takes a while, a log without a hover fails.
+    fit_thrust(data, base.motor_time_constant_ms / 1000.0, base_beta, until=until)
     rotation = fit_rotation(data, train, base_beta)
-    thrust = fit_thrust(
-        data, rotation.time_constant_s, base_beta, until=data.split_index(TRAIN_SHARE)
-    )
+    thrust = fit_thrust(data, rotation.time_constant_s, base_beta, until=until)
     notes = _notes(data, rotation, thrust)
     label = data.label if not data.craft else f"{data.label} ({data.craft})"
     spec = fitted_spec(
@@ -151,6 +153,13 @@ def fit_log(
 
 def _notes(data: FlightData, rotation: RotationFit, thrust: ThrustFit) -> list[str]:
     notes = []
+    notes.extend(rotation.at_bounds)
+    if not rotation.yaw_identified:
+        yaw = rotation.yaw.effectiveness
+        notes.append(
+            f"the yaw hardly follows the motors ({yaw.value:.3g} +- {yaw.std:.2g}): the "
+            "profile keeps the base's yaw inertia"
+        )
     if rotation.props_out:
         notes.append(
             "the yaw follows the motors the other way round: the props spin outwards "

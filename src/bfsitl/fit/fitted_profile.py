@@ -52,10 +52,16 @@ def fitted_spec(
     max_thrust_g = thrust.thrust_to_weight.value * mass_g / 4.0
     full_thrust_n = max_thrust_g / 1000.0 * g
     torque_per_thrust_m = base.yaw_torque_per_thrust_mm / 1000.0
+    # A yaw the log does not show (its effectiveness within noise of zero) keeps the base's.
+    yaw_inertia = (
+        torque_per_thrust_m * full_thrust_n / abs(rotation.yaw.effectiveness.value)
+        if rotation.yaw_identified
+        else base.inertia_kg_m2[2]
+    )
     inertia = (
         full_thrust_n * arm_m(base) / rotation.roll.effectiveness.value,
         full_thrust_n * arm_m(base) / rotation.pitch.effectiveness.value,
-        torque_per_thrust_m * full_thrust_n / abs(rotation.yaw.effectiveness.value),
+        yaw_inertia,
     )
     top_speed = base.max_speed_rad_s
     tau_s = rotation.time_constant_s
@@ -77,8 +83,12 @@ def fitted_spec(
             "inertia_kg_m2": f"{fitted}: effectiveness roll "
             f"{rotation.roll.effectiveness.value:.0f}, pitch "
             f"{rotation.pitch.effectiveness.value:.0f}, yaw "
-            f"{abs(rotation.yaw.effectiveness.value):.1f} rad/s^2 per rotor's full thrust, with "
-            f"{base.name}'s arm and prop torque",
+            + (
+                f"{abs(rotation.yaw.effectiveness.value):.1f}"
+                if rotation.yaw_identified
+                else f"not shown by the log ({base.name}'s yaw inertia kept)"
+            )
+            + f" rad/s^2 per rotor's full thrust, with {base.name}'s arm and prop torque",
             "rotor_inertia_kg_m2": rotor_source,
         }
     )

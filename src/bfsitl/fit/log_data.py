@@ -120,10 +120,16 @@ def flight_data(log: BlackboxLog) -> FlightData:
     first = frames[0]
     if len(first.motors) < 4 or len(first.gyro_adc) < 3 or len(first.acc) < 3:
         raise FitError(f"{label}: the log has no motors, gyro or accelerometer fields to fit")
+    if len(first.motors) > 4:
+        raise FitError(
+            f"{label}: {len(first.motors)} motors; the fit and the physics are for a quad-X"
+        )
     times = np.array([f.time_s for f in frames])
     order = np.argsort(times, kind="stable")
     times = times[order] - times[order[0]]
     steps = np.diff(times)
+    if not (steps > 0).any():
+        raise FitError(f"{label}: every frame has the same time; the log's clock is broken")
     dt_s = float(np.median(steps[steps > 0]))
     grid = np.arange(0.0, times[-1], dt_s)
     gap_starts = np.flatnonzero(steps > 3 * dt_s)

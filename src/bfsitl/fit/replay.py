@@ -74,22 +74,25 @@ def replay(
     for row, start in enumerate(windows.starts.tolist()):
         motors = commands[:, start : start + length].T.tolist()
         roll, pitch, yaw = (float(v) for v in data.gyro_frd_rad_s[:, start])
-        m1, m2, m3, m4 = (float(v) for v in speeds[:, start])
+        # The gyro at a frame has felt the rotors as they were after the step before it (the
+        # physics moves the motors first, then the body).
+        m1, m2, m3, m4 = (float(v) for v in speeds[:, max(start - 1, 0)])
         sim.reset(
             (0.0, 0.0, -START_ALTITUDE_M),
             angular_velocity_frd_rad_s=(roll, pitch, yaw),
             motor_speeds_rad_s=(m1, m2, m3, m4),
         )
+        level = -sim.specific_force_frd_m_s2[2] / STANDARD_GRAVITY_M_S2
         for column in range(length):
             sim.step(motors[column], data.dt_s)
             rates[:, row, column] = sim.state.angular_velocity_frd_rad_s
-            accel[row, column] = -sim.specific_force_frd_m_s2[2] / STANDARD_GRAVITY_M_S2
+            accel[row, column] = -sim.specific_force_frd_m_s2[2] / STANDARD_GRAVITY_M_S2 - level
     logged_accel = windows.spans(data.accel_up_g)
     # The acceleration is reset to the logged one too: the log has no airspeed, and a rotor's
     # thrust at a command depends on it (the blades' inflow), so the physics started still
     # gives another level; what the motors change from there is the prediction.
     start_level = logged_accel[:, :1]
-    moved = accel - accel[:, :1] + start_level
+    moved = accel + start_level
     filtered = np.vstack(
         [
             pt2(moved[row], data.acc_lpf_hz, data.dt_s, start=float(start_level[row, 0]))

@@ -37,6 +37,8 @@ from bfsitl.fit.motor_model import PITCH_SIGNS, ROLL_SIGNS, YAW_SIGNS, rotor_spe
 from bfsitl.fit.windows import Windows
 
 TIME_CONSTANT_RANGE_S = (0.005, 0.150)
+#: An effectiveness counts as measured this many standard errors clear of zero.
+IDENTIFIED_STDS = 3.0
 #: The gyro's filtering delays what it reads by a few milliseconds (a PT1 at 100 Hz by
 #: 1.6 ms); delays of 0 to this many milliseconds are tried, in whole frames.
 MAX_DELAY_MS = 5
@@ -83,12 +85,39 @@ class RotationFit:
     train_error: tuple[float, float, float]  # per axis: RMS error over RMS rate
 
     @property
+    def yaw_identified(self) -> bool:
+        """The yaw's effectiveness stands :data:`IDENTIFIED_STDS` standard errors clear of
+        zero: the log's yaw follows the motors."""
+        return _identified(self.yaw.effectiveness)
+
+    @property
     def props_out(self) -> bool:
         """The yaw follows the motors the other way round: the props spin outwards."""
-        return self.yaw.effectiveness.value < 0
+        return self.yaw_identified and self.yaw.effectiveness.value < 0
+
+    @property
+    def at_bounds(self) -> list[str]:
+        """The searched figures that ended at the edge of their range (then not measured)."""
+        edges = []
+        low, high = TIME_CONSTANT_RANGE_S
+        if not low + 1e-3 < self.time_constant_s < high - 1e-3:
+            edges.append(
+                f"the motor time constant ({self.time_constant_s * 1000:.0f} ms) is at the edge "
+                f"of the {low * 1000:.0f}-{high * 1000:.0f} ms searched"
+            )
+        if self.delay_s >= MAX_DELAY_MS / 1000.0 - 1e-9:
+            edges.append(
+                f"the gyro delay ({self.delay_s * 1000:.0f} ms) is at the edge of the "
+                f"0-{MAX_DELAY_MS} ms searched"
+            )
+        return edges
 
     def axis(self, index: int) -> AxisFit:
         return (self.roll, self.pitch, self.yaw)[index]
+
+
+def _identified(estimate: Estimate) -> bool:
+    return abs(estimate.value) >= IDENTIFIED_STDS * estimate.std
 
 
 def _integral(values: np.ndarray, dt_s: float) -> np.ndarray:
@@ -222,10 +251,17 @@ def fit_rotation(data: FlightData, windows: Windows, beta: float, *, seed: int =
             )
         )
     for name, axis in zip(AXES[:2], axes[:2], strict=True):
-        if axis.effectiveness.value <= 0:
+        estimate = axis.effectiveness
+        if estimate.value <= 0:
             raise FitError(
                 f"{data.label}: the {name} rates do not follow the motors (effectiveness "
-                f"{axis.effectiveness.value:.3g}): is this a quad-X in Betaflight's motor order?"
+                f"{estimate.value:.3g}): is this a quad-X in Betaflight's motor order?"
+            )
+        if not _identified(estimate):
+            raise FitError(
+                f"{data.label}: the {name} rates hardly follow the motors (effectiveness "
+                f"{estimate.value:.3g} +- {estimate.std:.2g}, under {IDENTIFIED_STDS:g} standard "
+                "errors): fit a calmer flight with sharp stick moves"
             )
     return RotationFit(
         time_constant_s,

@@ -89,8 +89,9 @@ def _hover_ratio(
     calm = use & hovering(data)
     if calm.sum() * data.dt_s < MIN_HOVER_S:
         raise FitError(
-            f"{data.label}: the quad never hangs near 1 g for {MIN_HOVER_S:g} s, so its thrust "
-            "cannot be read (fly a hover in the log)"
+            f"{data.label}: the quad never hangs near 1 g for {MIN_HOVER_S:g} s in the part "
+            "the fit reads (the first 70 % of the usable flight), so its thrust cannot be read "
+            "(fly a hover early in the log)"
         )
     share = thrust_up_g(data, 1.0, beta, time_constant_s)
     ratios = data.accel_up_g[calm] / np.maximum(share[calm], 1e-6)

@@ -82,6 +82,17 @@ def test_a_file_that_is_no_log_is_one_clear_line(
     assert "out of range" in capsys.readouterr().err
 
 
+#: What the fit makes of each real log there is (docs/log-fit.md says why): the CS110's
+#: smooth flight fits but does not replay (1), the others are refused (2).  A new log in the
+#: folder is only held to the rules below.
+EXPECTED_EXIT = {
+    "cs110-3.1.5-smooth.bbl": 1,
+    "cs110-3.1.5-better.bbl": 2,
+    "roma-f5-4.2.9.bbl": 2,
+    "zeez-f7-4.2.11-corrupt.bbl": 2,
+}
+
+
 def test_every_real_log_fits_or_says_why_in_a_line(
     tmp_path: Path, capfd: pytest.CaptureFixture[str]
 ) -> None:
@@ -90,6 +101,8 @@ def test_every_real_log_fits_or_says_why_in_a_line(
         code = main(["log", "fit", str(path), "--mass-g", "300", "--out", str(out)])
         captured = capfd.readouterr()
         assert "Unknown event" not in captured.out + captured.err, path.name
+        if path.name in EXPECTED_EXIT:
+            assert code == EXPECTED_EXIT[path.name], (path.name, captured.err)
         if code == 2:
             error = captured.err.strip().splitlines()[-1]
             assert error.startswith(f"bfsitl: error: {path.name}"), error
@@ -105,10 +118,11 @@ def test_every_real_log_fits_or_says_why_in_a_line(
         figures = report["score"]["fitted"]
         assert all(math.isfinite(v) for v in figures.values()), figures
         assert report["score"]["hold"]["roll"] > 0
-        if path.name == "cs110-3.1.5-better.bbl":
-            # One frame, then 75 s of nothing (the logging paused): none of it is read.
-            assert report["gaps_s"] == pytest.approx(75.2, abs=0.5)
-            assert 30.0 < report["usable_s"] < 60.0
+        if path.name == "cs110-3.1.5-smooth.bbl":
+            # A pause in the logging, left out; a yaw within noise of zero, said so.
+            assert report["gaps_s"] == pytest.approx(33.9, abs=0.5)
+            assert 25.0 < report["usable_s"] < 45.0
+            assert any("the yaw hardly follows the motors" in n for n in report["notes"])
 
 
 def test_fit_log_refuses_a_mass_that_is_not_one() -> None:

@@ -100,7 +100,9 @@ def test_the_replay_tells_the_right_quad_from_a_wrong_one(
     wrong = score(replay(data, test, IRIS), data.dt_s)
     held = hold_score(data, test)
     for axis in range(3):
-        assert right.rates[axis] < 0.15, (axis, right)
+        # The true quad replays within a few hundredths: a replay one frame off in its start
+        # or its comparison scores 0.05-0.07 here.
+        assert right.rates[axis] < 0.035, (axis, right)
         assert wrong.rates[axis] > 3 * right.rates[axis], (axis, wrong, right)
     assert held.rates[0] > 0.5 and held.rates[1] > 0.5
 
@@ -123,11 +125,8 @@ def test_motors_in_the_wrong_order_do_not_fit(flown: tuple[VehicleSpec, FlightDa
     spec, data = flown
     train, _ = train_and_test(data)
     swapped = data.motors[[1, 0, 2, 3]]  # M1 and M2 exchanged: pitch and yaw turn round
-    try:
-        rotation = fit_rotation(_broken(data, motors=swapped), train, spec_beta(spec))
-    except FitError:
-        return
-    assert max(rotation.train_error[:2]) > 0.5, rotation.train_error
+    with pytest.raises(FitError, match="rates do not follow the motors|hardly follow"):
+        fit_rotation(_broken(data, motors=swapped), train, spec_beta(spec))
 
 
 def test_a_yaw_the_other_way_round_reads_as_props_out(

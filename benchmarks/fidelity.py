@@ -36,8 +36,7 @@ from firmware_cache import MASTER_SOURCE, MASTER_SOURCE_ENV_VAR, cached_firmware
 from bfsitl.build import FirmwareBuildOptions, FirmwareCache
 from bfsitl.errors import BfsitlError
 from bfsitl.fit import LogFit, fit_log, pick_log
-from bfsitl.fit.fitted_profile import arm_m
-from bfsitl.physics.constants import STANDARD_GRAVITY_M_S2
+from bfsitl.fit.fitted_profile import effectiveness_of
 from bfsitl.scenario.load import load_scenario
 from bfsitl.scenario.run import RunOptions, run_scenario
 from bfsitl.vehicles import shipped_profiles
@@ -123,13 +122,7 @@ def _row(label: str, fit: LogFit, seconds: float) -> tuple[str, bool]:
 
 def _truth_line(label: str, fit: LogFit) -> str:
     spec = shipped_profiles()["5inch-freestyle"]
-    full_n = spec.max_thrust_g / 1000.0 * STANDARD_GRAVITY_M_S2
-    ixx, iyy, izz = spec.inertia_kg_m2
-    truth = (
-        full_n * arm_m(spec) / ixx,
-        full_n * arm_m(spec) / iyy,
-        spec.yaw_torque_per_thrust_mm / 1000.0 * full_n / izz,
-    )
+    truth = effectiveness_of(spec)
     fitted = [fit.rotation.axis(axis).effectiveness.value for axis in range(3)]
     off = [100.0 * (f / t - 1.0) for f, t in zip(fitted, truth, strict=True)]
     tau_off = 100.0 * (fit.rotation.time_constant_s * 1000 / spec.motor_time_constant_ms - 1)

@@ -17,8 +17,7 @@ from pathlib import Path
 import pytest
 
 from bfsitl.cli.main import main
-from bfsitl.fit.fitted_profile import arm_m
-from bfsitl.physics.constants import STANDARD_GRAVITY_M_S2
+from bfsitl.fit.fitted_profile import effectiveness_of
 from bfsitl.scenario.load import load_scenario
 from bfsitl.scenario.result import Verdict
 from bfsitl.scenario.run import RunOptions, run_scenario
@@ -60,13 +59,7 @@ def test_a_sitl_flight_of_a_known_quad_is_fitted_back(
     assert report["log_interval_ms"] == pytest.approx(1.0, abs=0.01)
     fitted = report["fitted"]
     spec = shipped_profiles()["5inch-freestyle"]
-    full_thrust_n = spec.max_thrust_g / 1000.0 * STANDARD_GRAVITY_M_S2
-    ixx, iyy, izz = spec.inertia_kg_m2
-    truth = {
-        "roll": full_thrust_n * arm_m(spec) / ixx,
-        "pitch": full_thrust_n * arm_m(spec) / iyy,
-        "yaw": spec.yaw_torque_per_thrust_mm / 1000.0 * full_thrust_n / izz,
-    }
+    truth = dict(zip(("roll", "pitch", "yaw"), effectiveness_of(spec), strict=True))
     for axis, value in truth.items():
         assert fitted[axis]["effectiveness_rad_s2"]["value"] == pytest.approx(value, rel=0.05)
     assert fitted["motor_time_constant_ms"] == pytest.approx(spec.motor_time_constant_ms, rel=0.05)

@@ -114,6 +114,18 @@ def _significant(value: float, digits: int = 4) -> float:
     return float(f"{value:.{digits - 1}e}")
 
 
+def effectiveness_of(spec: VehicleSpec) -> tuple[float, float, float]:
+    """Each axis' angular acceleration per unit of one rotor's thrust share in ``spec``'s
+    physics (rad/s^2): what a fit of its flight should find (the inverse of the rules above)."""
+    full_thrust_n = spec.max_thrust_g / 1000.0 * STANDARD_GRAVITY_M_S2
+    ixx, iyy, izz = spec.inertia_kg_m2
+    return (
+        full_thrust_n * arm_m(spec) / ixx,
+        full_thrust_n * arm_m(spec) / iyy,
+        spec.yaw_torque_per_thrust_mm / 1000.0 * full_thrust_n / izz,
+    )
+
+
 def spec_beta(spec: VehicleSpec) -> float:
     """The thrust curve's shape the physics gives ``spec`` (the inverse of the rule above)."""
     full_thrust_n = spec.max_thrust_g / 1000.0 * STANDARD_GRAVITY_M_S2

@@ -22,6 +22,7 @@ from scipy import ndimage
 
 from bfsitl.blackbox.decode import BlackboxLog
 from bfsitl.errors import FitError
+from bfsitl.fit.motor_model import delayed
 
 #: DShot's throttle values run from 48 (0 %) to 2047 (100 %).
 DSHOT_ZERO, DSHOT_FULL = 48.0, 2047.0
@@ -203,7 +204,7 @@ def _after_impact(
     lookback = max(1, int(IMPACT_LOOKBACK_S / dt_s))
     trailing = ndimage.maximum_filter1d(motor_level, size=lookback, origin=(lookback - 1) // 2)
     # The motors before the hit, not the FC's answer to it (in the same frame as the spike).
-    before = delayed_by(trailing, max(1, int(IMPACT_REACTION_S / dt_s)))
+    before = delayed(trailing, max(1, int(IMPACT_REACTION_S / dt_s)))
     thrust_g = (before / hover_level) ** 2
     impacts = np.flatnonzero(
         flying & (accel_up_g > IMPACT_G) & (accel_up_g > IMPACT_SHARE * thrust_g)
@@ -241,11 +242,6 @@ def _usable(
     near_saturation = _widened(saturated, max(1, int(SATURATION_MARGIN_S / dt_s)))
     near_ground = _widened(~(flying & ~in_gap), max(1, int(EDGE_S / dt_s)))
     return np.asarray(~near_ground & ~near_saturation)
-
-
-def delayed_by(values: np.ndarray, frames: int) -> np.ndarray:
-    """``values`` as seen ``frames`` later, the first value held at the start."""
-    return np.concatenate([np.repeat(values[:1], frames), values[:-frames]])
 
 
 def _widened(mask: np.ndarray, frames: int) -> np.ndarray:

@@ -47,6 +47,14 @@ def rotor_speeds(
     )
 
 
+def delayed(values: np.ndarray, frames: int) -> np.ndarray:
+    """``values`` (..., N) as seen ``frames`` later: the first value held at the start."""
+    if frames <= 0:
+        return values
+    head = np.repeat(values[..., :1], frames, axis=-1)
+    return np.concatenate([head, values[..., :-frames]], axis=-1)
+
+
 def pt2(
     values: np.ndarray, cutoff_hz: float, dt_s: float, start: float | None = None
 ) -> np.ndarray:

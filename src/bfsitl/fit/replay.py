@@ -19,8 +19,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from bfsitl.fit.log_data import FlightData
-from bfsitl.fit.motor_model import low_pass, pt2, rotor_speeds
-from bfsitl.fit.rotation import delayed
+from bfsitl.fit.motor_model import delayed, low_pass, pt2, rotor_speeds
 from bfsitl.fit.windows import Windows
 from bfsitl.physics import Simulator
 from bfsitl.physics.constants import STANDARD_GRAVITY_M_S2

@@ -33,7 +33,7 @@ from scipy import optimize
 
 from bfsitl.errors import FitError
 from bfsitl.fit.log_data import FlightData
-from bfsitl.fit.motor_model import PITCH_SIGNS, ROLL_SIGNS, YAW_SIGNS, rotor_speeds
+from bfsitl.fit.motor_model import PITCH_SIGNS, ROLL_SIGNS, YAW_SIGNS, delayed, rotor_speeds
 from bfsitl.fit.windows import Windows
 
 TIME_CONSTANT_RANGE_S = (0.005, 0.150)
@@ -125,14 +125,6 @@ def _integral(values: np.ndarray, dt_s: float) -> np.ndarray:
     a step), zero at the first frame."""
     total = np.cumsum(values, axis=-1) * dt_s
     return np.concatenate([np.zeros(values.shape[:-1] + (1,)), total[..., :-1]], axis=-1)
-
-
-def delayed(values: np.ndarray, frames: int) -> np.ndarray:
-    """``values`` (..., N) as seen ``frames`` later: the first value held at the start."""
-    if frames <= 0:
-        return values
-    head = np.repeat(values[..., :1], frames, axis=-1)
-    return np.concatenate([head, values[..., :-frames]], axis=-1)
 
 
 def axis_terms(

@@ -17,29 +17,17 @@ import pytest
 from support.synthetic_flight import synthetic_flight
 
 from bfsitl.errors import FitError
-from bfsitl.fit.fitted_profile import arm_m, fitted_spec, spec_beta
+from bfsitl.fit.fitted_profile import effectiveness_of, fitted_spec, spec_beta
 from bfsitl.fit.log_data import FlightData
 from bfsitl.fit.noise_floor import noise_floor
 from bfsitl.fit.replay import hold_score, replay, score
 from bfsitl.fit.rotation import fit_rotation
 from bfsitl.fit.thrust import fit_thrust, hover_command
 from bfsitl.fit.windows import train_and_test
-from bfsitl.physics.constants import STANDARD_GRAVITY_M_S2
 from bfsitl.physics.params import IRIS
 from bfsitl.vehicles import VehicleSpec, quad_params, read_profile, shipped_profiles, write_profile
 
 PROFILES = ("5inch-freestyle", "3inch-cinewhoop")
-
-
-def _truth(spec: VehicleSpec) -> tuple[float, float, float]:
-    """Each axis' angular acceleration per unit of one rotor's thrust share."""
-    full_thrust_n = spec.max_thrust_g / 1000.0 * STANDARD_GRAVITY_M_S2
-    ixx, iyy, izz = spec.inertia_kg_m2
-    return (
-        full_thrust_n * arm_m(spec) / ixx,
-        full_thrust_n * arm_m(spec) / iyy,
-        spec.yaw_torque_per_thrust_mm / 1000.0 * full_thrust_n / izz,
-    )
 
 
 @pytest.fixture(scope="module", params=PROFILES)
@@ -56,7 +44,7 @@ def test_a_known_quad_is_fitted_back_within_five_percent(
     rotation = fit_rotation(data, train, spec_beta(spec))
     thrust = fit_thrust(data, rotation.time_constant_s, spec_beta(spec))
     assert rotation.time_constant_s * 1000 == pytest.approx(spec.motor_time_constant_ms, rel=0.05)
-    for axis, truth in enumerate(_truth(spec)):
+    for axis, truth in enumerate(effectiveness_of(spec)):
         assert rotation.axis(axis).effectiveness.value == pytest.approx(truth, rel=0.05), axis
     assert thrust.thrust_to_weight.value == pytest.approx(spec.thrust_to_weight, rel=0.05)
     assert not rotation.props_out
@@ -80,7 +68,7 @@ def test_the_fitted_profile_carries_the_figures_into_the_physics(
     write_profile(fitted, path)
     assert read_profile(path) == fitted
     assert spec_beta(fitted) == pytest.approx(spec_beta(spec), rel=1e-3)
-    for axis, value in enumerate(_truth(fitted)):
+    for axis, value in enumerate(effectiveness_of(fitted)):
         assert value == pytest.approx(rotation.axis(axis).effectiveness.value, rel=1e-3)
     assert "stated by the user" in fitted.sources["mass_g"]
     assert "fitted from synthetic" in fitted.sources["inertia_kg_m2"]

@@ -11,17 +11,18 @@ mixer makes), ``S`` of their sum (a centre of mass off the thrust's centre turns
 into torque), ``W`` of the logged rate (damping by the rotors' inflow), ``b`` a constant trim,
 ``C`` of the product of the other two axes' rates (the rigid body's own coupling, ``(I_yy -
 I_zz) / I_xx`` on roll) and, on yaw, ``X`` the rotors' speed shares with the yaw signs (the
-spin-up reaction).  The
-equation is linear in the coefficients, so numpy's least squares solves it exactly for a given
-motor model; the motor time constant is the one (5-150 ms) that leaves the least roll and
-pitch error, found by scipy's bounded scalar search, for each delay of 0 to
+spin-up reaction).
+
+The equation is linear in the coefficients, so numpy's least squares solves it exactly for a
+given motor model.  The motor time constant is the one (5-150 ms) that leaves the least roll
+and pitch error, found by scipy's bounded scalar search, for each delay of 0 to
 :data:`MAX_DELAY_MS` by which the logged gyro may trail the motors (the FC's own gyro filters:
 that delay is the log's, not the quad's, so the profile does not carry it).  Integrated sums
-average the motors' noise out where a derivative of the gyro would amplify it: differentiating
-the rates biases the effectiveness several times low (measured on a SITL log of a known quad).
+average the motors' noise out where a derivative of the gyro amplifies it: regressing the
+differentiated rates came out 35-60 % low on a SITL log of a known quad.
 
-Uncertainties come from resampling the windows (a bootstrap): neighbouring frames are not
-independent samples, windows nearly are.
+Uncertainties come from resampling the windows (a bootstrap, with the lag and the delay held
+at their fitted values): neighbouring frames are not independent samples, windows nearly are.
 """
 
 from __future__ import annotations

@@ -23,7 +23,7 @@ from bfsitl.fit.log_data import FlightData, flight_data
 from bfsitl.fit.noise_floor import NoiseFloor, noise_floor
 from bfsitl.fit.replay import Replay, ReplayScore, hold_score, replay, score
 from bfsitl.fit.rotation import RotationFit, fit_rotation
-from bfsitl.fit.thrust import ThrustFit, fit_thrust, hover_command
+from bfsitl.fit.thrust import ThrustFit, calm_frames, fit_thrust, hover_command
 from bfsitl.fit.windows import TRAIN_SHARE, Windows, train_and_test
 from bfsitl.vehicles import VehicleSpec, quad_params, shipped_profiles
 
@@ -112,7 +112,7 @@ def fit_log(
     base_beta = spec_beta(base)
     until = data.split_index(TRAIN_SHARE)
     # The hover is checked first: the lag search takes a while, a log without a hover fails.
-    fit_thrust(data, base.motor_time_constant_ms / 1000.0, base_beta, until=until)
+    calm_frames(data, until)
     rotation = fit_rotation(data, train, base_beta)
     thrust = fit_thrust(data, rotation.time_constant_s, base_beta, until=until)
     notes = _notes(data, rotation, thrust)

@@ -22,10 +22,11 @@ from __future__ import annotations
 import dataclasses
 import math
 
+from bfsitl.fit.motor_model import curve_beta
 from bfsitl.fit.rotation import RotationFit
 from bfsitl.fit.thrust import ThrustFit
 from bfsitl.physics.constants import STANDARD_GRAVITY_M_S2
-from bfsitl.vehicles import VehicleSpec, shipped_profiles
+from bfsitl.vehicles import VehicleSpec, quad_params, shipped_profiles
 
 
 def closest_base(mass_g: float) -> VehicleSpec:
@@ -128,11 +129,4 @@ def effectiveness_of(spec: VehicleSpec) -> tuple[float, float, float]:
 
 def spec_beta(spec: VehicleSpec) -> float:
     """The thrust curve's shape the physics gives ``spec`` (the inverse of the rule above)."""
-    full_thrust_n = spec.max_thrust_g / 1000.0 * STANDARD_GRAVITY_M_S2
-    return (
-        spec.yaw_torque_per_thrust_mm
-        / 1000.0
-        * full_thrust_n
-        * (spec.motor_time_constant_ms / 1000.0)
-        / (spec.rotor_inertia_kg_m2 * spec.max_speed_rad_s)
-    )
+    return curve_beta(quad_params(spec))

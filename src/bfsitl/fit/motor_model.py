@@ -17,8 +17,16 @@ import math
 import numpy as np
 from scipy import signal
 
+from bfsitl.physics.params import QuadParams
+
 #: Betaflight's PT2 puts its cut-off where two PT1 stages give -3 dB together.
 PT2_CUTOFF_CORRECTION = 1.553773974
+
+
+def curve_beta(quad: QuadParams) -> float:
+    """The thrust curve's shape ``beta`` the physics gives ``quad``: ``k_Q w_max / P``."""
+    top = quad.steady_rotor_speed_rad_s(1.0)
+    return quad.torque_coefficient_nm_per_rad2_s2 * top / quad.motor_p_gain_nm_s_per_rad
 
 
 def steady_speed_share(command: np.ndarray, beta: float) -> np.ndarray:

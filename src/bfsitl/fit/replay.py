@@ -19,7 +19,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from bfsitl.fit.log_data import FlightData
-from bfsitl.fit.motor_model import delayed, low_pass, pt2, rotor_speeds
+from bfsitl.fit.motor_model import curve_beta, delayed, low_pass, pt2, rotor_speeds
 from bfsitl.fit.windows import Windows
 from bfsitl.physics import Simulator
 from bfsitl.physics.constants import STANDARD_GRAVITY_M_S2
@@ -53,11 +53,6 @@ class Replay:
     logged_accel_up_g: np.ndarray
 
 
-def _beta(quad: QuadParams) -> float:
-    top = quad.steady_rotor_speed_rad_s(1.0)
-    return quad.torque_coefficient_nm_per_rad2_s2 * top / quad.motor_p_gain_nm_s_per_rad
-
-
 def replay(
     data: FlightData, windows: Windows, quad: QuadParams, *, delay_frames: int = 0
 ) -> Replay:
@@ -65,7 +60,7 @@ def replay(
     ``delay_frames`` late (the log's gyro filtering, as the fit found it)."""
     top = quad.steady_rotor_speed_rad_s(1.0)
     commands = delayed(data.motors, delay_frames)
-    speeds = rotor_speeds(commands, _beta(quad), quad.motor_time_constant_s, data.dt_s) * top
+    speeds = rotor_speeds(commands, curve_beta(quad), quad.motor_time_constant_s, data.dt_s) * top
     sim = Simulator(quad)
     count, length = len(windows), windows.length
     rates = np.empty((3, count, length))

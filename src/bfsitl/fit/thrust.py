@@ -78,21 +78,9 @@ def fit_thrust(
     use = data.usable.copy()
     if until is not None:
         use[until:] = False
-    return _hover_ratio(data, use, time_constant_s, beta)
-
-
-def _hover_ratio(
-    data: FlightData, use: np.ndarray, time_constant_s: float, beta: float
-) -> ThrustFit:
-    """The ratio from the frames that hang near 1 g: what the accelerometer reads over the
-    model's thrust share there (a median: a gust or a climb moves a frame, not the figure)."""
-    calm = use & hovering(data)
-    if calm.sum() * data.dt_s < MIN_HOVER_S:
-        raise FitError(
-            f"{data.label}: the quad never hangs near 1 g for {MIN_HOVER_S:g} s in the part "
-            "the fit reads (the first 70 % of the usable flight), so its thrust cannot be read "
-            "(fly a hover early in the log)"
-        )
+    calm = calm_frames(data, until)
+    # The ratio is what the accelerometer reads over the model's thrust share where the quad
+    # hangs near 1 g (a median: a gust or a climb moves a frame, not the figure).
     share = thrust_up_g(data, 1.0, beta, time_constant_s)
     ratios = data.accel_up_g[calm] / np.maximum(share[calm], 1e-6)
     value = float(np.median(ratios))
@@ -103,6 +91,24 @@ def _hover_ratio(
     )
     low, high = np.percentile(data.accel_up_g[use], [5, 95])
     return ThrustFit(Estimate(value, std), beta, (float(low), float(high)), explained)
+
+
+def calm_frames(data: FlightData, until: int | None = None) -> np.ndarray:
+    """The frames before ``until`` where the quad hangs near 1 g, calm.
+
+    Raises:
+        FitError: Fewer than :data:`MIN_HOVER_S` of them: the thrust cannot be read.
+    """
+    calm = hovering(data)
+    if until is not None:
+        calm[until:] = False
+    if calm.sum() * data.dt_s < MIN_HOVER_S:
+        raise FitError(
+            f"{data.label}: the quad never hangs near 1 g for {MIN_HOVER_S:g} s in the part "
+            "the fit reads (the first 70 % of the usable flight), so its thrust cannot be read "
+            "(fly a hover early in the log)"
+        )
+    return calm
 
 
 def hovering(data: FlightData) -> np.ndarray:

@@ -45,7 +45,8 @@ Messages are written for the person at the terminal: what went wrong, then what 
     │   └── ScenarioFailedError        a scenario run as a pytest item did not pass
     ├── DisturbanceUnavailableError    this backend cannot do that to a flight (Gazebo, a board)
     ├── BlackboxError                  a blackbox log that cannot be read
-    │   └── FitError                   a log that cannot identify a quad (too short, no motors)
+    │   ├── FitError                   a log that cannot identify a quad (too short, no motors)
+    │   └── ReplayError                a log that cannot be flown again (no sticks, no flight)
     ├── TrackDataMissingError          a flight record lacks what an analyser reads (it is skipped)
     ├── KernelUnavailableError         the compiled physics cannot be built here (no C compiler)
     └── SitlError                      the SITL process
@@ -272,6 +273,11 @@ class BlackboxError(BfsitlError):
 class FitError(BlackboxError):
     """A log that cannot identify a quad: too little flight, no motors or gyro, a fit that
     does not converge.  The message says what the log lacks."""
+
+
+class ReplayError(BlackboxError):
+    """A log that cannot be flown again through the firmware: no sticks logged, a replay that
+    never armed or left no log of its own.  The message says what to do."""
 
 
 class TrackDataMissingError(BfsitlError):

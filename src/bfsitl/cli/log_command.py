@@ -10,6 +10,7 @@ from pathlib import Path
 from typing import Any
 
 from bfsitl.cli.log_fit_command import add_log_fit_parser
+from bfsitl.cli.log_replay_command import add_log_replay_parser
 
 EXIT_OK = 0
 EXIT_FOUND = 1
@@ -20,7 +21,8 @@ FAIL_ON_CHOICES = ("info", "warning", "failure", "never")
 def add_log_parser(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]
     log = sub.add_parser(
         "log",
-        help="check blackbox logs with bfsitl's analysers, or fit a vehicle profile to one",
+        help="check blackbox logs with bfsitl's analysers, fit a vehicle profile to one, or "
+        "replay one through the firmware",
         description="The FC's own blackbox logs (.BFL, .BBL, .BF: from a SITL run or a real "
         "flight), read with the decoder scenario runs use.",
     )
@@ -60,6 +62,7 @@ def add_log_parser(sub: argparse._SubParsersAction) -> None:  # type: ignore[typ
     )
     check.set_defaults(func=cmd_log_check)
     add_log_fit_parser(actions)
+    add_log_replay_parser(actions)
 
 
 def _entry(

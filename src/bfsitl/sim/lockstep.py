@@ -152,6 +152,11 @@ class LockstepBridge:
         self.encoder = FdmEncoder(profile, getattr(simulator, "home", GeoPoint(0.0, 0.0)))
         self.motors: Motors = (0.0, 0.0, 0.0, 0.0)
         self.rc_command: RcCommand = SAFE_COMMAND
+        #: Send the RC trailer only in the first datagram after ``rc_command`` is set (each
+        #: set is one receiver frame), not in every one: a log's replay gives the firmware
+        #: its frames at the real receiver's rate, which its feedforward and RC smoothing
+        #: measure.  Between frames 4.6.0 and master hold the last channels.
+        self.rc_frames_on_set = False
         #: An injected RC fault (:class:`~bfsitl.fc.rc_link.RcFault`), on simulation time.
         self.rc_fault = RcFaultState()
         self.error: BaseException | None = None
@@ -291,7 +296,8 @@ class LockstepBridge:
         if command is not self._rc_packed_for:
             self._rc_packed = RcPacket(now_s, command.channels_aetr()).pack()
             self._rc_packed_for = command
-        return self._rc_packed
+            return self._rc_packed
+        return b"" if self.rc_frames_on_set else self._rc_packed
 
     def step(self) -> None:
         """One exchange with the FC, then one physics step with its reply."""
@@ -400,9 +406,12 @@ class LockstepBridge:
         max_steps: int,
         watch_fd: int = -1,
     ) -> None:
+        rc = self._rc_bytes(self.simulator.time_s)
+        if rc and self.rc_frames_on_set:
+            max_steps = 1  # the frame rides in one datagram; the steps after it carry none
         run: KernelRun = kernel.run(
             self.encoder,
-            self._rc_bytes(self.simulator.time_s),
+            rc,
             until_s=until_s,
             slack_s=slack_s,
             max_steps=max_steps,

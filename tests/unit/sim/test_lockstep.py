@@ -118,8 +118,10 @@ class FakeFc:
             except TimeoutError:
                 continue
             fdm = FdmPacket.unpack(data[: FdmPacket.SIZE])
-            rc = RcPacket.unpack(data[FdmPacket.SIZE :])
-            self.received.append((fdm.timestamp_s, rc.channels_us[:6]))
+            trailer = data[FdmPacket.SIZE :]
+            # No trailer: no receiver frame in this datagram (rc_frames_on_set).
+            channels = RcPacket.unpack(trailer).channels_us[:6] if trailer else ()
+            self.received.append((fdm.timestamp_s, channels))
             if self.drop_first > 0:
                 self.drop_first -= 1
                 continue
@@ -187,6 +189,24 @@ def test_steps_carry_rc_and_apply_the_answer_of_their_own_packet(fake_fc_factory
     stamps = [stamp for stamp, _ in fc.received]
     assert stamps == pytest.approx([0.0, 0.001, 0.002, 0.003, 0.004, 0.005])
     assert fc.received[-1][1] == (1500, 1500, 1300, 1500, 1800, 1000)
+
+
+def test_frames_on_set_carry_each_command_in_one_datagram(fake_fc_factory) -> None:
+    fc = fake_fc_factory()
+    with LockstepBridge(FakeSimulator(), HostSockets()) as bridge:
+        rc = LockstepRc(bridge)
+        bridge.lock()
+        bridge.rc_frames_on_set = True
+        clock = LockstepClock(bridge)
+        rc.set(RcCommand(throttle_us=1300))
+        clock.sleep_s(0.003)
+        rc.set(RcCommand(throttle_us=1300))  # the same sticks again: a frame all the same
+        clock.sleep_s(0.002)
+        bridge.rc_frames_on_set = False
+        clock.sleep_s(0.002)
+    carried = [bool(channels) for _stamp, channels in fc.received[1:]]
+    assert carried == [True, False, False, True, False, True, True]
+    assert fc.received[1][1][2] == 1300
 
 
 def test_an_unanswered_packet_is_sent_again(fake_fc_factory) -> None:

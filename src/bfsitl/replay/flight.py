@@ -1,0 +1,205 @@
+"""Fly a log's sticks through a lockstep SITL and keep the replaying FC's own blackbox log.
+
+The order: the SITL boots with the log's settings (:mod:`.header_settings`), the identity
+stick path (:data:`.sticks.IDENTITY_RC_LINES`) and the blackbox on (read at boot, so
+provisioning reboots it once); the quad arms on the ground, as the real one did when its log
+began; then each receiver frame is sent when it is due on simulated time, one frame per
+datagram (:attr:`~bfsitl.sim.lockstep.LockstepBridge.rc_frames_on_set`), with the
+self-levelling switches as the pilot had them; at the log's end the quad is disarmed and the
+log the FC wrote is copied out.  Lockstep only: in real time the frames would arrive when the
+machine gets to them, not when they are due.
+"""
+
+from __future__ import annotations
+
+import time
+from collections.abc import Callable
+from dataclasses import dataclass
+from pathlib import Path
+
+from bfsitl.backend.options import Timing, World
+from bfsitl.blackbox import collect_blackbox
+from bfsitl.errors import ReplayError
+from bfsitl.fc.firmware_detect import profile_of_binary
+from bfsitl.fc.provisioning import ANGLE_ON_AUX2, ARM_ON_AUX1, Profile
+from bfsitl.fc.rc_link import RcCommand
+from bfsitl.mission.session import FcSetup, FlightSession, SessionConfig, SitlLaunch
+from bfsitl.physics.params import QuadParams
+from bfsitl.protocol import messages as msg
+from bfsitl.protocol.boxes import BoxId
+from bfsitl.protocol.firmware_profile import FirmwareProfile, Generation
+from bfsitl.replay.sticks import StickStream
+from bfsitl.sitl.firmware import find_firmware
+
+Progress = Callable[[str], None]
+
+HORIZON_ON_AUX3 = msg.ModeRange.from_us(BoxId.HORIZON, 2, 1700, 2100)
+SWITCH_ON_US = 2000.0
+SWITCH_OFF_US = 1000.0
+#: The replaying FC's log rate: about 1 kHz, what real logs of 1-4 kHz are compared at.
+LOG_RATE_HZ = 1000.0
+#: How often the stream looks at the SITL's health and reports progress, simulated seconds.
+_CHECK_EVERY_S = 1.0
+_PROGRESS_EVERY_S = 10.0
+
+
+@dataclass(frozen=True, slots=True)
+class ReplayedFlight:
+    """What a replay left behind.
+
+    Attributes:
+        blackbox: The replaying FC's log (copied out of its run directory).
+        firmware: The firmware that flew, as it names itself (e.g. ``4.6.0``).
+        frames_sent: Receiver frames streamed.
+        flown_s: Simulated seconds from arming to the last frame.
+        wall_s: Wall seconds the stream took.
+    """
+
+    blackbox: Path
+    firmware: str
+    frames_sent: int
+    flown_s: float
+    wall_s: float
+
+
+def pid_rate_hz(profile: FirmwareProfile) -> float:
+    """The SITL's PID loop rate before ``pid_process_denom``: 4.6.0 loops at 8 kHz, master
+    at 1 kHz (its header's looptime, measured)."""
+    return 8000.0 if profile.generation is Generation.V4_6 else 1000.0
+
+
+def blackbox_lines(pid_loop_hz: float) -> tuple[str, ...]:
+    """The replaying FC's own log, at the power-of-two share of ``pid_loop_hz`` nearest
+    :data:`LOG_RATE_HZ` (``blackbox_sample_rate`` takes 1/1 to 1/128)."""
+    denominator = 1
+    while denominator < 128 and pid_loop_hz / (denominator * 2) >= LOG_RATE_HZ * 0.99:
+        denominator *= 2
+    return (
+        "set blackbox_device = VIRTUAL",
+        "set blackbox_mode = NORMAL",
+        f"set blackbox_sample_rate = 1/{denominator}",
+    )
+
+
+def replay_profile(cli_lines: tuple[str, ...]) -> Profile:
+    """ARM on AUX1, ANGLE on AUX2, HORIZON on AUX3, and ``cli_lines``; rebooted when they
+    change (the blackbox's settings are read at boot)."""
+    return Profile(
+        mode_ranges=(ARM_ON_AUX1, ANGLE_ON_AUX2, HORIZON_ON_AUX3),
+        cli_lines=cli_lines,
+        reboot_when_changed=True,
+    )
+
+
+@dataclass(frozen=True, slots=True)
+class ReplayFirmware:
+    """The SITL a replay runs: its binary and the PID loop rate it runs at before
+    ``pid_process_denom`` (what the log's own PID rate is matched against)."""
+
+    path: Path
+    pid_loop_hz: float
+
+
+def replay_firmware(firmware: str | Path | None) -> ReplayFirmware:
+    """Find the SITL ``firmware`` names (None searches as ``bfsitl fly`` does).
+
+    Raises:
+        FirmwareNotFoundError: No such binary or cached build.
+    """
+    binary = find_firmware(firmware)
+    return ReplayFirmware(Path(binary.path), pid_rate_hz(profile_of_binary(binary.path)))
+
+
+def fly_replay(
+    stream: StickStream,
+    *,
+    firmware: ReplayFirmware,
+    quad: QuadParams,
+    cli_lines: tuple[str, ...],
+    out_dir: Path,
+    progress: Progress = lambda _line: None,
+    session_factory: Callable[..., FlightSession] = FlightSession,
+) -> ReplayedFlight:
+    """Fly ``stream`` (see the module docstring); the SITL runs in ``out_dir/sitl``.
+
+    Args:
+        stream: The frames to send.
+        firmware: The lockstep SITL (:func:`replay_firmware`).
+        quad: The simulated quad.
+        cli_lines: The log's settings and the identity stick path; the blackbox's lines are
+            added here.
+        out_dir: Where the SITL runs and its log is copied to (``replay.BFL``).
+        progress: Called with a line of text at each stage and every 10 s of flight.
+        session_factory: Makes the session (a fake in unit tests).
+
+    Raises:
+        ReplayError: The firmware is no lockstep build, or it wrote no log.
+        SitlError, ArmingBlockedError: The SITL would not start, answer or arm.
+    """
+    out_dir.mkdir(parents=True, exist_ok=True)
+    lines = (*cli_lines, *blackbox_lines(firmware.pid_loop_hz))
+    config = SessionConfig(
+        sitl=SitlLaunch(firmware=firmware.path, workdir=out_dir / "sitl"),
+        timing=Timing(),
+        fc=FcSetup(profile=replay_profile(lines), angle_mode=bool(stream.angle[0])),
+        world=World(quad=quad),
+    )
+    with session_factory(config, progress=progress) as session:
+        session.start()
+        if not session.lockstep:
+            raise ReplayError(
+                "log replay needs a lockstep build, so that each frame reaches the FC when it "
+                "is due: `bfsitl firmware build --lockstep`, then --firmware with its name"
+            )
+        assert session.firmware is not None
+        session.arm()
+        started_wall_s = time.monotonic()
+        flown_s = _stream(session, stream, progress)
+        wall_s = time.monotonic() - started_wall_s
+        session.disarm()
+        version = session.firmware.firmware_version or session.firmware.generation.value
+    copies = collect_blackbox(out_dir / "sitl", out_dir, prefix="replay-")
+    if not copies:
+        raise ReplayError(
+            f"the replaying FC wrote no blackbox log into {out_dir / 'sitl'}: was it armed?"
+        )
+    return ReplayedFlight(copies[-1], version, len(stream), flown_s, wall_s)
+
+
+def _stream(session: FlightSession, stream: StickStream, progress: Progress) -> float:
+    """Send every frame when it is due; the simulated seconds it took."""
+    bridge = session.bridge
+    assert bridge is not None
+    clock = session.clock
+    start_s = session.time_s
+    next_check_s = next_report_s = 0.0
+    bridge.rc_frames_on_set = True  # type: ignore[union-attr]
+    try:
+        for index, due_s in enumerate(stream.time_s.tolist()):
+            wait_s = start_s + due_s - session.time_s
+            if wait_s > 0:
+                clock.sleep_s(wait_s)
+            session.set_rc(_frame(stream, index))
+            if due_s >= next_check_s:
+                session.check_alive()
+                next_check_s = due_s + _CHECK_EVERY_S
+            if due_s >= next_report_s:
+                progress(f"replaying: {due_s:.0f} of {stream.time_s[-1]:.0f} s")
+                next_report_s = due_s + _PROGRESS_EVERY_S
+    finally:
+        bridge.rc_frames_on_set = False  # type: ignore[union-attr]
+    return session.time_s - start_s
+
+
+def _frame(stream: StickStream, index: int) -> RcCommand:
+    return RcCommand(
+        roll_us=float(stream.roll_us[index]),
+        pitch_us=float(stream.pitch_us[index]),
+        throttle_us=float(stream.throttle_us[index]),
+        yaw_us=float(stream.yaw_us[index]),
+        aux_us=(
+            SWITCH_ON_US,
+            SWITCH_ON_US if stream.angle[index] else SWITCH_OFF_US,
+            SWITCH_ON_US if stream.horizon[index] else SWITCH_OFF_US,
+        ),
+    )

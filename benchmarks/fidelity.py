@@ -18,7 +18,15 @@ axis' effectiveness), but it picks the base profile, whose thrust curve shape th
 each log is given its craft's class (:data:`MASSES_G`: the CS110 a 3-inch-class micro, the
 ROMA F5 a 5-inch), the SITL flights the 5-inch profile's 650 g.
 
-Run: ``python benchmarks/fidelity.py [--logs DIR] [--sitl] [--build]``.
+``--replay`` adds the closed-loop table: each log flown again through the firmware
+(`bfsitl log replay`) with the log's settings carried over to each cached lockstep build, and
+the quad the fit found (or, when the fit refused the log, the shipped profile nearest its
+mass); the replaying FC's log against the real one per axis: setpoint correlation, the gyro's
+error, rise time and overshoot of the step response from setpoint to gyro, the motors.  With
+``--sitl`` the SITL flights are flown in still air for it (a log does not say the wind), and
+each is replayed on every build, so the table shows what the firmware version alone changes.
+
+Run: ``python benchmarks/fidelity.py [--logs DIR] [--sitl] [--replay] [--build]``.
 """
 
 from __future__ import annotations
@@ -36,10 +44,13 @@ from firmware_cache import MASTER_SOURCE, MASTER_SOURCE_ENV_VAR, cached_firmware
 from bfsitl.build import FirmwareBuildOptions, FirmwareCache
 from bfsitl.errors import BfsitlError
 from bfsitl.fit import LogFit, fit_log, pick_log
-from bfsitl.fit.fitted_profile import effectiveness_of
+from bfsitl.fit.fitted_profile import closest_base, effectiveness_of
+from bfsitl.physics.params import QuadParams
+from bfsitl.replay.replay_log import Replay, replay_log
+from bfsitl.replay.replay_report import targets_met
 from bfsitl.scenario.load import load_scenario
 from bfsitl.scenario.run import RunOptions, run_scenario
-from bfsitl.vehicles import shipped_profiles
+from bfsitl.vehicles import quad_params, shipped_profiles
 
 REPO = Path(__file__).resolve().parents[1]
 REAL_LOGS = REPO.parent / "shared/blackbox/real"
@@ -63,22 +74,34 @@ def _real_logs(folder: Path) -> list[Path]:
     return sorted(p for p in folder.iterdir() if p.suffix.lower() in (".bbl", ".bfl", ".bf"))
 
 
-def _sitl_logs(build_missing: bool, out: Path) -> list[tuple[str, Path]]:
-    """Fly the excitation scenario on each lockstep build there is; the blackbox logs."""
-    logs = []
+def _builds(build_missing: bool) -> dict[str, Path]:
+    """Each lockstep build there is (master when cached or its source is named)."""
+    binaries = {}
     master_there = FirmwareCache().resolve("master-lockstep") is not None or bool(
         os.environ.get(MASTER_SOURCE_ENV_VAR)
     )
-    for name, (source, options, rate) in BUILDS.items():
+    for name, (source, options, _rate) in BUILDS.items():
         if source == MASTER_SOURCE and not master_there:
             print(f"skipping {name}: not cached and {MASTER_SOURCE_ENV_VAR} unset", file=sys.stderr)
             continue
-        binary = cached_firmware(name, source, options, build_missing)
+        binaries[name] = Path(cached_firmware(name, source, options, build_missing))
+    return binaries
+
+
+def _sitl_logs(
+    builds: dict[str, Path], out: Path, *, still_air: bool = False
+) -> list[tuple[str, Path]]:
+    """Fly the excitation scenario on each build; the blackbox logs."""
+    logs = []
+    for name, binary in builds.items():
+        rate = BUILDS[name][2]
         scenario = dataclasses.replace(
             load_scenario(SCENARIO), cli=(f"set blackbox_sample_rate = {rate}",)
         )
+        if still_air:
+            scenario = dataclasses.replace(scenario, wind=None)
         print(f"flying {scenario.name} on {name} ...", file=sys.stderr)
-        result = run_scenario(scenario, binary, RunOptions(out / name, plot=False))
+        result = run_scenario(scenario, str(binary), RunOptions(out / name, plot=False))
         if "blackbox" not in result.artifacts:
             sys.exit(f"{name}: the flight wrote no blackbox log ({result.reason})")
         logs.append((name, Path(result.artifacts["blackbox"])))
@@ -133,6 +156,76 @@ def _truth_line(label: str, fit: LogFit) -> str:
     )
 
 
+def _triple(values: list[float | None], form: str) -> str:
+    return "/".join("-" if v is None else format(v, form) for v in values)
+
+
+def _replay_row(label: str, firmware: str, replay: Replay) -> str:
+    comparison = replay.comparison
+    axes = comparison.axes
+    real = [a.real_step for a in axes]
+    sim = [a.replay_step for a in axes]
+    rise = (
+        f"{_triple([None if s is None else s.rise_time_ms for s in real], '.0f')} / "
+        f"{_triple([None if s is None else s.rise_time_ms for s in sim], '.0f')}"
+    )
+    overshoot = (
+        f"{_triple([None if s is None else s.overshoot_pct for s in real], '.0f')} / "
+        f"{_triple([None if s is None else s.overshoot_pct for s in sim], '.0f')}"
+    )
+    motors = (
+        "-"
+        if comparison.motor_correlation is None
+        else f"{comparison.motor_correlation:.2f}, {comparison.motor_level_difference_pct:+.1f}"
+    )
+    met = targets_met(comparison)
+    flight = replay.flight
+    return (
+        f"| {label} | {firmware} | {replay.vehicle} "
+        f"| {comparison.overlap_s:.0f} @ {comparison.rate_hz:.0f} "
+        f"| {_triple([a.setpoint_correlation for a in axes], '.3f')} "
+        f"| {_triple([a.gyro_error for a in axes], '.2f')} | {rise} | {overshoot} | {motors} "
+        f"| {'-' if met is None else ('yes' if met else 'no')} "
+        f"| {flight.flown_s:.0f} s in {flight.wall_s:.1f} s |"
+    )
+
+
+def _replay_quad(label: str, path: Path, fits: dict[str, LogFit]) -> QuadParams:
+    fit = fits.get(label)
+    if fit is not None:
+        return quad_params(fit.spec)
+    if label.startswith("SITL"):
+        return quad_params(shipped_profiles()["5inch-freestyle"])
+    return quad_params(closest_base(_mass_g(label)))
+
+
+def _replay_table(
+    sources: list[tuple[str, Path]], builds: dict[str, Path], fits: dict[str, LogFit], out: Path
+) -> None:
+    print(
+        "\n| log | replayed on | vehicle | compared s @ Hz | setpoint r r/p/y | gyro error r/p/y "
+        "| rise ms r/p/y real / replay | overshoot % real / replay | motors r, level | "
+        "targets met | flown in |"
+    )
+    print("| --- | --- | --- | --- | --- | --- | --- | --- | --- | --- | --- |")
+    for label, path in sources:
+        quad = _replay_quad(label, path, fits)
+        for firmware, binary in builds.items():
+            try:
+                log = pick_log(path, None)
+                replay = replay_log(
+                    log, firmware=binary, quad=quad, out_dir=out / f"{label}-{firmware}"
+                )
+            except BfsitlError as exc:
+                print(f"| {label} | {firmware} | no replay: {str(exc).splitlines()[0]} |")
+                continue
+            print(_replay_row(label, firmware, replay), flush=True)
+    print(
+        "\ntargets: setpoint correlation >= 0.99, rise time within 20 %, overshoot within 5 "
+        "points; 'fit' vehicles are the profile `bfsitl log fit` found in that log"
+    )
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument(
@@ -142,8 +235,12 @@ def main() -> None:
         help="folder of real blackbox logs (default: shared/blackbox/real beside the clone)",
     )
     parser.add_argument("--sitl", action="store_true", help="also fit SITL flights of a known quad")
+    parser.add_argument(
+        "--replay", action="store_true", help="also replay each log through the firmware"
+    )
     parser.add_argument("--build", action="store_true", help="build missing firmware")
     args = parser.parse_args()
+    builds = _builds(args.build) if args.sitl or args.replay else {}
 
     print(
         "| log | mass, base | Hz | usable s (fit/score windows) | lag + gyro delay ms | T/W "
@@ -155,9 +252,10 @@ def main() -> None:
     with tempfile.TemporaryDirectory(prefix="bfsitl-fidelity-") as scratch:
         sources = [(p.name, p) for p in _real_logs(args.logs)]
         if args.sitl:
-            sources += [(f"SITL {n}", p) for n, p in _sitl_logs(args.build, Path(scratch))]
+            sources += [(f"SITL {n}", p) for n, p in _sitl_logs(builds, Path(scratch))]
         if not sources:
             sys.exit(f"no logs: {args.logs} holds none and --sitl was not given")
+        fits: dict[str, LogFit] = {}
         for label, path in sources:
             started = time.perf_counter()
             try:
@@ -165,10 +263,17 @@ def main() -> None:
             except BfsitlError as exc:
                 print(f"| {label} | no fit: {exc} |")
                 continue
+            fits[label] = fit
             line, _ = _row(label, fit, time.perf_counter() - started)
             print(line, flush=True)
             if label.startswith("SITL"):
                 truths.append(_truth_line(label, fit))
+        if args.replay:
+            replayed = [(label, path) for label, path in sources if not label.startswith("SITL")]
+            if args.sitl:
+                calm = _sitl_logs(builds, Path(scratch) / "still-air", still_air=True)
+                replayed += [(f"SITL {n}, still air", p) for n, p in calm]
+            _replay_table(replayed, builds, fits, Path(scratch) / "replays")
     if truths:
         print("\nthe SITL flights' fit against the 5-inch profile that flew them:")
         print("| log | roll | pitch | yaw | motor lag | T/W |")

@@ -18,9 +18,11 @@ import dataclasses
 import json
 from pathlib import Path
 
+import numpy as np
 import pytest
 
 from bfsitl.cli.main import main
+from bfsitl.errors import BfsitlError
 from bfsitl.scenario.load import load_scenario
 from bfsitl.scenario.result import Verdict
 from bfsitl.scenario.run import RunOptions, run_scenario
@@ -84,3 +86,33 @@ def test_a_flight_replayed_through_its_own_firmware_flies_the_same(
     assert roll["rise_time_ratio"] > 1.2, roll
     assert roll["targets"]["rise_time"] is False
     assert weak["comparison"]["axes"]["yaw"]["targets"]["rise_time"] is True
+
+
+def test_a_real_logs_receiver_rate_reaches_the_firmware(
+    lockstep_gps_46_firmware: Path, tmp_path: Path
+) -> None:
+    """Every real log whose header says its receiver's rate, replayed with the FC's RX_TIMING
+    debug on: the replaying 4.6.0 must measure the frames at that rate (its stock SITL
+    receiver would count one at every loop, 8 kHz)."""
+    from bfsitl.blackbox import decode_blackbox
+    from bfsitl.fit import pick_log
+    from bfsitl.replay.sticks import stick_stream
+    from tests.support.real_logs import require_real_logs
+
+    checked = 0
+    for path in require_real_logs():
+        try:
+            stream = stick_stream(pick_log(path, None))
+        except BfsitlError:
+            continue  # too short or no sticks: the replay refuses it (unit-tested)
+        if not stream.interval_source.startswith("header"):
+            continue
+        out = tmp_path / path.stem
+        _replay(path, lockstep_gps_46_firmware, out, "--cli", "set debug_mode = RX_TIMING")
+        replayed = max(decode_blackbox(out / "replay-LOG00001.BF"), key=lambda log: len(log.frames))
+        # debug[0]: the last frame's interval in 10 us units (rx.c, DEBUG_RX_TIMING).
+        intervals_ms = np.array([frame.debug[0] / 100.0 for frame in replayed.frames[500:]])
+        assert np.median(intervals_ms) == pytest.approx(stream.frame_interval_s * 1000, rel=0.05)
+        checked += 1
+    if not checked:
+        pytest.skip("no real log here states its receiver's rate in its header")

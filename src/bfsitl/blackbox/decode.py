@@ -239,14 +239,22 @@ def _int(value: object) -> int | None:
     return None  # orangebox fills slow fields with '' before the first slow frame
 
 
+#: orangebox gives a field its encoding calls unsigned as an unsigned 32-bit number even when
+#: its predictor took it below zero: 3.x logs throttle against ``minthrottle``, so a stick
+#: below it reads 2**32 + 1000 (measured on the CS110 logs).  No flight value is that large.
+_UINT32_WRAP = 1 << 32
+_INT32_MAX = (1 << 31) - 1
+
+
 def _group(row: dict[str, object], name: str, count: int) -> tuple[int, ...]:
-    """``name[0]``, ``name[1]``, ... for as many as the log has (up to ``count``)."""
+    """``name[0]``, ``name[1]``, ... for as many as the log has (up to ``count``), with a
+    negative value orangebox wrapped to 32 bits unwrapped."""
     values = []
     for index in range(count):
         value = _int(row.get(f"{name}[{index}]"))
         if value is None:
             break
-        values.append(value)
+        values.append(value - _UINT32_WRAP if value > _INT32_MAX else value)
     return tuple(values)
 
 

@@ -28,6 +28,10 @@ SHM_EXCHANGE_MARKER = b"BFSITL_LOCKSTEP_SHM\x00"
 """The variable a lockstep build that has the shared-memory exchange reads (earlier lockstep
 builds have only UDP: :mod:`bfsitl.link.shm_exchange`)."""
 
+RX_FRAMES_MARKER = b"BFSITL_LOCKSTEP_RX_FRAMES\x00"
+"""The variable a 4.6.0 lockstep build reads to count a receiver frame per RC trailer, not at
+every check (earlier lockstep builds count one at every loop; master's receiver needs none)."""
+
 FEATURE_MARKERS: dict[str, bytes] = {
     "gps": b"\x00gps_provider\x00",
     "gps_rescue": b"\x00gps_rescue_",
@@ -53,6 +57,8 @@ class BinaryTraits:
     lockstep: bool = False
     #: A lockstep build that can also take its packets through shared memory.
     shm_exchange: bool = False
+    #: A 4.6.0 lockstep build that can count a receiver frame per RC trailer.
+    rx_frames: bool = False
 
     @property
     def has_gps(self) -> bool:
@@ -75,12 +81,26 @@ def _scan(real_path: str, _size: int, _mtime_ns: int, _ino: int, _dev: int) -> B
             takes_ip = mapped.find(IP_FLAG_MARKER) >= 0
             lockstep = mapped.find(LOCKSTEP_MARKER) >= 0
             shm_exchange = lockstep and mapped.find(SHM_EXCHANGE_MARKER) >= 0
+            rx_frames = lockstep and mapped.find(RX_FRAMES_MARKER) >= 0
             features = tuple(
                 name for name, marker in FEATURE_MARKERS.items() if mapped.find(marker) >= 0
             )
-    return BinaryTraits(takes_ip, features, lockstep, shm_exchange)
+    return BinaryTraits(takes_ip, features, lockstep, shm_exchange, rx_frames)
 
 
 def clear_cache() -> None:
     """Forget every scan (tests that rewrite a file within one mtime tick)."""
     _scan.cache_clear()
+
+
+def names_missing(path: str | os.PathLike[str], names: frozenset[str]) -> frozenset[str]:
+    """Which of ``names`` (CLI setting or feature names) are not NUL-terminated strings in
+    the binary at ``path``: a setting the build does not have (master dropped some of 4.6.0's,
+    a feature compiled out drops its own).  Raises OSError when it cannot be read."""
+    with open(path, "rb") as handle:
+        if os.fstat(handle.fileno()).st_size == 0:
+            return names
+        with mmap.mmap(handle.fileno(), 0, access=mmap.ACCESS_READ) as mapped:
+            return frozenset(
+                name for name in names if mapped.find(b"\x00" + name.encode() + b"\x00") < 0
+            )

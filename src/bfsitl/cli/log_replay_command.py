@@ -98,7 +98,13 @@ def cmd_log_replay(args: argparse.Namespace) -> int:
         print(f"bfsitl: error: cannot write the report to {args.out}: {exc}", file=sys.stderr)
         return EXIT_UNREPLAYABLE
     _print_summary(replay, args.out)
-    return EXIT_MISSED if targets_met(replay.comparison) is False else EXIT_MET
+    met = targets_met(replay.comparison)
+    if met is None:
+        print(
+            "no target could be measured: the log has no setpoints (3.x logs do not hold "
+            "them); the gyro and motor figures above are the comparison"
+        )
+    return EXIT_MISSED if met is False else EXIT_MET
 
 
 def _say(line: str) -> None:

@@ -82,11 +82,15 @@ class SitlLaunch:
             temporary one.
         isolate: Run the SITL in a private network namespace, so a stale SITL cannot share
             its ports.
+        env: Environment variables for the SITL process beyond the backend's (a log's
+            replay asks a lockstep build for ``BFSITL_LOCKSTEP_RX_FRAMES``).
     """
 
     firmware: str | Path | None = None
     workdir: str | Path | None = None
     isolate: bool = True
+    #: Environment variables for the SITL process beyond the backend's, as (name, value).
+    env: tuple[tuple[str, str], ...] = ()
 
 
 @dataclass(frozen=True, slots=True)
@@ -262,7 +266,7 @@ class FlightSession(Vehicle):
                 workdir=config.sitl.workdir,
                 isolate=config.sitl.isolate,
                 progress=self._progress,
-                env=backend.sitl_env,
+                env={**(backend.sitl_env or {}), **dict(config.sitl.env)} or None,
                 hooks=backend.hooks,
             )
             backend.start(self.sitl, self._stack)

@@ -20,6 +20,7 @@ without setpoint (3.x) or motors leaves those figures out (None) and says so.
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -28,7 +29,7 @@ from scipy import signal
 from bfsitl.blackbox.decode import BlackboxLog
 from bfsitl.errors import ReplayError
 from bfsitl.replay.step_response import StepResponse, step_response
-from bfsitl.replay.sticks import deflection_scales
+from bfsitl.replay.sticks import continuous_frames, deflection_scales
 
 AXES = ("roll", "pitch", "yaw")
 #: The common clock both logs are resampled to, at most: a log written more slowly sets it
@@ -81,10 +82,13 @@ class AxisComparison:
 
     @property
     def rise_time_ratio(self) -> float | None:
-        """Replay's rise time over the real one's."""
+        """Replay's rise time over the real one's (None: either has none to read)."""
         if self.real_step is None or self.replay_step is None:
             return None
-        return self.replay_step.rise_time_ms / self.real_step.rise_time_ms
+        real_ms = self.real_step.rise_time_ms
+        if not (math.isfinite(real_ms) and real_ms > 0):
+            return None
+        return self.replay_step.rise_time_ms / real_ms
 
     @property
     def overshoot_difference_pct(self) -> float | None:
@@ -131,11 +135,15 @@ def log_traces(log: BlackboxLog, *, rate_hz: float = RATE_HZ) -> LogTraces:
     Raises:
         ReplayError: No rcCommand or gyro in the log, or under a second of it.
     """
-    frames = [f for f in log.frames if len(f.rc_command) == 4 and len(f.gyro_adc) == 3]
+    label = f"{log.path.name} log {log.index}"
+    first = log.frames[0] if log.frames else None
+    if first is None or len(first.rc_command) < 4 or len(first.gyro_adc) < 3:
+        raise ReplayError(f"{label} has no rcCommand and gyro fields to compare")
+    frames = continuous_frames(
+        [f for f in log.frames if len(f.rc_command) == 4 and len(f.gyro_adc) == 3]
+    )
     if len(frames) < 2 or frames[-1].time_s - frames[0].time_s < 1.0:
-        raise ReplayError(
-            f"{log.path.name} log {log.index}: under a second of rcCommand and gyro to compare"
-        )
+        raise ReplayError(f"{label}: under a second of rcCommand and gyro without a gap")
     times = np.array([f.time_s for f in frames])
     times -= times[0]
     grid = np.arange(0.0, times[-1], 1.0 / rate_hz)
@@ -181,7 +189,7 @@ def motor_share(raw: np.ndarray, high: float) -> np.ndarray:
 
 def log_rate_hz(log: BlackboxLog) -> float:
     """The log's frame rate (from the median interval between frames)."""
-    times = np.array([f.time_s for f in log.frames])
+    times = np.sort(np.array([f.time_s for f in log.frames]))
     steps = np.diff(times)
     steps = steps[steps > 0]
     return 1.0 / float(np.median(steps)) if steps.size else RATE_HZ

@@ -12,6 +12,7 @@ machine gets to them, not when they are due.
 
 from __future__ import annotations
 
+import shutil
 import time
 from collections.abc import Callable
 from dataclasses import dataclass
@@ -19,6 +20,7 @@ from pathlib import Path
 
 from bfsitl.backend.options import Timing, World
 from bfsitl.blackbox import collect_blackbox
+from bfsitl.build.binary_scan import binary_traits
 from bfsitl.errors import ReplayError
 from bfsitl.fc.firmware_detect import profile_of_binary
 from bfsitl.fc.provisioning import ANGLE_ON_AUX2, ARM_ON_AUX1, Profile
@@ -51,8 +53,11 @@ class ReplayedFlight:
         blackbox: The replaying FC's log (copied out of its run directory).
         firmware: The firmware that flew, as it names itself (e.g. ``4.6.0``).
         frames_sent: Receiver frames streamed.
-        flown_s: Simulated seconds from arming to the last frame.
+        flown_s: Simulated seconds from the first frame to the last.
         wall_s: Wall seconds the stream took.
+        receiver_frames: The FC counted a receiver frame per frame sent (False: it counted
+            one at every loop, as the 4.x SITL that wrote the log did, or an older 4.6.0
+            lockstep build does).
     """
 
     blackbox: Path
@@ -60,6 +65,7 @@ class ReplayedFlight:
     frames_sent: int
     flown_s: float
     wall_s: float
+    receiver_frames: bool = True
 
 
 def pid_rate_hz(profile: FirmwareProfile) -> float:
@@ -81,6 +87,19 @@ def blackbox_lines(pid_loop_hz: float) -> tuple[str, ...]:
     )
 
 
+def pid_process_denom(cli_lines: tuple[str, ...]) -> int:
+    """The last ``set pid_process_denom = N`` of ``cli_lines`` (1 when none)."""
+    denominator = 1
+    for line in cli_lines:
+        words = line.replace("=", " = ").split()
+        if words[:3] == ["set", "pid_process_denom", "="] and len(words) == 4:
+            try:
+                denominator = max(1, int(words[3]))
+            except ValueError:
+                pass
+    return denominator
+
+
 def replay_profile(cli_lines: tuple[str, ...]) -> Profile:
     """ARM on AUX1, ANGLE on AUX2, HORIZON on AUX3, and ``cli_lines``; rebooted when they
     change (the blackbox's settings are read at boot)."""
@@ -91,23 +110,46 @@ def replay_profile(cli_lines: tuple[str, ...]) -> Profile:
     )
 
 
+#: Asks a 4.6.0 lockstep build for a receiver frame per RC trailer (sitl_lockstep.c).
+RX_FRAMES_ENV = ("BFSITL_LOCKSTEP_RX_FRAMES", "1")
+
+
 @dataclass(frozen=True, slots=True)
 class ReplayFirmware:
-    """The SITL a replay runs: its binary and the PID loop rate it runs at before
-    ``pid_process_denom`` (what the log's own PID rate is matched against)."""
+    """The SITL a replay runs.
+
+    Attributes:
+        path: The binary.
+        pid_loop_hz: Its PID loop rate before ``pid_process_denom`` (what the log's own PID
+            rate is matched against).
+        receiver_frames: It counts a receiver frame per frame sent, as a real receiver's
+            (master always; a 4.6.0 lockstep build when asked, since this came in).
+    """
 
     path: Path
     pid_loop_hz: float
+    receiver_frames: bool = True
 
 
 def replay_firmware(firmware: str | Path | None) -> ReplayFirmware:
-    """Find the SITL ``firmware`` names (None searches as ``bfsitl fly`` does).
+    """Find the SITL ``firmware`` names (None searches as ``bfsitl fly`` does); it must be a
+    lockstep build, checked from its bytes before anything starts.
 
     Raises:
         FirmwareNotFoundError: No such binary or cached build.
+        ReplayError: It is no lockstep build.
     """
     binary = find_firmware(firmware)
-    return ReplayFirmware(Path(binary.path), pid_rate_hz(profile_of_binary(binary.path)))
+    traits = binary_traits(binary.path)
+    if not traits.lockstep:
+        raise ReplayError(
+            f"log replay needs a lockstep build, so that each frame reaches the FC when it is "
+            f"due; {binary.path} is not one: `bfsitl firmware build --lockstep`, then "
+            f"--firmware with its name"
+        )
+    profile = profile_of_binary(binary.path)
+    frames = traits.rx_frames or profile.generation is not Generation.V4_6
+    return ReplayFirmware(Path(binary.path), pid_rate_hz(profile), frames)
 
 
 def fly_replay(
@@ -137,9 +179,23 @@ def fly_replay(
         SitlError, ArmingBlockedError: The SITL would not start, answer or arm.
     """
     out_dir.mkdir(parents=True, exist_ok=True)
-    lines = (*cli_lines, *blackbox_lines(firmware.pid_loop_hz))
+    # A fresh run directory: an eeprom.bin left by an earlier replay (another log, another
+    # --cli) would keep every setting this one does not write.
+    shutil.rmtree(out_dir / "sitl", ignore_errors=True)
+    receiver_frames = firmware.receiver_frames and not stream.loop_frames
+    if not firmware.receiver_frames and not stream.loop_frames:
+        progress(
+            "this lockstep build counts a receiver frame at every loop, not per frame sent: "
+            "rebuild it (`bfsitl firmware build --lockstep`) for the receiver's own rate"
+        )
+    pid_hz = firmware.pid_loop_hz / pid_process_denom(cli_lines)
+    lines = (*cli_lines, *blackbox_lines(pid_hz))
     config = SessionConfig(
-        sitl=SitlLaunch(firmware=firmware.path, workdir=out_dir / "sitl"),
+        sitl=SitlLaunch(
+            firmware=firmware.path,
+            workdir=out_dir / "sitl",
+            env=() if stream.loop_frames else (RX_FRAMES_ENV,),
+        ),
         timing=Timing(),
         fc=FcSetup(profile=replay_profile(lines), angle_mode=bool(stream.angle[0])),
         world=World(quad=quad),
@@ -148,8 +204,8 @@ def fly_replay(
         session.start()
         if not session.lockstep:
             raise ReplayError(
-                "log replay needs a lockstep build, so that each frame reaches the FC when it "
-                "is due: `bfsitl firmware build --lockstep`, then --firmware with its name"
+                "log replay needs the lockstep bridge, so that each frame reaches the FC when "
+                "it is due; this session runs in real time"
             )
         assert session.firmware is not None
         session.arm()
@@ -163,7 +219,7 @@ def fly_replay(
         raise ReplayError(
             f"the replaying FC wrote no blackbox log into {out_dir / 'sitl'}: was it armed?"
         )
-    return ReplayedFlight(copies[-1], version, len(stream), flown_s, wall_s)
+    return ReplayedFlight(copies[-1], version, len(stream), flown_s, wall_s, receiver_frames)
 
 
 def _stream(session: FlightSession, stream: StickStream, progress: Progress) -> float:

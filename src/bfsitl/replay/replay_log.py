@@ -4,16 +4,18 @@ benchmark run)."""
 
 from __future__ import annotations
 
+import dataclasses
 from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
 
 from bfsitl.blackbox.decode import BlackboxLog, decode_blackbox
+from bfsitl.build.binary_scan import names_missing
 from bfsitl.errors import ReplayError
 from bfsitl.physics.params import QuadParams
-from bfsitl.replay.compare import ReplayComparison, compare_logs
+from bfsitl.replay.compare import ReplayComparison, compare_logs, log_traces
 from bfsitl.replay.flight import ReplayedFlight, fly_replay, replay_firmware
-from bfsitl.replay.header_settings import HeaderSettings, header_settings
+from bfsitl.replay.header_settings import HeaderSettings, NotCarried, header_settings
 from bfsitl.replay.sticks import IDENTITY_RC_LINES, StickStream, stick_stream
 
 Progress = Callable[[str], None]
@@ -57,8 +59,10 @@ def replay_log(
         SitlError, ArmingBlockedError: The SITL would not start, answer or arm.
     """
     stream = stick_stream(log)
+    log_traces(log)  # what the comparison needs is there, before anything flies
     firmware_found = replay_firmware(firmware)
     settings = header_settings(log.headers, sitl_pid_rate_hz=firmware_found.pid_loop_hz)
+    settings = known_to(settings, firmware_found.path)
     progress(
         f"{log.path.name} log {log.index} ({log.firmware_revision}, {log.duration_s:.1f} s): "
         f"{len(settings.carried)} settings carried over, {len(settings.not_carried)} not "
@@ -78,3 +82,32 @@ def replay_log(
         raise ReplayError(f"the replay's blackbox file {flight.blackbox} holds no log")
     comparison = compare_logs(log, max(replayed, key=lambda one: len(one.frames)))
     return Replay(log, quad.name, settings, stream, flight, comparison)
+
+
+def line_name(line: str) -> str:
+    """The setting or feature a CLI line sets: ``set p_roll = 45`` -> ``p_roll``,
+    ``feature -AIRMODE`` -> ``AIRMODE``."""
+    words = line.split()
+    if words[0] == "feature":
+        return words[1].lstrip("-")
+    return words[1]
+
+
+def known_to(settings: HeaderSettings, binary: Path) -> HeaderSettings:
+    """``settings`` without the lines whose setting or feature the build at ``binary`` lacks
+    (master dropped some of 4.6.0's, e.g. ``abs_control_gain``); each is listed as not
+    carried, so the FC is never asked for a name it would refuse."""
+    names = frozenset(line_name(line) for c in settings.carried for line in c.cli_lines)
+    missing = names_missing(binary, names)
+    if not missing:
+        return settings
+    carried, not_carried = [], list(settings.not_carried)
+    for setting in settings.carried:
+        kept = tuple(line for line in setting.cli_lines if line_name(line) not in missing)
+        lacked = [line_name(line) for line in setting.cli_lines if line_name(line) in missing]
+        if kept:
+            carried.append(dataclasses.replace(setting, cli_lines=kept))
+        if lacked:
+            why = f"this build has no {', '.join(lacked)}"
+            not_carried.append(NotCarried(setting.header, setting.value, why))
+    return dataclasses.replace(settings, carried=tuple(carried), not_carried=tuple(not_carried))

@@ -24,8 +24,16 @@ MAX_OVERSHOOT_DIFFERENCE_PCT = 5.0
 
 
 def axis_targets(axis: AxisComparison) -> dict[str, bool | None]:
-    """Each target met (True), missed (False) or not measurable (None: nothing logged)."""
+    """Each target met (True), missed (False) or not measurable (None: nothing logged).  A
+    real step response the replay has none of (its gyro never followed its setpoint) misses
+    both step targets."""
     correlation = axis.setpoint_correlation
+    if axis.real_step is not None and axis.replay_step is None:
+        return {
+            "setpoint": None if correlation is None else correlation >= MIN_SETPOINT_CORRELATION,
+            "rise_time": False,
+            "overshoot": False,
+        }
     rise, overshoot = axis.rise_time_ratio, axis.overshoot_difference_pct
     return {
         "setpoint": None
@@ -76,6 +84,7 @@ def report_dict(replay: Replay) -> dict[str, Any]:
             "frames_sent": flight.frames_sent,
             "frame_interval_ms": _number(stream.frame_interval_s * 1000, 3),
             "frame_interval_from": stream.interval_source,
+            "fc_counted_frames_as_sent": flight.receiver_frames,
             "deflection_scale": _number(stream.deflection_scale, 5),
             "flown_s": _number(flight.flown_s, 3),
             "wall_s": _number(flight.wall_s, 3),

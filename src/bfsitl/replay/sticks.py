@@ -30,12 +30,13 @@ median interval between changes of the sticks is taken.
 from __future__ import annotations
 
 import re
+from collections.abc import Sequence
 from dataclasses import dataclass
 
 import numpy as np
 
-from bfsitl.blackbox.decode import BlackboxLog
-from bfsitl.errors import BlackboxError
+from bfsitl.blackbox.decode import BlackboxFrame, BlackboxLog
+from bfsitl.errors import BlackboxError, ReplayError
 
 #: What makes the replaying FC's stick path the identity (see the module docstring).
 IDENTITY_RC_LINES = (
@@ -56,6 +57,10 @@ ANGLE_BOX_BIT = 1
 HORIZON_BOX_BIT = 2
 #: Receiver frame intervals believed from a header or from the sticks, seconds.
 _FRAME_INTERVAL_RANGE_S = (0.001, 0.05)
+#: A stretch without frames this long splits a log (see :func:`continuous_frames`).
+MAX_GAP_S = 0.5
+#: Shorter than this, a log holds too little to compare (the comparison needs a second).
+MIN_REPLAY_S = 1.5
 _VERSION = re.compile(r"(\d+)\.(\d+)(?:\.(\d+))?")
 
 
@@ -70,6 +75,9 @@ class StickStream:
         frame_interval_s: The receiver's frame interval the frames are spaced by.
         interval_source: Where that interval came from (the header, or the sticks).
         deflection_scale: What the logged roll and pitch commands were multiplied by.
+        loop_frames: The log's FC counted a receiver frame at every loop, whatever arrived
+            (a 4.x SITL's own receiver, :func:`counts_frames_every_loop`): the replaying FC
+            is left to do the same, and a frame goes out at every step.
     """
 
     time_s: np.ndarray
@@ -82,6 +90,7 @@ class StickStream:
     frame_interval_s: float
     interval_source: str
     deflection_scale: float
+    loop_frames: bool = False
 
     def __len__(self) -> int:
         return len(self.time_s)
@@ -93,6 +102,14 @@ def firmware_version(revision: str) -> tuple[int, int, int] | None:
     if match is None:
         return None
     return int(match[1]), int(match[2]), int(match[3] or 0)
+
+
+def counts_frames_every_loop(log: BlackboxLog) -> bool:
+    """A 4.x SITL wrote ``log``: its UDP receiver calls every check a complete frame
+    (``rxRCFrameStatus``, ``[4.6] src/platform/SIMULATOR/sitl.c:259-263``), so its FC saw a
+    receiver at its loop rate whatever bfsitl sent.  Master's counts the frames that come."""
+    version = firmware_version(log.firmware_revision)
+    return "SITL" in log.firmware_revision and version is not None and version[0] == 4
 
 
 def _header_int(log: BlackboxLog, name: str, default: int) -> int:
@@ -127,9 +144,26 @@ def frame_interval_s(
     changed = np.flatnonzero(np.any(np.diff(commands, axis=0) != 0, axis=1)) + 1
     if len(changed) >= 10:
         median = float(np.median(np.diff(times_s[changed])))
-        if low <= median <= high:
+        if median < low:
+            # Changing at (nearly) every logged loop: an FC that interpolated its sticks
+            # (3.x, 4.2 before smoothing moved to the setpoint) logs them smoothed.
+            return low, "sticks interpolated by the FC: a frame every millisecond"
+        if median <= high:
             return median, "median interval between stick changes"
     return 0.01, "a 100 Hz receiver (the sticks hardly moved)"
+
+
+def continuous_frames(frames: Sequence[BlackboxFrame]) -> list[BlackboxFrame]:
+    """The longest run of ``frames`` without a gap in their clock, in time order.  3.x logs
+    open with a few frames stamped near zero before the flight's first (measured on the CS110
+    logs: 3-7 frames, then a jump of 34-75 s); a gap of :data:`MAX_GAP_S` or more splits."""
+    ordered = sorted(frames, key=lambda frame: frame.time_s)
+    if not ordered:
+        return []
+    times = np.array([frame.time_s for frame in ordered])
+    cuts = [0, *(np.flatnonzero(np.diff(times) >= MAX_GAP_S) + 1).tolist(), len(ordered)]
+    start, end = max(zip(cuts, cuts[1:], strict=False), key=lambda run: run[1] - run[0])
+    return ordered[start:end]
 
 
 def stick_stream(log: BlackboxLog) -> StickStream:
@@ -138,15 +172,24 @@ def stick_stream(log: BlackboxLog) -> StickStream:
     Raises:
         BlackboxError: The log has no ``rcCommand``, or no frames.
     """
-    frames = [f for f in log.frames if len(f.rc_command) == 4]
+    frames = continuous_frames([f for f in log.frames if len(f.rc_command) == 4])
     if len(frames) < 2:
         raise BlackboxError(
             f"{log.path.name} log {log.index} has no rcCommand frames: nothing to replay"
         )
     times_s = np.array([f.time_s for f in frames]) - frames[0].time_s
+    if times_s[-1] < MIN_REPLAY_S:
+        raise ReplayError(
+            f"{log.path.name} log {log.index} holds {times_s[-1]:.2f} s of sticks; a replay "
+            f"needs at least {MIN_REPLAY_S:g} s (give another log with --index)"
+        )
     scale = 10.0 if log.headers.get("blackbox_high_resolution", "0").strip() == "1" else 1.0
     commands = np.array([f.rc_command for f in frames], dtype=float) / scale
-    interval_s, source = frame_interval_s(log, times_s, commands)
+    loop_frames = counts_frames_every_loop(log)
+    if loop_frames:
+        interval_s, source = 0.001, "a 4.x SITL's receiver: a frame at every loop, sent every step"
+    else:
+        interval_s, source = frame_interval_s(log, times_s, commands)
     due_s = np.arange(0.0, times_s[-1] + 1e-9, interval_s)
     # The frame carries what the log held at its time (the last logged frame at or before).
     rows = np.clip(np.searchsorted(times_s, due_s, side="right") - 1, 0, len(frames) - 1)
@@ -164,6 +207,7 @@ def stick_stream(log: BlackboxLog) -> StickStream:
         frame_interval_s=interval_s,
         interval_source=source,
         deflection_scale=roll_scale,
+        loop_frames=loop_frames,
     )
 
 

@@ -165,6 +165,7 @@ class LockstepBridge:
         self._locked = False
         self._rc_packed = b""
         self._rc_packed_for: RcCommand | None = None
+        self._rc_packed_at_s = math.nan
         self._steps = self._resends = 0
         self._exchange_s = self._physics_s = 0.0
         self._sim_start_s = 0.0
@@ -296,8 +297,13 @@ class LockstepBridge:
         if command is not self._rc_packed_for:
             self._rc_packed = RcPacket(now_s, command.channels_aetr()).pack()
             self._rc_packed_for = command
+            self._rc_packed_at_s = now_s
             return self._rc_packed
-        return b"" if self.rc_frames_on_set else self._rc_packed
+        if self.rc_frames_on_set and now_s != self._rc_packed_at_s:
+            return b""
+        # A resend of the datagram that carried the frame carries it again (the FC takes a
+        # datagram once per time stamp, so the frame still counts once).
+        return self._rc_packed
 
     def step(self) -> None:
         """One exchange with the FC, then one physics step with its reply."""

@@ -280,3 +280,15 @@ def test_collect_names_copies_with_a_prefix(tmp_path: Path) -> None:
     (copy,) = collect_blackbox(run, tmp_path / "out", prefix="hover-")
     assert copy == tmp_path / "out" / "hover-LOG00001.BFL"
     assert decode_blackbox(copy)[0].disarm_reason_name == "SWITCH"
+
+
+def test_a_value_orangebox_wrapped_to_32_bits_comes_back_negative() -> None:
+    from bfsitl.blackbox.decode import _frame
+
+    # 3.x logs throttle as a difference from minthrottle, which orangebox decodes unsigned:
+    # a stick at 1000 reads 2**32 + 1000 (measured on the CS110 logs).
+    row = {"time": 75_000_000, "rcCommand[0]": 12, "rcCommand[1]": 2**32 - 5}
+    row |= {"rcCommand[2]": 0, "rcCommand[3]": 2**32 + 1000}
+    frame = _frame(row)
+    assert frame.rc_command == (12, -5, 0, 1000)
+    assert frame.time_s == 75.0

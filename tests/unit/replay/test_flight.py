@@ -16,7 +16,13 @@ from bfsitl.errors import ReplayError, SitlExitedError
 from bfsitl.fc.rc_link import RcCommand
 from bfsitl.physics.params import IRIS
 from bfsitl.protocol.firmware_profile import Generation
-from bfsitl.replay.flight import ReplayFirmware, blackbox_lines, fly_replay, replay_firmware
+from bfsitl.replay.flight import (
+    ReplayFirmware,
+    blackbox_lines,
+    fly_replay,
+    pid_process_denom,
+    replay_firmware,
+)
 from bfsitl.replay.sticks import stick_stream
 from tests.support.synthetic_log import synthetic_log
 
@@ -148,7 +154,7 @@ def test_a_free_running_sitl_is_refused(tmp_path: Path) -> None:
             super().__init__(config, progress=progress)
             self.lockstep = False
 
-    with pytest.raises(ReplayError, match="--lockstep"):
+    with pytest.raises(ReplayError, match="lockstep bridge"):
         fly_replay(
             _stream(), firmware=FIRMWARE, quad=IRIS, cli_lines=(), out_dir=tmp_path,
             session_factory=FreeRunning,
@@ -174,14 +180,69 @@ def test_the_replays_log_is_kept_near_1_khz(loop_hz: float, rate: str) -> None:
     assert f"set blackbox_sample_rate = {rate}" in blackbox_lines(loop_hz)
 
 
-def test_the_firmware_says_its_loop_rate(monkeypatch: pytest.MonkeyPatch) -> None:
+def test_the_firmware_says_its_loop_rate_and_must_be_lockstep(
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
     from bfsitl.replay import flight as flight_module
 
     monkeypatch.setattr(flight_module, "find_firmware", lambda _: SimpleNamespace(path="sitl"))
-    for generation, loop_hz in ((Generation.V4_6, 8000.0), (Generation.MASTER, 1000.0)):
+    traits = SimpleNamespace(lockstep=True, rx_frames=False)
+    monkeypatch.setattr(flight_module, "binary_traits", lambda _: traits)
+    for generation, loop_hz, frames in (
+        (Generation.V4_6, 8000.0, False),  # an older 4.6.0 lockstep build
+        (Generation.MASTER, 1000.0, True),  # master's receiver counts frames as they come
+    ):
         monkeypatch.setattr(
             flight_module,
             "profile_of_binary",
             lambda _, g=generation: SimpleNamespace(generation=g),
         )
-        assert replay_firmware("x") == ReplayFirmware(Path("sitl"), loop_hz)
+        assert replay_firmware("x") == ReplayFirmware(Path("sitl"), loop_hz, frames)
+    traits.lockstep = False
+    with pytest.raises(ReplayError, match="firmware build --lockstep"):
+        replay_firmware("x")
+
+
+def test_an_older_build_is_said_and_the_frames_are_asked_for(tmp_path: Path) -> None:
+    said: list[str] = []
+    flight = fly_replay(
+        _stream(), firmware=ReplayFirmware(Path("sitl"), 8000.0, False), quad=IRIS,
+        cli_lines=(), out_dir=tmp_path, session_factory=FakeSession, progress=said.append,
+    )  # fmt: skip
+    assert flight.receiver_frames is False
+    assert any("rebuild it" in line for line in said)
+    assert ("BFSITL_LOCKSTEP_RX_FRAMES", "1") in FakeSession.made[0].config.sitl.env
+
+
+def test_a_new_replay_starts_from_a_fresh_eeprom(tmp_path: Path) -> None:
+    stale = tmp_path / "sitl" / "eeprom.bin"
+    stale.parent.mkdir()
+    stale.write_bytes(b"an earlier replay's settings")
+    fly_replay(
+        _stream(), firmware=FIRMWARE, quad=IRIS, cli_lines=(), out_dir=tmp_path,
+        session_factory=FakeSession,
+    )  # fmt: skip
+    assert not stale.exists()
+
+
+def test_the_log_rate_follows_the_carried_pid_denominator(tmp_path: Path) -> None:
+    assert pid_process_denom(("set p_roll = 4", "set pid_process_denom = 8")) == 8
+    assert pid_process_denom(()) == 1
+    fly_replay(
+        _stream(), firmware=FIRMWARE, quad=IRIS, cli_lines=("set pid_process_denom = 8",),
+        out_dir=tmp_path, session_factory=FakeSession,
+    )  # fmt: skip
+    # 8 kHz / 8 is a 1 kHz PID loop: every loop logged, not every eighth (125 Hz).
+    assert "set blackbox_sample_rate = 1/1" in FakeSession.made[0].config.fc.profile.cli_lines
+
+
+def test_a_sitl_log_leaves_the_fc_counting_frames_as_it_did(tmp_path: Path) -> None:
+    time_s = np.arange(0, 2.0, 0.001)
+    command = np.tile([0.0, 0.0, 0.0, 1200.0], (len(time_s), 1))
+    stream = stick_stream(synthetic_log(time_s, command, firmware="Betaflight 4.6.0 () SITL"))
+    flight = fly_replay(
+        stream, firmware=FIRMWARE, quad=IRIS, cli_lines=(), out_dir=tmp_path,
+        session_factory=FakeSession,
+    )  # fmt: skip
+    assert FakeSession.made[0].config.sitl.env == ()
+    assert flight.receiver_frames is False

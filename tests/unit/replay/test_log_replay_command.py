@@ -108,3 +108,29 @@ def test_the_exit_code_follows_the_targets(
 def test_synthetic_logs_are_well_formed() -> None:
     log = synthetic_log(np.arange(10) / 1000.0, np.zeros((10, 4)))
     assert len(log.frames) == 10 and log.frames[0].rc_command == (0, 0, 0, 0)
+
+
+def test_settings_a_build_lacks_are_listed_not_sent(tmp_path: Path) -> None:
+    from bfsitl.replay.header_settings import CarriedSetting, HeaderSettings, NotCarried
+    from bfsitl.replay.replay_log import known_to, line_name
+
+    assert line_name("set p_roll = 45") == "p_roll"
+    assert line_name("feature -AIRMODE") == "AIRMODE"
+    binary = tmp_path / "sitl"
+    binary.write_bytes(b"\x00p_roll\x00i_roll\x00AIRMODE\x00")
+    settings = HeaderSettings(
+        firmware="Betaflight 4.2.9",
+        carried=(
+            CarriedSetting("rollPID", "47,85,38", ("set p_roll = 47", "set i_roll = 85")),
+            CarriedSetting("abs_control_gain", "0", ("set abs_control_gain = 0",)),
+            CarriedSetting("features", "1", ("feature AIRMODE", "feature -MOTOR_STOP")),
+        ),
+        not_carried=(NotCarried("magPID", "40", "no 4.6.0 setting"),),
+    )
+    kept = known_to(settings, binary)
+    assert kept.cli_lines == ("set p_roll = 47", "set i_roll = 85", "feature AIRMODE")
+    assert [(n.header, n.why) for n in kept.not_carried] == [
+        ("magPID", "no 4.6.0 setting"),
+        ("abs_control_gain", "this build has no abs_control_gain"),
+        ("features", "this build has no MOTOR_STOP"),
+    ]

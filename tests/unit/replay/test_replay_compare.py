@@ -101,3 +101,29 @@ def test_a_log_too_short_to_compare_is_refused() -> None:
 
 def _fields(value: object) -> dict[str, object]:
     return {name: getattr(value, name) for name in value.__slots__}  # type: ignore[attr-defined]
+
+
+def test_a_replay_that_never_followed_its_setpoint_misses() -> None:
+    command = pilot_sticks(9)
+    real = lagged_log(command, tau_s=0.02)
+    still = lagged_log(command, tau_s=0.02)
+    frames = tuple(type(f)(**{**_fields(f), "gyro_adc": (0, 0, 0)}) for f in still.frames)
+    result = compare_logs(real, type(still)(**{**_fields(still), "frames": frames}))
+    assert all(axis.replay_step is None for axis in result.axes)
+    assert all(axis_targets(axis)["rise_time"] is False for axis in result.axes)
+    assert targets_met(result) is False
+
+
+def test_frames_before_a_gap_in_the_clock_are_left_out() -> None:
+    command = pilot_sticks(10)
+    real = lagged_log(command, tau_s=0.02)
+    # A 3.x log opens with frames stamped near zero, then jumps to the flight.
+    early = tuple(
+        type(f)(**{**_fields(f), "time_s": 0.001 * (3 - i), "rc_command": (0, 0, 0, 0)})
+        for i, f in enumerate(real.frames[:3])
+    )
+    opened = type(real)(**{**_fields(real), "frames": early + real.frames})
+    result = compare_logs(opened, lagged_log(command, tau_s=0.02))
+    assert result.offset_s == pytest.approx(0.0, abs=0.002)
+    assert result.overlap_s == pytest.approx(SECONDS, abs=0.05)
+    assert targets_met(result) is True

@@ -9,7 +9,7 @@ import math
 import numpy as np
 import pytest
 
-from bfsitl.errors import BlackboxError
+from bfsitl.errors import BlackboxError, ReplayError
 from bfsitl.replay.sticks import (
     IDENTITY_RC_LINES,
     deflection_scales,
@@ -39,7 +39,7 @@ def test_the_identity_path_is_what_the_replaying_fc_is_given() -> None:
 
 
 def test_each_axis_comes_back_with_its_sign() -> None:
-    time_s = np.arange(0, 1.0, 0.001)
+    time_s = np.arange(0, 2.0, 0.001)
     command = np.tile([120.0, -80.0, 45.0, 1430.0], (len(time_s), 1))
     stream = stick_stream(synthetic_log(time_s, command))
     pulses = (stream.roll_us[5], stream.pitch_us[5], stream.throttle_us[5], stream.yaw_us[5])
@@ -59,7 +59,7 @@ def test_every_throttle_command_comes_back_within_one() -> None:
 
 
 def test_a_high_resolution_log_is_scaled_down() -> None:
-    time_s = np.arange(0, 1.0, 0.001)
+    time_s = np.arange(0, 2.0, 0.001)
     command = np.tile([1200.0, 0.0, 0.0, 15000.0], (len(time_s), 1))
     log = synthetic_log(
         time_s,
@@ -75,7 +75,7 @@ def test_a_high_resolution_log_is_scaled_down() -> None:
 
 
 def test_a_4_3_log_keeps_its_deflection_without_the_deadband() -> None:
-    time_s = np.arange(0, 1.0, 0.001)
+    time_s = np.arange(0, 2.0, 0.001)
     command = np.tile([99.0, 0.0, 0.0, 1000.0], (len(time_s), 1))
     newer = synthetic_log(
         time_s,
@@ -115,7 +115,7 @@ def test_frames_come_at_the_receivers_rate() -> None:
 
 
 def test_each_frame_carries_the_log_at_its_time() -> None:
-    time_s = np.arange(0, 1.0, 0.001)
+    time_s = np.arange(0, 2.0, 0.001)
     command = np.zeros((len(time_s), 4))
     command[:, 3] = 1000.0
     command[time_s >= 0.5, 0] = 200.0
@@ -128,7 +128,7 @@ def test_each_frame_carries_the_log_at_its_time() -> None:
 
 
 def test_the_self_levelling_switches_follow_the_log() -> None:
-    time_s = np.arange(0, 1.0, 0.001)
+    time_s = np.arange(0, 2.0, 0.001)
     command = np.tile([0.0, 0.0, 0.0, 1000.0], (len(time_s), 1))
     mask = np.where(time_s < 0.5, 0b011, 0b101)  # ARM+ANGLE, then ARM+HORIZON
     stream = stick_stream(
@@ -150,3 +150,35 @@ def test_firmware_versions_are_read_from_the_revision() -> None:
     assert firmware_version("Betaflight 4.2.9 (e097f4ab7) STM32F7X2") == (4, 2, 9)
     assert firmware_version("Betaflight 4.6.0 () SITL") == (4, 6, 0)
     assert firmware_version("Cleanflight") is None
+
+
+def test_a_log_too_short_to_replay_is_refused() -> None:
+    time_s = np.arange(0, 1.0, 0.001)
+    with pytest.raises(ReplayError, match="at least"):
+        stick_stream(synthetic_log(time_s, np.tile([0.0, 0.0, 0.0, 1000.0], (len(time_s), 1))))
+
+
+def test_sticks_the_fc_interpolated_go_out_every_millisecond() -> None:
+    time_s = np.arange(0, 2.0, 0.0005)  # a 2 kHz log whose sticks change at every frame
+    command = np.zeros((len(time_s), 4))
+    command[:, 0] = 400.0 * np.sin(2.0 * np.pi * 3.0 * time_s)
+    command[:, 3] = 1000.0
+    stream = stick_stream(synthetic_log(time_s, command))
+    assert stream.frame_interval_s == pytest.approx(0.001)
+    assert "interpolated" in stream.interval_source
+
+
+def test_a_4_x_sitl_log_is_replayed_with_a_frame_every_step() -> None:
+    time_s = np.arange(0, 2.0, 0.001)
+    command = np.tile([0.0, 0.0, 0.0, 1200.0], (len(time_s), 1))
+    sitl = stick_stream(synthetic_log(time_s, command, firmware="Betaflight 4.6.0 () SITL"))
+    assert sitl.loop_frames and sitl.frame_interval_s == pytest.approx(0.001)
+    master = stick_stream(
+        synthetic_log(
+            time_s, command, firmware="Betaflight 2026.12.0-alpha (norevision) SITL",
+            headers={"rc_smoothing_rx_smoothed": "1000"},
+        )
+    )  # fmt: skip
+    assert not master.loop_frames
+    board = stick_stream(synthetic_log(time_s, command))
+    assert not board.loop_frames

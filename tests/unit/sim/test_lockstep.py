@@ -315,3 +315,12 @@ def test_a_sitl_that_ends_reads_as_a_closed_peer_and_a_pause_steps() -> None:
 def test_reply_format_matches_the_c_struct_layout() -> None:
     # servo_packet (4 floats) then a double at offset 16: no padding either side.
     assert REPLY_FORMAT.size == 24 and struct.calcsize("<4f") == 16
+
+
+def test_a_resent_datagram_carries_its_frame_again() -> None:
+    bridge = LockstepBridge(FakeSimulator(), HostSockets())
+    bridge.rc_frames_on_set = True
+    bridge.rc_command = RcCommand(throttle_us=1400)
+    first = bridge._rc_bytes(0.010)
+    assert first and bridge._rc_bytes(0.010) == first  # the same stamp: a resend
+    assert bridge._rc_bytes(0.011) == b""  # the next step holds the frame

@@ -113,6 +113,12 @@ typedef struct {
     double timestamp;  // of the fdm packet answered
 } lockstepReply_t;
 
+#if !LOCKSTEP_RC_VIA_RX_UDP
+// BFSITL_LOCKSTEP_RX_FRAMES=1: a receiver frame per RC trailer (see lockstepRcFrameStatus).
+static bool lockstepRxFrames = false;
+static bool lockstepRcFresh = false;
+#endif
+
 // The shared region of 6. above; bfsitl reads the layout from the header the FC writes.
 #define LOCKSTEP_SHM_MAGIC 0x6d736662U  // "bfsm"
 #define LOCKSTEP_SHM_VERSION 1U
@@ -242,6 +248,10 @@ static void lockstepInit(void)
     if (spin != NULL && spin[0] != '\0') {
         lockstepSpinUs = (uint32_t)strtoul(spin, NULL, 10);
     }
+#if !LOCKSTEP_RC_VIA_RX_UDP
+    const char *rxFrames = getenv("BFSITL_LOCKSTEP_RX_FRAMES");
+    lockstepRxFrames = rxFrames != NULL && rxFrames[0] == '1';
+#endif
     const char *shmPath = getenv("BFSITL_LOCKSTEP_SHM");
     if (shmPath != NULL && shmPath[0] != '\0') {
         lockstepShmOpen(shmPath);
@@ -290,6 +300,22 @@ static uint32_t lockstepChoosePassUs(void)
     return 1;
 }
 
+#if !LOCKSTEP_RC_VIA_RX_UDP
+// The stock status (rxRCFrameStatus) calls every check a complete frame, so 4.6.0 measures a
+// receiver at its loop rate, whatever arrives.  With BFSITL_LOCKSTEP_RX_FRAMES=1 a frame is
+// complete once per RC trailer taken, as a real receiver's frames are: a log's replay gives
+// the firmware its receiver's rate, which the RC smoothing and feedforward measure.
+static uint8_t lockstepRcFrameStatus(rxRuntimeState_t *rxRuntimeState)
+{
+    UNUSED(rxRuntimeState);
+    if (!lockstepRcFresh) {
+        return RX_FRAME_PENDING;
+    }
+    lockstepRcFresh = false;
+    return RX_FRAME_COMPLETE;
+}
+#endif
+
 static void lockstepApplyRc(const rc_packet *rc)
 {
     rcPkt = *rc;
@@ -299,9 +325,10 @@ static void lockstepApplyRc(const rc_packet *rc)
     if (!rc_received) {
         rxRuntimeState.channelCount = SIMULATOR_MAX_RC_CHANNELS;
         rxRuntimeState.rcReadRawFn = readRCSITL;
-        rxRuntimeState.rcFrameStatusFn = rxRCFrameStatus;
+        rxRuntimeState.rcFrameStatusFn = lockstepRxFrames ? lockstepRcFrameStatus : rxRCFrameStatus;
         rxRuntimeState.rxProvider = RX_PROVIDER_UDP;
     }
+    lockstepRcFresh = true;
 #endif
     rc_received = true;
 }

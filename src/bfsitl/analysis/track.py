@@ -185,7 +185,7 @@ def track_from_blackbox(log: BlackboxLog) -> Track:
     """One blackbox log as a track, times from its first frame.  Rates are scaled back from
     ``blackbox_high_resolution``, motors from ``motorOutput``, the accelerometer from
     ``acc_1G``."""
-    scale = 10.0 if log.headers.get("blackbox_high_resolution", "0").strip() == "1" else 1.0
+    scale = log.value_scale
     low, high = _motor_range(log)
     try:
         one_g = float(log.headers.get("acc_1G", "")) or 1.0

@@ -107,6 +107,13 @@ class BlackboxLog:
     truncated: bool
 
     @property
+    def value_scale(self) -> float:
+        """What the rates and sticks were multiplied by when logged: 10 with 4.6's
+        ``blackbox_high_resolution`` on (gyro, rcCommand, setpoint,
+        ``[4.6] src/main/blackbox/blackbox.c:1251-1278,2307``), else 1."""
+        return 10.0 if self.headers.get("blackbox_high_resolution", "0").strip() == "1" else 1.0
+
+    @property
     def duration_s(self) -> float:
         return self.frames[-1].time_s - self.frames[0].time_s if self.frames else 0.0
 

@@ -92,14 +92,14 @@ class FlightData:
         return int(usable_index[int(share * (len(usable_index) - 1))])
 
 
-def _motor_command(raw: np.ndarray, high: float) -> np.ndarray:
+def motor_command_share(raw: np.ndarray, high: float) -> np.ndarray:
     """The ESC's throttle share: DShot (the range ends at 2047) or PWM (1000..2000)."""
     if high >= DSHOT_FULL - 1:
         return np.clip((raw - DSHOT_ZERO) / (DSHOT_FULL - DSHOT_ZERO), 0.0, 1.0)
     return np.clip((raw - 1000.0) / 1000.0, 0.0, 1.0)
 
 
-def _header_number(log: BlackboxLog, key: str, default: float, *, position: int = 0) -> float:
+def header_number(log: BlackboxLog, key: str, default: float, *, position: int = 0) -> float:
     """The header's number (the ``position``-th of a comma list), or ``default``."""
     try:
         return float(log.headers.get(key, "").split(",")[position])
@@ -142,16 +142,18 @@ def flight_data(log: BlackboxLog) -> FlightData:
         raw = np.array([v[index] if len(v) > index else math.nan for v in values], float)
         return np.interp(grid, times, raw[order])
 
-    scale = 10.0 if log.headers.get("blackbox_high_resolution", "0").strip() == "1" else 1.0
-    high = _header_number(log, "motorOutput", DSHOT_FULL, position=1)
+    scale = log.value_scale
+    high = header_number(log, "motorOutput", DSHOT_FULL, position=1)
     motors = np.vstack(
-        [_motor_command(column([f.motors for f in frames], i), high) for i in range(4)]
+        [motor_command_share(column([f.motors for f in frames], i), high) for i in range(4)]
     )
     gyro_flu = np.vstack([column([f.gyro_adc for f in frames], i) for i in range(3)]) / scale
     gyro_frd = np.radians(gyro_flu * np.array([[1.0], [-1.0], [-1.0]]))
-    one_g = _header_number(log, "acc_1G", 1.0) or 1.0
+    one_g = header_number(log, "acc_1G", 1.0) or 1.0
     accel_up_g = column([f.acc for f in frames], 2) / one_g
-    throttle = np.clip((column([f.rc_command for f in frames], 3) - 1000.0) / 1000.0, 0.0, 1.0)
+    throttle = np.clip(
+        (column([f.rc_command for f in frames], 3) / scale - 1000.0) / 1000.0, 0.0, 1.0
+    )
     flying = _airborne(motors.mean(axis=0), accel_up_g)
     usable = _usable(flying, in_gap, gyro_flu, dt_s) & ~_after_impact(
         flying, motors.mean(axis=0), accel_up_g, dt_s
@@ -166,7 +168,7 @@ def flight_data(log: BlackboxLog) -> FlightData:
         gyro_frd_rad_s=gyro_frd,
         accel_up_g=accel_up_g,
         throttle=throttle,
-        acc_lpf_hz=_header_number(log, "acc_lpf_hz", 0.0) / 100.0,
+        acc_lpf_hz=header_number(log, "acc_lpf_hz", 0.0) / 100.0,
         flying=flying,
         usable=usable,
         gaps_s=float(np.sum(steps[gap_starts])),

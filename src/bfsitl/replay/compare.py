@@ -28,6 +28,7 @@ from scipy import signal
 
 from bfsitl.blackbox.decode import BlackboxLog
 from bfsitl.errors import ReplayError
+from bfsitl.fit.log_data import DSHOT_FULL, header_number, motor_command_share
 from bfsitl.replay.step_response import StepResponse, step_response
 from bfsitl.replay.sticks import continuous_frames, deflection_scales
 
@@ -44,8 +45,6 @@ LOST_CONTROL_NO_SETPOINT_DPS = 1500.0
 BEFORE_LOSS_S = 1.0
 #: How far apart the two logs' first frames may be, seconds.
 MAX_OFFSET_S = 1.0
-DSHOT_ZERO = 48.0
-DSHOT_FULL = 2047.0
 
 
 @dataclass(frozen=True, slots=True)
@@ -147,7 +146,7 @@ def log_traces(log: BlackboxLog, *, rate_hz: float = RATE_HZ) -> LogTraces:
     times = np.array([f.time_s for f in frames])
     times -= times[0]
     grid = np.arange(0.0, times[-1], 1.0 / rate_hz)
-    scale = 10.0 if log.headers.get("blackbox_high_resolution", "0").strip() == "1" else 1.0
+    scale = log.value_scale
 
     def columns(rows: list[tuple[int, ...]], count: int) -> np.ndarray:
         raw = np.array(rows, dtype=float).reshape(len(rows), count).T
@@ -169,22 +168,9 @@ def log_traces(log: BlackboxLog, *, rate_hz: float = RATE_HZ) -> LogTraces:
     motor_level = None
     if all(len(f.motors) >= 4 for f in frames):
         motors = columns([f.motors[:4] for f in frames], 4)
-        motor_level = motor_share(motors, _motor_high(log)).mean(axis=0)
+        high = header_number(log, "motorOutput", DSHOT_FULL, position=1)
+        motor_level = motor_command_share(motors, high).mean(axis=0)
     return LogTraces(grid, sticks, setpoint, gyro, motor_level)
-
-
-def _motor_high(log: BlackboxLog) -> float:
-    try:
-        return float(log.headers.get("motorOutput", "").split(",")[1])
-    except (ValueError, IndexError):
-        return DSHOT_FULL
-
-
-def motor_share(raw: np.ndarray, high: float) -> np.ndarray:
-    """The ESC's throttle share: DShot (the range ends at 2047) or PWM (1000-2000)."""
-    if high >= DSHOT_FULL - 1:
-        return np.clip((raw - DSHOT_ZERO) / (DSHOT_FULL - DSHOT_ZERO), 0.0, 1.0)
-    return np.clip((raw - 1000.0) / 1000.0, 0.0, 1.0)
 
 
 def log_rate_hz(log: BlackboxLog) -> float:

@@ -97,7 +97,10 @@ class StickStream:
 
 
 def firmware_version(revision: str) -> tuple[int, int, int] | None:
-    """(major, minor, patch) of ``Betaflight 4.2.9 (e097f4ab7) STM32F7X2``; None if unnamed."""
+    """(major, minor, patch) of ``Betaflight 4.2.9 (e097f4ab7) STM32F7X2``; None for another
+    firmware (INAV's or EmuFlight's numbers mean other versions) or none named."""
+    if not revision.startswith("Betaflight"):
+        return None
     match = _VERSION.search(revision)
     if match is None:
         return None
@@ -183,7 +186,7 @@ def stick_stream(log: BlackboxLog) -> StickStream:
             f"{log.path.name} log {log.index} holds {times_s[-1]:.2f} s of sticks; a replay "
             f"needs at least {MIN_REPLAY_S:g} s (give another log with --index)"
         )
-    scale = 10.0 if log.headers.get("blackbox_high_resolution", "0").strip() == "1" else 1.0
+    scale = log.value_scale
     commands = np.array([f.rc_command for f in frames], dtype=float) / scale
     loop_frames = counts_frames_every_loop(log)
     if loop_frames:

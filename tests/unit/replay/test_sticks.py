@@ -150,6 +150,7 @@ def test_firmware_versions_are_read_from_the_revision() -> None:
     assert firmware_version("Betaflight 4.2.9 (e097f4ab7) STM32F7X2") == (4, 2, 9)
     assert firmware_version("Betaflight 4.6.0 () SITL") == (4, 6, 0)
     assert firmware_version("Cleanflight") is None
+    assert firmware_version("INAV 7.1.0 (abc) MATEKF405") is None
 
 
 def test_a_log_too_short_to_replay_is_refused() -> None:

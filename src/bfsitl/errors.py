@@ -47,6 +47,7 @@ Messages are written for the person at the terminal: what went wrong, then what 
     ├── BlackboxError                  a blackbox log that cannot be read
     │   ├── FitError                   a log that cannot identify a quad (too short, no motors)
     │   └── ReplayError                a log that cannot be flown again (no sticks, no flight)
+    │       └── SettingNotCarriedError a header field that cannot be set on the replaying build
     ├── TrackDataMissingError          a flight record lacks what an analyser reads (it is skipped)
     ├── KernelUnavailableError         the compiled physics cannot be built here (no C compiler)
     └── SitlError                      the SITL process
@@ -278,6 +279,11 @@ class FitError(BlackboxError):
 class ReplayError(BlackboxError):
     """A log that cannot be flown again through the firmware: no sticks logged, a replay that
     never armed or left no log of its own.  The message says what to do."""
+
+
+class SettingNotCarriedError(ReplayError):
+    """One header field that cannot become a setting of the replaying build; the message says
+    why.  The replay lists it as not carried and goes on: it never ends a replay."""
 
 
 class TrackDataMissingError(BfsitlError):

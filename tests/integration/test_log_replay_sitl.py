@@ -4,7 +4,8 @@ log is replayed through the same firmware with the same profile.
 
 The same quad, settings and sticks must give the same flight: the setpoints agree, each axis
 rises and overshoots as the original did.  And a change must show: the same log replayed
-with a quarter of the roll P gain rises more slowly on roll, and the report says so.
+again (A/B) with a quarter of the roll P gain rises more slowly on roll, and the report says
+so.
 
 What would fail: a stick sent with the wrong sign, centre or scale (the setpoints part), the
 throttle sent through the wrong curve (the motors part), a frame sent late or at every step
@@ -63,7 +64,9 @@ def test_a_flight_replayed_through_its_own_firmware_flies_the_same(
     flown_log: tuple[Path, Path], tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:
     firmware, log = flown_log
-    code, report = _replay(log, firmware, tmp_path / "same")
+    out = tmp_path / "ab"
+    # A: the log's own settings; B: a quarter of the roll P gain, the same sticks.
+    code, report = _replay(log, firmware, out, "--b-cli", "set p_roll = 12")
     printed = capsys.readouterr()
     assert code == 0, printed.out + printed.err
     axes = report["comparison"]["axes"]
@@ -72,20 +75,24 @@ def test_a_flight_replayed_through_its_own_firmware_flies_the_same(
         assert axis["setpoint_correlation"] >= 0.99, (name, axis)
         assert abs(axis["rise_time_ratio"] - 1.0) <= 0.2, (name, axis)
         assert abs(axis["overshoot_difference_pct"]) <= 5.0, (name, axis)
+    assert report["targets"]["met"] is True
     assert report["comparison"]["motor_correlation"] > 0.9
     assert abs(report["comparison"]["motor_level_difference_pct"]) < 3.0
     # Its own firmware's header carries over: nothing flight-relevant is left behind.
     carried = {c["header"] for c in report["settings"]["carried"]}
     assert {"rollPID", "rates", "rc_rates"} <= carried, carried
-    assert (tmp_path / "same" / "replay-report.png").stat().st_size > 10_000
+    assert (out / "replay-report.png").stat().st_size > 10_000
     assert "setpoint r" in printed.out and "targets" in printed.out
 
-    code, weak = _replay(log, firmware, tmp_path / "weak", "--cli", "set p_roll = 12")
-    roll = weak["comparison"]["axes"]["roll"]
-    assert code == 1
-    assert roll["rise_time_ratio"] > 1.2, roll
-    assert roll["targets"]["rise_time"] is False
-    assert weak["comparison"]["axes"]["yaw"]["targets"]["rise_time"] is True
+    # The change shows where it was made: B rises more slowly on roll than A, not on yaw,
+    # and misses the real flight's roll.
+    weak = json.loads((out / "b" / "replay-report.json").read_text())
+    assert weak["comparison"]["axes"]["roll"]["targets"]["rise_time"] is False
+    b_against_a = json.loads((out / "b-against-a.json").read_text())["b_against_a"]["axes"]
+    assert b_against_a["roll"]["rise_time_ratio"] > 1.2, b_against_a["roll"]
+    assert abs(b_against_a["yaw"]["rise_time_ratio"] - 1.0) <= 0.2, b_against_a["yaw"]
+    assert "B (" in printed.out and "against A" in printed.out
+    assert (out / "b-against-a.png").stat().st_size > 10_000
 
 
 def test_a_real_logs_receiver_rate_reaches_the_firmware(

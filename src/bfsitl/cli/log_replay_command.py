@@ -10,6 +10,7 @@ from typing import TYPE_CHECKING
 from bfsitl.cli.arg_types import VEHICLE_HELP, vehicle, whole_number_at_least
 
 if TYPE_CHECKING:
+    from bfsitl.replay.compare import ReplayComparison
     from bfsitl.replay.replay_log import Replay
 
 EXIT_MET = 0
@@ -30,10 +31,14 @@ def add_log_replay_parser(actions: argparse._SubParsersAction) -> None:  # type:
         "time, overshoot, settling) and the motors. Writes replay-report.json, "
         "replay-report.png and the replay's blackbox log to --out. Exit 0 when every "
         "measurable target is met (setpoint correlation >= 0.99, rise time within 20 %%, "
-        "overshoot within 5 points), 1 when one is missed, 2 when the log cannot be replayed.",
+        "overshoot within 5 points), 1 when one is missed, 2 when the log cannot be replayed. "
+        "With --b-firmware or --b-cli the log is replayed twice, A and B (B in --out/b), and "
+        "B is compared with A the same way (b-against-a.json and .png); exit 0 then when "
+        "both replays ran.",
         epilog="Examples:\n  bfsitl log replay btfl_002.bbl --vehicle fit/btfl_002-fit.toml\n"
         "  bfsitl log replay LOG00007.BFL --index 2 --vehicle 5inch-freestyle "
-        "--cli 'set p_roll = 60' --out replay-p60",
+        "--cli 'set p_roll = 60' --out replay-p60\n"
+        "  bfsitl log replay btfl_002.bbl --vehicle 5inch-freestyle --b-cli 'set f_roll = 0'",
         formatter_class=argparse.RawDescriptionHelpFormatter,
     )
     replay.add_argument("file", metavar="LOG", help="a blackbox file (.BFL, .BBL, .BF)")
@@ -59,6 +64,20 @@ def add_log_replay_parser(actions: argparse._SubParsersAction) -> None:  # type:
         "change have done to this flight?",
     )
     replay.add_argument(
+        "--b-firmware",
+        default=None,
+        metavar="NAME",
+        help="A/B: replay the log a second time on this build (default: --firmware's) and "
+        "compare the two replays: what would this build have done to this flight?",
+    )
+    replay.add_argument(
+        "--b-cli",
+        action="append",
+        default=[],
+        metavar="LINE",
+        help="A/B: a CLI line for the second replay only, after --cli (repeatable)",
+    )
+    replay.add_argument(
         "--out",
         type=Path,
         default=Path("replay"),
@@ -70,8 +89,14 @@ def add_log_replay_parser(actions: argparse._SubParsersAction) -> None:  # type:
 def cmd_log_replay(args: argparse.Namespace) -> int:
     from bfsitl.errors import BfsitlError
     from bfsitl.fit.fit_log import pick_log
-    from bfsitl.replay.replay_log import replay_log
-    from bfsitl.replay.replay_report import targets_met, write_report_json, write_report_png
+    from bfsitl.replay.compare import compare_logs
+    from bfsitl.replay.replay_log import Replay, replay_log
+    from bfsitl.replay.replay_report import (
+        targets_met,
+        write_ab_report_json,
+        write_report_json,
+        write_report_png,
+    )
 
     try:
         args.out.mkdir(parents=True, exist_ok=True)
@@ -80,31 +105,84 @@ def cmd_log_replay(args: argparse.Namespace) -> int:
         return EXIT_UNREPLAYABLE
     _say(f"reading {args.file} ...")
     try:
+        log = pick_log(Path(args.file), args.index)
         replay = replay_log(
-            pick_log(Path(args.file), args.index),
+            log,
             firmware=args.firmware,
             quad=args.vehicle,
             out_dir=args.out,
             extra_cli=tuple(args.cli),
             progress=_say,
         )
+        write_report_json(replay, args.out / "replay-report.json")
+        write_report_png(replay, args.out / "replay-report.png")
+        _print_summary(replay, args.out)
+        if args.b_firmware is None and not args.b_cli:
+            met = targets_met(replay.comparison)
+            if met is None:
+                print(
+                    "no target could be measured: the log has no setpoints (3.x logs do not "
+                    "hold them); the gyro and motor figures above are the comparison"
+                )
+            return EXIT_MISSED if met is False else EXIT_MET
+        _say("A/B: replaying the log again for B ...")
+        b_out = args.out / "b"
+        b_replay = replay_log(
+            log,
+            firmware=args.b_firmware or args.firmware,
+            quad=args.vehicle,
+            out_dir=b_out,
+            extra_cli=(*args.cli, *args.b_cli),
+            progress=_say,
+        )
+        write_report_json(b_replay, b_out / "replay-report.json")
+        write_report_png(b_replay, b_out / "replay-report.png")
+        b_against_a = compare_logs(
+            pick_log(replay.flight.blackbox, None), pick_log(b_replay.flight.blackbox, None)
+        )
+        sides = {
+            "a": {"cli": list(args.cli)},
+            "b": {"cli": [*args.cli, *args.b_cli], "built": args.b_firmware or args.firmware},
+        }
+        write_ab_report_json(replay, b_replay, b_against_a, sides, args.out / "b-against-a.json")
+        ab = Replay(
+            log, replay.vehicle, b_replay.settings, b_replay.stream, b_replay.flight, b_against_a
+        )
+        write_report_png(
+            ab,
+            args.out / "b-against-a.png",
+            labels=("A", "B"),
+            title=f"{log.path.name} log {log.index}: B ({_side(args, 'b')}) against A "
+            f"({_side(args, 'a')})",
+        )
     except BfsitlError as exc:
         print(f"bfsitl: error: {exc}", file=sys.stderr)
         return EXIT_UNREPLAYABLE
-    try:
-        write_report_json(replay, args.out / "replay-report.json")
-        write_report_png(replay, args.out / "replay-report.png")
-    except OSError as exc:
-        print(f"bfsitl: error: cannot write the report to {args.out}: {exc}", file=sys.stderr)
+    except OSError as exc:  # a report that cannot be written, a binary that cannot be read
+        print(f"bfsitl: error: {exc}", file=sys.stderr)
         return EXIT_UNREPLAYABLE
-    _print_summary(replay, args.out)
-    met = targets_met(replay.comparison)
-    if met is None:
+    _print_b_against_a(b_replay, b_against_a, args)
+    return EXIT_MET
+
+
+def _side(args: argparse.Namespace, side: str) -> str:
+    firmware = (args.b_firmware or args.firmware) if side == "b" else args.firmware
+    lines = [*args.cli, *(args.b_cli if side == "b" else [])]
+    return ", ".join([firmware or "the default build", *lines])
+
+
+def _print_b_against_a(
+    b_replay: Replay, b_against_a: ReplayComparison, args: argparse.Namespace
+) -> None:
+    print(f"\nB ({_side(args, 'b')}) against A ({_side(args, 'a')}), the same sticks:")
+    _print_axes(b_against_a, first="A", second="B", words=("B against A", "same", "CHANGED"))
+    if b_against_a.motor_correlation is not None:
         print(
-            "no target could be measured: the log has no setpoints (3.x logs do not hold "
-            "them); the gyro and motor figures above are the comparison"
+            f"motors: mean command r {b_against_a.motor_correlation:.3f}, B "
+            f"{b_against_a.motor_level_difference_pct:+.1f} points against A"
         )
-    return EXIT_MISSED if met is False else EXIT_MET
+    out = args.out
+    print(f"reports: {out / 'b-against-a.json'}, {out / 'b-against-a.png'}, {out / 'b'}")
 
 
 def _say(line: str) -> None:
@@ -116,8 +194,6 @@ def _figure(value: float | None, form: str) -> str:
 
 
 def _print_summary(replay: Replay, out: Path) -> None:
-    from bfsitl.replay.replay_report import axis_targets
-
     flight, comparison = replay.flight, replay.comparison
     print(
         f"replayed {replay.log.path.name} log {replay.log.index} "
@@ -133,29 +209,42 @@ def _print_summary(replay: Replay, out: Path) -> None:
             else f", up to a second before the real quad lost control at {lost:.2f} s"
         )
     )
-    print(
-        f"{'axis':6} {'setpoint r':>10} {'gyro r':>7} {'gyro err':>8} "
-        f"{'rise ms real/replay':>20} {'overshoot % real/replay':>24}  targets"
-    )
-    for axis in comparison.axes:
-        real, sim = axis.real_step, axis.replay_step
-        rise = "/".join(_figure(None if s is None else s.rise_time_ms, ".0f") for s in (real, sim))
-        overshoot = "/".join(
-            _figure(None if s is None else s.overshoot_pct, ".1f") for s in (real, sim)
-        )
-        verdicts = axis_targets(axis)
-        marks = " ".join(
-            f"{name} {'-' if ok is None else ('met' if ok else 'MISSED')}"
-            for name, ok in verdicts.items()
-        )
-        print(
-            f"{axis.axis:6} {_figure(axis.setpoint_correlation, '.4f'):>10} "
-            f"{axis.gyro_correlation:7.3f} {axis.gyro_error:8.2f} {rise:>20} {overshoot:>24}  "
-            f"{marks}"
-        )
+    _print_axes(comparison, first="real", second="replay")
     if comparison.motor_correlation is not None:
         print(
             f"motors: mean command r {comparison.motor_correlation:.3f}, replay "
             f"{comparison.motor_level_difference_pct:+.1f} points against the real flight"
         )
     print(f"report: {out / 'replay-report.json'}, {out / 'replay-report.png'}")
+
+
+def _print_axes(
+    comparison: ReplayComparison,
+    *,
+    first: str,
+    second: str,
+    words: tuple[str, str, str] = ("targets", "met", "MISSED"),
+) -> None:
+    """The per-axis table; ``words``: the last column's title and what it says of a figure
+    within its tolerance and outside it."""
+    from bfsitl.replay.replay_report import axis_targets
+
+    pair = f"{first}/{second}"
+    title, within, outside = words
+    print(
+        f"{'axis':6} {'setpoint r':>10} {'gyro r':>7} {'gyro err':>8} "
+        f"{'rise ms ' + pair:>20} {'overshoot % ' + pair:>24}  {title}"
+    )
+    for axis in comparison.axes:
+        steps = (axis.real_step, axis.replay_step)
+        rise = "/".join(_figure(None if s is None else s.rise_time_ms, ".0f") for s in steps)
+        overshoot = "/".join(_figure(None if s is None else s.overshoot_pct, ".1f") for s in steps)
+        marks = " ".join(
+            f"{name} {'-' if ok is None else (within if ok else outside)}"
+            for name, ok in axis_targets(axis).items()
+        )
+        print(
+            f"{axis.axis:6} {_figure(axis.setpoint_correlation, '.4f'):>10} "
+            f"{axis.gyro_correlation:7.3f} {axis.gyro_error:8.2f} {rise:>20} {overshoot:>24}  "
+            f"{marks}"
+        )

@@ -47,6 +47,9 @@ import struct
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 
+from bfsitl.errors import SettingNotCarriedError
+from bfsitl.replay.setting_tables import SETTING_CHOICES, SETTING_RANGES
+
 __all__ = [
     "SETTING_CHOICES",
     "SETTING_RANGES",
@@ -89,69 +92,7 @@ class HeaderSettings:
         return tuple(dict.fromkeys(line for s in self.carried for line in s.cli_lines))
 
 
-_OFF_ON = ("OFF", "ON")
-_LPF = ("PT1", "BIQUAD", "PT2", "PT3")  # [4.6] src/main/cli/settings.c:367-379
 _AXES = ("roll", "pitch", "yaw")
-
-#: 4.6.0 lookup settings this module sets, with their tables ([4.6] src/main/cli/settings.c).
-SETTING_CHOICES: dict[str, tuple[str, ...]] = {
-    **dict.fromkeys(("gyro_lpf1_type", "gyro_lpf2_type", "dterm_lpf1_type",
-                     "dterm_lpf2_type"), _LPF),
-    "rates_type": ("BETAFLIGHT", "RACEFLIGHT", "KISS", "ACTUAL", "QUICK"),
-    "iterm_relax": ("OFF", "RP", "RPY", "RP_INC", "RPY_INC"),
-    "iterm_relax_type": ("GYRO", "SETPOINT"),
-    "tpa_mode": ("PD", "D"),
-    "feedforward_averaging": ("OFF", "2_POINT", "3_POINT", "4_POINT"),
-    "throttle_limit_type": ("OFF", "SCALE", "CLIP"),
-    "mixer_type": ("LEGACY", "LINEAR", "DYNAMIC", "EZLANDING"),
-    "simplified_pids_mode": ("OFF", "RP", "RPY"),
-    **dict.fromkeys(("pid_at_min_throttle", "use_integrated_yaw", "rc_smoothing", "tpa_low_always",
-                     "simplified_dterm_filter", "simplified_gyro_filter"), _OFF_ON),
-}  # fmt: skip
-
-# Each low..high applies to the names after it ([4.6] src/main/cli/settings.c).
-_RANGES = """
-0..250 p_roll i_roll d_roll d_max_roll p_pitch i_pitch d_pitch d_max_pitch p_yaw i_yaw d_yaw
-d_max_yaw anti_gravity_gain anti_gravity_p_gain ez_landing_speed landing_disarm_threshold
-rc_smoothing_auto_factor rc_smoothing_auto_factor_throttle 0..1000 f_roll f_pitch f_yaw
-gyro_lpf1_static_hz gyro_lpf2_static_hz dterm_lpf1_static_hz dterm_lpf2_static_hz dterm_notch_hz
-dterm_notch_cutoff gyro_notch1_hz gyro_notch1_cutoff gyro_notch2_hz gyro_notch2_cutoff
-gyro_lpf1_dyn_min_hz gyro_lpf1_dyn_max_hz dterm_lpf1_dyn_min_hz dterm_lpf1_dyn_max_hz
-1..255 roll_rc_rate pitch_rc_rate yaw_rc_rate 0..255 roll_srate pitch_srate yaw_srate
-rc_smoothing_setpoint_cutoff rc_smoothing_feedforward_cutoff rc_smoothing_throttle_cutoff
-200..1998 roll_rate_limit pitch_rate_limit yaw_rate_limit 0..100 roll_expo pitch_expo yaw_expo
-tpa_rate tpa_low_rate feedforward_transition angle_earth_ref airmode_start_throttle_percent
-horizon_level_strength feedforward_yaw_hold_gain throttle_boost d_max_gain 0..200 angle_p_gain
-angle_feedforward d_max_advance feedforward_max_rate_limit ez_landing_threshold 0..500 acc_limit
-acc_limit_yaw yaw_lowpass_hz acc_lpf_hz 0..10 gyro_lpf1_dyn_expo dterm_lpf1_dyn_expo
-100..1000 pidsum_limit pidsum_limit_yaw 1000..2000 tpa_breakpoint tpa_low_breakpoint
-10..250 feedforward_yaw_hold_time angle_feedforward_smoothing_ms horizon_limit_degrees
-20..100 iterm_windup 1..50 iterm_relax_cutoff 2..50 anti_gravity_cutoff_hz 0..20 abs_control_gain
-feedforward_jitter_factor 0..95 feedforward_smooth_factor 0..50 feedforward_boost 10..80
-angle_limit 10..200 horizon_limit_sticks 10..5000 horizon_delay_ms 0..75 ez_landing_limit
-0..2000 motor_idle 750..2250 max_throttle 0..150 vbat_sag_compensation thrust_linear
-1..100 motor_output_limit 25..100 throttle_limit_percent 5..50 throttle_boost_cutoff
-1..16 pid_process_denom
-"""
-
-
-def _read_ranges(spec: str) -> dict[str, tuple[int, int]]:
-    ranges, current = {}, (0, 0)
-    for token in spec.split():
-        if ".." in token:
-            low, high = token.split("..")
-            current = (int(low), int(high))
-        else:
-            ranges[token] = current
-    return ranges
-
-
-#: 4.6.0 numeric settings this module sets, with their (min, max).
-SETTING_RANGES: dict[str, tuple[int, int]] = _read_ranges(_RANGES)
-
-
-class _Refused(Exception):
-    """A header value this module cannot carry; the message says why (never leaves the module)."""
 
 
 _Version = tuple[int, int]
@@ -194,9 +135,9 @@ def _ints(value: str, count: int) -> list[int]:
     try:
         numbers = [int(part) for part in value.split(",")]
     except ValueError:
-        raise _Refused(f"not {count} integer(s): {value!r}") from None
+        raise SettingNotCarriedError(f"not {count} integer(s): {value!r}") from None
     if len(numbers) != count:
-        raise _Refused(f"{len(numbers)} value(s) where {count} were expected")
+        raise SettingNotCarriedError(f"{len(numbers)} value(s) where {count} were expected")
     return numbers
 
 
@@ -204,7 +145,7 @@ def _header_ints(c: _Collect, header: str, count: int) -> list[int] | None:
     """Another header's integers, or None when it is absent or unreadable."""
     try:
         return _ints(c.headers[header], count) if header in c.headers else None
-    except _Refused:
+    except SettingNotCarriedError:
         return None
 
 
@@ -235,10 +176,12 @@ def _pick(name: str, table: Sequence[str]) -> _Rule:
         else:
             index = _ints(value, 1)[0]
             if not 0 <= index < len(table):
-                raise _Refused(f"{index} is not an index of the table {'/'.join(table)}")
+                raise SettingNotCarriedError(
+                    f"{index} is not an index of the table {'/'.join(table)}"
+                )
             choice = table[index]
         if choice not in SETTING_CHOICES[name]:
-            raise _Refused(f"{choice} has no 4.6.0 equivalent")
+            raise SettingNotCarriedError(f"{choice} has no 4.6.0 equivalent")
         c.carry(header, [(name, choice)])
 
     return rule
@@ -258,7 +201,7 @@ def _d_lines(c: _Collect, axis: int) -> list[_Assignment]:
     name = _AXES[axis]
     pid = _header_ints(c, f"{name}PID", 3)
     if pid is None:
-        raise _Refused(f"{name}PID is missing or unreadable")
+        raise SettingNotCarriedError(f"{name}PID is missing or unreadable")
     d = pid[2]
     if c.version < (4, 0):
         return [(f"d_{name}", 0 if axis == 2 else d), (f"d_max_{name}", 0)]
@@ -304,9 +247,13 @@ def _motor(name: str, digital: bool, offset_us: int = 0, scale: int = 1) -> _Rul
 
     def rule(c: _Collect, header: str, value: str) -> None:
         if digital and _digital_motors(c) is False:
-            raise _Refused("unused with analog (PWM) motors: minthrottle set their idle")
+            raise SettingNotCarriedError(
+                "unused with analog (PWM) motors: minthrottle set their idle"
+            )
         if not digital and _digital_motors(c) is not False:
-            raise _Refused("bounds analog (PWM) outputs only; the log's motors were DShot")
+            raise SettingNotCarriedError(
+                "bounds analog (PWM) outputs only; the log's motors were DShot"
+            )
         c.carry(header, [(name, (_ints(value, 1)[0] - offset_us) * scale)])
 
     return rule
@@ -331,7 +278,7 @@ def _pid_denom(c: _Collect, header: str, value: str) -> None:
     looptime_us = _header_ints(c, "looptime", 1)
     denom = _ints(value, 1)[0]
     if not looptime_us or looptime_us[0] <= 0 or denom <= 0:
-        raise _Refused("no usable looptime or denominator to find the log's PID rate")
+        raise SettingNotCarriedError("no usable looptime or denominator to find the log's PID rate")
     log_hz = 1e6 / (looptime_us[0] * denom)
     sitl = min(range(1, 17), key=lambda n: abs(c.sitl_pid_rate_hz / n - log_hz))
     c.carry(header, [("pid_process_denom", sitl)])
@@ -350,7 +297,9 @@ def _anti_gravity(c: _Collect, header: str, value: str) -> None:
     else:
         off = gain <= (1000 if c.version < (4, 3) else 0)
     if c.version < (4, 4) and not off:
-        raise _Refused("4.4 replaced the throttle-step anti-gravity with a new law and gain scale")
+        raise SettingNotCarriedError(
+            "4.4 replaced the throttle-step anti-gravity with a new law and gain scale"
+        )
     c.carry(header, [("anti_gravity_gain", gain if c.version >= (4, 4) else 0)])
 
 
@@ -368,7 +317,9 @@ def _float_accel_limit(name: str) -> _Rule:
 def _vbat_compensation(c: _Collect, header: str, value: str) -> None:
     """Off carries as off; on has no equivalent (4.6's vbat_sag_compensation is another law)."""
     if _ints(value, 1)[0]:
-        raise _Refused("vbat PID compensation has no 4.6 equivalent (vbat_sag is another law)")
+        raise SettingNotCarriedError(
+            "vbat PID compensation has no 4.6 equivalent (vbat_sag is another law)"
+        )
     c.carry(header, [("vbat_sag_compensation", 0)])
 
 
@@ -383,7 +334,9 @@ def _ff_averaging(c: _Collect, header: str, value: str) -> None:
     """4.2: OFF, ON, AVERAGED_2..4 (``[4.2.9] src/main/cli/settings.c:478-480``)."""
     mode = _ints(value, 1)[0]
     if not 1 <= mode <= 4:
-        raise _Refused("4.2 without setpoint interpolation has no 4.6 feedforward mode")
+        raise SettingNotCarriedError(
+            "4.2 without setpoint interpolation has no 4.6 feedforward mode"
+        )
     c.carry(header, [("feedforward_averaging", SETTING_CHOICES["feedforward_averaging"][mode - 1])])
 
 
@@ -391,7 +344,9 @@ def _rc_cutoffs_42(c: _Collect, header: str, value: str) -> None:
     """4.2's input and derivative cutoffs (0 = auto) become 4.6's setpoint and feedforward ones;
     4.2 filtered throttle with the input cutoff (rc_interpolation_channels RPYT by default)."""
     if _header_ints(c, "rc_smoothing_type", 1) == [0]:
-        raise _Refused("unused: the log smoothed by interpolation, which 4.6 does not have")
+        raise SettingNotCarriedError(
+            "unused: the log smoothed by interpolation, which 4.6 does not have"
+        )
     setpoint, derivative = _ints(value, 2)
     active = _header_ints(c, "rc_smoothing_active_cutoffs", 2) or [0, 0]
     setpoint, derivative = setpoint or active[0], derivative or active[1]
@@ -477,11 +432,11 @@ _RULES: dict[str, _Rule] = {
     "itermWindupPointPercent": _not("a motor-saturation point; 4.6's iterm_windup is the I limit"),
     "iterm_relax": _pick("iterm_relax", SETTING_CHOICES["iterm_relax"]),
     "iterm_relax_type": _pick("iterm_relax_type", SETTING_CHOICES["iterm_relax_type"]),
-    "pidAtMinThrottle": _pick("pid_at_min_throttle", _OFF_ON),
+    "pidAtMinThrottle": _pick("pid_at_min_throttle", SETTING_CHOICES["pid_at_min_throttle"]),
     "anti_gravity_gain": _anti_gravity,
     "anti_gravity_mode": _not("4.4 replaced the throttle-step anti-gravity and its modes"),
     "anti_gravity_threshold": _not("4.4 replaced the throttle-step anti-gravity and its threshold"),
-    "use_integrated_yaw": _pick("use_integrated_yaw", _OFF_ON),
+    "use_integrated_yaw": _pick("use_integrated_yaw", SETTING_CHOICES["use_integrated_yaw"]),
     "ff_interpolate_sp": _ff_averaging,
     "ff_spike_limit": _not(_FF_42), "ff_max_rate_limit": _not(_FF_42), "ff_boost": _not(_FF_42),
     "yawRateAccelLimit": _float_accel_limit("acc_limit_yaw"),
@@ -595,6 +550,6 @@ def header_settings(headers: dict[str, str], *, sitl_pid_rate_hz: float = 8000.0
             rule = _not(why or "no known 4.6.0 equivalent")
         try:
             rule(collect, name, value)
-        except _Refused as refused:
+        except SettingNotCarriedError as refused:
             collect.skip(name, str(refused))
     return HeaderSettings(firmware, tuple(collect.carried), tuple(collect.not_carried))

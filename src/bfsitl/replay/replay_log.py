@@ -23,7 +23,16 @@ Progress = Callable[[str], None]
 
 @dataclass(frozen=True, slots=True)
 class Replay:
-    """Everything one replay made: the log, what was sent, what flew, how it compared."""
+    """Everything one replay made: the log, what was sent, what flew, how it compared.
+
+    Attributes:
+        log: The real flight.
+        vehicle: The simulated quad's name.
+        settings: The log's header as the build's CLI lines, and what did not come across.
+        stream: The receiver frames sent.
+        flight: What the replay left behind (the replaying FC's log, the firmware, timing).
+        comparison: The replaying FC's log against the real one, per axis.
+    """
 
     log: BlackboxLog
     vehicle: str
@@ -52,6 +61,9 @@ def replay_log(
         out_dir: Where the SITL runs and its log is kept.
         extra_cli: CLI lines applied after the log's settings.
         progress: Called with a line of text at each stage.
+
+    Returns:
+        The replay: what was sent, what flew and how it compared.
 
     Raises:
         BlackboxError: The log has no sticks to send (:class:`ReplayError`), or the replay's

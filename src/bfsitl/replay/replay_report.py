@@ -101,28 +101,7 @@ def report_dict(replay: Replay) -> dict[str, Any]:
             ],
             "stick_path": list(IDENTITY_RC_LINES),
         },
-        "comparison": {
-            "offset_s": _number(comparison.offset_s, 4),
-            "overlap_s": _number(comparison.overlap_s, 3),
-            "rate_hz": _number(comparison.rate_hz, 1),
-            "real_lost_control_s": _number(comparison.lost_control_s, 3),
-            "axes": {
-                axis.axis: {
-                    "setpoint_correlation": _number(axis.setpoint_correlation),
-                    "setpoint_rms_ratio": _number(axis.setpoint_rms_ratio),
-                    "gyro_correlation": _number(axis.gyro_correlation),
-                    "gyro_error": _number(axis.gyro_error),
-                    "real_step": _step(axis.real_step),
-                    "replay_step": _step(axis.replay_step),
-                    "rise_time_ratio": _number(axis.rise_time_ratio),
-                    "overshoot_difference_pct": _number(axis.overshoot_difference_pct, 2),
-                    "targets": axis_targets(axis),
-                }
-                for axis in comparison.axes
-            },
-            "motor_correlation": _number(comparison.motor_correlation),
-            "motor_level_difference_pct": _number(comparison.motor_level_difference_pct, 2),
-        },
+        "comparison": comparison_dict(comparison),
         "targets": {
             "min_setpoint_correlation": MIN_SETPOINT_CORRELATION,
             "max_rise_time_difference": MAX_RISE_TIME_DIFFERENCE,
@@ -132,11 +111,44 @@ def report_dict(replay: Replay) -> dict[str, Any]:
     }
 
 
+def comparison_dict(comparison: ReplayComparison) -> dict[str, Any]:
+    """The per-axis figures of one comparison (a replay against the real flight, or two
+    replays against each other)."""
+    return {
+        "offset_s": _number(comparison.offset_s, 4),
+        "overlap_s": _number(comparison.overlap_s, 3),
+        "rate_hz": _number(comparison.rate_hz, 1),
+        "real_lost_control_s": _number(comparison.lost_control_s, 3),
+        "axes": {
+            axis.axis: {
+                "setpoint_correlation": _number(axis.setpoint_correlation),
+                "setpoint_rms_ratio": _number(axis.setpoint_rms_ratio),
+                "gyro_correlation": _number(axis.gyro_correlation),
+                "gyro_error": _number(axis.gyro_error),
+                "real_step": _step(axis.real_step),
+                "replay_step": _step(axis.replay_step),
+                "rise_time_ratio": _number(axis.rise_time_ratio),
+                "overshoot_difference_pct": _number(axis.overshoot_difference_pct, 2),
+                "targets": axis_targets(axis),
+            }
+            for axis in comparison.axes
+        },
+        "motor_correlation": _number(comparison.motor_correlation),
+        "motor_level_difference_pct": _number(comparison.motor_level_difference_pct, 2),
+    }
+
+
 def write_report_json(replay: Replay, path: Path) -> None:
     write_atomically(path, (json.dumps(report_dict(replay), indent=2) + "\n").encode())
 
 
-def write_report_png(replay: Replay, path: Path) -> None:
+def write_report_png(
+    replay: Replay,
+    path: Path,
+    *,
+    labels: tuple[str, str] = ("real", "replay"),
+    title: str | None = None,
+) -> None:
     """Per axis, the real flight's setpoint and gyro against the replay's on one time base
     (the real log's), with both step responses beside them; the mean motor command below."""
     from bfsitl.headless_pyplot import load_pyplot
@@ -153,20 +165,22 @@ def write_report_png(replay: Replay, path: Path) -> None:
     for row, axis in enumerate(comparison.axes):
         trace = grid[row][0]
         if real.setpoint_dps is not None:
-            trace.plot(time_s, real.setpoint_dps[row, a], color="0.6", lw=0.8, label="real set")
+            trace.plot(
+                time_s, real.setpoint_dps[row, a], color="0.6", lw=0.8, label=f"{labels[0]} set"
+            )
         if sim.setpoint_dps is not None:
             trace.plot(
                 time_s, sim.setpoint_dps[row, b], color="tab:orange", lw=0.8, ls="--",
-                label="replay set",
+                label=f"{labels[1]} set",
             )  # fmt: skip
-        trace.plot(time_s, real.gyro_dps[row, a], color="black", lw=0.8, label="real gyro")
-        trace.plot(time_s, sim.gyro_dps[row, b], color="tab:red", lw=0.8, label="replay gyro")
+        trace.plot(time_s, real.gyro_dps[row, a], color="black", lw=0.8, label=f"{labels[0]} gyro")
+        trace.plot(time_s, sim.gyro_dps[row, b], color="tab:red", lw=0.8, label=f"{labels[1]} gyro")
         trace.set_ylabel(f"{AXES[row]} deg/s")
         trace.set_title(_axis_title(axis), fontsize=9, loc="left")
         steps = grid[row][1]
         for step, color, label in (
-            (axis.real_step, "black", "real"),
-            (axis.replay_step, "tab:red", "replay"),
+            (axis.real_step, "black", labels[0]),
+            (axis.replay_step, "tab:red", labels[1]),
         ):
             if step is not None:
                 steps.plot(step.time_s * 1000, step.response, color=color, lw=1, label=label)
@@ -176,16 +190,19 @@ def write_report_png(replay: Replay, path: Path) -> None:
     grid[0][1].legend(loc="lower right", fontsize=7)
     motors = grid[3][0]
     if real.motor_level is not None:
-        motors.plot(time_s, 100 * real.motor_level[a], color="black", lw=0.8, label="real")
+        motors.plot(time_s, 100 * real.motor_level[a], color="black", lw=0.8, label=labels[0])
     if sim.motor_level is not None:
-        motors.plot(time_s, 100 * sim.motor_level[b], color="tab:red", lw=0.8, label="replay")
+        motors.plot(time_s, 100 * sim.motor_level[b], color="tab:red", lw=0.8, label=labels[1])
     motors.set_ylabel("mean motor %")
-    motors.set_xlabel(f"real log time, s (replay aligned by {comparison.offset_s:+.3f} s)")
+    motors.set_xlabel(
+        f"{labels[0]} log time, s ({labels[1]} aligned by {comparison.offset_s:+.3f} s)"
+    )
     motors.legend(loc="upper right", fontsize=7)
     grid[3][1].set_axis_off()
     grid[2][1].set_xlabel("ms")
     fig.suptitle(
-        f"{replay.log.path.name} log {replay.log.index} ({replay.log.firmware_revision}) "
+        title
+        or f"{replay.log.path.name} log {replay.log.index} ({replay.log.firmware_revision}) "
         f"replayed on {replay.flight.firmware} with {replay.vehicle}",
         fontsize=10,
     )
@@ -206,3 +223,24 @@ def _axis_title(axis: AxisComparison) -> str:
             f"{axis.replay_step.overshoot_pct:.0f} %"
         )
     return f"{axis.axis}: " + "; ".join(parts)
+
+
+def write_ab_report_json(
+    a: Replay, b: Replay, b_against_a: ReplayComparison, sides: dict[str, Any], path: Path
+) -> None:
+    """Two replays of one log (A, B: another build or other settings) and B against A."""
+    report = {
+        "log": report_dict(a)["log"],
+        "a": {
+            **sides["a"],
+            "firmware": a.flight.firmware,
+            "targets_met": targets_met(a.comparison),
+        },
+        "b": {
+            **sides["b"],
+            "firmware": b.flight.firmware,
+            "targets_met": targets_met(b.comparison),
+        },
+        "b_against_a": comparison_dict(b_against_a),
+    }
+    write_atomically(path, (json.dumps(report, indent=2) + "\n").encode())

@@ -248,7 +248,7 @@ def test_waypoints_advance_when_reached_pay_a_bonus_and_finish_at_the_last() -> 
         (
             {"sitl": "4.6.0-gps-lockstep"},
             r"sitl must be a SitlLaunch \(bfsitl.SitlLaunch\("
-            r"firmware, workdir, isolate\), all optional\), not str",
+            r"firmware, workdir, isolate, env\), all optional\), not str",
         ),
     ],
 )

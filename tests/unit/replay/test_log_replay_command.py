@@ -12,7 +12,6 @@ import numpy as np
 import pytest
 
 from bfsitl.cli.main import main
-from bfsitl.replay import replay_log as replay_log_module
 from bfsitl.replay.compare import compare_logs
 from bfsitl.replay.flight import ReplayedFlight
 from bfsitl.replay.header_settings import header_settings
@@ -83,6 +82,7 @@ def test_the_exit_code_follows_the_targets(
             compare_logs(real, replayed),
         )
 
+    replay_log_module = importlib.import_module("bfsitl.replay.replay_log")
     monkeypatch.setattr(replay_log_module, "replay_log", fake_replay)
     # The package exports fit_log the function, which hides the module of the same name.
     fit_log_module = importlib.import_module("bfsitl.fit.fit_log")
@@ -134,3 +134,47 @@ def test_settings_a_build_lacks_are_listed_not_sent(tmp_path: Path) -> None:
         ("abs_control_gain", "this build has no abs_control_gain"),
         ("features", "this build has no MOTOR_STOP"),
     ]
+
+
+def test_a_b_replays_the_log_twice_and_compares_b_with_a(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]
+) -> None:
+    command = pilot_sticks(11)
+    real, slower = lagged_log(command, tau_s=0.02), lagged_log(command, tau_s=0.045)
+    calls: list[dict[str, object]] = []
+
+    def fake_replay(log: object, **options: object) -> Replay:
+        calls.append(options)
+        replayed = real if len(calls) == 1 else slower
+        out = Path(str(options["out_dir"]))
+        flight = ReplayedFlight(out / "replay-LOG00001.BF", "4.6.0", 100, 20.0, 0.5)
+        return Replay(
+            real, "5inch-freestyle", header_settings(real.headers), stick_stream(real), flight,
+            compare_logs(real, replayed),
+        )  # fmt: skip
+
+    replay_log_module = importlib.import_module("bfsitl.replay.replay_log")
+    monkeypatch.setattr(replay_log_module, "replay_log", fake_replay)
+    fit_log_module = importlib.import_module("bfsitl.fit.fit_log")
+    # A's log is the real one again, B's the slower quad's: B against A is the slower one.
+    monkeypatch.setattr(
+        fit_log_module, "pick_log", lambda path, index: slower if "/b/" in str(path) else real
+    )
+    out = tmp_path / "out"
+    code = main(
+        [
+            "log", "replay", "real.bbl", "--vehicle", "5inch-freestyle", "--out", str(out),
+            "--cli", "set p_roll = 60", "--b-firmware", "master-lockstep",
+            "--b-cli", "set f_roll = 0",
+        ]
+    )  # fmt: skip
+    printed = capsys.readouterr().out
+    assert code == 0
+    assert calls[0]["extra_cli"] == ("set p_roll = 60",)
+    assert calls[1]["extra_cli"] == ("set p_roll = 60", "set f_roll = 0")
+    assert calls[1]["firmware"] == "master-lockstep" and calls[1]["out_dir"] == out / "b"
+    report = json.loads((out / "b-against-a.json").read_text())
+    assert report["b"]["cli"] == ["set p_roll = 60", "set f_roll = 0"]
+    assert report["b_against_a"]["axes"]["roll"]["rise_time_ratio"] > 1.5
+    assert (out / "b-against-a.png").stat().st_size > 10_000
+    assert "against A" in printed and "CHANGED" in printed

@@ -64,9 +64,10 @@ def test_the_comparison_ends_before_the_real_quad_lost_control() -> None:
             frame = type(frame)(**{**_fields(frame), "gyro_adc": (2000, -1900, 300)})
         crashed.append(frame)
     real = type(real)(**{**_fields(real), "frames": tuple(crashed)})
-    result = compare_logs(real, lagged_log(command, tau_s=0.02))
+    # The replay's log began 0.3 s into the sticks: the cut counts from the real log's start.
+    result = compare_logs(real, lagged_log(command, tau_s=0.02, start_s=0.3))
     assert result.lost_control_s == pytest.approx(15.0, abs=0.002)
-    assert result.overlap_s == pytest.approx(14.0, abs=0.01)
+    assert result.overlap_s == pytest.approx(13.7, abs=0.01)
     assert all(axis.gyro_error < 0.05 for axis in result.axes)
 
 
@@ -127,3 +128,27 @@ def test_frames_before_a_gap_in_the_clock_are_left_out() -> None:
     assert result.offset_s == pytest.approx(0.0, abs=0.002)
     assert result.overlap_s == pytest.approx(SECONDS, abs=0.05)
     assert targets_met(result) is True
+
+
+def test_a_high_resolution_log_is_read_at_its_scale() -> None:
+    command = pilot_sticks(12)
+    real = lagged_log(command, tau_s=0.02)
+    fine = lagged_log(command, tau_s=0.02)
+    # 4.6's blackbox_high_resolution: rcCommand, setpoint and gyro logged ten times larger.
+    frames = tuple(
+        type(f)(
+            **{
+                **_fields(f),
+                "rc_command": (*(10 * v for v in f.rc_command[:3]), 10 * f.rc_command[3]),
+                "setpoint": (*(10 * v for v in f.setpoint[:3]), f.setpoint[3]),
+                "gyro_adc": tuple(10 * v for v in f.gyro_adc),
+            }
+        )
+        for f in fine.frames
+    )
+    headers = {**fine.headers, "blackbox_high_resolution": "1"}
+    fine = type(fine)(**{**_fields(fine), "frames": frames, "headers": headers})
+    result = compare_logs(real, fine)
+    for axis in result.axes:
+        assert axis.setpoint_rms_ratio == pytest.approx(1.0, abs=0.01)
+        assert axis.gyro_error < 0.05

@@ -54,6 +54,8 @@ def test_every_throttle_command_comes_back_within_one() -> None:
     pulses = throttle_pulse_us(commands)
     back = np.array([fc_rc_command((1500, 1500, p, 1500))[3] for p in pulses])
     assert np.max(np.abs(back - commands)) <= 1.0
+    # Exact but where 999 us of stick cannot hold 1000 steps (one command in the range).
+    assert np.count_nonzero(back != commands) <= 1
     # A logged 1000 is a stick below min_check: it must read as throttle low.
     assert pulses[0] == 1000.0 and pulses[1] > 1000.0
 
@@ -76,7 +78,7 @@ def test_a_high_resolution_log_is_scaled_down() -> None:
 
 def test_a_4_3_log_keeps_its_deflection_without_the_deadband() -> None:
     time_s = np.arange(0, 2.0, 0.001)
-    command = np.tile([99.0, 0.0, 0.0, 1000.0], (len(time_s), 1))
+    command = np.tile([99.0, 0.0, 99.0, 1000.0], (len(time_s), 1))
     newer = synthetic_log(
         time_s,
         command,
@@ -85,6 +87,7 @@ def test_a_4_3_log_keeps_its_deflection_without_the_deadband() -> None:
     )
     assert deflection_scales(newer) == (500.0 / 495.0, 500.0 / 490.0)
     assert stick_stream(newer).roll_us[0] == pytest.approx(1500.0 + 99.0 * 500.0 / 495.0)
+    assert stick_stream(newer).yaw_us[0] == pytest.approx(1500.0 - 99.0 * 500.0 / 490.0)
     older = synthetic_log(time_s, command, headers={"deadband": "5"})
     assert deflection_scales(older) == (1.0, 1.0)
 

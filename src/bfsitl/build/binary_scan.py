@@ -94,13 +94,15 @@ def clear_cache() -> None:
 
 
 def names_missing(path: str | os.PathLike[str], names: frozenset[str]) -> frozenset[str]:
-    """Which of ``names`` (CLI setting or feature names) are not NUL-terminated strings in
-    the binary at ``path``: a setting the build does not have (master dropped some of 4.6.0's,
-    a feature compiled out drops its own).  Raises OSError when it cannot be read."""
+    """Which of ``names`` (CLI setting or feature names) the binary at ``path`` has no string
+    for: a setting the build does not have (master dropped some of 4.6.0's, a feature compiled
+    out drops its own).  A name counts as there when it ends a NUL-terminated string, not only
+    when it is one: the linker stores a string that ends another only once, inside it (4.6.0's
+    ``d_roll`` is the tail of ``align_board_roll``).  So a missing name that ends a longer one
+    reads as there; the FC refuses it when it is sent.  Raises OSError when it cannot be
+    read."""
     with open(path, "rb") as handle:
         if os.fstat(handle.fileno()).st_size == 0:
             return names
         with mmap.mmap(handle.fileno(), 0, access=mmap.ACCESS_READ) as mapped:
-            return frozenset(
-                name for name in names if mapped.find(b"\x00" + name.encode() + b"\x00") < 0
-            )
+            return frozenset(name for name in names if mapped.find(name.encode() + b"\x00") < 0)

@@ -162,6 +162,12 @@ def cmd_log_replay(args: argparse.Namespace) -> int:
         print(f"bfsitl: error: {exc}", file=sys.stderr)
         return EXIT_UNREPLAYABLE
     _print_b_against_a(b_replay, b_against_a, args)
+    if replay.flight.receiver_frames != b_replay.flight.receiver_frames:
+        print(
+            "note: A and B count receiver frames differently (one build counts a frame at "
+            "every loop: rebuild it with `bfsitl firmware build --lockstep`), so the figures "
+            "mix that with the change"
+        )
     return EXIT_MET
 
 

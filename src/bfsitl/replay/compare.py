@@ -43,8 +43,9 @@ RATE_HZ = 1000.0
 LOST_CONTROL_DPS = 1000.0
 LOST_CONTROL_NO_SETPOINT_DPS = 1500.0
 BEFORE_LOSS_S = 1.0
-#: How far apart the two logs' first frames may be, seconds.
-MAX_OFFSET_S = 1.0
+#: How far apart the two logs' first frames may be, seconds: the replay's lead-in (at most
+#: 2 s, :func:`~bfsitl.replay.flight.lead_in_s`) and its log's start after arming.
+MAX_OFFSET_S = 3.0
 
 
 @dataclass(frozen=True, slots=True)

@@ -40,6 +40,12 @@ SWITCH_ON_US = 2000.0
 SWITCH_OFF_US = 1000.0
 #: The replaying FC's log rate: about 1 kHz, what real logs of 1-4 kHz are compared at.
 LOG_RATE_HZ = 1000.0
+#: Marks a run folder a replay made (:func:`fresh_run_dir` empties no other).
+RUN_MARKER = ".bfsitl-replay-run"
+#: The lead-in before the log's first frame (:func:`lead_in_s`).
+LEAD_IN_FRAMES = 40
+LEAD_IN_MIN_S = 0.5
+LEAD_IN_MAX_S = 2.0
 #: How often the stream looks at the SITL's health and reports progress, simulated seconds.
 _CHECK_EVERY_S = 1.0
 _PROGRESS_EVERY_S = 10.0
@@ -179,9 +185,7 @@ def fly_replay(
         SitlError, ArmingBlockedError: The SITL would not start, answer or arm.
     """
     out_dir.mkdir(parents=True, exist_ok=True)
-    # A fresh run directory: an eeprom.bin left by an earlier replay (another log, another
-    # --cli) would keep every setting this one does not write.
-    shutil.rmtree(out_dir / "sitl", ignore_errors=True)
+    fresh_run_dir(out_dir / "sitl")
     receiver_frames = firmware.receiver_frames and not stream.loop_frames
     if not firmware.receiver_frames and not stream.loop_frames:
         progress(
@@ -222,15 +226,47 @@ def fly_replay(
     return ReplayedFlight(copies[-1], version, len(stream), flown_s, wall_s, receiver_frames)
 
 
+def fresh_run_dir(run_dir: Path) -> None:
+    """Make ``run_dir`` empty but for :data:`RUN_MARKER`: an ``eeprom.bin`` left by an earlier
+    replay (another log, another ``--cli``) would keep every setting this one does not write.
+    Only a folder a replay made (it holds the marker) is emptied.
+
+    Raises:
+        ReplayError: ``run_dir`` exists and a replay did not make it.
+    """
+    if run_dir.exists():
+        if not (run_dir / RUN_MARKER).exists():
+            raise ReplayError(
+                f"{run_dir} is not a folder a replay made (no {RUN_MARKER} in it), and a "
+                f"replay would empty it: give another --out"
+            )
+        shutil.rmtree(run_dir)
+    run_dir.mkdir(parents=True)
+    (run_dir / RUN_MARKER).write_text(
+        "the run folder of a bfsitl log replay; emptied by the next\n"
+    )
+
+
+def lead_in_s(stream: StickStream) -> float:
+    """How long the first frame's sticks are sent before the log's, at its receiver's rate:
+    arming sent a frame every step, and the firmware's measure of the receiver's rate (a
+    smoothed average, ``[4.6] src/main/fc/rc.c:461-479``) takes some 40 frames to settle."""
+    return min(LEAD_IN_MAX_S, max(LEAD_IN_MIN_S, LEAD_IN_FRAMES * stream.frame_interval_s))
+
+
 def _stream(session: FlightSession, stream: StickStream, progress: Progress) -> float:
-    """Send every frame when it is due; the simulated seconds it took."""
+    """Send the lead-in, then every frame when it is due; the simulated seconds from the
+    log's first frame to its last."""
     bridge = session.bridge
     assert bridge is not None
     clock = session.clock
-    start_s = session.time_s
     next_check_s = next_report_s = 0.0
     bridge.rc_frames_on_set = True  # type: ignore[union-attr]
     try:
+        for _ in range(max(1, round(lead_in_s(stream) / stream.frame_interval_s))):
+            session.set_rc(_frame(stream, 0))
+            clock.sleep_s(stream.frame_interval_s)
+        start_s = session.time_s
         for index, due_s in enumerate(stream.time_s.tolist()):
             wait_s = start_s + due_s - session.time_s
             if wait_s > 0:

@@ -231,15 +231,14 @@ def write_ab_report_json(
     """Two replays of one log (A, B: another build or other settings) and B against A."""
     report = {
         "log": report_dict(a)["log"],
-        "a": {
-            **sides["a"],
-            "firmware": a.flight.firmware,
-            "targets_met": targets_met(a.comparison),
-        },
-        "b": {
-            **sides["b"],
-            "firmware": b.flight.firmware,
-            "targets_met": targets_met(b.comparison),
+        **{
+            name: {
+                **sides[name],
+                "firmware": side.flight.firmware,
+                "fc_counted_frames_as_sent": side.flight.receiver_frames,
+                "targets_met": targets_met(side.comparison),
+            }
+            for name, side in (("a", a), ("b", b))
         },
         "b_against_a": comparison_dict(b_against_a),
     }

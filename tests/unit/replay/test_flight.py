@@ -17,9 +17,11 @@ from bfsitl.fc.rc_link import RcCommand
 from bfsitl.physics.params import IRIS
 from bfsitl.protocol.firmware_profile import Generation
 from bfsitl.replay.flight import (
+    RUN_MARKER,
     ReplayFirmware,
     blackbox_lines,
     fly_replay,
+    lead_in_s,
     pid_process_denom,
     replay_firmware,
 )
@@ -115,14 +117,23 @@ def test_each_frame_goes_out_when_it_is_due(tmp_path: Path) -> None:
         session_factory=FakeSession,
     )
     session = FakeSession.made[0]
+    # A lead-in of the first frame at the receiver's rate (0.8 s: 40 frames of 20 ms), then
+    # the log's frames, each when it is due, the first one interval after the lead-in.
+    lead = round(lead_in_s(stream) / stream.frame_interval_s)
+    assert lead == 40 and len(session.sent) == lead + len(stream)
     times = np.array([t for t, _c, _on in session.sent])
-    assert times - times[0] == pytest.approx(stream.time_s, abs=1e-9)
+    assert np.diff(times[: lead + 1]) == pytest.approx(stream.frame_interval_s, abs=1e-9)
+    logged = times[lead:]
+    assert logged - logged[0] == pytest.approx(stream.time_s, abs=1e-9)
+    assert all(c == session.sent[lead][1] for _t, c, _on in session.sent[:lead])
     assert all(on for _t, _c, on in session.sent)  # one datagram per frame
     assert session.bridge.rc_frames_on_set is False and session.disarmed
     first, last = session.sent[0][1], session.sent[-1][1]
     assert first.aux_us == (2000.0, 2000.0, 1000.0)  # armed, ANGLE
     assert last.aux_us == (2000.0, 1000.0, 1000.0)  # armed, acro
-    assert [c.roll_us for _t, c, _on in session.sent] == pytest.approx(stream.roll_us.tolist())
+    assert [c.roll_us for _t, c, _on in session.sent[lead:]] == pytest.approx(
+        stream.roll_us.tolist()
+    )
     assert flight.frames_sent == len(stream) and flight.firmware == "4.6.0"
     assert flight.blackbox.name == "replay-LOG00001.BF" and flight.blackbox.exists()
     profile = session.config.fc.profile
@@ -217,12 +228,26 @@ def test_an_older_build_is_said_and_the_frames_are_asked_for(tmp_path: Path) -> 
 def test_a_new_replay_starts_from_a_fresh_eeprom(tmp_path: Path) -> None:
     stale = tmp_path / "sitl" / "eeprom.bin"
     stale.parent.mkdir()
+    (stale.parent / RUN_MARKER).write_text("")
     stale.write_bytes(b"an earlier replay's settings")
     fly_replay(
         _stream(), firmware=FIRMWARE, quad=IRIS, cli_lines=(), out_dir=tmp_path,
         session_factory=FakeSession,
     )  # fmt: skip
-    assert not stale.exists()
+    assert not stale.exists() and (stale.parent / RUN_MARKER).exists()
+
+
+def test_a_sitl_folder_no_replay_made_is_left_alone(tmp_path: Path) -> None:
+    mine = tmp_path / "sitl" / "notes.txt"
+    mine.parent.mkdir()
+    mine.write_text("a user's own folder named sitl")
+    with pytest.raises(ReplayError, match="give another --out"):
+        fly_replay(
+            _stream(), firmware=FIRMWARE, quad=IRIS, cli_lines=(), out_dir=tmp_path,
+            session_factory=FakeSession,
+        )  # fmt: skip
+    assert mine.read_text() == "a user's own folder named sitl"
+    assert not FakeSession.made
 
 
 def test_the_log_rate_follows_the_carried_pid_denominator(tmp_path: Path) -> None:

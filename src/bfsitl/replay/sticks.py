@@ -9,10 +9,12 @@ one above the bottom), and the frames carry ``rcCommand`` back:
 
 * roll and pitch: 1500 + rcCommand, yaw: 1500 - rcCommand (4.6.0 negates yaw unless
   ``yaw_control_reversed``);
-* the stick's deflection is rcCommand over 500 minus the deadband from 4.3 on
-  (``rcCommandDivider``, ``[4.6] src/main/fc/rc.c:77-78,729-731,887-888``), over 500
-  before; the replaying FC divides by 500, so a 4.3+ log's command is scaled up by
-  500 / (500 - deadband) to keep the deflection, and with it the setpoint;
+* the stick's deflection is rcCommand over 500 minus the deadband in 4.6
+  (``rcCommandDivider``, ``[4.6] src/main/fc/rc.c:77-78,729-731,887-888``) and over 500 in
+  older sources; which release brought the divider is not established here, so it is taken
+  as 4.3 (a deadband of 2-5 makes the difference 0.4-1 %).  The replaying FC divides by 500,
+  so a 4.3+ log's command is scaled up by 500 / (500 - deadband) to keep the deflection, and
+  with it the setpoint;
 * throttle: a logged 1000 is a stick below the real FC's ``min_check`` and is sent as 1000
   (below the replaying FC's 1001: arming and "throttle low" agree); above it, the pulse
   whose ``(pulse - 1001) * 1000 / 999`` is the logged command.

@@ -26,6 +26,7 @@ from bfsitl.fc.firmware_detect import profile_of_binary
 from bfsitl.fc.provisioning import ANGLE_ON_AUX2, ARM_ON_AUX1, Profile
 from bfsitl.fc.rc_link import RcCommand
 from bfsitl.mission.session import FcSetup, FlightSession, SessionConfig, SitlLaunch
+from bfsitl.mission.vehicle import SWITCH_OFF_US, SWITCH_ON_US
 from bfsitl.physics.params import QuadParams
 from bfsitl.protocol import messages as msg
 from bfsitl.protocol.boxes import BoxId
@@ -36,8 +37,6 @@ from bfsitl.sitl.firmware import find_firmware
 Progress = Callable[[str], None]
 
 HORIZON_ON_AUX3 = msg.ModeRange.from_us(BoxId.HORIZON, 2, 1700, 2100)
-SWITCH_ON_US = 2000.0
-SWITCH_OFF_US = 1000.0
 #: The replaying FC's log rate: about 1 kHz, what real logs of 1-4 kHz are compared at.
 LOG_RATE_HZ = 1000.0
 #: Marks a run folder a replay made (:func:`fresh_run_dir` empties no other).

@@ -39,6 +39,7 @@ import numpy as np
 
 from bfsitl.blackbox.decode import BlackboxFrame, BlackboxLog
 from bfsitl.errors import BlackboxError, ReplayError
+from bfsitl.fc.rc_link import RC_MID_US
 
 #: What makes the replaying FC's stick path the identity (see the module docstring).
 IDENTITY_RC_LINES = (
@@ -50,7 +51,6 @@ IDENTITY_RC_LINES = (
     "set thr_hover = 50",
     "set thr_expo = 0",
 )
-RC_MID_US = 1500.0
 THROTTLE_LOW_US = 1000.0
 _MIN_CHECK_US = 1001.0
 #: Box ids of the self-levelling modes in ``flightModeFlags`` (``boxId_e``: ARM 0, ANGLE 1,

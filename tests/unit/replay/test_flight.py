@@ -14,6 +14,7 @@ import pytest
 
 from bfsitl.errors import ReplayError, SitlExitedError
 from bfsitl.fc.rc_link import RcCommand
+from bfsitl.mission.vehicle import SWITCH_OFF_US, SWITCH_ON_US
 from bfsitl.physics.params import IRIS
 from bfsitl.protocol.firmware_profile import Generation
 from bfsitl.replay.flight import (
@@ -129,8 +130,8 @@ def test_each_frame_goes_out_when_it_is_due(tmp_path: Path) -> None:
     assert all(on for _t, _c, on in session.sent)  # one datagram per frame
     assert session.bridge.rc_frames_on_set is False and session.disarmed
     first, last = session.sent[0][1], session.sent[-1][1]
-    assert first.aux_us == (2000.0, 2000.0, 1000.0)  # armed, ANGLE
-    assert last.aux_us == (2000.0, 1000.0, 1000.0)  # armed, acro
+    assert first.aux_us == (SWITCH_ON_US, SWITCH_ON_US, SWITCH_OFF_US)  # armed, ANGLE
+    assert last.aux_us == (SWITCH_ON_US, SWITCH_OFF_US, SWITCH_OFF_US)  # armed, acro
     assert [c.roll_us for _t, c, _on in session.sent[lead:]] == pytest.approx(
         stream.roll_us.tolist()
     )

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import sys
 from pathlib import Path
 from typing import TYPE_CHECKING
@@ -90,7 +91,7 @@ def cmd_log_replay(args: argparse.Namespace) -> int:
     from bfsitl.errors import BfsitlError
     from bfsitl.fit.fit_log import pick_log
     from bfsitl.replay.compare import compare_logs
-    from bfsitl.replay.replay_log import Replay, replay_log
+    from bfsitl.replay.replay_log import replay_log
     from bfsitl.replay.replay_report import (
         targets_met,
         write_ab_report_json,
@@ -137,19 +138,14 @@ def cmd_log_replay(args: argparse.Namespace) -> int:
         )
         write_report_json(b_replay, b_out / "replay-report.json")
         write_report_png(b_replay, b_out / "replay-report.png")
-        b_against_a = compare_logs(
-            pick_log(replay.flight.blackbox, None), pick_log(b_replay.flight.blackbox, None)
-        )
+        b_against_a = compare_logs(replay.replayed, b_replay.replayed)
         sides = {
             "a": {"cli": list(args.cli)},
             "b": {"cli": [*args.cli, *args.b_cli], "built": args.b_firmware or args.firmware},
         }
         write_ab_report_json(replay, b_replay, b_against_a, sides, args.out / "b-against-a.json")
-        ab = Replay(
-            log, replay.vehicle, b_replay.settings, b_replay.stream, b_replay.flight, b_against_a
-        )
         write_report_png(
-            ab,
+            dataclasses.replace(b_replay, comparison=b_against_a),
             args.out / "b-against-a.png",
             labels=("A", "B"),
             title=f"{log.path.name} log {log.index}: B ({_side(args, 'b')}) against A "

@@ -26,7 +26,7 @@ from dataclasses import dataclass, field
 import numpy as np
 from scipy import signal
 
-from bfsitl.blackbox.decode import BlackboxLog
+from bfsitl.blackbox.decode import BlackboxFrame, BlackboxLog
 from bfsitl.errors import ReplayError
 from bfsitl.fit.log_data import DSHOT_FULL, header_number, motor_command_share
 from bfsitl.replay.step_response import StepResponse, step_response
@@ -129,8 +129,8 @@ class ReplayComparison:
     samples: int = 0
 
 
-def log_traces(log: BlackboxLog, *, rate_hz: float = RATE_HZ) -> LogTraces:
-    """``log`` on a uniform clock (see :class:`LogTraces`).
+def comparable_frames(log: BlackboxLog) -> list[BlackboxFrame]:
+    """The frames of ``log`` a comparison reads: with sticks and gyro, without a gap.
 
     Raises:
         ReplayError: No rcCommand or gyro in the log, or under a second of it.
@@ -144,6 +144,16 @@ def log_traces(log: BlackboxLog, *, rate_hz: float = RATE_HZ) -> LogTraces:
     )
     if len(frames) < 2 or frames[-1].time_s - frames[0].time_s < 1.0:
         raise ReplayError(f"{label}: under a second of rcCommand and gyro without a gap")
+    return frames
+
+
+def log_traces(log: BlackboxLog, *, rate_hz: float = RATE_HZ) -> LogTraces:
+    """``log`` on a uniform clock (see :class:`LogTraces`).
+
+    Raises:
+        ReplayError: No rcCommand or gyro in the log, or under a second of it.
+    """
+    frames = comparable_frames(log)
     times = np.array([f.time_s for f in frames])
     times -= times[0]
     grid = np.arange(0.0, times[-1], 1.0 / rate_hz)

@@ -13,7 +13,7 @@ from bfsitl.blackbox.decode import BlackboxLog, decode_blackbox
 from bfsitl.build.binary_scan import names_missing
 from bfsitl.errors import ReplayError
 from bfsitl.physics.params import QuadParams
-from bfsitl.replay.compare import ReplayComparison, compare_logs, log_traces
+from bfsitl.replay.compare import ReplayComparison, comparable_frames, compare_logs
 from bfsitl.replay.flight import ReplayedFlight, fly_replay, replay_firmware
 from bfsitl.replay.header_settings import HeaderSettings, NotCarried, header_settings
 from bfsitl.replay.sticks import IDENTITY_RC_LINES, StickStream, stick_stream
@@ -32,6 +32,7 @@ class Replay:
         stream: The receiver frames sent.
         flight: What the replay left behind (the replaying FC's log, the firmware, timing).
         comparison: The replaying FC's log against the real one, per axis.
+        replayed: The replaying FC's log, decoded (an A/B compares two of them).
     """
 
     log: BlackboxLog
@@ -40,6 +41,7 @@ class Replay:
     stream: StickStream
     flight: ReplayedFlight
     comparison: ReplayComparison
+    replayed: BlackboxLog
 
 
 def replay_log(
@@ -71,7 +73,7 @@ def replay_log(
         SitlError, ArmingBlockedError: The SITL would not start, answer or arm.
     """
     stream = stick_stream(log)
-    log_traces(log)  # what the comparison needs is there, before anything flies
+    comparable_frames(log)  # what the comparison needs is there, before anything flies
     firmware_found = replay_firmware(firmware)
     settings = header_settings(log.headers, sitl_pid_rate_hz=firmware_found.pid_loop_hz)
     settings = known_to(settings, firmware_found.path)
@@ -92,8 +94,8 @@ def replay_log(
     replayed = decode_blackbox(flight.blackbox)
     if not replayed:
         raise ReplayError(f"the replay's blackbox file {flight.blackbox} holds no log")
-    comparison = compare_logs(log, max(replayed, key=lambda one: len(one.frames)))
-    return Replay(log, quad.name, settings, stream, flight, comparison)
+    longest = max(replayed, key=lambda one: len(one.frames))
+    return Replay(log, quad.name, settings, stream, flight, compare_logs(log, longest), longest)
 
 
 def line_name(line: str) -> str:

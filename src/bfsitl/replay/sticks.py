@@ -40,6 +40,7 @@ import numpy as np
 from bfsitl.blackbox.decode import BlackboxFrame, BlackboxLog
 from bfsitl.errors import BlackboxError, ReplayError
 from bfsitl.fc.rc_link import RC_MID_US
+from bfsitl.fit.log_data import header_number
 
 #: What makes the replaying FC's stick path the identity (see the module docstring).
 IDENTITY_RC_LINES = (
@@ -117,21 +118,14 @@ def counts_frames_every_loop(log: BlackboxLog) -> bool:
     return "SITL" in log.firmware_revision and version is not None and version[0] == 4
 
 
-def _header_int(log: BlackboxLog, name: str, default: int) -> int:
-    try:
-        return int(log.headers.get(name, "").split(",")[0])
-    except ValueError:
-        return default
-
-
 def deflection_scales(log: BlackboxLog) -> tuple[float, float]:
     """(roll and pitch, yaw): what keeps the deflection of a log's commands on an FC with no
     deadband (see the module docstring)."""
     version = firmware_version(log.firmware_revision)
     if version is None or version < (4, 3, 0):
         return 1.0, 1.0
-    deadband = _header_int(log, "deadband", 0)
-    yaw_deadband = _header_int(log, "yaw_deadband", 0)
+    deadband = header_number(log, "deadband", 0.0)
+    yaw_deadband = header_number(log, "yaw_deadband", 0.0)
     return 500.0 / (500.0 - deadband), 500.0 / (500.0 - yaw_deadband)
 
 
@@ -140,10 +134,10 @@ def frame_interval_s(
 ) -> tuple[float, str]:
     """The receiver's frame interval and where it came from."""
     low, high = _FRAME_INTERVAL_RANGE_S
-    averaged_us = _header_int(log, "rc_smoothing_rx_average", 0)
+    averaged_us = header_number(log, "rc_smoothing_rx_average", 0.0)
     if low <= averaged_us / 1e6 <= high:
         return averaged_us / 1e6, "header rc_smoothing_rx_average"
-    rate_hz = _header_int(log, "rc_smoothing_rx_smoothed", 0)
+    rate_hz = header_number(log, "rc_smoothing_rx_smoothed", 0.0)
     if rate_hz > 0 and low <= 1.0 / rate_hz <= high:
         return 1.0 / rate_hz, "header rc_smoothing_rx_smoothed"
     changed = np.flatnonzero(np.any(np.diff(commands, axis=0) != 0, axis=1)) + 1

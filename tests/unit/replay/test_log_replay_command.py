@@ -80,6 +80,7 @@ def test_the_exit_code_follows_the_targets(
             stick_stream(real),
             flight,
             compare_logs(real, replayed),
+            replayed,
         )
 
     replay_log_module = importlib.import_module("bfsitl.replay.replay_log")
@@ -145,21 +146,19 @@ def test_a_b_replays_the_log_twice_and_compares_b_with_a(
 
     def fake_replay(log: object, **options: object) -> Replay:
         calls.append(options)
+        # A's replay flew as the real quad, B's as the slower one: B against A is slower.
         replayed = real if len(calls) == 1 else slower
         out = Path(str(options["out_dir"]))
         flight = ReplayedFlight(out / "replay-LOG00001.BF", "4.6.0", 100, 20.0, 0.5)
         return Replay(
             real, "5inch-freestyle", header_settings(real.headers), stick_stream(real), flight,
-            compare_logs(real, replayed),
+            compare_logs(real, replayed), replayed,
         )  # fmt: skip
 
     replay_log_module = importlib.import_module("bfsitl.replay.replay_log")
     monkeypatch.setattr(replay_log_module, "replay_log", fake_replay)
     fit_log_module = importlib.import_module("bfsitl.fit.fit_log")
-    # A's log is the real one again, B's the slower quad's: B against A is the slower one.
-    monkeypatch.setattr(
-        fit_log_module, "pick_log", lambda path, index: slower if "/b/" in str(path) else real
-    )
+    monkeypatch.setattr(fit_log_module, "pick_log", lambda path, index: real)
     out = tmp_path / "out"
     code = main(
         [

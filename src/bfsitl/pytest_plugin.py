@@ -10,9 +10,9 @@ in a conftest).  Options:
   ``[vehicle]`` names none (default: IRIS; ``bfsitl vehicle list`` shows the names).
 
 With at least one ``--bfsitl-firmware``, every ``*.toml`` file pytest is pointed at that is a
-scenario (it has ``[flight]`` and ``[expect]``) becomes one test per firmware; a failed
-expectation fails it with the message that names it, the measured value and the time;
-a fault the firmware cannot express skips it.
+scenario (it has ``[flight]`` or ``[replay]``, and ``[expect]``) becomes one test per
+firmware; a failed expectation fails it with the message that names it, the measured value
+and the time; a fault the firmware cannot express skips it.
 
 Fixtures:
 
@@ -158,7 +158,7 @@ def _looks_like_scenario(path: Path) -> bool:
         data = tomllib.loads(path.read_text())
     except (OSError, UnicodeDecodeError, tomllib.TOMLDecodeError):
         return False
-    return "flight" in data and "expect" in data
+    return ("flight" in data or "replay" in data) and "expect" in data
 
 
 def pytest_collect_file(file_path: Path, parent: pytest.Collector) -> pytest.Collector | None:

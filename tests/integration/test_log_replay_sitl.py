@@ -100,6 +100,45 @@ def test_a_flight_replayed_through_its_own_firmware_flies_the_same(
     assert (out / "b-against-a.png").stat().st_size > 10_000
 
 
+# The 60 s flight and one replay per side.
+@pytest.mark.timeout(300)
+def test_a_replay_scenario_in_scenario_compare_says_what_a_change_did_to_the_flight(
+    flown_log: tuple[Path, Path], tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """The same log as a ``[replay]`` scenario, A against B with a quarter of the roll P:
+    A meets its expectations (it is the flight that was flown), B's roll overshoots more and
+    rises later, pitch and yaw stay the same, and the verdict fails the comparison."""
+    firmware, log = flown_log
+    scenario = tmp_path / "flown-square.toml"
+    scenario.write_text(
+        f'description = "the 5-inch square, replayed"\n[replay]\nlog = "{log}"\n'
+        '[vehicle]\nmodel = "5inch-freestyle"\n'
+        "[expect]\nreplay_targets_met = true\nmin_setpoint_correlation = 0.99\n"
+        'no_finding = ["crash", "loss_of_control"]\n'
+    )
+    out = tmp_path / "cmp"
+    code = main(
+        [
+            "scenario", "compare", str(scenario), "--firmware", str(firmware),
+            "--firmware", str(firmware), "--b-cli", "set p_roll = 12", "--out", str(out),
+        ]
+    )  # fmt: skip
+    printed = capsys.readouterr()
+    assert code == 1, printed.out + printed.err
+    assert "one seed" in printed.err  # a replay repeats bit for bit
+    a_run = json.loads((out / "A" / "flown-square" / "seed-0" / "result.json").read_text())
+    assert a_run["verdict"] == "passed", a_run["reason"]
+    assert {"crash", "loss_of_control"} <= set(a_run["analysers"]["watched"])
+    (compared,) = json.loads((out / "compare.json").read_text())["scenarios"]
+    figures = {f["name"]: f for f in compared["figures"]}
+    assert figures["roll_overshoot_pct"]["change"] == "worse", figures["roll_overshoot_pct"]
+    assert figures["roll_rise_ms"]["b"][0] > 1.2 * figures["roll_rise_ms"]["a"][0]
+    for name in ("yaw_tracking_dps", "yaw_rise_ms", "pitch_overshoot_pct", "motor_mean_pct"):
+        assert figures[name]["change"] == "same", figures[name]
+    assert compared["change"] in ("worse", "changed") and compared["fails"]
+    assert (out / "overlays" / "flown-square.png").stat().st_size > 10_000
+
+
 @pytest.mark.timeout(300)
 def test_a_real_logs_receiver_rate_reaches_the_firmware(
     lockstep_gps_46_firmware: Path, tmp_path: Path

@@ -12,8 +12,9 @@ analyser               what it looks for                            reads
 ``fly_away``           farther from home than the farthest target   the truth
                        plus 25 m
 ``loss_of_control``    upside down in the air (failure), tilted     the truth or the FC's
-                       past 75 deg (warning); the gyro 200 deg/s    attitude; a log's gyro
-                       off its setpoint for 0.25 s                  and setpoint
+                       past 75 deg (warning), where the FC levels   attitude; a log's gyro
+                       (not in acro); the gyro 200 deg/s off its    and setpoint
+                       setpoint for 0.25 s
 ``oscillation``        the attitude (or the gyro's error) swinging  the truth; a log's
                        back and forth, sustained                    gyro and setpoint
 ``motor_saturation``   a motor at >= 98 % for 0.25 s or more        the motors

@@ -26,10 +26,14 @@ from bfsitl.protocol.failsafe_phase import FailsafePhase
 def loss_of_control(track: Track, limits: Limits) -> Finding | None:
     points = track.points
     in_air = [p for p in points if p.armed and p.airborne is not False]
+    # A tilt is a loss of control only where the FC levels the quad: in acro a pilot flips
+    # it on purpose (a freestyle flight's roll), and the gyro against its setpoint says
+    # whether the FC kept control.
+    levelled = [p for p in in_air if p.self_levelling is not False]
     findings: list[Finding] = []
     if track.has("tilt_deg"):
         inverted = [
-            p for p in in_air if finite(p.tilt_deg) and p.tilt_deg >= limits.upside_down_deg
+            p for p in levelled if finite(p.tilt_deg) and p.tilt_deg >= limits.upside_down_deg
         ]
         if inverted:
             worst = max(inverted, key=lambda p: p.tilt_deg)
@@ -52,21 +56,21 @@ def loss_of_control(track: Track, limits: Limits) -> Finding | None:
             )
         else:
             for first, last in runs(
-                in_air, lambda p: finite(p.tilt_deg) and p.tilt_deg >= limits.lost_attitude_deg
+                levelled, lambda p: finite(p.tilt_deg) and p.tilt_deg >= limits.lost_attitude_deg
             ):
-                worst = max(in_air[first : last + 1], key=lambda p: p.tilt_deg)
+                worst = max(levelled[first : last + 1], key=lambda p: p.tilt_deg)
                 findings.append(
                     Finding(
                         "loss_of_control",
                         Severity.WARNING,
                         f"tilted {worst.tilt_deg:.0f} deg in the air, past the "
                         f"{limits.lost_attitude_deg:.0f} deg the FC commands at most",
-                        in_air[first].time_s,
+                        levelled[first].time_s,
                         worst.tilt_deg,
                         "deg",
                         {
                             "max_tilt_deg": worst.tilt_deg,
-                            "lasted_s": span_s(in_air, first, last),
+                            "lasted_s": span_s(levelled, first, last),
                             "sample": evidence_of(worst),
                         },
                         track.source,

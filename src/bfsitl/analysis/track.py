@@ -64,6 +64,10 @@ class TrackPoint:
     #: The receiver: a signal and valid flight channels (None: not known).
     rx_ok: bool | None = None
     modes: tuple[str, ...] = ()
+    #: The FC levels the quad itself (ANGLE, HORIZON, an altitude or position hold, a
+    #: failsafe); False: it flies rates (acro), where a pilot may turn it any way up; None:
+    #: not known.
+    self_levelling: bool | None = None
     #: What the FC believes: its altitude and its GPS position (NaN: not reported).
     fc_alt_m: float = _NAN
     fc_north_m: float = _NAN
@@ -181,6 +185,12 @@ def _tilt_roll_pitch(xyz: tuple[int, ...]) -> tuple[float, float, float]:
     return tilt, roll, pitch
 
 
+#: Box ids whose switch makes the FC level the quad (``boxId_e``, the same from 3.x to 4.6;
+#: the blackbox logs the first 32 boxes' switches as ``flightModeFlags``).
+#: ANGLE 1, HORIZON 2, ALTHOLD 3, POSHOLD 11, FAILSAFE 27.
+LEVELLING_BOXES = (1 << 1) | (1 << 2) | (1 << 3) | (1 << 11) | (1 << 27)
+
+
 def track_from_blackbox(log: BlackboxLog) -> Track:
     """One blackbox log as a track, times from its first frame.  Rates are scaled back from
     ``blackbox_high_resolution``, motors from ``motorOutput``, the accelerometer from
@@ -210,6 +220,8 @@ def track_from_blackbox(log: BlackboxLog) -> Track:
                 accel_g=accel,
                 throttle=stick_share(frame.rc_command[3]) if len(frame.rc_command) > 3 else _NAN,
                 failsafe_phase=frame.failsafe_phase,
+                self_levelling=bool(frame.mode_switch_mask & LEVELLING_BOXES)
+                or bool(frame.failsafe_phase),
                 rx_ok=None
                 if frame.rx_signal_received is None
                 else bool(frame.rx_signal_received and frame.rx_flight_channels_valid),

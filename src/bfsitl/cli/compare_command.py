@@ -123,7 +123,13 @@ def add_compare_parser(actions: argparse._SubParsersAction) -> None:  # type: ig
 def cmd_scenario_compare(args: argparse.Namespace) -> int:
     from bfsitl.cli.scenario_inputs import check_builds, paths_or_library
     from bfsitl.errors import ScenarioError
-    from bfsitl.scenario.compare import Change, Side, compare_results, plan_comparison
+    from bfsitl.scenario.compare import (
+        Change,
+        Side,
+        compare_results,
+        plan_comparison,
+        seeds_for,
+    )
     from bfsitl.scenario.compare_output import (
         comparison_lines,
         draw_overlays,
@@ -156,9 +162,15 @@ def cmd_scenario_compare(args: argparse.Namespace) -> int:
     check_builds([entry.run for entry in planned], given=True)
     if (sides[0].firmware, sides[0].cli) == (sides[1].firmware, sides[1].cli):
         progress("A and B are the same build and lines: every scenario should come out same")
+    replays = sum(seeds_for(s, args.seeds) < args.seeds for s in scenarios)
     progress(
         f"{len(planned)} runs: {len(scenarios)} scenarios x {args.seeds} seeds x 2 "
         f"sides; files in {args.out}/"
+        + (
+            f" ({replays} replay(s) without gusts flown with one seed: they repeat bit for bit)"
+            if replays
+            else ""
+        )
     )
     for side in sides:
         progress(side.title)

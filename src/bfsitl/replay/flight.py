@@ -28,6 +28,7 @@ from bfsitl.fc.rc_link import RcCommand
 from bfsitl.mission.session import FcSetup, FlightSession, SessionConfig, SitlLaunch
 from bfsitl.mission.vehicle import SWITCH_OFF_US, SWITCH_ON_US
 from bfsitl.physics.params import QuadParams
+from bfsitl.physics.wind import Wind
 from bfsitl.protocol import messages as msg
 from bfsitl.protocol.boxes import BoxId
 from bfsitl.protocol.firmware_profile import FirmwareProfile, Generation
@@ -165,6 +166,8 @@ def fly_replay(
     cli_lines: tuple[str, ...],
     out_dir: Path,
     progress: Progress = lambda _line: None,
+    seed: int = 0,
+    wind: Wind | None = None,
     session_factory: Callable[..., FlightSession] = FlightSession,
 ) -> ReplayedFlight:
     """Fly ``stream`` (see the module docstring); the SITL runs in ``out_dir/sitl``.
@@ -177,6 +180,9 @@ def fly_replay(
             added here.
         out_dir: Where the SITL runs and its log is copied to (``replay.BFL``).
         progress: Called with a line of text at each stage and every 10 s of flight.
+        seed: Seeds the simulated sensors' noise (and the gusts): the same seed, the same
+            replay.
+        wind: The air the replay flies through (a log does not say; None: still air).
         session_factory: Makes the session (a fake in unit tests).
 
     Raises:
@@ -201,7 +207,7 @@ def fly_replay(
         ),
         timing=Timing(),
         fc=FcSetup(profile=replay_profile(lines), angle_mode=bool(stream.angle[0])),
-        world=World(quad=quad),
+        world=World(quad=quad, wind=wind, seed=seed),
     )
     with session_factory(config, progress=progress) as session:
         session.start()

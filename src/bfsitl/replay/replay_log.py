@@ -13,6 +13,7 @@ from bfsitl.blackbox.decode import BlackboxLog, decode_blackbox
 from bfsitl.build.binary_scan import names_missing
 from bfsitl.errors import ReplayError
 from bfsitl.physics.params import QuadParams
+from bfsitl.physics.wind import Wind
 from bfsitl.replay.compare import ReplayComparison, comparable_frames, compare_logs
 from bfsitl.replay.flight import ReplayedFlight, fly_replay, replay_firmware
 from bfsitl.replay.header_settings import HeaderSettings, NotCarried, header_settings
@@ -52,6 +53,8 @@ def replay_log(
     out_dir: Path,
     extra_cli: tuple[str, ...] = (),
     progress: Progress = lambda _line: None,
+    seed: int = 0,
+    wind: Wind | None = None,
 ) -> Replay:
     """Fly ``log`` again with ``quad`` on ``firmware`` (a lockstep build) and compare.
 
@@ -63,6 +66,8 @@ def replay_log(
         out_dir: Where the SITL runs and its log is kept.
         extra_cli: CLI lines applied after the log's settings.
         progress: Called with a line of text at each stage.
+        seed: Seeds the simulated sensors' noise: the same seed, the same replay.
+        wind: The air the replay flies through (None: still air; a log does not say).
 
     Returns:
         The replay: what was sent, what flew and how it compared.
@@ -90,6 +95,8 @@ def replay_log(
         cli_lines=(*IDENTITY_RC_LINES, *settings.cli_lines, *extra_cli),
         out_dir=out_dir,
         progress=progress,
+        seed=seed,
+        wind=wind,
     )
     replayed = decode_blackbox(flight.blackbox)
     if not replayed:

@@ -151,10 +151,24 @@ def write_report_png(
 ) -> None:
     """Per axis, the real flight's setpoint and gyro against the replay's on one time base
     (the real log's), with both step responses beside them; the mean motor command below."""
+    write_comparison_png(
+        replay.comparison,
+        path,
+        labels=labels,
+        title=title
+        or f"{replay.log.path.name} log {replay.log.index} ({replay.log.firmware_revision}) "
+        f"replayed on {replay.flight.firmware} with {replay.vehicle}",
+    )
+
+
+def write_comparison_png(
+    comparison: ReplayComparison, path: Path, *, labels: tuple[str, str], title: str
+) -> None:
+    """Two logs compared (:func:`~bfsitl.replay.compare.compare_logs`: a real flight and its
+    replay, or two replays A and B), drawn as :func:`write_report_png` says."""
     from bfsitl.headless_pyplot import load_pyplot
 
     plt = load_pyplot()
-    comparison = replay.comparison
     real, sim = comparison.real, comparison.replay
     a = slice(comparison.real_start, comparison.real_start + comparison.samples)
     b = slice(comparison.replay_start, comparison.replay_start + comparison.samples)
@@ -200,12 +214,7 @@ def write_report_png(
     motors.legend(loc="upper right", fontsize=7)
     grid[3][1].set_axis_off()
     grid[2][1].set_xlabel("ms")
-    fig.suptitle(
-        title
-        or f"{replay.log.path.name} log {replay.log.index} ({replay.log.firmware_revision}) "
-        f"replayed on {replay.flight.firmware} with {replay.vehicle}",
-        fontsize=10,
-    )
+    fig.suptitle(title, fontsize=10)
     fig.tight_layout()
     fig.savefig(path, dpi=90)
     plt.close(fig)

@@ -138,7 +138,8 @@ def draw_overlays(
     comparisons: Sequence[ScenarioComparison], sides: tuple[Side, Side], directory: Path
 ) -> None:
     """Each scenario's first seed on both sides, one plot (``directory/NAME.png``), from the
-    runs' ``trace.csv``; the path is kept as the first A run's ``overlay`` artifact."""
+    runs' ``trace.csv`` (a replay's: the two replaying FCs' logs, per axis); the path is kept
+    as the first A run's ``overlay`` artifact."""
     from bfsitl.scenario.plot import write_overlay_plot
     from bfsitl.scenario.trace import read_trace_csv
 
@@ -147,6 +148,9 @@ def draw_overlays(
         if not comparison.a_runs or not comparison.b_runs:
             continue
         first_a, first_b = comparison.a_runs[0], comparison.b_runs[0]
+        if "replay_report" in first_a.artifacts and "replay_report" in first_b.artifacts:
+            _draw_replay_overlay(comparison, sides, directory)
+            continue
         paths = [first_a.artifacts.get("trace"), first_b.artifacts.get("trace")]
         if not all(p is not None and Path(p).is_file() for p in paths):
             continue
@@ -162,6 +166,34 @@ def draw_overlays(
             directory / f"{dir_name(comparison.name)}.png",
             title=f"{comparison.name}: {comparison.change.value}",
         )
+
+
+def _draw_replay_overlay(
+    comparison: ScenarioComparison, sides: tuple[Side, Side], directory: Path
+) -> None:
+    """Two replays of one log: B's replaying FC against A's, per axis (setpoint, gyro, step
+    response) and the motors."""
+    from bfsitl.blackbox import decode_blackbox
+    from bfsitl.replay.compare import compare_logs
+    from bfsitl.replay.replay_report import write_comparison_png
+
+    first_a, first_b = comparison.a_runs[0], comparison.b_runs[0]
+    try:
+        logs = [
+            max(decode_blackbox(Path(run.artifacts["blackbox"])), key=lambda log: len(log.frames))
+            for run in (first_a, first_b)
+        ]
+        path = directory / f"{dir_name(comparison.name)}.png"
+        write_comparison_png(
+            compare_logs(logs[0], logs[1]),
+            path,
+            labels=("A", "B"),
+            title=f"{comparison.name}: {comparison.change.value}; {sides[1].title} against "
+            f"{sides[0].title}",
+        )
+    except (BfsitlError, KeyError, ValueError, OSError):
+        return  # a side without a readable log: the figures still say what changed
+    first_a.artifacts["overlay"] = path
 
 
 def write_comparison_report(

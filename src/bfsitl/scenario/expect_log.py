@@ -101,6 +101,10 @@ def finding(key: str, value: str | list[str], trace: Trace, _e: dict[str, Any]) 
 
 def no_finding(key: str, value: str | list[str], trace: Trace, _e: dict[str, Any]) -> CheckResult:
     found = [f for f in trace.findings if f.analyser in name_list(value)]
+    blind = [name for name in name_list(value) if name in trace.unwatched]
+    if not found and blind:
+        why = "; ".join(f"{name}: {trace.unwatched[name]}" for name in blind)
+        return check(key, value, False, f"could not watch this run ({why})", None, None)
     if not found:
         return check(key, value, True, "none of them found anything", None, None)
     return check(

@@ -39,6 +39,10 @@ key = value                    holds when
                                ``failure``)
 =============================  ===============================================================
 
+A replay (``[replay]``, :mod:`bfsitl.scenario.replay_spec`) has no trace of the truth: it takes
+the blackbox and finding keys above and its own (``replay_targets_met``,
+``min_setpoint_correlation``, ``max_gyro_off_real``: :mod:`bfsitl.scenario.expect_replay`).
+
 Expectations that hold for one firmware generation only go in ``[expect."4.6"]`` or
 ``[expect.master]`` (a GPS Rescue is the FC's GPS RESCUE mode on 4.6.0, and an autopilot
 mission, AUTOPILOT, on master).  The four "never" limits also take a window:
@@ -54,11 +58,12 @@ from typing import TYPE_CHECKING, Any
 
 from bfsitl.analysis import ANALYSERS, Severity
 from bfsitl.errors import ScenarioError
-from bfsitl.scenario import expect_flight, expect_log, expect_path
+from bfsitl.scenario import expect_flight, expect_log, expect_path, expect_replay
 from bfsitl.scenario.expect_base import Limit, name_list
 from bfsitl.scenario.expect_base import shown as _shown
 from bfsitl.scenario.expect_flight import extreme, in_the_air, whole_run
-from bfsitl.scenario.result import CheckResult
+from bfsitl.scenario.known_failures import judge_known, known_reason
+from bfsitl.scenario.result import CheckResult, ScenarioResult, Verdict
 from bfsitl.scenario.trace import FAILSAFE_PHASES, Trace
 
 if TYPE_CHECKING:
@@ -109,6 +114,22 @@ _KEYS: dict[str, tuple[str, _Judge | None]] = {
     "finding": ("analysers", expect_log.finding),
     "no_finding": ("analysers", expect_log.no_finding),
     "worst_finding": ("severity", expect_log.worst_finding),
+    "replay_targets_met": ("bool", expect_replay.replay_targets),
+    "min_setpoint_correlation": ("number", expect_replay.min_setpoint_correlation),
+    "max_gyro_off_real": ("number", expect_replay.max_gyro_off_real),
+}
+#: What a replay is judged by: the FC's log, the analysers, how it compared with the real
+#: flight.  The replay's own keys go with a replay only.
+REPLAY_ONLY_KEYS = frozenset(
+    {"replay_targets_met", "min_setpoint_correlation", "max_gyro_off_real"}
+)
+REPLAY_KEYS = REPLAY_ONLY_KEYS | {
+    "blackbox_phase",
+    "blackbox_disarm_reason",
+    "blackbox_link_lost",
+    "finding",
+    "no_finding",
+    "worst_finding",
 }
 ANALYSER_NAMES = tuple(a.name for a in ANALYSERS)
 #: Limits measured from a point (the take-off point unless north_m / east_m say).
@@ -246,6 +267,16 @@ def _checked(scenario: Scenario, shown: str, key: str, value: Any) -> Any:
             f"{', '.join(EXPECTATION_KEYS)} (and the tables "
             f"{', '.join(GENERATION_TABLES)})"
         )
+    if scenario.replay is not None and key not in REPLAY_KEYS:
+        raise ScenarioError(
+            f"{scenario.where}, [expect]: {shown} is about a flight bfsitl flies; a replay "
+            f"is judged by {', '.join(sorted(REPLAY_KEYS))}"
+        )
+    if scenario.replay is None and key in REPLAY_ONLY_KEYS:
+        raise ScenarioError(
+            f"{scenario.where}, [expect]: {shown} compares a replay with the real flight; "
+            "it needs a [replay] table"
+        )
     return _parse(scenario.where, key, value)
 
 
@@ -258,7 +289,7 @@ def judge(scenario: Scenario, trace: Trace, generation: str | None = None) -> li
     """Every expectation of ``scenario`` (and of ``generation``'s own table) judged on
     ``trace``, in the file's order."""
     expect = parsed_expectations(scenario, generation)
-    if not trace.rows:
+    if not trace.rows and trace.replay is None:
         return [
             CheckResult(_shown(k, v), False, f"{_shown(k, v)}: nothing was recorded")
             for k, v in expect.items()
@@ -270,3 +301,22 @@ def judge(scenario: Scenario, trace: Trace, generation: str | None = None) -> li
         if judge_key is not None:
             results.append(judge_key(key, value, trace, expect))
     return results
+
+
+def settle_verdict(
+    result: ScenarioResult, scenario: Scenario, trace: Trace, generation: str
+) -> None:
+    """``result``'s checks, verdict and reason: the expectations judged on ``trace``, then
+    the known failures on the findings (a known defect that happened, with every expectation
+    met, is a known failure, never a pass)."""
+    checks = judge(scenario, trace, generation)
+    known_checks, happened = judge_known(scenario.known_failures, generation, result.findings)
+    result.checks = checks + known_checks
+    failed = [c for c in result.checks if not c.passed]
+    if failed:
+        result.verdict, result.reason = Verdict.FAILED, failed[0].message
+    elif happened:
+        result.verdict, result.reason = Verdict.KNOWN, known_reason(happened)
+    else:
+        result.verdict = Verdict.PASSED
+        result.reason = f"all {len(checks)} expectations met"

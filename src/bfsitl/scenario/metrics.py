@@ -14,6 +14,8 @@ import math
 from dataclasses import dataclass, field
 from typing import TYPE_CHECKING
 
+import numpy as np
+
 from bfsitl.analysis.ground_contact import touchdowns
 from bfsitl.analysis.limits import Limits
 from bfsitl.analysis.series import held_points
@@ -22,6 +24,7 @@ from bfsitl.scenario.trace import Trace, phase_name
 
 if TYPE_CHECKING:
     from bfsitl.analysis import Finding
+    from bfsitl.replay.compare import ReplayComparison
 
 
 @dataclass(frozen=True, slots=True)
@@ -68,6 +71,41 @@ METRICS: tuple[Metric, ...] = (
         "without a battery model",
     ),
 )
+#: A replay's figures (``[replay]`` scenarios), per axis: how the replaying quad followed its
+#: own setpoint and how far it flew from the real flight.
+REPLAY_AXES = ("roll", "pitch", "yaw")
+REPLAY_METRICS: tuple[Metric, ...] = (
+    *(
+        metric
+        for axis in REPLAY_AXES
+        for metric in (
+            Metric(
+                f"{axis}_tracking_dps",
+                "deg/s",
+                "lower",
+                1.0,
+                f"{axis}: the gyro off the FC's own setpoint, RMS",
+            ),
+            Metric(
+                f"{axis}_overshoot_pct",
+                "%",
+                "lower",
+                2.0,
+                f"{axis}: the step response's overshoot (setpoint to gyro)",
+            ),
+            Metric(f"{axis}_rise_ms", "ms", None, 2.0, f"{axis}: the step response's rise time"),
+            Metric(
+                f"{axis}_off_real",
+                "",
+                None,
+                0.02,
+                f"{axis}: the gyro off the real flight's (RMS of the difference over RMS)",
+            ),
+        )
+    ),
+    Metric("motor_mean_pct", "%", "lower", 0.5, "the motors' mean command over the replay"),
+)
+METRICS = (*METRICS, *REPLAY_METRICS)
 #: ``fault_to_PHASE_s`` metrics: one per failsafe phase reached (tolerance 0.3 s).
 PHASE_METRIC_TOLERANCE_S = 0.3
 
@@ -146,6 +184,30 @@ def run_metrics(track: Track, trace: Trace, findings: list[Finding]) -> RunMetri
         "ended": [_ending(track)],
         "findings": [f"{f.analyser}:{f.severity.label}" for f in findings],
     }
+    return out
+
+
+def replay_metrics(comparison: ReplayComparison, findings: list[Finding]) -> RunMetrics:
+    """A replay's figures (:data:`REPLAY_METRICS`) from its log against the real one, over
+    the span they were compared (up to where the real quad lost control)."""
+    out = RunMetrics()
+    traces = comparison.replay
+    span = slice(comparison.replay_start, comparison.replay_start + comparison.samples)
+    for index, axis in enumerate(comparison.axes):
+        tracking = None
+        if traces.setpoint_dps is not None and comparison.samples:
+            off = traces.gyro_dps[index, span] - traces.setpoint_dps[index, span]
+            tracking = math.sqrt(float(np.mean(off**2)))
+        step = axis.replay_step
+        out.values[f"{axis.axis}_tracking_dps"] = tracking
+        out.values[f"{axis.axis}_overshoot_pct"] = step.overshoot_pct if step else None
+        out.values[f"{axis.axis}_rise_ms"] = step.rise_time_ms if step else None
+        out.values[f"{axis.axis}_off_real"] = axis.gyro_error
+    levels = traces.motor_level
+    out.values["motor_mean_pct"] = (
+        100.0 * float(np.mean(levels[span])) if levels is not None and comparison.samples else None
+    )
+    out.behaviour = {"findings": [f"{f.analyser}:{f.severity.label}" for f in findings]}
     return out
 
 

@@ -16,6 +16,9 @@ The order of a run:
 5. the session closes (the FC's blackbox file is complete), the blackbox is copied out and
    decoded, the expectations are judged, and the plot and a JSON summary are written.
 
+A ``[replay]`` scenario (:mod:`bfsitl.scenario.replay_run`) flies its log's sticks again in
+steps 2 to 5 instead, and is judged the same way.
+
 Every way a run can end becomes a :class:`~bfsitl.scenario.result.ScenarioResult`; only
 Ctrl-C propagates (after the session has stopped).
 """
@@ -62,11 +65,11 @@ from bfsitl.physics.params import QuadParams
 from bfsitl.protocol import messages as msg
 from bfsitl.protocol.firmware_profile import FirmwareProfile, Generation
 from bfsitl.records.outputs import FlightOutputs, OutputOptions
-from bfsitl.scenario.expectations import judge
+from bfsitl.scenario.expectations import settle_verdict
 from bfsitl.scenario.faults import Fault, Undo, make_faults
 from bfsitl.scenario.fc_mission import fc_mission_cli
-from bfsitl.scenario.known_failures import judge_known, known_reason
 from bfsitl.scenario.metrics import run_metrics
+from bfsitl.scenario.replay_run import fly_replay_scenario
 from bfsitl.scenario.result import ScenarioResult, TimedEvent, Verdict
 from bfsitl.scenario.spec import Scenario
 from bfsitl.scenario.trace import Trace, TraceRow, phase_name, write_trace_csv
@@ -331,7 +334,10 @@ def run_scenario(
                 ),
             )
             return result
-        _fly(scenario, binary.path, profile, faults, options, result, say)
+        if scenario.replay is not None:
+            fly_replay_scenario(scenario, binary.path, profile, out, options.plot, result, say)
+        else:
+            _fly(scenario, binary.path, profile, faults, options, result, say)
     except FaultNotSupportedError as exc:
         result.verdict, result.reason = Verdict.SKIPPED, str(exc)
     except BfsitlError as exc:
@@ -456,19 +462,7 @@ def _fly(
     result.metrics, result.behaviour = figures.values, figures.behaviour
     if trace.rows:
         result.artifacts["trace"] = write_trace_csv(trace, out / "trace.csv")
-    checks = judge(scenario, trace, profile.generation.value)
-    known_checks, happened = judge_known(
-        scenario.known_failures, profile.generation.value, result.findings
-    )
-    result.checks = checks + known_checks
-    failed = [c for c in result.checks if not c.passed]
-    if failed:
-        result.verdict, result.reason = Verdict.FAILED, failed[0].message
-    elif happened:
-        result.verdict, result.reason = Verdict.KNOWN, known_reason(happened)
-    else:
-        result.verdict = Verdict.PASSED
-        result.reason = f"all {len(checks)} expectations met"
+    settle_verdict(result, scenario, trace, profile.generation.value)
     if options.plot and trace.rows:
         from bfsitl.scenario.plot import write_scenario_plot
 
@@ -541,6 +535,7 @@ def _analyse(watch: FlightWatch, trace: Trace, result: ScenarioResult) -> None:
         watch.analysis(), *(analyse(track_from_blackbox(log)) for log in trace.blackbox)
     )
     trace.findings = analysis.findings
+    trace.unwatched = analysis.skipped
     result.findings = analysis.findings
     result.watched = analysis.watched
     result.unwatched = analysis.skipped

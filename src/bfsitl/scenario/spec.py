@@ -34,6 +34,9 @@
     generation = "master"
     why = "master's LAND leg aims 200 m below the quad"
 
+A real flight's log flown again (``[replay]`` instead of ``[flight]``) is a scenario too:
+see :mod:`bfsitl.scenario.replay_spec`.
+
 Everything is checked when the file is read, so a typo fails before any SITL starts, with
 the file, the table and the key in the message.
 """
@@ -58,6 +61,7 @@ from bfsitl.physics.wind import (
 from bfsitl.scenario.faults import FaultSpec, read_fault_spec
 from bfsitl.scenario.fc_mission import FcWaypoint, read_fc_waypoints
 from bfsitl.scenario.known_failures import KnownFailure, read_known_failures
+from bfsitl.scenario.replay_spec import DEFAULT_REPLAY_VEHICLE, ReplaySpec, read_replay_spec
 from bfsitl.scenario.values import number_in
 from bfsitl.vehicles.catalogue import DEFAULT_VEHICLE, load_vehicle
 
@@ -84,6 +88,7 @@ _TOP_KEYS = {
     "fc_waypoint",
     "cli_for",
     "known_failure",
+    "replay",
 }
 _WIND_KEYS = {"north_m_s", "east_m_s", "down_m_s", "gust_std_m_s", "gust_time_constant_s"}
 
@@ -95,7 +100,8 @@ class Scenario:
     Attributes:
         name: The scenario's name (its file's stem unless it names itself).
         plan: What bfsitl's autopilot flies (the ``[flight]`` table).
-        duration_s: Simulation seconds from arming; the run ends then at the latest.
+        duration_s: Simulation seconds from arming; the run ends then at the latest (0 for
+            a replay: it lasts as long as its log).
         faults: What is done to the flight and when (``[[fault]]``), seconds after arming.
         expect: ``[expect]`` as written: key and value pairs, checked by
             :mod:`bfsitl.scenario.expectations`.
@@ -121,6 +127,8 @@ class Scenario:
             and ``--vehicle`` (:func:`on_vehicle`) leaves it.
         known_failures: Firmware defects it flies into on purpose (``[[known_failure]]``,
             :mod:`bfsitl.scenario.known_failures`).
+        replay: ``[replay]``: a real flight's log flown again instead of ``plan``
+            (:mod:`bfsitl.scenario.replay_spec`); None for a flown scenario.
     """
 
     name: str
@@ -157,6 +165,8 @@ class Scenario:
     own_vehicle: bool = False
     #: Firmware defects it flies into on purpose (``[[known_failure]]``).
     known_failures: tuple[KnownFailure, ...] = ()
+    #: ``[replay]``: a real flight's log flown again instead of ``plan``.
+    replay: ReplaySpec | None = None
 
     @property
     def where(self) -> str:
@@ -249,30 +259,11 @@ def scenario_from_dict(data: dict[str, Any], *, name: str, source: Path | None =
             f"{where}: unknown key(s) {', '.join(sorted(unknown))}; known: "
             f"{', '.join(sorted(_TOP_KEYS))}"
         )
-    for key in ("duration_s", "flight"):
-        if key not in data:
-            raise ScenarioError(
-                f"{where}: {key} is missing"
-                + (
-                    " (simulation seconds from arming)"
-                    if key == "duration_s"
-                    else " ([flight] says what the autopilot flies)"
-                )
-            )
-    duration_s = number_in(where, "duration_s", data["duration_s"], 1.0, MAX_DURATION_S)
-    if not isinstance(data["flight"], dict):
-        raise ScenarioError(f"{where}: [flight] must be a table")
-    try:
-        plan = plan_from_dict(data["flight"], source=f"{where}, [flight]")
-    except MissionError as exc:
-        raise ScenarioError(str(exc)) from None
-    raw_faults = data.get("fault", [])
-    if not isinstance(raw_faults, list):
-        raise ScenarioError(f"{where}: faults are written as [[fault]] tables")
-    faults = tuple(
-        read_fault_spec(raw, where=where, number=n, run_s=duration_s)
-        for n, raw in enumerate(raw_faults, 1)
-    )
+    replay = read_replay_spec(data, where=where, source=source) if "replay" in data else None
+    if replay is None:
+        plan, duration_s, faults = _flown(data, where)
+    else:
+        plan, duration_s, faults = MissionPlan(), 0.0, ()
     expect = data.get("expect", {})
     if not isinstance(expect, dict) or not expect:
         raise ScenarioError(
@@ -313,7 +304,9 @@ def scenario_from_dict(data: dict[str, Any], *, name: str, source: Path | None =
         cli_for=_cli_for(where, data),
         wind=_wind(where, data["wind"]) if "wind" in data else None,
         seed=seed,
-        quad=_vehicle(where, data["vehicle"], source) if "vehicle" in data else IRIS,
+        quad=_vehicle(where, data["vehicle"], source)
+        if "vehicle" in data
+        else (IRIS if replay is None else load_vehicle(DEFAULT_REPLAY_VEHICLE)),
         own_vehicle=bool({"model", "mass_kg"} & set(data.get("vehicle", {}))),
         known_failures=read_known_failures(data.get("known_failure", []), where),
         initial_heading_deg=number_in(
@@ -331,7 +324,38 @@ def scenario_from_dict(data: dict[str, Any], *, name: str, source: Path | None =
         fc_waypoints=waypoints,
         settle_s=number_in(where, "settle_s", data.get("settle_s", DEFAULT_SETTLE_S), 0.0, 60.0),
         source=source,
+        replay=replay,
     )
+
+
+def _flown(data: dict[str, Any], where: str) -> tuple[MissionPlan, float, tuple[FaultSpec, ...]]:
+    """What a flown scenario flies: ``[flight]``, ``duration_s`` and its ``[[fault]]``s."""
+    for key in ("duration_s", "flight"):
+        if key not in data:
+            raise ScenarioError(
+                f"{where}: {key} is missing"
+                + (
+                    " (simulation seconds from arming)"
+                    if key == "duration_s"
+                    else " ([flight] says what the autopilot flies, [replay] which log to "
+                    "fly again)"
+                )
+            )
+    duration_s = number_in(where, "duration_s", data["duration_s"], 1.0, MAX_DURATION_S)
+    if not isinstance(data["flight"], dict):
+        raise ScenarioError(f"{where}: [flight] must be a table")
+    try:
+        plan = plan_from_dict(data["flight"], source=f"{where}, [flight]")
+    except MissionError as exc:
+        raise ScenarioError(str(exc)) from None
+    raw_faults = data.get("fault", [])
+    if not isinstance(raw_faults, list):
+        raise ScenarioError(f"{where}: faults are written as [[fault]] tables")
+    faults = tuple(
+        read_fault_spec(raw, where=where, number=n, run_s=duration_s)
+        for n, raw in enumerate(raw_faults, 1)
+    )
+    return plan, duration_s, faults
 
 
 def on_vehicle(scenarios: list[Scenario], quad: QuadParams | None) -> list[Scenario]:

@@ -19,6 +19,7 @@ from bfsitl.protocol.failsafe_phase import FailsafePhase
 if TYPE_CHECKING:
     from bfsitl.analysis import Finding
     from bfsitl.blackbox import BlackboxLog
+    from bfsitl.replay.compare import ReplayComparison
 
 #: The firmware's failsafe phase names, by number.
 FAILSAFE_PHASES = tuple(phase.name for phase in FailsafePhase)
@@ -70,6 +71,11 @@ class Trace:
     blackbox: list[BlackboxLog] = field(default_factory=list)
     #: What the analysers found (:mod:`bfsitl.analysis`), worst first.
     findings: list[Finding] = field(default_factory=list)
+    #: The analysers that could not watch the run, each with why (their silence says
+    #: nothing).
+    unwatched: dict[str, str] = field(default_factory=dict)
+    #: A replay's log against the real flight's (None: a flown scenario, no replay).
+    replay: ReplayComparison | None = None
 
     @property
     def first_fault_s(self) -> float | None:

@@ -189,6 +189,31 @@ def test_upside_down_in_the_air_is_a_loss_of_control_and_on_the_ground_is_not() 
     assert found(on_ground, "loss_of_control") is None
 
 
+def test_a_flip_in_acro_is_no_loss_of_control_unless_the_gyro_leaves_its_setpoint() -> None:
+    """A freestyle pilot rolls the quad upside down on purpose; the FC flies rates, not
+    angles, so only its gyro against its setpoint says whether it kept control."""
+    flip = hover(3.0, self_levelling=False) + hover(
+        1.0, start_s=3.0, tilt_deg=170.0, self_levelling=False
+    )
+    assert found(flip, "loss_of_control") is None
+    steep = hover(3.0, self_levelling=False) + hover(
+        0.5, start_s=3.0, tilt_deg=80.0, self_levelling=False
+    )
+    assert found(steep, "loss_of_control") is None
+    # The same flip in ANGLE (or with the mode unknown) is one.
+    for levelling in (True, None):
+        levelled = [replace(p, self_levelling=levelling) for p in flip]
+        finding = found(levelled, "loss_of_control")
+        assert finding is not None and finding.severity is Severity.FAILURE
+    # In acro, a gyro that leaves its setpoint is still lost control.
+    points = [
+        replace(p, self_levelling=False, motors=(0.5,) * 4, accel_g=1.0)
+        for p in rates(2.0, lambda t: 400.0 if t > 1.0 else 0.0)
+    ]
+    lost = analyse(Track("blackbox", points, disarm_reason="SWITCH"))
+    assert any(f.analyser == "loss_of_control" for f in lost.findings)
+
+
 def test_tilt_past_what_angle_mode_commands_is_a_warning() -> None:
     steep = hover(3.0) + hover(0.5, start_s=3.0, tilt_deg=80.0)
     finding = found(steep, "loss_of_control")

@@ -118,3 +118,18 @@ def test_on_real_logs_a_hard_landing_ends_the_flight_and_no_finding_sits_in_a_pu
                     )
     # The logs do hold punch-outs (5-inch freestyle): the rules above were put to the test.
     assert punch_outs_seen >= 1
+
+
+def test_a_logs_mode_switches_say_whether_the_fc_levelled_the_quad() -> None:
+    """``flightModeFlags`` holds the box switches (4.6.0 blackbox.c copies
+    rcModeActivationMask): ANGLE is box 1, HORIZON 2; a failsafe levels whatever the
+    switches say."""
+    import numpy as np
+    from support.synthetic_log import synthetic_log
+
+    time_s = np.arange(6) / 100.0
+    masks = np.array([0, 1 << 1, 1 << 2, 1 << 0, 1 << 27, 1 << 28])  # acro, ANGLE, HORIZON,
+    # ARM alone, FAILSAFE, AIRMODE alone
+    log = synthetic_log(time_s, np.full((6, 4), 1500.0), mode_mask=masks)
+    track = track_from_blackbox(log)
+    assert [p.self_levelling for p in track.points] == [False, True, True, False, True, False]

@@ -237,6 +237,10 @@ def test_findings_are_expectations_too() -> None:
     assert wrong[2].measured == "failure" and wrong[2].at_time_s == 9.3
     trace.findings = []
     assert judge(scenario_expecting(worst_finding="none"), trace)[0].passed
+    # An analyser that could not watch found nothing because it saw nothing: no pass.
+    trace.unwatched = {"fly_away": "the blackbox track has no north_m"}
+    (blind,) = judge(scenario_expecting(no_finding="fly_away"), trace)
+    assert not blind.passed and "could not watch this run (fly_away: the blackbox" in blind.message
 
 
 def test_blackbox_expectations_fail_clearly_without_a_log() -> None:

@@ -1,0 +1,99 @@
+"""A ``[replay]`` scenario's run: the log's sticks flown again through the firmware
+(:func:`bfsitl.replay.replay_log`), then judged as any scenario is.
+
+The side's and the scenario's CLI lines come after the log's carried settings, so a
+comparison's ``--b-cli`` is the change tried on the real flight.  The replaying FC's log is
+watched by the analysers (a change that crashes the quad is a failure-severity finding, so the
+side is worse), and its figures (:data:`bfsitl.scenario.metrics.REPLAY_METRICS`: how each
+axis followed its setpoint, rose and overshot, how far it flew from the real flight) are what
+``bfsitl scenario compare`` compares between builds or settings.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from pathlib import Path
+
+from bfsitl.analysis import analyse, track_from_blackbox
+from bfsitl.fit.fit_log import pick_log
+from bfsitl.protocol.firmware_profile import FirmwareProfile
+from bfsitl.replay import replay_log
+from bfsitl.replay.replay_report import write_report_json, write_report_png
+from bfsitl.scenario.expectations import settle_verdict
+from bfsitl.scenario.metrics import replay_metrics
+from bfsitl.scenario.result import ScenarioResult, TimedEvent
+from bfsitl.scenario.spec import Scenario
+from bfsitl.scenario.trace import Trace
+
+Progress = Callable[[str], None]
+
+
+def fly_replay_scenario(
+    scenario: Scenario,
+    binary: Path,
+    profile: FirmwareProfile,
+    out: Path,
+    plot: bool,
+    result: ScenarioResult,
+    say: Progress,
+) -> None:
+    """Replay ``scenario.replay``'s log on ``binary`` with the scenario's quad, seed, wind and
+    lines, and fill ``result`` (figures, findings, checks, verdict, files in ``out``).
+
+    Raises:
+        BfsitlError: The log cannot be read or replayed, or the SITL would not fly (the
+            runner makes it an error result).
+    """
+    spec = scenario.replay
+    if spec is None:
+        raise ValueError(f"{scenario.name} is no replay")
+    say(f"reading {spec.log.name} ...")
+    log = pick_log(spec.log, spec.index)
+    generation = profile.generation.value
+    lines = (*scenario.cli, *dict(scenario.cli_for).get(generation, ()))
+    replay = replay_log(
+        log,
+        firmware=binary,
+        quad=scenario.quad,
+        out_dir=out,
+        extra_cli=lines,
+        progress=say,
+        seed=scenario.seed,
+        wind=scenario.wind,
+    )
+    comparison = replay.comparison
+    result.sim_time_s = round(replay.flight.flown_s, 3)
+    result.artifacts["blackbox"] = replay.flight.blackbox
+    result.events.append(
+        TimedEvent(
+            0.0,
+            f"replaying {log.path.name} log {log.index} ({log.firmware_revision}): "
+            f"{len(replay.settings.carried)} settings carried over, "
+            f"{len(replay.settings.not_carried)} not",
+        )
+    )
+    if comparison.lost_control_s is not None:
+        result.events.append(
+            TimedEvent(
+                comparison.lost_control_s,
+                "the real quad lost control here (log time); compared up to a second before",
+            )
+        )
+    report = out / "replay-report.json"
+    write_report_json(replay, report)
+    result.artifacts["replay_report"] = report
+    if plot:
+        write_report_png(replay, out / "replay-report.png")
+        result.artifacts["plot"] = out / "replay-report.png"
+    analysis = analyse(track_from_blackbox(replay.replayed))
+    result.findings, result.watched = analysis.findings, analysis.watched
+    result.unwatched = analysis.skipped
+    figures = replay_metrics(comparison, result.findings)
+    result.metrics, result.behaviour = figures.values, figures.behaviour
+    trace = Trace(
+        blackbox=[replay.replayed],
+        findings=analysis.findings,
+        unwatched=analysis.skipped,
+        replay=comparison,
+    )
+    settle_verdict(result, scenario, trace, generation)

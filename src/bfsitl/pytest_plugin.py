@@ -7,7 +7,8 @@ in a conftest).  Options:
   each test using ``bfsitl_firmware`` runs once per build;
 * ``--bfsitl-out DIR``: where the runs' files go (default: pytest's temporary directory);
 * ``--bfsitl-vehicle NAME|FILE``: the quad of ``bfsitl_vehicle`` and of the scenarios whose
-  ``[vehicle]`` names none (default: IRIS; ``bfsitl vehicle list`` shows the names).
+  ``[vehicle]`` names none (default: IRIS, a replay's the 5-inch; ``bfsitl vehicle list``
+  shows the names).
 
 With at least one ``--bfsitl-firmware``, every ``*.toml`` file pytest is pointed at that is a
 scenario (it has ``[flight]`` or ``[replay]``, and ``[expect]``) becomes one test per
@@ -58,8 +59,8 @@ def pytest_addoption(parser: pytest.Parser) -> None:
         VEHICLE_OPTION,
         default=None,
         metavar="NAME|FILE",
-        help="the simulated quad: a shipped vehicle or a profile file (default: IRIS, or "
-        "the scenario's own [vehicle])",
+        help="the simulated quad: a shipped vehicle or a profile file (default: IRIS, a "
+        "replay's the 5-inch, or the scenario's own [vehicle])",
     )
     group.addoption(
         "--bfsitl-out",

@@ -64,9 +64,9 @@ class TrackPoint:
     #: The receiver: a signal and valid flight channels (None: not known).
     rx_ok: bool | None = None
     modes: tuple[str, ...] = ()
-    #: The FC levels the quad itself (ANGLE, HORIZON, an altitude or position hold, a
-    #: failsafe); False: it flies rates (acro), where a pilot may turn it any way up; None:
-    #: not known.
+    #: The FC levels the quad itself (ANGLE, HORIZON, a failsafe); False: a log's switches say
+    #: it flies rates (acro), where a pilot may turn it any way up; None: not known (a flight
+    #: bfsitl flies levels it).
     self_levelling: bool | None = None
     #: What the FC believes: its altitude and its GPS position (NaN: not reported).
     fc_alt_m: float = _NAN
@@ -185,10 +185,11 @@ def _tilt_roll_pitch(xyz: tuple[int, ...]) -> tuple[float, float, float]:
     return tilt, roll, pitch
 
 
-#: Box ids whose switch makes the FC level the quad (``boxId_e``, the same from 3.x to 4.6;
-#: the blackbox logs the first 32 boxes' switches as ``flightModeFlags``).
-#: ANGLE 1, HORIZON 2, ALTHOLD 3, POSHOLD 11, FAILSAFE 27.
-LEVELLING_BOXES = (1 << 1) | (1 << 2) | (1 << 3) | (1 << 11) | (1 << 27)
+#: ``flightModeFlags`` bits (the firmware's internal ``boxId_e``, not MSP's permanent box ids)
+#: whose switch makes the FC level the quad: ANGLE 1 and HORIZON 2, the only levelling modes
+#: at the same place from 3.x to 4.6 (ALTHOLD, POSHOLD and GPS RESCUE moved between releases,
+#: [4.6] src/main/fc/rc_modes.h).  A failsafe levels whatever the switches say.
+LEVELLING_BOXES = (1 << 1) | (1 << 2)
 
 
 def track_from_blackbox(log: BlackboxLog) -> Track:

@@ -67,11 +67,14 @@ def write_blackbox_plot(log: BlackboxLog, path: str | Path, *, title: str = "") 
     axes[4].set_yticks([-0.5, *range(len(FailsafePhase))])
     axes[4].set_yticklabels(["invalid", *[p.name for p in FailsafePhase]], fontsize=7)
     axes[4].legend(loc="upper right", fontsize=7)
-    axes[4].set_xlabel("seconds from the log's first frame (FC time)")
+    # The FC starts its log when it arms, so this is the scenario plot's clock (from arming)
+    # to within a frame.
+    axes[4].set_xlabel("seconds from the log's first frame: the FC arming (FC time)")
     axes[4].grid(alpha=0.3)
     reason = f", disarmed: {log.disarm_reason_name}" if log.disarm_reason_name else ""
+    # Two lines: a long scenario name and firmware string cut the disarm reason off.
     axes[0].set_title(
-        (title + " - " if title else "") + f"blackbox: {log.firmware_revision}" + reason,
+        (title + "\n" if title else "") + f"blackbox: {log.firmware_revision}" + reason,
         fontsize=10,
     )
     figure.tight_layout()

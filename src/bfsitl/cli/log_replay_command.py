@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import argparse
-import dataclasses
 import sys
 from pathlib import Path
 from typing import TYPE_CHECKING
@@ -95,6 +94,7 @@ def cmd_log_replay(args: argparse.Namespace) -> int:
     from bfsitl.replay.replay_report import (
         targets_met,
         write_ab_report_json,
+        write_comparison_png,
         write_report_json,
         write_report_png,
     )
@@ -144,8 +144,8 @@ def cmd_log_replay(args: argparse.Namespace) -> int:
             "b": {"cli": [*args.cli, *args.b_cli], "built": args.b_firmware or args.firmware},
         }
         write_ab_report_json(replay, b_replay, b_against_a, sides, args.out / "b-against-a.json")
-        write_report_png(
-            dataclasses.replace(b_replay, comparison=b_against_a),
+        write_comparison_png(
+            b_against_a,
             args.out / "b-against-a.png",
             labels=("A", "B"),
             title=f"{log.path.name} log {log.index}: B ({_side(args, 'b')}) against A "

@@ -51,6 +51,9 @@ def write_flight_plot(
     mean_motor = [(r.motor1 + r.motor2 + r.motor3 + r.motor4) / 4 for r in rows]
     motor_ax.plot(time_s, mean_motor, color="tab:orange", alpha=0.6, label="mean motor")
     motor_ax.set_ylabel("motor command (0..1)")
+    # One legend for both scales (a twin axis keeps its own lines).
+    lines = thr_ax.get_lines() + motor_ax.get_lines()
+    thr_ax.legend(lines, [line.get_label() for line in lines], loc="best")
     att_ax.plot(time_s, [r.roll_deg for r in rows], label="roll")
     att_ax.plot(time_s, [r.pitch_deg for r in rows], label="pitch")
     att_ax.set_ylabel("attitude (deg)")

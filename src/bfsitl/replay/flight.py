@@ -168,6 +168,7 @@ def fly_replay(
     progress: Progress = lambda _line: None,
     seed: int = 0,
     wind: Wind | None = None,
+    timing: Timing | None = None,
     session_factory: Callable[..., FlightSession] = FlightSession,
 ) -> ReplayedFlight:
     """Fly ``stream`` (see the module docstring); the SITL runs in ``out_dir/sitl``.
@@ -183,6 +184,8 @@ def fly_replay(
         seed: Seeds the simulated sensors' noise (and the gusts): the same seed, the same
             replay.
         wind: The air the replay flies through (a log does not say; None: still air).
+        timing: How the clocks run (None: lockstep as fast as it goes, spinning); a suite
+            whose runs share the cores asks it not to spin.
         session_factory: Makes the session (a fake in unit tests).
 
     Raises:
@@ -205,7 +208,7 @@ def fly_replay(
             workdir=out_dir / "sitl",
             env=() if stream.loop_frames else (RX_FRAMES_ENV,),
         ),
-        timing=Timing(),
+        timing=timing or Timing(),
         fc=FcSetup(profile=replay_profile(lines), angle_mode=bool(stream.angle[0])),
         world=World(quad=quad, wind=wind, seed=seed),
     )

@@ -9,6 +9,7 @@ from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
 
+from bfsitl.backend.options import Timing
 from bfsitl.blackbox.decode import BlackboxLog, decode_blackbox
 from bfsitl.build.binary_scan import names_missing
 from bfsitl.errors import ReplayError
@@ -55,6 +56,7 @@ def replay_log(
     progress: Progress = lambda _line: None,
     seed: int = 0,
     wind: Wind | None = None,
+    timing: Timing | None = None,
 ) -> Replay:
     """Fly ``log`` again with ``quad`` on ``firmware`` (a lockstep build) and compare.
 
@@ -68,6 +70,7 @@ def replay_log(
         progress: Called with a line of text at each stage.
         seed: Seeds the simulated sensors' noise: the same seed, the same replay.
         wind: The air the replay flies through (None: still air; a log does not say).
+        timing: How the clocks run (None: lockstep as fast as it goes).
 
     Returns:
         The replay: what was sent, what flew and how it compared.
@@ -97,6 +100,7 @@ def replay_log(
         progress=progress,
         seed=seed,
         wind=wind,
+        timing=timing,
     )
     replayed = decode_blackbox(flight.blackbox)
     if not replayed:

@@ -104,7 +104,7 @@ def plan_comparison(
     for scenario in scenarios:
         for seed in range(scenario.seed, scenario.seed + seeds_for(scenario, seeds)):
             for side in sides:
-                variant = replace(scenario, seed=seed, cli=(*side.cli, *scenario.cli))
+                variant = replace(scenario, seed=seed, side_cli=side.cli)
                 out = out_dir / side.label / dir_name(scenario.name) / f"seed-{seed}"
                 planned.append(
                     ComparedRun(side.label, seed, PlannedRun(variant, side.firmware, out))
@@ -114,9 +114,11 @@ def plan_comparison(
 
 def seeds_for(scenario: Scenario, seeds: int) -> int:
     """How many seeds ``scenario`` is flown with: ``seeds``, but one for a replay in air
-    without gusts.  A replay's sticks are the log's, and the simulated sensors' noise does not
-    reach a flight in rate mode (three seeds of a real log's replay came out identical to the
-    last digit), so more seeds would fly the same flight again."""
+    without gusts.  A replay's sticks are the log's, so its seeds change only the simulated
+    sensors' noise, which does not reach a flight in rate mode (three seeds of a real log's
+    replay came out identical to the last digit) and one in ANGLE only a little.  A replay
+    asks what a change does to one flight: one seed per side, the figures' tolerances
+    decide."""
     if scenario.replay is not None and (scenario.wind is None or scenario.wind.gust_std_m_s == 0):
         return 1
     return seeds

@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import io
 import json
+import os
 from collections.abc import Sequence
 from datetime import UTC, datetime
 from html import escape
@@ -17,6 +18,7 @@ from bfsitl.atomic_file import write_atomically
 from bfsitl.errors import BfsitlError
 from bfsitl.scenario.compare import Change, ScenarioComparison, Side
 from bfsitl.scenario.report import STYLE, embedded_image
+from bfsitl.scenario.result import ScenarioResult
 from bfsitl.scenario.suite import dir_name
 
 
@@ -137,8 +139,8 @@ def _values(values: Sequence[float | None]) -> str:
 def draw_overlays(
     comparisons: Sequence[ScenarioComparison], sides: tuple[Side, Side], directory: Path
 ) -> None:
-    """Each scenario's first seed on both sides, one plot (``directory/NAME.png``), from the
-    runs' ``trace.csv`` (a replay's: the two replaying FCs' logs, per axis); the path is kept
+    """Each scenario's seeds on both sides, one plot (``directory/NAME.png``), from the runs'
+    ``trace.csv`` (a replay's: the two replaying FCs' first logs, per axis); the path is kept
     as the first A run's ``overlay`` artifact."""
     from bfsitl.scenario.plot import write_overlay_plot
     from bfsitl.scenario.trace import read_trace_csv
@@ -151,18 +153,24 @@ def draw_overlays(
         if "replay_report" in first_a.artifacts and "replay_report" in first_b.artifacts:
             _draw_replay_overlay(comparison, sides, directory)
             continue
-        paths = [first_a.artifacts.get("trace"), first_b.artifacts.get("trace")]
-        if not all(p is not None and Path(p).is_file() for p in paths):
-            continue
         try:
-            traces = [
-                (side.title, read_trace_csv(Path(p)))  # type: ignore[arg-type]
-                for side, p in zip(sides, paths, strict=True)
+            traced = [
+                (
+                    side.title,
+                    [
+                        read_trace_csv(Path(run.artifacts["trace"]))
+                        for run in runs
+                        if "trace" in run.artifacts and Path(run.artifacts["trace"]).is_file()
+                    ],
+                )
+                for side, runs in zip(sides, (comparison.a_runs, comparison.b_runs), strict=True)
             ]
         except BfsitlError:
             continue
+        if not all(traces for _, traces in traced):
+            continue
         first_a.artifacts["overlay"] = write_overlay_plot(
-            traces,
+            traced,
             directory / f"{dir_name(comparison.name)}.png",
             title=f"{comparison.name}: {comparison.change.value}",
         )
@@ -252,5 +260,66 @@ def _section(
             if figures
             else ""
         )
-        + f"{image}</section>"
+        + f"{image}{_configuration(comparison)}{_run_links(comparison, directory)}</section>"
     )
+
+
+def _settings_of(runs: Sequence[ScenarioResult]) -> list[tuple[str, str, str]]:
+    return list(runs[0].settings) if runs else []
+
+
+def _configuration(comparison: ScenarioComparison) -> str:
+    """What each side's FC was given: the lines on one side only first, then each side's
+    whole list with where every line came from."""
+    a, b = _settings_of(comparison.a_runs), _settings_of(comparison.b_runs)
+    if not a and not b:
+        return ""
+    a_lines, b_lines = {line for _, line, _ in a}, {line for _, line, _ in b}
+    only = [("A", s) for s in a if s[1] not in b_lines] + [
+        ("B", s) for s in b if s[1] not in a_lines
+    ]
+    differing = "".join(
+        f"<li>{side} only: <code>{escape(line)}</code> ({escape(source)})</li>"
+        for side, (source, line, _why) in only
+    )
+    tables = "".join(
+        f"<details><summary>{label}: the {len(settings)} lines its FC was given</summary>"
+        "<table><tr><th>from</th><th>line</th><th>why</th></tr>"
+        + "".join(
+            f"<tr><td>{escape(source)}</td><td><code>{escape(line)}</code></td>"
+            f"<td>{escape(why)}{' (a later line sets it again)' if overridden else ''}</td></tr>"
+            for (source, line, why), overridden in zip(settings, _overridden(settings), strict=True)
+        )
+        + "</table></details>"
+        for label, settings in (("A", a), ("B", b))
+    )
+    said = f"<ul>{differing}</ul>" if differing else "<p>Both sides were given the same lines.</p>"
+    return f"<h3>Configuration</h3>{said}{tables}"
+
+
+def _overridden(settings: Sequence[tuple[str, str, str]]) -> list[bool]:
+    """Per line: a later ``set`` of the same setting replaces it (the FC keeps the last)."""
+    names = [line.split()[1] if line.startswith("set ") else None for _, line, _ in settings]
+    return [name is not None and name in names[i + 1 :] for i, name in enumerate(names)]
+
+
+def _run_links(comparison: ScenarioComparison, directory: Path) -> str:
+    """Each run's files, linked from the report's folder (they sit beside it)."""
+    items = []
+    for label, runs in (("A", comparison.a_runs), ("B", comparison.b_runs)):
+        for number, run in enumerate(runs, start=1):
+            links = ", ".join(
+                f'<a href="{escape(_relative(Path(path), directory))}">{escape(kind)}</a>'
+                for kind, path in run.artifacts.items()
+                if kind in RUN_FILES and Path(path).exists()
+            )
+            items.append(f"<li>{label}, run {number}: {escape(run.verdict.value)}; {links}</li>")
+    return f"<h3>Runs</h3><ul>{''.join(items)}</ul>" if items else ""
+
+
+#: The run files a report links to.
+RUN_FILES = ("summary", "blackbox", "trace", "log", "plot", "blackbox_plot", "replay_report")
+
+
+def _relative(path: Path, directory: Path) -> str:
+    return Path(os.path.relpath(path.resolve(), directory.resolve())).as_posix()

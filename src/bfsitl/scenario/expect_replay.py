@@ -16,6 +16,7 @@ key = value                        holds when
 
 from __future__ import annotations
 
+import math
 from typing import Any
 
 from bfsitl.replay.replay_report import axis_targets, targets_met
@@ -50,17 +51,20 @@ def min_setpoint_correlation(
     comparison = trace.replay
     if comparison is None:
         return check(key, value, False, NOT_A_REPLAY, None, None)
-    measured = [
-        (axis.setpoint_correlation, axis.axis)
-        for axis in comparison.axes
-        if axis.setpoint_correlation is not None
-    ]
-    if not measured:
+    held = [axis for axis in comparison.axes if axis.setpoint_correlation is not None]
+    if not held:
         return check(key, value, False, "the log holds no setpoints to compare", None, None)
+    # A setpoint that never moved has no correlation (NaN): that axis cannot be judged, and
+    # says so rather than passing or failing by the order of the axes.
+    flat = [axis.axis for axis in held if math.isnan(axis.setpoint_correlation or 0.0)]
+    measured = [(axis.setpoint_correlation or 0.0, axis.axis) for axis in held]
+    measured = [(r, name) for r, name in measured if not math.isnan(r)]
+    unjudged = f"; {', '.join(flat)} never moved (not judged)" if flat else ""
+    if not measured:
+        return check(key, value, False, f"no setpoint moved{unjudged}", None, None)
     worst, axis = min(measured)
-    return check(
-        key, value, worst >= value, f"the lowest is {worst:.4f} ({axis})", round(worst, 4), None
-    )
+    said = f"the lowest is {worst:.4f} ({axis}){unjudged}"
+    return check(key, value, worst >= value, said, round(worst, 4), None)
 
 
 def max_gyro_off_real(key: str, value: float, trace: Trace, _e: dict[str, Any]) -> CheckResult:

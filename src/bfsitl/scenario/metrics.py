@@ -199,16 +199,23 @@ def replay_metrics(comparison: ReplayComparison, findings: list[Finding]) -> Run
             off = traces.gyro_dps[index, span] - traces.setpoint_dps[index, span]
             tracking = math.sqrt(float(np.mean(off**2)))
         step = axis.replay_step
-        out.values[f"{axis.axis}_tracking_dps"] = tracking
-        out.values[f"{axis.axis}_overshoot_pct"] = step.overshoot_pct if step else None
-        out.values[f"{axis.axis}_rise_ms"] = step.rise_time_ms if step else None
-        out.values[f"{axis.axis}_off_real"] = axis.gyro_error
+        out.values[f"{axis.axis}_tracking_dps"] = _finite(tracking)
+        # A step response that never rises (an axis that turns the wrong way, one that never
+        # reaches 90 %) has no finite figure: None, so a comparison sees that only one side
+        # has it.
+        out.values[f"{axis.axis}_overshoot_pct"] = _finite(step.overshoot_pct if step else None)
+        out.values[f"{axis.axis}_rise_ms"] = _finite(step.rise_time_ms if step else None)
+        out.values[f"{axis.axis}_off_real"] = _finite(axis.gyro_error)
     levels = traces.motor_level
-    out.values["motor_mean_pct"] = (
+    out.values["motor_mean_pct"] = _finite(
         100.0 * float(np.mean(levels[span])) if levels is not None and comparison.samples else None
     )
     out.behaviour = {"findings": [f"{f.analyser}:{f.severity.label}" for f in findings]}
     return out
+
+
+def _finite(value: float | None) -> float | None:
+    return value if value is not None and math.isfinite(value) else None
 
 
 def _held_errors(track: Track) -> list[float]:

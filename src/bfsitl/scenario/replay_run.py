@@ -15,13 +15,16 @@ from collections.abc import Callable
 from pathlib import Path
 
 from bfsitl.analysis import analyse, track_from_blackbox
+from bfsitl.backend.options import Timing
 from bfsitl.fit.fit_log import pick_log
 from bfsitl.protocol.firmware_profile import FirmwareProfile
 from bfsitl.replay import replay_log
 from bfsitl.replay.replay_report import write_report_json, write_report_png
+from bfsitl.replay.sticks import IDENTITY_RC_LINES
 from bfsitl.scenario.expectations import settle_verdict
 from bfsitl.scenario.metrics import replay_metrics
 from bfsitl.scenario.result import ScenarioResult, TimedEvent
+from bfsitl.scenario.setup_lines import BFSITL, LOG, SCENARIO, SIDE
 from bfsitl.scenario.spec import Scenario
 from bfsitl.scenario.trace import Trace
 
@@ -33,12 +36,15 @@ def fly_replay_scenario(
     binary: Path,
     profile: FirmwareProfile,
     out: Path,
-    plot: bool,
     result: ScenarioResult,
     say: Progress,
+    *,
+    plot: bool,
+    timing: Timing,
 ) -> None:
     """Replay ``scenario.replay``'s log on ``binary`` with the scenario's quad, seed, wind and
-    lines, and fill ``result`` (figures, findings, checks, verdict, files in ``out``).
+    lines, at ``timing``, and fill ``result`` (figures, findings, checks, verdict, files in
+    ``out``; the report's plot when ``plot``).
 
     Raises:
         BfsitlError: The log cannot be read or replayed, or the SITL would not fly (the
@@ -50,7 +56,7 @@ def fly_replay_scenario(
     say(f"reading {spec.log.name} ...")
     log = pick_log(spec.log, spec.index)
     generation = profile.generation.value
-    lines = (*scenario.cli, *dict(scenario.cli_for).get(generation, ()))
+    lines = (*scenario.side_cli, *scenario.cli, *dict(scenario.cli_for).get(generation, ()))
     replay = replay_log(
         log,
         firmware=binary,
@@ -60,8 +66,23 @@ def fly_replay_scenario(
         progress=say,
         seed=scenario.seed,
         wind=scenario.wind,
+        timing=timing,
     )
     comparison = replay.comparison
+    result.settings = [
+        *((BFSITL, line, "the identity stick path") for line in IDENTITY_RC_LINES),
+        *(
+            (LOG, line, setting.header)
+            for setting in replay.settings.carried
+            for line in setting.cli_lines
+        ),
+        *((SIDE, line, "") for line in scenario.side_cli),
+        *((SCENARIO, line, "") for line in scenario.cli),
+        *(
+            (SCENARIO, line, f"[cli_for] {generation}")
+            for line in dict(scenario.cli_for).get(generation, ())
+        ),
+    ]
     result.sim_time_s = round(replay.flight.flown_s, 3)
     result.artifacts["blackbox"] = replay.flight.blackbox
     result.events.append(

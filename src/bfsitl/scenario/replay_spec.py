@@ -65,6 +65,8 @@ def read_replay_spec(data: dict[str, Any], *, where: str, source: Path | None) -
             f"known: {', '.join(sorted(_KEYS))}"
         )
     clashing = [key for key in FLIGHT_ONLY_KEYS if key in data]
+    if isinstance(data.get("vehicle"), dict) and "heading_deg" in data["vehicle"]:
+        clashing.append("[vehicle] heading_deg")  # the log's own heading is flown
     if clashing:
         raise ScenarioError(
             f"{where}: a [replay] flies the log's own sticks for as long as the log lasts; "

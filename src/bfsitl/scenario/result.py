@@ -85,6 +85,7 @@ class ScenarioResult:
             what ``bfsitl scenario compare`` compares.
         behaviour: The run's behaviour in words (failsafe phases, modes, how it ended,
             findings), also compared.
+        settings: The FC's configuration as given, each line with its source.
     """
 
     #: The scenario's name (its file's stem unless it names itself).
@@ -118,6 +119,10 @@ class ScenarioResult:
     #: The analysers that watched this run, and those that could not (name -> why).
     watched: list[str] = field(default_factory=list)
     unwatched: dict[str, str] = field(default_factory=dict)
+    #: What the FC was given before the flight, in order: (source, line, why) per line
+    #: (:mod:`bfsitl.scenario.setup_lines`: bfsitl, this build, the side, the scenario, a
+    #: replayed log's header).
+    settings: list[tuple[str, str, str]] = field(default_factory=list)
     #: The run's figures (:mod:`bfsitl.scenario.metrics`; None: not applicable) and its
     #: behaviour in words (failsafe phases, modes, how it ended, findings): what
     #: ``bfsitl scenario compare`` compares.

@@ -25,7 +25,6 @@ Ctrl-C propagates (after the session has stopped).
 
 from __future__ import annotations
 
-import dataclasses
 import json
 import math
 import time
@@ -34,8 +33,10 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from bfsitl.analysis import FlightWatch, analyse, combine, track_from_blackbox
+from bfsitl.analysis.track import stick_share
 from bfsitl.atomic_file import write_atomically
 from bfsitl.backend.options import Timing, World
+from bfsitl.build.binary_scan import binary_traits
 from bfsitl.control import DEFAULT_CONTROLLER, make_controller
 from bfsitl.errors import (
     ArmingBlockedError,
@@ -46,99 +47,39 @@ from bfsitl.errors import (
     MissionTimeoutError,
 )
 from bfsitl.fc.firmware_detect import profile_of_binary
-from bfsitl.fc.provisioning import Profile
 from bfsitl.mission.flight_row import FlightRow
 from bfsitl.mission.hooks import FlightHooks
 from bfsitl.mission.loop import FlightLoop
 from bfsitl.mission.phase import Phase
 from bfsitl.mission.plan_driver import fly_steps
 from bfsitl.mission.session import (
-    FLY_PROFILE,
     FcSetup,
     FlightSession,
     SessionConfig,
     SitlLaunch,
-    with_fast_serial,
 )
 from bfsitl.mission.vehicle import FlightSample
-from bfsitl.physics.params import QuadParams
 from bfsitl.protocol import messages as msg
-from bfsitl.protocol.firmware_profile import FirmwareProfile, Generation
+from bfsitl.protocol.firmware_profile import FirmwareProfile
 from bfsitl.records.outputs import FlightOutputs, OutputOptions
 from bfsitl.scenario.expectations import settle_verdict
 from bfsitl.scenario.faults import Fault, Undo, make_faults
-from bfsitl.scenario.fc_mission import fc_mission_cli
 from bfsitl.scenario.metrics import run_metrics
 from bfsitl.scenario.replay_run import fly_replay_scenario
 from bfsitl.scenario.result import ScenarioResult, TimedEvent, Verdict
+from bfsitl.scenario.setup_lines import mode_range_lines, provisioned_settings, scenario_profile
 from bfsitl.scenario.spec import Scenario
 from bfsitl.scenario.trace import Trace, TraceRow, phase_name, write_trace_csv
 from bfsitl.sitl.firmware import find_firmware
-from bfsitl.vehicles.throttle import hover_throttle_us
 
 #: debug[] index of the failsafe phase with ``debug_mode = FAILSAFE`` (flight/failsafe.c).
 FAILSAFE_PHASE_DEBUG_INDEX = 3
 
 
-def hover_throttle_line(quad: QuadParams) -> str:
-    """The simulated quad's hover throttle, as a pilot sets it for theirs: the firmware's own
-    altitude hold (a failsafe landing, GPS Rescue, ALTHOLD) starts from it.  Its default,
-    1275 us, is a light racer's; with it the FC's failsafe landing fell 4 m at nearly free
-    fall on IRIS (:mod:`bfsitl.vehicles.throttle` says how another quad's is found)."""
-    return f"set ap_hover_throttle = {round(hover_throttle_us(quad))}"
-
-
-#: The AUX channels a SITL reads by default (max_aux_channels).
-SITL_AUX_CHANNELS = 6
 #: A vehicle at rest: slower than this vertically.
 AT_REST_M_S = 0.05
 
 Progress = Callable[[str], None]
-
-
-def blackbox_cli(profile: FirmwareProfile) -> tuple[str, ...]:
-    """The FC's own log to a file in its run directory, one per armed flight.  4.6.0 runs its
-    PID loop at 8 kHz and master at 1 kHz: 1/16 and 1/4 give both a few hundred frames a
-    second, plenty to time a failsafe, and small files."""
-    rate = "1/16" if profile.generation is Generation.V4_6 else "1/4"
-    return (
-        "set blackbox_device = VIRTUAL",
-        "set blackbox_mode = NORMAL",
-        f"set blackbox_sample_rate = {rate}",
-        "set debug_mode = FAILSAFE",
-    )
-
-
-def scenario_profile(
-    scenario: Scenario, profile: FirmwareProfile, faults: tuple[Fault, ...]
-) -> Profile:
-    """What a run provisions: bfsitl's flight profile, the blackbox, the simulated quad's
-    hover throttle, the scenario's lines (last, so they win), and the mode switches its
-    faults use (the FAILSAFE switch, a ``mode_switch``'s mode)."""
-    base = with_fast_serial(FLY_PROFILE)
-    ranges = base.mode_ranges
-    switches = dict.fromkeys(switch for fault in faults for switch in fault.switches)
-    ranges = (
-        *ranges,
-        *(msg.ModeRange.from_us(box_id, aux_index, 1700, 2100) for box_id, aux_index in switches),
-    )
-    # A SITL reads AUX1-AUX6 only (max_aux_channels, DEFAULT_AUX_CHANNEL_COUNT in
-    # target/common_post.h): a switch above that is never seen unless the FC reads it.
-    highest_aux = max((aux_index + 1 for _box, aux_index in switches), default=0)
-    more_aux = (f"set max_aux_channels = {highest_aux}",) if highest_aux > SITL_AUX_CHANNELS else ()
-    return dataclasses.replace(
-        base,
-        mode_ranges=ranges,
-        cli_lines=(
-            *base.cli_lines,
-            *blackbox_cli(profile),
-            hover_throttle_line(scenario.quad),
-            *more_aux,
-            *fc_mission_cli(scenario.fc_waypoints),
-            *scenario.cli,
-            *dict(scenario.cli_for).get(profile.generation.value, ()),
-        ),
-    )
 
 
 @dataclass(frozen=True, slots=True)
@@ -230,7 +171,7 @@ class _Injector:
             self.note(t, f"{fault.title}" + (f" for {lasts:g} s" if lasts is not None else ""))
             if fault.takes_sticks:
                 self.sticks_taken = True
-        self.trace.rows.append(self._row(t, sample))
+        self.trace.rows.append(self._row(t, sample, row))
         self.watch.add(
             row, sample, time_s=round(t, 4), failsafe_phase=self.trace.rows[-1].failsafe_phase
         )
@@ -239,7 +180,7 @@ class _Injector:
         """The autopilot stops flying once a fault has taken its sticks (then it watches)."""
         return "a fault took the sticks" if self.sticks_taken else None
 
-    def _row(self, t: float, sample: FlightSample) -> TraceRow:
+    def _row(self, t: float, sample: FlightSample, row: FlightRow) -> TraceRow:
         try:
             debug = self.vehicle.client.get(msg.Debug).values
             phase: int | None = (
@@ -275,6 +216,9 @@ class _Injector:
             sample.arming_blockers,
             phase,
             sample.sim_yaw_deg,
+            stick_share(row.rc_throttle_us),
+            sum(sample.motors) / len(sample.motors),
+            len(self.trace.fault_times_s),
         )
 
 
@@ -322,6 +266,13 @@ def run_scenario(
                 f"needs a firmware with GPS; {firmware} has none (`bfsitl firmware build --gps`)"
             )
             return result
+        if scenario.replay is not None and not _lockstep(binary.path):
+            result.verdict = Verdict.SKIPPED
+            result.reason = (
+                f"a replay needs a lockstep build, so that each frame reaches the FC when it "
+                f"is due; {firmware} is not one (`bfsitl firmware build --lockstep`)"
+            )
+            return result
         faults = make_faults(scenario.faults, profile, where=scenario.where)
         missing = missing_features(scenario, faults, binary.path)
         if missing:
@@ -335,8 +286,18 @@ def run_scenario(
             )
             return result
         if scenario.replay is not None:
-            fly_replay_scenario(scenario, binary.path, profile, out, options.plot, result, say)
+            timing = Timing(speed=options.speed, lockstep_spin=not options.shares_cores)
+            fly_replay_scenario(
+                scenario, binary.path, profile, out, result, say, plot=options.plot, timing=timing
+            )
         else:
+            result.settings = [
+                (s.source, s.line, s.why)
+                for s in (
+                    *mode_range_lines(faults),
+                    *provisioned_settings(scenario, profile, faults),
+                )
+            ]
             _fly(scenario, binary.path, profile, faults, options, result, say)
     except FaultNotSupportedError as exc:
         result.verdict, result.reason = Verdict.SKIPPED, str(exc)
@@ -361,6 +322,13 @@ FEATURE_WHY = {
 }
 
 
+def _lockstep(binary: Path) -> bool:
+    try:
+        return binary_traits(binary).lockstep
+    except OSError:
+        return False  # unreadable here: the skip's reason says what to build
+
+
 def missing_features(scenario: Scenario, faults: tuple[Fault, ...], binary: Path) -> list[str]:
     """The build features the scenario and its faults need that ``binary`` lacks (its
     CLI's setting names, scanned from its bytes)."""
@@ -369,8 +337,6 @@ def missing_features(scenario: Scenario, faults: tuple[Fault, ...], binary: Path
     )
     if not needed:
         return []
-    from bfsitl.build.binary_scan import binary_traits
-
     try:
         have = set(binary_traits(binary).features)
     except OSError:
@@ -585,6 +551,9 @@ def write_summary(result: ScenarioResult, out: Path) -> None:
         "findings": [f.as_dict() for f in result.findings],
         "metrics": {k: (round(v, 4) if v is not None else None) for k, v in result.metrics.items()},
         "behaviour": result.behaviour,
+        "settings": [
+            {"from": source, "line": line, "why": why} for source, line, why in result.settings
+        ],
         "analysers": {"watched": result.watched, "skipped": result.unwatched},
     }
     path = out / "result.json"

@@ -129,6 +129,7 @@ class Scenario:
             :mod:`bfsitl.scenario.known_failures`).
         replay: ``[replay]``: a real flight's log flown again instead of ``plan``
             (:mod:`bfsitl.scenario.replay_spec`); None for a flown scenario.
+        side_cli: A comparison side's lines, before ``cli``.
     """
 
     name: str
@@ -167,6 +168,9 @@ class Scenario:
     known_failures: tuple[KnownFailure, ...] = ()
     #: ``[replay]``: a real flight's log flown again instead of ``plan``.
     replay: ReplaySpec | None = None
+    #: A comparison side's CLI lines (``scenario compare --a-cli/--b-cli``), applied before
+    #: the scenario's own, so a scenario that sets the value itself keeps it.
+    side_cli: tuple[str, ...] = ()
 
     @property
     def where(self) -> str:
@@ -205,9 +209,11 @@ def _wind(where: str, raw: Any) -> Wind:
     )
 
 
-def _vehicle(where: str, raw: Any, source: Path | None) -> QuadParams:
+def _vehicle(
+    where: str, raw: Any, source: Path | None, default: str = DEFAULT_VEHICLE
+) -> QuadParams:
     """``[vehicle]``: a shipped vehicle or a profile file (relative to the scenario file),
-    optionally heavier or lighter (payload, battery)."""
+    optionally heavier or lighter (payload, battery); ``default`` when it names none."""
     if not isinstance(raw, dict):
         raise ScenarioError(f"{where}: [vehicle] must be a table")
     unknown = set(raw) - {"model", "mass_kg", "heading_deg"}
@@ -216,7 +222,7 @@ def _vehicle(where: str, raw: Any, source: Path | None) -> QuadParams:
             f"{where}: [vehicle] has unknown key(s) "
             f"{', '.join(sorted(unknown))}; known: heading_deg, mass_kg, model"
         )
-    model = raw.get("model", DEFAULT_VEHICLE)
+    model = raw.get("model", default)
     if not isinstance(model, str) or not model:
         raise ScenarioError(f"{where}: [vehicle] model must be a vehicle's name or a file")
     try:
@@ -260,6 +266,7 @@ def scenario_from_dict(data: dict[str, Any], *, name: str, source: Path | None =
             f"{', '.join(sorted(_TOP_KEYS))}"
         )
     replay = read_replay_spec(data, where=where, source=source) if "replay" in data else None
+    default_model = DEFAULT_VEHICLE if replay is None else DEFAULT_REPLAY_VEHICLE
     if replay is None:
         plan, duration_s, faults = _flown(data, where)
     else:
@@ -304,9 +311,9 @@ def scenario_from_dict(data: dict[str, Any], *, name: str, source: Path | None =
         cli_for=_cli_for(where, data),
         wind=_wind(where, data["wind"]) if "wind" in data else None,
         seed=seed,
-        quad=_vehicle(where, data["vehicle"], source)
+        quad=_vehicle(where, data["vehicle"], source, default_model)
         if "vehicle" in data
-        else (IRIS if replay is None else load_vehicle(DEFAULT_REPLAY_VEHICLE)),
+        else load_vehicle(default_model),
         own_vehicle=bool({"model", "mass_kg"} & set(data.get("vehicle", {}))),
         known_failures=read_known_failures(data.get("known_failure", []), where),
         initial_heading_deg=number_in(

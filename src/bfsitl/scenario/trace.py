@@ -49,6 +49,12 @@ class TraceRow:
     failsafe_phase: int | None = None
     #: The true heading, degrees clockwise from north (0..360).
     heading_deg: float = math.nan
+    #: The throttle stick sent, a share of its travel (0 low, 1 full; NaN: not known).
+    throttle_share: float = math.nan
+    #: The motors' mean command, 0..1 (NaN: not known).
+    motor_share: float = math.nan
+    #: How many faults had been injected by this row.
+    faults: int = 0
 
     @property
     def distance_m(self) -> float:
@@ -103,7 +109,12 @@ TRACE_COLUMNS = (
     "armed",
     "failsafe_phase",
     "heading_deg",
+    "throttle_share",
+    "motor_share",
+    "faults",
 )
+#: The columns before the throttle, the motors and the faults were written (still read).
+_OLD_TRACE_COLUMNS = TRACE_COLUMNS[:-3]
 
 
 def write_trace_csv(trace: Trace, path: Path) -> Path:
@@ -123,6 +134,9 @@ def write_trace_csv(trace: Trace, path: Path) -> Path:
                     str(int(row.armed)),
                     "" if row.failsafe_phase is None else str(row.failsafe_phase),
                     f"{row.heading_deg:.2f}",
+                    f"{row.throttle_share:.4f}",
+                    f"{row.motor_share:.4f}",
+                    str(row.faults),
                 )
             )
         )
@@ -135,7 +149,7 @@ def read_trace_csv(path: Path) -> Trace:
     try:
         with Path(path).open(newline="") as file:
             reader = csv.DictReader(file)
-            if tuple(reader.fieldnames or ()) != TRACE_COLUMNS:
+            if tuple(reader.fieldnames or ()) not in (TRACE_COLUMNS, _OLD_TRACE_COLUMNS):
                 raise ScenarioError(f"{path} is not a scenario run's trace.csv")
             rows = [
                 TraceRow(
@@ -151,9 +165,16 @@ def read_trace_csv(path: Path) -> Trace:
                     (),
                     int(r["failsafe_phase"]) if r["failsafe_phase"] else None,
                     float(r["heading_deg"]),
+                    float(r.get("throttle_share") or math.nan),
+                    float(r.get("motor_share") or math.nan),
+                    int(r.get("faults") or 0),
                 )
                 for r in reader
             ]
     except (OSError, ValueError, KeyError, csv.Error) as exc:
         raise ScenarioError(f"cannot read {path}: {exc}") from exc
-    return Trace(rows=rows)
+    # Each fault's time is the first row that counts it.
+    faults: list[float] = []
+    for row in rows:
+        faults.extend([row.time_s] * (row.faults - len(faults)))
+    return Trace(rows=rows, fault_times_s=faults)

@@ -121,15 +121,22 @@ def test_on_real_logs_a_hard_landing_ends_the_flight_and_no_finding_sits_in_a_pu
 
 
 def test_a_logs_mode_switches_say_whether_the_fc_levelled_the_quad() -> None:
-    """``flightModeFlags`` holds the box switches (4.6.0 blackbox.c copies
-    rcModeActivationMask): ANGLE is box 1, HORIZON 2; a failsafe levels whatever the
+    """``flightModeFlags`` holds the box switches by the firmware's internal ``boxId_e``
+    (4.6.0 blackbox.c copies rcModeActivationMask; fc/rc_modes.h: ARM 0, ANGLE 1, HORIZON 2,
+    MAG 3, ...): ANGLE and HORIZON level, the others do not; a failsafe levels whatever the
     switches say."""
+    import dataclasses
+
     import numpy as np
     from support.synthetic_log import synthetic_log
 
     time_s = np.arange(6) / 100.0
-    masks = np.array([0, 1 << 1, 1 << 2, 1 << 0, 1 << 27, 1 << 28])  # acro, ANGLE, HORIZON,
-    # ARM alone, FAILSAFE, AIRMODE alone
+    masks = np.array([0, 1 << 1, 1 << 2, 1 << 0, 1 << 3, 1 << 11])  # acro, ANGLE, HORIZON,
+    # ARM alone, MAG (whose MSP permanent id 5 would be HEADFREE), ANTIGRAVITY
     log = synthetic_log(time_s, np.full((6, 4), 1500.0), mode_mask=masks)
     track = track_from_blackbox(log)
-    assert [p.self_levelling for p in track.points] == [False, True, True, False, True, False]
+    assert [p.self_levelling for p in track.points] == [False, True, True, False, False, False]
+    landing = dataclasses.replace(
+        log, frames=tuple(dataclasses.replace(f, failsafe_phase=2) for f in log.frames)
+    )
+    assert all(p.self_levelling for p in track_from_blackbox(landing).points)

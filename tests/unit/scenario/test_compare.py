@@ -19,6 +19,7 @@ from bfsitl.scenario.compare import (
     plan_comparison,
 )
 from bfsitl.scenario.compare_output import (
+    _overridden,
     comparison_lines,
     write_comparison_json,
     write_comparison_junit,
@@ -26,7 +27,9 @@ from bfsitl.scenario.compare_output import (
 )
 from bfsitl.scenario.planned_run import PlannedRun
 from bfsitl.scenario.result import CheckResult, ScenarioResult, Verdict
+from bfsitl.scenario.setup_lines import hover_throttle_line, provisioned_settings, scenario_profile
 from bfsitl.scenario.spec import scenario_from_dict
+from tests.support.scenario_files import V46
 
 SIDES = (
     Side("A", "4.6.0-gps-lockstep"),
@@ -93,8 +96,17 @@ def test_the_plan_flies_each_seed_on_each_side_with_the_sides_lines_first(tmp_pa
     b = planned[1].run
     assert b.scenario.seed == 5 and b.firmware == "4.6.0-gps-lockstep"
     # A changed default goes before the scenario's own lines: a scenario that sets it wins.
-    assert b.scenario.cli == ("set ap_hover_throttle = 1275", "set x = 1")
-    assert planned[0].run.scenario.cli == ("set x = 1",)
+    assert b.scenario.side_cli == ("set ap_hover_throttle = 1275",)
+    assert b.scenario.cli == planned[0].run.scenario.cli == ("set x = 1",)
+    lines = scenario_profile(b.scenario, V46, ()).cli_lines
+    assert lines.index("set ap_hover_throttle = 1275") < lines.index("set x = 1")
+    assert lines.index(hover_throttle_line(b.scenario.quad)) < lines.index(
+        "set ap_hover_throttle = 1275"
+    )
+    sources = {s.line: s.source for s in provisioned_settings(b.scenario, V46, ())}
+    assert sources["set ap_hover_throttle = 1275"] == "the side"
+    assert sources["set x = 1"] == "the scenario"
+    assert sources["set debug_mode = FAILSAFE"] == "bfsitl"
     assert b.out_dir == tmp_path / "B" / "drop" / "seed-5"
     with pytest.raises(ScenarioError, match="at least 1"):
         plan_comparison([scenario()], SIDES, 0, tmp_path)
@@ -213,6 +225,37 @@ def test_what_a_comparison_writes(tmp_path: Path) -> None:
     page = write_comparison_report(comparisons, SIDES, tmp_path / "report").read_text()
     assert "B: 4.6.0-gps-lockstep + set ap_hover_throttle = 1275" in page
     assert 'class="verdict worse"' in page and "finding crash" in page
+
+
+def test_the_report_says_what_each_side_was_given_and_links_each_runs_files(
+    tmp_path: Path,
+) -> None:
+    a_runs, b_runs = [result("hover"), result("hover")], [result("hover"), result("hover")]
+    given = [("bfsitl", "set debug_mode = FAILSAFE", "the FC's own log")]
+    assert _overridden(
+        [*given, ("x", "set ap_hover_throttle = 1", ""), ("y", "set ap_hover_throttle = 2", "")]
+    ) == [False, True, False]
+    for run in a_runs:
+        run.settings = list(given)
+    for run in b_runs:
+        run.settings = [*given, ("the side", "set ap_hover_throttle = 1275", "")]
+    summary = tmp_path / "B" / "hover" / "seed-5" / "result.json"
+    summary.parent.mkdir(parents=True)
+    summary.write_text("{}")
+    b_runs[0].artifacts["summary"] = summary
+    b_runs[0].artifacts["blackbox"] = tmp_path / "gone.BFL"  # not there: not linked
+    page = write_comparison_report([judge(a_runs, b_runs)], SIDES, tmp_path / "report").read_text()
+    assert "B only: <code>set ap_hover_throttle = 1275</code> (the side)" in page
+    assert page.count("(a later line sets it again)") == 0
+    assert "A: the 1 lines its FC was given" in page and "the FC&#x27;s own log" in page
+    assert '<a href="../B/hover/seed-5/result.json">summary</a>' in page
+    assert "gone.BFL" not in page
+    same = [result("hover")]
+    same[0].settings = list(given)
+    assert (
+        "Both sides were given the same lines"
+        in write_comparison_report([judge(same, same)], SIDES, tmp_path / "again").read_text()
+    )
 
 
 def test_a_new_failure_is_worse_whatever_else_changed() -> None:

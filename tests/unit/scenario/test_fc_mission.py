@@ -15,7 +15,8 @@ from bfsitl.physics.frames import GeoPoint, geodetic_to_ned
 from bfsitl.protocol.boxes import AUTOPILOT_BOX_ID, BoxId
 from bfsitl.scenario.faults import make_faults, read_fault_spec
 from bfsitl.scenario.fc_mission import FcWaypoint, fc_mission_cli, read_fc_waypoints
-from bfsitl.scenario.run import missing_features, scenario_profile
+from bfsitl.scenario.run import missing_features
+from bfsitl.scenario.setup_lines import scenario_profile
 from bfsitl.scenario.spec import scenario_from_dict
 
 BASE = {"duration_s": 60, "flight": {"takeoff_alt_m": 10.0}, "expect": {"mode_seen": "AUTOPILOT"}}

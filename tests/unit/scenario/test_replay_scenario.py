@@ -7,11 +7,13 @@ from __future__ import annotations
 
 import dataclasses
 import importlib
+import math
 from pathlib import Path
 from typing import Any
 
 import pytest
 
+from bfsitl.backend.options import Timing
 from bfsitl.errors import ScenarioError
 from bfsitl.physics.wind import Wind
 from bfsitl.replay.compare import compare_logs
@@ -220,8 +222,22 @@ def test_a_replay_run_fills_the_result_from_the_replay(
     monkeypatch.setattr(run, "replay_log", fake_replay)
     result = ScenarioResult("my-flight", "fw", Verdict.ERROR, "")
     lines: list[str] = []
-    run.fly_replay_scenario(scenario, Path("fw"), V46, tmp_path, False, result, lines.append)
-    assert asked["extra_cli"] == ("set p_roll = 20",) and asked["seed"] == 7
+    timing = Timing(lockstep_spin=False)
+    run.fly_replay_scenario(
+        dataclasses.replace(scenario, side_cli=("set f_roll = 0",)),
+        Path("fw"),
+        V46,
+        tmp_path,
+        result,
+        lines.append,
+        plot=False,
+        timing=timing,
+    )
+    # The side's lines, then the scenario's, after the log's own (replay_log adds those).
+    assert asked["extra_cli"] == ("set f_roll = 0", "set p_roll = 20") and asked["seed"] == 7
+    assert asked["timing"] is timing  # a suite sharing the cores does not spin
+    sources = {line: source for source, line, _ in result.settings}
+    assert sources["set f_roll = 0"] == "the side" and sources["set p_roll = 20"] == "the scenario"
     assert asked["quad"].name == "5inch-freestyle"
     assert result.verdict is Verdict.FAILED and "max_gyro_off_real" in result.reason
     assert result.metrics["roll_rise_ms"] == pytest.approx(_figures(0.04)["roll_rise_ms"])
@@ -241,3 +257,67 @@ def test_the_pytest_plugin_takes_a_replay_file_for_a_scenario(tmp_path: Path) ->
 
     assert _looks_like_scenario(_replay_file(tmp_path, REPLAY + '[expect]\nno_finding = "crash"\n'))
     assert not _looks_like_scenario(_replay_file(tmp_path, REPLAY))
+
+
+def test_a_replays_vehicle_table_without_a_model_keeps_the_5_inch(tmp_path: Path) -> None:
+    heavier = load_scenario(
+        _replay_file(tmp_path, REPLAY + "[vehicle]\nmass_kg = 0.75\n[expect]\n"
+                     'worst_finding = "warning"\n')
+    )  # fmt: skip
+    assert heavier.quad.name == "5inch-freestyle, 0.75 kg" and heavier.own_vehicle
+    with pytest.raises(ScenarioError, match="heading_deg cannot go with it"):
+        load_scenario(
+            _replay_file(tmp_path, REPLAY + "[vehicle]\nheading_deg = 90\n[expect]\n"
+                         'worst_finding = "warning"\n')
+        )  # fmt: skip
+
+
+def test_an_axis_that_turns_the_wrong_way_has_no_step_figures_on_that_side() -> None:
+    inverted = lagged_log(COMMAND, tau_s=0.02)
+    inverted = dataclasses.replace(
+        inverted,
+        frames=tuple(
+            dataclasses.replace(f, gyro_adc=(-f.gyro_adc[0], *f.gyro_adc[1:]))
+            for f in inverted.frames
+        ),
+    )
+    figures = replay_metrics(compare_logs(REAL, inverted), []).values
+    assert figures["roll_rise_ms"] is None and figures["roll_overshoot_pct"] is None
+    assert figures["pitch_rise_ms"] is not None
+    assert all(v is None or math.isfinite(v) for v in figures.values())
+
+
+def test_the_lowest_setpoint_correlation_is_judged_and_an_axis_that_never_moved_is_said(
+    tmp_path: Path,
+) -> None:
+    scenario = _replay_scenario(tmp_path, "min_setpoint_correlation = 0.99\n")
+    comparison = compare_logs(REAL, lagged_log(COMMAND, tau_s=0.02))
+
+    def with_correlations(*values: float) -> Trace:
+        axes = tuple(
+            dataclasses.replace(axis, setpoint_correlation=value)
+            for axis, value in zip(comparison.axes, values, strict=True)
+        )
+        return Trace(replay=dataclasses.replace(comparison, axes=axes))
+
+    for order in ((0.995, 0.98, math.nan), (math.nan, 0.98, 0.995)):
+        (check,) = judge(scenario, with_correlations(*order))
+        assert not check.passed and "the lowest is 0.9800 (pitch)" in check.message
+        assert "never moved (not judged)" in check.message
+    (check,) = judge(scenario, with_correlations(0.995, 0.999, math.nan))
+    assert check.passed
+    (check,) = judge(scenario, with_correlations(math.nan, math.nan, math.nan))
+    assert not check.passed and "no setpoint moved" in check.message
+
+
+def test_a_replay_on_a_build_without_lockstep_is_skipped_saying_what_to_build(
+    tmp_path: Path,
+) -> None:
+    from support.scenario_files import fake_binary
+
+    from bfsitl.scenario.run import RunOptions, run_scenario
+
+    scenario = _replay_scenario(tmp_path, 'no_finding = "crash"\n')
+    result = run_scenario(scenario, str(fake_binary(tmp_path)), RunOptions(tmp_path / "run"))
+    assert result.verdict is Verdict.SKIPPED
+    assert "needs a lockstep build" in result.reason and "--lockstep" in result.reason

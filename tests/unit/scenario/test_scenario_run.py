@@ -19,14 +19,8 @@ from bfsitl.physics import IRIS, Simulator
 from bfsitl.protocol.boxes import BoxId
 from bfsitl.scenario.faults import make_faults, read_fault_spec
 from bfsitl.scenario.result import Verdict
-from bfsitl.scenario.run import (
-    RunOptions,
-    _Injector,
-    blackbox_cli,
-    hover_throttle_line,
-    run_scenario,
-    scenario_profile,
-)
+from bfsitl.scenario.run import RunOptions, _Injector, run_scenario
+from bfsitl.scenario.setup_lines import blackbox_cli, hover_throttle_line, scenario_profile
 from bfsitl.scenario.trace import Trace
 
 

@@ -44,7 +44,8 @@ from bfsitl.records.csv_log import read_flight_log
 from bfsitl.scenario import run
 from bfsitl.scenario.faults import make_faults, read_fault_spec
 from bfsitl.scenario.result import ScenarioResult, Verdict
-from bfsitl.scenario.run import RunOptions, blackbox_cli, hover_throttle_line, scenario_profile
+from bfsitl.scenario.run import RunOptions
+from bfsitl.scenario.setup_lines import blackbox_cli, hover_throttle_line, scenario_profile
 from bfsitl.scenario.trace import read_trace_csv
 
 #: The fake's clock reads this at arming (a SITL boots first): times "from arming" differ

@@ -250,7 +250,7 @@ def test_blackbox_expectations_fail_clearly_without_a_log() -> None:
 
 def test_a_vehicle_table_makes_the_quad_and_its_hover_throttle(tmp_path: Path) -> None:
     from bfsitl.physics import IRIS
-    from bfsitl.scenario.run import hover_throttle_line
+    from bfsitl.scenario.setup_lines import hover_throttle_line
 
     default = load_scenario(write(tmp_path, MINIMAL, "a.toml"))
     heavy = load_scenario(
@@ -267,7 +267,7 @@ def test_a_vehicle_table_makes_the_quad_and_its_hover_throttle(tmp_path: Path) -
 
 
 def test_a_scenario_flies_a_shipped_profile_or_a_file_beside_it(tmp_path: Path) -> None:
-    from bfsitl.scenario.run import hover_throttle_line
+    from bfsitl.scenario.setup_lines import hover_throttle_line
     from bfsitl.scenario.spec import on_vehicle
     from bfsitl.vehicles import load_vehicle, profile_text, shipped_profiles
 

@@ -18,7 +18,8 @@ in turn (the next one in the observation).  Options of both, the session's group
 environment's own: ``control_hz``, ``mode`` (``"angle"`` or ``"acro"``), ``observation``
 (``"fc"``: what the FC reports; ``"truth"``: the simulation), ``disturbances`` (a hook called
 before every step with the flight's disturbance surface), ``start`` (``"air"`` or
-``"ground"``), ``start_alt_m``, ``pin_core``, ``warm_resets``.  Needs the ``gym`` extra:
+``"ground"``), ``start_alt_m``, ``pin_core``, ``warm_resets``, ``render_mode``
+(``"rgb_array"``: :mod:`~bfsitl.gym.render`).  Needs the ``gym`` extra:
 ``pip install 'bfsitl[gym]'``.
 
 An episode is truncated after ``max_episode_steps`` steps, Gymnasium's own limit, registered

@@ -28,7 +28,8 @@ deterministic as the episodes before it: from a seeded reset on, the same action
 same flights.  ``warm_resets=False`` boots afresh every time.
 
 The observation (:mod:`~bfsitl.gym.observation`), the reward and the endings
-(:mod:`~bfsitl.gym.tasks`) are documented where they are computed.
+(:mod:`~bfsitl.gym.tasks`) are documented where they are computed; what ``render()`` draws
+with ``render_mode="rgb_array"``, in :mod:`~bfsitl.gym.render`.
 """
 
 from __future__ import annotations
@@ -57,6 +58,7 @@ from bfsitl.gym.observation import (
     observation_space,
     observe,
 )
+from bfsitl.gym.render import RENDER_MODES, check_render_mode, render_frame
 from bfsitl.gym.snapshot import Snapshot, Vec3, read_snapshot
 from bfsitl.gym.sticks import sticks_to_rc
 from bfsitl.gym.tasks import (
@@ -119,10 +121,16 @@ class FlightEnv(gymnasium.Env[np.ndarray, np.ndarray]):
     episode's).  Another quad: ``world=World(quad=load_vehicle("5inch-freestyle"))``
     (:func:`bfsitl.vehicles.load_vehicle`; a profile file too).  The rest are the
     environment's own: the policy's rate, mode and observation, the episode's start and
-    length, the disturbances, the core pinning and the warm resets.
+    length, the disturbances, the core pinning and the warm resets, and ``render_mode``:
+    ``"rgb_array"`` makes :meth:`render` draw the truth (:mod:`~bfsitl.gym.render`).
     """
 
-    metadata: dict[str, Any] = {"render_modes": []}
+    #: Each environment's own copy says its ``control_hz`` as the frame rate: one frame a
+    #: step, so a recorded video runs in simulated real time.
+    metadata: dict[str, Any] = {
+        "render_modes": list(RENDER_MODES),
+        "render_fps": DEFAULT_CONTROL_HZ,
+    }
 
     def __init__(
         self,
@@ -140,6 +148,7 @@ class FlightEnv(gymnasium.Env[np.ndarray, np.ndarray]):
         start_alt_m: float = 1.5,
         pin_core: bool | None = None,
         warm_resets: bool = True,
+        render_mode: str | None = None,
     ) -> None:
         check_group("sitl", sitl, SitlLaunch)
         check_group("timing", timing, Timing)
@@ -147,6 +156,7 @@ class FlightEnv(gymnasium.Env[np.ndarray, np.ndarray]):
         _check_choice("mode", mode, MODES)
         _check_choice("observation", observation, OBSERVATIONS)
         _check_choice("start", start, STARTS)
+        check_render_mode(render_mode)
         _check_choice("timing.lockstep_exchange", timing.lockstep_exchange, LOCKSTEP_EXCHANGES)
         if timing.lockstep is False:
             raise EnvironmentConfigError(
@@ -196,6 +206,8 @@ class FlightEnv(gymnasium.Env[np.ndarray, np.ndarray]):
             )
         self.task = task
         self.control_hz = control_hz
+        self.render_mode = render_mode
+        self.metadata = {"render_modes": list(RENDER_MODES), "render_fps": control_hz}
         self.mode = mode
         self.observation = observation
         # What every episode's session is made from: the lockstep always on, the spin as
@@ -358,6 +370,17 @@ class FlightEnv(gymnasium.Env[np.ndarray, np.ndarray]):
         if self._own_workdir:
             shutil.rmtree(self.workdir, ignore_errors=True)
         super().close()
+
+    def render(self) -> np.ndarray | None:
+        """The frame of the last step's truth and the task's targets (uint8, height x width
+        x 3; :mod:`~bfsitl.gym.render`), or None without a ``render_mode``, as Gymnasium
+        has it."""
+        if self.render_mode is None:
+            return None
+        snapshot = self._snapshot
+        if snapshot is None:
+            raise EnvironmentConfigError("render() before reset(): call env.reset() first")
+        return render_frame(snapshot.truth, self.task.targets, current=self.task.index)
 
     @property
     def snapshot(self) -> Snapshot | None:

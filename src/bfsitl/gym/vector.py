@@ -24,6 +24,11 @@ Each step's ``info`` holds, per environment, ``time_s``, ``distance_m``, ``waypo
 ``armed``, ``failsafe``, the ``target`` (north, east, up) and the truth's ``position_m`` and
 ``velocity_m_s`` (north, east, up), each with Gymnasium's ``_key`` mask.
 
+With ``render_mode="rgb_array"`` every worker's environment draws its frames
+(:mod:`~bfsitl.gym.render`) and :meth:`~FlightVectorEnv.render` returns one per
+environment, as Gymnasium's own vector environments do; a frame travels through the pipe,
+pickled, only when it is asked for.
+
 The workers are forked by default, as Gymnasium's own vector environments do on Linux;
 ``context="spawn"`` or ``"forkserver"`` starts fresh interpreters instead (then the options,
 a ``disturbances`` hook included, must be picklable, and the script needs the
@@ -52,7 +57,9 @@ from gymnasium.vector.utils import batch_space
 
 from bfsitl.backend.options import Timing
 from bfsitl.errors import EnvironmentConfigError
+from bfsitl.gym.env import DEFAULT_CONTROL_HZ
 from bfsitl.gym.observation import OBSERVATION_SIZE, observation_space
+from bfsitl.gym.render import RENDER_MODES, check_render_mode
 from bfsitl.mission.session import SitlLaunch
 
 #: The numbers of each step's info, in their slots of the shared block.
@@ -60,10 +67,11 @@ INFO_NUMBERS = ("time_s", "distance_m", "waypoint", "armed", "failsafe")
 _VECTORS = ("target", "position_m", "velocity_m_s")
 _INFO_WIDTH = len(INFO_NUMBERS) + 3 * len(_VECTORS)
 #: What the parent says to a worker (a reset carries its seed and options, pickled), and what
-#: a worker answers (an ended episode carries its last observation and info, a failure its
-#: message): one pipe message each, so an answer is never half read.
-_STEP, _RESET, _CLOSE = b"s", b"r", b"c"
-_READY, _DONE, _ENDED, _FAILED = b"y", b"d", b"e", b"f"
+#: a worker answers (an ended episode carries its last observation and info, a frame the
+#: environment's render() beside an empty info, a failure its message): one pipe message
+#: each, so an answer is never half read.
+_STEP, _RESET, _RENDER, _CLOSE = b"s", b"r", b"v", b"c"
+_READY, _DONE, _ENDED, _FRAME, _FAILED = b"y", b"d", b"e", b"i", b"f"
 #: How long close() waits for a worker to end its SITL before it is terminated.
 _CLOSE_WAIT_S = 10.0
 
@@ -127,8 +135,12 @@ def _info_row(info: dict[str, Any]) -> list[float]:
 def handle_command(env: Any, shared: _Shared, index: int, message: bytes) -> bytes:
     """One step or reset of one environment: its numbers into row ``index`` of ``shared``,
     and the answer (an ended episode's last observation and info ride in it; the autoreset
-    is SAME_STEP).  What a worker process and a Ray actor (bfsitl.gym.ray_vector) both do."""
+    is SAME_STEP), or the frame asked for.  What a worker process and a Ray actor
+    (bfsitl.gym.ray_vector) both do."""
     command = message[:1]
+    if command == _RENDER:
+        # Drawing changes nothing of the flight: the shared numbers stay as they are.
+        return _FRAME + pickle.dumps((env.render(), {}))
     if command == _STEP:
         observation, reward, terminated, truncated, info = env.step(shared.actions[index])
         shared.rewards[index] = reward
@@ -207,7 +219,11 @@ class FlightVectorEnv(VectorEnv[np.ndarray, np.ndarray, np.ndarray]):
     """``num_envs`` copies of one environment (``entry_point``, ``module:Class``), stepped
     together; every other keyword goes to each copy (see the module docstring)."""
 
-    metadata: dict[str, Any] = {"autoreset_mode": AutoresetMode.SAME_STEP, "render_modes": []}
+    metadata: dict[str, Any] = {
+        "autoreset_mode": AutoresetMode.SAME_STEP,
+        "render_modes": list(RENDER_MODES),
+        "render_fps": DEFAULT_CONTROL_HZ,
+    }
 
     def __init__(
         self, entry_point: str, num_envs: int = 2, *, context: str = "fork", **options: Any
@@ -248,6 +264,15 @@ class FlightVectorEnv(VectorEnv[np.ndarray, np.ndarray, np.ndarray]):
         """The count, the spaces and the workers' defaults (pinned, not spinning), checked."""
         if not 1 <= num_envs <= 256:
             raise EnvironmentConfigError(f"num_envs {num_envs} is outside 1..256")
+        # Checked here too, so that a wrong mode is said once, not by every worker; the
+        # workers' environments get it as an option and draw the frames.
+        self.render_mode = options.get("render_mode")
+        check_render_mode(self.render_mode)
+        self.metadata = {
+            **type(self).metadata,
+            "render_modes": list(RENDER_MODES),
+            "render_fps": options.get("control_hz", DEFAULT_CONTROL_HZ),
+        }
         options.setdefault("pin_core", True)
         # Workers share the cores: no spinning unless told (a group given as something else
         # is left for the environment to refuse, with what it takes).
@@ -302,6 +327,15 @@ class FlightVectorEnv(VectorEnv[np.ndarray, np.ndarray, np.ndarray]):
             shared.truncated.copy(),
             info,
         )
+
+    def render(self) -> tuple[np.ndarray, ...] | None:
+        """Each environment's frame of its last step (:mod:`~bfsitl.gym.render`), or None
+        without a ``render_mode``."""
+        if self.render_mode is None:
+            return None
+        self._check_open()
+        frames = self._exchange([_RENDER] * self.num_envs)
+        return tuple(frames[index][0] for index in range(self.num_envs))
 
     def close_extras(self, **kwargs: Any) -> None:
         if self._closed_workers:
@@ -385,10 +419,10 @@ def _sort_answer(
     finals: dict[int, tuple[np.ndarray, dict[str, Any]]],
     failures: list[str],
 ) -> None:
-    """An environment's answer: an ended episode's (observation, info) into ``finals``, a
-    failure's text into ``failures``."""
+    """An environment's answer: an ended episode's (observation, info), or a frame beside an
+    empty info, into ``finals``; a failure's text into ``failures``."""
     kind = answer[:1]
-    if kind == _ENDED:
+    if kind in (_ENDED, _FRAME):
         finals[index] = pickle.loads(answer[1:])
     elif kind == _FAILED:
         failures.append(answer[1:].decode(errors="replace"))

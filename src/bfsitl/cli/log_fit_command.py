@@ -7,7 +7,7 @@ import sys
 from pathlib import Path
 from typing import TYPE_CHECKING
 
-from bfsitl.cli.arg_types import number_in, whole_number_at_least
+from bfsitl.cli.arg_types import number_in, out_dir_problem, whole_number_at_least
 
 if TYPE_CHECKING:
     from bfsitl.fit import LogFit
@@ -87,11 +87,11 @@ def cmd_log_fit(args: argparse.Namespace) -> int:
     if args.name is not None and (not args.name.strip() or any(c in args.name for c in "/\\")):
         print(f"bfsitl: error: --name {args.name!r} must be a plain name", file=sys.stderr)
         return EXIT_UNREADABLE
-    # The folder is made before the fit, which takes a while: a bad --out says so at once.
-    try:
-        args.out.mkdir(parents=True, exist_ok=True)
-    except OSError as exc:
-        print(f"bfsitl: error: cannot make the folder --out {args.out}: {exc}", file=sys.stderr)
+    # Checked before the fit, which takes a while: a bad --out says so at once; the folder
+    # is made only when there is a fit to write (a log that cannot be fitted leaves nothing).
+    problem = out_dir_problem(args.out)
+    if problem is not None:
+        print(f"bfsitl: error: cannot make the folder --out {args.out}: {problem}", file=sys.stderr)
         return EXIT_UNREADABLE
     print(f"bfsitl: reading {args.file} ...", file=sys.stderr)
     try:
@@ -103,6 +103,7 @@ def cmd_log_fit(args: argparse.Namespace) -> int:
         return EXIT_UNREADABLE
     profile_path = args.out / f"{fit.spec.name}.toml"
     try:
+        args.out.mkdir(parents=True, exist_ok=True)
         write_profile(fit.spec, profile_path)
         write_report_json(fit, args.out / "fit-report.json", profile_path)
         write_report_png(fit, args.out / "fit-report.png")

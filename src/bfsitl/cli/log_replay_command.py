@@ -7,7 +7,12 @@ import sys
 from pathlib import Path
 from typing import TYPE_CHECKING
 
-from bfsitl.cli.arg_types import VEHICLE_HELP, vehicle, whole_number_at_least
+from bfsitl.cli.arg_types import (
+    VEHICLE_HELP,
+    out_dir_problem,
+    vehicle,
+    whole_number_at_least,
+)
 
 if TYPE_CHECKING:
     from bfsitl.replay.compare import ReplayComparison
@@ -99,10 +104,10 @@ def cmd_log_replay(args: argparse.Namespace) -> int:
         write_report_png,
     )
 
-    try:
-        args.out.mkdir(parents=True, exist_ok=True)
-    except OSError as exc:
-        print(f"bfsitl: error: cannot make the folder --out {args.out}: {exc}", file=sys.stderr)
+    # The replay makes the folder when it flies: a log it refuses leaves nothing behind.
+    problem = out_dir_problem(args.out)
+    if problem is not None:
+        print(f"bfsitl: error: cannot make the folder --out {args.out}: {problem}", file=sys.stderr)
         return EXIT_UNREPLAYABLE
     _say(f"reading {args.file} ...")
     try:

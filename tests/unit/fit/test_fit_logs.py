@@ -44,15 +44,19 @@ def test_the_ground_is_told_from_a_fall() -> None:
     assert airborne[70:].all()
 
 
-def test_a_short_sitl_log_is_one_clear_line(capsys: pytest.CaptureFixture[str]) -> None:
+def test_a_short_sitl_log_is_one_clear_line_and_leaves_nothing_behind(
+    capsys: pytest.CaptureFixture[str], tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
     log = pick_log(DATA / "plain-4.6.0.BF", None)
     with pytest.raises(FitError, match="usable flight") as caught:
         flight_data(log)
     assert "\n" not in str(caught.value)
+    monkeypatch.chdir(tmp_path)  # the default --out is ./fit
     assert main(["log", "fit", str(DATA / "plain-4.6.0.BF"), "--mass-g", "1500"]) == 2
     err = capsys.readouterr().err.strip().splitlines()
     assert err[-1].startswith("bfsitl: error: plain-4.6.0.BF log 1: ")
     assert "Traceback" not in "\n".join(err)
+    assert list(tmp_path.iterdir()) == []  # no empty ./fit from a fit that never was
 
 
 @pytest.mark.parametrize(

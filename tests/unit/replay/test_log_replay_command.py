@@ -58,6 +58,18 @@ def test_an_out_that_cannot_be_made_is_said_at_once(
     assert "cannot make the folder --out" in capsys.readouterr().err
 
 
+def test_a_log_that_cannot_be_replayed_leaves_no_folder_behind(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    text = tmp_path / "notes.txt"
+    text.write_text("not a blackbox log\n")
+    out = tmp_path / "replay"
+    assert (
+        main(["log", "replay", str(text), "--vehicle", "5inch-freestyle", "--out", str(out)]) == 2
+    )
+    assert not out.exists()
+
+
 @pytest.mark.parametrize(("tau_s", "code"), [(0.02, 0), (0.045, 1)])
 def test_the_exit_code_follows_the_targets(
     tau_s: float,

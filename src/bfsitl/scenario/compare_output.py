@@ -6,7 +6,6 @@ from __future__ import annotations
 
 import io
 import json
-import os
 from collections.abc import Sequence
 from datetime import UTC, datetime
 from html import escape
@@ -17,7 +16,7 @@ from junitparser import Error, Failure, JUnitXml, Skipped, TestCase, TestSuite
 from bfsitl.atomic_file import write_atomically
 from bfsitl.errors import BfsitlError
 from bfsitl.scenario.compare import Change, ScenarioComparison, Side
-from bfsitl.scenario.report import STYLE, embedded_image
+from bfsitl.scenario.report import STYLE, embedded_image, href, settings_details
 from bfsitl.scenario.result import ScenarioResult
 from bfsitl.scenario.suite import dir_name
 
@@ -283,24 +282,11 @@ def _configuration(comparison: ScenarioComparison) -> str:
         for side, (source, line, _why) in only
     )
     tables = "".join(
-        f"<details><summary>{label}: the {len(settings)} lines its FC was given</summary>"
-        "<table><tr><th>from</th><th>line</th><th>why</th></tr>"
-        + "".join(
-            f"<tr><td>{escape(source)}</td><td><code>{escape(line)}</code></td>"
-            f"<td>{escape(why)}{' (a later line sets it again)' if overridden else ''}</td></tr>"
-            for (source, line, why), overridden in zip(settings, _overridden(settings), strict=True)
-        )
-        + "</table></details>"
+        settings_details(f"{label}: the {len(settings)} lines its FC was given", settings)
         for label, settings in (("A", a), ("B", b))
     )
     said = f"<ul>{differing}</ul>" if differing else "<p>Both sides were given the same lines.</p>"
     return f"<h3>Configuration</h3>{said}{tables}"
-
-
-def _overridden(settings: Sequence[tuple[str, str, str]]) -> list[bool]:
-    """Per line: a later ``set`` of the same setting replaces it (the FC keeps the last)."""
-    names = [line.split()[1] if line.startswith("set ") else None for _, line, _ in settings]
-    return [name is not None and name in names[i + 1 :] for i, name in enumerate(names)]
 
 
 def _run_links(comparison: ScenarioComparison, directory: Path) -> str:
@@ -309,7 +295,7 @@ def _run_links(comparison: ScenarioComparison, directory: Path) -> str:
     for label, runs in (("A", comparison.a_runs), ("B", comparison.b_runs)):
         for number, run in enumerate(runs, start=1):
             links = ", ".join(
-                f'<a href="{escape(_relative(Path(path), directory))}">{escape(kind)}</a>'
+                f'<a href="{href(Path(path), directory)}">{escape(kind)}</a>'
                 for kind, path in run.artifacts.items()
                 if kind in RUN_FILES and Path(path).exists()
             )
@@ -319,7 +305,3 @@ def _run_links(comparison: ScenarioComparison, directory: Path) -> str:
 
 #: The run files a report links to.
 RUN_FILES = ("summary", "blackbox", "trace", "log", "plot", "blackbox_plot", "replay_report")
-
-
-def _relative(path: Path, directory: Path) -> str:
-    return Path(os.path.relpath(path.resolve(), directory.resolve())).as_posix()

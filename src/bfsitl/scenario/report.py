@@ -185,6 +185,26 @@ def _findings(result: ScenarioResult) -> str:
     return f"<h3>findings</h3>{table}{unwatched}"
 
 
+def overridden(settings: Sequence[tuple[str, str, str]]) -> list[bool]:
+    """Per line: a later ``set`` of the same setting replaces it (the FC keeps the last)."""
+    names = [line.split()[1] if line.startswith("set ") else None for _, line, _ in settings]
+    return [name is not None and name in names[i + 1 :] for i, name in enumerate(names)]
+
+
+def settings_details(summary: str, settings: Sequence[tuple[str, str, str]]) -> str:
+    """A run's configuration as a folded table: each line, where it came from, why, and
+    whether a later line replaced it."""
+    rows = "".join(
+        f"<tr><td>{escape(source)}</td><td><code>{escape(line)}</code></td>"
+        f"<td>{escape(why)}{' (a later line sets it again)' if later else ''}</td></tr>"
+        for (source, line, why), later in zip(settings, overridden(settings), strict=True)
+    )
+    return (
+        f"<details><summary>{escape(summary)}</summary><table><tr><th>from</th><th>line</th>"
+        f"<th>why</th></tr>{rows}</table></details>"
+    )
+
+
 def _timeline(result: ScenarioResult) -> str:
     if not result.events:
         return ""
@@ -220,6 +240,12 @@ def _section(index: int, result: ScenarioResult, directory: Path) -> str:
             _checks(result),
             _findings(result),
             _timeline(result),
+            settings_details(
+                f"configuration: the {len(result.settings)} lines its FC was given",
+                result.settings,
+            )
+            if result.settings
+            else "",
             _images(result, directory),
             "</section>",
         )

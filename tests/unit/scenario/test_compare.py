@@ -19,13 +19,13 @@ from bfsitl.scenario.compare import (
     plan_comparison,
 )
 from bfsitl.scenario.compare_output import (
-    _overridden,
     comparison_lines,
     write_comparison_json,
     write_comparison_junit,
     write_comparison_report,
 )
 from bfsitl.scenario.planned_run import PlannedRun
+from bfsitl.scenario.report import overridden
 from bfsitl.scenario.result import CheckResult, ScenarioResult, Verdict
 from bfsitl.scenario.setup_lines import hover_throttle_line, provisioned_settings, scenario_profile
 from bfsitl.scenario.spec import scenario_from_dict
@@ -232,7 +232,7 @@ def test_the_report_says_what_each_side_was_given_and_links_each_runs_files(
 ) -> None:
     a_runs, b_runs = [result("hover"), result("hover")], [result("hover"), result("hover")]
     given = [("bfsitl", "set debug_mode = FAILSAFE", "the FC's own log")]
-    assert _overridden(
+    assert overridden(
         [*given, ("x", "set ap_hover_throttle = 1", ""), ("y", "set ap_hover_throttle = 2", "")]
     ) == [False, True, False]
     for run in a_runs:

@@ -346,3 +346,19 @@ def test_a_run_retried_on_a_cluster_says_so_once_in_junit_and_in_the_report(tmp_
     html = (tmp_path / "report" / "index.html").read_text()
     assert "all 2 expectations met (run 2 times: its Ray worker or node was lost" in html
     assert "all 1 expectations met (run" not in html
+
+
+def test_the_report_shows_what_each_runs_fc_was_given(tmp_path: Path) -> None:
+    results = make_results(tmp_path)
+    results[0].settings = [
+        ("bfsitl", "set ap_hover_throttle = 1545", "iris's hover"),
+        ("the side", "set ap_hover_throttle = 1275", ""),
+        ("the scenario", "set failsafe_procedure = DROP<x>", ""),
+    ]
+    page, parser = parse_page(write_report(results, tmp_path / "report"))
+    text = " ".join(parser.text)
+    assert "configuration: the 3 lines its FC was given" in text
+    assert "iris's hover (a later line sets it again)" in text  # the side's 1275 won
+    assert text.count("(a later line sets it again)") == 1
+    assert "DROP&lt;x&gt;" in page  # escaped like every other user text
+    assert text.count("lines its FC was given") == 1  # runs without settings show none

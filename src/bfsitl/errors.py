@@ -58,6 +58,7 @@ Messages are written for the person at the terminal: what went wrong, then what 
         ├── UnsupportedFirmwareError   a generation or build variant bfsitl cannot drive
         ├── PortInUseError             another process already holds the SITL's ports
         ├── SitlExitedError            the process ended (crash, reboot) while we needed it
+        ├── AttachError                no running flight to attach to, several, or its port is held
         └── SitlNotReadyError          (also TimeoutError) it never answered MSP
             ├── SitlLockedOutError     it answers, but its gyro/PID tasks never ran
             └── SitlTcpServerLostError its MSP port's TCP server was lost at boot
@@ -337,6 +338,11 @@ class SitlExitedError(SitlError):
         self.returncode = returncode
         self.log_tail = log_tail
         super().__init__(message)
+
+
+class AttachError(SitlError):
+    """``bfsitl top`` cannot attach to a running flight: none advertises itself, several do
+    and none was chosen, or the flight's second MSP port is held by another client."""
 
 
 class SitlNotReadyError(SitlError, TimeoutError):

@@ -172,7 +172,11 @@ def cmd_fly(args: argparse.Namespace) -> int:
         timing=Timing(
             speed=speed, lockstep=args.lockstep, lockstep_exchange=args.lockstep_exchange
         ),
-        fc=FcSetup(profile=profile, angle_mode=not args.no_angle),
+        fc=FcSetup(
+            profile=profile,
+            angle_mode=not args.no_angle,
+            attachable=profile is not None and not args.no_attach,
+        ),
         world=World(
             physics=args.physics,
             gz_plugin_dir=args.gz_plugin_dir,

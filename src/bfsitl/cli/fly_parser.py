@@ -159,6 +159,14 @@ def add_fly_parser(sub: argparse._SubParsersAction) -> None:  # type: ignore[typ
         "the Configurator's and Foxglove's apps, pages on localhost or "
         "127.0.0.1, and clients without an Origin (scripts) are served",
     )
+    watch.add_argument(
+        "--no-attach",
+        action="store_true",
+        help="do not let `bfsitl top` attach. By default the FC serves MSP on UART2 (TCP "
+        "5762) too and the flight is advertised in bfsitl's cache, so `bfsitl top` finds "
+        "it; that costs one reboot (about 2 s on a stock SITL) in a run directory that "
+        "does not hold it yet",
+    )
     sitl = fly.add_argument_group("SITL and physics")
     sitl.add_argument(
         "--firmware",

@@ -15,9 +15,15 @@ from bfsitl.sitl.process import SitlProcess
 
 
 def add_target_arguments(
-    parser: argparse.ArgumentParser, *, allow_start: bool = True, start_flag: bool = True
+    parser: argparse.ArgumentParser,
+    *,
+    allow_start: bool = True,
+    start_flag: bool = True,
+    attach_flag: bool = False,
 ) -> None:
-    """``start_flag=False``: the command always starts a SITL, so only its options remain."""
+    """``start_flag=False``: the command always starts a SITL, so only its options remain.
+    ``attach_flag``: offer ``--attach [KEY]``, a running flight's second MSP port
+    (:mod:`bfsitl.cli.attach`), as a third way to pick the FC."""
     group = parser.add_argument_group("flight controller")
     exclusive = group.add_mutually_exclusive_group()
     exclusive.add_argument(
@@ -26,6 +32,17 @@ def add_target_arguments(
         help=f"FC to talk to: tcp://HOST:PORT (SITL) or serial:///dev/ttyACM0?baud=115200 "
         f"(default {DEFAULT_SITL_URI})",
     )
+    if attach_flag:
+        exclusive.add_argument(
+            "--attach",
+            nargs="?",
+            const="",
+            default=None,
+            metavar="KEY",
+            help="watch a running `bfsitl fly` through its SITL's second MSP port (UART2), "
+            "the one with this KEY when several run. Without --uri or --start this is "
+            "what happens when one flight runs",
+        )
     if allow_start:
         if start_flag:
             exclusive.add_argument(

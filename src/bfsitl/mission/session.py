@@ -106,6 +106,8 @@ class FcSetup:
         rc_link: Send RC over UDP (the SITL's usual receiver).  False leaves RC to someone
             else: a :class:`~bfsitl.mission.board.BoardVehicle` sending MSP_SET_RAW_RC
             through the serial bridge (real time only).
+        attachable: Serve MSP on UART2 too and advertise the flight, so a second MSP client
+            (``bfsitl top``) finds it and can watch it (``bfsitl fly`` does this).
     """
 
     profile: Profile | None = FLY_PROFILE
@@ -113,6 +115,10 @@ class FcSetup:
     arm_timeout_s: float = DEFAULT_ARM_TIMEOUT_S
     #: Real time only: a lockstep SITL takes RC in its fdm packets.
     rc_link: bool = True
+    #: Serve MSP on UART2 (TCP 5762) as well and advertise the flight
+    #: (:mod:`bfsitl.sitl.running_flights`), so ``bfsitl top`` can attach while it flies.
+    #: Read at boot: a run directory without it costs one reboot.  Needs a profile.
+    attachable: bool = False
 
 
 @dataclass(frozen=True, slots=True)
@@ -226,6 +232,11 @@ class FlightSession(Vehicle):
                 "the Configurator bridge needs provisioning (it puts MSP on "
                 "UART2 as well): drop --no-provision, or leave out --configurator"
             )
+        if config.fc.attachable and config.fc.profile is None:
+            raise BfsitlError(
+                "an attachable flight needs provisioning (it puts MSP on UART2 as well): "
+                "give a profile, or set fc.attachable=False"
+            )
 
     # -- lifecycle ---------------------------------------------------------------------------
     def start(self) -> Self:
@@ -275,6 +286,8 @@ class FlightSession(Vehicle):
             if config.fc.rc_link:
                 # Only now: an RC packet during boot leaves 4.6.0 in RXLOSS for good.
                 self._start_rc(backend.rc_sender(self.sitl))
+            if config.fc.attachable:
+                self._advertise()
         except BaseException:
             self.close()
             raise
@@ -374,6 +387,32 @@ class FlightSession(Vehicle):
             f"saving reboots the FC and ends the flight"
         )
 
+    def _advertise(self) -> None:
+        """Say where ``bfsitl top`` reaches this flight, until the session closes.  A cache
+        that cannot be written costs the advert, never the flight."""
+        from bfsitl.sitl.running_flights import FlightAdvert, FlightRegistry
+
+        assert self.sitl is not None and self.sitl.network is not None
+        if not self.sitl.profile.second_msp_cli:
+            return  # a firmware bfsitl cannot give a second MSP port
+        advert = FlightAdvert.for_this_process(
+            firmware=self.sitl.profile.name,
+            host=SITL_HOST,
+            port=SECOND_MSP_PORT,
+            netns_pid=self.sitl.network.netns_pid,
+            workdir=str(self.sitl.workdir),
+        )
+        registry = FlightRegistry()
+        try:
+            self._stack.enter_context(registry.advertised(advert))
+        except OSError as exc:
+            self._progress(f"cannot advertise the flight for `bfsitl top` ({exc}); flying on")
+            return
+        self._progress(
+            f"`bfsitl top` can watch this flight ({advert.key}; MSP on UART2, TCP "
+            f"{SECOND_MSP_PORT})"
+        )
+
     def _flight_profile(self, profile: Profile) -> Profile:
         """``profile``, plus the compass set-up the firmware needs (master: trust its virtual
         magnetometer) and the GPS set-up of a GPS build whose GPS is not on yet.
@@ -388,7 +427,7 @@ class FlightSession(Vehicle):
         )
         if compass:
             profile = dataclasses.replace(profile, cli_lines=(*profile.cli_lines, *compass))
-        if self.config.configurator is not None:
+        if self.config.configurator is not None or self.config.fc.attachable:
             # Read at boot only; provisioning compares them, so this reboots once per run
             # directory.
             profile = dataclasses.replace(

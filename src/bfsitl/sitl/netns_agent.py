@@ -1,6 +1,7 @@
 """Runs inside a private network namespace for :class:`bfsitl.sitl.network.IsolatedNetwork`.
 
-Started as ``unshare -rn -- python -m bfsitl.sitl.netns_agent --control-fd N``.  It brings the
+Started as ``unshare -rn -- python -m bfsitl.sitl.netns_agent --control-fd N`` (or through
+``nsenter`` into an existing one, for ``bfsitl top`` attaching to a flight).  It brings the
 loopback interface up, then serves requests from its parent over a SOCK_SEQPACKET socket pair:
 
 * ``socket``: make a socket *here* and pass its descriptor back (SCM_RIGHTS).  A socket keeps
@@ -53,10 +54,13 @@ def _die_with_agent(agent_pid: int) -> Callable[[], None]:
 
 
 def bring_loopback_up() -> None:
-    """``ip link set lo up`` without needing iproute2: one ioctl on the interface flags."""
+    """``ip link set lo up`` without needing iproute2: one ioctl on the interface flags.  A
+    loopback that is up already (an agent that joined another's namespace) is left alone."""
     with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as sock:
         request = struct.pack("16sh22x", b"lo", 0)
         flags = struct.unpack("16sh22x", fcntl.ioctl(sock, _SIOCGIFFLAGS, request))[1]
+        if flags & _IFF_UP:
+            return
         fcntl.ioctl(sock, _SIOCSIFFLAGS, struct.pack("16sh22x", b"lo", flags | _IFF_UP))
 
 

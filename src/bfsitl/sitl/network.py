@@ -5,7 +5,9 @@ network silently share UDP 9003/9004 and corrupt each other.  :class:`IsolatedNe
 a SITL a namespace of its own (``unshare -rn``, no root needed) and hands the host process
 sockets that live inside it; :class:`HostNetwork` is the plain case.  Both offer the same
 three things: make a socket, start a process, and the pid whose ``/proc/PID/net`` shows the
-namespace (for finding who holds a port).
+namespace (for finding who holds a port).  An :class:`IsolatedNetwork` can also *join* the
+namespace of a SITL another bfsitl process started (``join_pid``): that is how ``bfsitl top``
+reaches a running flight's second MSP port.
 """
 
 from __future__ import annotations
@@ -189,18 +191,52 @@ def unshare_available() -> bool:
     return shutil.which("unshare") is not None
 
 
+def _unshare_command() -> list[str]:
+    """Runs the agent in a new user and network namespace."""
+    unshare = shutil.which("unshare")
+    if unshare is None:
+        raise SitlError(
+            "isolation needs `unshare` (util-linux): install it (apt-get install "
+            "util-linux) or run without isolation"
+        )
+    return [unshare, "--user", "--map-root-user", "--net", "--"]
+
+
+def _nsenter_command(join_pid: int) -> list[str]:
+    """Runs the agent in the user and network namespaces of process ``join_pid``.  The
+    user namespace's root is our own user (``--map-root-user``), so entering it needs no
+    privileges; ``--preserve-credentials`` keeps our ids (that namespace denies setgroups)."""
+    nsenter = shutil.which("nsenter")
+    if nsenter is None:
+        raise SitlError(
+            "reaching a SITL in its private network namespace needs `nsenter` (util-linux): "
+            "install it (apt-get install util-linux)"
+        )
+    return [
+        nsenter,
+        "--target",
+        str(join_pid),
+        "--user",
+        "--net",
+        "--preserve-credentials",
+        "--",
+    ]
+
+
 class IsolatedNetwork:
-    """A private network namespace with its own loopback, served by ``netns_agent``."""
+    """A private network namespace with its own loopback, served by ``netns_agent``.
+
+    Args:
+        start_timeout_s: Seconds the agent has to say it is ready.
+        join_pid: Join the namespace process ``join_pid`` lives in (another bfsitl's SITL
+            namespace, its agent's pid) instead of making a new one.  Closing it then
+            ends only this agent, never the SITL.
+    """
 
     isolated = True
 
-    def __init__(self, start_timeout_s: float = 10.0) -> None:
-        unshare = shutil.which("unshare")
-        if unshare is None:
-            raise SitlError(
-                "isolation needs `unshare` (util-linux): install it (apt-get install "
-                "util-linux) or run without isolation"
-            )
+    def __init__(self, start_timeout_s: float = 10.0, *, join_pid: int | None = None) -> None:
+        launcher = _unshare_command() if join_pid is None else _nsenter_command(join_pid)
         self._lock = threading.Lock()
         self.closed = False
         parent_end, child_end = socket.socketpair(socket.AF_UNIX, socket.SOCK_SEQPACKET)
@@ -212,11 +248,7 @@ class IsolatedNetwork:
         try:
             self._agent = subprocess.Popen(
                 [
-                    unshare,
-                    "--user",
-                    "--map-root-user",
-                    "--net",
-                    "--",
+                    *launcher,
                     sys.executable,
                     "-m",
                     "bfsitl.sitl.netns_agent",
@@ -238,6 +270,11 @@ class IsolatedNetwork:
             stderr = self._agent_stderr()
             self._agent.kill()
             self._agent.wait()
+            if join_pid is not None:
+                raise SitlError(
+                    f"could not enter the network namespace of process {join_pid} with "
+                    f"`nsenter`: {stderr or exc}. Is that flight still running, as this user?"
+                ) from exc
             raise SitlError(
                 f"could not create a network namespace with `unshare -rn`: {stderr or exc}. "
                 f"Unprivileged user namespaces may be disabled "

@@ -45,7 +45,7 @@ SESSION_FIELDS = {
     "allow_origins": "configurator.allow_origins",
 }
 #: Group fields that came after the groups, with no flat field before them.
-NEW_TO_THE_SESSION = {"sitl.env"}
+NEW_TO_THE_SESSION = {"sitl.env", "fc.attachable"}
 #: The gym environment's flat options before the groups -> where each went (the wind's speed,
 #: direction and gusts are one Wind now, as the session's are).
 ENV_OPTIONS = {
@@ -68,6 +68,7 @@ ENV_OPTIONS = {
             "start_alt_m",
             "pin_core",
             "warm_resets",
+            "render_mode",
         )
     },
 }
@@ -154,6 +155,10 @@ def test_for_autopilot_sets_the_serial_rate_on_the_profile_it_is_given() -> None
         (
             SessionConfig(configurator=ConfiguratorBridge(), fc=FcSetup(profile=None)),
             "the Configurator bridge needs provisioning",
+        ),
+        (
+            SessionConfig(fc=FcSetup(profile=None, attachable=True)),
+            "an attachable flight needs provisioning",
         ),
     ],
 )

@@ -38,17 +38,7 @@ def write_scenario_plot(trace: Trace, path: Path, *, title: str = "") -> Path:
         armed = [r.time_s for r in rows if r.armed]
         if armed:
             axis.axvspan(armed[0], armed[-1], color="tab:green", alpha=0.06, linewidth=0)
-        for number, fault_s in enumerate(trace.fault_times_s, start=1):
-            axis.axvline(fault_s, color="tab:orange", linestyle="--", linewidth=1)
-            if axis is axes[0]:
-                axis.annotate(
-                    f"fault {number}",
-                    (fault_s, 1.0),
-                    xycoords=("data", "axes fraction"),
-                    fontsize=8,
-                    color="tab:orange",
-                    va="top",
-                )
+        _mark_faults(axis, trace.fault_times_s, "tab:orange", "--", named=axis is axes[0])
         if trace.crash is not None:
             axis.axvline(trace.crash[0], color="black", linestyle=":", linewidth=1)
     return _finish(plt, figure, axes, path, title)
@@ -102,17 +92,7 @@ def write_overlay_plot(
     for axis, label in zip(axes, labels, strict=True):
         axis.set_ylabel(label)
         axis.grid(alpha=0.3)
-        for number, fault_s in enumerate(sorted(faults), start=1):
-            axis.axvline(fault_s, color="tab:red", linestyle=":", linewidth=1)
-            if axis is axes[0]:
-                axis.annotate(
-                    f"fault {number}",
-                    (fault_s, 1.0),
-                    xycoords=("data", "axes fraction"),
-                    fontsize=8,
-                    color="tab:red",
-                    va="top",
-                )
+        _mark_faults(axis, sorted(faults), "tab:red", ":", named=axis is axes[0])
     axes[3].annotate(
         "thick: motors' mean command; thin: throttle stick",
         (0.01, 0.97),
@@ -143,6 +123,23 @@ def write_overlay_plot(
             )
     axes[0].legend(loc="upper left", fontsize=8)
     return _finish(plt, figure, axes, path, title)
+
+
+def _mark_faults(  # type: ignore[no-untyped-def]
+    axis, times_s: Sequence[float], colour: str, style: str, *, named: bool
+) -> None:
+    """A line at each fault; on the top panel (``named``) its number."""
+    for number, fault_s in enumerate(times_s, start=1):
+        axis.axvline(fault_s, color=colour, linestyle=style, linewidth=1)
+        if named:
+            axis.annotate(
+                f"fault {number}",
+                (fault_s, 1.0),
+                xycoords=("data", "axes fraction"),
+                fontsize=8,
+                color=colour,
+                va="top",
+            )
 
 
 def _landed_s(traces: Sequence[Trace]) -> float | None:

@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import argparse
 import contextlib
+import dataclasses
 import io
 import os
 import socket
@@ -16,6 +17,7 @@ from pathlib import Path
 
 import pytest
 from support.fake_fc import fixed, multiple_msp, telemetry_handlers
+from support.storing_fc import STATUS
 
 from bfsitl.cli import attach as attach_module
 from bfsitl.cli import top_command
@@ -29,21 +31,8 @@ from bfsitl.protocol.msp_codes import MspCommand
 from bfsitl.protocol.msp_frame import Direction, MspFrame, MspParser, encode_frame
 from bfsitl.sitl.running_flights import FlightAdvert, FlightRegistry, process_start_ticks
 
-ARMED = msg.StatusEx(
-    cycle_time_us=125,
-    i2c_errors=0,
-    sensors_mask=0x23,
-    flight_mode_flags=0b11,  # ARM and ANGLE (BOXIDS positions 0 and 1)
-    pid_profile=0,
-    cpu_load_percent=7,
-    pid_profile_count=4,
-    rate_profile_index=0,
-    arming_disable_flag_count=29,
-    arming_disable_flags=0,
-    config_state=0,
-    cpu_temp_c=0,
-    rate_profile_count=4,
-)
+# ARM and ANGLE (BOXIDS positions 0 and 1), a little CPU load.
+ARMED = dataclasses.replace(STATUS, flight_mode_flags=0b11, cpu_load_percent=7)
 
 
 class TcpFakeFc:

@@ -14,6 +14,9 @@ driver's submit to the run's files home, against the run's own time: scheduling,
 fetch on a node's first run, packing and unpacking the files), so that a suite's time on N
 machines can be planned on paper.
 
+Then where a run's wall time goes (start-up, arming, flight, stop, blackbox, analysers,
+plots, files), summed over the one-at-a-time runs, and the five slowest.
+
 Run: ``python benchmarks/scenarios.py [--firmware master-lockstep --firmware
 4.6.0-gps-lockstep] [--no-ray | --only-ray] [PATHS...]`` (default: the library in
 ``scenarios/``).
@@ -35,6 +38,7 @@ from bfsitl.scenario.load import find_scenarios
 from bfsitl.scenario.ray_runs import RayTiming, run_on_ray
 from bfsitl.scenario.result import Verdict
 from bfsitl.scenario.suite import plan_runs, run_suite
+from bfsitl.scenario.timings import timings_table
 from bfsitl.sitl.core_claim import PIN_ENV
 
 DEFAULT_BUILDS = ["master-lockstep", "4.6.0-gps-lockstep"]
@@ -61,6 +65,7 @@ def measure(
         "simulated_s": simulated_s,
         "wall_s": wall_s,
         "verdicts": verdicts,
+        "phases": [(r.test_id, r.timings_s, r.sim_time_s) for r in results if r.timings_s],
     }
 
 
@@ -181,8 +186,22 @@ def main() -> None:
             f"{row['wall_s']:.0f} | {ratio:.1f}x | {v['passed']} / {v['failed']} / "
             f"{v['error']} / {v['skipped']} |"
         )
+    for row in rows:
+        if row["label"] == "--jobs 1" and row["phases"]:
+            print_phases(row["phases"])  # type: ignore[arg-type]
     if timings:
         print_overhead(timings)
+
+
+def print_phases(phases: list[tuple[str, dict[str, float], float]]) -> None:
+    """Where the runs' wall time went, one at a time (``bfsitl scenario run --timings``'s
+    table): the sum and each phase's share, then the five slowest runs."""
+    print("\nWhere a run's wall time goes, --jobs 1 (seconds, summed over the runs):\n")
+    table = timings_table(phases)
+    print("\n".join(table[:1] + table[-2:]))
+    slowest = sorted(phases, key=lambda run: -sum(run[1].values()))[:5]
+    print("\nThe five slowest runs:\n")
+    print("\n".join(timings_table(slowest)[: 1 + len(slowest)]))
 
 
 def print_overhead(timings: list[RayTiming]) -> None:

@@ -136,6 +136,12 @@ def add_scenario_parser(sub: argparse._SubParsersAction) -> None:  # type: ignor
     )
     run.add_argument("--no-plot", action="store_true", help="skip the plots (faster)")
     run.add_argument(
+        "--timings",
+        action="store_true",
+        help="print where each run's wall time went (start-up, arming, flight, stop, "
+        "blackbox, analysers, plots, files), per run and summed",
+    )
+    run.add_argument(
         "--mcap",
         action="store_true",
         help="write each run's flight as MCAP too (flight.mcap, Foxglove's "
@@ -200,7 +206,10 @@ def cmd_scenario_run(args: argparse.Namespace) -> int:
     )
     results, interrupted = suite.results, suite.interrupted
     wall_s = time.monotonic() - started
+    outputs_started = time.monotonic()
     _write_outputs(args, results)
+    if args.timings:
+        _print_timings(results, time.monotonic() - outputs_started)
     counts = {
         v: sum(1 for r in results if r.verdict.value == v)
         for v in ("passed", "failed", "known failure", "error", "skipped")
@@ -216,6 +225,16 @@ def cmd_scenario_run(args: argparse.Namespace) -> int:
         progress(suite.stop_line())
         return EXIT_INTERRUPTED
     return EXIT_OK if counts["failed"] == counts["error"] == 0 else EXIT_FAILED
+
+
+def _print_timings(results: list, outputs_s: float) -> None:  # type: ignore[type-arg]
+    from bfsitl.scenario.timings import timings_table
+
+    print("\nwhere the wall time went, seconds (per run, as each worker spent it):")
+    rows = [(r.test_id, r.timings_s, r.sim_time_s) for r in results if r.timings_s]
+    for line in timings_table(rows):
+        print(line)
+    print(f"the suite's JUnit and report: {outputs_s:.2f} s")
 
 
 def _write_outputs(args: argparse.Namespace, results: list) -> None:  # type: ignore[type-arg]

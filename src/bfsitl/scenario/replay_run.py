@@ -18,7 +18,7 @@ from bfsitl.analysis import analyse, track_from_blackbox
 from bfsitl.backend.options import Timing
 from bfsitl.fit.fit_log import pick_log
 from bfsitl.protocol.firmware_profile import FirmwareProfile
-from bfsitl.replay import replay_log
+from bfsitl.replay import Replay, replay_log
 from bfsitl.replay.replay_report import write_report_json, write_report_png
 from bfsitl.replay.sticks import IDENTITY_RC_LINES
 from bfsitl.scenario.expectations import settle_verdict
@@ -26,6 +26,7 @@ from bfsitl.scenario.metrics import replay_metrics
 from bfsitl.scenario.result import ScenarioResult, TimedEvent
 from bfsitl.scenario.setup_lines import BFSITL, LOG, SCENARIO, SIDE
 from bfsitl.scenario.spec import Scenario
+from bfsitl.scenario.timings import Stopwatch
 from bfsitl.scenario.trace import Trace
 
 Progress = Callable[[str], None]
@@ -53,21 +54,25 @@ def fly_replay_scenario(
     spec = scenario.replay
     if spec is None:
         raise ValueError(f"{scenario.name} is no replay")
+    watch = Stopwatch()
     say(f"reading {spec.log.name} ...")
-    log = pick_log(spec.log, spec.index)
+    with watch.span("log read"):
+        log = pick_log(spec.log, spec.index)
     generation = profile.generation.value
     lines = (*scenario.side_cli, *scenario.cli, *dict(scenario.cli_for).get(generation, ()))
-    replay = replay_log(
-        log,
-        firmware=binary,
-        quad=scenario.quad,
-        out_dir=out,
-        extra_cli=lines,
-        progress=say,
-        seed=scenario.seed,
-        wind=scenario.wind,
-        timing=timing,
-    )
+    # The replay's start-up, arming and flight are one call: timed as the flight.
+    with watch.span("flight"):
+        replay = replay_log(
+            log,
+            firmware=binary,
+            quad=scenario.quad,
+            out_dir=out,
+            extra_cli=lines,
+            progress=say,
+            seed=scenario.seed,
+            wind=scenario.wind,
+            timing=timing,
+        )
     comparison = replay.comparison
     result.settings = [
         *((BFSITL, line, "the identity stick path") for line in IDENTITY_RC_LINES),
@@ -101,11 +106,21 @@ def fly_replay_scenario(
             )
         )
     report = out / "replay-report.json"
-    write_report_json(replay, report)
+    with watch.span("files"):
+        write_report_json(replay, report)
     result.artifacts["replay_report"] = report
     if plot:
-        write_report_png(replay, out / "replay-report.png")
+        with watch.span("plots"):
+            write_report_png(replay, out / "replay-report.png")
         result.artifacts["plot"] = out / "replay-report.png"
+    with watch.span("analysers"):
+        _judge(scenario, replay, result, generation)
+    result.timings_s = dict(watch.spans_s)
+
+
+def _judge(scenario: Scenario, replay: Replay, result: ScenarioResult, generation: str) -> None:
+    """The analysers on the replaying FC's log, the figures, the expectations."""
+    comparison = replay.comparison
     analysis = analyse(track_from_blackbox(replay.replayed))
     result.findings, result.watched = analysis.findings, analysis.watched
     result.unwatched = analysis.skipped

@@ -86,6 +86,7 @@ class ScenarioResult:
         behaviour: The run's behaviour in words (failsafe phases, modes, how it ended,
             findings), also compared.
         settings: The FC's configuration as given, each line with its source.
+        timings_s: Where the run's wall time went, by phase.
     """
 
     #: The scenario's name (its file's stem unless it names itself).
@@ -123,6 +124,9 @@ class ScenarioResult:
     #: (:mod:`bfsitl.scenario.setup_lines`: bfsitl, this build, the side, the scenario, a
     #: replayed log's header).
     settings: list[tuple[str, str, str]] = field(default_factory=list)
+    #: Wall seconds per phase of the run (:mod:`bfsitl.scenario.timings`: start-up, arming,
+    #: flight, stop, blackbox, analysers, plots, files).
+    timings_s: dict[str, float] = field(default_factory=dict)
     #: The run's figures (:mod:`bfsitl.scenario.metrics`; None: not applicable) and its
     #: behaviour in words (failsafe phases, modes, how it ended, findings): what
     #: ``bfsitl scenario compare`` compares.

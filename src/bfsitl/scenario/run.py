@@ -25,6 +25,7 @@ Ctrl-C propagates (after the session has stopped).
 
 from __future__ import annotations
 
+import contextlib
 import json
 import math
 import time
@@ -69,6 +70,7 @@ from bfsitl.scenario.replay_run import fly_replay_scenario
 from bfsitl.scenario.result import ScenarioResult, TimedEvent, Verdict
 from bfsitl.scenario.setup_lines import mode_range_lines, provisioned_settings, scenario_profile
 from bfsitl.scenario.spec import Scenario
+from bfsitl.scenario.timings import Stopwatch
 from bfsitl.scenario.trace import Trace, TraceRow, phase_name, write_trace_csv
 from bfsitl.sitl.firmware import find_firmware
 
@@ -391,8 +393,14 @@ def _fly(
         outputs.on_row(row, sample)  # recorded first: the injector may end the flight
         injector.on_row(row, sample)
 
+    watch = Stopwatch()
+    # The session is entered apart from its block, so its start-up and its stop (the SITL
+    # stopped, its blackbox file complete) are timed on their own.
+    stack = contextlib.ExitStack()
     try:
-        with session:
+        with watch.span("start-up"):
+            stack.enter_context(session)
+        try:
             result.firmware_version = (
                 session.firmware.firmware_version if session.firmware else result.firmware_version
             )
@@ -405,36 +413,52 @@ def _fly(
                 hooks=FlightHooks(on_step=on_row, stop=injector.stop),
             )
             try:
-                loop.arm()
+                with watch.span("arming"):
+                    loop.arm()
             except ArmingBlockedError as exc:
                 result.verdict, result.reason = Verdict.ERROR, str(exc)
                 return
             injector.armed_at_s = session.time_s
             injector.note(0.0, "armed")
-            _autopilot_flight(scenario, loop, injector, trace)
-            _watch(scenario, loop, injector)
+            with watch.span("flight"):
+                _autopilot_flight(scenario, loop, injector, trace)
+                _watch(scenario, loop, injector)
+        finally:
+            with watch.span("stop"):
+                stack.close()
     finally:
-        outputs.close()
+        with watch.span("stop"):
+            outputs.close()
+        result.timings_s = dict(watch.spans_s)
     result.sim_time_s = round(trace.end_s, 3)
-    _collect_blackbox(out, trace, result)
-    if options.plot and trace.blackbox and trace.blackbox[0].frames:
-        from bfsitl.blackbox.plot import write_blackbox_plot
+    with watch.span("blackbox"):
+        _collect_blackbox(out, trace, result)
+    with watch.span("plots"):
+        if options.plot and trace.blackbox and trace.blackbox[0].frames:
+            from bfsitl.blackbox.plot import write_blackbox_plot
 
-        result.artifacts["blackbox_plot"] = write_blackbox_plot(
-            trace.blackbox[0], out / "blackbox.png", title=f"{scenario.name} on {result.firmware}"
-        )
-    _analyse(injector.watch, trace, result)
-    figures = run_metrics(injector.watch.track, trace, result.findings)
-    result.metrics, result.behaviour = figures.values, figures.behaviour
-    if trace.rows:
-        result.artifacts["trace"] = write_trace_csv(trace, out / "trace.csv")
-    settle_verdict(result, scenario, trace, profile.generation.value)
-    if options.plot and trace.rows:
-        from bfsitl.scenario.plot import write_scenario_plot
+            result.artifacts["blackbox_plot"] = write_blackbox_plot(
+                trace.blackbox[0],
+                out / "blackbox.png",
+                title=f"{scenario.name} on {result.firmware}",
+            )
+    with watch.span("analysers"):
+        _analyse(injector.watch, trace, result)
+        figures = run_metrics(injector.watch.track, trace, result.findings)
+        result.metrics, result.behaviour = figures.values, figures.behaviour
+    with watch.span("files"):
+        if trace.rows:
+            result.artifacts["trace"] = write_trace_csv(trace, out / "trace.csv")
+    with watch.span("analysers"):
+        settle_verdict(result, scenario, trace, profile.generation.value)
+    with watch.span("plots"):
+        if options.plot and trace.rows:
+            from bfsitl.scenario.plot import write_scenario_plot
 
-        result.artifacts["plot"] = write_scenario_plot(
-            trace, out / "plot.png", title=f"{scenario.name} on {result.firmware}"
-        )
+            result.artifacts["plot"] = write_scenario_plot(
+                trace, out / "plot.png", title=f"{scenario.name} on {result.firmware}"
+            )
+    result.timings_s = dict(watch.spans_s)
 
 
 def _autopilot_flight(
@@ -554,6 +578,7 @@ def write_summary(result: ScenarioResult, out: Path) -> None:
         "settings": [
             {"from": source, "line": line, "why": why} for source, line, why in result.settings
         ],
+        "timings_s": {phase: round(seconds, 4) for phase, seconds in result.timings_s.items()},
         "analysers": {"watched": result.watched, "skipped": result.unwatched},
     }
     path = out / "result.json"

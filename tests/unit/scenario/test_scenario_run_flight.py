@@ -301,6 +301,12 @@ def test_rc_lost_in_a_hover_the_fc_lands_disarms_and_the_run_passes(fly, tmp_pat
     assert summary["vehicle"] == result.vehicle == "iris"  # which quad flew, IRIS by default
     assert [e["text"] for e in summary["events"]] == events
     assert set(summary["artifacts"]) == {"log", "trace"}  # no plot, no blackbox
+    # Where its wall time went, each phase of the run timed (no plots asked for).
+    assert set(summary["timings_s"]) == {
+        "start-up", "arming", "flight", "stop", "blackbox", "analysers", "plots", "files"
+    }  # fmt: skip
+    assert summary["timings_s"]["flight"] > 0
+    assert sum(summary["timings_s"].values()) <= result.wall_time_s + 0.01
     assert result.artifacts["summary"] == out / "result.json"
     # trace.csv holds the trace's rows (a comparison overlays two of them), and the run's
     # figures and behaviour are in result.json.

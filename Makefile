@@ -8,7 +8,7 @@ VENV ?= .venv
 BIN := $(VENV)/bin
 STAMP := $(VENV)/.installed
 
-.PHONY: demo test setup bench clean
+.PHONY: demo test setup bench clean figures
 
 setup: $(STAMP)
 
@@ -25,6 +25,9 @@ demo: $(STAMP)
 
 test: $(STAMP)
 	BFSITL_REQUIRE_SITL=1 $(BIN)/python -m pytest
+
+figures: $(STAMP)
+	$(BIN)/python tools/docs_figures.py
 
 bench: $(STAMP)
 	$(BIN)/python benchmarks/telemetry.py

@@ -24,6 +24,7 @@ CHECKED = (
     "src",
     "tests",
     "benchmarks",
+    "tools",
     ".ci",
 )
 TEXT_SUFFIXES = {".md", ".py", ".toml", ".yml", ".yaml", ".txt", ".c", ".sdf", ""}

@@ -11,7 +11,7 @@ from pathlib import Path
 REPO = Path(__file__).resolve().parents[3]
 FACTS_PAGE = REPO / "docs" / "firmware-facts.md"
 #: Where code, tests and docs cite facts.
-SCANNED = ("src", "tests", "benchmarks", "examples", "docs")
+SCANNED = ("src", "tests", "benchmarks", "examples", "tools", "docs")
 SUFFIXES = {".py", ".md", ".toml", ".c", ".h", ".sdf", ".txt", ".yml", ".yaml"}
 #: Files that spell the forbidden forms out in order to forbid them.
 DESCRIBES_THE_RULE = {

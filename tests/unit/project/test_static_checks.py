@@ -27,7 +27,7 @@ def test_mypy_finds_no_errors(tmp_path):
 
 
 #: What ruff reads: the package and everything that imports it.
-RUFF_PATHS = ("src", "tests", "benchmarks", "examples")
+RUFF_PATHS = ("src", "tests", "benchmarks", "examples", "tools")
 
 
 def test_ruff_finds_no_lint(tmp_path):

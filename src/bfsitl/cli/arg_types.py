@@ -133,13 +133,16 @@ def add_vehicle_argument(
 def out_dir_problem(path: Path) -> str | None:
     """Why ``--out path`` could not be made, or None: checked before a slow command starts,
     without making the folder, so a command that then fails leaves nothing behind."""
-    if path.exists():
-        return None if path.is_dir() else f"{path} exists and is not a folder"
-    parent = path.absolute().parent
-    while not parent.exists():
-        parent = parent.parent
-    if not parent.is_dir():
-        return f"{parent} is not a folder"
-    if not os.access(parent, os.W_OK | os.X_OK):
-        return f"{parent} is not writable"
+    try:
+        if path.exists():
+            return None if path.is_dir() else f"{path} exists and is not a folder"
+        parent = path.absolute().parent
+        while not parent.exists():
+            parent = parent.parent
+        if not parent.is_dir():
+            return f"{parent} is not a folder"
+        if not os.access(parent, os.W_OK | os.X_OK):
+            return f"{parent} is not writable"
+    except OSError as exc:  # a folder on the way that cannot even be looked into
+        return str(exc)
     return None

@@ -286,6 +286,7 @@ class FlightVectorEnv(VectorEnv[np.ndarray, np.ndarray, np.ndarray]):
         self.single_action_space = spaces.Box(-1.0, 1.0, shape=(4,), dtype=np.float32)
         self.action_space = batch_space(self.single_action_space, num_envs)
         self._closed_workers = False
+        self._reset_once = False
 
     # -- the vector environment ----------------------------------------------------------------
     def reset(
@@ -303,6 +304,7 @@ class FlightVectorEnv(VectorEnv[np.ndarray, np.ndarray, np.ndarray]):
             if len(seeds) != self.num_envs:
                 raise EnvironmentConfigError(f"{len(seeds)} seeds for {self.num_envs} environments")
         self._exchange([_RESET + pickle.dumps((env_seed, options)) for env_seed in seeds])
+        self._reset_once = True
         return self._shared.observations.copy(), self._info()
 
     def step(
@@ -334,6 +336,9 @@ class FlightVectorEnv(VectorEnv[np.ndarray, np.ndarray, np.ndarray]):
         if self.render_mode is None:
             return None
         self._check_open()
+        if not self._reset_once:
+            # Refused here: a worker's refusal would close every environment and SITL.
+            raise EnvironmentConfigError("render() before reset(): call envs.reset() first")
         frames = self._exchange([_RENDER] * self.num_envs)
         return tuple(frames[index][0] for index in range(self.num_envs))
 

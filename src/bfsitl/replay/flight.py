@@ -64,6 +64,7 @@ class ReplayedFlight:
         receiver_frames: The FC counted a receiver frame per frame sent (False: it counted
             one at every loop, as the 4.x SITL that wrote the log did, or an older 4.6.0
             lockstep build does).
+        cli_lines: The CLI lines the FC was given, in order.
     """
 
     blackbox: Path
@@ -72,6 +73,9 @@ class ReplayedFlight:
     flown_s: float
     wall_s: float
     receiver_frames: bool = True
+    #: The CLI lines the replaying FC was given, in order (the log's, the stick path's, the
+    #: extra lines, the blackbox's).
+    cli_lines: tuple[str, ...] = ()
 
 
 def pid_rate_hz(profile: FirmwareProfile) -> float:
@@ -231,7 +235,9 @@ def fly_replay(
         raise ReplayError(
             f"the replaying FC wrote no blackbox log into {out_dir / 'sitl'}: was it armed?"
         )
-    return ReplayedFlight(copies[-1], version, len(stream), flown_s, wall_s, receiver_frames)
+    return ReplayedFlight(
+        copies[-1], version, len(stream), flown_s, wall_s, receiver_frames, cli_lines=lines
+    )
 
 
 def fresh_run_dir(run_dir: Path) -> None:

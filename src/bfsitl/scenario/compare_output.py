@@ -16,8 +16,16 @@ from junitparser import Error, Failure, JUnitXml, Skipped, TestCase, TestSuite
 from bfsitl.atomic_file import write_atomically
 from bfsitl.errors import BfsitlError
 from bfsitl.scenario.compare import Change, ScenarioComparison, Side
-from bfsitl.scenario.report import STYLE, embedded_image, href, settings_details
+from bfsitl.scenario.report import (
+    STYLE,
+    embedded_image,
+    href,
+    in_effect,
+    overridden,
+    settings_details,
+)
 from bfsitl.scenario.result import ScenarioResult
+from bfsitl.scenario.setup_lines import SIDE
 from bfsitl.scenario.suite import dir_name
 
 
@@ -273,13 +281,23 @@ def _configuration(comparison: ScenarioComparison) -> str:
     a, b = _settings_of(comparison.a_runs), _settings_of(comparison.b_runs)
     if not a and not b:
         return ""
-    a_lines, b_lines = {line for _, line, _ in a}, {line for _, line, _ in b}
-    only = [("A", s) for s in a if s[1] not in b_lines] + [
-        ("B", s) for s in b if s[1] not in a_lines
-    ]
+    # What each FC ended with: a line the scenario replaced later had no effect.
+    a_now, b_now = in_effect(a), in_effect(b)
+    only = [("A", a_now[k]) for k in a_now if a_now[k][1] != b_now.get(k, ("", "", ""))[1]]
+    only += [("B", b_now[k]) for k in b_now if b_now[k][1] != a_now.get(k, ("", "", ""))[1]]
     differing = "".join(
         f"<li>{side} only: <code>{escape(line)}</code> ({escape(source)})</li>"
         for side, (source, line, _why) in only
+    )
+    unused = [
+        (label, line)
+        for label, settings in (("A", a), ("B", b))
+        for (source, line, _why), later in zip(settings, overridden(settings), strict=True)
+        if later and source == SIDE
+    ]
+    differing += "".join(
+        f"<li>{label}'s <code>{escape(line)}</code> had no effect: a later line sets it again</li>"
+        for label, line in unused
     )
     tables = "".join(
         settings_details(f"{label}: the {len(settings)} lines its FC was given", settings)

@@ -74,20 +74,7 @@ def fly_replay_scenario(
             timing=timing,
         )
     comparison = replay.comparison
-    result.settings = [
-        *((BFSITL, line, "the identity stick path") for line in IDENTITY_RC_LINES),
-        *(
-            (LOG, line, setting.header)
-            for setting in replay.settings.carried
-            for line in setting.cli_lines
-        ),
-        *((SIDE, line, "") for line in scenario.side_cli),
-        *((SCENARIO, line, "") for line in scenario.cli),
-        *(
-            (SCENARIO, line, f"[cli_for] {generation}")
-            for line in dict(scenario.cli_for).get(generation, ())
-        ),
-    ]
+    result.settings = _replay_settings(scenario, replay, generation)
     result.sim_time_s = round(replay.flight.flown_s, 3)
     result.artifacts["blackbox"] = replay.flight.blackbox
     result.events.append(
@@ -116,6 +103,27 @@ def fly_replay_scenario(
     with watch.span("analysers"):
         _judge(scenario, replay, result, generation)
     result.timings_s = dict(watch.spans_s)
+
+
+def _replay_settings(
+    scenario: Scenario, replay: Replay, generation: str
+) -> list[tuple[str, str, str]]:
+    """Every line the replaying FC was given, in order, with where it came from."""
+    whence: dict[str, tuple[str, str]] = {
+        line: (LOG, setting.header)
+        for setting in replay.settings.carried
+        for line in setting.cli_lines
+    }
+    whence.update(dict.fromkeys(IDENTITY_RC_LINES, (BFSITL, "the identity stick path")))
+    whence.update(dict.fromkeys(scenario.side_cli, (SIDE, "")))
+    whence.update(dict.fromkeys(scenario.cli, (SCENARIO, "")))
+    for line in dict(scenario.cli_for).get(generation, ()):
+        whence[line] = (SCENARIO, f"[cli_for] {generation}")
+    settings = []
+    for line in replay.flight.cli_lines:
+        source, why = whence.get(line, (BFSITL, "the FC's own log"))
+        settings.append((source, line, why))
+    return settings
 
 
 def _judge(scenario: Scenario, replay: Replay, result: ScenarioResult, generation: str) -> None:

@@ -185,10 +185,24 @@ def _findings(result: ScenarioResult) -> str:
     return f"<h3>findings</h3>{table}{unwatched}"
 
 
+def setting_key(line: str) -> str:
+    """What a CLI line sets: ``set NAME`` for ``set name = value`` (spaces or not, any case),
+    ``feature NAME`` for ``feature [-]NAME``, else the line itself."""
+    words = line.replace("=", " = ").split()
+    if len(words) >= 2 and words[0].lower() in ("set", "feature"):
+        return f"{words[0].lower()} {words[1].lstrip('-').lower()}"
+    return line
+
+
 def overridden(settings: Sequence[tuple[str, str, str]]) -> list[bool]:
-    """Per line: a later ``set`` of the same setting replaces it (the FC keeps the last)."""
-    names = [line.split()[1] if line.startswith("set ") else None for _, line, _ in settings]
-    return [name is not None and name in names[i + 1 :] for i, name in enumerate(names)]
+    """Per line: a later line sets the same thing (the FC keeps the last)."""
+    keys = [setting_key(line) for _, line, _ in settings]
+    return [key in keys[i + 1 :] for i, key in enumerate(keys)]
+
+
+def in_effect(settings: Sequence[tuple[str, str, str]]) -> dict[str, tuple[str, str, str]]:
+    """The line that stands for each thing set, the last one given."""
+    return {setting_key(line): (source, line, why) for source, line, why in settings}
 
 
 def settings_details(summary: str, settings: Sequence[tuple[str, str, str]]) -> str:

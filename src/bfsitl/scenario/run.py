@@ -398,9 +398,11 @@ def _fly(
     # stopped, its blackbox file complete) are timed on their own.
     stack = contextlib.ExitStack()
     try:
-        with watch.span("start-up"):
-            stack.enter_context(session)
         try:
+            # Entered inside the try: a Ctrl-C between the start and the block still closes
+            # the session.
+            with watch.span("start-up"):
+                stack.enter_context(session)
             result.firmware_version = (
                 session.firmware.firmware_version if session.firmware else result.firmware_version
             )

@@ -24,7 +24,7 @@ PHASES = (
     "blackbox",  # the FC's log copied out and decoded
     "analysers",  # findings, figures and expectations
     "plots",
-    "files",  # trace.csv, result.json, a replay's report
+    "files",  # trace.csv, a replay's report (result.json comes after the timings)
 )
 
 
@@ -47,7 +47,9 @@ class Stopwatch:
 
 def timings_table(runs: Sequence[tuple[str, dict[str, float], float]]) -> list[str]:
     """Lines of a table: a row per run (its label, its phases' seconds, its simulated
-    seconds) and their sum, each phase with its share of the wall time."""
+    seconds) and their sum, each phase with its share of the wall time.  A row's "wall s" is
+    the sum of its phases: a run's own wall time also holds finding its firmware and writing
+    its result.json."""
     phases = [p for p in PHASES if any(p in spans for _, spans, _ in runs)]
     width = max([len(label) for label, _, _ in runs] + [5])
     head = f"{'run':<{width}} " + " ".join(f"{p:>9}" for p in phases)

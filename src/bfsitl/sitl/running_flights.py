@@ -21,6 +21,7 @@ from __future__ import annotations
 import contextlib
 import itertools
 import json
+import math
 import os
 import shlex
 import sys
@@ -41,6 +42,8 @@ ADVERT_VERSION = 1
 MAX_COMMAND_CHARS = 160
 
 PROC_ROOT = Path("/proc")
+#: Where a SITL's UART2 can be: its loopback (in its namespace or the host's).
+LOOPBACK_HOSTS = ("127.0.0.1", "localhost", "::1")
 
 #: ``start_ticks(pid)``: when that process started, clock ticks after boot; None if it is gone.
 StartTicks = Callable[[int], "int | None"]
@@ -149,7 +152,25 @@ class FlightAdvert:
             advert = cls(**data)
         except (ValueError, TypeError, KeyError, AttributeError):
             return None
-        return advert
+        return advert if advert.well_formed() else None
+
+    def well_formed(self) -> bool:
+        """Every field of the type and range it must have: a file someone else wrote in the
+        cache must not send ``top`` elsewhere than a SITL's loopback, or crash it."""
+
+        def whole(value: object, low: int, high: int) -> bool:
+            return type(value) is int and low <= value <= high
+
+        return (
+            all(isinstance(v, str) for v in (self.key, self.command, self.firmware, self.workdir))
+            and whole(self.pid, 1, 2**22)
+            and whole(self.started_ticks, 0, 2**63)
+            and self.host in LOOPBACK_HOSTS
+            and whole(self.port, 1, 65535)
+            and (self.netns_pid is None or whole(self.netns_pid, 1, 2**22))
+            and type(self.started_at_s) in (int, float)
+            and math.isfinite(self.started_at_s)
+        )
 
     @classmethod
     def for_this_process(
@@ -232,10 +253,13 @@ class FlightRegistry:
                 advert = FlightAdvert.from_json(path.read_text())
             except OSError:
                 continue  # withdrawn while we looked
+            except UnicodeDecodeError:
+                advert = None  # not text: no advert
             if advert is not None and self.is_running(advert):
                 found.append(advert)
             elif advert is not None or not self._named_pid_runs(path):
-                path.unlink(missing_ok=True)
+                with contextlib.suppress(OSError):  # a cache shared read-only: leave it
+                    path.unlink(missing_ok=True)
         return sorted(found, key=lambda advert: (advert.started_at_s, advert.key))
 
     def _named_pid_runs(self, path: Path) -> bool:

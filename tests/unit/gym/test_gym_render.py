@@ -313,6 +313,9 @@ def test_the_vector_environment_returns_each_workers_frame() -> None:
     try:
         assert envs.render_mode == "rgb_array" and envs.metadata["render_modes"] == ["rgb_array"]
         assert envs.metadata["render_fps"] == 100
+        # Before a reset: refused in the parent, and the environments stay open.
+        with pytest.raises(EnvironmentConfigError, match="before reset"):
+            envs.render()
         envs.reset(seed=[7, 9])
         frames = envs.render()
         assert frames is not None and [f[0, 0, 0] for f in frames] == [7, 9]

@@ -219,10 +219,14 @@ def test_an_older_build_is_said_and_the_frames_are_asked_for(tmp_path: Path) -> 
     said: list[str] = []
     flight = fly_replay(
         _stream(), firmware=ReplayFirmware(Path("sitl"), 8000.0, False), quad=IRIS,
-        cli_lines=(), out_dir=tmp_path, session_factory=FakeSession, progress=said.append,
+        cli_lines=("set p_roll = 40",), out_dir=tmp_path, session_factory=FakeSession,
+        progress=said.append,
     )  # fmt: skip
     assert flight.receiver_frames is False
     assert any("rebuild it" in line for line in said)
+    # What the FC was given: the lines asked for, then the blackbox's.
+    assert flight.cli_lines[0] == "set p_roll = 40"
+    assert "set blackbox_device = VIRTUAL" in flight.cli_lines
     assert ("BFSITL_LOCKSTEP_RX_FRAMES", "1") in FakeSession.made[0].config.sitl.env
 
 

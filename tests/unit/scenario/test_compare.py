@@ -250,6 +250,18 @@ def test_the_report_says_what_each_side_was_given_and_links_each_runs_files(
     assert "A: the 1 lines its FC was given" in page and "the FC&#x27;s own log" in page
     assert '<a href="../B/hover/seed-5/result.json">summary</a>' in page
     assert "gone.BFL" not in page
+    # A side's line the scenario sets again tested nothing: said, and not a difference.
+    shadowed_a, shadowed_b = [result("hover")], [result("hover")]
+    shadowed_a[0].settings = [("the scenario", "set failsafe_delay = 5", "")]
+    shadowed_b[0].settings = [
+        ("the side", "set failsafe_delay=20", ""),
+        ("the scenario", "set failsafe_delay = 5", ""),
+    ]
+    shadowed = write_comparison_report(
+        [judge(shadowed_a, shadowed_b)], SIDES, tmp_path / "shadowed"
+    ).read_text()
+    assert "B's <code>set failsafe_delay=20</code> had no effect" in shadowed
+    assert "only:" not in shadowed
     same = [result("hover")]
     same[0].settings = list(given)
     assert (

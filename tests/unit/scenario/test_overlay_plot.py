@@ -9,7 +9,7 @@ from pathlib import Path
 import pytest
 
 from bfsitl.errors import ScenarioError
-from bfsitl.scenario.plot import AFTER_TOUCHDOWN_S, _landed_s, write_overlay_plot
+from bfsitl.scenario.plot import AFTER_TOUCHDOWN_S, _landed_s, fault_times_s, write_overlay_plot
 from bfsitl.scenario.trace import Trace, TraceRow, read_trace_csv, write_trace_csv
 
 
@@ -62,3 +62,12 @@ def test_the_overlay_ends_soon_after_the_last_touchdown_not_at_the_late_disarm(
     assert _landed_s([*a, flight(touchdown_s=50.0, disarm_s=50.0)]) is None
     path = write_overlay_plot([("A: x", a), ("B: y", b)], tmp_path / "o.png", title="t")
     assert path.stat().st_size > 10_000
+
+
+def test_one_fault_is_one_marker_however_many_runs_injected_it() -> None:
+    """Seeds and sides arm within a control step of each other: the same fault lands a few
+    milliseconds apart, and must still be drawn once."""
+    runs = [flight(touchdown_s=11.0, disarm_s=12.0, fault_s=at_s) for at_s in (8.0, 8.004, 8.01)]
+    assert fault_times_s(runs) == [8.0]
+    assert fault_times_s([Trace(), *runs[1:]]) == [8.004]
+    assert fault_times_s([Trace()]) == []

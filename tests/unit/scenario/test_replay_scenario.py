@@ -207,7 +207,8 @@ def test_a_replay_run_fills_the_result_from_the_replay(
         asked.update(kwargs)
         blackbox = kwargs["out_dir"] / "replay.BFL"
         blackbox.write_bytes(b"")
-        flight = ReplayedFlight(blackbox, "4.6.0", 100, flown_s=20.0, wall_s=1.0)
+        given = (*kwargs["extra_cli"], "set blackbox_device = VIRTUAL")
+        flight = ReplayedFlight(blackbox, "4.6.0", 100, flown_s=20.0, wall_s=1.0, cli_lines=given)
         return Replay(
             log,
             kwargs["quad"].name,
@@ -238,6 +239,7 @@ def test_a_replay_run_fills_the_result_from_the_replay(
     assert asked["timing"] is timing  # a suite sharing the cores does not spin
     sources = {line: source for source, line, _ in result.settings}
     assert sources["set f_roll = 0"] == "the side" and sources["set p_roll = 20"] == "the scenario"
+    assert sources["set blackbox_device = VIRTUAL"] == "bfsitl"  # what the replay adds itself
     assert asked["quad"].name == "5inch-freestyle"
     assert result.verdict is Verdict.FAILED and "max_gyro_off_real" in result.reason
     assert result.metrics["roll_rise_ms"] == pytest.approx(_figures(0.04)["roll_rise_ms"])

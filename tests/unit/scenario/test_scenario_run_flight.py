@@ -15,6 +15,7 @@ a stock 4.6.0 SITL.
 
 from __future__ import annotations
 
+import contextlib
 import dataclasses
 import json
 from dataclasses import replace
@@ -487,3 +488,26 @@ def test_a_defect_of_the_other_generation_is_not_expected(fly) -> None:
     only_master = [{**KNOWN_CRASH[0], "generation": "master"}]
     result, _session = fly(scenario(flight=FLIGHT, known_failure=only_master))
     assert result.verdict is Verdict.PASSED  # the fake is a 4.6.0
+
+
+def test_ctrl_c_as_the_start_up_ends_still_closes_the_session(
+    fly, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """The session's close is registered as it is entered, inside the block that closes it:
+    a Ctrl-C arriving just after the start-up (here: as its timing ends) stops the SITL."""
+    from bfsitl.scenario.timings import Stopwatch
+
+    class InterruptedStartUp(Stopwatch):
+        @contextlib.contextmanager
+        def span(self, phase: str):  # type: ignore[no-untyped-def]
+            with super().span(phase):
+                yield
+            if phase == "start-up":
+                raise KeyboardInterrupt
+
+    monkeypatch.setattr(run, "Stopwatch", InterruptedStartUp)
+    closed: list[bool] = []
+    monkeypatch.setattr(FailsafeSession, "close", lambda self: closed.append(True))
+    with pytest.raises(KeyboardInterrupt):
+        fly(scenario(flight=FLIGHT, fault=[RC_LOST_AT_8], expect={"disarmed": True}))
+    assert closed == [True]

@@ -166,6 +166,46 @@ def test_adverts_of_another_version_or_shape_are_not_read() -> None:
     assert FlightAdvert.from_json("[]") is None
 
 
+@pytest.mark.parametrize(
+    "change",
+    [
+        {"started_at_s": "bad"},  # describe() would crash on it
+        {"started_at_s": float("nan")},
+        {"host": "203.0.113.7"},  # top would connect to another machine
+        {"port": 0},
+        {"port": 70000},
+        {"pid": "10"},
+        {"netns_pid": -1},
+        {"command": 5},
+    ],
+)
+def test_an_advert_with_a_field_out_of_shape_is_not_read(change: dict[str, object]) -> None:
+    import json
+
+    data = json.loads(advert(10).to_json())
+    data.update(change)
+    assert FlightAdvert.from_json(json.dumps(data)) is None
+
+
+def test_a_file_that_is_not_text_or_cannot_be_removed_does_not_stop_the_listing(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    folder = tmp_path / "flights"
+    folder.mkdir()
+    (folder / "30.json").write_bytes(b"\xff\xfe not utf-8")
+    flights = registry(tmp_path, FakeProcesses(p10=100))
+    flights.advertise(advert(10))
+    assert [a.key for a in flights.running()] == ["10"]
+    assert not (folder / "30.json").exists()  # no advert, its pid gone: removed
+
+    def refuse(self: Path, missing_ok: bool = False) -> None:
+        raise PermissionError("read-only cache")
+
+    (folder / "40.json").write_text("{}")
+    monkeypatch.setattr(Path, "unlink", refuse)
+    assert [a.key for a in flights.running()] == ["10"]  # no PermissionError
+
+
 def test_this_process_advertises_under_its_pid_then_pid_dot_n(
     monkeypatch: pytest.MonkeyPatch,
 ) -> None:

@@ -24,7 +24,7 @@ from bfsitl.replay.sticks import IDENTITY_RC_LINES
 from bfsitl.scenario.expectations import settle_verdict
 from bfsitl.scenario.metrics import replay_metrics
 from bfsitl.scenario.result import ScenarioResult, TimedEvent
-from bfsitl.scenario.setup_lines import BFSITL, LOG, SCENARIO, SIDE
+from bfsitl.scenario.setup_lines import BFSITL, LOG, asked_lines
 from bfsitl.scenario.spec import Scenario
 from bfsitl.scenario.timings import Stopwatch
 from bfsitl.scenario.trace import Trace
@@ -59,7 +59,7 @@ def fly_replay_scenario(
     with watch.span("log read"):
         log = pick_log(spec.log, spec.index)
     generation = profile.generation.value
-    lines = (*scenario.side_cli, *scenario.cli, *dict(scenario.cli_for).get(generation, ()))
+    lines = tuple(asked.line for asked in asked_lines(scenario, generation))
     # The replay's start-up, arming and flight are one call: timed as the flight.
     with watch.span("flight"):
         replay = replay_log(
@@ -115,10 +115,7 @@ def _replay_settings(
         for line in setting.cli_lines
     }
     whence.update(dict.fromkeys(IDENTITY_RC_LINES, (BFSITL, "the identity stick path")))
-    whence.update(dict.fromkeys(scenario.side_cli, (SIDE, "")))
-    whence.update(dict.fromkeys(scenario.cli, (SCENARIO, "")))
-    for line in dict(scenario.cli_for).get(generation, ()):
-        whence[line] = (SCENARIO, f"[cli_for] {generation}")
+    whence.update((a.line, (a.source, a.why)) for a in asked_lines(scenario, generation))
     settings = []
     for line in replay.flight.cli_lines:
         source, why = whence.get(line, (BFSITL, "the FC's own log"))

@@ -72,6 +72,20 @@ def _mode_ranges(faults: tuple[Fault, ...]) -> tuple[msg.ModeRange, ...]:
     )
 
 
+def asked_lines(scenario: Scenario, generation: str) -> tuple[SettingLine, ...]:
+    """The lines a comparison side and the scenario ask for, in the order they are applied
+    (the side's first, so the scenario's own win; then its ``[cli_for]`` for
+    ``generation``): what a flown run and a replay both add after their own."""
+    return (
+        *(SettingLine(SIDE, line) for line in scenario.side_cli),
+        *(SettingLine(SCENARIO, line) for line in scenario.cli),
+        *(
+            SettingLine(SCENARIO, line, f"[cli_for] {generation}")
+            for line in dict(scenario.cli_for).get(generation, ())
+        ),
+    )
+
+
 def provisioned_settings(
     scenario: Scenario, profile: FirmwareProfile, faults: tuple[Fault, ...]
 ) -> tuple[SettingLine, ...]:
@@ -96,12 +110,7 @@ def provisioned_settings(
             SettingLine(SCENARIO, line, "[[fc_waypoint]]")
             for line in fc_mission_cli(scenario.fc_waypoints)
         ),
-        *(SettingLine(SIDE, line) for line in scenario.side_cli),
-        *(SettingLine(SCENARIO, line) for line in scenario.cli),
-        *(
-            SettingLine(SCENARIO, line, f"[cli_for] {profile.generation.value}")
-            for line in dict(scenario.cli_for).get(profile.generation.value, ())
-        ),
+        *asked_lines(scenario, profile.generation.value),
         *(SettingLine(BUILD, line, "the compass") for line in profile.compass_cli),
         *(SettingLine(BUILD, line, "the virtual GPS") for line in profile.gps_setup_cli),
     ]

@@ -8,7 +8,7 @@ VENV ?= .venv
 BIN := $(VENV)/bin
 STAMP := $(VENV)/.installed
 
-.PHONY: demo test setup bench clean figures
+.PHONY: demo test setup bench clean regenerate-docs
 
 setup: $(STAMP)
 
@@ -26,8 +26,8 @@ demo: $(STAMP)
 test: $(STAMP)
 	BFSITL_REQUIRE_SITL=1 $(BIN)/python -m pytest
 
-figures: $(STAMP)
-	$(BIN)/python tools/docs_figures.py
+regenerate-docs: $(STAMP)
+	$(BIN)/python tools/regenerate_docs.py
 
 bench: $(STAMP)
 	$(BIN)/python benchmarks/telemetry.py

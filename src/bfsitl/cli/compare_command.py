@@ -164,8 +164,8 @@ def cmd_scenario_compare(args: argparse.Namespace) -> int:
         progress("A and B are the same build and lines: every scenario should come out same")
     replays = sum(seeds_for(s, args.seeds) < args.seeds for s in scenarios)
     progress(
-        f"{len(planned)} runs: {len(scenarios)} scenarios x {args.seeds} seeds x 2 "
-        f"sides; files in {args.out}/"
+        f"{len(planned)} runs: {len(scenarios)} scenario(s) on 2 sides, {args.seeds} seed(s) "
+        f"each; files in {args.out}/"
         + (
             f" ({replays} replay(s) without gusts flown with one seed: they repeat bit for bit)"
             if replays

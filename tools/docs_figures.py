@@ -84,7 +84,7 @@ def make_square(ctx: Context, work: Path) -> Path:
 
 def make_scenario_gps_rescue(ctx: Context, work: Path) -> Path:
     argv = bfsitl("scenario", "run", "gps-rescue-home", "--firmware", ctx.firmware_46)
-    run([*argv, "--out", "runs"], work)
+    run([*argv, "--plot", "--out", "runs"], work)
     return png(one(work / "runs", "*/gps-rescue-home/plot.png"))
 
 
@@ -211,7 +211,7 @@ FIGURES = (
     ),
     Figure(
         "scenario-gps-rescue",
-        "bfsitl scenario run gps-rescue-home --firmware 4.6 (its plot.png)",
+        "bfsitl scenario run gps-rescue-home --firmware 4.6 --plot (its plot.png)",
         (LOCKSTEP_46,),
         make_scenario_gps_rescue,
     ),

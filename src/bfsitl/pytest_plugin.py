@@ -147,7 +147,7 @@ def bfsitl_scenario(
         if not isinstance(scenario, Scenario):
             scenario = _on_vehicle(request.config, load_scenario(scenario))
         return run_scenario(
-            scenario, bfsitl_firmware, RunOptions(tmp_path / scenario.name, plot=False)
+            scenario, bfsitl_firmware, RunOptions(tmp_path / scenario.name, plot="failed")
         )
 
     return run

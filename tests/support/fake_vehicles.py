@@ -208,7 +208,7 @@ class PlanarVehicle(FakeVehicle):
             sim_east_m=self.east_m,
         )
 
-    def gps_position(self):  # type: ignore[no-untyped-def]
+    def gps_position(self, sample=None):  # type: ignore[no-untyped-def]
         from bfsitl.mission.vehicle import GpsPosition
 
         return GpsPosition(self.north_m, self.east_m, self.v_north, self.v_east, True, 12)

@@ -63,7 +63,7 @@ class TipsOver(FakeVehicle):
 class NoGps(FakeVehicle):
     """A 4.6.0 FC without a GPS: MSP_RAW_GPS is refused with ``!``."""
 
-    def gps_position(self) -> GpsPosition:
+    def gps_position(self, sample: Any = None) -> GpsPosition:
         raise MspErrorReply(MspCommand.RAW_GPS)
 
 

@@ -6,6 +6,7 @@ import argparse
 import sys
 import time
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 from bfsitl.cli.arg_types import (
     add_vehicle_argument,
@@ -16,6 +17,9 @@ from bfsitl.cli.arg_types import (
 from bfsitl.cli.compare_command import add_compare_parser
 from bfsitl.cli.scenario_inputs import check_builds, paths_or_library
 from bfsitl.cli.target import progress
+
+if TYPE_CHECKING:
+    from bfsitl.scenario.result import PlotWhen
 
 EXIT_OK = 0
 EXIT_FAILED = 1
@@ -134,7 +138,14 @@ def add_scenario_parser(sub: argparse._SubParsersAction) -> None:  # type: ignor
         help="x real time (default: as fast as it goes on a lockstep build, real "
         "time on a stock one)",
     )
-    run.add_argument("--no-plot", action="store_true", help="skip the plots (faster)")
+    plots = run.add_mutually_exclusive_group()
+    plots.add_argument(
+        "--plot",
+        action="store_true",
+        help="draw every run's plots (plot.png, blackbox.png); by default only a run that did "
+        "not pass draws them, and every run with --report",
+    )
+    plots.add_argument("--no-plot", action="store_true", help="no plots, not even for a failure")
     run.add_argument(
         "--timings",
         action="store_true",
@@ -196,7 +207,7 @@ def cmd_scenario_run(args: argparse.Namespace) -> int:
         runs,
         jobs=args.jobs,
         speed=args.speed,
-        plot=not args.no_plot,
+        plot=_plot_when(args),
         progress=progress if args.jobs == 1 or args.ray_address else None,
         on_result=finished,
         ray_address=args.ray_address,
@@ -235,6 +246,14 @@ def _print_timings(results: list, outputs_s: float) -> None:  # type: ignore[typ
     for line in timings_table(rows):
         print(line)
     print(f"the suite's JUnit and report: {outputs_s:.2f} s")
+
+
+def _plot_when(args: argparse.Namespace) -> PlotWhen:
+    """Every run's plots when asked for (``--plot``) or for the report, which shows them;
+    none with ``--no-plot``; else only a run that did not pass draws them."""
+    if args.no_plot:
+        return False
+    return True if args.plot or args.report is not None else "failed"
 
 
 def _write_outputs(args: argparse.Namespace, results: list) -> None:  # type: ignore[type-arg]

@@ -258,8 +258,23 @@ class MspClient:
 
     def telemetry(self) -> Telemetry:
         """Attitude, altitude, status, analog, RC, motors and raw IMU in one round trip."""
+        return self.telemetry_and(())[0]
+
+    def telemetry_and(self, extra: Sequence[int]) -> tuple[Telemetry, tuple[bytes, ...]]:
+        """:meth:`telemetry` and the parameterless reads ``extra`` in the same round trip.
+
+        Args:
+            extra: MSP v1 command ids that take no payload (``MspCommand.RAW_GPS``, ...).
+
+        Returns:
+            The snapshot, and one payload per extra command, in order: empty for one the FC
+            cannot answer (ask it alone to hear why).
+        """
         box_ids = self.box_ids()
-        return telemetry_from_payloads(self.multiple(TELEMETRY_COMMANDS), self._clock(), box_ids)
+        payloads = self.multiple((*TELEMETRY_COMMANDS, *extra))
+        count = len(TELEMETRY_COMMANDS)
+        telemetry = telemetry_from_payloads(payloads[:count], self._clock(), box_ids)
+        return telemetry, payloads[count:]
 
     def telemetry_request(self) -> MspRequest:
         """The request :meth:`telemetry` sends, for pipelining many of them."""

@@ -18,7 +18,6 @@ import math
 from dataclasses import dataclass
 
 import numpy as np
-from scipy import ndimage
 
 from bfsitl.blackbox.decode import BlackboxLog
 from bfsitl.errors import FitError
@@ -204,6 +203,8 @@ def _after_impact(
     if hover_level is None:
         return hit
     lookback = max(1, int(IMPACT_LOOKBACK_S / dt_s))
+    from scipy import ndimage  # here: a scenario run imports this module, seldom uses it
+
     trailing = ndimage.maximum_filter1d(motor_level, size=lookback, origin=(lookback - 1) // 2)
     # The motors before the hit, not the FC's answer to it (in the same frame as the spike).
     before = delayed(trailing, max(1, int(IMPACT_REACTION_S / dt_s)))

@@ -8,6 +8,9 @@ beta x^2`` for the command ``u``: the speed controller's drive against the prop'
 speed follows as a first-order lag of the motor's time constant, exactly as the physics
 steps it, and the thrust is ``x^2`` of the full thrust (no inflow: a log has no vertical
 speed).  The score (:mod:`bfsitl.fit.replay`) flies the physics itself, not this.
+
+scipy.signal is imported inside the functions that use it: it takes a second to import, and
+every scenario run imports this module (through the replay expectations) without fitting.
 """
 
 from __future__ import annotations
@@ -15,7 +18,6 @@ from __future__ import annotations
 import math
 
 import numpy as np
-from scipy import signal
 
 from bfsitl.physics.params import QuadParams
 
@@ -39,6 +41,8 @@ def steady_speed_share(command: np.ndarray, beta: float) -> np.ndarray:
 
 def lagged(target: np.ndarray, time_constant_s: float, dt_s: float, start: float) -> np.ndarray:
     """``target`` followed by a first-order lag, stepped as the physics steps it."""
+    from scipy import signal  # imported when used: see the module docstring
+
     alpha = -math.expm1(-dt_s / time_constant_s)
     zi = np.array([(1.0 - alpha) * start])
     out, _ = signal.lfilter([alpha], [1.0, alpha - 1.0], target, zi=zi)
@@ -69,6 +73,8 @@ def pt2(
     """Betaflight's PT2 low-pass (two PT1 stages); ``cutoff_hz`` 0 passes ``values`` on."""
     if cutoff_hz <= 0:
         return values
+    from scipy import signal  # imported when used: see the module docstring
+
     rc = 1.0 / (2.0 * math.pi * cutoff_hz * PT2_CUTOFF_CORRECTION)
     k = dt_s / (rc + dt_s)
     first = values[0] if start is None else start
@@ -79,6 +85,8 @@ def pt2(
 
 def low_pass(values: np.ndarray, cutoff_hz: float, dt_s: float) -> np.ndarray:
     """A zero-phase second-order Butterworth low-pass along the last axis (both directions)."""
+    from scipy import signal  # imported when used: see the module docstring
+
     nyquist = 0.5 / dt_s
     if cutoff_hz >= 0.95 * nyquist:
         return values

@@ -30,7 +30,6 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
-from scipy import optimize
 
 from bfsitl.errors import FitError
 from bfsitl.fit.log_data import FlightData
@@ -210,6 +209,8 @@ def fit_rotation(data: FlightData, windows: Windows, beta: float, *, seed: int =
         def roll_pitch_error(time_constant_s: float) -> float:
             _, errors, _ = _axes_fit(data, windows, beta, time_constant_s, delay_frames)
             return errors[0] + errors[1]
+
+        from scipy import optimize  # imported when used, as in motor_model
 
         search = optimize.minimize_scalar(
             roll_pitch_error,

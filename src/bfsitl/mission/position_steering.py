@@ -77,10 +77,11 @@ class PositionSteering:
             self.target_ne[1] if east_m is None else east_m,
         )
 
-    def read_gps(self) -> GpsPosition:
-        """The FC's GPS now (kept in :attr:`last_gps`); raises without a GPS or a fix."""
+    def read_gps(self, sample: FlightSample | None = None) -> GpsPosition:
+        """The FC's GPS (kept in :attr:`last_gps`): taken with ``sample``, else now; raises
+        without a GPS or a fix."""
         try:
-            gps = self.vehicle.gps_position()
+            gps = self.vehicle.gps_position(sample)
         except MspErrorReply as exc:
             raise MissionError(
                 "position control needs the FC's GPS, and this firmware has none (it refused "
@@ -137,9 +138,11 @@ class PositionSteering:
         sticks = self.stick_map()
         started_s = self.vehicle.time_s
         self.position.resume(started_s)
+        # Each step reads the GPS: in the sample's round trip, not one of its own.
+        self.vehicle.read_with_samples(msg.RawGps)
 
         def steer(sample: FlightSample) -> float | None:
-            gps = self.read_gps()
+            gps = self.read_gps(sample)
             point = target(sample.time_s - started_s)
             north, east = point.north_m, point.east_m
             here = (gps.north_m, gps.east_m, gps.v_north_m_s, gps.v_east_m_s)

@@ -13,10 +13,10 @@ from __future__ import annotations
 
 import math
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Mapping
 from contextlib import ExitStack
-from dataclasses import dataclass, replace
-from typing import TYPE_CHECKING, Self
+from dataclasses import dataclass, field, replace
+from typing import TYPE_CHECKING, ClassVar, Protocol, Self, TypeVar
 
 from bfsitl.backend.base import (
     Backend,
@@ -89,6 +89,9 @@ class FlightSample:
     sim_east_m: float = math.nan
     #: MSP_RAW_IMU's accelerometer in m/s^2, Betaflight's FLU body axes (specific force).
     fc_accel_flu_m_s2: tuple[float, float, float] = (math.nan, math.nan, math.nan)
+    #: The replies read in the sample's round trip (``Vehicle.read_with_samples``), by MSP
+    #: command id: empty for one the FC could not answer in a batch.
+    replies: Mapping[int, bytes] = field(default_factory=dict)
 
 
 @dataclass(frozen=True, slots=True)
@@ -101,6 +104,18 @@ class GpsPosition:
     v_east_m_s: float
     has_fix: bool
     satellites: int
+
+
+class _Readable(Protocol):
+    """A message whose request takes no payload: its command id and how its reply decodes."""
+
+    COMMAND: ClassVar[int]
+
+    @classmethod
+    def decode(cls, payload: bytes) -> Self: ...
+
+
+_ReadableT = TypeVar("_ReadableT", bound=_Readable)
 
 
 class Vehicle:
@@ -146,6 +161,8 @@ class Vehicle:
         self._start_ned: tuple[float, float] = (0.0, 0.0)
         self._gps_origin_e7: tuple[int, int] | None = None
         self._base = RcCommand(aux_us=(SWITCH_OFF_US, SWITCH_OFF_US))
+        #: Reads taken with each sample, in its round trip (:meth:`read_with_samples`).
+        self._sample_extras: tuple[int, ...] = ()
 
     #: The control loop rate an autopilot asks for by default: what the vehicle's MSP
     #: budget sustains (a SITL with the fast serial task: 100; a board at the default
@@ -397,10 +414,53 @@ class Vehicle:
             self.check_alive()  # a dead SITL explains itself better than a lost reply
             raise
 
+    def read_with_samples(self, *message_types: type[_Readable]) -> None:
+        """Take these parameterless reads in each :meth:`sample`'s round trip from now on
+        (MSP_MULTIPLE_MSP), kept in the sample's ``replies``, so that :meth:`reading` of
+        that sample needs no round trip of its own: what a control loop reads every step
+        (the GPS, the debug values) costs one exchange with the FC instead of several.
+
+        Args:
+            message_types: Message classes of :mod:`bfsitl.protocol.messages` whose request
+                takes no payload (``msg.RawGps``, ``msg.Debug``).
+        """
+        for message_type in message_types:
+            if message_type.COMMAND not in self._sample_extras:
+                self._sample_extras = (*self._sample_extras, message_type.COMMAND)
+
+    def reading(
+        self, message_type: type[_ReadableT], sample: FlightSample | None = None
+    ) -> _ReadableT:
+        """``message_type``'s reply: the one taken with ``sample`` when it was asked for
+        (:meth:`read_with_samples`), else one round trip now.
+
+        Args:
+            message_type: A message class whose request takes no payload.
+            sample: The sample whose round trip may hold it.
+
+        Returns:
+            The decoded reply.
+        """
+        payload = sample.replies.get(message_type.COMMAND) if sample is not None else None
+        if payload:  # empty: the FC could not answer it in a batch; asked alone it says why
+            return message_type.decode(payload)
+        return self.client.get(message_type)
+
+    def _telemetry_and_replies(self) -> tuple[Telemetry, dict[int, bytes]]:
+        if not self._sample_extras:
+            return self.telemetry(), {}
+        try:
+            telemetry, payloads = self.client.telemetry_and(self._sample_extras)
+        except (LinkError, MspError):
+            self.check_alive()  # a dead SITL explains itself better than a lost reply
+            raise
+        return telemetry, dict(zip(self._sample_extras, payloads, strict=True))
+
     def sample(self) -> FlightSample:
-        """The FC's view (one MSP round trip) and the simulated truth."""
+        """The FC's view (one MSP round trip, with the reads of :meth:`read_with_samples`)
+        and the simulated truth."""
         self.check_alive()
-        telemetry = self.telemetry()
+        telemetry, replies = self._telemetry_and_replies()
         truth = self._truth()
         imu = self.backend.imu
         return FlightSample(
@@ -431,16 +491,26 @@ class Vehicle:
             rc=self.rc_command,
             sim_north_m=truth.north_m,
             sim_east_m=truth.east_m,
+            replies=replies,
         )
 
-    def gps_position(self) -> GpsPosition:
-        """The FC's GPS, local to its first reading since the vehicle started (one MSP round trip).
+    def gps_position(self, sample: FlightSample | None = None) -> GpsPosition:
+        """The FC's GPS, local to its first reading since the vehicle started (taken with
+        ``sample`` when :meth:`read_with_samples` asked for ``msg.RawGps``, else one round
+        trip).
 
         Only GPS builds answer (``bfsitl firmware build --gps`` for 4.6.0; master has it):
         others raise :class:`MspErrorReply`.  The conversion is the FC's flat-earth one, good
         to centimetres over a flying field.
+
+        Args:
+            sample: The sample whose round trip may hold the GPS (None: read it now).
+
+        Returns:
+            Metres north and east of the origin, the ground velocity, the fix and the
+            satellites.
         """
-        return self.local_gps(self.client.get(msg.RawGps))
+        return self.local_gps(self.reading(msg.RawGps, sample))
 
     def local_gps(self, gps: msg.RawGps) -> GpsPosition:
         """An MSP_RAW_GPS reply made local, as :meth:`gps_position` does (for a caller that

@@ -24,7 +24,6 @@ import math
 from dataclasses import dataclass, field
 
 import numpy as np
-from scipy import signal
 
 from bfsitl.blackbox.decode import BlackboxFrame, BlackboxLog
 from bfsitl.errors import ReplayError
@@ -205,6 +204,10 @@ def lost_control_s(traces: LogTraces) -> float | None:
 def stick_offset_s(real: LogTraces, replay: LogTraces, *, rate_hz: float = RATE_HZ) -> float:
     """Where the real log's time 0 lies on the replay log's clock: the lag within
     :data:`MAX_OFFSET_S` at which their sticks agree best."""
+    # Imported here: scipy.signal takes a second to import, and every scenario run imports
+    # this module (the replay expectations) whether it replays or not.
+    from scipy import signal
+
     length = min(real.sticks.shape[1], replay.sticks.shape[1])
     lags = signal.correlation_lags(length, length, mode="full")
     total = np.zeros(len(lags))

@@ -7,7 +7,7 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from bfsitl.errors import BfsitlError
-from bfsitl.scenario.result import ScenarioResult
+from bfsitl.scenario.result import PlotWhen, ScenarioResult
 from bfsitl.scenario.run import RunOptions, run_scenario
 from bfsitl.scenario.spec import Scenario
 from bfsitl.sitl.core_claim import claim_core
@@ -36,7 +36,12 @@ def _is_lockstep(firmware: str) -> bool:
 
 
 def fly_one(
-    scenario: Scenario, firmware: str, out_dir: Path, speed: float | None, plot: bool, mcap: bool
+    scenario: Scenario,
+    firmware: str,
+    out_dir: Path,
+    speed: float | None,
+    plot: PlotWhen,
+    mcap: bool,
 ) -> ScenarioResult:
     """A worker's job: the run's progress goes to a file in its directory (several runs'
     lines interleaved on one terminal would be unreadable).  Workers share the machine's

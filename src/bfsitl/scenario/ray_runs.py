@@ -34,7 +34,7 @@ from typing import Any
 from bfsitl.atomic_file import write_atomically
 from bfsitl.errors import ScenarioError
 from bfsitl.scenario.planned_run import PlannedRun, fly_one
-from bfsitl.scenario.result import ScenarioResult, Verdict
+from bfsitl.scenario.result import PlotWhen, ScenarioResult, Verdict
 from bfsitl.scenario.run import write_summary
 from bfsitl.sitl.firmware_parcel import FirmwareParcel, pack_firmware, unpack_firmware
 
@@ -111,7 +111,7 @@ def fly_remote(
     run: PlannedRun,
     parcel: FirmwareParcel,
     speed: float | None,
-    plot: bool,
+    plot: PlotWhen,
     mcap: bool,
     max_bytes: int,
 ) -> RemoteOutcome:
@@ -181,7 +181,7 @@ def run_on_ray(
     address: str,
     *,
     speed: float | None,
-    plot: bool,
+    plot: PlotWhen,
     mcap: bool,
     results: dict[int, ScenarioResult],
     done: Callable[[ScenarioResult], None],

@@ -23,7 +23,7 @@ from bfsitl.replay.replay_report import write_report_json, write_report_png
 from bfsitl.replay.sticks import IDENTITY_RC_LINES
 from bfsitl.scenario.expectations import settle_verdict
 from bfsitl.scenario.metrics import replay_metrics
-from bfsitl.scenario.result import ScenarioResult, TimedEvent
+from bfsitl.scenario.result import PlotWhen, ScenarioResult, TimedEvent, wants_plot
 from bfsitl.scenario.setup_lines import BFSITL, LOG, asked_lines
 from bfsitl.scenario.spec import Scenario
 from bfsitl.scenario.timings import Stopwatch
@@ -40,12 +40,12 @@ def fly_replay_scenario(
     result: ScenarioResult,
     say: Progress,
     *,
-    plot: bool,
+    plot: PlotWhen,
     timing: Timing,
 ) -> None:
     """Replay ``scenario.replay``'s log on ``binary`` with the scenario's quad, seed, wind and
     lines, at ``timing``, and fill ``result`` (figures, findings, checks, verdict, files in
-    ``out``; the report's plot when ``plot``).
+    ``out``; the report's plot as ``plot`` says).
 
     Raises:
         BfsitlError: The log cannot be read or replayed, or the SITL would not fly (the
@@ -96,12 +96,12 @@ def fly_replay_scenario(
     with watch.span("files"):
         write_report_json(replay, report)
     result.artifacts["replay_report"] = report
-    if plot:
+    with watch.span("analysers"):
+        _judge(scenario, replay, result, generation)
+    if wants_plot(plot, result.verdict):
         with watch.span("plots"):
             write_report_png(replay, out / "replay-report.png")
         result.artifacts["plot"] = out / "replay-report.png"
-    with watch.span("analysers"):
-        _judge(scenario, replay, result, generation)
     result.timings_s = dict(watch.spans_s)
 
 

@@ -10,6 +10,7 @@ from __future__ import annotations
 import enum
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import Literal
 
 from bfsitl.analysis import Finding
 
@@ -29,6 +30,19 @@ class Verdict(enum.Enum):
     ERROR = "error"
     #: Not run (the firmware asked for is not the one given, or a fault it cannot express).
     SKIPPED = "skipped"
+
+
+#: When a run draws its plots: True always, False never, "failed" only when it did not pass
+#: (failed, errored or a known failure: the runs someone looks at), which costs the runs that
+#: pass nothing.  Drawing them was a tenth of a lockstep run's wall time.
+PlotWhen = bool | Literal["failed"]
+
+
+def wants_plot(plot: PlotWhen, verdict: Verdict) -> bool:
+    """Whether a run that ended with ``verdict`` draws its plots."""
+    if plot == "failed":
+        return verdict is not Verdict.PASSED
+    return bool(plot)
 
 
 @dataclass(frozen=True, slots=True)

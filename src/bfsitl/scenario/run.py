@@ -67,7 +67,7 @@ from bfsitl.scenario.expectations import settle_verdict
 from bfsitl.scenario.faults import Fault, Undo, make_faults
 from bfsitl.scenario.metrics import run_metrics
 from bfsitl.scenario.replay_run import fly_replay_scenario
-from bfsitl.scenario.result import ScenarioResult, TimedEvent, Verdict
+from bfsitl.scenario.result import PlotWhen, ScenarioResult, TimedEvent, Verdict, wants_plot
 from bfsitl.scenario.setup_lines import mode_range_lines, provisioned_settings, scenario_profile
 from bfsitl.scenario.spec import Scenario
 from bfsitl.scenario.timings import Stopwatch
@@ -93,7 +93,8 @@ class RunOptions:
             directory.  Made if missing.
         speed: Simulation speed as a multiple of real time; None: as fast as it goes on a
             lockstep build, real time otherwise.
-        plot: Draw the flight to a PNG.
+        plot: Draw the flight and the FC's log to PNGs: True always, False never,
+            "failed" only when the run did not pass.
         mcap: Write the flight as MCAP too (Foxglove's schemas, ``flight.mcap``; needs the
             foxglove extra).
         shares_cores: Other runs share this machine's cores: no busy-waiting in lockstep
@@ -108,7 +109,8 @@ class RunOptions:
     out_dir: Path
     #: x real time; None: as fast as it goes on a lockstep build, real time otherwise.
     speed: float | None = None
-    plot: bool = True
+    #: Draw the plots: True always, False never, "failed" only when the run did not pass.
+    plot: PlotWhen = True
     #: Write the flight as MCAP too (Foxglove's schemas, ``flight.mcap``; the foxglove extra).
     mcap: bool = False
     #: Other runs share this machine's cores: no busy-waiting in lockstep (see
@@ -184,7 +186,7 @@ class _Injector:
 
     def _row(self, t: float, sample: FlightSample, row: FlightRow) -> TraceRow:
         try:
-            debug = self.vehicle.client.get(msg.Debug).values
+            debug = self.vehicle.reading(msg.Debug, sample).values
             phase: int | None = (
                 debug[FAILSAFE_PHASE_DEBUG_INDEX]
                 if len(debug) > FAILSAFE_PHASE_DEBUG_INDEX
@@ -408,6 +410,8 @@ def _fly(
             )
             if session.sitl is not None:
                 result.artifacts["sitl_log"] = session.sitl.log_path
+            # The failsafe phase (debug_mode = FAILSAFE) in each row's round trip.
+            session.read_with_samples(msg.Debug)
             loop = FlightLoop(
                 session,
                 make_controller(options.controller, quad=scenario.quad),
@@ -435,15 +439,6 @@ def _fly(
     result.sim_time_s = round(trace.end_s, 3)
     with watch.span("blackbox"):
         _collect_blackbox(out, trace, result)
-    with watch.span("plots"):
-        if options.plot and trace.blackbox and trace.blackbox[0].frames:
-            from bfsitl.blackbox.plot import write_blackbox_plot
-
-            result.artifacts["blackbox_plot"] = write_blackbox_plot(
-                trace.blackbox[0],
-                out / "blackbox.png",
-                title=f"{scenario.name} on {result.firmware}",
-            )
     with watch.span("analysers"):
         _analyse(injector.watch, trace, result)
         figures = run_metrics(injector.watch.track, trace, result.findings)
@@ -453,14 +448,25 @@ def _fly(
             result.artifacts["trace"] = write_trace_csv(trace, out / "trace.csv")
     with watch.span("analysers"):
         settle_verdict(result, scenario, trace, profile.generation.value)
-    with watch.span("plots"):
-        if options.plot and trace.rows:
-            from bfsitl.scenario.plot import write_scenario_plot
-
-            result.artifacts["plot"] = write_scenario_plot(
-                trace, out / "plot.png", title=f"{scenario.name} on {result.firmware}"
-            )
+    if wants_plot(options.plot, result.verdict):
+        with watch.span("plots"):
+            _plot(scenario, trace, result, out)
     result.timings_s = dict(watch.spans_s)
+
+
+def _plot(scenario: Scenario, trace: Trace, result: ScenarioResult, out: Path) -> None:
+    """The flight's plot.png and the FC's log's blackbox.png."""
+    title = f"{scenario.name} on {result.firmware}"
+    if trace.rows:
+        from bfsitl.scenario.plot import write_scenario_plot
+
+        result.artifacts["plot"] = write_scenario_plot(trace, out / "plot.png", title=title)
+    if trace.blackbox and trace.blackbox[0].frames:
+        from bfsitl.blackbox.plot import write_blackbox_plot
+
+        result.artifacts["blackbox_plot"] = write_blackbox_plot(
+            trace.blackbox[0], out / "blackbox.png", title=title
+        )
 
 
 def _autopilot_flight(

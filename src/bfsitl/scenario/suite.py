@@ -34,7 +34,7 @@ from pathlib import Path
 
 from bfsitl.errors import ScenarioError
 from bfsitl.scenario.planned_run import PlannedRun, fly_one
-from bfsitl.scenario.result import ScenarioResult, Verdict
+from bfsitl.scenario.result import PlotWhen, ScenarioResult, Verdict
 from bfsitl.scenario.run import RunOptions, run_scenario
 from bfsitl.scenario.spec import Scenario
 from bfsitl.stop_signals import WorkerStop, die_with_parent, how_stopped, stop_signals_ignored
@@ -129,7 +129,7 @@ def _start_worker(parent_pid: int) -> None:
     _worker_stop.install()
 
 
-def _run_one(run: PlannedRun, speed: float | None, plot: bool, mcap: bool) -> ScenarioResult:
+def _run_one(run: PlannedRun, speed: float | None, plot: PlotWhen, mcap: bool) -> ScenarioResult:
     with _worker_stop.job():
         return fly_one(run.scenario, run.firmware, run.out_dir, speed, plot, mcap)
 
@@ -139,7 +139,7 @@ def run_suite(
     *,
     jobs: int = 1,
     speed: float | None = None,
-    plot: bool = True,
+    plot: PlotWhen = True,
     progress: Progress | None = None,
     on_result: OnResult | None = None,
     ray_address: str | None = None,
@@ -203,7 +203,7 @@ def _run_parallel(
     runs: Sequence[PlannedRun],
     jobs: int,
     speed: float | None,
-    plot: bool,
+    plot: PlotWhen,
     mcap: bool,
     results: dict[int, ScenarioResult],
     done: OnResult,

@@ -283,12 +283,26 @@ def test_collect_names_copies_with_a_prefix(tmp_path: Path) -> None:
 
 
 def test_a_value_orangebox_wrapped_to_32_bits_comes_back_negative() -> None:
-    from bfsitl.blackbox.decode import _frame
+    from bfsitl.blackbox.decode import _FrameLayout
 
     # 3.x logs throttle as a difference from minthrottle, which orangebox decodes unsigned:
     # a stick at 1000 reads 2**32 + 1000 (measured on the CS110 logs).
     row = {"time": 75_000_000, "rcCommand[0]": 12, "rcCommand[1]": 2**32 - 5}
-    row |= {"rcCommand[2]": 0, "rcCommand[3]": 2**32 + 1000}
-    frame = _frame(row)
+    row |= {"rcCommand[2]": 0, "rcCommand[3]": 2**32 + 1000, "failsafePhase": ""}
+    frame = _FrameLayout.of(list(row)).frame(list(row.values()))
     assert frame.rc_command == (12, -5, 0, 1000)
     assert frame.time_s == 75.0
+    assert frame.failsafe_phase is None  # a slow field before the first slow frame
+    assert frame.motors == () and frame.baro_alt_cm is None  # not in this log
+
+
+def test_a_frame_cut_short_or_with_a_value_that_is_no_number_ends_its_group() -> None:
+    from bfsitl.blackbox.decode import _FrameLayout
+
+    names = ["time", "motor[0]", "motor[1]", "motor[2]", "motor[3]", "rxSignalReceived"]
+    layout = _FrameLayout.of(names)
+    assert layout.frame([1_000_000, 1100, "", 1300, 1400, 1]).motors == (1100,)
+    cut = layout.frame([2_000_000, 1100, 1200])
+    assert cut.motors == (1100, 1200) and cut.rx_signal_received is None
+    assert layout.frame([0, 1, 2, 3, 4, 0]).rx_signal_received is False
+    assert layout.frame([0, 1.0, 2.0, 3, 4, True]).motors == (1, 2, 3, 4)

@@ -248,6 +248,40 @@ def test_telemetry_reads_the_fcs_view(plug_in, started) -> None:
     assert math.isfinite(sample.time_s) and sample.time_s >= 0.0
 
 
+def test_reads_asked_for_with_each_sample_ride_in_its_round_trip(plug_in, started) -> None:
+    """The GPS a control loop reads every step comes in the sample's MSP_MULTIPLE_MSP: one
+    exchange with the FC per step, not two; without the sample it is read on its own."""
+    fc = plug_in()
+    vehicle = start(started)
+    before = fc.sent(MspCommand.RAW_GPS), fc.sent(MspCommand.MULTIPLE_MSP)
+    plain = vehicle.sample()
+    assert plain.replies == {}
+    vehicle.read_with_samples(msg.RawGps, msg.RawGps)  # asked twice: read once
+    sample = vehicle.sample()
+    assert list(sample.replies) == [MspCommand.RAW_GPS]
+    gps = vehicle.gps_position(sample)
+    assert (gps.has_fix, gps.satellites) == (True, 12)
+    assert vehicle.reading(msg.RawGps, sample).lat_e7 == 473_977_000
+    assert (fc.sent(MspCommand.RAW_GPS), fc.sent(MspCommand.MULTIPLE_MSP)) == (
+        before[0],
+        before[1] + 2,
+    )
+    vehicle.gps_position()  # no sample: a round trip of its own
+    assert fc.sent(MspCommand.RAW_GPS) == before[0] + 1
+
+
+def test_a_read_the_fc_cannot_answer_in_a_batch_is_asked_alone_to_say_why(plug_in, started) -> None:
+    from bfsitl.errors import MspErrorReply
+
+    plug_in(gps=False)
+    vehicle = start(started)
+    vehicle.read_with_samples(msg.RawGps)
+    sample = vehicle.sample()
+    assert sample.replies == {MspCommand.RAW_GPS: b""}
+    with pytest.raises(MspErrorReply):
+        vehicle.gps_position(sample)
+
+
 def test_a_board_has_no_truth_and_nothing_to_disturb(plug_in, started) -> None:
     plug_in()
     vehicle = start(started)

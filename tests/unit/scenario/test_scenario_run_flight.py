@@ -302,9 +302,9 @@ def test_rc_lost_in_a_hover_the_fc_lands_disarms_and_the_run_passes(fly, tmp_pat
     assert summary["vehicle"] == result.vehicle == "iris"  # which quad flew, IRIS by default
     assert [e["text"] for e in summary["events"]] == events
     assert set(summary["artifacts"]) == {"log", "trace"}  # no plot, no blackbox
-    # Where its wall time went, each phase of the run timed (no plots asked for).
+    # Where its wall time went, each phase of the run timed (no plots asked for: none).
     assert set(summary["timings_s"]) == {
-        "start-up", "arming", "flight", "stop", "blackbox", "analysers", "plots", "files"
+        "start-up", "arming", "flight", "stop", "blackbox", "analysers", "files"
     }  # fmt: skip
     assert summary["timings_s"]["flight"] > 0
     assert sum(summary["timings_s"].values()) <= result.wall_time_s + 0.01
@@ -442,6 +442,29 @@ def test_the_files_of_a_run_blackbox_sitl_log_plot_and_mcap(fly, tmp_path) -> No
     assert "blackbox_plot" not in result.artifacts  # nothing decoded to plot
     summary = json.loads((out / "result.json").read_text())
     assert set(summary["artifacts"]) == {"log", "mcap", "sitl_log", "blackbox", "plot", "trace"}
+
+
+@pytest.mark.parametrize(
+    ("expect", "plot", "drawn"),
+    [
+        ({"disarmed": True}, "failed", False),  # passed: nobody looks, nothing drawn
+        ({"disarmed": False}, "failed", True),  # failed: the plot to look at
+        ({"disarmed": True}, True, True),
+        ({"disarmed": False}, False, False),
+    ],
+)
+def test_a_run_draws_its_plot_as_asked_and_by_default_only_when_it_did_not_pass(
+    fly, tmp_path, expect, plot, drawn
+) -> None:
+    out = tmp_path / "out"
+    spec = scenario(flight={**FLIGHT, "hold_s": 1.0}, expect=expect)
+    result, _session = fly(spec, options=RunOptions(out, plot=plot))
+    assert result.verdict is (Verdict.PASSED if expect["disarmed"] else Verdict.FAILED)
+    assert ("plot" in result.artifacts) is drawn
+    assert (out / "plot.png").exists() is drawn
+    assert ("plots" in result.timings_s) is drawn
+    assert (out / "trace.csv").stat().st_size  # every other file as before
+    assert (out / "result.json").stat().st_size
 
 
 def test_runs_that_share_the_cores_do_not_spin(fly, tmp_path) -> None:

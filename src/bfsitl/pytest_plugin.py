@@ -193,7 +193,9 @@ class ScenarioItem(pytest.Item):
         from bfsitl.scenario.run import RunOptions, run_scenario
 
         out = _out_dir(self.config, f"{self.firmware}/{self.scenario.name}".replace("/", "_"))
-        self.result = result = run_scenario(self.scenario, self.firmware, RunOptions(out))
+        # Plots only for a run that did not pass: the one someone will look at.
+        options = RunOptions(out, plot="failed")
+        self.result = result = run_scenario(self.scenario, self.firmware, options)
         for kind, path in result.artifacts.items():
             self.user_properties.append((kind, str(path)))
         if result.verdict is Verdict.SKIPPED:

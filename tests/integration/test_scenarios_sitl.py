@@ -156,6 +156,11 @@ def test_the_shipped_library_passes_on_every_firmware(
         for name in names - cannot_46 if build.startswith("4.6") else names:
             logs = list((out / build / name / "blackbox").glob("LOG*"))
             assert logs, f"no blackbox for {name}[{build}]"
+            # --report asks for every run's plots (by default only a run that did not pass
+            # draws them).
+            for plot in ("plot.png", "blackbox.png"):
+                drawn = out / build / name / plot
+                assert drawn.is_file() and drawn.stat().st_size, f"no {plot} for {name}[{build}]"
         assert (
             "blackbox_disarm_reason = 'FAILSAFE'"
             in (out / build / "rc-loss-hover-drop" / "result.json").read_text()
@@ -206,6 +211,9 @@ def test_a_wrong_expectation_fails_naming_the_value_and_the_time_and_python_test
     line = next(x for x in output.splitlines() if "FAIL disarmed_within_s = 0.2" in x)
     # The expectation, the measured value, the time.
     assert "disarmed 0.5" in line and "after the fault (expected within 0.2 s) at t=6.5" in line
+    # The failed run drew its plots, to be looked at; the passing one did not spend the time.
+    drawn = {path.parent.name for path in (tmp_path / "runs").glob("*/plot.png")}
+    assert drawn == {f"{build}_wrong-expectation"}, drawn
 
 
 @pytest.mark.parametrize("build", BUILDS)

@@ -53,16 +53,21 @@ def hover_throttle_line(quad: QuadParams) -> str:
 
 def blackbox_cli(profile: FirmwareProfile) -> tuple[str, ...]:
     """The FC's own log to a file in its run directory, one per armed flight.  4.6.0 runs its
-    PID loop at 8 kHz and master at 1 kHz: 1/32 and 1/4 give both 250 frames a second, ten
-    times the accelerometer's low-pass (``acc_lpf_hz`` 25, so an impact's peak is kept) and
-    plenty to time a failsafe.  Decoding the log is a run's largest cost after the flight
-    (orangebox, pure Python): 4.6.0 logged at 500 Hz (1/16) cost twice as much for nothing
-    the analysers use."""
-    rate = "1/32" if profile.generation is Generation.V4_6 else "1/4"
+    PID loop at 8 kHz and master at 1 kHz: 1/16 (4.6.0's lowest rate) and 1/4 give a few
+    hundred frames a second, plenty to time a failsafe and ten times the accelerometer's
+    low-pass (``acc_lpf_hz`` 25), so an impact's peak is kept.
+
+    Decoding the log (orangebox, pure Python) is a run's largest cost after the flight, and
+    it grows with the fields: the PID terms and the unfiltered gyro, 14 of 46, are left out
+    (nothing of bfsitl reads them).  A scenario that wants them in the log turns them back on
+    with its own lines (``set blackbox_disable_pids = OFF``), which come after these."""
+    rate = "1/16" if profile.generation is Generation.V4_6 else "1/4"
     return (
         "set blackbox_device = VIRTUAL",
         "set blackbox_mode = NORMAL",
         f"set blackbox_sample_rate = {rate}",
+        "set blackbox_disable_pids = ON",
+        "set blackbox_disable_gyrounfilt = ON",
         "set debug_mode = FAILSAFE",
     )
 

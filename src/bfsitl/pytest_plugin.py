@@ -193,7 +193,7 @@ class ScenarioItem(pytest.Item):
         from bfsitl.scenario.run import RunOptions, run_scenario
 
         out = _out_dir(self.config, f"{self.firmware}/{self.scenario.name}".replace("/", "_"))
-        # Plots only for a run that did not pass: the one someone will look at.
+        # Plots only for a run that failed: the one someone will look at.
         options = RunOptions(out, plot="failed")
         self.result = result = run_scenario(self.scenario, self.firmware, options)
         for kind, path in result.artifacts.items():

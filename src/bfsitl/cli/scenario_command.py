@@ -142,8 +142,8 @@ def add_scenario_parser(sub: argparse._SubParsersAction) -> None:  # type: ignor
     plots.add_argument(
         "--plot",
         action="store_true",
-        help="draw every run's plots (plot.png, blackbox.png); by default only a run that did "
-        "not pass draws them, and every run with --report",
+        help="draw every run's plots (plot.png, blackbox.png); by default only a run that "
+        "failed or errored draws them, and every run with --report",
     )
     plots.add_argument("--no-plot", action="store_true", help="no plots, not even for a failure")
     run.add_argument(
@@ -250,7 +250,7 @@ def _print_timings(results: list, outputs_s: float) -> None:  # type: ignore[typ
 
 def _plot_when(args: argparse.Namespace) -> PlotWhen:
     """Every run's plots when asked for (``--plot``) or for the report, which shows them;
-    none with ``--no-plot``; else only a run that did not pass draws them."""
+    none with ``--no-plot``; else only a run that failed or errored draws them."""
     if args.no_plot:
         return False
     return True if args.plot or args.report is not None else "failed"

@@ -23,29 +23,45 @@ class ClimbRateEstimator:
             raise ValueError(f"window_s must be positive, got {window_s}")
         self.window_s = window_s
         self._points: deque[tuple[float, float]] = deque()
+        #: The slope over the window, worked out once per reading (a control step reads it
+        #: more than once).
+        self._rate_m_s = 0.0
 
     def reset(self) -> None:
         self._points.clear()
+        self._rate_m_s = 0.0
 
     def update(self, time_s: float, altitude_m: float) -> float:
         """Add a reading and return the climb rate in m/s (up positive); 0 until two points."""
         points = self._points
         if points and time_s <= points[-1][0]:
-            return self.rate_m_s  # a repeated or out-of-order time adds nothing
+            return self._rate_m_s  # a repeated or out-of-order time adds nothing
         points.append((time_s, altitude_m))
         while len(points) > 2 and time_s - points[0][0] > self.window_s:
             points.popleft()
-        return self.rate_m_s
+        self._rate_m_s = _slope(points)
+        return self._rate_m_s
 
     @property
     def rate_m_s(self) -> float:
-        points = self._points
-        n = len(points)
-        if n < 2:
-            return 0.0
-        mean_t = sum(t for t, _ in points) / n
-        mean_h = sum(h for _, h in points) / n
-        var_t = sum((t - mean_t) ** 2 for t, _ in points)
-        if var_t <= 0.0:
-            return 0.0
-        return sum((t - mean_t) * (h - mean_h) for t, h in points) / var_t
+        return self._rate_m_s
+
+
+def _slope(points: deque[tuple[float, float]]) -> float:
+    """The least-squares slope of the points (0 for fewer than two, or one instant)."""
+    n = len(points)
+    if n < 2:
+        return 0.0
+    sum_t = sum_h = 0.0
+    for t, h in points:
+        sum_t += t
+        sum_h += h
+    mean_t, mean_h = sum_t / n, sum_h / n
+    var_t = cov = 0.0
+    for t, h in points:
+        dt = t - mean_t
+        var_t += dt**2  # as the original did: the same rounding, the same flights
+        cov += dt * (h - mean_h)
+    if var_t <= 0.0:
+        return 0.0
+    return cov / var_t

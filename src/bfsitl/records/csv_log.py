@@ -17,11 +17,16 @@ from bfsitl.mission.flight_row import COLUMNS, FlightRow
 
 
 def _cell(value: object) -> str:
-    if isinstance(value, bool):
+    kind = type(value)  # the exact type first: a row is mostly floats, and this is per cell
+    if kind is float:
+        # Unknown values (no simulated truth with Gazebo) are empty cells, not "nan".
+        return f"{value:.4f}" if math.isfinite(value) else ""  # type: ignore[arg-type]
+    if kind is bool:
         return "1" if value else "0"
     if isinstance(value, float):
-        # Unknown values (no simulated truth with Gazebo) are empty cells, not "nan".
-        return f"{value:.4f}" if math.isfinite(value) else ""
+        return _cell(float(value))
+    if isinstance(value, bool):
+        return "1" if value else "0"
     return str(value)
 
 

@@ -32,16 +32,16 @@ class Verdict(enum.Enum):
     SKIPPED = "skipped"
 
 
-#: When a run draws its plots: True always, False never, "failed" only when it did not pass
-#: (failed, errored or a known failure: the runs someone looks at), which costs the runs that
-#: pass nothing.  Drawing them was a tenth of a lockstep run's wall time.
+#: When a run draws its plots: True always, False never, "failed" only when it failed or
+#: errored (the runs someone looks at; a known failure is expected, as pytest's xfail), which
+#: costs the other runs nothing.  Drawing them was a tenth of a lockstep run's wall time.
 PlotWhen = bool | Literal["failed"]
 
 
 def wants_plot(plot: PlotWhen, verdict: Verdict) -> bool:
     """Whether a run that ended with ``verdict`` draws its plots."""
     if plot == "failed":
-        return verdict is not Verdict.PASSED
+        return verdict in (Verdict.FAILED, Verdict.ERROR)
     return bool(plot)
 
 

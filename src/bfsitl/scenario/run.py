@@ -94,7 +94,7 @@ class RunOptions:
         speed: Simulation speed as a multiple of real time; None: as fast as it goes on a
             lockstep build, real time otherwise.
         plot: Draw the flight and the FC's log to PNGs: True always, False never,
-            "failed" only when the run did not pass.
+            "failed" only when the run failed or errored.
         mcap: Write the flight as MCAP too (Foxglove's schemas, ``flight.mcap``; needs the
             foxglove extra).
         shares_cores: Other runs share this machine's cores: no busy-waiting in lockstep
@@ -109,7 +109,7 @@ class RunOptions:
     out_dir: Path
     #: x real time; None: as fast as it goes on a lockstep build, real time otherwise.
     speed: float | None = None
-    #: Draw the plots: True always, False never, "failed" only when the run did not pass.
+    #: Draw the plots: True always, False never, "failed" only when it failed or errored.
     plot: PlotWhen = True
     #: Write the flight as MCAP too (Foxglove's schemas, ``flight.mcap``; the foxglove extra).
     mcap: bool = False

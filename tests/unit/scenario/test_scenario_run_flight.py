@@ -467,6 +467,14 @@ def test_a_run_draws_its_plot_as_asked_and_by_default_only_when_it_did_not_pass(
     assert (out / "result.json").stat().st_size
 
 
+def test_by_default_only_a_failed_or_errored_run_draws_plots() -> None:
+    from bfsitl.scenario.result import wants_plot
+
+    drawn = {v for v in Verdict if wants_plot("failed", v)}
+    assert drawn == {Verdict.FAILED, Verdict.ERROR}  # a known failure is expected, as xfail
+    assert all(wants_plot(True, v) and not wants_plot(False, v) for v in Verdict)
+
+
 def test_runs_that_share_the_cores_do_not_spin(fly, tmp_path) -> None:
     spec = scenario(flight={**FLIGHT, "hold_s": 1.0})
     run_options = RunOptions(tmp_path / "out", plot=False, shares_cores=True, speed=3.0)

@@ -3,6 +3,7 @@ decoded with orangebox plus bfsitl's reading of the events; cut logs; finding an
 
 from __future__ import annotations
 
+import contextlib
 import logging
 from pathlib import Path
 
@@ -306,3 +307,34 @@ def test_a_frame_cut_short_or_with_a_value_that_is_no_number_ends_its_group() ->
     assert cut.motors == (1100, 1200) and cut.rx_signal_received is None
     assert layout.frame([0, 1, 2, 3, 4, 0]).rx_signal_received is False
     assert layout.frame([0, 1.0, 2.0, 3, 4, True]).motors == (1, 2, 3, 4)
+
+
+@pytest.mark.parametrize("name", ["plain-4.6.0.BF", "drop-master.BFL"])
+def test_the_faster_frame_loop_gives_orangebox_s_own_frames(
+    name: str, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """The frame loop bfsitl puts in place of 0.4.0's (a list, not a tuple grown field by
+    field) is the one in use, and it decodes the same values as orangebox's own."""
+    from orangebox import Parser
+    from orangebox.reader import Reader
+
+    from bfsitl.blackbox.events import EventKeepingParser
+
+    calls: list[int] = []
+    faster = EventKeepingParser._parse_frame
+
+    def counted(self, fdefs, reader):  # type: ignore[no-untyped-def]
+        calls.append(1)
+        return faster(self, fdefs, reader)
+
+    def frames(parser: Parser) -> list[tuple[object, ...]]:
+        data: list[tuple[object, ...]] = []
+        with contextlib.suppress(TypeError, IndexError):  # 0.4.0 ends on the missing data
+            data.extend(frame.data for frame in parser.frames())
+        return data
+
+    monkeypatch.setattr(EventKeepingParser, "_parse_frame", counted)
+    ours = frames(EventKeepingParser(Reader(str(DATA / name), log_index=1)))
+    theirs = frames(Parser(Reader(str(DATA / name), log_index=1)))
+    assert ours == theirs and len(ours) > 100
+    assert len(calls) >= len(ours)  # every main frame (and the slow ones) went through it

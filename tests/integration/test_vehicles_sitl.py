@@ -66,7 +66,10 @@ def test_each_vehicle_holds_at_its_own_throttle_rolls_right_and_flies_a_leg(
         held = loop.rows[first:]
         step_start = len(loop.rows)
         loop.hold(1.0, roll_us=1600)  # a roll-right stick step (ANGLE: an angle)
-        stepped = loop.rows[step_start:]
+        right = loop.rows[step_start:]
+        step_start = len(loop.rows)
+        loop.hold(1.0, roll_us=1400)  # and left, as far
+        left = loop.rows[step_start:]
         loop.fly_to(5.0, 0.0)
         end = loop.rows[-1]
         loop.land()
@@ -74,8 +77,14 @@ def test_each_vehicle_holds_at_its_own_throttle_rolls_right_and_flies_a_leg(
     # The hold is flown at this quad's throttle, not at IRIS's 1545.
     hold_us = statistics.fmean(r.rc_throttle_us for r in held)
     assert abs(hold_us - hover_throttle_us(quad)) < 60, (hold_us, hover_throttle_us(quad))
-    # Right stick, right roll, in the truth and in what the FC reports alike.
-    assert max(r.sim_roll_deg for r in stepped) > 8.0
+    # Right stick, right roll; left stick, left roll: in the truth and in what the FC reports
+    # alike.  ANGLE makes 100 us of stick about 4 deg with the default rates (a quarter of
+    # a second to get there); right minus left cancels the lean into the wind the hold
+    # ended with, which is as large.
+    for column in ("sim_roll_deg", "roll_deg"):
+        right_deg = statistics.fmean(getattr(r, column) for r in right[len(right) // 2 :])
+        left_deg = statistics.fmean(getattr(r, column) for r in left[len(left) // 2 :])
+        assert right_deg - left_deg > 4.0, (column, right_deg, left_deg)
     airborne = [r for r in loop.rows if r.phase in ("hold", "goto")]
     roll_rms = math.sqrt(statistics.fmean((r.roll_deg - r.sim_roll_deg) ** 2 for r in airborne))
     pitch_rms = math.sqrt(statistics.fmean((r.pitch_deg - r.sim_pitch_deg) ** 2 for r in airborne))

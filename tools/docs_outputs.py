@@ -17,6 +17,7 @@ from __future__ import annotations
 
 import os
 import re
+import shlex
 import shutil
 from collections.abc import Callable, Iterable, Sequence
 from dataclasses import dataclass
@@ -160,8 +161,6 @@ def readme_as_home_page(readme: str) -> str:
 def shown(argv: Sequence[str], width: int = 96) -> str:
     """A command as the page quotes it: ``$ bfsitl ...``, each argument quoted as a shell
     would need it, continued with ``\\`` on the next line where it would pass ``width``."""
-    import shlex
-
     words = list(argv)
     if words[:3] == [words[0], "-m", "bfsitl.cli.main"]:
         words = ["bfsitl", *words[3:]]

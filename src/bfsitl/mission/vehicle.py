@@ -408,8 +408,11 @@ class Vehicle:
 
     # -- observation -------------------------------------------------------------------------
     def telemetry(self) -> Telemetry:
+        return self._telemetry_and(())[0]
+
+    def _telemetry_and(self, extra: tuple[int, ...]) -> tuple[Telemetry, tuple[bytes, ...]]:
         try:
-            return self.client.telemetry()
+            return self.client.telemetry_and(extra)
         except (LinkError, MspError):
             self.check_alive()  # a dead SITL explains itself better than a lost reply
             raise
@@ -446,21 +449,11 @@ class Vehicle:
             return message_type.decode(payload)
         return self.client.get(message_type)
 
-    def _telemetry_and_replies(self) -> tuple[Telemetry, dict[int, bytes]]:
-        if not self._sample_extras:
-            return self.telemetry(), {}
-        try:
-            telemetry, payloads = self.client.telemetry_and(self._sample_extras)
-        except (LinkError, MspError):
-            self.check_alive()  # a dead SITL explains itself better than a lost reply
-            raise
-        return telemetry, dict(zip(self._sample_extras, payloads, strict=True))
-
     def sample(self) -> FlightSample:
         """The FC's view (one MSP round trip, with the reads of :meth:`read_with_samples`)
         and the simulated truth."""
         self.check_alive()
-        telemetry, replies = self._telemetry_and_replies()
+        telemetry, payloads = self._telemetry_and(self._sample_extras)
         truth = self._truth()
         imu = self.backend.imu
         return FlightSample(
@@ -491,7 +484,7 @@ class Vehicle:
             rc=self.rc_command,
             sim_north_m=truth.north_m,
             sim_east_m=truth.east_m,
-            replies=replies,
+            replies=dict(zip(self._sample_extras, payloads, strict=True)),
         )
 
     def gps_position(self, sample: FlightSample | None = None) -> GpsPosition:

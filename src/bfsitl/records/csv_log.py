@@ -17,14 +17,9 @@ from bfsitl.mission.flight_row import COLUMNS, FlightRow
 
 
 def _cell(value: object) -> str:
-    kind = type(value)  # the exact type first: a row is mostly floats, and this is per cell
-    if kind is float:
+    if isinstance(value, float):  # most cells: asked first (a bool is no float)
         # Unknown values (no simulated truth with Gazebo) are empty cells, not "nan".
-        return f"{value:.4f}" if math.isfinite(value) else ""  # type: ignore[arg-type]
-    if kind is bool:
-        return "1" if value else "0"
-    if isinstance(value, float):
-        return _cell(float(value))
+        return f"{value:.4f}" if math.isfinite(value) else ""
     if isinstance(value, bool):
         return "1" if value else "0"
     return str(value)

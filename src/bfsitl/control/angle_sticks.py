@@ -14,6 +14,7 @@ map follows whatever the FC is configured with; only Actual rates are supported.
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 from bfsitl.errors import UnsupportedFirmwareError
@@ -22,7 +23,8 @@ from bfsitl.protocol import messages as msg
 
 #: Full deflection, either way from the middle.
 RC_HALF_RANGE_US = float(RC_MAX_US - RC_MID_US)
-_BISECTION_STEPS = 40
+#: Newton steps at most; the curve's inverse takes a few.
+_NEWTON_STEPS = 60
 
 
 @dataclass(frozen=True, slots=True)
@@ -54,21 +56,37 @@ class ActualRates:
         wanted = max(-1.0, min(1.0, rate_deg_s / full))
         sign = 1.0 if wanted >= 0 else -1.0
         wanted = abs(wanted)
-        # share(mid) written out with setpoint's own expressions (mid is in 0..1, where its
-        # clamp and abs change nothing): the same floats, without 80 calls per inversion (a
-        # position-controlled flight makes several every control step).
+        # Newton's method on setpoint(x) / full = wanted.  With the Actual curve's
+        # non-negative coefficients the curve rises and bends upwards on 0..1, so from the
+        # right of the root every step lands between the root and the last point: the steps
+        # shrink to nothing and stop when a step no longer moves left.  The start is where
+        # the centre sensitivity alone would reach the rate (the other terms only add, so it
+        # is right of the root), or full stick.  (A bisection to the
+        # same precision took 40 evaluations; a position-controlled flight inverts the
+        # curve several times every control step.)
         e = self.expo / 100.0
         keep = 1.0 - e
         centre = self.rc_rate * 10.0
         span = max(0.0, self.rate * 10.0 - centre)
-        low, high = 0.0, 1.0
-        for _ in range(_BISECTION_STEPS):  # share() rises monotonically with the deflection
-            mid = 0.5 * (low + high)
-            if (mid * centre + span * (mid * (mid**5 * e + mid * keep))) / full < wanted:
-                low = mid
-            else:
-                high = mid
-        return sign * 0.5 * (low + high)
+        if e == 0.0 and centre > 0:
+            # No expo (the firmware's default): centre x + span x^2, a quadratic's root
+            # (in the form that loses no digits when span x is small beside the centre).
+            target = wanted * full
+            return sign * min(
+                1.0, 2.0 * target / (centre + math.sqrt(centre**2 + 4 * span * target))
+            )
+        x = min(1.0, wanted * full / centre) if centre > 0 else 1.0
+        for _ in range(_NEWTON_STEPS):
+            x5 = x**5
+            value = (x * centre + span * x * (x5 * e + x * keep)) / full - wanted
+            slope = (centre + span * (6.0 * e * x5 + 2.0 * keep * x)) / full
+            if value <= 0.0 or slope <= 0.0:
+                break
+            step = value / slope
+            if x - step >= x:
+                break
+            x = max(0.0, x - step)
+        return sign * x
 
 
 #: Yaw rates of a map built by hand (:meth:`AngleStickMap.linear`): a straight line.

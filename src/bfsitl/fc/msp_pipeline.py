@@ -107,6 +107,7 @@ class PipelineHost(Protocol):
     max_in_flight_bytes: int
     _clock: Callable[[], float]
     _parser: MspParser
+    _ghosts: list[Pending]
 
     def _timeout_message(self, command: int, timeout_s: float) -> str: ...
 
@@ -216,7 +217,7 @@ class PipelineRun:
                 self.next_index += 1
             else:
                 return
-            frame = encode_request(request.command, request.payload)
+            frame = request_frame(request)
             # With nothing live outstanding, send anyway: waiting could not free anything.
             if self._live() and self._unconsumed_bytes() + len(frame) > client.max_in_flight_bytes:
                 self.resend.appendleft((index, request))
@@ -342,6 +343,65 @@ class PipelineRun:
             self.results[pending.index] = event.payload
             if self.on_reply is not None:
                 self.on_reply(pending.request, event.payload)
+
+
+def run_one(
+    client: PipelineHost, request: MspRequest, timeout_s: float, retries: int
+) -> bytes | MspErrorReply | MspTimeoutError:
+    """One request with nothing else on the wire (no ghosts) to a peer that needs no wake
+    bytes: what a control loop asks at every step.  The frame goes out and the first read is
+    taken; when it holds exactly the reply, that is the answer, with no FIFO, window or
+    matching.  Anything else (nothing yet, part of a frame, a stray or corrupted frame, a
+    timeout) goes on in a :class:`PipelineRun` that has this request in flight, as if it had
+    sent it, so every case ends as :meth:`MspClient.pipeline` would end it."""
+    link, parser = client.link, client._parser
+    waiting = link.read_some(0.0)
+    if waiting:  # bytes nobody asked for: with no ghosts they are strays, as pipeline counts
+        PipelineRun(client, iter(()), 1, timeout_s, retries, None)._dispatch(parser.feed(waiting))
+    frame = request_frame(request)
+    link.write(frame)
+    client.stats.requests += 1
+    sent_s = client._clock()
+    data = link.read_some(min(timeout_s, 0.1))
+    events = parser.feed(data) if data else []
+    if len(events) == 1:
+        event = events[0]
+        if (
+            isinstance(event, MspFrame)
+            and event.command == request.command
+            and event.direction is not Direction.REQUEST
+        ):
+            if event.is_error:
+                client.stats.error_replies += 1
+                return MspErrorReply(event.command)
+            client.stats.replies += 1
+            return event.payload
+    run = PipelineRun(client, iter(()), 1, timeout_s, retries, None)
+    run.exhausted, run.next_index, run.attempts[0] = True, 1, 1
+    run.queue.append(Pending(request, len(frame), sent_s, 0))
+    try:
+        run._dispatch(events)
+        run.run()
+    finally:
+        client._ghosts = [p for p in run.queue if p.ghost]
+        for ghost in client._ghosts:
+            ghost.index = -1
+    return run.results[0]
+
+
+#: Request frames already encoded: a control loop sends the same few at every step.
+_FRAMES: dict[MspRequest, bytes] = {}
+_MAX_FRAMES = 256
+
+
+def request_frame(request: MspRequest) -> bytes:
+    """``request`` as a frame on the wire (kept: the same requests recur)."""
+    frame = _FRAMES.get(request)
+    if frame is None:
+        if len(_FRAMES) >= _MAX_FRAMES:
+            _FRAMES.clear()
+        frame = _FRAMES[request] = encode_request(request.command, request.payload)
+    return frame
 
 
 def command_name(command: int) -> str:

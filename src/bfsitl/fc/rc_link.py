@@ -60,7 +60,15 @@ class RcCommand:
     def channels_aetr(self) -> tuple[int, ...]:
         """Roll, pitch, throttle, yaw, AUX1... (the default receiver map), clamped."""
         values = (self.roll_us, self.pitch_us, self.throttle_us, self.yaw_us, *self.aux_us)
-        return tuple(_clamp_us(v) for v in values)
+        if not math.isfinite(sum(values)):  # one check per command, not per channel
+            for value in values:
+                _clamp_us(value)  # raises, naming the value
+        return tuple([int(min(RC_MAX_US, max(RC_MIN_US, round(v)))) for v in values])
+
+    def with_throttle(self, throttle_us: float) -> RcCommand:
+        """The same sticks and switches with another throttle (what a control step changes;
+        built directly, as ``dataclasses.replace`` costs several times more)."""
+        return RcCommand(self.roll_us, self.pitch_us, throttle_us, self.yaw_us, self.aux_us)
 
     def disarmed(self) -> RcCommand:
         """Centred sticks, throttle low, every AUX switch low (ARM off)."""

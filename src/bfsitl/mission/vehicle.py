@@ -226,10 +226,17 @@ class Vehicle:
         truth = self.backend.truth()
         if truth is None:
             return Truth.unknown(self.time_s)
-        return replace(
-            truth,
-            north_m=truth.north_m - self._start_ned[0],
-            east_m=truth.east_m - self._start_ned[1],
+        north0_m, east0_m = self._start_ned
+        return Truth(
+            truth.time_s,
+            truth.altitude_m,
+            truth.climb_m_s,
+            truth.tilt_deg,
+            truth.attitude_deg,
+            truth.on_ground,
+            truth.motors,
+            truth.north_m - north0_m,
+            truth.east_m - east0_m,
         )
 
     def _start_rc(self, rc: RcSender) -> None:
@@ -295,7 +302,7 @@ class Vehicle:
         Raises:
             SitlError: The vehicle is not started (no RC link yet).
         """
-        self.set_rc(replace(self.rc_command, throttle_us=throttle_us))
+        self.set_rc(self.rc_command.with_throttle(throttle_us))
 
     # -- arming ------------------------------------------------------------------------------
     def arm(self, timeout_s: float | None = None) -> None:

@@ -285,6 +285,14 @@ class LockstepBridge:
         now_s = self.simulator.time_s
         return self.encoder.pack(self.simulator.read_sensors(), now_s) + self._rc_bytes(now_s)
 
+    def set_rc_command(self, command: RcCommand) -> None:
+        """Send ``command`` from the next datagram on; a channel that is not a number raises
+        here.  Packed now, once: between two steps the next datagram's time is now."""
+        now_s = self.simulator.time_s
+        self._rc_packed = RcPacket(now_s, command.channels_aetr()).pack()
+        self.rc_command = self._rc_packed_for = command
+        self._rc_packed_at_s = now_s
+
     def _rc_bytes(self, now_s: float) -> bytes:
         # The firmware ignores the RC packet's timestamp; the channels change at the control
         # rate, not every step, so their packing is kept.

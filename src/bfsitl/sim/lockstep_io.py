@@ -44,8 +44,7 @@ class LockstepRc:
         return self.bridge.rc_command
 
     def set(self, command: RcCommand) -> None:
-        command.channels_aetr()  # validated now, so errors surface here
-        self.bridge.rc_command = command
+        self.bridge.set_rc_command(command)  # validated now, so errors surface here
 
     def start(self) -> LockstepRc:
         return self

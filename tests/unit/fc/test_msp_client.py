@@ -655,3 +655,61 @@ def test_one_dropped_read_costs_one_timeout_in_sequential_calls() -> None:
     for _ in range(10):
         assert client.attitude() == ATT
     assert client.stats.timeouts == 1
+
+
+# --- the direct path of a lone request ----------------------------------------------------------
+
+
+def _set_up(case: str, link: FakeFcLink) -> None:
+    """One wire behaviour for the request of the test below."""
+    if case == "dropped":
+        link.drop_next.add(MspCommand.ATTITUDE)
+    elif case == "corrupted":
+        link.corrupt_next.add(MspCommand.ATTITUDE)
+    elif case == "garbage first":
+        link.inject(b"\x00\x17$Mxx" + encode_frame(MspFrame(MspCommand.RC, RC.encode())))
+    elif case == "echoed":
+        link.echo_requests = True
+    elif case == "error reply":
+        link.handlers.pop(MspCommand.ATTITUDE)
+    elif case == "silent":
+        link.handlers[MspCommand.ATTITUDE] = silent
+
+
+@pytest.mark.parametrize(
+    "case", ["plain", "dropped", "corrupted", "garbage first", "echoed", "error reply", "silent"]
+)
+def test_a_lone_request_ends_as_the_pipeline_ends_it(case: str) -> None:
+    """request() of one read with nothing else on the wire takes a direct path when the link
+    needs no wake bytes (lockstep, a board); whatever the wire does, it ends with the result
+    and counters that pipeline() of the same request gives."""
+    outcomes = []
+    for direct in (True, False):
+        link, client = make(timeout_s=0.05)
+        _set_up(case, link)
+        try:
+            if direct:
+                result: object = client.request(MspCommand.ATTITUDE)
+            else:
+                result = client.pipeline([MspRequest(MspCommand.ATTITUDE)])[0]
+                if isinstance(result, Exception):
+                    raise result
+        except (MspErrorReply, MspTimeoutError) as exc:
+            result = type(exc)
+        outcomes.append((result, client.stats, link.sent_commands))
+    assert outcomes[0] == outcomes[1]
+    if case in ("plain", "dropped", "corrupted", "garbage first", "echoed"):
+        assert outcomes[0][0] == ATT.encode()  # it is a path to the answer, not around it
+
+
+def test_a_lone_request_after_a_timeout_goes_through_the_pipeline_for_its_ghost() -> None:
+    """A late reply to a request that timed out must not be taken for the next request's:
+    with a ghost on the wire, request() leaves the direct path and the ghost absorbs it."""
+    link, client = make(timeout_s=0.05)
+    link.reply_delay_s[MspCommand.ATTITUDE] = 0.08
+    with pytest.raises(MspTimeoutError):
+        client.request(MspCommand.ATTITUDE, retries=0)
+    link.reply_delay_s.clear()
+    link.handlers[MspCommand.ATTITUDE] = fixed(msg.Attitude(1, 2, 3).encode())
+    assert client.request(MspCommand.ATTITUDE) == msg.Attitude(1, 2, 3).encode()
+    assert client.stats.late_replies == 1

@@ -6,6 +6,7 @@ through this link in tests/integration/test_sim_bridge.py.
 
 from __future__ import annotations
 
+import math
 import socket
 import time
 from collections.abc import Iterator
@@ -51,6 +52,19 @@ def test_channels_are_aetr_then_aux_and_clamped():
     assert command.channels_aetr() == (1000, 2000, 1235, 1500, 1800, 1000)
     assert command.disarmed().channels_aetr() == (1500, 1500, 1000, 1500, 1000, 1000)
     assert RcCommand().with_aux(1, 1700).aux_us == (1000, 1700)
+    assert command.with_throttle(1600) == RcCommand(900, 2500, 1600, 1500, (1800, 1000))
+
+
+@pytest.mark.parametrize("bad", [math.nan, math.inf, -math.inf])
+@pytest.mark.parametrize("channel", range(6))
+def test_a_channel_that_is_not_a_number_is_named_whichever_it_is(bad: float, channel: int):
+    values = [1500.0, 1500.0, 1000.0, 1500.0, 1000.0, 1000.0]
+    values[channel] = bad
+    command = RcCommand(*values[:4], aux_us=tuple(values[4:]))
+    with pytest.raises(BfsitlError, match=f"RC channel value {bad!r} is not a number"):
+        command.channels_aetr()
+    # finite values whose sum overflows are still channels: clamped, not refused
+    assert RcCommand(1e308, 1e308, 1e308, 1e308).channels_aetr() == (2000, 2000, 2000, 2000, 1000)
 
 
 def test_non_numbers_are_refused_when_set(network):

@@ -4,6 +4,7 @@ vertical acceleration."""
 
 from __future__ import annotations
 
+import functools
 import math
 from collections.abc import Sequence
 from dataclasses import dataclass, field
@@ -11,6 +12,8 @@ from dataclasses import dataclass, field
 from bfsitl.errors import MspDecodeError
 from bfsitl.physics.constants import STANDARD_GRAVITY_M_S2
 from bfsitl.protocol import messages as msg
+from bfsitl.protocol.arming import decode_arming_flags
+from bfsitl.protocol.boxes import decode_flight_modes
 from bfsitl.protocol.msp_codes import MspCommand
 
 #: What :meth:`MspClient.telemetry` asks for in one MSP_MULTIPLE_MSP round trip.
@@ -46,13 +49,12 @@ class Telemetry:
     @property
     def arming_blockers(self) -> tuple[str, ...]:
         """CLI names of the flags that currently block arming (empty when it may arm)."""
-        return tuple(info.cli_name for info in self.status.arming_blockers)
+        status = self.status
+        return _blocker_names(status.arming_disable_flags, status.arming_disable_flag_count)
 
     @property
     def flight_modes(self) -> tuple[str, ...]:
-        from bfsitl.protocol.boxes import decode_flight_modes
-
-        return decode_flight_modes(self.status.flight_mode_flags, self.box_ids)
+        return _mode_names(self.status.flight_mode_flags, self.box_ids)
 
     def accel_up_m_s2(
         self, acc_1g_lsb: float = msg.SITL_ACC_1G_LSB, offset_lsb: float = 0.0
@@ -84,6 +86,18 @@ class Telemetry:
             + math.cos(roll_rad) * cos_pitch * az
         )
         return specific_force_up_m_s2 - STANDARD_GRAVITY_M_S2
+
+
+# A flight's masks take a handful of values, and every control step names them: the names
+# are kept per mask (both are pure functions of it).
+@functools.lru_cache(maxsize=256)
+def _blocker_names(mask: int, flag_count: int) -> tuple[str, ...]:
+    return tuple(info.cli_name for info in decode_arming_flags(mask, flag_count))
+
+
+@functools.lru_cache(maxsize=256)
+def _mode_names(flags: int, box_ids: tuple[int, ...]) -> tuple[str, ...]:
+    return decode_flight_modes(flags, box_ids)
 
 
 def telemetry_from_payloads(

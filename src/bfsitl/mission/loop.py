@@ -385,15 +385,13 @@ class FlightLoop(PositionManoeuvres):
     ) -> float:
         start_s = self.vehicle.time_s
         settled_since: list[float] = []
+        # Asked once: isinstance of a runtime protocol walks its members every time.
+        estimator = self.controller if isinstance(self.controller, EstimatesAltitude) else None
 
         def reached(sample: FlightSample) -> bool:
             # The FC's reading, or the controller's own estimate when it keeps one (it knows
             # the FC's zero error, which on master can exceed the band).
-            estimate = (
-                self.controller.altitude_estimate_m
-                if isinstance(self.controller, EstimatesAltitude)
-                else None
-            )
+            estimate = estimator.altitude_estimate_m if estimator is not None else None
             widen = 2.0 if sample.time_s - start_s >= REACHED_PATIENCE_S else 1.0
             band_m = REACHED_BAND_M * widen
             within = abs(sample.fc_alt_m - altitude_m) <= band_m or (

@@ -12,7 +12,6 @@ from __future__ import annotations
 
 import math
 from collections.abc import Callable
-from dataclasses import replace
 
 from bfsitl.control.angle_sticks import AngleStickMap
 from bfsitl.control.heading import HeadingController
@@ -22,7 +21,7 @@ from bfsitl.control.horizontal_estimator import (
 )
 from bfsitl.control.position import PositionController, PositionGains, PositionInput
 from bfsitl.errors import MissionError, MspErrorReply
-from bfsitl.fc.rc_link import RC_MID_US
+from bfsitl.fc.rc_link import RC_MID_US, RcCommand
 from bfsitl.mission.legs import LegPoint
 from bfsitl.mission.vehicle import FlightSample, GpsPosition, Vehicle
 from bfsitl.protocol import messages as msg
@@ -113,21 +112,27 @@ class PositionSteering:
         """Roll, pitch and yaw (those given); the throttle and switches stay as they are."""
         rc = self.vehicle.rc_command
         self.vehicle.set_rc(
-            replace(
-                rc,
-                roll_us=rc.roll_us if roll_us is None else roll_us,
-                pitch_us=rc.pitch_us if pitch_us is None else pitch_us,
-                yaw_us=rc.yaw_us if yaw_us is None else yaw_us,
+            RcCommand(
+                rc.roll_us if roll_us is None else roll_us,
+                rc.pitch_us if pitch_us is None else pitch_us,
+                rc.throttle_us,
+                rc.yaw_us if yaw_us is None else yaw_us,
+                rc.aux_us,
             )
         )
 
     def steer_heading(self, sample: FlightSample) -> None:
         """Yaw towards :attr:`target_heading_deg` (set to the heading now if there is none)."""
+        self.set_sticks(yaw_us=self._heading_stick_us(sample))
+
+    def _heading_stick_us(self, sample: FlightSample) -> float:
+        """The yaw stick towards :attr:`target_heading_deg` (set to the heading now if there
+        is none), which goes into the row's columns."""
         if self.target_heading_deg is None:
             self.target_heading_deg = sample.yaw_deg % 360.0
         rate = self.heading.rate_deg_s(sample.yaw_deg, self.target_heading_deg)
-        self.set_sticks(yaw_us=self.stick_map().yaw_stick_us(rate))
         self.row_columns["target_heading_deg"] = self.target_heading_deg
+        return self.stick_map().yaw_stick_us(rate)
 
     def steer_to(
         self, target: PositionTarget, waypoint: int
@@ -165,10 +170,6 @@ class PositionSteering:
                     point.a_east_m_s2,
                 )
             )
-            self.set_sticks(
-                roll_us=sticks.stick_us("roll", tilt.roll_deg),
-                pitch_us=sticks.stick_us("pitch", tilt.pitch_deg),
-            )
             self.row_columns = {
                 "fc_north_m": gps.north_m,
                 "fc_east_m": gps.east_m,
@@ -176,7 +177,12 @@ class PositionSteering:
                 "target_east_m": east,
             }
             self.waypoint = waypoint
-            self.steer_heading(sample)
+            # The three sticks in one command (one RC change per step, not two).
+            self.set_sticks(
+                roll_us=sticks.stick_us("roll", tilt.roll_deg),
+                pitch_us=sticks.stick_us("pitch", tilt.pitch_deg),
+                yaw_us=self._heading_stick_us(sample),
+            )
             return point.alt_m
 
         return steer

@@ -165,6 +165,7 @@ class LockstepBridge:
         self._locked = False
         self._rc_packed = b""
         self._rc_packed_for: RcCommand | None = None
+        self._rc_channels: tuple[RcCommand | None, tuple[int, ...]] = (None, ())
         self._rc_packed_at_s = math.nan
         self._steps = self._resends = 0
         self._exchange_s = self._physics_s = 0.0
@@ -192,6 +193,11 @@ class LockstepBridge:
     @property
     def sim_time_s(self) -> float:
         return self.simulator.time_s
+
+    @property
+    def steps_taken(self) -> int:
+        """Exchanges with the FC so far (each one a step of its clock)."""
+        return self._steps
 
     def between_steps(self, action: Callable[[], T], timeout_s: float = 2.0) -> T:
         """Steps only happen when the caller asks: between two of them is always now."""
@@ -287,11 +293,10 @@ class LockstepBridge:
 
     def set_rc_command(self, command: RcCommand) -> None:
         """Send ``command`` from the next datagram on; a channel that is not a number raises
-        here.  Packed now, once: between two steps the next datagram's time is now."""
-        now_s = self.simulator.time_s
-        self._rc_packed = RcPacket(now_s, command.channels_aetr()).pack()
-        self.rc_command = self._rc_packed_for = command
-        self._rc_packed_at_s = now_s
+        here.  Its channels are kept for the packing (a step may set it more than once: the
+        sticks, then the throttle; only the last is packed)."""
+        self._rc_channels = (command, command.channels_aetr())
+        self.rc_command = command
 
     def _rc_bytes(self, now_s: float) -> bytes:
         # The firmware ignores the RC packet's timestamp; the channels change at the control
@@ -303,7 +308,10 @@ class LockstepBridge:
             self._rc_packed_for = None
             return b"" if channels is None else RcPacket(now_s, channels).pack()
         if command is not self._rc_packed_for:
-            self._rc_packed = RcPacket(now_s, command.channels_aetr()).pack()
+            kept_for, channels = self._rc_channels
+            if kept_for is not command:  # set directly, not through set_rc_command
+                channels = command.channels_aetr()
+            self._rc_packed = RcPacket(now_s, channels).pack()
             self._rc_packed_for = command
             self._rc_packed_at_s = now_s
             return self._rc_packed

@@ -90,14 +90,23 @@ class SteppedLink(Link):
         self.max_in_flight_bytes = inner.max_in_flight_bytes
         self.inner = inner
         self.bridge = bridge
+        #: The bridge's step count when a read last found nothing (-1: none yet).
+        self._empty_at_step = -1
 
     def _write_bytes(self, data: bytes) -> None:
         self.inner._write_bytes(data)
 
     def _read_bytes(self, max_bytes: int, timeout_s: float) -> bytes | None:
-        data = self.inner._read_bytes(max_bytes, 0.0)
-        if data or data is None or timeout_s <= 0:
-            return data
+        # The FC writes only while it steps: a read that found nothing is not repeated before
+        # the next step (a request is written and read for at once, every control step).
+        bridge = self.bridge
+        if bridge.steps_taken != self._empty_at_step:
+            data = self.inner._read_bytes(max_bytes, 0.0)
+            if data or data is None:
+                return data
+            self._empty_at_step = bridge.steps_taken
+        if timeout_s <= 0:
+            return b""
         until_s = self.bridge.sim_time_s + timeout_s
         fd = self.inner.readable_fd
         while self.bridge.sim_time_s < until_s:
@@ -111,6 +120,7 @@ class SteppedLink(Link):
             data = self.inner._read_bytes(max_bytes, 0.0)
             if data or data is None:
                 return data
+            self._empty_at_step = bridge.steps_taken
         return b""
 
     def pause(self, seconds: float) -> None:

@@ -250,12 +250,14 @@ class ScriptedLink(Link):
         super().__init__("fake://")
         self.bridge, self.ready_after_steps, self.data = bridge, ready_after_steps, data
         self.written = b""
+        self.reads = 0
 
     def _write_bytes(self, data: bytes) -> None:
         self.written += data
 
     def _read_bytes(self, max_bytes: int, timeout_s: float) -> bytes | None:
         assert timeout_s == 0.0  # a stepped link never blocks on the socket
+        self.reads += 1
         if self.bridge.steps >= self.ready_after_steps and self.data:
             data, self.data = self.data, b""
             return data
@@ -276,6 +278,10 @@ class StepCounter:
     def sim_time_s(self) -> float:
         return self.steps * self.step_s
 
+    @property
+    def steps_taken(self) -> int:
+        return self.steps
+
     def step(self) -> None:
         if self.exit_after is not None and self.steps >= self.exit_after:
             raise SitlExitedError("gone", 0, "")
@@ -291,6 +297,20 @@ def test_a_read_steps_until_the_answer_is_there() -> None:
     link = SteppedLink(ScriptedLink(counter, 3, b"$M>"), counter)  # type: ignore[arg-type]
     assert link.read_some(0.5) == b"$M>"
     assert counter.steps == 3
+
+
+def test_a_read_that_found_nothing_is_not_repeated_before_a_step() -> None:
+    """The FC writes only while it steps: a poll right after an empty read asks the socket
+    nothing; after a step it asks again (and finds what the step brought)."""
+    counter = StepCounter()
+    inner = ScriptedLink(counter, 1, b"$M>")
+    link = SteppedLink(inner, counter)  # type: ignore[arg-type]
+    assert link.read_some(0.0) == b"" and inner.reads == 1
+    assert link.read_some(0.0) == b"" and inner.reads == 1  # no step since: not asked
+    assert link.read_some(0.5) == b"$M>"
+    assert (counter.steps, inner.reads) == (1, 2)  # stepped straight away, then read once
+    counter.step()
+    assert link.read_some(0.0) == b"" and inner.reads == 3
 
 
 def test_a_read_times_out_in_simulated_seconds() -> None:

@@ -49,12 +49,11 @@ class Telemetry:
     @property
     def arming_blockers(self) -> tuple[str, ...]:
         """CLI names of the flags that currently block arming (empty when it may arm)."""
-        status = self.status
-        return _blocker_names(status.arming_disable_flags, status.arming_disable_flag_count)
+        return blocker_names(self.status)
 
     @property
     def flight_modes(self) -> tuple[str, ...]:
-        return _mode_names(self.status.flight_mode_flags, self.box_ids)
+        return mode_names(self.status, self.box_ids)
 
     def accel_up_m_s2(
         self, acc_1g_lsb: float = msg.SITL_ACC_1G_LSB, offset_lsb: float = 0.0
@@ -65,27 +64,44 @@ class Telemetry:
         ``acc_1G``).  ``offset_lsb`` is added to the z reading first: a known bias of the
         source (``msg.SITL_ACC_TRUNCATION_LSB`` for the SITL).
         """
-        # The whole specific force projected on the vertical.  Betaflight's accelerometer is
-        # in FLU body axes (x forward, y left, z up; +1 g on z at rest), its pitch is positive
-        # nose down and its roll positive right wing down: x points up by -sin(pitch), y by
-        # sin(roll) cos(pitch), z by cos(roll) cos(pitch) (signs checked against the simulated
-        # truth).  Body z alone does in still air, but a multirotor pushed by rotor drag
-        # (holding position in wind) has x/y specific force that its tilt turns partly
-        # vertical; ignoring it biased the altitude estimate enough to lose metres of height
-        # (README, "Position").
-        roll_rad = math.radians(self.attitude.roll_deg)
-        pitch_rad = math.radians(self.attitude.pitch_deg)
-        scale = STANDARD_GRAVITY_M_S2 / acc_1g_lsb
-        ax = self.imu.acc_raw[0] * scale
-        ay = self.imu.acc_raw[1] * scale
-        az = (self.imu.acc_raw[2] + offset_lsb) * scale
-        cos_pitch = math.cos(pitch_rad)
-        specific_force_up_m_s2 = (
-            -math.sin(pitch_rad) * ax
-            + math.sin(roll_rad) * cos_pitch * ay
-            + math.cos(roll_rad) * cos_pitch * az
-        )
-        return specific_force_up_m_s2 - STANDARD_GRAVITY_M_S2
+        return vertical_accel_m_s2(self.attitude, self.imu, acc_1g_lsb, offset_lsb)
+
+
+def vertical_accel_m_s2(
+    attitude: msg.Attitude, imu: msg.RawImu, acc_1g_lsb: float, offset_lsb: float
+) -> float:
+    """:meth:`Telemetry.accel_up_m_s2` from the two replies it needs."""
+    # The whole specific force projected on the vertical.  Betaflight's accelerometer is
+    # in FLU body axes (x forward, y left, z up; +1 g on z at rest), its pitch is positive
+    # nose down and its roll positive right wing down: x points up by -sin(pitch), y by
+    # sin(roll) cos(pitch), z by cos(roll) cos(pitch) (signs checked against the simulated
+    # truth).  Body z alone does in still air, but a multirotor pushed by rotor drag
+    # (holding position in wind) has x/y specific force that its tilt turns partly
+    # vertical; ignoring it biased the altitude estimate enough to lose metres of height
+    # (README, "Position").
+    roll_rad = math.radians(attitude.roll_deg)
+    pitch_rad = math.radians(attitude.pitch_deg)
+    scale = STANDARD_GRAVITY_M_S2 / acc_1g_lsb
+    ax = imu.acc_raw[0] * scale
+    ay = imu.acc_raw[1] * scale
+    az = (imu.acc_raw[2] + offset_lsb) * scale
+    cos_pitch = math.cos(pitch_rad)
+    specific_force_up_m_s2 = (
+        -math.sin(pitch_rad) * ax
+        + math.sin(roll_rad) * cos_pitch * ay
+        + math.cos(roll_rad) * cos_pitch * az
+    )
+    return specific_force_up_m_s2 - STANDARD_GRAVITY_M_S2
+
+
+def blocker_names(status: msg.StatusEx) -> tuple[str, ...]:
+    """CLI names of the flags in ``status`` that block arming (empty when it may arm)."""
+    return _blocker_names(status.arming_disable_flags, status.arming_disable_flag_count)
+
+
+def mode_names(status: msg.StatusEx, box_ids: tuple[int, ...]) -> tuple[str, ...]:
+    """Names of the flight modes active in ``status`` (``box_ids``: the FC's MSP_BOXIDS)."""
+    return _mode_names(status.flight_mode_flags, box_ids)
 
 
 # A flight's masks take a handful of values, and every control step names them: the names

@@ -29,6 +29,7 @@ from bfsitl.backend.disturbances import Disturbances
 from bfsitl.errors import ArmingBlockedError, LinkError, MspError, SitlError
 from bfsitl.fc.msp_client import MspClient, Telemetry
 from bfsitl.fc.rc_link import RC_MIN_US, RcCommand, RcLinkStats
+from bfsitl.fc.telemetry import blocker_names, mode_names, vertical_accel_m_s2
 from bfsitl.physics.constants import STANDARD_GRAVITY_M_S2
 from bfsitl.physics.params import QuadParams
 from bfsitl.protocol import messages as msg
@@ -55,9 +56,24 @@ Progress = Callable[[str], None]
 def accel_flu_m_s2(telemetry: Telemetry, imu: ImuScale) -> tuple[float, float, float]:
     """MSP_RAW_IMU's accelerometer in m/s^2 (the FC's own scale; the SITL's z truncation
     added back, as for the vertical)."""
+    return _accel_flu_m_s2(telemetry.imu, imu)
+
+
+def _accel_flu_m_s2(raw: msg.RawImu, imu: ImuScale) -> tuple[float, float, float]:
     scale = STANDARD_GRAVITY_M_S2 / imu.acc_1g_lsb
-    ax, ay, az = telemetry.imu.acc_raw
+    ax, ay, az = raw.acc_raw
     return (ax * scale, ay * scale, (az + imu.acc_truncation_lsb) * scale)
+
+
+#: What :meth:`Vehicle.sample` reads of the FC, in one MSP_MULTIPLE_MSP round trip with the
+#: reads of :meth:`Vehicle.read_with_samples`: what a sample carries (a whole
+#: :class:`Telemetry` also has the battery, the RC channels and the motors).
+SAMPLE_COMMANDS: tuple[int, ...] = (
+    msg.Attitude.COMMAND,
+    msg.Altitude.COMMAND,
+    msg.StatusEx.COMMAND,
+    msg.RawImu.COMMAND,
+)
 
 
 @dataclass(frozen=True, slots=True)
@@ -424,6 +440,13 @@ class Vehicle:
             self.check_alive()  # a dead SITL explains itself better than a lost reply
             raise
 
+    def _read_batch(self, commands: tuple[int, ...]) -> tuple[bytes, ...]:
+        try:
+            return self.client.multiple(commands)
+        except (LinkError, MspError):
+            self.check_alive()  # as above
+            raise
+
     def read_with_samples(self, *message_types: type[_Readable]) -> None:
         """Take these parameterless reads in each :meth:`sample`'s round trip from now on
         (MSP_MULTIPLE_MSP), kept in the sample's ``replies``, so that :meth:`reading` of
@@ -460,23 +483,29 @@ class Vehicle:
         """The FC's view (one MSP round trip, with the reads of :meth:`read_with_samples`)
         and the simulated truth."""
         self.check_alive()
-        telemetry, payloads = self._telemetry_and(self._sample_extras)
+        extras = self._sample_extras
+        payloads = self._read_batch((*SAMPLE_COMMANDS, *extras))
+        box_ids = self.client.box_ids()
+        attitude = msg.Attitude.decode(payloads[0])
+        altitude = msg.Altitude.decode(payloads[1])
+        status = msg.StatusEx.decode(payloads[2])
+        raw_imu = msg.RawImu.decode(payloads[3])
         truth = self._truth()
         imu = self.backend.imu
         return FlightSample(
             time_s=truth.time_s,
             wall_s=time.monotonic(),
-            fc_alt_m=telemetry.altitude.altitude_m,
-            fc_climb_m_s=telemetry.altitude.vario_m_s,
-            fc_accel_up_m_s2=telemetry.accel_up_m_s2(
-                imu.acc_1g_lsb, offset_lsb=imu.acc_truncation_lsb
+            fc_alt_m=altitude.altitude_m,
+            fc_climb_m_s=altitude.vario_m_s,
+            fc_accel_up_m_s2=vertical_accel_m_s2(
+                attitude, raw_imu, imu.acc_1g_lsb, imu.acc_truncation_lsb
             ),
-            fc_accel_flu_m_s2=accel_flu_m_s2(telemetry, imu),
-            roll_deg=telemetry.attitude.roll_deg,
-            pitch_deg=telemetry.attitude.pitch_deg,
+            fc_accel_flu_m_s2=_accel_flu_m_s2(raw_imu, imu),
+            roll_deg=attitude.roll_deg,
+            pitch_deg=attitude.pitch_deg,
             # MSP_ATTITUDE truncates the heading to whole degrees: the middle of the degree
             # is the unbiased reading.
-            yaw_deg=float(telemetry.attitude.yaw_deg) + 0.5,
+            yaw_deg=float(attitude.yaw_deg) + 0.5,
             sim_alt_m=truth.altitude_m - self._ground_alt_m,
             sim_climb_m_s=truth.climb_m_s,
             sim_tilt_deg=truth.tilt_deg,
@@ -484,14 +513,14 @@ class Vehicle:
             sim_pitch_deg=truth.attitude_deg[1],
             sim_yaw_deg=truth.attitude_deg[2],
             on_ground=truth.on_ground,
-            armed=telemetry.armed,
-            arming_blockers=telemetry.arming_blockers,
-            flight_modes=telemetry.flight_modes,
+            armed=status.armed,
+            arming_blockers=blocker_names(status),
+            flight_modes=mode_names(status, box_ids),
             motors=truth.motors,
             rc=self.rc_command,
             sim_north_m=truth.north_m,
             sim_east_m=truth.east_m,
-            replies=dict(zip(self._sample_extras, payloads, strict=True)),
+            replies=dict(zip(extras, payloads[len(SAMPLE_COMMANDS) :], strict=True)),
         )
 
     def gps_position(self, sample: FlightSample | None = None) -> GpsPosition:

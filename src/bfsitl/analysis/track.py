@@ -94,19 +94,36 @@ class Track:
     #: targets.
     planned_reach_m: float = 0.0
 
+    #: What :meth:`has` found, per name, and the number of points it looked at.
+    _found: dict[str, tuple[int, bool]] = field(default_factory=dict, repr=False, compare=False)
+
     def has(self, name: str) -> bool:
-        """Whether some point has attribute ``name`` (a finite number, a non-empty tuple)."""
-        for point in self.points:
-            value = getattr(point, name)
-            if isinstance(value, float):
-                if math.isfinite(value):
-                    return True
-            elif isinstance(value, tuple):
-                if value:
-                    return True
-            elif value is not None and value != "":
+        """Whether some point has attribute ``name`` (a finite number, a non-empty tuple).
+        Each analyser asks for what it needs: the answer is kept until points are added (a
+        name no point has costs a walk over every point, thousands in a log)."""
+        count = len(self.points)
+        known = self._found.get(name)
+        if known is not None and known[0] == count:
+            return known[1]
+        found = _any_present(self.points, name)
+        self._found[name] = (count, found)
+        return found
+
+
+def _any_present(points: list[TrackPoint], name: str) -> bool:
+    """Whether some point's ``name`` is a finite number, a non-empty tuple, or any other
+    value but None and "" (one loop, no call per point: a log has thousands)."""
+    for point in points:
+        value = getattr(point, name)
+        if isinstance(value, float):
+            if math.isfinite(value):
                 return True
-        return False
+        elif isinstance(value, tuple):
+            if value:
+                return True
+        elif value is not None and value != "":
+            return True
+    return False
 
 
 def stick_share(throttle_us: float) -> float:

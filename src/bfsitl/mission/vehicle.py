@@ -132,6 +132,7 @@ class _Readable(Protocol):
 
 
 _ReadableT = TypeVar("_ReadableT", bound=_Readable)
+_T = TypeVar("_T")
 
 
 class Vehicle:
@@ -431,20 +432,15 @@ class Vehicle:
 
     # -- observation -------------------------------------------------------------------------
     def telemetry(self) -> Telemetry:
-        return self._telemetry_and(())[0]
+        return self._asked(self.client.telemetry)
 
-    def _telemetry_and(self, extra: tuple[int, ...]) -> tuple[Telemetry, tuple[bytes, ...]]:
+    def _asked(self, read: Callable[..., _T], *args: object) -> _T:
+        """``read(*args)`` of the FC; when it fails, a dead SITL explains itself better than
+        a lost reply."""
         try:
-            return self.client.telemetry_and(extra)
+            return read(*args)
         except (LinkError, MspError):
-            self.check_alive()  # a dead SITL explains itself better than a lost reply
-            raise
-
-    def _read_batch(self, commands: tuple[int, ...]) -> tuple[bytes, ...]:
-        try:
-            return self.client.multiple(commands)
-        except (LinkError, MspError):
-            self.check_alive()  # as above
+            self.check_alive()
             raise
 
     def read_with_samples(self, *message_types: type[_Readable]) -> None:
@@ -484,7 +480,7 @@ class Vehicle:
         and the simulated truth."""
         self.check_alive()
         extras = self._sample_extras
-        payloads = self._read_batch((*SAMPLE_COMMANDS, *extras))
+        payloads = self._asked(self.client.multiple, (*SAMPLE_COMMANDS, *extras))
         box_ids = self.client.box_ids()
         attitude = msg.Attitude.decode(payloads[0])
         altitude = msg.Altitude.decode(payloads[1])

@@ -61,9 +61,9 @@ class ActualRates:
         # right of the root every step lands between the root and the last point: the steps
         # shrink to nothing and stop when a step no longer moves left.  The start is where
         # the centre sensitivity alone would reach the rate (the other terms only add, so it
-        # is right of the root), or full stick.  (A bisection to the
-        # same precision took 40 evaluations; a position-controlled flight inverts the
-        # curve several times every control step.)
+        # is right of the root), or full stick.  (A bisection to the same precision took 40
+        # evaluations; a position-controlled flight inverts the curve several times every
+        # control step.)
         e = self.expo / 100.0
         keep = 1.0 - e
         centre = self.rc_rate * 10.0

@@ -41,10 +41,14 @@ DEFAULT_MSP_RATE_HZ = 25.0
 _FAREWELL_PACKETS = 3
 
 
-def _clamp_us(value: float) -> int:
-    if not math.isfinite(value):
-        raise BfsitlError(f"RC channel value {value!r} is not a number")
-    return int(min(RC_MAX_US, max(RC_MIN_US, round(value))))
+def _check_numbers(values: tuple[float, ...]) -> None:
+    """Raise naming the first channel value that is not a finite number.  One sum is
+    checked first: every channel is looked at only when it is not finite."""
+    if math.isfinite(sum(values)):
+        return
+    for value in values:
+        if not math.isfinite(value):
+            raise BfsitlError(f"RC channel value {value!r} is not a number")
 
 
 @dataclass(frozen=True, slots=True)
@@ -60,9 +64,7 @@ class RcCommand:
     def channels_aetr(self) -> tuple[int, ...]:
         """Roll, pitch, throttle, yaw, AUX1... (the default receiver map), clamped."""
         values = (self.roll_us, self.pitch_us, self.throttle_us, self.yaw_us, *self.aux_us)
-        if not math.isfinite(sum(values)):  # one check per command, not per channel
-            for value in values:
-                _clamp_us(value)  # raises, naming the value
+        _check_numbers(values)
         return tuple([int(min(RC_MAX_US, max(RC_MIN_US, round(v)))) for v in values])
 
     def with_throttle(self, throttle_us: float) -> RcCommand:

@@ -33,6 +33,11 @@ Many at once: ``gymnasium.make_vec(id, num_envs=N)`` gives
 with its SITL, the numbers in shared memory); Gymnasium's own ``AsyncVectorEnv`` works too,
 at a higher cost per step.  On a Ray cluster: :class:`~bfsitl.gym.ray_vector.RayVectorEnv`
 (one Ray actor per environment; the firmware travels to the nodes).
+
+For a learner: :class:`~bfsitl.gym.scaled.ScaledEnv` shows an environment with observations
+scaled to about one and sticks limited to what a hover needs (what made the hover learn in
+minutes), and :class:`~bfsitl.gym.sb3_vector.Sb3VectorEnv` hands ``FlightVectorEnv`` to
+Stable-Baselines3 with the same scaling (``examples/train_hover.py``).
 """
 
 from __future__ import annotations

@@ -57,7 +57,7 @@ from gymnasium.vector.utils import batch_space
 
 from bfsitl.backend.options import Timing
 from bfsitl.errors import EnvironmentConfigError
-from bfsitl.gym.env import DEFAULT_CONTROL_HZ
+from bfsitl.gym.env import DEFAULT_CONTROL_HZ, DEFAULT_WORLD
 from bfsitl.gym.observation import OBSERVATION_SIZE, observation_space
 from bfsitl.gym.render import RENDER_MODES, check_render_mode
 from bfsitl.mission.session import SitlLaunch
@@ -280,6 +280,9 @@ class FlightVectorEnv(VectorEnv[np.ndarray, np.ndarray, np.ndarray]):
         if isinstance(timing, Timing) and timing.lockstep_spin is None:
             options["timing"] = dataclasses.replace(timing, lockstep_spin=False)
         self.num_envs = num_envs
+        #: The flight's world, the quad in it (every environment's: an adapter reads the
+        #: vehicle's hover throttle here without asking a worker).
+        self.world = options.get("world", DEFAULT_WORLD)
         self.single_observation_space = observation_space()
         self.observation_space = batch_space(self.single_observation_space, num_envs)
         # The single action space, without making an environment (and a SITL) here.

@@ -255,13 +255,13 @@ FIGURES = (
     ),
     Figure(
         "gym-learning-curve",
-        "examples/train_hover.py --envs 2 --minutes 45: learning_curve.png",
+        "examples/train_hover.py --minutes 5: learning_curve.png",
         (hover_run_file("learning_curve.png"),),
         copy_from_hover_run("learning_curve.png"),
     ),
     Figure(
         "gym-evaluation",
-        "examples/train_hover.py --envs 2 --minutes 45: evaluation.png",
+        "examples/train_hover.py --minutes 5: evaluation.png",
         (hover_run_file("evaluation.png"),),
         copy_from_hover_run("evaluation.png"),
     ),

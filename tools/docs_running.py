@@ -222,8 +222,8 @@ def hover_run_file(name: str) -> Need:
         if ctx.hover_run is not None and (ctx.hover_run / name).is_file():
             return None
         return (
-            "needs a 45-minute PPO training run on two cores: python examples/train_hover.py "
-            "--envs 2 --minutes 45 --out DIR, then --hover-run DIR"
+            "needs a 5-minute PPO training run on two cores: python examples/train_hover.py "
+            "--minutes 5 --out DIR, then --hover-run DIR"
         )
 
     return Need("a training run (--hover-run)", unmet)

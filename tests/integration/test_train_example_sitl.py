@@ -1,5 +1,6 @@
 """examples/train_hover.py end to end in a few hundred steps: PPO through the real 4.6.0 SITL
-in two processes, the learning curve, the saved policy, and an evaluation flight written like
+in bfsitl's vector environment (two workers) seen through Sb3VectorEnv, the learning curve, the
+saved policy and its checkpoint judged on an unseen seed, and an evaluation flight written like
 ``bfsitl fly``'s beside a random and the hand-written policy.  It proves the pipeline, not
 the learning (that takes minutes: docs/gym.md has the figures)."""
 
@@ -52,7 +53,7 @@ def test_the_training_example_runs_and_writes_its_outputs(
     out = tmp_path / "run"
     for name in (
         "policy.zip",
-        "vecnormalize.pkl",
+        "policy.onnx",
         "learning_curve.csv",
         "evaluation.csv",
         "evaluation.png",
@@ -61,7 +62,15 @@ def test_the_training_example_runs_and_writes_its_outputs(
         assert (out / name).is_file(), name
     summary = json.loads((out / "evaluation.json").read_text())
     assert 256 <= summary["training"]["steps"] <= 512 and summary["training"]["envs"] == 2
+    assert summary["training"]["method"] == "ppo"
     assert set(summary["evaluation"]) == {"learned", "random", "hand-written"}
+    # The one checkpoint (the end of training) was flown from the one evaluation seed.
+    (checkpoint,) = summary["checkpoints"]
+    assert (out / "checkpoints" / checkpoint["checkpoint"]).is_file()
+    assert checkpoint["flights"] == 1 and checkpoint["held"] in (0, 1)
+    assert summary["evaluation_seeds"] == [10_000]
+    # The evaluation flew the exported file with onnxruntime; its time per call is measured.
+    assert 0 < summary["policy_onnx"]["inference_us_median"] < 10_000
     # The hand-written policy flies the whole 2 s evaluation; the CSV has the fly columns.
     assert summary["evaluation"]["hand-written"]["ended_because"] is None
     header = (out / "evaluation.csv").read_text().splitlines()[0].split(",")

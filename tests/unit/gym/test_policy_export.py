@@ -4,6 +4,7 @@ it was trained at rides in the file; a file that is not a bfsitl policy is said 
 
 from __future__ import annotations
 
+import warnings
 from pathlib import Path
 
 import numpy as np
@@ -115,14 +116,16 @@ def test_a_file_that_is_not_a_bfsitl_policy_is_said_as_such(tmp_path: Path) -> N
     with pytest.raises(EnvironmentConfigError, match="not an ONNX model"):
         OnnxPolicy(garbage)
     other = tmp_path / "other.onnx"
-    torch.onnx.export(
-        torch.nn.Linear(20, 4),
-        (torch.zeros(1, 20),),
-        str(other),
-        input_names=["observation"],
-        output_names=["sticks"],
-        dynamo=False,
-    )
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")  # the TorchScript exporter's deprecation
+        torch.onnx.export(
+            torch.nn.Linear(20, 4),
+            (torch.zeros(1, 20),),
+            str(other),
+            input_names=["observation"],
+            output_names=["sticks"],
+            dynamo=False,
+        )
     assert onnx.load(str(other))  # a valid model, only not one of ours
     with pytest.raises(EnvironmentConfigError, match="not a bfsitl policy"):
         OnnxPolicy(other)

@@ -49,6 +49,7 @@ def test_the_exported_policy_gives_the_trained_ones_sticks(
 ) -> None:
     import torch
     from stable_baselines3 import PPO, SAC, TD3
+    from stable_baselines3.common.logger import Logger
 
     torch.set_num_threads(1)
     envs = Sb3VectorEnv(FlightVectorEnv(FAKE, 1, max_episode_steps=8), limits)
@@ -58,6 +59,8 @@ def test_the_exported_policy_gives_the_trained_ones_sticks(
         else:
             cls = SAC if method == "sac" else TD3
             model = cls("MlpPolicy", envs, learning_starts=8, batch_size=8, seed=1)
+        # A logger that writes nothing: SB3 leaves a folder in /tmp otherwise.
+        model.set_logger(Logger(folder=None, output_formats=[]))
         model.learn(48)  # weights moved from their start: not an untrained identity
     finally:
         envs.close()

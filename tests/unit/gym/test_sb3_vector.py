@@ -4,6 +4,9 @@ the episodes' own, an ended episode's last observation is handed over, and SB3 t
 
 from __future__ import annotations
 
+import tempfile
+from pathlib import Path
+
 import numpy as np
 import pytest
 
@@ -81,15 +84,22 @@ def test_the_hover_point_is_the_vehicles_and_what_cannot_be_reached_is_said() ->
         Sb3VectorEnv(object())  # type: ignore[arg-type]
 
 
-def test_ppo_trains_on_it() -> None:
+def test_ppo_trains_on_it(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
     import torch
     from stable_baselines3 import PPO
+    from stable_baselines3.common.logger import Logger
 
     torch.set_num_threads(1)
+    scratch = tmp_path / "tmp"
+    scratch.mkdir()
+    monkeypatch.setattr(tempfile, "tempdir", str(scratch))
     envs = Sb3VectorEnv(FlightVectorEnv(FAKE, 2, max_episode_steps=8))
     try:
         model = PPO("MlpPolicy", envs, n_steps=16, batch_size=32, n_epochs=1, device="cpu")
+        # SB3 leaves an SB3-<date> folder in the temporary directory unless given a logger.
+        model.set_logger(Logger(folder=None, output_formats=[]))
         model.learn(64)
+        assert not list(scratch.glob("SB3-*")), list(scratch.iterdir())
         assert model.num_timesteps == 64
         # Monitor's statistics, written by the adapter: 8-step episodes were counted.
         assert model.ep_info_buffer and {e["l"] for e in model.ep_info_buffer} == {8}

@@ -32,7 +32,13 @@ import numpy as np
 from bfsitl.errors import EnvironmentConfigError, ExtraMissingError
 from bfsitl.gym.observation import OBSERVATION_SIZE
 from bfsitl.gym.onnx_policy import OBSERVATION_LAYOUT, POLICY_FORMAT
-from bfsitl.gym.scaled import OBSERVATION_OFFSET, OBSERVATION_SCALE, SCALED_LIMIT, StickLimits
+from bfsitl.gym.scaled import (
+    OBSERVATION_OFFSET,
+    OBSERVATION_SCALE,
+    SCALED_LIMIT,
+    StickLimits,
+    scale_observation,
+)
 
 try:
     import torch
@@ -137,7 +143,5 @@ def trained_sticks(
 ) -> np.ndarray:
     """The sticks ``model`` itself gives for raw ``observations`` (one row each), through
     SB3's ``predict``: what the exported file must reproduce."""
-    from bfsitl.gym.scaled import scale_observation
-
     actions, _state = model.predict(scale_observation(observations), deterministic=True)
     return limits.sticks(np.asarray(actions), hover_throttle)

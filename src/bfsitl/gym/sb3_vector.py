@@ -17,7 +17,7 @@ the ended episode's whole info rides in ``final_info``.  Needs the ``learn`` ext
 from __future__ import annotations
 
 import time
-from collections.abc import Iterable, Sequence
+from collections.abc import Sequence
 from typing import Any
 
 import numpy as np
@@ -142,11 +142,6 @@ class Sb3VectorEnv(VecEnv):  # type: ignore[misc]  # SB3 is untyped for mypy her
     def env_is_wrapped(self, wrapper_class: type, indices: Any = None) -> list[bool]:
         # No environment is wrapped (this class writes Monitor's episode statistics).
         return [False for _ in self._get_indices(indices)]
-
-    def _get_indices(self, indices: Any) -> Iterable[int]:
-        if indices is None:
-            return range(self.num_envs)
-        return [indices] if isinstance(indices, int) else list(indices)
 
 
 def _one(info: dict[str, Any], index: int) -> dict[str, Any]:

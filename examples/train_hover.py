@@ -79,9 +79,26 @@ def make_envs(args: argparse.Namespace) -> Any:
             sitl=SitlLaunch(firmware=args.firmware, workdir=args.out / "sitl" / "train"),
             control_hz=args.control_hz,
             max_episode_steps=round(TRAINING_EPISODE_S * args.control_hz),
+            latency=latency(args),
         ),
         limits=None if args.raw else DEFAULT_LIMITS,
     )
+
+
+def latency(args: argparse.Namespace) -> Any:
+    """``--latency-steps`` and ``--altitude-latency-steps`` as the environment's Latency."""
+    from bfsitl.gym.latency import Latency
+
+    return Latency(steps=args.latency_steps, altitude_steps=args.altitude_latency_steps)
+
+
+def step_range(text: str) -> tuple[int, int]:
+    """``LOW-HIGH`` (or one number) of whole control steps."""
+    low, _, high = text.partition("-")
+    try:
+        return (int(low), int(high or low))
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"{text!r}: expected LOW-HIGH, e.g. 0-2") from None
 
 
 def wall_clock_schedule(
@@ -410,6 +427,21 @@ def main() -> int:
         default=5,
         help="fly each checkpoint from this many starts and targets",
     )
+    parser.add_argument(
+        "--latency-steps",
+        type=step_range,
+        default=(0, 0),
+        metavar="LOW-HIGH",
+        help="the observation this many control steps late, drawn per episode (default "
+        "0-0: none; 0-2 trains a policy that flies outside the lockstep: docs/gym.md)",
+    )
+    parser.add_argument(
+        "--altitude-latency-steps",
+        type=step_range,
+        default=(0, 0),
+        metavar="LOW-HIGH",
+        help="the height and climb this many steps later again (the barometer's lag; default 0-0)",
+    )
     parser.add_argument("--out", type=Path, default=Path("hover-run"))
     parser.add_argument(
         "--resume",
@@ -448,6 +480,7 @@ def main() -> int:
         sitl=SitlLaunch(firmware=args.firmware, workdir=args.out / "sitl" / "eval"),
         control_hz=args.control_hz,
         max_episode_steps=round(args.eval_s * args.control_hz),
+        latency=latency(args),
     )
     random_actions = np.random.default_rng(args.seed)
     recorder = EpisodeRecorder(args.out / "evaluation.csv")
@@ -489,6 +522,8 @@ def main() -> int:
             "firmware": args.firmware,
             "control_hz": args.control_hz,
             "seed": args.seed,
+            "latency_steps": list(args.latency_steps),
+            "altitude_latency_steps": list(args.altitude_latency_steps),
             # With --resume: the earlier runs' training time too.
             "total_wall_s": round(episodes[-1][2] if episodes else train_s, 1),
             "resumed_from": str(args.resume) if args.resume else None,

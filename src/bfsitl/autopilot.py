@@ -44,6 +44,7 @@ from bfsitl.mission.plan import MissionPlan
 from bfsitl.mission.plan_driver import fly_plan
 from bfsitl.mission.results import MissionResult
 from bfsitl.mission.session import FLY_PROFILE, FlightSession, SessionConfig, SitlLaunch
+from bfsitl.mission.stick_pilot import StickPilot
 from bfsitl.mission.vehicle import Vehicle
 from bfsitl.physics.params import QuadParams
 from bfsitl.physics.wind import Wind
@@ -338,6 +339,25 @@ class Autopilot:
         if not math.isfinite(heading_deg):
             raise MissionError(f"heading {heading_deg} is not a number")
         return self.loop.yaw_to(heading_deg, tolerance_deg=tolerance_deg)
+
+    def fly_sticks(self, pilot: StickPilot, duration_s: float) -> None:
+        """Give every stick to ``pilot`` for ``duration_s`` (a trained policy:
+        :class:`~bfsitl.gym.policy_pilot.PolicyPilot`); the autopilot's next manoeuvre goes
+        on from where the pilot left the vehicle.  The autopilot must run at the pilot's
+        rate (``Autopilot(vehicle, rate_hz=pilot.rate_hz)``).
+
+        Args:
+            pilot: Turns each sample into the RC command (see
+                :class:`~bfsitl.mission.stick_pilot.StickPilot`).
+            duration_s: Seconds of the vehicle's clock.
+
+        Raises:
+            MissionError: The vehicle is on the ground, the rates differ, the pilot failed,
+                or the FC disarmed.
+            CrashDetectedError: The vehicle tipped over or hit the ground.
+        """
+        self._require_airborne("fly_sticks")
+        self.loop.fly_sticks(duration_s, pilot)
 
     def land(self, *, timeout_s: float = 30.0) -> None:
         """Descend (holding the position after position control), touch down, disarm.

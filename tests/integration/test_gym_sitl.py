@@ -98,6 +98,42 @@ def test_the_same_seed_and_actions_give_the_same_flight_bit_for_bit(
     assert first.shape != other.shape or not np.array_equal(first, other)
 
 
+def test_a_late_observation_is_the_one_of_that_many_steps_before(
+    lockstep_gps_46_firmware: Path, tmp_path: Path
+) -> None:
+    """The same seed and sticks with and without Latency: the flight is the same (the delay
+    is the observation's only, rewards unchanged), each observation is the one of two steps
+    before, and the height and climb those of five."""
+    from bfsitl.gym.latency import Latency
+
+    def flown(latency: Latency, workdir: Path) -> tuple[np.ndarray, np.ndarray]:
+        env = HoverEnv(
+            sitl=SitlLaunch(firmware=lockstep_gps_46_firmware, workdir=workdir), latency=latency
+        )
+        actions = np.random.default_rng(5).uniform(-0.2, 0.2, size=(40, 4)).astype(np.float32)
+        actions[:, 2] += 0.12
+        try:
+            observation, _info = env.reset(seed=8)
+            observations, rewards = [observation], []
+            for action in actions:
+                observation, reward, terminated, truncated, _info = env.step(action)
+                assert not (terminated or truncated)
+                observations.append(observation)
+                rewards.append(reward)
+        finally:
+            env.close()
+        return np.array(observations), np.array(rewards)
+
+    prompt, prompt_rewards = flown(Latency(), tmp_path / "prompt")
+    late, late_rewards = flown(Latency(steps=(2, 2), altitude_steps=(3, 3)), tmp_path / "late")
+    assert late_rewards.tobytes() == prompt_rewards.tobytes()
+    others = [i for i in range(20) if i not in (2, 5)]
+    assert np.array_equal(late[2:, others], prompt[:-2, others])
+    assert np.array_equal(late[5:, [2, 5]], prompt[:-5, [2, 5]])
+    assert np.array_equal(late[:3], np.repeat(prompt[:1], 3, axis=0)[:, :])  # none before
+    assert not np.array_equal(late[5:], prompt[5:])  # the flight moved: the test can tell
+
+
 def test_a_warm_reset_keeps_the_firmware_and_a_seeded_one_boots_it_afresh(
     lockstep_gps_46_firmware: Path, tmp_path: Path
 ) -> None:

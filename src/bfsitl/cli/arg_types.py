@@ -93,6 +93,24 @@ def parse_speed(text: str) -> float:
     return value
 
 
+def north_east_up(text: str) -> tuple[float, float, float]:
+    """``N,E,UP``: three finite numbers, metres north, east and up; up above 0."""
+    parts = [part.strip() for part in text.split(",")]
+    if len(parts) != 3:
+        raise argparse.ArgumentTypeError(
+            f"{text!r}: expected N,E,UP (three numbers, metres), e.g. 1,-1,2"
+        )
+    try:
+        north, east, up = (float(part) for part in parts)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"{text!r}: N,E,UP must be numbers") from None
+    if not all(math.isfinite(v) for v in (north, east, up)):
+        raise argparse.ArgumentTypeError(f"{text!r}: N,E,UP must be finite")
+    if up <= 0:
+        raise argparse.ArgumentTypeError(f"{text!r}: UP must be above the ground (> 0 m)")
+    return (north, east, up)
+
+
 def vehicle(text: str) -> QuadParams:
     """``--vehicle``: a shipped vehicle's name or a profile file, read now."""
     from bfsitl.errors import VehicleProfileError

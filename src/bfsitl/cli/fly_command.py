@@ -8,7 +8,9 @@ goes to stdout.  Exit code 0 only when the vehicle landed and disarmed.
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import json
+import math
 import os
 import sys
 import time
@@ -54,6 +56,74 @@ def _plan_from_args(args: argparse.Namespace):  # type: ignore[no-untyped-def]
     if args.no_position_hold:
         plan = replace(plan, hold_position=False)
     return plan
+
+
+def _policy_from_args(args: argparse.Namespace):  # type: ignore[no-untyped-def]
+    """``--policy``'s file, loaded and checked before anything starts (None without one);
+    the loop's rate becomes the policy's."""
+    if args.policy is None:
+        if args.policy_target is not None:
+            raise BfsitlError("--policy-target is where --policy flies to: give --policy FILE")
+        return None
+    from bfsitl.gym.onnx_policy import OnnxPolicy
+
+    if args.mission:
+        raise BfsitlError(
+            "--policy flies the hold of --target-alt and --hold; it cannot be combined "
+            "with --mission"
+        )
+    policy = OnnxPolicy(policy_path(args.policy))
+    if args.rate is not None and not math.isclose(args.rate, policy.control_hz):
+        raise BfsitlError(
+            f"--rate {args.rate:g}: {args.policy} was trained at {policy.control_hz:g} Hz "
+            f"and is flown at that rate (leave --rate out)"
+        )
+    if policy.mode == "angle" and args.no_angle:
+        raise BfsitlError(
+            f"--no-angle: {args.policy} was trained in ANGLE mode, which it switches on AUX2"
+        )
+    args.rate = policy.control_hz
+    return policy
+
+
+def _policy_pilot(session, policy, target, plan, say):  # type: ignore[no-untyped-def]
+    from bfsitl.gym.policy_pilot import PolicyPilot
+
+    north, east, up = target if target is not None else (0.0, 0.0, plan.target_alt_m)
+    if not session.has_gps:
+        say(
+            "this firmware has no GPS: the policy sees no horizontal position (those "
+            "observation slots are 0), so nothing holds it over the ground; fly a GPS build "
+            "(`bfsitl firmware build --gps --lockstep`)"
+        )
+    say(
+        f"{policy.path.name}: trained at {policy.control_hz:g} Hz in {policy.mode.upper()}, "
+        f"flies to {north:+.1f} m N {east:+.1f} m E {up:.1f} m up"
+    )
+    return PolicyPilot(session, policy, (north, east, up))
+
+
+def _report_policy(result, pilot) -> None:  # type: ignore[no-untyped-def]
+    """The policy's figures in the result's extras (nothing when it never flew)."""
+    from bfsitl.errors import MissionError
+
+    try:
+        report = pilot.report(result.rows)
+    except MissionError:
+        return
+    result.extra["policy"] = {"file": str(pilot.policy.path), **dataclasses.asdict(report)}
+
+
+def policy_path(given: str) -> Path:
+    """``--policy``: a file, or the name of a policy shipped with bfsitl (``hover-iris``)."""
+    path = Path(given)
+    if not path.exists():
+        from bfsitl.library import find_policy
+
+        shipped = find_policy(given)
+        if shipped is not None:
+            return shipped
+    return path
 
 
 def mission_path(given: str) -> Path:
@@ -135,7 +205,12 @@ def cmd_fly(args: argparse.Namespace) -> int:
     from bfsitl.mission import FLY_PROFILE, FlightSession, SessionConfig
     from bfsitl.mission.plan_driver import fly
     from bfsitl.mission.results import Outcome
-    from bfsitl.mission.session import ConfiguratorBridge, FcSetup, SitlLaunch
+    from bfsitl.mission.session import (
+        ConfiguratorBridge,
+        FcSetup,
+        SitlLaunch,
+        with_fast_serial,
+    )
     from bfsitl.records.outputs import FlightOutputs, OutputOptions, plan_waypoints
 
     if args.list_gains:
@@ -148,6 +223,7 @@ def cmd_fly(args: argparse.Namespace) -> int:
         )
     controller = make_controller(args.controller, parse_gains(args.gain), quad=args.vehicle)
     plan = _plan_from_args(args)
+    policy = _policy_from_args(args)
     if args.rate is None:
         args.rate = POSITION_RATE_HZ if plan.needs_position else DEFAULT_RATE_HZ
     if args.no_provision:
@@ -195,6 +271,12 @@ def cmd_fly(args: argparse.Namespace) -> int:
             else None
         ),
     )
+    if policy is not None and config.fc.profile is not None:
+        # A policy is flown at its training rate or not at all: the serial task at 1 kHz
+        # keeps the MSP round trip well inside its period on a SITL in real time too.
+        config = dataclasses.replace(
+            config, fc=dataclasses.replace(config.fc, profile=with_fast_serial(config.fc.profile))
+        )
     outputs = FlightOutputs(
         OutputOptions(
             csv_path=args.log,
@@ -222,9 +304,20 @@ def cmd_fly(args: argparse.Namespace) -> int:
         try:
             outputs.start()
             session.start()
+            pilot = None
+            if policy is not None:
+                pilot = _policy_pilot(session, policy, args.policy_target, plan, live.event)
             result = fly(
-                session, plan, controller, on_row=on_row, on_event=on_event, rate_hz=args.rate
+                session,
+                plan,
+                controller,
+                on_row=on_row,
+                on_event=on_event,
+                rate_hz=args.rate,
+                pilot=pilot,
             )
+            if pilot is not None:
+                _report_policy(result, pilot)
         except KeyboardInterrupt:
             result = None
     finally:
@@ -308,6 +401,20 @@ def render_summary(summary: dict) -> str:
     if summary.get("landed_from_start_m") is not None:
         lines.append(
             f"landed         {summary['landed_from_start_m'] * 100:.0f} cm from the take-off point"
+        )
+    policy = summary.get("policy")
+    if policy:
+        true_cm = (
+            f"{policy['true_distance_rms_m'] * 100:.0f} cm RMS (truth), "
+            if policy.get("true_distance_rms_m") is not None
+            else ""
+        )
+        lines.append(
+            f"policy         {Path(policy['file']).name}: {policy['steps']} steps at "
+            f"{policy['rate_hz_kept']:.1f} Hz (asked {policy['rate_hz_asked']:g}), inference "
+            f"{policy['inference_us_median']:.0f} us median, "
+            f"{policy['inference_us_p99']:.0f} us p99; last {policy['judged_s']:g} s "
+            f"{true_cm}{policy['fc_distance_rms_m'] * 100:.0f} cm RMS (FC) from the target"
         )
     firmware = summary.get("firmware")
     if firmware:

@@ -5,7 +5,13 @@ from __future__ import annotations
 
 import argparse
 
-from bfsitl.cli.arg_types import add_vehicle_argument, number_in, parse_speed, port_number
+from bfsitl.cli.arg_types import (
+    add_vehicle_argument,
+    north_east_up,
+    number_in,
+    parse_speed,
+    port_number,
+)
 from bfsitl.cli.fly_command import cmd_fly
 from bfsitl.physics.wind import MAX_GUST_STD_M_S, MAX_WIND_COMPONENT_M_S
 
@@ -35,7 +41,8 @@ def add_fly_parser(sub: argparse._SubParsersAction) -> None:  # type: ignore[typ
         "  bfsitl fly --firmware 4.6.0-gps-lockstep --mission square --wind 3\n"
         "  bfsitl fly --controller tutorial-pid --gain kp=120 --log flight.csv\n"
         "  bfsitl fly --workdir ~/.cache/bfsitl/quad   (eeprom.bin kept between flights)\n"
-        "  bfsitl fly --controller cascade --list-gains",
+        "  bfsitl fly --controller cascade --list-gains\n"
+        "  bfsitl fly --firmware 4.6.0-gps-lockstep --policy hover-iris --policy-target 1,-1,2",
         formatter_class=argparse.RawDescriptionHelpFormatter,
     )
     mission = fly.add_argument_group("mission")
@@ -105,6 +112,25 @@ def add_fly_parser(sub: argparse._SubParsersAction) -> None:  # type: ignore[typ
         "missions with waypoints; above 50 the FC's serial task is set "
         "to 1 kHz, which costs one reboot in a run directory that does "
         "not hold it yet)",
+    )
+    mission.add_argument(
+        "--policy",
+        metavar="FILE.onnx|NAME",
+        help="let a trained policy fly the hold (an ONNX file of bfsitl.gym.policy_export, "
+        "such as examples/train_hover.py's policy.onnx, or a shipped one: hover-iris, a "
+        "hover of the IRIS trained in 5 minutes): arm, take off to --target-alt, "
+        "every stick to the policy for --hold seconds from the FC's own readings, land "
+        "where it left the vehicle. The loop runs at the policy's rate. Needs onnxruntime "
+        "(pip install 'bfsitl[policy]'); see docs/gym.md",
+    )
+    mission.add_argument(
+        "--policy-target",
+        type=north_east_up,
+        default=None,
+        metavar="N,E,UP",
+        help="where the policy flies to: metres north, east and up from the take-off "
+        "point (default 0,0,--target-alt: hold the take-off point). North and east need "
+        "a GPS build",
     )
     out = fly.add_argument_group("outputs")
     out.add_argument("--log", metavar="FILE.csv", help="one row per control step, flushed")

@@ -18,7 +18,9 @@ in turn (the next one in the observation).  Options of both, the session's group
 environment's own: ``control_hz``, ``mode`` (``"angle"`` or ``"acro"``), ``observation``
 (``"fc"``: what the FC reports; ``"truth"``: the simulation), ``disturbances`` (a hook called
 before every step with the flight's disturbance surface), ``start`` (``"air"`` or
-``"ground"``), ``start_alt_m``, ``pin_core``, ``warm_resets``, ``render_mode``
+``"ground"``), ``start_alt_m``, ``latency`` (:class:`~bfsitl.gym.latency.Latency`: the
+observation late by some control steps, drawn per episode), ``pin_core``, ``warm_resets``,
+``render_mode``
 (``"rgb_array"``: :mod:`~bfsitl.gym.render`).  Needs the ``gym`` extra:
 ``pip install 'bfsitl[gym]'``.
 
@@ -56,6 +58,7 @@ from bfsitl.gym.env import (
     HoverEnv,
     WaypointsEnv,
 )
+from bfsitl.gym.latency import Latency
 
 ENVIRONMENTS = {
     "bfsitl/Hover-v0": "bfsitl.gym.env:HoverEnv",
@@ -90,5 +93,6 @@ __all__ = [
     "VECTOR_ENVIRONMENTS",
     "FlightEnv",
     "HoverEnv",
+    "Latency",
     "WaypointsEnv",
 ]

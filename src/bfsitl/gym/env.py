@@ -52,6 +52,7 @@ from bfsitl.control import make_controller
 from bfsitl.errors import EnvironmentConfigError, LinkError, MspError, SitlError
 from bfsitl.fc.rc_link import RcCommand
 from bfsitl.gym.baseline import hover_stick
+from bfsitl.gym.latency import NO_LATENCY, DelayLine, Latency
 from bfsitl.gym.observation import (
     OBSERVATIONS,
     ObservationSource,
@@ -121,7 +122,9 @@ class FlightEnv(gymnasium.Env[np.ndarray, np.ndarray]):
     episode's).  Another quad: ``world=World(quad=load_vehicle("5inch-freestyle"))``
     (:func:`bfsitl.vehicles.load_vehicle`; a profile file too).  The rest are the
     environment's own: the policy's rate, mode and observation, the episode's start and
-    length, the disturbances, the core pinning and the warm resets, and ``render_mode``:
+    length, the disturbances, the observation's ``latency`` (:mod:`~bfsitl.gym.latency`:
+    late by some control steps, drawn per episode, for a policy that is to fly outside the
+    lockstep), the core pinning and the warm resets, and ``render_mode``:
     ``"rgb_array"`` makes :meth:`render` draw the truth (:mod:`~bfsitl.gym.render`).
     """
 
@@ -146,6 +149,7 @@ class FlightEnv(gymnasium.Env[np.ndarray, np.ndarray]):
         max_episode_steps: int | None = HOVER_MAX_EPISODE_STEPS,
         start: EpisodeStart = "air",
         start_alt_m: float = 1.5,
+        latency: Latency = NO_LATENCY,
         pin_core: bool | None = None,
         warm_resets: bool = True,
         render_mode: str | None = None,
@@ -153,6 +157,7 @@ class FlightEnv(gymnasium.Env[np.ndarray, np.ndarray]):
         check_group("sitl", sitl, SitlLaunch)
         check_group("timing", timing, Timing)
         check_group("world", world, World)
+        check_group("latency", latency, Latency)
         _check_choice("mode", mode, MODES)
         _check_choice("observation", observation, OBSERVATIONS)
         _check_choice("start", start, STARTS)
@@ -224,6 +229,9 @@ class FlightEnv(gymnasium.Env[np.ndarray, np.ndarray]):
         self.max_episode_steps = max_episode_steps
         self.start = start
         self.start_alt_m = start_alt_m
+        #: How late the policy's observation is (bfsitl.gym.latency), drawn per episode.
+        self.latency = latency
+        self._delay = DelayLine(latency)
         self._core: CoreClaim | None = None
         #: A reset without a seed keeps the firmware running when it can (see the module
         #: docstring); False boots a fresh one every time.
@@ -273,7 +281,7 @@ class FlightEnv(gymnasium.Env[np.ndarray, np.ndarray]):
         self._steps = 0
         self._has_flown = self.start == "air"
         self._snapshot = read_snapshot(vehicle, arm_ned_m=self._arm_ned)
-        return self._observe(), self._info(None)
+        return self._delay.restart(self._observe(), self.np_random), self._info(None)
 
     def step(self, action: np.ndarray) -> tuple[np.ndarray, float, bool, bool, dict[str, Any]]:
         vehicle = self._vehicle
@@ -301,7 +309,7 @@ class FlightEnv(gymnasium.Env[np.ndarray, np.ndarray]):
             self._close_vehicle()
             assert self._snapshot is not None
             return (
-                self._observe(),
+                self._delay.push(self._observe()),
                 FAILURE_REWARD,
                 True,
                 False,
@@ -318,7 +326,8 @@ class FlightEnv(gymnasium.Env[np.ndarray, np.ndarray]):
         self._steps += 1
         limit = self._step_limit()
         truncated = not terminated and limit is not None and self._steps >= limit
-        return self._observe(), float(reward), terminated, truncated, self._info(why)
+        observation = self._delay.push(self._observe())
+        return observation, float(reward), terminated, truncated, self._info(why)
 
     def _step_limit(self) -> int | None:
         """Where this environment truncates an episode itself: :attr:`max_episode_steps`,
@@ -360,7 +369,7 @@ class FlightEnv(gymnasium.Env[np.ndarray, np.ndarray]):
         self._steps = 0
         self._has_flown = True
         self._snapshot = read_snapshot(vehicle, arm_ned_m=self._arm_ned)
-        return self._observe(), self._info(None)
+        return self._delay.restart(self._observe(), self.np_random), self._info(None)
 
     def close(self) -> None:
         self._close_vehicle()

@@ -51,7 +51,12 @@ def observation_space() -> spaces.Box:
 
 def observe(snapshot: Snapshot, target: Vec3, which: ObservationSource) -> np.ndarray:
     """The observation of ``snapshot`` towards ``target`` (north, east, up)."""
-    view: FcView | TrueView = snapshot.fc if which == "fc" else snapshot.truth
+    return observe_view(snapshot.fc if which == "fc" else snapshot.truth, target)
+
+
+def observe_view(view: FcView | TrueView, target: Vec3) -> np.ndarray:
+    """The observation of one view (the FC's or the truth) towards ``target`` (north, east,
+    up): what a trained policy is given in training and wherever it flies."""
     # The FC's climb rate is MSP_ALTITUDE's vario; the truth's is its vertical velocity.
     v_up = view.climb_m_s if isinstance(view, FcView) else view.v_up_m_s
     values = (

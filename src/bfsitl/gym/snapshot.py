@@ -13,11 +13,9 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
-from bfsitl.fc.telemetry import TELEMETRY_COMMANDS, telemetry_from_payloads
 from bfsitl.mission.session import FlightSession
-from bfsitl.mission.vehicle import accel_flu_m_s2
+from bfsitl.mission.vehicle import FlightSample, Vehicle
 from bfsitl.protocol import messages as msg
-from bfsitl.protocol.msp_codes import MspCommand
 
 Vec3 = tuple[float, float, float]
 Vec4 = tuple[float, float, float, float]
@@ -79,47 +77,52 @@ class Snapshot:
     truth: TrueView
 
 
-def read_snapshot(vehicle: FlightSession, *, arm_ned_m: Vec3) -> Snapshot:
-    """The FC's view and the truth now; ``arm_ned_m`` is where the vehicle stood at arming
-    (the truth's origin)."""
-    client = vehicle.client
-    with_gps = vehicle.has_gps
-    commands = TELEMETRY_COMMANDS + ((MspCommand.RAW_GPS,) if with_gps else ())
-    payloads = client.multiple(commands)
-    telemetry = telemetry_from_payloads(
-        payloads[: len(TELEMETRY_COMMANDS)], vehicle.time_s, client.box_ids()
-    )
-    imu = vehicle.backend.imu
-    gx, gy, gz = telemetry.imu.gyro_dps()
+def watch_fc(vehicle: Vehicle) -> None:
+    """Have every sample of ``vehicle`` carry what :func:`fc_view` reads besides the sample's
+    own replies (MSP_MOTOR, and MSP_RAW_GPS on a GPS build), in the same round trip."""
+    vehicle.read_with_samples(msg.Motor, *((msg.RawGps,) if vehicle.has_gps else ()))
+
+
+def fc_view(vehicle: Vehicle, sample: FlightSample) -> FcView:
+    """What the FC reported in ``sample``: the observation's only source in training
+    (``observation="fc"``) and when a trained policy flies a SITL or a board.  The motors
+    and the GPS come from the sample's round trip when :func:`watch_fc` asked for them,
+    else from one more exchange."""
     north = east = v_north = v_east = 0.0
+    with_gps = vehicle.has_gps
     if with_gps:
-        gps = vehicle.local_gps(msg.RawGps.decode(payloads[-1]))
+        gps = vehicle.gps_position(sample)
         north, east, v_north, v_east = (gps.north_m, gps.east_m, gps.v_north_m_s, gps.v_east_m_s)
-    attitude = telemetry.attitude
-    fc = FcView(
-        roll_rad=math.radians(attitude.roll_deg),
-        pitch_rad=math.radians(attitude.pitch_deg),
-        # MSP_ATTITUDE truncates the heading to whole degrees: the middle is unbiased.
-        yaw_rad=math.radians(attitude.yaw_deg + 0.5),
-        rates_flu_rad_s=(math.radians(gx), math.radians(gy), math.radians(gz)),
-        accel_flu_m_s2=accel_flu_m_s2(telemetry, imu),
-        accel_up_m_s2=telemetry.accel_up_m_s2(imu.acc_1g_lsb, offset_lsb=imu.acc_truncation_lsb),
-        alt_m=telemetry.altitude.altitude_m,
-        climb_m_s=telemetry.altitude.vario_m_s,
+    motors_us = vehicle.reading(msg.Motor, sample).motors_us
+    return FcView(
+        roll_rad=math.radians(sample.roll_deg),
+        pitch_rad=math.radians(sample.pitch_deg),
+        yaw_rad=math.radians(sample.yaw_deg),  # the middle of MSP_ATTITUDE's whole degree
+        rates_flu_rad_s=sample.fc_gyro_flu_rad_s,
+        accel_flu_m_s2=sample.fc_accel_flu_m_s2,
+        accel_up_m_s2=sample.fc_accel_up_m_s2,
+        alt_m=sample.fc_alt_m,
+        climb_m_s=sample.fc_climb_m_s,
         north_m=north,
         east_m=east,
         v_north_m_s=v_north,
         v_east_m_s=v_east,
         has_gps=with_gps,
-        motors=tuple(
-            min(1.0, max(0.0, (us - _MOTOR_MIN_US) / _MOTOR_SPAN_US))  # type: ignore[arg-type]
-            for us in telemetry.motors.motors_us[:4]
+        motors=tuple(  # type: ignore[arg-type]
+            min(1.0, max(0.0, (us - _MOTOR_MIN_US) / _MOTOR_SPAN_US)) for us in motors_us[:4]
         ),
-        armed=telemetry.armed,
-        arming_blockers=telemetry.arming_blockers,
-        flight_modes=telemetry.flight_modes,
+        armed=sample.armed,
+        arming_blockers=sample.arming_blockers,
+        flight_modes=sample.flight_modes,
     )
-    return Snapshot(vehicle.time_s, fc, true_view(vehicle, arm_ned_m))
+
+
+def read_snapshot(vehicle: FlightSession, *, arm_ned_m: Vec3) -> Snapshot:
+    """The FC's view (one MSP round trip: :func:`fc_view` of a sample) and the truth now;
+    ``arm_ned_m`` is where the vehicle stood at arming (the truth's origin)."""
+    watch_fc(vehicle)
+    sample = vehicle.sample()
+    return Snapshot(sample.time_s, fc_view(vehicle, sample), true_view(vehicle, arm_ned_m))
 
 
 def true_view(vehicle: FlightSession, arm_ned_m: Vec3) -> TrueView:

@@ -1,9 +1,10 @@
-"""What ships inside the wheel beside the code: the scenario library, example missions and
-vehicle profiles.
+"""What ships inside the wheel beside the code: the scenario library, example missions,
+vehicle profiles and trained policies.
 
 ``bfsitl scenario list`` and ``bfsitl scenario run`` with no path use :func:`scenarios_dir`;
 ``bfsitl fly --mission square`` finds a shipped mission by its name (:func:`find_mission`).
-``--vehicle 5inch-freestyle`` finds a shipped vehicle profile (:func:`vehicle_files`).
+``--vehicle 5inch-freestyle`` finds a shipped vehicle profile (:func:`vehicle_files`), and
+``--policy hover-iris`` a shipped policy (:func:`find_policy`).
 The files are package data, so an installed wheel has them with no checkout anywhere.
 """
 
@@ -14,6 +15,7 @@ from pathlib import Path
 
 __all__ = [
     "find_mission",
+    "find_policy",
     "mission_files",
     "missions_dir",
     "scenario_files",
@@ -54,6 +56,15 @@ def find_mission(name: str) -> Path | None:
     if not stem or "/" in stem or "\\" in stem:
         return None
     path = missions_dir() / f"{stem}.toml"
+    return path if path.is_file() else None
+
+
+def find_policy(name: str) -> Path | None:
+    """A shipped policy by its name, with or without ``.onnx`` (``hover-iris``), or None."""
+    stem = name[:-5] if name.endswith(".onnx") else name
+    if not stem or "/" in stem or "\\" in stem:
+        return None
+    path = _package_dir("policies") / f"{stem}.onnx"
     return path if path.is_file() else None
 
 

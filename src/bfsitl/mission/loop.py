@@ -37,6 +37,7 @@ from bfsitl.mission.phase import Phase
 from bfsitl.mission.position_manoeuvres import PositionManoeuvres
 from bfsitl.mission.position_steering import PositionSteering
 from bfsitl.mission.results import Outcome
+from bfsitl.mission.stick_pilot import StickPilot
 from bfsitl.mission.throttle_sources import FixedThrottle, GroundObserver
 from bfsitl.mission.vehicle import SWITCH_OFF_US, SWITCH_ON_US, FlightSample, Vehicle
 
@@ -299,6 +300,65 @@ class FlightLoop(PositionManoeuvres):
             for index in switches:
                 command = command.with_aux(index, SWITCH_OFF_US)
             self.vehicle.set_rc(command)
+
+    def fly_sticks(self, seconds: float, pilot: StickPilot, *, phase: Phase = Phase.POLICY) -> None:
+        """Give every stick to ``pilot`` (:class:`~bfsitl.mission.stick_pilot.StickPilot`,
+        a trained policy) for ``seconds``: each step its command goes out, and the loop
+        samples, checks, records and calls the hooks as in every manoeuvre.  At the end roll,
+        pitch and yaw are centred and the switches are as they were; the throttle stays
+        where the pilot left it for the next manoeuvre to take over, which starts where the
+        pilot left the vehicle (the altitude, and on a GPS build the position, it is at).
+
+        Args:
+            seconds: Seconds of the vehicle's clock.
+            pilot: What turns each sample into the RC command.
+            phase: The phase the rows are recorded under.
+
+        Raises:
+            MissionError: The pilot must be asked at another rate than the loop's.
+        """
+        if self.stopped:
+            return
+        if pilot.rate_hz is not None and not math.isclose(pilot.rate_hz, self.rate_hz):
+            raise MissionError(
+                f"the pilot flies at {pilot.rate_hz:g} Hz and this loop at {self.rate_hz:g} "
+                f"Hz: make the loop at the pilot's rate (rate_hz={pilot.rate_hz:g})"
+            )
+        self._on_event(f"{getattr(pilot, 'name', 'the pilot')} has the sticks for {seconds:g} s")
+        before = self.vehicle.rc_command
+        target_alt_m = self.target_alt_m if pilot.target_alt_m is None else pilot.target_alt_m
+        self.phase, self.target_alt_m = phase, target_alt_m
+        clock = self.vehicle.clock
+        period_s = 1.0 / self.rate_hz
+        end_s = self.vehicle.time_s + seconds
+        next_s = clock.now_s()
+        try:
+            while True:
+                sample = self.vehicle.sample()
+                climb_m_s = self._climb.update(sample.time_s, sample.fc_alt_m)
+                check_flying(sample, self.phase)
+                self.vehicle.set_rc(pilot.sticks(sample, self.vehicle.rc_command))
+                self._record(phase, target_alt_m, sample, climb_m_s)
+                if self._stop_asked(sample) or sample.time_s >= end_s:
+                    break
+                next_s = next_step(clock, next_s, period_s)
+        finally:
+            self.vehicle.set_rc(
+                replace(
+                    self.vehicle.rc_command,
+                    roll_us=RC_MID_US,
+                    pitch_us=RC_MID_US,
+                    yaw_us=RC_MID_US,
+                    aux_us=before.aux_us,
+                )
+            )
+        last = self.last_sample
+        if last is not None:
+            # What comes next holds here, not where the vehicle was before the pilot.
+            self.target_alt_m = last.fc_alt_m
+        if self.steering.target_ne is not None:
+            self.steering.target_ne = None
+            self.steering.position_target(None, None)
 
     def observe(
         self,

@@ -25,7 +25,8 @@ class Phase(StrEnum):
     FC_MODE = "fc-mode"  # the firmware's own mode flies (FlightLoop.hand_over)
     OBSERVE = "observe"  # nobody flies; the mission only watches
     WATCH = "watch"  # a scenario watches after a fault took the sticks
+    POLICY = "policy"  # a pilot of the caller's has every stick (FlightLoop.fly_sticks)
 
 
-#: The phases in which the autopilot flies (and a hold or a leg's error means something).
-FLOWN = frozenset({Phase.TAKEOFF, Phase.HOLD, Phase.GOTO, Phase.YAW, Phase.LAND})
+#: The phases in which bfsitl flies (and a hold or a leg's error means something).
+FLOWN = frozenset({Phase.TAKEOFF, Phase.HOLD, Phase.GOTO, Phase.YAW, Phase.LAND, Phase.POLICY})

@@ -29,6 +29,7 @@ from bfsitl.mission.loop import DEFAULT_RATE_HZ, FlightLoop
 from bfsitl.mission.phase import Phase
 from bfsitl.mission.plan import MissionPlan, Waypoint
 from bfsitl.mission.results import MissionResult, Outcome
+from bfsitl.mission.stick_pilot import StickPilot
 from bfsitl.mission.vehicle import Vehicle
 from bfsitl.stop_signals import how_stopped
 
@@ -43,10 +44,13 @@ def fly_steps(
     arm: bool = True,
     time_left_s: Callable[[], float] | None = None,
     after_step: Callable[[Phase], None] | None = None,
+    pilot: StickPilot | None = None,
 ) -> None:
     """Arm, take off, hold, fly the waypoints, land: ``plan`` on ``loop``, raising on
     trouble (:func:`fly_plan` turns that into an outcome).
 
+    ``pilot`` (a trained policy) flies the hold instead of the autopilot
+    (:meth:`~bfsitl.mission.loop.FlightLoop.fly_sticks`).
     ``arm=False`` when the caller has armed already; ``time_left_s`` (what the caller's run
     has left) cuts the hold short so that it does not outlast the run; ``after_step`` is
     told each step that ended (TAKEOFF, HOLD, GOTO for each waypoint, LANDED).  Once the
@@ -64,7 +68,9 @@ def fly_steps(
     done(Phase.TAKEOFF)
     hold_s = plan.hold_s if time_left_s is None else min(plan.hold_s, max(0.0, time_left_s()))
     if hold_s > 0:
-        if position:
+        if pilot is not None:
+            loop.fly_sticks(hold_s, pilot)
+        elif position:
             loop.hold_position(hold_s)
         else:
             loop.hold(hold_s)
@@ -104,6 +110,7 @@ def fly(
     on_row: RowCallback | None = None,
     on_event: EventCallback | None = None,
     rate_hz: float = DEFAULT_RATE_HZ,
+    pilot: StickPilot | None = None,
 ) -> MissionResult:
     """Fly ``plan`` on a started vehicle; every ending becomes an :class:`Outcome`.
 
@@ -122,6 +129,8 @@ def fly(
         on_event: Called with each line of progress.
         rate_hz: Control steps per second of simulation time (wall time on a board), 1 to
             200.
+        pilot: Flies the hold instead of the autopilot (a trained policy; its rate must be
+            ``rate_hz``).
 
     Returns:
         How it ended and its figures; a failed flight is an outcome, not an exception.
@@ -138,17 +147,24 @@ def fly(
         on_row=on_row,
         on_event=on_event,
     )
-    return fly_plan(loop, plan)
+    return fly_plan(loop, plan, pilot=pilot)
 
 
-def fly_plan(loop: FlightLoop, plan: MissionPlan, *, keep_flying: bool = False) -> MissionResult:
+def fly_plan(
+    loop: FlightLoop,
+    plan: MissionPlan,
+    *,
+    keep_flying: bool = False,
+    pilot: StickPilot | None = None,
+) -> MissionResult:
     """Fly ``plan`` from the ground on ``loop`` (a new one, or one that has flown and
     landed before: the :class:`~bfsitl.autopilot.Autopilot` flies on its own); every ending
     becomes an :class:`Outcome`, and the result covers the rows and legs of this plan only.
 
     A plan that does not land (``land = false``) ends with the sticks at disarm, as every
     other ending but a landing does, unless ``keep_flying``: then the loop is still
-    flying it, and its next manoeuvre (``land()``) goes on from there."""
+    flying it, and its next manoeuvre (``land()``) goes on from there.  ``pilot`` flies the
+    hold (see :func:`fly_steps`)."""
     vehicle = loop.vehicle
     first_row, first_leg = len(loop.rows), len(loop.legs)
     controller = loop.controller
@@ -162,7 +178,7 @@ def fly_plan(loop: FlightLoop, plan: MissionPlan, *, keep_flying: bool = False) 
                 "no GPS: fly a GPS build (`bfsitl firmware build --gps`, add --lockstep for "
                 "lockstep; master always has it)"
             )
-        fly_steps(loop, plan)
+        fly_steps(loop, plan, pilot=pilot)
         if not plan.land:
             outcome, reason = Outcome.COMPLETED, "mission completed in the air (land = false)"
     except KeyboardInterrupt as exc:
@@ -205,8 +221,9 @@ def fly_plan(loop: FlightLoop, plan: MissionPlan, *, keep_flying: bool = False) 
             "conventions": profile.generation.value,
             "gps": profile.has_gps,
         }
-    if not plan.waypoints or plan.hold_s >= STEP_STEADY_WINDOW_S:
-        # A step response needs the hold after it: straight into a leg, there is none.
+    if pilot is None and (not plan.waypoints or plan.hold_s >= STEP_STEADY_WINDOW_S):
+        # A step response needs the autopilot's hold after it: straight into a leg, or with
+        # a pilot flying the hold, there is none.
         result.metrics = takeoff_metrics(rows, plan.target_alt_m)
     rc_stats, bridge_stats = vehicle.rc_stats(), vehicle.bridge_stats()
     if rc_stats is not None:

@@ -65,6 +65,11 @@ def _accel_flu_m_s2(raw: msg.RawImu, imu: ImuScale) -> tuple[float, float, float
     return (ax * scale, ay * scale, (az + imu.acc_truncation_lsb) * scale)
 
 
+def _gyro_flu_rad_s(raw: msg.RawImu) -> tuple[float, float, float]:
+    gx, gy, gz = raw.gyro_dps()
+    return (math.radians(gx), math.radians(gy), math.radians(gz))
+
+
 #: What :meth:`Vehicle.sample` reads of the FC, in one MSP_MULTIPLE_MSP round trip with the
 #: reads of :meth:`Vehicle.read_with_samples`: what a sample carries (a whole
 #: :class:`Telemetry` also has the battery, the RC channels and the motors).
@@ -105,6 +110,8 @@ class FlightSample:
     sim_east_m: float = math.nan
     #: MSP_RAW_IMU's accelerometer in m/s^2, Betaflight's FLU body axes (specific force).
     fc_accel_flu_m_s2: tuple[float, float, float] = (math.nan, math.nan, math.nan)
+    #: MSP_RAW_IMU's gyro in rad/s, the same axes (the default 2000 deg/s range's scale).
+    fc_gyro_flu_rad_s: tuple[float, float, float] = (math.nan, math.nan, math.nan)
     #: The replies read in the sample's round trip (``Vehicle.read_with_samples``), by MSP
     #: command id: empty for one the FC could not answer in a batch.
     replies: Mapping[int, bytes] = field(default_factory=dict)
@@ -497,6 +504,7 @@ class Vehicle:
                 attitude, raw_imu, imu.acc_1g_lsb, imu.acc_truncation_lsb
             ),
             fc_accel_flu_m_s2=_accel_flu_m_s2(raw_imu, imu),
+            fc_gyro_flu_rad_s=_gyro_flu_rad_s(raw_imu),
             roll_deg=attitude.roll_deg,
             pitch_deg=attitude.pitch_deg,
             # MSP_ATTITUDE truncates the heading to whole degrees: the middle of the degree

@@ -96,6 +96,12 @@ def _policy_pilot(session, policy, target, plan, say):  # type: ignore[no-untype
             "observation slots are 0), so nothing holds it over the ground; fly a GPS build "
             "(`bfsitl firmware build --gps --lockstep`)"
         )
+    if not session.lockstep:
+        say(
+            "this SITL runs in real time: a policy trained in lockstep meets latency here "
+            "that it never saw (the RC at 100 Hz, the FC's altitude later) and holds less "
+            "well; docs/gym.md has the figures"
+        )
     say(
         f"{policy.path.name}: trained at {policy.control_hz:g} Hz in {policy.mode.upper()}, "
         f"flies to {north:+.1f} m N {east:+.1f} m E {up:.1f} m up"

@@ -17,7 +17,8 @@ over the policy's time; inference is onnxruntime's call, one thread.
 What limits it: a policy trained in lockstep meets latency outside it (the RC rate, the FC's
 RC smoothing, the barometer's lag on a SITL in real time); ``--latency-steps`` in
 ``examples/train_hover.py`` trains for it (docs/gym.md).  Run:
-``python benchmarks/policy_flight.py --policy hover-iris [--policy other.onnx] [--seconds 10]``.
+``python benchmarks/policy_flight.py --policy hover-iris [--policy other.onnx] [--seconds 10]
+[--repeats 3]``.
 """
 
 from __future__ import annotations
@@ -113,6 +114,12 @@ def main() -> int:
     parser.add_argument("--policy", action="append", default=None, metavar="FILE|NAME")
     parser.add_argument("--seconds", type=float, default=10.0)
     parser.add_argument("--ways", nargs="+", choices=WAYS, default=list(WAYS))
+    parser.add_argument(
+        "--repeats",
+        type=int,
+        default=1,
+        help="flights per policy and way (on the wall clock no two are the same)",
+    )
     args = parser.parse_args()
     policies = [policy_path(p) for p in (args.policy or ["hover-iris"])]
     print(
@@ -122,15 +129,16 @@ def main() -> int:
     print("| --- | --- | ---: | ---: | ---: | ---: |")
     for policy in policies:
         for way in args.ways:
-            with tempfile.TemporaryDirectory(prefix="bfsitl-policy-") as work:
-                report, rms, largest = fly(way, policy, args.seconds, Path(work))
-            print(
-                f"| {policy.name} | {way} | {report.rate_hz_kept:.1f} Hz "
-                f"({report.rate_hz_asked:g}) | {report.inference_us_median:.0f} / "
-                f"{report.inference_us_p99:.0f} us | {rms * 100:.0f} / {largest * 100:.0f} cm "
-                f"| {report.fc_distance_rms_m * 100:.0f} cm |",
-                flush=True,
-            )
+            for _ in range(args.repeats):
+                with tempfile.TemporaryDirectory(prefix="bfsitl-policy-") as work:
+                    report, rms, largest = fly(way, policy, args.seconds, Path(work))
+                print(
+                    f"| {policy.name} | {way} | {report.rate_hz_kept:.1f} Hz "
+                    f"({report.rate_hz_asked:g}) | {report.inference_us_median:.0f} / "
+                    f"{report.inference_us_p99:.0f} us | {rms * 100:.0f} / "
+                    f"{largest * 100:.0f} cm | {report.fc_distance_rms_m * 100:.0f} cm |",
+                    flush=True,
+                )
     return 0
 
 

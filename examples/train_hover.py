@@ -80,6 +80,7 @@ def make_envs(args: argparse.Namespace) -> Any:
             control_hz=args.control_hz,
             max_episode_steps=round(TRAINING_EPISODE_S * args.control_hz),
             latency=latency(args),
+            rc_frame_per_step=args.rc_frame_per_step,
         ),
         limits=None if args.raw else DEFAULT_LIMITS,
     )
@@ -442,6 +443,13 @@ def main() -> int:
         metavar="LOW-HIGH",
         help="the height and climb this many steps later again (the barometer's lag; default 0-0)",
     )
+    parser.add_argument(
+        "--rc-frame-per-step",
+        action="store_true",
+        help="one RC frame per control step, as a companion computer sends them: the FC "
+        "smooths the sticks as it does outside the lockstep (default: a frame in every fdm "
+        "packet, no smoothing)",
+    )
     parser.add_argument("--out", type=Path, default=Path("hover-run"))
     parser.add_argument(
         "--resume",
@@ -481,6 +489,7 @@ def main() -> int:
         control_hz=args.control_hz,
         max_episode_steps=round(args.eval_s * args.control_hz),
         latency=latency(args),
+        rc_frame_per_step=args.rc_frame_per_step,
     )
     random_actions = np.random.default_rng(args.seed)
     recorder = EpisodeRecorder(args.out / "evaluation.csv")
@@ -524,6 +533,7 @@ def main() -> int:
             "seed": args.seed,
             "latency_steps": list(args.latency_steps),
             "altitude_latency_steps": list(args.altitude_latency_steps),
+            "rc_frame_per_step": args.rc_frame_per_step,
             # With --resume: the earlier runs' training time too.
             "total_wall_s": round(episodes[-1][2] if episodes else train_s, 1),
             "resumed_from": str(args.resume) if args.resume else None,

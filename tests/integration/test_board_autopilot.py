@@ -100,31 +100,37 @@ def test_a_board_without_an_msp_receiver_is_refused_with_the_fix(board, tmp_path
 def test_a_trained_policy_flies_the_board_from_its_msp_readings_alone(board, tmp_path):
     """The shipped hover policy through ``connect``: its observation from the board's MSP
     replies only (the vehicle has no truth), at its own 50 Hz on the wall clock, RC by MSP;
-    the simulated truth judges where it went.  Trained in lockstep, it meets latency here
-    that it never saw and holds less well than there (docs/gym.md: about 60 cm against 7),
-    so what is asserted is that it flies the way asked and keeps its rate."""
+    the simulated truth judges where it went.  On the wall clock no two flights are alike
+    (docs/gym.md measures the hold: 5-24 cm); asserted here is that it flies where it is
+    asked, keeps its rate and sees itself where the truth is."""
     pytest.importorskip("onnxruntime")
     from bfsitl.gym.policy_pilot import PolicyPilot
     from bfsitl.library import find_policy
 
     simulated, _endpoint = board
+    simulator = simulated.simulator
+    assert simulator is not None
     policy = find_policy("hover-iris")
     assert policy is not None
+    ground_down_m = simulator.state.position_ned_m[2]
     with connect(f"serial://{tmp_path / 'ttyBF'}?baud=115200") as vehicle:
         pilot = PolicyPilot(vehicle, policy, (1.5, 0.0, 1.5))
         autopilot = Autopilot(vehicle, rate_hz=pilot.rate_hz)
         autopilot.takeoff(1.5)
         autopilot.fly_sticks(pilot, 8.0)
-        state = simulated.simulator.state  # type: ignore[union-attr]
+        state = simulator.state
+        fc_alt_m = autopilot.rows[-1].fc_alt_m
         autopilot.land()
         report = pilot.report(autopilot.rows)
     north, east, down = state.position_ned_m
-    # Towards the target 1.5 m north (not south, not sideways), in the air at about its height.
-    assert 0.5 < north < 2.5 and abs(east) < 0.6
-    assert 0.7 < -down < 2.5
+    height_m = ground_down_m - down
+    # Towards the target 1.5 m north (not south, not sideways), in the air near its height.
+    assert 0.8 < north < 2.2 and abs(east) < 0.5
+    assert 0.8 < height_m < 2.8
+    assert fc_alt_m == pytest.approx(height_m, abs=0.3)  # the FC's view, the policy's only one
     # The board kept the policy's rate on the wall clock.
     assert report.rate_hz_asked == 50.0 and report.rate_hz_kept > 45.0
     assert report.steps >= 8 * 45
-    assert math.isnan(report.true_distance_rms_m)  # no truth on a board: the FC's view only
-    assert report.fc_distance_rms_m < 1.0
+    assert math.isnan(report.true_distance_rms_m)  # no truth on a board
+    assert report.fc_distance_rms_m < 0.6
     assert autopilot.rows[-1].phase == "landed"

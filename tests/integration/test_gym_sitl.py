@@ -134,6 +134,35 @@ def test_a_late_observation_is_the_one_of_that_many_steps_before(
     assert not np.array_equal(late[5:], prompt[5:])  # the flight moved: the test can tell
 
 
+@pytest.mark.parametrize(("per_step", "cutoff"), [(False, "0hz"), (True, "18hz")])
+def test_with_a_frame_per_step_the_fc_smooths_the_sticks_as_for_a_receiver_at_that_rate(
+    lockstep_gps_46_firmware: Path, per_step: bool, cutoff: str
+) -> None:
+    """In lockstep every fdm packet carries RC, and 4.6.0 finds no receiver rate in a frame
+    every loop: no RC smoothing.  One frame per 50 Hz step: the FC measures the rate and sets
+    its setpoint cutoff to 0.375 of it (rc.c), as for a receiver at 50 Hz."""
+    from bfsitl.fc.cli_session import CliSession
+
+    env = HoverEnv(
+        sitl=SitlLaunch(firmware=lockstep_gps_46_firmware),
+        rc_frame_per_step=per_step,
+        control_hz=50,
+        start="ground",
+    )
+    try:
+        env.reset(seed=3)
+        for _ in range(100):  # 2 s of frames at idle on the ground
+            env.step(np.array([0.0, 0.0, -1.0, 0.0], dtype=np.float32))
+        vehicle = env._vehicle
+        assert vehicle is not None
+        assert vehicle.disarm()  # the FC takes no CLI while armed
+        with CliSession(vehicle.client.link) as cli:
+            info = cli.run("rc_smoothing_info")
+    finally:
+        env.close()
+    assert f"Active setpoint cutoff: {cutoff} (auto)" in info, info
+
+
 def test_a_warm_reset_keeps_the_firmware_and_a_seeded_one_boots_it_afresh(
     lockstep_gps_46_firmware: Path, tmp_path: Path
 ) -> None:

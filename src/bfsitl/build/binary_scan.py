@@ -31,6 +31,9 @@ builds have only UDP: :mod:`bfsitl.link.shm_exchange`)."""
 RX_FRAMES_MARKER = b"BFSITL_LOCKSTEP_RX_FRAMES\x00"
 """The variable a 4.6.0 lockstep build reads to count a receiver frame per RC trailer, not at
 every check (earlier lockstep builds count one at every loop; master's receiver needs none)."""
+RX_FRAMES_ENV = ("BFSITL_LOCKSTEP_RX_FRAMES", "1")
+"""Set in the SITL's environment, that variable asks for it (sitl_lockstep.c): log replay,
+the gym environment's ``rc_frame_per_step``."""
 
 FEATURE_MARKERS: dict[str, bytes] = {
     "gps": b"\x00gps_provider\x00",

@@ -19,9 +19,10 @@ environment's own: ``control_hz``, ``mode`` (``"angle"`` or ``"acro"``), ``obser
 (``"fc"``: what the FC reports; ``"truth"``: the simulation), ``disturbances`` (a hook called
 before every step with the flight's disturbance surface), ``start`` (``"air"`` or
 ``"ground"``), ``start_alt_m``, ``latency`` (:class:`~bfsitl.gym.latency.Latency`: the
-observation late by some control steps, drawn per episode), ``pin_core``, ``warm_resets``,
-``render_mode``
-(``"rgb_array"``: :mod:`~bfsitl.gym.render`).  Needs the ``gym`` extra:
+observation late by some control steps, drawn per episode), ``rc_frame_per_step`` (one
+receiver frame per step, so that the FC smooths the sticks as outside the lockstep),
+``pin_core``, ``warm_resets``, ``render_mode`` (``"rgb_array"``:
+:mod:`~bfsitl.gym.render`).  Needs the ``gym`` extra:
 ``pip install 'bfsitl[gym]'``.
 
 An episode is truncated after ``max_episode_steps`` steps, Gymnasium's own limit, registered

@@ -48,6 +48,7 @@ from gymnasium import spaces
 
 from bfsitl.backend.disturbances import Disturbances
 from bfsitl.backend.options import LOCKSTEP_EXCHANGES, Timing, World
+from bfsitl.build.binary_scan import RX_FRAMES_ENV
 from bfsitl.control import make_controller
 from bfsitl.errors import EnvironmentConfigError, LinkError, MspError, SitlError
 from bfsitl.fc.rc_link import RcCommand
@@ -73,6 +74,7 @@ from bfsitl.gym.tasks import (
 )
 from bfsitl.mission.loop import FlightLoop
 from bfsitl.mission.session import FcSetup, FlightSession, SessionConfig, SitlLaunch
+from bfsitl.sim.lockstep import LockstepBridge
 from bfsitl.sitl.core_claim import CoreClaim, claim_core
 from bfsitl.sitl.firmware import find_firmware
 
@@ -124,7 +126,8 @@ class FlightEnv(gymnasium.Env[np.ndarray, np.ndarray]):
     environment's own: the policy's rate, mode and observation, the episode's start and
     length, the disturbances, the observation's ``latency`` (:mod:`~bfsitl.gym.latency`:
     late by some control steps, drawn per episode, for a policy that is to fly outside the
-    lockstep), the core pinning and the warm resets, and ``render_mode``:
+    lockstep), ``rc_frame_per_step`` (one receiver frame per step: the FC's RC smoothing as
+    outside the lockstep), the core pinning and the warm resets, and ``render_mode``:
     ``"rgb_array"`` makes :meth:`render` draw the truth (:mod:`~bfsitl.gym.render`).
     """
 
@@ -150,6 +153,7 @@ class FlightEnv(gymnasium.Env[np.ndarray, np.ndarray]):
         start: EpisodeStart = "air",
         start_alt_m: float = 1.5,
         latency: Latency = NO_LATENCY,
+        rc_frame_per_step: bool = False,
         pin_core: bool | None = None,
         warm_resets: bool = True,
         render_mode: str | None = None,
@@ -232,6 +236,12 @@ class FlightEnv(gymnasium.Env[np.ndarray, np.ndarray]):
         #: How late the policy's observation is (bfsitl.gym.latency), drawn per episode.
         self.latency = latency
         self._delay = DelayLine(latency)
+        #: The FC's receiver takes one RC frame per control step, as from a companion computer
+        #: or a receiver at that rate, instead of one per fdm packet (1 kHz, which makes its
+        #: RC smoothing, set from the frame rate, nearly nothing): the policy then flies the
+        #: smoothing it meets outside the lockstep.  Needs a build that counts receiver frames
+        #: (`bfsitl firmware build --lockstep` of this bfsitl).
+        self.rc_frame_per_step = rc_frame_per_step
         self._core: CoreClaim | None = None
         #: A reset without a seed keeps the firmware running when it can (see the module
         #: docstring); False boots a fresh one every time.
@@ -280,6 +290,7 @@ class FlightEnv(gymnasium.Env[np.ndarray, np.ndarray]):
         self._started_s = self._next_s = vehicle.time_s
         self._steps = 0
         self._has_flown = self.start == "air"
+        self._frames_per_step(vehicle, True)
         self._snapshot = read_snapshot(vehicle, arm_ned_m=self._arm_ned)
         return self._delay.restart(self._observe(), self.np_random), self._info(None)
 
@@ -360,11 +371,14 @@ class FlightEnv(gymnasium.Env[np.ndarray, np.ndarray]):
         hover_rad_s = vehicle.simulator.params.hover_rotor_speed_rad_s
         hands.place(start, motor_speeds_rad_s=(hover_rad_s,) * 4)
         hands.hold_still(True)
+        # The held sticks go out as frames all along: no gap the FC would take for a lost link.
+        self._frames_per_step(vehicle, False)
         for throttle in (-1.0, hover_stick(self.world.quad)):
             vehicle.set_rc(sticks_to_rc([0.0, 0.0, throttle, 0.0], vehicle.rc_command))
             vehicle.clock.sleep_s(WARM_SETTLE_S / 2)
         hands.place(start, motor_speeds_rad_s=(hover_rad_s,) * 4)
         hands.hold_still(False)
+        self._frames_per_step(vehicle, True)
         self._started_s = self._next_s = vehicle.time_s
         self._steps = 0
         self._has_flown = True
@@ -403,9 +417,12 @@ class FlightEnv(gymnasium.Env[np.ndarray, np.ndarray]):
 
     # -- parts ---------------------------------------------------------------------------------
     def _new_session(self, seed: int) -> FlightSession:
+        sitl = dataclasses.replace(self.sitl, firmware=self.binary.path, workdir=self.workdir)
+        if self.rc_frame_per_step:
+            sitl = dataclasses.replace(sitl, env=(*sitl.env, RX_FRAMES_ENV))
         config = SessionConfig.for_autopilot(
             control_rate_hz=self.control_hz,
-            sitl=dataclasses.replace(self.sitl, firmware=self.binary.path, workdir=self.workdir),
+            sitl=sitl,
             timing=self.timing,
             fc=FcSetup(angle_mode=self.mode == "angle"),
             world=dataclasses.replace(self.world, seed=seed),
@@ -426,6 +443,13 @@ class FlightEnv(gymnasium.Env[np.ndarray, np.ndarray]):
         assert simulator is not None
         north, east, down = simulator.state.position_ned_m
         self._arm_ned = (north, east, down)
+
+    def _frames_per_step(self, vehicle: FlightSession, on: bool) -> None:
+        """One receiver frame per step from now on (``on``, with ``rc_frame_per_step``), or
+        one in every fdm packet (arming, the take-off, a warm reset's hold)."""
+        bridge = vehicle.bridge
+        if self.rc_frame_per_step and isinstance(bridge, LockstepBridge):
+            bridge.rc_frames_on_set = on
 
     def _close_vehicle(self) -> None:
         vehicle, self._vehicle = self._vehicle, None

@@ -20,7 +20,7 @@ from pathlib import Path
 
 from bfsitl.backend.options import Timing, World
 from bfsitl.blackbox import collect_blackbox
-from bfsitl.build.binary_scan import binary_traits
+from bfsitl.build.binary_scan import RX_FRAMES_ENV, binary_traits
 from bfsitl.errors import ReplayError
 from bfsitl.fc.firmware_detect import profile_of_binary
 from bfsitl.fc.provisioning import ANGLE_ON_AUX2, ARM_ON_AUX1, Profile
@@ -118,10 +118,6 @@ def replay_profile(cli_lines: tuple[str, ...]) -> Profile:
         cli_lines=cli_lines,
         reboot_when_changed=True,
     )
-
-
-#: Asks a 4.6.0 lockstep build for a receiver frame per RC trailer (sitl_lockstep.c).
-RX_FRAMES_ENV = ("BFSITL_LOCKSTEP_RX_FRAMES", "1")
 
 
 @dataclass(frozen=True, slots=True)

@@ -74,7 +74,6 @@ from bfsitl.gym.tasks import (
 )
 from bfsitl.mission.loop import FlightLoop
 from bfsitl.mission.session import FcSetup, FlightSession, SessionConfig, SitlLaunch
-from bfsitl.sim.lockstep import LockstepBridge
 from bfsitl.sitl.core_claim import CoreClaim, claim_core
 from bfsitl.sitl.firmware import find_firmware
 
@@ -448,8 +447,10 @@ class FlightEnv(gymnasium.Env[np.ndarray, np.ndarray]):
         """One receiver frame per step from now on (``on``, with ``rc_frame_per_step``), or
         one in every fdm packet (arming, the take-off, a warm reset's hold)."""
         bridge = vehicle.bridge
-        if self.rc_frame_per_step and isinstance(bridge, LockstepBridge):
-            bridge.rc_frames_on_set = on
+        if self.rc_frame_per_step and bridge is not None:
+            # The environment flies lockstep builds only (checked when it is made), as log
+            # replay does: the bridge is a LockstepBridge.
+            bridge.rc_frames_on_set = on  # type: ignore[union-attr]
 
     def _close_vehicle(self) -> None:
         vehicle, self._vehicle = self._vehicle, None

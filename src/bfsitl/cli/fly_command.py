@@ -14,6 +14,7 @@ import math
 import os
 import sys
 import time
+from collections.abc import Callable
 from pathlib import Path
 from typing import TextIO
 
@@ -122,23 +123,23 @@ def _report_policy(result, pilot) -> None:  # type: ignore[no-untyped-def]
 
 def policy_path(given: str) -> Path:
     """``--policy``: a file, or the name of a policy shipped with bfsitl (``hover-iris``)."""
-    path = Path(given)
-    if not path.exists():
-        from bfsitl.library import find_policy
+    from bfsitl.library import find_policy
 
-        shipped = find_policy(given)
-        if shipped is not None:
-            return shipped
-    return path
+    return _file_or_shipped(given, find_policy)
 
 
 def mission_path(given: str) -> Path:
     """``--mission``: a file, or the name of a mission shipped with bfsitl (``square``)."""
+    from bfsitl.library import find_mission
+
+    return _file_or_shipped(given, find_mission)
+
+
+def _file_or_shipped(given: str, find_shipped: Callable[[str], Path | None]) -> Path:
+    """``given`` when such a file exists, else the shipped one of that name, if any."""
     path = Path(given)
     if not path.exists():
-        from bfsitl.library import find_mission
-
-        shipped = find_mission(given)
+        shipped = find_shipped(given)
         if shipped is not None:
             return shipped
     return path

@@ -246,14 +246,7 @@ class FlightLoop(PositionManoeuvres):
             )
         finally:
             if stepped:
-                self.vehicle.set_rc(
-                    replace(
-                        self.vehicle.rc_command,
-                        roll_us=RC_MID_US,
-                        pitch_us=RC_MID_US,
-                        yaw_us=RC_MID_US,
-                    )
-                )
+                self._centre_sticks()
 
     def hand_over(
         self,
@@ -343,15 +336,7 @@ class FlightLoop(PositionManoeuvres):
                     break
                 next_s = next_step(clock, next_s, period_s)
         finally:
-            self.vehicle.set_rc(
-                replace(
-                    self.vehicle.rc_command,
-                    roll_us=RC_MID_US,
-                    pitch_us=RC_MID_US,
-                    yaw_us=RC_MID_US,
-                    aux_us=before.aux_us,
-                )
-            )
+            self._centre_sticks(aux_us=before.aux_us)
         last = self.last_sample
         if last is not None:
             # What comes next holds here, not where the vehicle was before the pilot.
@@ -522,6 +507,20 @@ class FlightLoop(PositionManoeuvres):
                     f"(FC altitude {sample.fc_alt_m:.2f} m, target {target_alt_m:.2f} m)"
                 )
             next_s = next_step(clock, next_s, period_s)
+
+    def _centre_sticks(self, *, aux_us: tuple[float, ...] | None = None) -> None:
+        """Roll, pitch and yaw centred (and the switches ``aux_us``, when given); the
+        throttle stays."""
+        command = self.vehicle.rc_command
+        self.vehicle.set_rc(
+            replace(
+                command,
+                roll_us=RC_MID_US,
+                pitch_us=RC_MID_US,
+                yaw_us=RC_MID_US,
+                aux_us=command.aux_us if aux_us is None else aux_us,
+            )
+        )
 
     def _stop_asked(self, sample: FlightSample) -> bool:
         """Whether the stop condition ends the flying here (the reason is kept)."""

@@ -236,9 +236,9 @@ class FlightEnv(gymnasium.Env[np.ndarray, np.ndarray]):
         self.latency = latency
         self._delay = DelayLine(latency)
         #: The FC's receiver takes one RC frame per control step, as from a companion computer
-        #: or a receiver at that rate, instead of one per fdm packet (1 kHz, which makes its
-        #: RC smoothing, set from the frame rate, nearly nothing): the policy then flies the
-        #: smoothing it meets outside the lockstep.  Needs a build that counts receiver frames
+        #: or a receiver at that rate, instead of one per fdm packet (in which 4.6.0 finds no
+        #: receiver rate and smooths nothing): the policy then flies the RC smoothing it
+        #: meets outside the lockstep.  Needs a build that counts receiver frames
         #: (`bfsitl firmware build --lockstep` of this bfsitl).
         self.rc_frame_per_step = rc_frame_per_step
         self._core: CoreClaim | None = None

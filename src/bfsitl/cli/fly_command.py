@@ -99,9 +99,10 @@ def _policy_pilot(session, policy, target, plan, say):  # type: ignore[no-untype
         )
     if not session.lockstep:
         say(
-            "this SITL runs in real time: a policy trained in lockstep meets latency here "
-            "that it never saw (the RC at 100 Hz, the FC's altitude later) and holds less "
-            "well; docs/gym.md has the figures"
+            "this SITL runs in real time: its UDP receiver counts a frame at every check, "
+            "which starves the FC's barometer and altitude tasks (the altitude lags twice as "
+            "long as in lockstep or on a board), and a policy holds less well; docs/gym.md "
+            "has the figures"
         )
     say(
         f"{policy.path.name}: trained at {policy.control_hz:g} Hz in {policy.mode.upper()}, "

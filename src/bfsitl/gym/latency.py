@@ -2,11 +2,11 @@
 
 In the lockstep environment the policy reads the FC the instant its step ends, and its sticks
 reach the FC within a millisecond (the RC rides in every fdm packet, and 4.6.0 then smooths
-nothing: see the environment's ``rc_frame_per_step``).  Outside it they do not: on a SITL in
-real time the RC comes at 100 Hz and is smoothed accordingly, and the FC's altitude lags the
-truth about twice as long as in lockstep (270-280 against 115-130 ms after the same take-off,
-docs/gym.md); a board adds its receiver's and its serial link's delays, and a real GPS and
-barometer their own.  A policy trained
+nothing: see the environment's ``rc_frame_per_step``).  Outside it they do not: a board's
+receiver sends its frames at its own rate, which the FC smooths accordingly, its serial link
+adds its delays, and the FC's altitude lags the truth longer (155-165 ms on the stock SITL
+reached as a board, against 115-130 ms in lockstep, docs/gym.md); a real GPS and barometer
+add their own.  A policy trained
 without any of it is brittle: one control step (20 ms) of delay took the shipped hover
 policy's error from 7 to 24 cm.
 

@@ -53,13 +53,9 @@ METRES_PER_DEGREE = 111_319.5
 Progress = Callable[[str], None]
 
 
-def accel_flu_m_s2(telemetry: Telemetry, imu: ImuScale) -> tuple[float, float, float]:
+def accel_flu_m_s2(raw: msg.RawImu, imu: ImuScale) -> tuple[float, float, float]:
     """MSP_RAW_IMU's accelerometer in m/s^2 (the FC's own scale; the SITL's z truncation
     added back, as for the vertical)."""
-    return _accel_flu_m_s2(telemetry.imu, imu)
-
-
-def _accel_flu_m_s2(raw: msg.RawImu, imu: ImuScale) -> tuple[float, float, float]:
     scale = STANDARD_GRAVITY_M_S2 / imu.acc_1g_lsb
     ax, ay, az = raw.acc_raw
     return (ax * scale, ay * scale, (az + imu.acc_truncation_lsb) * scale)
@@ -503,7 +499,7 @@ class Vehicle:
             fc_accel_up_m_s2=vertical_accel_m_s2(
                 attitude, raw_imu, imu.acc_1g_lsb, imu.acc_truncation_lsb
             ),
-            fc_accel_flu_m_s2=_accel_flu_m_s2(raw_imu, imu),
+            fc_accel_flu_m_s2=accel_flu_m_s2(raw_imu, imu),
             fc_gyro_flu_rad_s=_gyro_flu_rad_s(raw_imu),
             roll_deg=attitude.roll_deg,
             pitch_deg=attitude.pitch_deg,

@@ -211,12 +211,11 @@ def test_a_boards_accelerometer_scale_is_measured_at_rest() -> None:
 def test_a_vehicle_reads_its_accelerometer_in_its_backends_scale() -> None:
     from bfsitl.mission.vehicle import accel_flu_m_s2
 
-    class Telemetry:
-        class imu:  # noqa: N801 - shaped like Telemetry.imu
-            acc_raw = (0, 0, 2048)
+    class RawImu:  # shaped like MSP_RAW_IMU's reply
+        acc_raw = (0, 0, 2048)
 
-    board = accel_flu_m_s2(Telemetry(), BOARD_IMU)  # type: ignore[arg-type]
-    sitl = accel_flu_m_s2(Telemetry(), SITL_IMU)  # type: ignore[arg-type]
+    board = accel_flu_m_s2(RawImu(), BOARD_IMU)  # type: ignore[arg-type]
+    sitl = accel_flu_m_s2(RawImu(), SITL_IMU)  # type: ignore[arg-type]
     assert board[2] == pytest.approx(9.80665)
     assert sitl[2] == pytest.approx(9.80665 * 2048.5 / 256)
 

@@ -63,26 +63,25 @@ Policy = Callable[[np.ndarray], np.ndarray]
 
 
 def make_envs(args: argparse.Namespace) -> Any:
-    """``--envs`` Hover-v0 environments for SB3: bfsitl's vector environment (a worker
-    pinned to a core with its SITL each, the numbers in shared memory), seen scaled."""
+    """``--envs`` environments of ``args.env_id`` for SB3: bfsitl's vector environment (a
+    worker pinned to a core with its SITL each, the numbers in shared memory), seen scaled
+    with ``args.limits`` (None: --raw, the environment's own observation and the sticks'
+    whole travel, the measured comparison in docs/gym.md); ``args.env_options`` are the
+    environment's own (examples/train_recover.py trains through this too)."""
     import gymnasium
 
     from bfsitl.gym.sb3_vector import Sb3VectorEnv
-    from bfsitl.gym.scaled import DEFAULT_LIMITS
 
-    # --raw: the environment's own observation and the sticks' whole travel (the measured
-    # comparison in docs/gym.md).
     return Sb3VectorEnv(
         gymnasium.make_vec(
-            "bfsitl/Hover-v0",
+            args.env_id,
             num_envs=args.envs,
             sitl=SitlLaunch(firmware=args.firmware, workdir=args.out / "sitl" / "train"),
             control_hz=args.control_hz,
-            max_episode_steps=round(TRAINING_EPISODE_S * args.control_hz),
-            latency=latency(args),
-            rc_frame_per_step=args.rc_frame_per_step,
+            max_episode_steps=round(args.episode_s * args.control_hz),
+            **args.env_options,
         ),
-        limits=None if args.raw else DEFAULT_LIMITS,
+        limits=args.limits,
     )
 
 
@@ -255,6 +254,7 @@ def write_curve(
     verdicts: list[dict[str, Any]],
     out: Path,
     title: str,
+    verdict_label: str = f"flights held within {HOLD_WITHIN_M} m",
 ) -> None:
     with (out / "learning_curve.csv").open("w", newline="") as file:
         writer = csv.writer(file)
@@ -284,9 +284,9 @@ def write_curve(
             "o-",
             drawstyle="steps-post",
             color="tab:green",
-            label="checkpoint: flights held within 0.3 m",
+            label=f"checkpoint: {verdict_label}",
         )
-        held.set_ylabel("flights held within 0.3 m", color="tab:green")
+        held.set_ylabel(verdict_label, color="tab:green")
         held.set_ylim(-0.2, max(v["flights"] for v in verdicts) + 0.2)
         held.legend(loc="lower right")
     axis.legend(loc="upper left")
@@ -473,6 +473,11 @@ def main() -> int:
     args = parser.parse_args()
     if args.learning_rate is None:
         args.learning_rate = 5e-4 if args.method == "ppo" else 1e-3
+    from bfsitl.gym.scaled import DEFAULT_LIMITS
+
+    args.env_id, args.episode_s = "bfsitl/Hover-v0", TRAINING_EPISODE_S
+    args.limits = None if args.raw else DEFAULT_LIMITS
+    args.env_options = {"latency": latency(args), "rc_frame_per_step": args.rc_frame_per_step}
     if args.smoke:
         args.steps, args.n_steps, args.eval_s, args.eval_seeds = 256, 64, 2.0, 1
         args.minutes, args.checkpoint_s = 0.0, 1e9

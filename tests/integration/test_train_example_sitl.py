@@ -75,3 +75,50 @@ def test_the_training_example_runs_and_writes_its_outputs(
     assert summary["evaluation"]["hand-written"]["ended_because"] is None
     header = (out / "evaluation.csv").read_text().splitlines()[0].split(",")
     assert header[:3] == ["time_s", "phase", "target_alt_m"] and "target_north_m" in header
+
+
+RECOVER_EXAMPLE = EXAMPLE.with_name("train_recover.py")
+
+
+@pytest.mark.skipif(
+    importlib.util.find_spec("stable_baselines3") is None,
+    reason="Stable-Baselines3 not installed: pip install torch "
+    "'bfsitl[learn]' to run the training example's smoke test",
+)
+def test_the_recovery_example_trains_exports_and_throws(
+    lockstep_gps_46_firmware: Path, tmp_path: Path
+) -> None:
+    run = subprocess.run(
+        [
+            sys.executable,
+            str(RECOVER_EXAMPLE),
+            "--smoke",
+            "--mode",
+            "angle",
+            "--firmware",
+            str(lockstep_gps_46_firmware),
+            "--out",
+            str(tmp_path / "run"),
+        ],
+        capture_output=True,
+        text=True,
+        timeout=300,
+        cwd=tmp_path,
+    )
+    assert run.returncode == 0, run.stdout[-2000:] + run.stderr[-4000:]
+    out = tmp_path / "run"
+    for name in ("policy.zip", "policy.onnx", "learning_curve.csv", "throws.csv"):
+        assert (out / name).is_file(), name
+    summary = json.loads((out / "evaluation.json").read_text())
+    assert summary["training"]["mode"] == "angle" and summary["training"]["envs"] == 2
+    assert 256 <= summary["training"]["steps"] <= 512
+    evaluation = summary["evaluation"]
+    assert set(evaluation) == {"learned", "sticks centred, hover throttle", "hand-written hover"}
+    assert all(verdict["throws"] == 2 for verdict in evaluation.values())
+    # In ANGLE mode the FC rights the quad itself: the hover throttle recovers both throws.
+    assert evaluation["sticks centred, hover throttle"]["recovered"] == 2
+    rows = (out / "throws.csv").read_text().splitlines()
+    assert len(rows) == 1 + 3 * 2 and rows[0].startswith("policy,throw,tilt_deg")
+    from bfsitl.gym.onnx_policy import OnnxPolicy
+
+    assert OnnxPolicy(out / "policy.onnx").mode == "angle"

@@ -150,6 +150,26 @@ class Disturbances:
             position_ned_m, yaw_deg=yaw_deg, motor_speeds_rad_s=motor_speeds_rad_s
         )
 
+    def let_go(
+        self,
+        position_ned_m: tuple[float, float, float],
+        *,
+        quaternion_wxyz: tuple[float, float, float, float],
+        velocity_ned_m_s: tuple[float, float, float],
+        angular_velocity_frd_rad_s: tuple[float, float, float],
+    ) -> None:
+        """A throw: the vehicle at ``position_ned_m`` (world NED) in the attitude
+        ``quaternion_wxyz`` (body FRD to NED), moving and spinning as given, its rotors
+        stopped, and nothing holding it any more (:meth:`hold_still` released)."""
+        simulator = self._sim("the vehicle's pose")
+        simulator.reset(
+            position_ned_m,
+            quaternion_wxyz=quaternion_wxyz,
+            velocity_ned_m_s=velocity_ned_m_s,
+            angular_velocity_frd_rad_s=angular_velocity_frd_rad_s,
+        )
+        simulator.hold(False)
+
     def hold_still(self, held: bool) -> None:
         """Hold the vehicle where it is (a test stand: it reads level and at rest while the
         motors spin), or let it go."""

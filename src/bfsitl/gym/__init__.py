@@ -10,7 +10,9 @@
     observation, reward, terminated, truncated, info = env.step(env.action_space.sample())
 
 ``bfsitl/Hover-v0`` reaches and holds a point, ``bfsitl/Waypoints-v0`` flies through points
-in turn (the next one in the observation).  Options of both, the session's groups
+in turn (the next one in the observation), ``bfsitl/Recover-v0`` is thrown, tumbling with its
+rotors stopped, and must recover and hold (``throw``: :class:`~bfsitl.gym.throws.Throw`).
+Options of all, the session's groups
 (:class:`~bfsitl.mission.session.SessionConfig`) where they mean the same: ``sitl``
 (:class:`~bfsitl.mission.session.SitlLaunch`: a ``--lockstep`` build and the run directory),
 ``timing`` (:class:`~bfsitl.backend.options.Timing`: the lockstep exchange and spinning) and
@@ -54,16 +56,20 @@ except ImportError as exc:  # pragma: no cover - depends on the installation
 
 from bfsitl.gym.env import (
     HOVER_MAX_EPISODE_STEPS,
+    RECOVER_MAX_EPISODE_STEPS,
     WAYPOINTS_MAX_EPISODE_STEPS,
     FlightEnv,
     HoverEnv,
+    RecoverEnv,
     WaypointsEnv,
 )
 from bfsitl.gym.latency import Latency
+from bfsitl.gym.throws import Throw
 
 ENVIRONMENTS = {
     "bfsitl/Hover-v0": "bfsitl.gym.env:HoverEnv",
     "bfsitl/Waypoints-v0": "bfsitl.gym.env:WaypointsEnv",
+    "bfsitl/Recover-v0": "bfsitl.gym.env:RecoverEnv",
 }
 #: What ``gymnasium.make_vec(id, num_envs=N)`` makes (Gymnasium takes a registered vector
 #: entry point first): N environments in pinned workers, sharing memory (bfsitl.gym.vector);
@@ -71,12 +77,14 @@ ENVIRONMENTS = {
 VECTOR_ENVIRONMENTS = {
     "bfsitl/Hover-v0": "bfsitl.gym.vector:HoverVectorEnv",
     "bfsitl/Waypoints-v0": "bfsitl.gym.vector:WaypointsVectorEnv",
+    "bfsitl/Recover-v0": "bfsitl.gym.vector:RecoverVectorEnv",
 }
 #: Gymnasium's TimeLimit ends each episode after this many steps (``make_vec`` passes it to
 #: the vector environments, whose workers count it).
 MAX_EPISODE_STEPS = {
     "bfsitl/Hover-v0": HOVER_MAX_EPISODE_STEPS,
     "bfsitl/Waypoints-v0": WAYPOINTS_MAX_EPISODE_STEPS,
+    "bfsitl/Recover-v0": RECOVER_MAX_EPISODE_STEPS,
 }
 
 for _id, _entry_point in ENVIRONMENTS.items():
@@ -95,5 +103,7 @@ __all__ = [
     "FlightEnv",
     "HoverEnv",
     "Latency",
+    "RecoverEnv",
+    "Throw",
     "WaypointsEnv",
 ]

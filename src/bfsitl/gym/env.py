@@ -67,11 +67,12 @@ from bfsitl.gym.tasks import (
     AIRBORNE_M,
     FAILURE_REWARD,
     Hover,
+    Recover,
     Waypoints,
     distance_m,
-    failure,
     step_reward,
 )
+from bfsitl.gym.throws import Throw
 from bfsitl.mission.loop import FlightLoop
 from bfsitl.mission.session import FcSetup, FlightSession, SessionConfig, SitlLaunch
 from bfsitl.sitl.core_claim import CoreClaim, claim_core
@@ -91,6 +92,8 @@ DEFAULT_CONTROL_HZ = 100.0
 #: ids): 10 s of Hover and 20 s of Waypoints at the default control rate.
 HOVER_MAX_EPISODE_STEPS = round(10.0 * DEFAULT_CONTROL_HZ)
 WAYPOINTS_MAX_EPISODE_STEPS = round(20.0 * DEFAULT_CONTROL_HZ)
+#: A throw's episode: 4 s, to recover and then hold.
+RECOVER_MAX_EPISODE_STEPS = round(4.0 * DEFAULT_CONTROL_HZ)
 DEFAULT_FIRMWARE = "4.6.0-gps-lockstep"
 #: Armed on the ground before an "air" start's take-off (the FC's altitude settles).
 _GROUND_S = 1.0
@@ -283,6 +286,8 @@ class FlightEnv(gymnasium.Env[np.ndarray, np.ndarray]):
             self._mark_arming(vehicle)
             loop.wait_on_ground(_GROUND_S)
             loop.takeoff(self.start_alt_m, hold_position=vehicle.has_gps)
+            if isinstance(self.task, Recover):
+                return self._hand_start(vehicle)  # the throw
         else:
             vehicle.arm()
             self._mark_arming(vehicle)
@@ -330,7 +335,7 @@ class FlightEnv(gymnasium.Env[np.ndarray, np.ndarray]):
             self._has_flown = True
         reward = step_reward(truth, self.task.target, action)
         bonus, finished = self.task.advance(truth)
-        why = failure(truth, self.task.target, armed=snapshot.fc.armed, has_flown=self._has_flown)
+        why = self.task.failure(truth, armed=snapshot.fc.armed, has_flown=self._has_flown)
         reward += bonus + (FAILURE_REWARD if why is not None else 0.0)
         terminated = finished or why is not None
         self._steps += 1
@@ -358,12 +363,16 @@ class FlightEnv(gymnasium.Env[np.ndarray, np.ndarray]):
         )
 
     def _warm_reset(self) -> tuple[np.ndarray, dict[str, Any]]:
-        """A hand puts the vehicle back at the start, level, rotors at hover speed, and holds
-        it there while the FC settles: sticks centred, throttle low first (the FC resets its
-        I-terms at low throttle), then about the hover point; then lets go."""
-        vehicle = self._vehicle
-        assert vehicle is not None and vehicle.simulator is not None
+        assert self._vehicle is not None
         self.task.reset(self.np_random)
+        return self._hand_start(self._vehicle)
+
+    def _hand_start(self, vehicle: FlightSession) -> tuple[np.ndarray, dict[str, Any]]:
+        """A hand puts the vehicle at the start, level, rotors at hover speed, and holds it
+        there while the FC settles: sticks centred, throttle low first (the FC resets its
+        I-terms at low throttle), then about the hover point; then lets go, level and at
+        rest, or (:class:`~bfsitl.gym.tasks.Recover`) throws it as the task drew."""
+        assert vehicle.simulator is not None
         hands = vehicle.disturbances
         north, east, down = self._arm_ned
         start = (north, east, down - self.start_alt_m)
@@ -375,8 +384,17 @@ class FlightEnv(gymnasium.Env[np.ndarray, np.ndarray]):
         for throttle in (-1.0, hover_stick(self.world.quad)):
             vehicle.set_rc(sticks_to_rc([0.0, 0.0, throttle, 0.0], vehicle.rc_command))
             vehicle.clock.sleep_s(WARM_SETTLE_S / 2)
-        hands.place(start, motor_speeds_rad_s=(hover_rad_s,) * 4)
-        hands.hold_still(False)
+        thrown = self.task.thrown if isinstance(self.task, Recover) else None
+        if thrown is None:
+            hands.place(start, motor_speeds_rad_s=(hover_rad_s,) * 4)
+            hands.hold_still(False)
+        else:
+            hands.let_go(
+                start,
+                quaternion_wxyz=thrown.quaternion_wxyz,
+                velocity_ned_m_s=thrown.velocity_ned_m_s,
+                angular_velocity_frd_rad_s=thrown.angular_velocity_frd_rad_s,
+            )
         self._frames_per_step(vehicle, True)
         self._started_s = self._next_s = vehicle.time_s
         self._steps = 0
@@ -476,6 +494,7 @@ class FlightEnv(gymnasium.Env[np.ndarray, np.ndarray]):
             "flight_modes": snapshot.fc.flight_modes,
             "failsafe": "FAILSAFE" in snapshot.fc.flight_modes,
             "ended_because": ended_because,
+            **self.task.info(),
         }
 
 
@@ -500,6 +519,35 @@ class WaypointsEnv(FlightEnv):
         if not 1 <= count <= 50:
             raise EnvironmentConfigError(f"count {count} is outside 1..50 waypoints")
         super().__init__(Waypoints(count=count), max_episode_steps=max_episode_steps, **options)
+
+
+class RecoverEnv(FlightEnv):
+    """``bfsitl/Recover-v0``: thrown (:mod:`~bfsitl.gym.throws`), recover and hold the point
+    of the throw (see :class:`~bfsitl.gym.tasks.Recover`); 4 s by default.  ``throw`` is the
+    range each episode's throw is drawn from; ``mode`` ``"angle"`` (the FC levels the quad
+    itself when the roll and pitch sticks are centred) or ``"acro"`` (every stick a rate: the
+    policy rights the quad).  ``start_alt_m`` is the throw's height."""
+
+    def __init__(
+        self,
+        *,
+        throw: Throw | None = None,
+        max_episode_steps: int | None = RECOVER_MAX_EPISODE_STEPS,
+        **options: Any,
+    ) -> None:
+        throw = Throw() if throw is None else throw
+        check_group("throw", throw, Throw)
+        if "start_alt_m" in options or options.get("start", "air") != "air":
+            raise EnvironmentConfigError(
+                "Recover-v0 starts in the air at the throw's height: give "
+                "throw=Throw(height_m=...), not start or start_alt_m"
+            )
+        super().__init__(
+            Recover(throw=throw),
+            max_episode_steps=max_episode_steps,
+            start_alt_m=throw.height_m,
+            **options,
+        )
 
 
 def check_group(name: str, value: object, group: type) -> None:

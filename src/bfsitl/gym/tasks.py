@@ -13,6 +13,14 @@ detection), or when it leaves the bounds (``MAX_DISTANCE_M`` from the target, or
 ``MAX_ALT_M``); each of those costs ``FAILURE_REWARD`` once.  It is **truncated** at the
 time limit.  :class:`Waypoints` also ends (terminated, a success) when its last point is
 reached, and pays ``WAYPOINT_BONUS`` for each point.
+
+:class:`Recover` starts from a throw (:mod:`~bfsitl.gym.throws`), upside down perhaps, so
+tilt ends nothing there: the ground, a disarm and the bounds do.  Its target is the point the
+hand let go at; the episode goes on after the recovery (the hover must hold).  It counts a
+**recovery** at the first step the quad is upright within ``RECOVERED_TILT_DEG``, slower than
+``RECOVERED_SPEED_M_S`` and turning slower than ``RECOVERED_RATE_RAD_S`` (all at once: a
+swing through level is not a hover), and the **height lost**: the throw's height minus the
+lowest the quad fell to.
 """
 
 from __future__ import annotations
@@ -23,6 +31,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from bfsitl.gym.snapshot import TrueView, Vec3
+from bfsitl.gym.throws import Throw, ThrownState
 from bfsitl.mission.crash_check import CRASH_TILT_DEG
 
 MAX_DISTANCE_M = 10.0
@@ -33,6 +42,10 @@ WAYPOINT_BONUS = 5.0
 REACHED_M = 0.5
 #: Off the ground after take-off means above this height.
 AIRBORNE_M = 0.3
+#: A recovery: upright, slow and calm, all at the same step (module docstring).
+RECOVERED_TILT_DEG = 20.0
+RECOVERED_SPEED_M_S = 1.0
+RECOVERED_RATE_RAD_S = 1.0
 
 
 def distance_m(truth: TrueView, target: Vec3) -> float:
@@ -50,9 +63,12 @@ def step_reward(truth: TrueView, target: Vec3, action: np.ndarray) -> float:
     )
 
 
-def failure(truth: TrueView, target: Vec3, *, armed: bool, has_flown: bool) -> str | None:
-    """Why the episode must end now (None: it goes on)."""
-    if truth.tilt_deg > CRASH_TILT_DEG:
+def failure(
+    truth: TrueView, target: Vec3, *, armed: bool, has_flown: bool, tilt_ends: bool = True
+) -> str | None:
+    """Why the episode must end now (None: it goes on); ``tilt_ends=False`` for a task that
+    starts tilted (:class:`Recover`)."""
+    if tilt_ends and truth.tilt_deg > CRASH_TILT_DEG:
         return f"crashed: tilted {truth.tilt_deg:.0f} deg"
     if has_flown and truth.on_ground:
         return "crashed: back on the ground"
@@ -94,6 +110,14 @@ class Hover:
         """(bonus, finished) after this step: a hover never finishes early."""
         return 0.0, False
 
+    def failure(self, truth: TrueView, *, armed: bool, has_flown: bool) -> str | None:
+        """Why this task's episode must end now (None: it goes on)."""
+        return failure(truth, self.target, armed=armed, has_flown=has_flown)
+
+    def info(self) -> dict[str, object]:
+        """What this task adds to the step's ``info`` (nothing for a hover)."""
+        return {}
+
 
 @dataclass
 class Waypoints(Hover):
@@ -115,3 +139,57 @@ class Waypoints(Hover):
             return WAYPOINT_BONUS, True
         self.index += 1
         return WAYPOINT_BONUS, False
+
+
+@dataclass
+class Recover(Hover):
+    """Start from a throw drawn from ``throw`` and hold the point it was thrown from (module
+    docstring); :attr:`thrown` is this episode's throw, for the environment's hand."""
+
+    throw: Throw = field(default_factory=Throw)
+    thrown: ThrownState | None = None
+    #: Steps since the throw, and the first one that counted as a recovery (None: not yet).
+    steps: int = 0
+    recovered_step: int | None = None
+    lowest_alt_m: float = math.inf
+
+    name = "recover"
+
+    def reset(self, rng: np.random.Generator) -> None:
+        self.targets = [(0.0, 0.0, self.throw.height_m)]
+        self.index = 0
+        self.thrown = self.throw.draw(rng)
+        self.steps = 0
+        self.recovered_step = None
+        self.lowest_alt_m = self.throw.height_m
+
+    def advance(self, truth: TrueView) -> tuple[float, bool]:
+        self.steps += 1
+        self.lowest_alt_m = min(self.lowest_alt_m, truth.alt_m)
+        if self.recovered_step is None and recovered(truth):
+            self.recovered_step = self.steps
+        return 0.0, False
+
+    def failure(self, truth: TrueView, *, armed: bool, has_flown: bool) -> str | None:
+        return failure(truth, self.target, armed=armed, has_flown=has_flown, tilt_ends=False)
+
+    @property
+    def height_lost_m(self) -> float:
+        return max(0.0, self.throw.height_m - self.lowest_alt_m)
+
+    def info(self) -> dict[str, object]:
+        return {
+            "throw": self.thrown.as_dict() if self.thrown is not None else None,
+            "recovered_step": self.recovered_step,
+            "height_lost_m": self.height_lost_m,
+        }
+
+
+def recovered(truth: TrueView) -> bool:
+    """Upright, slow and calm at once (:class:`Recover`)."""
+    speed = math.hypot(truth.v_north_m_s, truth.v_east_m_s, truth.v_up_m_s)
+    return (
+        truth.tilt_deg < RECOVERED_TILT_DEG
+        and speed < RECOVERED_SPEED_M_S
+        and math.hypot(*truth.rates_flu_rad_s) < RECOVERED_RATE_RAD_S
+    )

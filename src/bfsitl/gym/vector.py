@@ -451,3 +451,10 @@ class WaypointsVectorEnv(FlightVectorEnv):
 
     def __init__(self, num_envs: int = 2, **options: Any) -> None:
         super().__init__("bfsitl.gym.env:WaypointsEnv", num_envs, **options)
+
+
+class RecoverVectorEnv(FlightVectorEnv):
+    """``gymnasium.make_vec("bfsitl/Recover-v0", num_envs=N)``."""
+
+    def __init__(self, num_envs: int = 2, **options: Any) -> None:
+        super().__init__("bfsitl.gym.env:RecoverEnv", num_envs, **options)

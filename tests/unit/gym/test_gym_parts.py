@@ -11,8 +11,9 @@ import pytest
 
 pytest.importorskip("gymnasium")
 
+from support.fake_builds import fake_lockstep_build  # noqa: E402
+
 from bfsitl.backend.options import Timing, World  # noqa: E402
-from bfsitl.build.binary_scan import LOCKSTEP_MARKER  # noqa: E402
 from bfsitl.errors import EnvironmentConfigError  # noqa: E402
 from bfsitl.fc.rc_link import RcCommand  # noqa: E402
 from bfsitl.gym.env import FlightEnv, HoverEnv, WaypointsEnv  # noqa: E402
@@ -261,14 +262,6 @@ def test_an_option_the_environment_cannot_take_is_refused_with_what_it_takes(
         WaypointsEnv(count=0)
 
 
-def fake_lockstep_build(directory: Path) -> Path:
-    """A file that reads as a lockstep build (its marker inside); nothing runs it."""
-    binary = directory / "betaflight_SITL.elf"
-    binary.write_bytes(b"\x00" * 64 + LOCKSTEP_MARKER + b"\x00" * 64)
-    binary.chmod(0o755)
-    return binary
-
-
 def test_pinning_and_spin_default_by_where_the_environment_runs(tmp_path: Path) -> None:
     sitl = SitlLaunch(firmware=fake_lockstep_build(tmp_path))
     here = HoverEnv(sitl=sitl)  # a main process: spin on two cores, no pinning
@@ -285,10 +278,11 @@ def test_the_episode_limit_is_gymnasiums_max_episode_steps_counted_once(tmp_path
     import bfsitl.gym
     from bfsitl.gym.env import DEFAULT_CONTROL_HZ
 
-    # Registered with the ids: the default episodes (10 s, 20 s) at the default control rate.
+    # Registered with the ids: the default episodes (10 s, 20 s, 4 s) at the default rate.
     assert bfsitl.gym.MAX_EPISODE_STEPS == {
         "bfsitl/Hover-v0": 10 * DEFAULT_CONTROL_HZ,
         "bfsitl/Waypoints-v0": 20 * DEFAULT_CONTROL_HZ,
+        "bfsitl/Recover-v0": 4 * DEFAULT_CONTROL_HZ,
     }
     for env_id, steps in bfsitl.gym.MAX_EPISODE_STEPS.items():
         assert gymnasium.spec(env_id).max_episode_steps == steps

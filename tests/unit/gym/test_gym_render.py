@@ -18,8 +18,9 @@ import pytest
 pytest.importorskip("gymnasium")
 
 import gymnasium  # noqa: E402
+from support.fake_builds import fake_lockstep_build  # noqa: E402
 from support.fake_flight_env import FakeFlightEnv  # noqa: E402
-from test_gym_parts import fake_lockstep_build, snapshot  # noqa: E402
+from test_gym_parts import snapshot  # noqa: E402
 
 from bfsitl.errors import EnvironmentConfigError  # noqa: E402
 from bfsitl.gym.env import FlightEnv, HoverEnv  # noqa: E402

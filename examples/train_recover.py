@@ -15,13 +15,18 @@ checkpoints); every checkpoint is then thrown ``--checkpoint-throws`` times, and
 policy, exported to ONNX and run with onnxruntime, ``--throws`` times from seeds training
 never drew, beside two yardsticks on the same throws: the sticks centred at the hover
 throttle (in ANGLE mode the FC's own levelling) and the hand-written hover policy
-(:mod:`bfsitl.gym.baseline`).
+(:mod:`bfsitl.gym.baseline`); all three in still air, then in what training never had: a
+3 m/s wind with 1.5 m/s gusts, and motor 1 at 75 % of its thrust.  ``--vehicle`` trains
+another quad (``5inch-freestyle``), ``--train-wind-m-s`` trains in a wind drawn per episode
+(:class:`bfsitl.gym.random_wind.RandomWind`); ``--evaluate-only`` throws the policy a run
+left in ``--out`` again.
 
 What it writes in ``--out``: ``learning_curve.csv``/``.png`` (each training episode's return
 against wall time, each checkpoint's recoveries), ``checkpoints/``, ``policy.zip``,
-``policy.onnx``, ``throws.csv`` (one row per evaluation throw and policy: the throw, recovered
-or not, after how long, the height lost, why it ended) and ``evaluation.json`` (the
-recoveries out of ``--throws`` and the height lost per policy, the training's figures).
+``policy.onnx``, ``throws.csv`` (one row per evaluation throw, condition and policy: the
+throw, recovered or not, after how long, the height lost, why it ended) and
+``evaluation.json`` (the recoveries out of ``--throws`` and the height lost per condition and
+policy, the training's figures).
 
 A throw counts as **recovered** when the quad was upright, slow and calm at some step
 (:func:`bfsitl.gym.tasks.recovered`) and the episode then ran to its end without a crash.
@@ -47,12 +52,15 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 import train_hover as shared  # noqa: E402  (the training machinery both examples use)
 
 import bfsitl.gym  # noqa: E402, F401  (registers the environments)
+from bfsitl.backend.disturbances import Disturbances  # noqa: E402
 from bfsitl.backend.options import World  # noqa: E402
 from bfsitl.gym.baseline import hand_policy, hover_stick  # noqa: E402
 from bfsitl.gym.env import DEFAULT_FIRMWARE, MODES, RecoverEnv  # noqa: E402
+from bfsitl.gym.random_wind import RandomWind  # noqa: E402
 from bfsitl.gym.scaled import ScaledEnv, StickLimits  # noqa: E402
 from bfsitl.gym.throws import Throw  # noqa: E402
 from bfsitl.mission.session import SitlLaunch  # noqa: E402
+from bfsitl.physics.wind import Wind  # noqa: E402
 from bfsitl.vehicles import load_vehicle  # noqa: E402
 
 #: A recovery needs the throttle from idle (thrust pushes an inverted quad down) to full, and
@@ -65,12 +73,34 @@ RECOVERY_LIMITS = {
 }
 #: The evaluation's seeds start here: training draws its own, never these.
 EVAL_SEED = 20_000
+#: What every policy is also thrown in, never met in training: wind from the north with
+#: gusts, and motor 1 giving three quarters of its thrust.
+WIND = Wind.from_direction(3.0, 0.0, 1.5)
+WEAK_MOTOR, WEAK_FRACTION = 1, 0.75
+CONDITIONS = ("still air", "wind 3 m/s, gusts 1.5 m/s", "motor 1 at 75 %")
 TRAINING_EPISODE_S = 4.0
 
 
-def world(args: argparse.Namespace) -> World:
-    """Still air and ``--vehicle``'s physics."""
-    return World(quad=load_vehicle(args.vehicle))
+def world(args: argparse.Namespace, wind: Wind | None = None) -> World:
+    """``--vehicle``'s physics, in still air or ``wind``."""
+    return World(quad=load_vehicle(args.vehicle), wind=wind)
+
+
+def weak_motor(surface: Disturbances, _time_s: float) -> None:
+    surface.set_motor_thrust(WEAK_MOTOR, WEAK_FRACTION)
+
+
+def evaluation_env(args: argparse.Namespace, condition: str, number: int) -> RecoverEnv:
+    """An environment for the evaluation's throws in ``condition`` (one of CONDITIONS)."""
+    return RecoverEnv(
+        sitl=SitlLaunch(firmware=args.firmware, workdir=args.out / "sitl" / f"eval{number}"),
+        control_hz=args.control_hz,
+        max_episode_steps=round(TRAINING_EPISODE_S * args.control_hz),
+        mode=args.mode,
+        throw=throw_range(args),
+        world=world(args, WIND if condition == CONDITIONS[1] else None),
+        disturbances=weak_motor if condition == CONDITIONS[2] else None,
+    )
 
 
 def throw_range(args: argparse.Namespace) -> Throw:
@@ -97,7 +127,7 @@ def throw_many(
             total += reward
             if terminated or truncated:
                 break
-        step = info["recovered_step"]
+        step = info["recovered_step"] if info["recovered"] else None
         results.append(
             {
                 "throw": number,
@@ -199,8 +229,28 @@ def parse_args() -> argparse.Namespace:
     parser.add_argument("--max-tilt-deg", type=float, default=Throw.max_tilt_deg)
     parser.add_argument("--max-speed-m-s", type=float, default=Throw.max_speed_m_s)
     parser.add_argument("--max-rate-deg-s", type=float, default=Throw.max_rate_deg_s)
+    parser.add_argument(
+        "--train-wind-m-s",
+        type=float,
+        default=0.0,
+        help="train in a wind drawn per episode up to this speed (and gusts up to half of "
+        "it), from any direction (default 0: still air)",
+    )
     parser.add_argument("--out", type=Path, default=Path("recover-run"))
     parser.add_argument("--smoke", action="store_true", help="a few hundred steps, two throws")
+    parser.add_argument(
+        "--resume",
+        type=Path,
+        default=None,
+        metavar="DIR",
+        help="go on training the policy.zip an earlier run left in DIR (e.g. in wind, "
+        "from a policy that learned in still air)",
+    )
+    parser.add_argument(
+        "--evaluate-only",
+        action="store_true",
+        help="do not train: throw the policy.zip an earlier run left in --out",
+    )
     args = parser.parse_args()
     if args.learning_rate is None:
         args.learning_rate = 5e-4 if args.method == "ppo" else 1e-3
@@ -208,7 +258,10 @@ def parse_args() -> argparse.Namespace:
     args.env_id, args.episode_s = "bfsitl/Recover-v0", TRAINING_EPISODE_S
     args.limits = RECOVERY_LIMITS[args.mode]
     args.env_options = {"mode": args.mode, "throw": throw_range(args), "world": world(args)}
-    args.resume = None
+    if args.train_wind_m_s > 0.0:
+        args.env_options["random_wind"] = RandomWind(
+            max_speed_m_s=args.train_wind_m_s, max_gust_m_s=args.train_wind_m_s / 2.0
+        )
     if args.smoke:
         args.steps, args.n_steps, args.throws, args.checkpoint_throws = 256, 64, 2, 1
         args.minutes, args.checkpoint_s = 0.0, 1e9
@@ -219,18 +272,22 @@ def main() -> int:
     args = parse_args()
     args.out.mkdir(parents=True, exist_ok=True)
     started = time.monotonic()
-    model, episodes = shared.train(args)
-    train_s = time.monotonic() - started
+    if args.evaluate_only:
+        model = shared.model_class(args.method).load(args.out / "policy.zip", device="cpu")
+        episodes = shared.read_curve(args.out)
+        train_s = episodes[-1][2] if episodes else 0.0
+    else:
+        model, episodes = shared.train(args)
+        train_s = time.monotonic() - started
+    # The curve first, so that nothing of the training is lost if a throw fails; again with
+    # the checkpoints' verdicts at the end.
+    title = (
+        f"bfsitl/Recover-v0 ({args.mode}, {args.vehicle}) through Betaflight 4.6.0 "
+        f"({args.method.upper()})"
+    )
+    shared.write_curve(episodes, [], args.out, title)
     exported = export(model, args)
     seed = EVAL_SEED + args.seed * 1000
-    env = RecoverEnv(
-        sitl=SitlLaunch(firmware=args.firmware, workdir=args.out / "sitl" / "eval"),
-        control_hz=args.control_hz,
-        max_episode_steps=round(TRAINING_EPISODE_S * args.control_hz),
-        mode=args.mode,
-        throw=throw_range(args),
-        world=world(args),
-    )
     hover = hover_stick(world(args).quad)
     yardsticks: dict[str, shared.Policy] = {
         # The exported file, as it would fly anywhere: the raw observation in, the sticks out.
@@ -240,23 +297,31 @@ def main() -> int:
         ),
         "hand-written hover": functools.partial(hand_policy, hover_throttle=hover),
     }
-    try:
-        verdicts = judge_checkpoints(args, env, seed)
-        results = {
-            name: throw_many(policy, env, seed, args.throws, scaled=False)
-            for name, policy in yardsticks.items()
-        }
-    finally:
-        env.close()
+    results: dict[str, dict[str, list[dict[str, Any]]]] = {}
+    verdicts: list[dict[str, Any]] = []
+    for number, condition in enumerate(CONDITIONS):
+        env = evaluation_env(args, condition, number)
+        try:
+            if number == 0:
+                verdicts = judge_checkpoints(args, env, seed)
+            results[condition] = {
+                name: throw_many(policy, env, seed, args.throws, scaled=False)
+                for name, policy in yardsticks.items()
+            }
+        finally:
+            env.close()
+        for name, flown in results[condition].items():
+            print(f"[throws] {condition}, {name}: {summarise(flown)}", flush=True)
     with (args.out / "throws.csv").open("w", newline="") as file:
-        rows = [{"policy": name, **row} for name, flown in results.items() for row in flown]
+        rows = [
+            {"condition": condition, "policy": name, **row}
+            for condition, by_policy in results.items()
+            for name, flown in by_policy.items()
+            for row in flown
+        ]
         writer = csv.DictWriter(file, fieldnames=list(rows[0]))
         writer.writeheader()
         writer.writerows(rows)
-    title = (
-        f"bfsitl/Recover-v0 ({args.mode}, {args.vehicle}) through Betaflight 4.6.0 "
-        f"({args.method.upper()})"
-    )
     shared.write_curve(episodes, verdicts, args.out, title, verdict_label="throws recovered")
     summary = {
         "training": {
@@ -271,12 +336,17 @@ def main() -> int:
             "control_hz": args.control_hz,
             "seed": args.seed,
             "throw": vars(throw_range(args)),
+            "train_wind_m_s": args.train_wind_m_s,
+            "resumed_from": str(args.resume) if args.resume else None,
         },
         "evaluation_seed": seed,
         "criterion": "upright within 20 deg, slower than 1 m/s and 1 rad/s at once, then no "
         "crash to the episode's end (4 s)",
         "checkpoints": verdicts,
-        "evaluation": {name: summarise(flown) for name, flown in results.items()},
+        "evaluation": {
+            condition: {name: summarise(flown) for name, flown in by_policy.items()}
+            for condition, by_policy in results.items()
+        },
         "policy_onnx": {
             "file": "policy.onnx",
             "inference_us_median": round(shared.inference_us(exported), 1),

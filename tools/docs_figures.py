@@ -32,6 +32,7 @@ from docs_running import (
     one,
     png,
     real_log,
+    recover_run_file,
     roma_replay_run,
     run,
     square_run,
@@ -169,6 +170,11 @@ def copy_from_hover_run(name: str) -> Callable[[Context, Path], Path]:
     return make
 
 
+def copy_recover_curve(ctx: Context, work: Path) -> Path:
+    assert ctx.recover_run is not None
+    return png(ctx.recover_run / "learning_curve.png")
+
+
 def make_configurator_flight(ctx: Context, work: Path) -> Path:
     shot = work / "configurator-flight.png"
     env = {
@@ -258,6 +264,12 @@ FIGURES = (
         "examples/train_hover.py --minutes 5: learning_curve.png",
         (hover_run_file("learning_curve.png"),),
         copy_from_hover_run("learning_curve.png"),
+    ),
+    Figure(
+        "gym-recover-curve",
+        "examples/train_recover.py --minutes 10 (ACRO, IRIS): learning_curve.png",
+        (recover_run_file("learning_curve.png"),),
+        copy_recover_curve,
     ),
     Figure(
         "gym-evaluation",

@@ -46,6 +46,7 @@ class Context:
     hover_run: Path | None
     stack: contextlib.ExitStack
     shared: dict[str, Path] = field(default_factory=dict)
+    recover_run: Path | None = None
 
     def temporary_folder(self, prefix: str) -> Path:
         """A folder removed when the whole run ends (for runs two figures share)."""
@@ -218,15 +219,27 @@ def _gymnasium_missing(ctx: Context) -> str | None:
 
 
 def hover_run_file(name: str) -> Need:
+    return _run_file(name, "hover", 5)
+
+
+def recover_run_file(name: str) -> Need:
+    return _run_file(name, "recover", 10)
+
+
+def _run_file(name: str, task: str, minutes: int) -> Need:
+    """``name`` in the folder of a training run of ``examples/train_<task>.py``, given as
+    ``--<task>-run``."""
+
     def unmet(ctx: Context) -> str | None:
-        if ctx.hover_run is not None and (ctx.hover_run / name).is_file():
+        run = getattr(ctx, f"{task}_run")
+        if run is not None and (run / name).is_file():
             return None
         return (
-            "needs a 5-minute PPO training run on two cores: python examples/train_hover.py "
-            "--minutes 5 --out DIR, then --hover-run DIR"
+            f"needs a {minutes}-minute PPO training run on two cores: python "
+            f"examples/train_{task}.py --minutes {minutes} --out DIR, then --{task}-run DIR"
         )
 
-    return Need("a training run (--hover-run)", unmet)
+    return Need(f"a training run (--{task}-run)", unmet)
 
 
 def _configurator_missing(ctx: Context) -> str | None:

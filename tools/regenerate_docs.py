@@ -10,7 +10,8 @@ whose command fails leaves its file as it was.  Ctrl-C (or SIGTERM) stops the co
 running, lets it stop its SITLs, and removes the temporary folders.
 
 Run: ``python tools/regenerate_docs.py [--only NAME ...] [--firmware-46 NAME]
-[--firmware-master NAME] [--real-logs DIR] [--hover-run DIR] [--out DIR] [--list] [--check]``.
+[--firmware-master NAME] [--real-logs DIR] [--hover-run DIR] [--recover-run DIR] [--out DIR]
+[--list] [--check]``.
 The firmware names are cached builds (``bfsitl firmware list``; ``BFSITL_CACHE_DIR`` says
 which cache) or SITL binaries; the stock 4.6.0 is the one ``bfsitl fly`` finds by default.
 """
@@ -137,6 +138,12 @@ def parse(argv: Sequence[str] | None) -> argparse.Namespace:
         help="the folder of a training run of examples/train_hover.py (the gym figures)",
     )
     parser.add_argument(
+        "--recover-run",
+        type=Path,
+        metavar="DIR",
+        help="the folder of a training run of examples/train_recover.py (its curve)",
+    )
+    parser.add_argument(
         "--out",
         type=Path,
         default=REPO,
@@ -167,7 +174,14 @@ def main(argv: Sequence[str] | None = None) -> int:
             print(f"regenerate_docs: {problem}")
         return 1 if problems else 0
     with contextlib.ExitStack() as stack:
-        ctx = Context(args.firmware_46, args.firmware_master, args.real_logs, args.hover_run, stack)
+        ctx = Context(
+            args.firmware_46,
+            args.firmware_master,
+            args.real_logs,
+            args.hover_run,
+            stack,
+            recover_run=args.recover_run,
+        )
         if args.list:
             list_items(args.items, ctx)
             return 0

@@ -113,12 +113,14 @@ def test_the_recovery_example_trains_exports_and_throws(
     assert summary["training"]["mode"] == "angle" and summary["training"]["envs"] == 2
     assert 256 <= summary["training"]["steps"] <= 512
     evaluation = summary["evaluation"]
-    assert set(evaluation) == {"learned", "sticks centred, hover throttle", "hand-written hover"}
-    assert all(verdict["throws"] == 2 for verdict in evaluation.values())
+    assert list(evaluation) == ["still air", "wind 3 m/s, gusts 1.5 m/s", "motor 1 at 75 %"]
+    for by_policy in evaluation.values():
+        assert set(by_policy) == {"learned", "sticks centred, hover throttle", "hand-written hover"}
+        assert all(verdict["throws"] == 2 for verdict in by_policy.values())
     # In ANGLE mode the FC rights the quad itself: the hover throttle recovers both throws.
-    assert evaluation["sticks centred, hover throttle"]["recovered"] == 2
+    assert evaluation["still air"]["sticks centred, hover throttle"]["recovered"] == 2
     rows = (out / "throws.csv").read_text().splitlines()
-    assert len(rows) == 1 + 3 * 2 and rows[0].startswith("policy,throw,tilt_deg")
+    assert len(rows) == 1 + 3 * 3 * 2 and rows[0].startswith("condition,policy,throw,tilt_deg")
     from bfsitl.gym.onnx_policy import OnnxPolicy
 
     assert OnnxPolicy(out / "policy.onnx").mode == "angle"

@@ -60,6 +60,7 @@ from bfsitl.gym.observation import (
     observation_space,
     observe,
 )
+from bfsitl.gym.random_wind import RandomWind
 from bfsitl.gym.render import RENDER_MODES, check_render_mode, render_frame
 from bfsitl.gym.snapshot import Snapshot, Vec3, read_snapshot
 from bfsitl.gym.sticks import sticks_to_rc
@@ -75,6 +76,7 @@ from bfsitl.gym.tasks import (
 from bfsitl.gym.throws import Throw
 from bfsitl.mission.loop import FlightLoop
 from bfsitl.mission.session import FcSetup, FlightSession, SessionConfig, SitlLaunch
+from bfsitl.physics.wind import Wind
 from bfsitl.sitl.core_claim import CoreClaim, claim_core
 from bfsitl.sitl.firmware import find_firmware
 
@@ -129,7 +131,9 @@ class FlightEnv(gymnasium.Env[np.ndarray, np.ndarray]):
     length, the disturbances, the observation's ``latency`` (:mod:`~bfsitl.gym.latency`:
     late by some control steps, drawn per episode, for a policy that is to fly outside the
     lockstep), ``rc_frame_per_step`` (one receiver frame per step: the FC's RC smoothing as
-    outside the lockstep), the core pinning and the warm resets, and ``render_mode``:
+    outside the lockstep), ``random_wind`` (:mod:`~bfsitl.gym.random_wind`: a wind drawn per
+    episode, instead of ``world.wind``), the core pinning and the warm resets, and
+    ``render_mode``:
     ``"rgb_array"`` makes :meth:`render` draw the truth (:mod:`~bfsitl.gym.render`).
     """
 
@@ -156,6 +160,7 @@ class FlightEnv(gymnasium.Env[np.ndarray, np.ndarray]):
         start_alt_m: float = 1.5,
         latency: Latency = NO_LATENCY,
         rc_frame_per_step: bool = False,
+        random_wind: RandomWind | None = None,
         pin_core: bool | None = None,
         warm_resets: bool = True,
         render_mode: str | None = None,
@@ -164,6 +169,13 @@ class FlightEnv(gymnasium.Env[np.ndarray, np.ndarray]):
         check_group("timing", timing, Timing)
         check_group("world", world, World)
         check_group("latency", latency, Latency)
+        if random_wind is not None:
+            check_group("random_wind", random_wind, RandomWind)
+            if world.wind is not None:
+                raise EnvironmentConfigError(
+                    "random_wind with world.wind: give one wind, drawn per episode "
+                    "(random_wind) or the same for all (world.wind)"
+                )
         _check_choice("mode", mode, MODES)
         _check_choice("observation", observation, OBSERVATIONS)
         _check_choice("start", start, STARTS)
@@ -238,6 +250,9 @@ class FlightEnv(gymnasium.Env[np.ndarray, np.ndarray]):
         #: How late the policy's observation is (bfsitl.gym.latency), drawn per episode.
         self.latency = latency
         self._delay = DelayLine(latency)
+        #: A wind drawn per episode (bfsitl.gym.random_wind), None: the world's always.
+        self.random_wind = random_wind
+        self._episode_wind: Wind | None = world.wind
         #: The FC's receiver takes one RC frame per control step, as from a companion computer
         #: or a receiver at that rate, instead of one per fdm packet (in which 4.6.0 finds no
         #: receiver rate and smooths nothing): the policy then flies the RC smoothing it
@@ -276,8 +291,15 @@ class FlightEnv(gymnasium.Env[np.ndarray, np.ndarray]):
             self._prepare()
         episode_seed = int(self.np_random.integers(0, 2**31 - 1))
         self.task.reset(self.np_random)
+        self._draw_wind()
         vehicle = self._new_session(episode_seed).start()
         self._vehicle = vehicle
+        throws = isinstance(self.task, Recover)
+        if throws:
+            # The take-off only lifts the quad to the hand, which throws it into the
+            # episode's wind: in still air, so that a gusty wind cannot tip a small quad on
+            # the way (the autopilot's take-off of the 5-inch did, in 3 m/s gusting 1.5).
+            vehicle.disturbances.set_wind(None)
         if self.start == "air":
             loop = FlightLoop(
                 vehicle, make_controller("fused", quad=self.world.quad), rate_hz=self.control_hz
@@ -286,11 +308,12 @@ class FlightEnv(gymnasium.Env[np.ndarray, np.ndarray]):
             self._mark_arming(vehicle)
             loop.wait_on_ground(_GROUND_S)
             loop.takeoff(self.start_alt_m, hold_position=vehicle.has_gps)
-            if isinstance(self.task, Recover):
+            if throws:
                 return self._hand_start(vehicle)  # the throw
         else:
             vehicle.arm()
             self._mark_arming(vehicle)
+        self._set_wind(vehicle.disturbances)
         self._started_s = self._next_s = vehicle.time_s
         self._steps = 0
         self._has_flown = self.start == "air"
@@ -365,6 +388,7 @@ class FlightEnv(gymnasium.Env[np.ndarray, np.ndarray]):
     def _warm_reset(self) -> tuple[np.ndarray, dict[str, Any]]:
         assert self._vehicle is not None
         self.task.reset(self.np_random)
+        self._draw_wind()
         return self._hand_start(self._vehicle)
 
     def _hand_start(self, vehicle: FlightSession) -> tuple[np.ndarray, dict[str, Any]]:
@@ -385,6 +409,7 @@ class FlightEnv(gymnasium.Env[np.ndarray, np.ndarray]):
             vehicle.set_rc(sticks_to_rc([0.0, 0.0, throttle, 0.0], vehicle.rc_command))
             vehicle.clock.sleep_s(WARM_SETTLE_S / 2)
         thrown = self.task.thrown if isinstance(self.task, Recover) else None
+        self._set_wind(hands)
         if thrown is None:
             hands.place(start, motor_speeds_rad_s=(hover_rad_s,) * 4)
             hands.hold_still(False)
@@ -454,6 +479,17 @@ class FlightEnv(gymnasium.Env[np.ndarray, np.ndarray]):
         with self._new_session(0) as session:
             session.start()
         self._prepared = True
+
+    def _draw_wind(self) -> None:
+        if self.random_wind is not None:
+            self._episode_wind = self.random_wind.draw(self.np_random)
+
+    def _set_wind(self, hands: Disturbances) -> None:
+        """This episode's wind from now on (it is off during a throw's take-off, and a
+        random one changes with every episode); left alone when it is already blowing, so
+        that its gusts go on."""
+        if hands.wind != self._episode_wind:
+            hands.set_wind(self._episode_wind)
 
     def _mark_arming(self, vehicle: FlightSession) -> None:
         simulator = vehicle.simulator

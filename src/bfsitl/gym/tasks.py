@@ -20,7 +20,8 @@ hand let go at; the episode goes on after the recovery (the hover must hold).  I
 **recovery** at the first step the quad is upright within ``RECOVERED_TILT_DEG``, slower than
 ``RECOVERED_SPEED_M_S`` and turning slower than ``RECOVERED_RATE_RAD_S`` (all at once: a
 swing through level is not a hover), and the **height lost**: the throw's height minus the
-lowest the quad fell to.
+lowest the quad fell to; ``info`` carries ``recovered``, ``recovered_step`` (steps after the
+throw, -1 before) and ``height_lost_m``, and the ``throw`` drawn.
 """
 
 from __future__ import annotations
@@ -178,9 +179,13 @@ class Recover(Hover):
         return max(0.0, self.throw.height_m - self.lowest_alt_m)
 
     def info(self) -> dict[str, object]:
+        # The same type under each key at every step (no None): a vector environment makes
+        # one array per key from the first episode's value (Gymnasium's own merging).
+        assert self.thrown is not None
         return {
-            "throw": self.thrown.as_dict() if self.thrown is not None else None,
-            "recovered_step": self.recovered_step,
+            "throw": self.thrown.as_dict(),
+            "recovered": self.recovered_step is not None,
+            "recovered_step": -1 if self.recovered_step is None else self.recovered_step,
             "height_lost_m": self.height_lost_m,
         }
 

@@ -134,13 +134,19 @@ def test_the_recover_task_scores_from_the_throw_and_only_the_ground_or_bounds_en
     assert task.failure(upside_down, armed=True, has_flown=True) is None
     assert task.advance(upside_down) == (0.0, False)
     assert task.recovered_step is None
+    before = task.info()
+    assert before["recovered"] is False and before["recovered_step"] == -1
     task.advance(truth(alt_m=7.2, tilt_deg=30.0, v_up_m_s=-0.5))
     task.advance(truth(alt_m=7.4))  # the third step: upright, slow, calm
     task.advance(truth(alt_m=7.9))
     assert task.recovered_step == 3
     assert task.height_lost_m == pytest.approx(2.8)
     info = task.info()
-    assert info["recovered_step"] == 3 and info["height_lost_m"] == pytest.approx(2.8)
+    assert info["recovered"] is True and info["recovered_step"] == 3
+    assert info["height_lost_m"] == pytest.approx(2.8)
+    # Each key keeps its type whether recovered or not (a vector environment's info arrays
+    # take the type of the first value they meet).
+    assert {k: type(v) for k, v in info.items()} == {k: type(v) for k, v in before.items()}
     assert set(info["throw"]) == {"tilt_deg", "speed_m_s", "rate_deg_s"}  # type: ignore[arg-type]
     ground = truth(alt_m=0.0, on_ground=True, tilt_deg=90.0)
     assert task.failure(ground, armed=True, has_flown=True) == "crashed: back on the ground"

@@ -289,12 +289,13 @@ def test_the_episode_limit_is_gymnasiums_max_episode_steps_counted_once(tmp_path
     build = fake_lockstep_build(tmp_path)
     alone = HoverEnv(sitl=SitlLaunch(firmware=build), max_episode_steps=50)  # made directly
     assert alone._step_limit() == 50
-    assert WaypointsEnv(sitl=SitlLaunch(firmware=build))._step_limit() == 2000
+    waypoints = WaypointsEnv(sitl=SitlLaunch(firmware=build))
+    assert waypoints._step_limit() == 2000
     made = gymnasium.make("bfsitl/Hover-v0", sitl=SitlLaunch(firmware=build), max_episode_steps=70)
     # Made by Gymnasium: its TimeLimit counts make's max_episode_steps, the environment not.
     assert made.spec is not None and made.spec.max_episode_steps == 70
     assert made.unwrapped._step_limit() is None  # type: ignore[attr-defined]
-    for env in (alone, made):
+    for env in (alone, waypoints, made):
         env.close()
 
 

@@ -55,7 +55,7 @@ import bfsitl.gym  # noqa: E402, F401  (registers the environments)
 from bfsitl.backend.disturbances import Disturbances  # noqa: E402
 from bfsitl.backend.options import World  # noqa: E402
 from bfsitl.gym.baseline import hand_policy, hover_stick  # noqa: E402
-from bfsitl.gym.env import DEFAULT_FIRMWARE, MODES, RecoverEnv  # noqa: E402
+from bfsitl.gym.env import DEFAULT_FIRMWARE, MODES, DisturbanceHook, RecoverEnv  # noqa: E402
 from bfsitl.gym.random_wind import RandomWind  # noqa: E402
 from bfsitl.gym.scaled import ScaledEnv, StickLimits  # noqa: E402
 from bfsitl.gym.throws import Throw  # noqa: E402
@@ -77,7 +77,6 @@ EVAL_SEED = 20_000
 #: gusts, and motor 1 giving three quarters of its thrust.
 WIND = Wind.from_direction(3.0, 0.0, 1.5)
 WEAK_MOTOR, WEAK_FRACTION = 1, 0.75
-CONDITIONS = ("still air", "wind 3 m/s, gusts 1.5 m/s", "motor 1 at 75 %")
 TRAINING_EPISODE_S = 4.0
 
 
@@ -90,16 +89,25 @@ def weak_motor(surface: Disturbances, _time_s: float) -> None:
     surface.set_motor_thrust(WEAK_MOTOR, WEAK_FRACTION)
 
 
+#: Each evaluation condition's wind and disturbance hook, by the name the outputs give it.
+CONDITIONS: dict[str, tuple[Wind | None, DisturbanceHook | None]] = {
+    "still air": (None, None),
+    "wind 3 m/s, gusts 1.5 m/s": (WIND, None),
+    "motor 1 at 75 %": (None, weak_motor),
+}
+
+
 def evaluation_env(args: argparse.Namespace, condition: str, number: int) -> RecoverEnv:
     """An environment for the evaluation's throws in ``condition`` (one of CONDITIONS)."""
+    wind, disturbances = CONDITIONS[condition]
     return RecoverEnv(
         sitl=SitlLaunch(firmware=args.firmware, workdir=args.out / "sitl" / f"eval{number}"),
         control_hz=args.control_hz,
         max_episode_steps=round(TRAINING_EPISODE_S * args.control_hz),
         mode=args.mode,
         throw=throw_range(args),
-        world=world(args, WIND if condition == CONDITIONS[1] else None),
-        disturbances=weak_motor if condition == CONDITIONS[2] else None,
+        world=world(args, wind),
+        disturbances=disturbances,
     )
 
 

@@ -18,8 +18,11 @@ throttle (in ANGLE mode the FC's own levelling) and the hand-written hover polic
 (:mod:`bfsitl.gym.baseline`); all three in still air, then in what training never had: a
 3 m/s wind with 1.5 m/s gusts, and motor 1 at 75 % of its thrust.  ``--vehicle`` trains
 another quad (``5inch-freestyle``), ``--train-wind-m-s`` trains in a wind drawn per episode
-(:class:`bfsitl.gym.random_wind.RandomWind`); ``--evaluate-only`` throws the policy a run
-left in ``--out`` again.
+(:class:`bfsitl.gym.random_wind.RandomWind`), ``--vehicles`` on a quad drawn per episode
+(:class:`bfsitl.gym.random_vehicle.RandomVehicle`, with ``--mass-spread`` and
+``--thrust-spread`` about each); ``--unseen-vehicle`` adds throws of a quad training never
+flew (a profile ``bfsitl log fit`` made from a real log); ``--evaluate-only`` throws the
+policy a run left in ``--out`` again.
 
 What it writes in ``--out``: ``learning_curve.csv``/``.png`` (each training episode's return
 against wall time, each checkpoint's recoveries), ``checkpoints/``, ``policy.zip``,
@@ -56,10 +59,12 @@ from bfsitl.backend.disturbances import Disturbances  # noqa: E402
 from bfsitl.backend.options import World  # noqa: E402
 from bfsitl.gym.baseline import hand_policy, hover_stick  # noqa: E402
 from bfsitl.gym.env import DEFAULT_FIRMWARE, MODES, DisturbanceHook, RecoverEnv  # noqa: E402
+from bfsitl.gym.random_vehicle import RandomVehicle  # noqa: E402
 from bfsitl.gym.random_wind import RandomWind  # noqa: E402
 from bfsitl.gym.scaled import ScaledEnv, StickLimits  # noqa: E402
 from bfsitl.gym.throws import Throw  # noqa: E402
 from bfsitl.mission.session import SitlLaunch  # noqa: E402
+from bfsitl.physics.params import QuadParams  # noqa: E402
 from bfsitl.physics.wind import Wind  # noqa: E402
 from bfsitl.vehicles import load_vehicle  # noqa: E402
 
@@ -80,9 +85,11 @@ WEAK_MOTOR, WEAK_FRACTION = 1, 0.75
 TRAINING_EPISODE_S = 4.0
 
 
-def world(args: argparse.Namespace, wind: Wind | None = None) -> World:
-    """``--vehicle``'s physics, in still air or ``wind``."""
-    return World(quad=load_vehicle(args.vehicle), wind=wind)
+def world(
+    args: argparse.Namespace, wind: Wind | None = None, quad: QuadParams | None = None
+) -> World:
+    """``--vehicle``'s physics (or ``quad``), in still air or ``wind``."""
+    return World(quad=load_vehicle(args.vehicle) if quad is None else quad, wind=wind)
 
 
 def weak_motor(surface: Disturbances, _time_s: float) -> None:
@@ -95,18 +102,35 @@ CONDITIONS: dict[str, tuple[Wind | None, DisturbanceHook | None]] = {
     "wind 3 m/s, gusts 1.5 m/s": (WIND, None),
     "motor 1 at 75 %": (None, weak_motor),
 }
+#: The condition of ``--unseen-vehicle``: that quad, in still air.
+UNSEEN = "unseen vehicle {name}, still air"
 
 
-def evaluation_env(args: argparse.Namespace, condition: str, number: int) -> RecoverEnv:
-    """An environment for the evaluation's throws in ``condition`` (one of CONDITIONS)."""
-    wind, disturbances = CONDITIONS[condition]
+def conditions(args: argparse.Namespace) -> dict[str, tuple[QuadParams, Wind | None, Any]]:
+    """Each evaluation condition's quad, wind and hook: CONDITIONS with ``--vehicle``, then
+    ``--unseen-vehicle``'s quad in still air."""
+    quad = load_vehicle(args.vehicle)
+    chosen = {name: (quad, wind, hook) for name, (wind, hook) in CONDITIONS.items()}
+    if args.unseen_vehicle is not None:
+        unseen = load_vehicle(args.unseen_vehicle)
+        chosen[UNSEEN.format(name=unseen.name)] = (unseen, None, None)
+    return chosen
+
+
+def evaluation_env(
+    args: argparse.Namespace,
+    condition: tuple[QuadParams, Wind | None, DisturbanceHook | None],
+    number: int,
+) -> RecoverEnv:
+    """An environment for the evaluation's throws in ``condition`` (of :func:`conditions`)."""
+    quad, wind, disturbances = condition
     return RecoverEnv(
         sitl=SitlLaunch(firmware=args.firmware, workdir=args.out / "sitl" / f"eval{number}"),
         control_hz=args.control_hz,
         max_episode_steps=round(TRAINING_EPISODE_S * args.control_hz),
         mode=args.mode,
         throw=throw_range(args),
-        world=world(args, wind),
+        world=world(args, wind, quad),
         disturbances=disturbances,
     )
 
@@ -196,6 +220,20 @@ def judge_checkpoints(args: argparse.Namespace, env: RecoverEnv, seed: int) -> l
     return verdicts
 
 
+def yardsticks_for(exported: shared.Policy, quad: QuadParams) -> dict[str, shared.Policy]:
+    """The learned policy and the two yardsticks, which know ``quad``'s hover throttle (the
+    learned one does not: it was exported with the training's throttle centre)."""
+    hover = hover_stick(quad)
+    return {
+        # The exported file, as it would fly anywhere: the raw observation in, the sticks out.
+        "learned": exported,
+        "sticks centred, hover throttle": lambda _o: np.array(
+            [0.0, 0.0, hover, 0.0], dtype=np.float32
+        ),
+        "hand-written hover": functools.partial(hand_policy, hover_throttle=hover),
+    }
+
+
 def export(model: Any, args: argparse.Namespace) -> Any:
     from bfsitl.gym.onnx_policy import OnnxPolicy
     from bfsitl.gym.policy_export import export_policy
@@ -219,6 +257,21 @@ def parse_args() -> argparse.Namespace:
     parser.add_argument("--mode", choices=MODES, default="acro", help="the FC's flight mode")
     parser.add_argument(
         "--vehicle", default="iris", help="a vehicle's name (bfsitl vehicles) or profile file"
+    )
+    parser.add_argument(
+        "--vehicles",
+        default=None,
+        metavar="NAME,NAME,...",
+        help="train on a quad drawn per episode from these names or profile files (--vehicle "
+        "stays the throttle centre and the evaluation's quad)",
+    )
+    parser.add_argument("--mass-spread", type=float, default=0.0, help="with --vehicles")
+    parser.add_argument("--thrust-spread", type=float, default=0.0, help="with --vehicles")
+    parser.add_argument(
+        "--unseen-vehicle",
+        default=None,
+        metavar="NAME|FILE",
+        help="also throw the policy on this quad, in still air (e.g. a bfsitl log fit profile)",
     )
     parser.add_argument("--method", choices=shared.METHODS, default="ppo")
     parser.add_argument("--envs", type=int, default=2)
@@ -270,6 +323,12 @@ def parse_args() -> argparse.Namespace:
         args.env_options["random_wind"] = RandomWind(
             max_speed_m_s=args.train_wind_m_s, max_gust_m_s=args.train_wind_m_s / 2.0
         )
+    if args.vehicles:
+        args.env_options["random_vehicle"] = RandomVehicle.named(
+            *args.vehicles.split(","),
+            mass_spread=args.mass_spread,
+            thrust_spread=args.thrust_spread,
+        )
     if args.smoke:
         args.steps, args.n_steps, args.throws, args.checkpoint_throws = 256, 64, 2, 1
         args.minutes, args.checkpoint_s = 0.0, 1e9
@@ -296,19 +355,11 @@ def main() -> int:
     shared.write_curve(episodes, [], args.out, title)
     exported = export(model, args)
     seed = EVAL_SEED + args.seed * 1000
-    hover = hover_stick(world(args).quad)
-    yardsticks: dict[str, shared.Policy] = {
-        # The exported file, as it would fly anywhere: the raw observation in, the sticks out.
-        "learned": exported,
-        "sticks centred, hover throttle": lambda _o: np.array(
-            [0.0, 0.0, hover, 0.0], dtype=np.float32
-        ),
-        "hand-written hover": functools.partial(hand_policy, hover_throttle=hover),
-    }
     results: dict[str, dict[str, list[dict[str, Any]]]] = {}
     verdicts: list[dict[str, Any]] = []
-    for number, condition in enumerate(CONDITIONS):
-        env = evaluation_env(args, condition, number)
+    for number, (condition, quad_wind_hook) in enumerate(conditions(args).items()):
+        yardsticks = yardsticks_for(exported, quad_wind_hook[0])
+        env = evaluation_env(args, quad_wind_hook, number)
         try:
             if number == 0:
                 verdicts = judge_checkpoints(args, env, seed)
@@ -345,6 +396,9 @@ def main() -> int:
             "seed": args.seed,
             "throw": vars(throw_range(args)),
             "train_wind_m_s": args.train_wind_m_s,
+            "vehicles": args.vehicles.split(",") if args.vehicles else [args.vehicle],
+            "mass_spread": args.mass_spread,
+            "thrust_spread": args.thrust_spread,
             "resumed_from": str(args.resume) if args.resume else None,
         },
         "evaluation_seed": seed,

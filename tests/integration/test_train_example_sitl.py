@@ -95,6 +95,11 @@ def test_the_recovery_example_trains_exports_and_throws(
             "--smoke",
             "--mode",
             "angle",
+            # Trained on a quad drawn per episode, thrown also on one it never flew.
+            "--vehicles",
+            "iris,5inch-freestyle",
+            "--unseen-vehicle",
+            "3inch-cinewhoop",
             "--firmware",
             str(lockstep_gps_46_firmware),
             "--out",
@@ -111,16 +116,25 @@ def test_the_recovery_example_trains_exports_and_throws(
         assert (out / name).is_file(), name
     summary = json.loads((out / "evaluation.json").read_text())
     assert summary["training"]["mode"] == "angle" and summary["training"]["envs"] == 2
+    assert summary["training"]["vehicles"] == ["iris", "5inch-freestyle"]
     assert 256 <= summary["training"]["steps"] <= 512
     evaluation = summary["evaluation"]
-    assert list(evaluation) == ["still air", "wind 3 m/s, gusts 1.5 m/s", "motor 1 at 75 %"]
+    unseen = "unseen vehicle 3inch-cinewhoop, still air"
+    assert list(evaluation) == [
+        "still air",
+        "wind 3 m/s, gusts 1.5 m/s",
+        "motor 1 at 75 %",
+        unseen,
+    ]
     for by_policy in evaluation.values():
         assert set(by_policy) == {"learned", "sticks centred, hover throttle", "hand-written hover"}
         assert all(verdict["throws"] == 2 for verdict in by_policy.values())
     # In ANGLE mode the FC rights the quad itself: the hover throttle recovers both throws.
-    assert evaluation["still air"]["sticks centred, hover throttle"]["recovered"] == 2
+    # (on the unseen 3-inch too, at its own hover throttle: the quad thrown is the 3-inch).
+    for condition in ("still air", unseen):
+        assert evaluation[condition]["sticks centred, hover throttle"]["recovered"] == 2
     rows = (out / "throws.csv").read_text().splitlines()
-    assert len(rows) == 1 + 3 * 3 * 2 and rows[0].startswith("condition,policy,throw,tilt_deg")
+    assert len(rows) == 1 + 4 * 3 * 2 and rows[0].startswith("condition,policy,throw,tilt_deg")
     from bfsitl.gym.onnx_policy import OnnxPolicy
 
     assert OnnxPolicy(out / "policy.onnx").mode == "angle"

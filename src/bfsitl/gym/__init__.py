@@ -24,7 +24,8 @@ before every step with the flight's disturbance surface), ``start`` (``"air"`` o
 observation late by some control steps, drawn per episode), ``rc_frame_per_step`` (one
 receiver frame per step, so that the FC smooths the sticks as outside the lockstep),
 ``random_wind`` (:class:`~bfsitl.gym.random_wind.RandomWind`: a wind drawn per episode),
-``pin_core``, ``warm_resets``, ``render_mode`` (``"rgb_array"``:
+``random_vehicle`` (:class:`~bfsitl.gym.random_vehicle.RandomVehicle`: a quad drawn per
+episode), ``pin_core``, ``warm_resets``, ``render_mode`` (``"rgb_array"``:
 :mod:`~bfsitl.gym.render`).  Needs the ``gym`` extra:
 ``pip install 'bfsitl[gym]'``.
 
@@ -65,6 +66,7 @@ from bfsitl.gym.env import (
     WaypointsEnv,
 )
 from bfsitl.gym.latency import Latency
+from bfsitl.gym.random_vehicle import RandomVehicle
 from bfsitl.gym.random_wind import RandomWind
 from bfsitl.gym.throws import Throw
 
@@ -105,6 +107,7 @@ __all__ = [
     "FlightEnv",
     "HoverEnv",
     "Latency",
+    "RandomVehicle",
     "RandomWind",
     "RecoverEnv",
     "Throw",

@@ -60,6 +60,8 @@ from bfsitl.gym.observation import (
     observation_space,
     observe,
 )
+from bfsitl.gym.option_checks import check_choice, check_group
+from bfsitl.gym.random_vehicle import RandomVehicle
 from bfsitl.gym.random_wind import RandomWind
 from bfsitl.gym.render import RENDER_MODES, check_render_mode, render_frame
 from bfsitl.gym.snapshot import Snapshot, Vec3, read_snapshot
@@ -132,8 +134,9 @@ class FlightEnv(gymnasium.Env[np.ndarray, np.ndarray]):
     late by some control steps, drawn per episode, for a policy that is to fly outside the
     lockstep), ``rc_frame_per_step`` (one receiver frame per step: the FC's RC smoothing as
     outside the lockstep), ``random_wind`` (:mod:`~bfsitl.gym.random_wind`: a wind drawn per
-    episode, instead of ``world.wind``), the core pinning and the warm resets, and
-    ``render_mode``:
+    episode, instead of ``world.wind``), ``random_vehicle``
+    (:mod:`~bfsitl.gym.random_vehicle`: a quad drawn per episode, instead of ``world.quad``),
+    the core pinning and the warm resets, and ``render_mode``:
     ``"rgb_array"`` makes :meth:`render` draw the truth (:mod:`~bfsitl.gym.render`).
     """
 
@@ -161,6 +164,7 @@ class FlightEnv(gymnasium.Env[np.ndarray, np.ndarray]):
         latency: Latency = NO_LATENCY,
         rc_frame_per_step: bool = False,
         random_wind: RandomWind | None = None,
+        random_vehicle: RandomVehicle | None = None,
         pin_core: bool | None = None,
         warm_resets: bool = True,
         render_mode: str | None = None,
@@ -176,11 +180,13 @@ class FlightEnv(gymnasium.Env[np.ndarray, np.ndarray]):
                     "random_wind with world.wind: give one wind, drawn per episode "
                     "(random_wind) or the same for all (world.wind)"
                 )
-        _check_choice("mode", mode, MODES)
-        _check_choice("observation", observation, OBSERVATIONS)
-        _check_choice("start", start, STARTS)
+        if random_vehicle is not None:
+            check_group("random_vehicle", random_vehicle, RandomVehicle)
+        check_choice("mode", mode, MODES)
+        check_choice("observation", observation, OBSERVATIONS)
+        check_choice("start", start, STARTS)
         check_render_mode(render_mode)
-        _check_choice("timing.lockstep_exchange", timing.lockstep_exchange, LOCKSTEP_EXCHANGES)
+        check_choice("timing.lockstep_exchange", timing.lockstep_exchange, LOCKSTEP_EXCHANGES)
         if timing.lockstep is False:
             raise EnvironmentConfigError(
                 "timing.lockstep=False: the environment steps the firmware with the physics; "
@@ -253,6 +259,9 @@ class FlightEnv(gymnasium.Env[np.ndarray, np.ndarray]):
         #: A wind drawn per episode (bfsitl.gym.random_wind), None: the world's always.
         self.random_wind = random_wind
         self._episode_wind: Wind | None = world.wind
+        #: A quad drawn per episode (bfsitl.gym.random_vehicle), None: the world's always.
+        self.random_vehicle = random_vehicle
+        self._episode_quad = world.quad
         #: The FC's receiver takes one RC frame per control step, as from a companion computer
         #: or a receiver at that rate, instead of one per fdm packet (in which 4.6.0 finds no
         #: receiver rate and smooths nothing): the policy then flies the RC smoothing it
@@ -291,7 +300,7 @@ class FlightEnv(gymnasium.Env[np.ndarray, np.ndarray]):
             self._prepare()
         episode_seed = int(self.np_random.integers(0, 2**31 - 1))
         self.task.reset(self.np_random)
-        self._draw_wind()
+        self._draw_episode()
         vehicle = self._new_session(episode_seed).start()
         self._vehicle = vehicle
         throws = isinstance(self.task, Recover)
@@ -302,7 +311,7 @@ class FlightEnv(gymnasium.Env[np.ndarray, np.ndarray]):
             vehicle.disturbances.set_wind(None)
         if self.start == "air":
             loop = FlightLoop(
-                vehicle, make_controller("fused", quad=self.world.quad), rate_hz=self.control_hz
+                vehicle, make_controller("fused", quad=self._episode_quad), rate_hz=self.control_hz
             )
             loop.arm()
             self._mark_arming(vehicle)
@@ -388,7 +397,13 @@ class FlightEnv(gymnasium.Env[np.ndarray, np.ndarray]):
     def _warm_reset(self) -> tuple[np.ndarray, dict[str, Any]]:
         assert self._vehicle is not None
         self.task.reset(self.np_random)
-        self._draw_wind()
+        self._draw_episode()
+        simulator = self._vehicle.simulator
+        assert simulator is not None
+        if simulator.params != self._episode_quad:
+            # Swapped while the hand holds it, which places it next (random_vehicle).
+            simulator.set_vehicle(self._episode_quad)
+            self._vehicle.quad = self._episode_quad
         return self._hand_start(self._vehicle)
 
     def _hand_start(self, vehicle: FlightSession) -> tuple[np.ndarray, dict[str, Any]]:
@@ -405,7 +420,7 @@ class FlightEnv(gymnasium.Env[np.ndarray, np.ndarray]):
         hands.hold_still(True)
         # The held sticks go out as frames all along: no gap the FC would take for a lost link.
         self._frames_per_step(vehicle, False)
-        for throttle in (-1.0, hover_stick(self.world.quad)):
+        for throttle in (-1.0, hover_stick(self._episode_quad)):
             vehicle.set_rc(sticks_to_rc([0.0, 0.0, throttle, 0.0], vehicle.rc_command))
             vehicle.clock.sleep_s(WARM_SETTLE_S / 2)
         thrown = self.task.thrown if isinstance(self.task, Recover) else None
@@ -467,7 +482,7 @@ class FlightEnv(gymnasium.Env[np.ndarray, np.ndarray]):
             sitl=sitl,
             timing=self.timing,
             fc=FcSetup(angle_mode=self.mode == "angle"),
-            world=dataclasses.replace(self.world, seed=seed),
+            world=dataclasses.replace(self.world, seed=seed, quad=self._episode_quad),
         )
         return FlightSession(config)
 
@@ -480,9 +495,12 @@ class FlightEnv(gymnasium.Env[np.ndarray, np.ndarray]):
             session.start()
         self._prepared = True
 
-    def _draw_wind(self) -> None:
+    def _draw_episode(self) -> None:
+        """This episode's wind and quad, where they are drawn per episode."""
         if self.random_wind is not None:
             self._episode_wind = self.random_wind.draw(self.np_random)
+        if self.random_vehicle is not None:
+            self._episode_quad = self.random_vehicle.draw(self.np_random)
 
     def _set_wind(self, hands: Disturbances) -> None:
         """This episode's wind from now on (it is off during a throw's take-off, and a
@@ -530,6 +548,7 @@ class FlightEnv(gymnasium.Env[np.ndarray, np.ndarray]):
             "flight_modes": snapshot.fc.flight_modes,
             "failsafe": "FAILSAFE" in snapshot.fc.flight_modes,
             "ended_because": ended_because,
+            "vehicle": self._episode_quad.name,
             **self.task.info(),
         }
 
@@ -584,22 +603,3 @@ class RecoverEnv(FlightEnv):
             start_alt_m=throw.height_m,
             **options,
         )
-
-
-def check_group(name: str, value: object, group: type) -> None:
-    """Raise EnvironmentConfigError, saying what it takes, unless ``value`` is a ``group``."""
-    # A group given as something else (a dict from a config file, a number for the old
-    # ``wind``) is said with what it takes, not as an AttributeError deep in the start.
-    if not isinstance(value, group):
-        names = ", ".join(f.name for f in dataclasses.fields(group))
-        raise EnvironmentConfigError(
-            f"{name} must be a {group.__name__} (bfsitl.{group.__name__}({names}), all "
-            f"optional), not {type(value).__name__}"
-        )
-
-
-def _check_choice(name: str, value: str, choices: tuple[str, ...]) -> None:
-    # The types say it to a type checker; this says it to everyone else (a string from a
-    # config file, gymnasium.make's keywords).
-    if value not in choices:
-        raise EnvironmentConfigError(f"{name} must be one of {', '.join(choices)}, not {value!r}")

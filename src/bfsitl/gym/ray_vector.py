@@ -28,7 +28,8 @@ from typing import Any
 import numpy as np
 
 from bfsitl.errors import EnvironmentConfigError
-from bfsitl.gym.env import DEFAULT_FIRMWARE, DEFAULT_SITL, check_group
+from bfsitl.gym.env import DEFAULT_FIRMWARE, DEFAULT_SITL
+from bfsitl.gym.option_checks import check_group
 from bfsitl.gym.vector import (
     _DONE,
     _FAILED,

@@ -411,6 +411,20 @@ class Simulator:
             raise SimInputError(f"motor {motor}: thrust fraction {fraction} is outside 0..1")
         self._sim.thrust_scale[motor - 1] = float(fraction)
 
+    def set_vehicle(self, params: QuadParams) -> None:
+        """Another vehicle from now on, in the state this one is in (pose, velocities, rotor
+        speeds, time, wind, sensors): a learner's hand that swaps the quad between episodes
+        without restarting the firmware.  Put it somewhere with :meth:`reset` next; a quad
+        resting on the ground would otherwise rest at the old one's sag.
+
+        Args:
+            params: The new vehicle.
+        """
+        self.params = params
+        self._write_vehicle(params)
+        # The next reading's specific force is the new vehicle's (its mass and rotors).
+        self._sim.reading_valid = 0
+
     def set_wind(self, wind: Wind | None) -> None:
         """The wind from now on; its gusts are drawn afresh from the run's seed, so a run
         stays repeatable.

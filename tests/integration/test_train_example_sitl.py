@@ -138,3 +138,53 @@ def test_the_recovery_example_trains_exports_and_throws(
     from bfsitl.gym.onnx_policy import OnnxPolicy
 
     assert OnnxPolicy(out / "policy.onnx").mode == "angle"
+
+
+WAYPOINTS_EXAMPLE = EXAMPLE.with_name("train_waypoints.py")
+
+
+@pytest.mark.skipif(
+    importlib.util.find_spec("stable_baselines3") is None,
+    reason="Stable-Baselines3 not installed: pip install torch "
+    "'bfsitl[learn]' to run the training example's smoke test",
+)
+def test_the_waypoints_example_trains_and_races_the_autopilot(
+    lockstep_gps_46_firmware: Path, tmp_path: Path
+) -> None:
+    run = subprocess.run(
+        [
+            sys.executable,
+            str(WAYPOINTS_EXAMPLE),
+            "--smoke",
+            "--firmware",
+            str(lockstep_gps_46_firmware),
+            "--out",
+            str(tmp_path / "run"),
+        ],
+        capture_output=True,
+        text=True,
+        timeout=300,
+        cwd=tmp_path,
+    )
+    assert run.returncode == 0, run.stdout[-2000:] + run.stderr[-4000:]
+    out = tmp_path / "run"
+    for name in ("policy.zip", "policy.onnx", "learning_curve.csv", "laps.csv"):
+        assert (out / name).is_file(), name
+    summary = json.loads((out / "evaluation.json").read_text())
+    assert 256 <= summary["training"]["steps"] <= 512 and summary["training"]["count"] == 4
+    evaluation = summary["evaluation"]
+    assert list(evaluation) == [
+        "still air",
+        "wind 3 m/s, gusts 1.5 m/s",
+        "motor 1 at 75 %",
+        "random courses, still air",
+    ]
+    for by_pilot in evaluation.values():
+        assert set(by_pilot) == {"learned", "hand-written", "Autopilot"}
+        assert all(verdict["laps"] == 1 for verdict in by_pilot.values())
+    # The Autopilot flies the course in still air: all four points, inside 20 s.
+    autopilot = evaluation["still air"]["Autopilot"]
+    assert autopilot["completed"] == 1 and autopilot["missed_points"] == 0
+    assert 5.0 < autopilot["lap_s_median_p90"][0] < 20.0
+    rows = (out / "laps.csv").read_text().splitlines()
+    assert len(rows) == 1 + 4 * 3 and rows[0].startswith("condition,pilot,lap,seed,passed")

@@ -38,7 +38,7 @@ import dataclasses
 import multiprocessing
 import shutil
 import tempfile
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from pathlib import Path
 from typing import Any, Literal, get_args
 
@@ -60,7 +60,7 @@ from bfsitl.gym.observation import (
     observation_space,
     observe,
 )
-from bfsitl.gym.option_checks import check_choice, check_group
+from bfsitl.gym.option_checks import MAX_HORIZONTAL_M, check_choice, check_course, check_group
 from bfsitl.gym.random_vehicle import RandomVehicle
 from bfsitl.gym.random_wind import RandomWind
 from bfsitl.gym.render import RENDER_MODES, check_render_mode, render_frame
@@ -73,7 +73,6 @@ from bfsitl.gym.tasks import (
     Recover,
     Waypoints,
     distance_m,
-    step_reward,
 )
 from bfsitl.gym.throws import Throw
 from bfsitl.mission.loop import FlightLoop
@@ -365,7 +364,7 @@ class FlightEnv(gymnasium.Env[np.ndarray, np.ndarray]):
         truth = snapshot.truth
         if truth.alt_m > AIRBORNE_M:
             self._has_flown = True
-        reward = step_reward(truth, self.task.target, action)
+        reward = self.task.reward(truth, action)
         bonus, finished = self.task.advance(truth)
         why = self.task.failure(truth, armed=snapshot.fc.armed, has_flown=self._has_flown)
         reward += bonus + (FAILURE_REWARD if why is not None else 0.0)
@@ -561,19 +560,30 @@ class HoverEnv(FlightEnv):
 
 
 class WaypointsEnv(FlightEnv):
-    """``bfsitl/Waypoints-v0``: three points in turn, the next one in the observation (see
-    :class:`~bfsitl.gym.tasks.Waypoints`); 20 s by default."""
+    """``bfsitl/Waypoints-v0``: ``count`` points in turn (three), each drawn within
+    ``horizontal_m`` of the start, or the fixed ``course`` (north, east, up from the start),
+    the next one in the observation (see :class:`~bfsitl.gym.tasks.Waypoints`); 20 s by
+    default."""
 
     def __init__(
         self,
         *,
         count: int = 3,
+        horizontal_m: float = 2.0,
+        course: Sequence[Vec3] | None = None,
         max_episode_steps: int | None = WAYPOINTS_MAX_EPISODE_STEPS,
         **options: Any,
     ) -> None:
         if not 1 <= count <= 50:
             raise EnvironmentConfigError(f"count {count} is outside 1..50 waypoints")
-        super().__init__(Waypoints(count=count), max_episode_steps=max_episode_steps, **options)
+        if not 0.5 <= horizontal_m <= MAX_HORIZONTAL_M:
+            raise EnvironmentConfigError(
+                f"horizontal_m {horizontal_m} is outside 0.5..{MAX_HORIZONTAL_M:g} m"
+            )
+        if course is not None:
+            course = check_course(course, start_up_m=options.get("start_alt_m", 1.5))
+        task = Waypoints(count=count, horizontal_m=horizontal_m, course=course)
+        super().__init__(task, max_episode_steps=max_episode_steps, **options)
 
 
 class RecoverEnv(FlightEnv):

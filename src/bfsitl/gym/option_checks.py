@@ -4,8 +4,18 @@ something else (a dict from a config file, a string ``gymnasium.make`` passed on
 from __future__ import annotations
 
 import dataclasses
+import math
+from collections.abc import Sequence
 
 from bfsitl.errors import EnvironmentConfigError
+from bfsitl.gym.snapshot import Vec3
+from bfsitl.gym.tasks import MAX_ALT_M, MAX_DISTANCE_M
+
+#: Random waypoints at most this far north and east of the start: two in a row are then
+#: always inside the bounds (MAX_DISTANCE_M) of each other.
+MAX_HORIZONTAL_M = 3.0
+#: A course's points fly at least this high (the take-off's lowest start).
+MIN_COURSE_UP_M = 0.5
 
 
 def check_group(name: str, value: object, group: type) -> None:
@@ -25,3 +35,37 @@ def check_choice(name: str, value: str, choices: tuple[str, ...]) -> None:
     # config file, gymnasium.make's keywords).
     if value not in choices:
         raise EnvironmentConfigError(f"{name} must be one of {', '.join(choices)}, not {value!r}")
+
+
+def check_course(course: Sequence[Vec3], *, start_up_m: float) -> tuple[Vec3, ...]:
+    """``course`` as a tuple of (north, east, up) points, or EnvironmentConfigError saying
+    which point is wrong: not three numbers, too low or high, or out of the bounds of the
+    one before (the first: of the start, ``start_up_m`` above where it armed)."""
+    points: list[Vec3] = []
+    before: Vec3 = (0.0, 0.0, start_up_m)
+    for number, point in enumerate(course, start=1):
+        try:
+            north, east, up = (float(v) for v in point)
+        except (TypeError, ValueError):
+            raise EnvironmentConfigError(
+                f"course point {number} is not three numbers (north, east, up metres): {point!r}"
+            ) from None
+        if not all(math.isfinite(v) for v in (north, east, up)):
+            raise EnvironmentConfigError(f"course point {number} is not finite: {point!r}")
+        if not MIN_COURSE_UP_M <= up <= MAX_ALT_M:
+            raise EnvironmentConfigError(
+                f"course point {number} is {up:g} m up: outside "
+                f"{MIN_COURSE_UP_M:g}..{MAX_ALT_M:g} m"
+            )
+        gap_m = math.dist(before, (north, east, up))
+        if gap_m >= MAX_DISTANCE_M:
+            raise EnvironmentConfigError(
+                f"course point {number} is {gap_m:.1f} m from the one before (the start, "
+                f"for the first): the episode ends {MAX_DISTANCE_M:g} m from its target; "
+                f"add a point between"
+            )
+        before = (north, east, up)
+        points.append(before)
+    if not points:
+        raise EnvironmentConfigError("course has no points: give one or more (north, east, up)")
+    return tuple(points)

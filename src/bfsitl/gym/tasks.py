@@ -11,8 +11,16 @@ it).  An episode **terminates** when the vehicle crashes (tilted past ``CRASH_TI
 back on the ground after it had flown), when the FC disarms (a failsafe, its own crash
 detection), or when it leaves the bounds (``MAX_DISTANCE_M`` from the target, or above
 ``MAX_ALT_M``); each of those costs ``FAILURE_REWARD`` once.  It is **truncated** at the
-time limit.  :class:`Waypoints` also ends (terminated, a success) when its last point is
-reached, and pays ``WAYPOINT_BONUS`` for each point.
+time limit.
+
+:class:`Waypoints` is a course to fly fast, not a point to hold, so it pays progress instead:
+
+    reward = 10 * (metres closed on the current point) - 0.1 - 0.01 * |roll, pitch, yaw sticks|^2
+
+(a step that closes nothing costs 0.1, so the sooner the better; tilt is free, since speed
+needs it), ``WAYPOINT_BONUS`` for each point reached within ``REACHED_M``, and it ends
+(terminated, a success) at the last one.  The points are drawn per episode like
+:class:`Hover`'s, or given once as a fixed ``course``.
 
 :class:`Recover` starts from a throw (:mod:`~bfsitl.gym.throws`), upside down perhaps, so
 tilt ends nothing there: the ground, a disarm and the bounds do.  Its target is the point the
@@ -39,6 +47,9 @@ MAX_DISTANCE_M = 10.0
 MAX_ALT_M = 20.0
 FAILURE_REWARD = -10.0
 WAYPOINT_BONUS = 5.0
+#: Waypoints' pay per metre closed on the current point, and its cost of a step.
+PROGRESS_PER_M = 10.0
+STEP_COST = 0.1
 #: A waypoint counts as reached within this distance of it.
 REACHED_M = 0.5
 #: Off the ground after take-off means above this height.
@@ -107,6 +118,10 @@ class Hover:
     def target(self) -> Vec3:
         return self.targets[self.index]
 
+    def reward(self, truth: TrueView, action: np.ndarray) -> float:
+        """This step's reward, before :meth:`advance` (the module docstring)."""
+        return step_reward(truth, self.target, action)
+
     def advance(self, truth: TrueView) -> tuple[float, bool]:
         """(bonus, finished) after this step: a hover never finishes early."""
         return 0.0, False
@@ -122,16 +137,35 @@ class Hover:
 
 @dataclass
 class Waypoints(Hover):
-    """``count`` points in turn, each drawn like :class:`Hover`'s; the next one is the
-    target, and reaching the last ends the episode."""
+    """``count`` points in turn, each drawn like :class:`Hover`'s, or the fixed ``course``
+    (north, east, up from the start) every episode; the next one is the target, and reaching
+    the last ends the episode.  Paid for progress (the module docstring)."""
 
     count: int = 3
+    course: tuple[Vec3, ...] | None = None
+    #: The distance to the target at the last step (None: none yet this episode).
+    last_distance_m: float | None = None
 
     name = "waypoints"
 
     def reset(self, rng: np.random.Generator) -> None:
-        self.targets = [self._draw(rng) for _ in range(self.count)]
+        if self.course is None:
+            self.targets = [self._draw(rng) for _ in range(self.count)]
+        else:
+            self.targets = list(self.course)
         self.index = 0
+        self.last_distance_m = None
+
+    def reward(self, truth: TrueView, action: np.ndarray) -> float:
+        roll, pitch, _throttle, yaw = (float(v) for v in action)
+        distance = distance_m(truth, self.target)
+        last = distance if self.last_distance_m is None else self.last_distance_m
+        self.last_distance_m = distance
+        return (
+            PROGRESS_PER_M * (last - distance)
+            - STEP_COST
+            - 0.01 * (roll * roll + pitch * pitch + yaw * yaw)
+        )
 
     def advance(self, truth: TrueView) -> tuple[float, bool]:
         if distance_m(truth, self.target) > REACHED_M:
@@ -139,7 +173,13 @@ class Waypoints(Hover):
         if self.index == len(self.targets) - 1:
             return WAYPOINT_BONUS, True
         self.index += 1
+        # Progress is counted on the new point from here.
+        self.last_distance_m = distance_m(truth, self.target)
         return WAYPOINT_BONUS, False
+
+    def info(self) -> dict[str, object]:
+        """How many of the points were reached (the lap's, at its end)."""
+        return {"waypoints": len(self.targets)}
 
 
 @dataclass

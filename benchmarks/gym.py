@@ -9,6 +9,8 @@ policy (``bfsitl.gym.baseline``) at ``--control-hz``:
   (the default in a main process), or pinned with its SITL to one core
   (``pin_core=True``), each through the shared-memory exchange with the compiled step (the
   default) and with the pure-Python one, and, for comparison, UDP;
+* **the other tasks**: Waypoints-v0 and Recover-v0 (its throws flown by the same policy, in
+  ANGLE mode) in ``FlightVectorEnv`` with 2 environments, their resets counted;
 * **2 and 4 environments**: Gymnasium's ``AsyncVectorEnv`` (one worker process each, pinned
   by default) and bfsitl's own ``FlightVectorEnv`` (``gymnasium.make_vec(...,
   vectorization_mode="vector_entry_point")``: pinned workers, numbers in shared memory);
@@ -92,13 +94,20 @@ def single(
 
 
 def vector(
-    firmware: str, control_hz: float, seconds: float, count: int, *, own: bool
+    firmware: str,
+    control_hz: float,
+    seconds: float,
+    count: int,
+    *,
+    own: bool,
+    env_id: str = "bfsitl/Hover-v0",
 ) -> dict[str, float]:
     """``count`` environments in ``AsyncVectorEnv`` (its default autoreset: the step after
-    an ending resets) or in bfsitl's ``FlightVectorEnv`` (resets in the same step)."""
+    an ending resets; Hover-v0) or in bfsitl's ``FlightVectorEnv`` (resets in the same step;
+    ``env_id``)."""
     if own:
         envs = gymnasium.make_vec(
-            "bfsitl/Hover-v0",
+            env_id,
             num_envs=count,
             vectorization_mode="vector_entry_point",
             sitl=SitlLaunch(firmware=firmware),
@@ -440,6 +449,18 @@ def main() -> None:
                     vector(args.firmware, args.control_hz, args.seconds, count, own=own),
                 )
             )
+    for env_id in ("bfsitl/Waypoints-v0", "bfsitl/Recover-v0"):
+        # The other tasks: shorter episodes, so more resets (a throw's hand holds the quad
+        # 0.5 s of simulated time before each), in the same vector environment.
+        task = env_id.split("/")[1]
+        print(f"[gym bench] 2 environments, FlightVectorEnv, {task}", flush=True)
+        rows.append(
+            (
+                f"{task}, FlightVectorEnv (pinned workers)",
+                2,
+                vector(args.firmware, args.control_hz, args.seconds, 2, own=True, env_id=env_id),
+            )
+        )
     if args.ray:
         print("[gym bench] 2 environments, RayVectorEnv (local cluster)", flush=True)
         rows.append(

@@ -233,6 +233,35 @@ def train(args: argparse.Namespace) -> tuple[Any, list[tuple[float, int, float]]
     return model, episodes
 
 
+def train_or_load(args: argparse.Namespace) -> tuple[Any, list[tuple[float, int, float]], float]:
+    """Train (:func:`train`), or with ``--evaluate-only`` load the policy an earlier run left
+    in ``--out``: the model, the episodes' curve and the training's wall seconds."""
+    if getattr(args, "evaluate_only", False):
+        model = model_class(args.method).load(args.out / "policy.zip", device="cpu")
+        episodes = read_curve(args.out)
+        return model, episodes, episodes[-1][2] if episodes else 0.0
+    started = time.monotonic()
+    model, episodes = train(args)
+    return model, episodes, time.monotonic() - started
+
+
+def training_figures(
+    args: argparse.Namespace, model: Any, episodes: list[tuple[float, int, float]], train_s: float
+) -> dict[str, Any]:
+    """What every example's evaluation.json says of its training."""
+    return {
+        "method": args.method,
+        "steps": int(model.num_timesteps),
+        "envs": args.envs,
+        "episodes": len(episodes),
+        "wall_s": round(train_s, 1),
+        "firmware": args.firmware,
+        "control_hz": args.control_hz,
+        "seed": args.seed,
+        "resumed_from": str(args.resume) if args.resume else None,
+    }
+
+
 def read_curve(folder: Path) -> list[tuple[float, int, float]]:
     """The episodes of an earlier run's learning_curve.csv (none if it has none)."""
     path = folder / "learning_curve.csv"
@@ -528,20 +557,12 @@ def main() -> int:
     reached = next((v for v in verdicts if v["held"] == v["flights"]), None)
     summary = {
         "training": {
-            "method": args.method,
-            "steps": int(model.num_timesteps),
-            "envs": args.envs,
-            "episodes": len(episodes),
-            "wall_s": round(train_s, 1),
-            "firmware": args.firmware,
-            "control_hz": args.control_hz,
-            "seed": args.seed,
+            **training_figures(args, model, episodes, train_s),
             "latency_steps": list(args.latency_steps),
             "altitude_latency_steps": list(args.altitude_latency_steps),
             "rc_frame_per_step": args.rc_frame_per_step,
             # With --resume: the earlier runs' training time too.
             "total_wall_s": round(episodes[-1][2] if episodes else train_s, 1),
-            "resumed_from": str(args.resume) if args.resume else None,
         },
         "criterion": f"within {HOLD_WITHIN_M} m for the last {HOLD_WINDOW_S:g} s of a "
         f"{args.eval_s:g} s flight, on every one of {len(seeds)} unseen seeds",

@@ -20,9 +20,9 @@ throttle (in ANGLE mode the FC's own levelling) and the hand-written hover polic
 another quad (``5inch-freestyle``), ``--train-wind-m-s`` trains in a wind drawn per episode
 (:class:`bfsitl.gym.random_wind.RandomWind`), ``--vehicles`` on a quad drawn per episode
 (:class:`bfsitl.gym.random_vehicle.RandomVehicle`, with ``--mass-spread`` and
-``--thrust-spread`` about each); ``--unseen-vehicle`` adds throws of a quad training never
-flew (a profile ``bfsitl log fit`` made from a real log); ``--evaluate-only`` throws the
-policy a run left in ``--out`` again.
+``--thrust-spread`` about each); ``--eval-vehicles`` adds throws of other quads in still air
+(one training never flew: a profile ``bfsitl log fit`` made from a real log);
+``--evaluate-only`` throws the policy a run left in ``--out`` again.
 
 What it writes in ``--out``: ``learning_curve.csv``/``.png`` (each training episode's return
 against wall time, each checkpoint's recoveries), ``checkpoints/``, ``policy.zip``,
@@ -44,7 +44,6 @@ import csv
 import functools
 import json
 import sys
-import time
 from pathlib import Path
 from typing import Any
 
@@ -102,18 +101,18 @@ CONDITIONS: dict[str, tuple[Wind | None, DisturbanceHook | None]] = {
     "wind 3 m/s, gusts 1.5 m/s": (WIND, None),
     "motor 1 at 75 %": (None, weak_motor),
 }
-#: The condition of ``--unseen-vehicle``: that quad, in still air.
-UNSEEN = "unseen vehicle {name}, still air"
+#: The condition of each of ``--eval-vehicles``: that quad, in still air.
+ON_VEHICLE = "{name}, still air"
 
 
 def conditions(args: argparse.Namespace) -> dict[str, tuple[QuadParams, Wind | None, Any]]:
     """Each evaluation condition's quad, wind and hook: CONDITIONS with ``--vehicle``, then
-    ``--unseen-vehicle``'s quad in still air."""
+    each of ``--eval-vehicles`` in still air."""
     quad = load_vehicle(args.vehicle)
     chosen = {name: (quad, wind, hook) for name, (wind, hook) in CONDITIONS.items()}
-    if args.unseen_vehicle is not None:
-        unseen = load_vehicle(args.unseen_vehicle)
-        chosen[UNSEEN.format(name=unseen.name)] = (unseen, None, None)
+    for name in args.eval_vehicles.split(",") if args.eval_vehicles else ():
+        other = load_vehicle(name)
+        chosen[ON_VEHICLE.format(name=other.name)] = (other, None, None)
     return chosen
 
 
@@ -268,10 +267,11 @@ def parse_args() -> argparse.Namespace:
     parser.add_argument("--mass-spread", type=float, default=0.0, help="with --vehicles")
     parser.add_argument("--thrust-spread", type=float, default=0.0, help="with --vehicles")
     parser.add_argument(
-        "--unseen-vehicle",
+        "--eval-vehicles",
         default=None,
-        metavar="NAME|FILE",
-        help="also throw the policy on this quad, in still air (e.g. a bfsitl log fit profile)",
+        metavar="NAME,FILE,...",
+        help="also throw the policy on these quads, in still air (e.g. one training never "
+        "flew: a bfsitl log fit profile)",
     )
     parser.add_argument("--method", choices=shared.METHODS, default="ppo")
     parser.add_argument("--envs", type=int, default=2)
@@ -338,14 +338,7 @@ def parse_args() -> argparse.Namespace:
 def main() -> int:
     args = parse_args()
     args.out.mkdir(parents=True, exist_ok=True)
-    started = time.monotonic()
-    if args.evaluate_only:
-        model = shared.model_class(args.method).load(args.out / "policy.zip", device="cpu")
-        episodes = shared.read_curve(args.out)
-        train_s = episodes[-1][2] if episodes else 0.0
-    else:
-        model, episodes = shared.train(args)
-        train_s = time.monotonic() - started
+    model, episodes, train_s = shared.train_or_load(args)
     # The curve first, so that nothing of the training is lost if a throw fails; again with
     # the checkpoints' verdicts at the end.
     title = (
@@ -384,22 +377,14 @@ def main() -> int:
     shared.write_curve(episodes, verdicts, args.out, title, verdict_label="throws recovered")
     summary = {
         "training": {
-            "method": args.method,
+            **shared.training_figures(args, model, episodes, train_s),
             "mode": args.mode,
             "vehicle": args.vehicle,
-            "steps": int(model.num_timesteps),
-            "envs": args.envs,
-            "episodes": len(episodes),
-            "wall_s": round(train_s, 1),
-            "firmware": args.firmware,
-            "control_hz": args.control_hz,
-            "seed": args.seed,
             "throw": vars(throw_range(args)),
             "train_wind_m_s": args.train_wind_m_s,
             "vehicles": args.vehicles.split(",") if args.vehicles else [args.vehicle],
             "mass_spread": args.mass_spread,
             "thrust_spread": args.thrust_spread,
-            "resumed_from": str(args.resume) if args.resume else None,
         },
         "evaluation_seed": seed,
         "criterion": "upright within 20 deg, slower than 1 m/s and 1 rad/s at once, then no "

@@ -39,7 +39,6 @@ import csv
 import json
 import math
 import sys
-import time
 from collections.abc import Callable
 from pathlib import Path
 from typing import Any
@@ -324,14 +323,7 @@ def parse_args() -> argparse.Namespace:
 def main() -> int:
     args = parse_args()
     args.out.mkdir(parents=True, exist_ok=True)
-    started = time.monotonic()
-    if args.evaluate_only:
-        model = shared.model_class(args.method).load(args.out / "policy.zip", device="cpu")
-        episodes = shared.read_curve(args.out)
-        train_s = episodes[-1][2] if episodes else 0.0
-    else:
-        model, episodes = shared.train(args)
-        train_s = time.monotonic() - started
+    model, episodes, train_s = shared.train_or_load(args)
     title = f"bfsitl/Waypoints-v0 ({args.vehicle}) through Betaflight 4.6.0 ({args.method.upper()})"
     shared.write_curve(episodes, [], args.out, title)
     exported = export(model, args)
@@ -360,16 +352,9 @@ def main() -> int:
     conditions = [*CONDITIONS, RANDOM]
     summary = {
         "training": {
-            "method": args.method,
+            **shared.training_figures(args, model, episodes, train_s),
             "vehicle": args.vehicle,
             "vehicles": args.vehicles.split(",") if args.vehicles else [args.vehicle],
-            "steps": int(model.num_timesteps),
-            "envs": args.envs,
-            "episodes": len(episodes),
-            "wall_s": round(train_s, 1),
-            "firmware": args.firmware,
-            "control_hz": args.control_hz,
-            "seed": args.seed,
             "count": args.count,
             "horizontal_m": args.horizontal_m,
             "tilt_stick": args.tilt_stick,

@@ -98,7 +98,7 @@ def test_the_recovery_example_trains_exports_and_throws(
             # Trained on a quad drawn per episode, thrown also on one it never flew.
             "--vehicles",
             "iris,5inch-freestyle",
-            "--unseen-vehicle",
+            "--eval-vehicles",
             "3inch-cinewhoop",
             "--firmware",
             str(lockstep_gps_46_firmware),
@@ -119,7 +119,7 @@ def test_the_recovery_example_trains_exports_and_throws(
     assert summary["training"]["vehicles"] == ["iris", "5inch-freestyle"]
     assert 256 <= summary["training"]["steps"] <= 512
     evaluation = summary["evaluation"]
-    unseen = "unseen vehicle 3inch-cinewhoop, still air"
+    unseen = "3inch-cinewhoop, still air"
     assert list(evaluation) == [
         "still air",
         "wind 3 m/s, gusts 1.5 m/s",

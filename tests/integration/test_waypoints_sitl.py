@@ -17,7 +17,7 @@ pytest.importorskip("gymnasium")
 
 from bfsitl.gym.baseline import hand_policy  # noqa: E402
 from bfsitl.gym.env import WaypointsEnv  # noqa: E402
-from bfsitl.gym.tasks import PROGRESS_PER_M, REACHED_M, STEP_COST, WAYPOINT_BONUS  # noqa: E402
+from bfsitl.gym.tasks import PROGRESS_PER_M, REACHED_M, WAYPOINT_BONUS  # noqa: E402
 from bfsitl.mission.session import SitlLaunch  # noqa: E402
 
 pytestmark = pytest.mark.sitl
@@ -37,7 +37,7 @@ def lap(env: WaypointsEnv, seed: int) -> dict[str, Any]:
         truth = info["truth"]
         track.append((truth["north_m"], truth["east_m"], truth["alt_m"]))
         stick_cost = 0.01 * float(action[0] ** 2 + action[1] ** 2 + action[3] ** 2)
-        paid = reward + STEP_COST + stick_cost
+        paid = reward + stick_cost
         if info["waypoint"] != (waypoints[-1] if waypoints else 0) or (
             terminated and info["ended_because"] is None
         ):

@@ -15,11 +15,13 @@ time limit.
 
 :class:`Waypoints` is a course to fly fast, not a point to hold, so it pays progress instead:
 
-    reward = 10 * (metres closed on the current point) - 0.1 - 0.01 * |roll, pitch, yaw sticks|^2
+    reward = 10 * (metres closed on the current point) - 0.01 * |roll, pitch, yaw sticks|^2
 
-(a step that closes nothing costs 0.1, so the sooner the better; tilt is free, since speed
-needs it), ``WAYPOINT_BONUS`` for each point reached within ``REACHED_M``, and it ends
-(terminated, a success) at the last one.  The points are drawn per episode like
+and ``WAYPOINT_BONUS`` for each point reached within ``REACHED_M``; it ends (terminated, a
+success) at the last one.  Tilt is free, since speed needs it.  Nothing is charged per step:
+the learner's discount already makes progress sooner worth more, and a charge per step would
+make an early crash (a one-off ``FAILURE_REWARD``) cheaper than a long, slow lap, which is
+what a policy learns first.  The points are drawn per episode like
 :class:`Hover`'s, or given once as a fixed ``course``.
 
 :class:`Recover` starts from a throw (:mod:`~bfsitl.gym.throws`), upside down perhaps, so
@@ -47,9 +49,8 @@ MAX_DISTANCE_M = 10.0
 MAX_ALT_M = 20.0
 FAILURE_REWARD = -10.0
 WAYPOINT_BONUS = 5.0
-#: Waypoints' pay per metre closed on the current point, and its cost of a step.
+#: Waypoints' pay per metre closed on the current point.
 PROGRESS_PER_M = 10.0
-STEP_COST = 0.1
 #: A waypoint counts as reached within this distance of it.
 REACHED_M = 0.5
 #: Off the ground after take-off means above this height.
@@ -161,11 +162,7 @@ class Waypoints(Hover):
         distance = distance_m(truth, self.target)
         last = distance if self.last_distance_m is None else self.last_distance_m
         self.last_distance_m = distance
-        return (
-            PROGRESS_PER_M * (last - distance)
-            - STEP_COST
-            - 0.01 * (roll * roll + pitch * pitch + yaw * yaw)
-        )
+        return PROGRESS_PER_M * (last - distance) - 0.01 * (roll * roll + pitch * pitch + yaw * yaw)
 
     def advance(self, truth: TrueView) -> tuple[float, bool]:
         if distance_m(truth, self.target) > REACHED_M:

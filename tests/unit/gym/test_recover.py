@@ -13,6 +13,7 @@ import pytest
 pytest.importorskip("gymnasium")
 
 from support.fake_builds import fake_lockstep_build  # noqa: E402
+from support.true_views import true_view  # noqa: E402
 
 from bfsitl.backend.disturbances import Disturbances  # noqa: E402
 from bfsitl.errors import DisturbanceUnavailableError, EnvironmentConfigError  # noqa: E402
@@ -98,24 +99,8 @@ def test_the_hand_lets_go_tumbling_with_the_rotors_stopped() -> None:
 
 
 def truth(**changes: object) -> TrueView:
-    values: dict[str, object] = dict(
-        north_m=0.0,
-        east_m=0.0,
-        alt_m=9.0,
-        v_north_m_s=0.0,
-        v_east_m_s=0.0,
-        v_up_m_s=0.0,
-        roll_rad=0.0,
-        pitch_rad=0.0,
-        yaw_rad=0.0,
-        rates_flu_rad_s=(0.0, 0.0, 0.0),
-        accel_flu_m_s2=(0.0, 0.0, 9.81),
-        motors=(0.5, 0.5, 0.5, 0.5),
-        tilt_deg=5.0,
-        on_ground=False,
-    )
-    values.update(changes)
-    return TrueView(**values)  # type: ignore[arg-type]
+    """A quad 9 m up, tilted 5 deg, still: recovered unless ``changes`` say otherwise."""
+    return true_view(**{"alt_m": 9.0, "tilt_deg": 5.0, **changes})
 
 
 def test_upright_slow_and_calm_at_once_is_a_recovery_and_each_alone_is_not() -> None:

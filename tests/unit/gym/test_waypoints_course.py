@@ -1,5 +1,5 @@
-"""Waypoints as a course to fly fast: paid for progress (closing on the point pays, standing
-costs, the next point's distance is no windfall), a fixed course every episode, and courses
+"""Waypoints as a course to fly fast: paid for progress (closing on the point pays, backing
+off costs, the next point's distance is no windfall), a fixed course every episode, and courses
 the episode's bounds would end refused with the point that is wrong."""
 
 from __future__ import annotations
@@ -12,12 +12,13 @@ import pytest
 pytest.importorskip("gymnasium")
 
 from support.fake_builds import fake_lockstep_build  # noqa: E402
+from support.true_views import true_view  # noqa: E402
 
 from bfsitl.errors import EnvironmentConfigError  # noqa: E402
 from bfsitl.gym.env import WaypointsEnv  # noqa: E402
 from bfsitl.gym.option_checks import check_course  # noqa: E402
 from bfsitl.gym.snapshot import TrueView  # noqa: E402
-from bfsitl.gym.tasks import PROGRESS_PER_M, STEP_COST, WAYPOINT_BONUS, Waypoints  # noqa: E402
+from bfsitl.gym.tasks import PROGRESS_PER_M, WAYPOINT_BONUS, Waypoints  # noqa: E402
 from bfsitl.mission.session import SitlLaunch  # noqa: E402
 
 CENTRED = np.zeros(4, dtype=np.float32)
@@ -25,38 +26,23 @@ COURSE = ((4.0, 0.0, 2.0), (4.0, 4.0, 3.0))
 
 
 def at(north_m: float, east_m: float, alt_m: float, tilt_deg: float = 0.0) -> TrueView:
-    return TrueView(
-        north_m=north_m,
-        east_m=east_m,
-        alt_m=alt_m,
-        v_north_m_s=0.0,
-        v_east_m_s=0.0,
-        v_up_m_s=0.0,
-        roll_rad=0.0,
-        pitch_rad=0.0,
-        yaw_rad=0.0,
-        rates_flu_rad_s=(0.0, 0.0, 0.0),
-        accel_flu_m_s2=(0.0, 0.0, 9.81),
-        motors=(0.5, 0.5, 0.5, 0.5),
-        tilt_deg=tilt_deg,
-        on_ground=False,
-    )
+    return true_view(north_m=north_m, east_m=east_m, alt_m=alt_m, tilt_deg=tilt_deg)
 
 
-def test_closing_on_the_point_pays_standing_costs_and_tilt_is_free() -> None:
+def test_closing_on_the_point_pays_backing_off_costs_and_tilt_is_free() -> None:
     task = Waypoints(course=COURSE)
     task.reset(np.random.default_rng(0))
-    # The first step has nothing to compare with: it costs the step only.
-    assert task.reward(at(0.0, 0.0, 2.0), CENTRED) == pytest.approx(-STEP_COST)
-    # 0.1 m closer, leaning hard: the progress, less the step.
+    # The first step has nothing to compare with.
+    assert task.reward(at(0.0, 0.0, 2.0), CENTRED) == 0.0
+    # 0.1 m closer, leaning hard: the progress, all of it.
     assert task.reward(at(0.1, 0.0, 2.0, tilt_deg=30.0), CENTRED) == pytest.approx(
-        PROGRESS_PER_M * 0.1 - STEP_COST
+        PROGRESS_PER_M * 0.1
     )
-    assert task.reward(at(0.1, 0.0, 2.0), CENTRED) == pytest.approx(-STEP_COST)  # standing
-    assert task.reward(at(0.0, 0.0, 2.0), CENTRED) == pytest.approx(-PROGRESS_PER_M * 0.1 - 0.1)
+    assert task.reward(at(0.1, 0.0, 2.0), CENTRED) == 0.0  # standing: nothing
+    assert task.reward(at(0.0, 0.0, 2.0), CENTRED) == pytest.approx(-PROGRESS_PER_M * 0.1)
     # The sticks' effort costs as in a hover (roll, pitch, yaw; the throttle is free).
     sticks = np.array([0.5, 0.0, 1.0, 0.0], dtype=np.float32)
-    assert task.reward(at(0.0, 0.0, 2.0), sticks) == pytest.approx(-STEP_COST - 0.01 * 0.25)
+    assert task.reward(at(0.0, 0.0, 2.0), sticks) == pytest.approx(-0.01 * 0.25)
 
 
 def test_reaching_a_point_counts_progress_on_the_next_without_a_windfall() -> None:
@@ -64,14 +50,14 @@ def test_reaching_a_point_counts_progress_on_the_next_without_a_windfall() -> No
     task.reset(np.random.default_rng(0))
     task.reward(at(3.0, 0.0, 2.0), CENTRED)
     reached = at(3.8, 0.0, 2.0)
-    assert task.reward(reached, CENTRED) == pytest.approx(PROGRESS_PER_M * 0.8 - STEP_COST)
+    assert task.reward(reached, CENTRED) == pytest.approx(PROGRESS_PER_M * 0.8)
     assert task.advance(reached) == (WAYPOINT_BONUS, False) and task.index == 1
     # The next point is about 4 m away: moving 0.1 m towards it pays 0.1 m, not 4 m lost
     # or won by the change of target.
     before = np.linalg.norm(np.subtract(COURSE[1], (3.8, 0.0, 2.0)))
     step = np.subtract(COURSE[1], (3.8, 0.0, 2.0)) / before * 0.1
     closer = at(3.8 + step[0], step[1], 2.0 + step[2])
-    assert task.reward(closer, CENTRED) == pytest.approx(PROGRESS_PER_M * 0.1 - STEP_COST)
+    assert task.reward(closer, CENTRED) == pytest.approx(PROGRESS_PER_M * 0.1)
     assert task.advance(at(*COURSE[1])) == (WAYPOINT_BONUS, True)
     assert task.info() == {"waypoints": 2}
 

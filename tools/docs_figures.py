@@ -36,6 +36,7 @@ from docs_running import (
     roma_replay_run,
     run,
     square_run,
+    waypoints_run_file,
 )
 
 
@@ -175,6 +176,11 @@ def copy_recover_curve(ctx: Context, work: Path) -> Path:
     return png(ctx.recover_run / "learning_curve.png")
 
 
+def copy_waypoints_curve(ctx: Context, work: Path) -> Path:
+    assert ctx.waypoints_run is not None
+    return png(ctx.waypoints_run / "learning_curve.png")
+
+
 def make_configurator_flight(ctx: Context, work: Path) -> Path:
     shot = work / "configurator-flight.png"
     env = {
@@ -270,6 +276,12 @@ FIGURES = (
         "examples/train_recover.py --minutes 10 (ACRO, IRIS): learning_curve.png",
         (recover_run_file("learning_curve.png"),),
         copy_recover_curve,
+    ),
+    Figure(
+        "gym-waypoints-curve",
+        "examples/train_waypoints.py --minutes 15 (IRIS): learning_curve.png",
+        (waypoints_run_file("learning_curve.png"),),
+        copy_waypoints_curve,
     ),
     Figure(
         "gym-evaluation",

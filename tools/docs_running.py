@@ -47,6 +47,7 @@ class Context:
     stack: contextlib.ExitStack
     shared: dict[str, Path] = field(default_factory=dict)
     recover_run: Path | None = None
+    waypoints_run: Path | None = None
 
     def temporary_folder(self, prefix: str) -> Path:
         """A folder removed when the whole run ends (for runs two figures share)."""
@@ -224,6 +225,10 @@ def hover_run_file(name: str) -> Need:
 
 def recover_run_file(name: str) -> Need:
     return _run_file(name, "recover", 10)
+
+
+def waypoints_run_file(name: str) -> Need:
+    return _run_file(name, "waypoints", 15)
 
 
 def _run_file(name: str, task: str, minutes: int) -> Need:

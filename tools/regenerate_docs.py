@@ -10,8 +10,8 @@ whose command fails leaves its file as it was.  Ctrl-C (or SIGTERM) stops the co
 running, lets it stop its SITLs, and removes the temporary folders.
 
 Run: ``python tools/regenerate_docs.py [--only NAME ...] [--firmware-46 NAME]
-[--firmware-master NAME] [--real-logs DIR] [--hover-run DIR] [--recover-run DIR] [--out DIR]
-[--list] [--check]``.
+[--firmware-master NAME] [--real-logs DIR] [--hover-run DIR] [--recover-run DIR]
+[--waypoints-run DIR] [--out DIR] [--list] [--check]``.
 The firmware names are cached builds (``bfsitl firmware list``; ``BFSITL_CACHE_DIR`` says
 which cache) or SITL binaries; the stock 4.6.0 is the one ``bfsitl fly`` finds by default.
 """
@@ -144,6 +144,12 @@ def parse(argv: Sequence[str] | None) -> argparse.Namespace:
         help="the folder of a training run of examples/train_recover.py (its curve)",
     )
     parser.add_argument(
+        "--waypoints-run",
+        type=Path,
+        metavar="DIR",
+        help="the folder of a training run of examples/train_waypoints.py (its curve)",
+    )
+    parser.add_argument(
         "--out",
         type=Path,
         default=REPO,
@@ -181,6 +187,7 @@ def main(argv: Sequence[str] | None = None) -> int:
             args.hover_run,
             stack,
             recover_run=args.recover_run,
+            waypoints_run=args.waypoints_run,
         )
         if args.list:
             list_items(args.items, ctx)

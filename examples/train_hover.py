@@ -262,6 +262,20 @@ def training_figures(
     }
 
 
+def write_summary(
+    out: Path, summary: dict[str, Any], exported: Policy | None, shown: tuple[str, ...]
+) -> None:
+    """``summary`` with the exported policy's inference time, as ``evaluation.json`` in
+    ``out``; its ``shown`` keys printed."""
+    summary["policy_onnx"] = (
+        None
+        if exported is None
+        else {"file": "policy.onnx", "inference_us_median": round(inference_us(exported), 1)}
+    )
+    (out / "evaluation.json").write_text(json.dumps(summary, indent=2) + "\n")
+    print(json.dumps({k: summary[k] for k in shown}, indent=2))
+
+
 def read_curve(folder: Path) -> list[tuple[float, int, float]]:
     """The episodes of an earlier run's learning_curve.csv (none if it has none)."""
     path = folder / "learning_curve.csv"
@@ -421,35 +435,54 @@ def judge_checkpoints(
     return verdicts
 
 
-def main() -> int:
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+def add_learner_arguments(
+    parser: argparse.ArgumentParser,
+    *,
+    control_hz: float,
+    gamma: float,
+    lr_schedule: str,
+    minutes: float,
+    checkpoint_s: float,
+    n_steps: int,
+) -> None:
+    """The options every training example takes (the firmware, the learner and its budget),
+    with each example's defaults."""
     parser.add_argument("--firmware", default=DEFAULT_FIRMWARE)
     parser.add_argument("--method", choices=METHODS, default="ppo")
     parser.add_argument("--envs", type=int, default=2)
-    parser.add_argument(
-        "--control-hz",
-        type=float,
-        default=50.0,
-        help="the policy's rate (50 Hz: each step sees more of the flight)",
-    )
-    parser.add_argument("--gamma", type=float, default=0.98)
+    parser.add_argument("--control-hz", type=float, default=control_hz, help="the policy's rate")
+    parser.add_argument("--gamma", type=float, default=gamma)
     parser.add_argument(
         "--learning-rate",
         type=float,
         default=None,
-        help="the learner's step size (default: 5e-4 for PPO, 1e-3 for SAC and TD3)",
+        help="the learner's step size (default: the example's for PPO, 1e-3 for SAC and TD3)",
     )
     parser.add_argument(
         "--lr-schedule",
         choices=("constant", "linear"),
-        default="constant",
+        default=lr_schedule,
         help="linear: fall to a twentieth over --minutes",
     )
-    parser.add_argument("--minutes", type=float, default=5.0, help="wall time of training")
+    parser.add_argument("--minutes", type=float, default=minutes, help="wall time of training")
     parser.add_argument("--steps", type=int, default=10**9, help="stop after this many steps")
-    parser.add_argument("--checkpoint-s", type=float, default=30.0)
-    parser.add_argument("--n-steps", type=int, default=512, help="PPO rollout per env")
+    parser.add_argument("--checkpoint-s", type=float, default=checkpoint_s)
+    parser.add_argument("--n-steps", type=int, default=n_steps, help="PPO rollout per env")
     parser.add_argument("--seed", type=int, default=0)
+
+
+def main() -> int:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    # 50 Hz: each step sees more of the flight.
+    add_learner_arguments(
+        parser,
+        control_hz=50.0,
+        gamma=0.98,
+        lr_schedule="constant",
+        minutes=5.0,
+        checkpoint_s=30.0,
+        n_steps=512,
+    )
     parser.add_argument("--eval-s", type=float, default=15.0)
     parser.add_argument(
         "--eval-seeds",
@@ -570,12 +603,8 @@ def main() -> int:
         "time_to_criterion_s": reached["wall_s"] if reached else None,
         "checkpoints": verdicts,
         "evaluation": results,
-        "policy_onnx": None
-        if exported is None
-        else {"file": "policy.onnx", "inference_us_median": round(inference_us(exported), 1)},
     }
-    (args.out / "evaluation.json").write_text(json.dumps(summary, indent=2) + "\n")
-    print(json.dumps({k: summary[k] for k in ("training", "time_to_criterion_s")}, indent=2))
+    write_summary(args.out, summary, exported, ("training", "time_to_criterion_s"))
     return 0
 
 

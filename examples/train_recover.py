@@ -42,7 +42,6 @@ from __future__ import annotations
 import argparse
 import csv
 import functools
-import json
 import sys
 from pathlib import Path
 from typing import Any
@@ -57,7 +56,7 @@ import bfsitl.gym  # noqa: E402, F401  (registers the environments)
 from bfsitl.backend.disturbances import Disturbances  # noqa: E402
 from bfsitl.backend.options import World  # noqa: E402
 from bfsitl.gym.baseline import hand_policy, hover_stick  # noqa: E402
-from bfsitl.gym.env import DEFAULT_FIRMWARE, MODES, DisturbanceHook, RecoverEnv  # noqa: E402
+from bfsitl.gym.env import MODES, DisturbanceHook, RecoverEnv  # noqa: E402
 from bfsitl.gym.random_vehicle import RandomVehicle  # noqa: E402
 from bfsitl.gym.random_wind import RandomWind  # noqa: E402
 from bfsitl.gym.scaled import ScaledEnv, StickLimits  # noqa: E402
@@ -252,7 +251,15 @@ def export(model: Any, args: argparse.Namespace) -> Any:
 
 def parse_args() -> argparse.Namespace:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--firmware", default=DEFAULT_FIRMWARE)
+    shared.add_learner_arguments(
+        parser,
+        control_hz=100.0,
+        gamma=0.98,
+        lr_schedule="linear",
+        minutes=10.0,
+        checkpoint_s=60.0,
+        n_steps=1024,
+    )
     parser.add_argument("--mode", choices=MODES, default="acro", help="the FC's flight mode")
     parser.add_argument(
         "--vehicle", default="iris", help="a vehicle's name (bfsitl vehicles) or profile file"
@@ -273,17 +280,6 @@ def parse_args() -> argparse.Namespace:
         help="also throw the policy on these quads, in still air (e.g. one training never "
         "flew: a bfsitl log fit profile)",
     )
-    parser.add_argument("--method", choices=shared.METHODS, default="ppo")
-    parser.add_argument("--envs", type=int, default=2)
-    parser.add_argument("--control-hz", type=float, default=100.0)
-    parser.add_argument("--gamma", type=float, default=0.98)
-    parser.add_argument("--learning-rate", type=float, default=None)
-    parser.add_argument("--lr-schedule", choices=("constant", "linear"), default="linear")
-    parser.add_argument("--minutes", type=float, default=10.0, help="wall time of training")
-    parser.add_argument("--steps", type=int, default=10**9, help="stop after this many steps")
-    parser.add_argument("--checkpoint-s", type=float, default=60.0)
-    parser.add_argument("--n-steps", type=int, default=1024, help="PPO rollout per env")
-    parser.add_argument("--seed", type=int, default=0)
     parser.add_argument("--throws", type=int, default=100, help="the final evaluation's throws")
     parser.add_argument("--checkpoint-throws", type=int, default=20)
     parser.add_argument("--height-m", type=float, default=Throw.height_m)
@@ -394,13 +390,8 @@ def main() -> int:
             condition: {name: summarise(flown) for name, flown in by_policy.items()}
             for condition, by_policy in results.items()
         },
-        "policy_onnx": {
-            "file": "policy.onnx",
-            "inference_us_median": round(shared.inference_us(exported), 1),
-        },
     }
-    (args.out / "evaluation.json").write_text(json.dumps(summary, indent=2) + "\n")
-    print(json.dumps({k: summary[k] for k in ("training", "evaluation")}, indent=2))
+    shared.write_summary(args.out, summary, exported, ("training", "evaluation"))
     return 0
 
 

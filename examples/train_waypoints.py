@@ -36,7 +36,6 @@ from __future__ import annotations
 
 import argparse
 import csv
-import json
 import math
 import sys
 from collections.abc import Callable
@@ -54,7 +53,7 @@ from bfsitl import Autopilot, launch_sitl  # noqa: E402
 from bfsitl.backend.options import World  # noqa: E402
 from bfsitl.errors import MissionError  # noqa: E402
 from bfsitl.gym.baseline import hand_policy, hover_stick  # noqa: E402
-from bfsitl.gym.env import DEFAULT_FIRMWARE, WaypointsEnv  # noqa: E402
+from bfsitl.gym.env import WaypointsEnv  # noqa: E402
 from bfsitl.gym.random_vehicle import RandomVehicle  # noqa: E402
 from bfsitl.gym.random_wind import RandomWind  # noqa: E402
 from bfsitl.gym.scaled import ScaledEnv, StickLimits  # noqa: E402
@@ -271,7 +270,15 @@ def export(model: Any, args: argparse.Namespace) -> Any:
 
 def parse_args() -> argparse.Namespace:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--firmware", default=DEFAULT_FIRMWARE)
+    shared.add_learner_arguments(
+        parser,
+        control_hz=100.0,
+        gamma=0.99,
+        lr_schedule="linear",
+        minutes=15.0,
+        checkpoint_s=60.0,
+        n_steps=1024,
+    )
     parser.add_argument("--vehicle", default="iris", help="a vehicle's name or profile file")
     parser.add_argument(
         "--vehicles",
@@ -282,17 +289,6 @@ def parse_args() -> argparse.Namespace:
     parser.add_argument("--count", type=int, default=4, help="points per training course")
     parser.add_argument("--horizontal-m", type=float, default=3.0, help="training's spread")
     parser.add_argument("--tilt-stick", type=float, default=0.6, help="of the roll/pitch travel")
-    parser.add_argument("--method", choices=shared.METHODS, default="ppo")
-    parser.add_argument("--envs", type=int, default=2)
-    parser.add_argument("--control-hz", type=float, default=100.0)
-    parser.add_argument("--gamma", type=float, default=0.99)
-    parser.add_argument("--learning-rate", type=float, default=None)
-    parser.add_argument("--lr-schedule", choices=("constant", "linear"), default="linear")
-    parser.add_argument("--minutes", type=float, default=15.0, help="wall time of training")
-    parser.add_argument("--steps", type=int, default=10**9, help="stop after this many steps")
-    parser.add_argument("--checkpoint-s", type=float, default=60.0)
-    parser.add_argument("--n-steps", type=int, default=1024, help="PPO rollout per env")
-    parser.add_argument("--seed", type=int, default=0)
     parser.add_argument("--laps", type=int, default=10, help="laps of the course per condition")
     parser.add_argument("--courses", type=int, default=30, help="random courses to race")
     parser.add_argument("--train-wind-m-s", type=float, default=0.0)
@@ -372,13 +368,8 @@ def main() -> int:
             }
             for condition in conditions
         },
-        "policy_onnx": {
-            "file": "policy.onnx",
-            "inference_us_median": round(shared.inference_us(exported), 1),
-        },
     }
-    (args.out / "evaluation.json").write_text(json.dumps(summary, indent=2) + "\n")
-    print(json.dumps({k: summary[k] for k in ("training", "evaluation")}, indent=2))
+    shared.write_summary(args.out, summary, exported, ("training", "evaluation"))
     return 0
 
 

@@ -18,39 +18,44 @@ import pytest
 pytestmark = pytest.mark.sitl
 
 EXAMPLE = Path(__file__).resolve().parents[2] / "examples" / "train_hover.py"
-
-
-@pytest.mark.skipif(
+NEEDS_SB3 = pytest.mark.skipif(
     importlib.util.find_spec("stable_baselines3") is None,
     reason="Stable-Baselines3 not installed: pip install torch "
     "'bfsitl[learn]' to run the training example's smoke test",
 )
+
+
+def run_smoke(
+    example: Path, firmware: Path, tmp_path: Path, *options: str, env: dict[str, str] | None = None
+) -> Path:
+    """``example --smoke`` with ``options`` on ``firmware``; its --out folder, once it
+    succeeded."""
+    out = tmp_path / "run"
+    run = subprocess.run(
+        [sys.executable, str(example), "--smoke", *options, "--firmware", str(firmware)]
+        + ["--out", str(out)],
+        capture_output=True,
+        text=True,
+        timeout=300,
+        cwd=tmp_path,
+        env=env,
+    )
+    assert run.returncode == 0, run.stdout[-2000:] + run.stderr[-4000:]
+    return out
+
+
+@NEEDS_SB3
 def test_the_training_example_runs_and_writes_its_outputs(
     lockstep_gps_46_firmware: Path, tmp_path: Path
 ) -> None:
     scratch = tmp_path / "tmp"
     scratch.mkdir()
-    run = subprocess.run(
-        [
-            sys.executable,
-            str(EXAMPLE),
-            "--smoke",
-            "--firmware",
-            str(lockstep_gps_46_firmware),
-            "--out",
-            str(tmp_path / "run"),
-        ],
-        capture_output=True,
-        text=True,
-        timeout=300,
-        cwd=tmp_path,
-        env={**os.environ, "TMPDIR": str(scratch)},
+    out = run_smoke(
+        EXAMPLE, lockstep_gps_46_firmware, tmp_path, env={**os.environ, "TMPDIR": str(scratch)}
     )
-    assert run.returncode == 0, run.stdout[-2000:] + run.stderr[-4000:]
     # No SB3 logger folder left in the temporary directory (SB3 makes one unless told).
     # bfsitl-cores-<uid> stays by design: the core claims' lock files, shared by every run.
     assert not list(scratch.glob("SB3-*")), list(scratch.iterdir())
-    out = tmp_path / "run"
     for name in (
         "policy.zip",
         "policy.onnx",
@@ -80,38 +85,18 @@ def test_the_training_example_runs_and_writes_its_outputs(
 RECOVER_EXAMPLE = EXAMPLE.with_name("train_recover.py")
 
 
-@pytest.mark.skipif(
-    importlib.util.find_spec("stable_baselines3") is None,
-    reason="Stable-Baselines3 not installed: pip install torch "
-    "'bfsitl[learn]' to run the training example's smoke test",
-)
+@NEEDS_SB3
 def test_the_recovery_example_trains_exports_and_throws(
     lockstep_gps_46_firmware: Path, tmp_path: Path
 ) -> None:
-    run = subprocess.run(
-        [
-            sys.executable,
-            str(RECOVER_EXAMPLE),
-            "--smoke",
-            "--mode",
-            "angle",
-            # Trained on a quad drawn per episode, thrown also on one it never flew.
-            "--vehicles",
-            "iris,5inch-freestyle",
-            "--eval-vehicles",
-            "3inch-cinewhoop",
-            "--firmware",
-            str(lockstep_gps_46_firmware),
-            "--out",
-            str(tmp_path / "run"),
-        ],
-        capture_output=True,
-        text=True,
-        timeout=300,
-        cwd=tmp_path,
+    # Trained on a quad drawn per episode, thrown also on one it never flew.
+    out = run_smoke(
+        RECOVER_EXAMPLE,
+        lockstep_gps_46_firmware,
+        tmp_path,
+        *("--mode", "angle", "--vehicles", "iris,5inch-freestyle"),
+        *("--eval-vehicles", "3inch-cinewhoop"),
     )
-    assert run.returncode == 0, run.stdout[-2000:] + run.stderr[-4000:]
-    out = tmp_path / "run"
     for name in ("policy.zip", "policy.onnx", "learning_curve.csv", "throws.csv"):
         assert (out / name).is_file(), name
     summary = json.loads((out / "evaluation.json").read_text())
@@ -143,31 +128,11 @@ def test_the_recovery_example_trains_exports_and_throws(
 WAYPOINTS_EXAMPLE = EXAMPLE.with_name("train_waypoints.py")
 
 
-@pytest.mark.skipif(
-    importlib.util.find_spec("stable_baselines3") is None,
-    reason="Stable-Baselines3 not installed: pip install torch "
-    "'bfsitl[learn]' to run the training example's smoke test",
-)
+@NEEDS_SB3
 def test_the_waypoints_example_trains_and_races_the_autopilot(
     lockstep_gps_46_firmware: Path, tmp_path: Path
 ) -> None:
-    run = subprocess.run(
-        [
-            sys.executable,
-            str(WAYPOINTS_EXAMPLE),
-            "--smoke",
-            "--firmware",
-            str(lockstep_gps_46_firmware),
-            "--out",
-            str(tmp_path / "run"),
-        ],
-        capture_output=True,
-        text=True,
-        timeout=300,
-        cwd=tmp_path,
-    )
-    assert run.returncode == 0, run.stdout[-2000:] + run.stderr[-4000:]
-    out = tmp_path / "run"
+    out = run_smoke(WAYPOINTS_EXAMPLE, lockstep_gps_46_firmware, tmp_path)
     for name in ("policy.zip", "policy.onnx", "learning_curve.csv", "laps.csv"):
         assert (out / name).is_file(), name
     summary = json.loads((out / "evaluation.json").read_text())

@@ -53,7 +53,7 @@ from bfsitl import Autopilot, launch_sitl  # noqa: E402
 from bfsitl.backend.options import World  # noqa: E402
 from bfsitl.errors import MissionError  # noqa: E402
 from bfsitl.gym.baseline import hand_policy, hover_stick  # noqa: E402
-from bfsitl.gym.env import WaypointsEnv  # noqa: E402
+from bfsitl.gym.env import DEFAULT_START_ALT_M, WaypointsEnv  # noqa: E402
 from bfsitl.gym.random_vehicle import RandomVehicle  # noqa: E402
 from bfsitl.gym.random_wind import RandomWind  # noqa: E402
 from bfsitl.gym.scaled import ScaledEnv, StickLimits  # noqa: E402
@@ -66,8 +66,6 @@ from bfsitl.vehicles import load_vehicle  # noqa: E402
 #: The evaluation course: a 4 m square with a climb and a descent, back to the start; the
 #: legs are longer than training's draws put most points apart, and it is never drawn.
 COURSE: tuple[Vec3, ...] = ((4.0, 0.0, 2.0), (4.0, 4.0, 3.0), (0.0, 4.0, 2.0), (0.0, 0.0, 1.5))
-#: The take-off's height, where every lap starts (the environment's default start).
-START_UP_M = 1.5
 #: The evaluation's seeds start here; training draws its own, never these.
 EVAL_SEED = 30_000
 #: A lap's time limit: the environment's episode (20 s); the Autopilot gets it per leg.
@@ -163,7 +161,7 @@ def autopilot_pilot(args: argparse.Namespace) -> Pilot:
             args.firmware, vehicle=args.vehicle, wind=wind, seed=seed, workdir=None
         ) as vehicle:
             pilot = Autopilot(vehicle)
-            pilot.takeoff(START_UP_M)
+            pilot.takeoff(DEFAULT_START_ALT_M)  # where the environment's laps start
             if weak:
                 vehicle.disturbances.set_motor_thrust(WEAK_MOTOR, WEAK_FRACTION)
             began_s, ended = vehicle.time_s, None

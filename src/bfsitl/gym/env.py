@@ -47,7 +47,7 @@ import numpy as np
 from gymnasium import spaces
 
 from bfsitl.backend.disturbances import Disturbances
-from bfsitl.backend.options import LOCKSTEP_EXCHANGES, Timing, World
+from bfsitl.backend.options import Timing, World
 from bfsitl.build.binary_scan import RX_FRAMES_ENV
 from bfsitl.control import make_controller
 from bfsitl.errors import EnvironmentConfigError, LinkError, MspError, SitlError
@@ -60,7 +60,13 @@ from bfsitl.gym.observation import (
     observation_space,
     observe,
 )
-from bfsitl.gym.option_checks import MAX_HORIZONTAL_M, check_choice, check_course, check_group
+from bfsitl.gym.option_checks import (
+    check_choice,
+    check_course,
+    check_group,
+    check_groups,
+    check_horizontal_m,
+)
 from bfsitl.gym.random_vehicle import RandomVehicle
 from bfsitl.gym.random_wind import RandomWind
 from bfsitl.gym.render import RENDER_MODES, check_render_mode, render_frame
@@ -98,6 +104,8 @@ WAYPOINTS_MAX_EPISODE_STEPS = round(20.0 * DEFAULT_CONTROL_HZ)
 #: A throw's episode: 4 s, to recover and then hold.
 RECOVER_MAX_EPISODE_STEPS = round(4.0 * DEFAULT_CONTROL_HZ)
 DEFAULT_FIRMWARE = "4.6.0-gps-lockstep"
+#: How high an "air" start hands over, metres above where the quad armed.
+DEFAULT_START_ALT_M = 1.5
 #: Armed on the ground before an "air" start's take-off (the FC's altitude settles).
 _GROUND_S = 1.0
 #: A warm reset holds the vehicle this long (simulated) while the FC settles.
@@ -159,7 +167,7 @@ class FlightEnv(gymnasium.Env[np.ndarray, np.ndarray]):
         disturbances: DisturbanceHook | None = None,
         max_episode_steps: int | None = HOVER_MAX_EPISODE_STEPS,
         start: EpisodeStart = "air",
-        start_alt_m: float = 1.5,
+        start_alt_m: float = DEFAULT_START_ALT_M,
         latency: Latency = NO_LATENCY,
         rc_frame_per_step: bool = False,
         random_wind: RandomWind | None = None,
@@ -168,34 +176,11 @@ class FlightEnv(gymnasium.Env[np.ndarray, np.ndarray]):
         warm_resets: bool = True,
         render_mode: str | None = None,
     ) -> None:
-        check_group("sitl", sitl, SitlLaunch)
-        check_group("timing", timing, Timing)
-        check_group("world", world, World)
-        check_group("latency", latency, Latency)
-        if random_wind is not None:
-            check_group("random_wind", random_wind, RandomWind)
-            if world.wind is not None:
-                raise EnvironmentConfigError(
-                    "random_wind with world.wind: give one wind, drawn per episode "
-                    "(random_wind) or the same for all (world.wind)"
-                )
-        if random_vehicle is not None:
-            check_group("random_vehicle", random_vehicle, RandomVehicle)
+        check_groups(sitl, timing, world, latency, random_wind, random_vehicle)
         check_choice("mode", mode, MODES)
         check_choice("observation", observation, OBSERVATIONS)
         check_choice("start", start, STARTS)
         check_render_mode(render_mode)
-        check_choice("timing.lockstep_exchange", timing.lockstep_exchange, LOCKSTEP_EXCHANGES)
-        if timing.lockstep is False:
-            raise EnvironmentConfigError(
-                "timing.lockstep=False: the environment steps the firmware with the physics; "
-                "leave it None or True"
-            )
-        if world.physics != "embedded":
-            raise EnvironmentConfigError(
-                f"world.physics={world.physics!r}: the environment flies bfsitl's own "
-                f"(embedded) physics, whose steps the lockstep follows"
-            )
         spin = timing.lockstep_spin
         low, high = CONTROL_HZ_RANGE
         if not low <= control_hz <= high:
@@ -576,12 +561,10 @@ class WaypointsEnv(FlightEnv):
     ) -> None:
         if not 1 <= count <= 50:
             raise EnvironmentConfigError(f"count {count} is outside 1..50 waypoints")
-        if not 0.5 <= horizontal_m <= MAX_HORIZONTAL_M:
-            raise EnvironmentConfigError(
-                f"horizontal_m {horizontal_m} is outside 0.5..{MAX_HORIZONTAL_M:g} m"
-            )
+        check_horizontal_m(horizontal_m)
         if course is not None:
-            course = check_course(course, start_up_m=options.get("start_alt_m", 1.5))
+            start_up_m = options.get("start_alt_m", DEFAULT_START_ALT_M)
+            course = check_course(course, start_up_m=start_up_m)
         task = Waypoints(count=count, horizontal_m=horizontal_m, course=course)
         super().__init__(task, max_episode_steps=max_episode_steps, **options)
 

@@ -7,9 +7,14 @@ import dataclasses
 import math
 from collections.abc import Sequence
 
+from bfsitl.backend.options import LOCKSTEP_EXCHANGES, Timing, World
 from bfsitl.errors import EnvironmentConfigError
+from bfsitl.gym.latency import Latency
+from bfsitl.gym.random_vehicle import RandomVehicle
+from bfsitl.gym.random_wind import RandomWind
 from bfsitl.gym.snapshot import Vec3
 from bfsitl.gym.tasks import MAX_ALT_M, MAX_DISTANCE_M
+from bfsitl.mission.session import SitlLaunch
 
 #: Random waypoints at most this far north and east of the start: two in a row are then
 #: always inside the bounds (MAX_DISTANCE_M) of each other.
@@ -30,11 +35,55 @@ def check_group(name: str, value: object, group: type) -> None:
         )
 
 
+def check_groups(
+    sitl: SitlLaunch,
+    timing: Timing,
+    world: World,
+    latency: Latency,
+    random_wind: RandomWind | None,
+    random_vehicle: RandomVehicle | None,
+) -> None:
+    """An environment's groups of options, each what it must be and together what the
+    lockstep environment can fly; or EnvironmentConfigError saying what to give."""
+    check_group("sitl", sitl, SitlLaunch)
+    check_group("timing", timing, Timing)
+    check_group("world", world, World)
+    check_group("latency", latency, Latency)
+    if random_wind is not None:
+        check_group("random_wind", random_wind, RandomWind)
+        if world.wind is not None:
+            raise EnvironmentConfigError(
+                "random_wind with world.wind: give one wind, drawn per episode "
+                "(random_wind) or the same for all (world.wind)"
+            )
+    if random_vehicle is not None:
+        check_group("random_vehicle", random_vehicle, RandomVehicle)
+    check_choice("timing.lockstep_exchange", timing.lockstep_exchange, LOCKSTEP_EXCHANGES)
+    if timing.lockstep is False:
+        raise EnvironmentConfigError(
+            "timing.lockstep=False: the environment steps the firmware with the physics; "
+            "leave it None or True"
+        )
+    if world.physics != "embedded":
+        raise EnvironmentConfigError(
+            f"world.physics={world.physics!r}: the environment flies bfsitl's own "
+            f"(embedded) physics, whose steps the lockstep follows"
+        )
+
+
 def check_choice(name: str, value: str, choices: tuple[str, ...]) -> None:
     # The types say it to a type checker; this says it to everyone else (a string from a
     # config file, gymnasium.make's keywords).
     if value not in choices:
         raise EnvironmentConfigError(f"{name} must be one of {', '.join(choices)}, not {value!r}")
+
+
+def check_horizontal_m(horizontal_m: float) -> None:
+    """Random waypoints' spread (``horizontal_m``), or EnvironmentConfigError."""
+    if not 0.5 <= horizontal_m <= MAX_HORIZONTAL_M:
+        raise EnvironmentConfigError(
+            f"horizontal_m {horizontal_m} is outside 0.5..{MAX_HORIZONTAL_M:g} m"
+        )
 
 
 def check_course(course: Sequence[Vec3], *, start_up_m: float) -> tuple[Vec3, ...]:

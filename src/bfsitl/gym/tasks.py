@@ -20,9 +20,9 @@ time limit.
 and ``WAYPOINT_BONUS`` for each point reached within ``REACHED_M``; it ends (terminated, a
 success) at the last one.  Tilt is free, since speed needs it.  Nothing is charged per step:
 the learner's discount already makes progress sooner worth more, and a charge per step would
-make an early crash (a one-off ``FAILURE_REWARD``) cheaper than a long, slow lap, which is
-what a policy learns first.  The points are drawn per episode like
-:class:`Hover`'s, or given once as a fixed ``course``.
+make an early crash (a one-off ``FAILURE_REWARD``) cheaper than a long, slow lap (docs/gym.md
+has the run that tried one).  The points are drawn per episode like :class:`Hover`'s, or
+given once as a fixed ``course``.
 
 :class:`Recover` starts from a throw (:mod:`~bfsitl.gym.throws`), upside down perhaps, so
 tilt ends nothing there: the ground, a disarm and the bounds do.  Its target is the point the

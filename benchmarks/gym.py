@@ -305,12 +305,13 @@ def wall_clock_baseline(control_hz: float, seconds: float) -> dict[str, float]:
 def policy_inference(path: Path) -> None:
     """An exported policy's time per call with onnxruntime (one thread), one observation
     and a batch of 64, against one control period at its rate."""
+    from bfsitl.gym.observation import OBSERVATION_SIZE
     from bfsitl.gym.onnx_policy import OnnxPolicy
 
     policy = OnnxPolicy(path)
     rows = []
     for batch in (1, 64):
-        observations = np.zeros((batch, 20), dtype=np.float32)
+        observations = np.zeros((batch, OBSERVATION_SIZE), dtype=np.float32)
         observations[:, 15] = 9.81
         times = []
         for _ in range(3000):

@@ -45,6 +45,7 @@ import bfsitl.gym  # noqa: F401  (registers the environments)
 from bfsitl.backend.options import World
 from bfsitl.gym.baseline import hand_policy, hover_stick
 from bfsitl.gym.env import DEFAULT_FIRMWARE, HoverEnv
+from bfsitl.gym.observation import OBSERVATION_SIZE
 from bfsitl.gym.recording import EpisodeRecorder
 from bfsitl.gym.scaled import ScaledEnv
 from bfsitl.mission.session import SitlLaunch
@@ -394,7 +395,7 @@ def export(model: Any, args: argparse.Namespace) -> Any:
 
 def inference_us(policy: Policy, calls: int = 2000) -> float:
     """The median time of one call of ``policy`` on one observation, microseconds."""
-    observation = np.zeros(20, dtype=np.float32)
+    observation = np.zeros(OBSERVATION_SIZE, dtype=np.float32)
     times = []
     for _ in range(calls):
         began = time.perf_counter()

@@ -1,8 +1,8 @@
 """bfsitl/Waypoints-v0 on the real 4.6.0 SITL (a --gps --lockstep build): the hand-written
 policy, which flies to the observation's point, passes a course that turns north, east, south
 and down in order (a wrong sign or axis in the observation's point would fly it away), the
-progress it is paid adds up to the metres it closed, and a fixed course is the same lap for
-the same seed."""
+observation carries the leg after each point, the progress it is paid adds up to the metres
+it closed, and a fixed course is the same lap for the same seed."""
 
 from __future__ import annotations
 
@@ -30,7 +30,7 @@ def lap(env: WaypointsEnv, seed: int) -> dict[str, Any]:
     observation, info = env.reset(seed=seed)
     start = info["truth"]
     position = (start["north_m"], start["east_m"], start["alt_m"])
-    waypoints, progress, bonuses, track = [], 0.0, 0.0, []
+    waypoints, progress, bonuses, track, legs = [], 0.0, 0.0, [], [observation[20:23]]
     while True:
         action = hand_policy(observation)
         observation, reward, terminated, truncated, info = env.step(action)
@@ -45,6 +45,7 @@ def lap(env: WaypointsEnv, seed: int) -> dict[str, Any]:
             bonuses += WAYPOINT_BONUS
         progress += paid
         waypoints.append(info["waypoint"])
+        legs.append(observation[20:23])
         if terminated or truncated:
             return {
                 "start": position,
@@ -52,6 +53,7 @@ def lap(env: WaypointsEnv, seed: int) -> dict[str, Any]:
                 "progress": progress,
                 "bonuses": bonuses,
                 "track": np.array(track),
+                "legs": np.array(legs),
                 "ended_because": info["ended_because"],
                 "terminated": terminated,
                 "time_s": info["time_s"],
@@ -87,6 +89,11 @@ def test_the_hand_written_policy_passes_the_course_in_order_and_is_paid_its_prog
     closed_m = first["progress"] / PROGRESS_PER_M
     low_m, high_m = sum(legs) - 5 * REACHED_M, sum(legs) + 2 * REACHED_M
     assert low_m <= closed_m <= high_m, (closed_m, legs)
+    # The observation's next leg, point by point: from the point flown to, to the one after
+    # it; none (0) on the way to the last.
+    for index, leg in zip([0, *first["waypoints"]], first["legs"], strict=True):
+        following = COURSE[index + 1] if index + 1 < len(COURSE) else COURSE[index]
+        np.testing.assert_allclose(leg, np.subtract(following, COURSE[index]), atol=1e-6)
     # A fixed course and the same seed: the same lap, to the step.
     assert again["time_s"] == first["time_s"]
     np.testing.assert_array_equal(again["track"], first["track"])

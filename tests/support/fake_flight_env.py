@@ -12,7 +12,7 @@ import numpy as np
 from gymnasium import spaces
 
 from bfsitl.backend.options import Timing
-from bfsitl.gym.observation import observation_space
+from bfsitl.gym.observation import OBSERVATION_SIZE, observation_space
 
 
 class FakeFlightEnv(gymnasium.Env[np.ndarray, np.ndarray]):
@@ -35,7 +35,7 @@ class FakeFlightEnv(gymnasium.Env[np.ndarray, np.ndarray]):
         self.seed_seen: int | None = None
 
     def _observation(self) -> np.ndarray:
-        observation = np.zeros(20, dtype=np.float32)
+        observation = np.zeros(OBSERVATION_SIZE, dtype=np.float32)
         observation[0] = self.steps
         observation[1] = self.episode
         observation[2] = self.marker

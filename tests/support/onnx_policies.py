@@ -9,6 +9,7 @@ from pathlib import Path
 
 import numpy as np
 
+from bfsitl.gym.observation import OBSERVATION_SIZE
 from bfsitl.gym.onnx_policy import OBSERVATION_LAYOUT, POLICY_FORMAT
 
 
@@ -20,12 +21,15 @@ def linear_policy_file(
     control_hz: float = 50.0,
     mode: str = "angle",
     policy_format: str = POLICY_FORMAT,
+    layout: str = OBSERVATION_LAYOUT,
 ) -> Path:
-    """Write ``sticks = observation @ weights + bias`` (20 x 4, and 4) to ``path``."""
+    """Write ``sticks = observation @ weights + bias`` (slots x 4, and 4) to ``path``, its
+    observation named ``layout``."""
     import onnx
     from onnx import TensorProto, helper, numpy_helper
 
-    weights = np.asarray(weights, dtype=np.float32).reshape(20, 4)
+    weights = np.asarray(weights, dtype=np.float32).reshape(-1, 4)
+    slots = weights.shape[0]
     bias = np.zeros(4, dtype=np.float32) if bias is None else np.asarray(bias, np.float32)
     graph = helper.make_graph(
         [
@@ -33,7 +37,7 @@ def linear_policy_file(
             helper.make_node("Add", ["product", "bias"], ["sticks"]),
         ],
         "linear_policy",
-        [helper.make_tensor_value_info("observation", TensorProto.FLOAT, ["batch", 20])],
+        [helper.make_tensor_value_info("observation", TensorProto.FLOAT, ["batch", slots])],
         [helper.make_tensor_value_info("sticks", TensorProto.FLOAT, ["batch", 4])],
         initializer=[
             numpy_helper.from_array(weights, "weights"),
@@ -44,7 +48,7 @@ def linear_policy_file(
     model.ir_version = 8  # what onnxruntime of any recent release reads
     for key, value in {
         "bfsitl.format": policy_format,
-        "bfsitl.observation": OBSERVATION_LAYOUT,
+        "bfsitl.observation": layout,
         "bfsitl.control_hz": f"{control_hz:g}",
         "bfsitl.mode": mode,
         "bfsitl.description": "hand-written: sticks proportional to the target's offset",
@@ -66,7 +70,7 @@ def go_to_target_weights(
     throttle up for one above (each damped by its velocity).  Observation slots 0-2 are
     the target minus the position, 3-5 the velocity (bfsitl.gym.observation); sticks are
     roll, pitch, throttle, yaw."""
-    weights = np.zeros((20, 4), dtype=np.float32)
+    weights = np.zeros((OBSERVATION_SIZE, 4), dtype=np.float32)
     weights[1, 0], weights[4, 0] = gain, -damping  # east offset -> roll right
     weights[0, 1], weights[3, 1] = gain, -damping  # north offset -> pitch forward
     weights[2, 2], weights[5, 2] = climb_gain, -climb_damping  # up offset -> throttle

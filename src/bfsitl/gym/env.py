@@ -515,7 +515,7 @@ class FlightEnv(gymnasium.Env[np.ndarray, np.ndarray]):
 
     def _observe(self) -> np.ndarray:
         assert self._snapshot is not None
-        return observe(self._snapshot, self.task.target, self.observation)
+        return observe(self._snapshot, self.task.target, self.observation, self.task.next_target)
 
     def _info(self, ended_because: str | None) -> dict[str, Any]:
         snapshot = self._snapshot
@@ -547,8 +547,8 @@ class HoverEnv(FlightEnv):
 class WaypointsEnv(FlightEnv):
     """``bfsitl/Waypoints-v0``: ``count`` points in turn (three), each drawn within
     ``horizontal_m`` of the start, or the fixed ``course`` (north, east, up from the start),
-    the next one in the observation (see :class:`~bfsitl.gym.tasks.Waypoints`); 20 s by
-    default."""
+    the current point and the one after it in the observation (see
+    :class:`~bfsitl.gym.tasks.Waypoints`); 20 s by default."""
 
     def __init__(
         self,

@@ -17,12 +17,18 @@ from typing import Any
 import numpy as np
 
 from bfsitl.errors import EnvironmentConfigError, ExtraMissingError
-from bfsitl.gym.observation import OBSERVATION_SIZE
+from bfsitl.gym.observation import FIRST_LAYOUT_SIZE, OBSERVATION_SIZE
 
 #: Written into every exported file; a file without it is not a bfsitl policy.
 POLICY_FORMAT = "bfsitl-policy-1"
-#: The observation's layout, named in the file (bfsitl.gym.observation's 20 slots).
-OBSERVATION_LAYOUT = "bfsitl.gym.observation/20"
+#: The observation's layout, named in the file (bfsitl.gym.observation's slots).
+OBSERVATION_LAYOUT = f"bfsitl.gym.observation/{OBSERVATION_SIZE}"
+#: The layouts a file may name, by the slots its network takes: the first 20 slots mean the
+#: same in both, so a policy exported before the next leg's slots is given those.
+READABLE_LAYOUTS = {
+    OBSERVATION_LAYOUT: OBSERVATION_SIZE,
+    f"bfsitl.gym.observation/{FIRST_LAYOUT_SIZE}": FIRST_LAYOUT_SIZE,
+}
 METADATA_KEYS = (
     "bfsitl.format",
     "bfsitl.observation",
@@ -39,6 +45,8 @@ class PolicyInfo:
     control_hz: float
     mode: str
     description: str
+    #: How many of the observation's first slots its network takes.
+    observation_size: int = OBSERVATION_SIZE
 
 
 class OnnxPolicy:
@@ -86,7 +94,10 @@ class OnnxPolicy:
                 f"an observation is {OBSERVATION_SIZE} numbers (bfsitl.gym.observation), got "
                 f"shape {values.shape}"
             )
-        (sticks,) = self._session.run(["sticks"], {"observation": batch})
+        # A policy of the older layout reads the slots it knew (module docstring of
+        # bfsitl.gym.observation).
+        taken = np.ascontiguousarray(batch[:, : self.info.observation_size])
+        (sticks,) = self._session.run(["sticks"], {"observation": taken})
         result: np.ndarray = sticks[0] if single else sticks
         return result
 
@@ -97,13 +108,16 @@ def _read_info(path: Path, metadata: dict[str, Any]) -> PolicyInfo:
             f"{path}: not a bfsitl policy (no {POLICY_FORMAT!r} in its metadata); export one "
             f"with bfsitl.gym.policy_export.export_policy"
         )
-    if metadata.get("bfsitl.observation") != OBSERVATION_LAYOUT:
+    layout = metadata.get("bfsitl.observation")
+    if layout not in READABLE_LAYOUTS:
         raise EnvironmentConfigError(
-            f"{path}: its observation is {metadata.get('bfsitl.observation')!r}, this bfsitl "
-            f"fills {OBSERVATION_LAYOUT!r}"
+            f"{path}: its observation is {layout!r}, this bfsitl fills {OBSERVATION_LAYOUT!r} "
+            f"(and reads {', '.join(repr(name) for name in READABLE_LAYOUTS)}); export the "
+            f"policy again with this bfsitl"
         )
     return PolicyInfo(
         control_hz=float(metadata["bfsitl.control_hz"]),
         mode=metadata.get("bfsitl.mode", "angle"),
         description=metadata.get("bfsitl.description", ""),
+        observation_size=READABLE_LAYOUTS[layout],
     )

@@ -4,9 +4,9 @@ stack: the environment's observation in, the four sticks out.
     export_policy(model, "hover.onnx", limits=StickLimits(), hover_throttle=0.1,
                   control_hz=50.0, mode="angle")
 
-The file holds the whole way from what :mod:`~bfsitl.gym.observation` fills (20 numbers, the
-FC's own readings) to the sticks the environment takes (roll, pitch, throttle, yaw in
--1..1): the fixed observation scaling of :mod:`~bfsitl.gym.scaled`, the policy's
+The file holds the whole way from what :mod:`~bfsitl.gym.observation` fills (23 numbers:
+the FC's own readings and the targets) to the sticks the environment takes (roll, pitch,
+throttle, yaw in -1..1): the fixed observation scaling of :mod:`~bfsitl.gym.scaled`, the policy's
 deterministic action (PPO's mean, SAC's and TD3's squashed actor), and the stick limits
 about the vehicle's hover throttle.  What the policy was trained at rides in the file's
 metadata (:data:`~bfsitl.gym.onnx_policy.METADATA_KEYS`): its control rate, the FC's mode,
@@ -104,6 +104,11 @@ def export_policy(
         raise EnvironmentConfigError(
             f"the policy acts with {tuple(model.action_space.shape)} numbers, the stick limits "
             f"take {expected}: give the limits it was trained with"
+        )
+    if tuple(model.observation_space.shape) != (OBSERVATION_SIZE,):
+        raise EnvironmentConfigError(
+            f"the policy observes {tuple(model.observation_space.shape)} numbers, this bfsitl "
+            f"fills {OBSERVATION_SIZE} (bfsitl.gym.observation): train it again here"
         )
     module = _Flying(model, limits, hover_throttle).eval()
     target = Path(path)

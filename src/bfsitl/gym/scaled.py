@@ -34,11 +34,11 @@ from bfsitl.gym.observation import OBSERVATION_SIZE
 
 #: Subtracted from each observation slot (observation.py's layout) before it is scaled: the
 #: specific force's 1 g on z and the motors' middle.
-OBSERVATION_OFFSET = np.array([0.0] * 15 + [9.81] + [0.5] * 4, dtype=np.float32)
-#: What each slot is divided by: 2 m, 2 m/s, 0.5 rad, 1, 5 rad/s, 10 m/s^2, 1; a hovering
-#: quad's observation is then within about one of zero.
+OBSERVATION_OFFSET = np.array([0.0] * 15 + [9.81] + [0.5] * 4 + [0.0] * 3, dtype=np.float32)
+#: What each slot is divided by: 2 m, 2 m/s, 0.5 rad, 1, 5 rad/s, 10 m/s^2, 1, 2 m (the next
+#: leg); a hovering quad's observation is then within about one of zero.
 OBSERVATION_SCALE = np.array(
-    [2.0] * 3 + [2.0] * 3 + [0.5] * 2 + [1.0] * 2 + [5.0] * 3 + [10.0] * 3 + [1.0] * 4,
+    [2.0] * 3 + [2.0] * 3 + [0.5] * 2 + [1.0] * 2 + [5.0] * 3 + [10.0] * 3 + [1.0] * 4 + [2.0] * 3,
     dtype=np.float32,
 )
 #: A scaled slot is clipped to this: one wild reading does not swamp the rest.
@@ -46,7 +46,7 @@ SCALED_LIMIT = 10.0
 
 
 def scale_observation(observation: np.ndarray) -> np.ndarray:
-    """``observation`` (the 20 slots of :mod:`~bfsitl.gym.observation`) scaled about zero."""
+    """``observation`` (the slots of :mod:`~bfsitl.gym.observation`) scaled about zero."""
     scaled = (np.asarray(observation, dtype=np.float32) - OBSERVATION_OFFSET) / OBSERVATION_SCALE
     return np.clip(scaled, -SCALED_LIMIT, SCALED_LIMIT).astype(np.float32)
 

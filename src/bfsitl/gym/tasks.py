@@ -119,6 +119,12 @@ class Hover:
     def target(self) -> Vec3:
         return self.targets[self.index]
 
+    @property
+    def next_target(self) -> Vec3 | None:
+        """The point after the target (None: the target is the last), for the observation."""
+        following = self.index + 1
+        return self.targets[following] if following < len(self.targets) else None
+
     def reward(self, truth: TrueView, action: np.ndarray) -> float:
         """This step's reward, before :meth:`advance` (the module docstring)."""
         return step_reward(truth, self.target, action)

@@ -88,7 +88,7 @@ def snapshot(**truth_changes: object) -> Snapshot:
 def test_the_observation_puts_each_quantity_in_its_slot_for_the_fc_and_the_truth() -> None:
     target = (1.0, 1.0, 3.0)
     fc = observe(snapshot(), target, "fc")
-    assert fc.dtype == np.float32 and fc.shape == (20,)
+    assert fc.dtype == np.float32 and fc.shape == (23,)
     np.testing.assert_allclose(
         fc,
         [
@@ -112,10 +112,14 @@ def test_the_observation_puts_each_quantity_in_its_slot_for_the_fc_and_the_truth
             0.5,
             0.6,
             0.7,
+            0.0,
+            0.0,
+            0.0,
         ],
         atol=1e-6,
     )
-    truth = observe(snapshot(), target, "truth")
+    # The next leg: from the target to the point after it.
+    truth = observe(snapshot(), target, "truth", next_target=(4.0, -2.0, 2.5))
     np.testing.assert_allclose(
         truth,
         [
@@ -139,6 +143,9 @@ def test_the_observation_puts_each_quantity_in_its_slot_for_the_fc_and_the_truth
             0.51,
             0.61,
             0.71,
+            3.0,
+            -3.0,
+            -0.5,
         ],
         atol=1e-6,
     )

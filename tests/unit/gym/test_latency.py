@@ -12,11 +12,12 @@ pytest.importorskip("gymnasium")
 
 from bfsitl.errors import EnvironmentConfigError  # noqa: E402
 from bfsitl.gym.latency import ALTITUDE_SLOTS, NO_LATENCY, DelayLine, Latency  # noqa: E402
+from bfsitl.gym.observation import OBSERVATION_SIZE  # noqa: E402
 
 
 def numbered(step: int) -> np.ndarray:
     """An observation whose every slot says which step it came from."""
-    return np.full(20, float(step), dtype=np.float32)
+    return np.full(OBSERVATION_SIZE, float(step), dtype=np.float32)
 
 
 def test_the_observation_is_handed_out_as_many_steps_late_as_drawn() -> None:
@@ -33,7 +34,7 @@ def test_the_height_and_climb_slots_are_later_again() -> None:
     for step in range(1, 10):
         out = line.push(numbered(step))
     assert line.delays == (1, 4)
-    others = [i for i in range(20) if i not in ALTITUDE_SLOTS]
+    others = [i for i in range(OBSERVATION_SIZE) if i not in ALTITUDE_SLOTS]
     assert set(out[others]) == {8.0} and set(out[list(ALTITUDE_SLOTS)]) == {5.0}
 
 

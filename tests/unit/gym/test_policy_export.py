@@ -15,7 +15,10 @@ pytest.importorskip("stable_baselines3")
 pytest.importorskip("onnxruntime")
 pytest.importorskip("onnx")
 
+from support.onnx_policies import linear_policy_file  # noqa: E402
+
 from bfsitl.errors import EnvironmentConfigError  # noqa: E402
+from bfsitl.gym.observation import FIRST_LAYOUT_SIZE, OBSERVATION_SIZE  # noqa: E402
 from bfsitl.gym.onnx_policy import OnnxPolicy  # noqa: E402
 from bfsitl.gym.policy_export import export_policy, trained_sticks  # noqa: E402
 from bfsitl.gym.sb3_vector import Sb3VectorEnv  # noqa: E402
@@ -28,8 +31,9 @@ FAKE = "support.fake_flight_env:FakeFlightEnv"
 def observations(count: int) -> np.ndarray:
     """Observations as a flight gives them: offsets of metres, rates, 1 g, motors."""
     rng = np.random.default_rng(4)
-    values = rng.normal(0.0, 1.0, size=(count, 20)).astype(np.float32)
+    values = rng.normal(0.0, 1.0, size=(count, OBSERVATION_SIZE)).astype(np.float32)
     values[:, 0:3] *= 3.0
+    values[:, 20:23] *= 3.0  # the next leg
     values[:, 15] += 9.81
     values[:, 16:20] = rng.uniform(0.0, 1.0, size=(count, 4))
     values[0, 0] = 500.0  # far away: the scaling's clip is in the file too
@@ -132,3 +136,24 @@ def test_a_file_that_is_not_a_bfsitl_policy_is_said_as_such(tmp_path: Path) -> N
     assert onnx.load(str(other))  # a valid model, only not one of ours
     with pytest.raises(EnvironmentConfigError, match="not a bfsitl policy"):
         OnnxPolicy(other)
+
+
+def test_a_policy_exported_before_the_next_leg_slots_reads_the_first_twenty(
+    tmp_path: Path,
+) -> None:
+    weights = np.random.default_rng(1).normal(size=(FIRST_LAYOUT_SIZE, 4)).astype(np.float32)
+    older = linear_policy_file(
+        tmp_path / "older.onnx", weights, layout=f"bfsitl.gym.observation/{FIRST_LAYOUT_SIZE}"
+    )
+    policy = OnnxPolicy(older)
+    assert policy.info.observation_size == FIRST_LAYOUT_SIZE
+    batch = observations(10)
+    np.testing.assert_allclose(
+        policy(batch), batch[:, :FIRST_LAYOUT_SIZE] @ weights, rtol=1e-5, atol=1e-5
+    )
+    # A layout this bfsitl does not know is refused with what to do.
+    odd = linear_policy_file(
+        tmp_path / "odd.onnx", np.zeros((17, 4)), layout="bfsitl.gym.observation/17"
+    )
+    with pytest.raises(EnvironmentConfigError, match="export the policy again"):
+        OnnxPolicy(odd)

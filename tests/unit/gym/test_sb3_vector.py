@@ -15,6 +15,7 @@ pytest.importorskip("stable_baselines3")
 
 from bfsitl.errors import EnvironmentConfigError  # noqa: E402
 from bfsitl.gym.baseline import HOVER_THROTTLE  # noqa: E402
+from bfsitl.gym.observation import OBSERVATION_SIZE  # noqa: E402
 from bfsitl.gym.sb3_vector import Sb3VectorEnv  # noqa: E402
 from bfsitl.gym.scaled import StickLimits, scale_observation  # noqa: E402
 from bfsitl.gym.vector import FlightVectorEnv  # noqa: E402
@@ -25,10 +26,12 @@ FAKE = "support.fake_flight_env:FakeFlightEnv"
 def test_scaled_actions_reach_the_workers_as_sticks_and_observations_come_back_scaled() -> None:
     envs = Sb3VectorEnv(FlightVectorEnv(FAKE, 2, max_episode_steps=5))
     try:
-        assert envs.action_space.shape == (3,) and envs.observation_space.shape == (20,)
+        assert envs.action_space.shape == (3,) and envs.observation_space.shape == (
+            OBSERVATION_SIZE,
+        )
         envs.seed(7)
         first = envs.reset()
-        raw = np.zeros(20, dtype=np.float32)
+        raw = np.zeros(OBSERVATION_SIZE, dtype=np.float32)
         raw[1], raw[3], raw[4] = 1.0, 7.0, 1.0  # episode 1, its seed, a pinned core
         np.testing.assert_allclose(first[0], scale_observation(raw))
         assert first[1][3] == pytest.approx(8.0 / 2.0)  # the second env's seed, scaled by 2

@@ -15,7 +15,7 @@ import gymnasium  # noqa: E402
 from bfsitl.backend.options import World  # noqa: E402
 from bfsitl.errors import EnvironmentConfigError  # noqa: E402
 from bfsitl.gym.baseline import HOVER_THROTTLE, hover_stick  # noqa: E402
-from bfsitl.gym.observation import observation_space  # noqa: E402
+from bfsitl.gym.observation import OBSERVATION_SIZE, observation_space  # noqa: E402
 from bfsitl.gym.scaled import (  # noqa: E402
     OBSERVATION_OFFSET,
     OBSERVATION_SCALE,
@@ -36,7 +36,8 @@ class StickRecorder(gymnasium.Env[np.ndarray, np.ndarray]):
         self.sticks: list[np.ndarray] = []
         self.observation = np.array(
             [1.0, -2.0, 0.5, 0.2, 0.0, -0.4, 0.1, -0.1, 0.0, 1.0]
-            + [0.0, 0.0, 0.5, 0.0, 0.0, 9.81, 0.5, 0.5, 0.6, 0.4],
+            + [0.0, 0.0, 0.5, 0.0, 0.0, 9.81, 0.5, 0.5, 0.6, 0.4]
+            + [3.0, 0.0, -1.0],
             dtype=np.float32,
         )
 
@@ -89,8 +90,9 @@ def test_observations_are_scaled_slot_by_slot_and_clipped() -> None:
     np.testing.assert_allclose(observation, expected, rtol=1e-6)
     assert observation[0] == pytest.approx(0.5) and observation[1] == pytest.approx(-1.0)
     assert observation[15] == pytest.approx(0.0)  # 1 g on z is the middle
+    assert observation[20] == pytest.approx(1.5)  # a 3 m leg after the target
     assert env.observation_space.contains(observation)
-    wild = np.zeros(20, dtype=np.float32)
+    wild = np.zeros(OBSERVATION_SIZE, dtype=np.float32)
     wild[0] = 1000.0  # a kilometre off
     assert scale_observation(wild)[0] == 10.0
 

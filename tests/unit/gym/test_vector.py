@@ -12,6 +12,7 @@ pytest.importorskip("gymnasium")
 
 from bfsitl.backend.options import Timing  # noqa: E402
 from bfsitl.errors import EnvironmentConfigError  # noqa: E402
+from bfsitl.gym.observation import OBSERVATION_SIZE  # noqa: E402
 from bfsitl.gym.vector import FlightVectorEnv  # noqa: E402
 
 FAKE = "support.fake_flight_env:FakeFlightEnv"
@@ -25,9 +26,12 @@ def test_each_step_comes_back_for_its_own_environment() -> None:
     envs = FlightVectorEnv(FAKE, 2, max_episode_steps=5)
     try:
         observations, info = envs.reset(seed=7)
-        assert observations.shape == (2, 20) and observations.dtype == np.float32
+        assert observations.shape == (2, OBSERVATION_SIZE) and observations.dtype == np.float32
         assert list(observations[:, 3]) == [7.0, 8.0]  # one seed each, counted on
-        assert envs.observation_space.shape == (2, 20) and envs.action_space.shape == (2, 4)
+        assert envs.observation_space.shape == (
+            2,
+            OBSERVATION_SIZE,
+        ) and envs.action_space.shape == (2, 4)
         observations, rewards, terminated, truncated, info = envs.step(
             actions((0.25, 0, 0, 0), (-0.5, 0, 0, 0))
         )

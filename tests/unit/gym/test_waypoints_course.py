@@ -18,7 +18,7 @@ from bfsitl.errors import EnvironmentConfigError  # noqa: E402
 from bfsitl.gym.env import WaypointsEnv  # noqa: E402
 from bfsitl.gym.option_checks import check_course  # noqa: E402
 from bfsitl.gym.snapshot import TrueView  # noqa: E402
-from bfsitl.gym.tasks import PROGRESS_PER_M, WAYPOINT_BONUS, Waypoints  # noqa: E402
+from bfsitl.gym.tasks import PROGRESS_PER_M, WAYPOINT_BONUS, Hover, Waypoints  # noqa: E402
 from bfsitl.mission.session import SitlLaunch  # noqa: E402
 
 CENTRED = np.zeros(4, dtype=np.float32)
@@ -60,6 +60,17 @@ def test_reaching_a_point_counts_progress_on_the_next_without_a_windfall() -> No
     assert task.reward(closer, CENTRED) == pytest.approx(PROGRESS_PER_M * 0.1)
     assert task.advance(at(*COURSE[1])) == (WAYPOINT_BONUS, True)
     assert task.info() == {"waypoints": 2}
+
+
+def test_the_point_after_the_target_is_known_until_the_last_and_a_hover_has_none() -> None:
+    task = Waypoints(course=COURSE)
+    task.reset(np.random.default_rng(0))
+    assert task.target == COURSE[0] and task.next_target == COURSE[1]
+    task.advance(at(*COURSE[0]))
+    assert task.target == COURSE[1] and task.next_target is None
+    hover = Hover()
+    hover.reset(np.random.default_rng(0))
+    assert hover.next_target is None
 
 
 def test_a_course_is_flown_every_episode_whatever_the_seed_and_random_points_stay_near() -> None:

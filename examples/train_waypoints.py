@@ -133,8 +133,7 @@ class EnvPilot:
 
     def __call__(self, condition: str, course: tuple[Vec3, ...], seed: int) -> dict[str, Any]:
         env = self.env(condition)
-        env.task.course = course  # type: ignore[attr-defined]  (Waypoints: a public field)
-        observation, info = env.reset(seed=seed)
+        observation, info = env.reset(seed=seed, options={"course": course})
         track: list[tuple[float, Vec3]] = []
         while True:
             observation, _reward, terminated, truncated, info = env.step(self.policy(observation))

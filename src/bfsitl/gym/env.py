@@ -567,6 +567,16 @@ class WaypointsEnv(FlightEnv):
             course = check_course(course, start_up_m=start_up_m)
         task = Waypoints(count=count, horizontal_m=horizontal_m, course=course)
         super().__init__(task, max_episode_steps=max_episode_steps, **options)
+        self._waypoints = task
+
+    def reset(
+        self, *, seed: int | None = None, options: dict[str, Any] | None = None
+    ) -> tuple[np.ndarray, dict[str, Any]]:
+        """As every environment's; ``options={"course": [(north, east, up), ...]}`` flies
+        that course from this episode on, as if it had been given to the constructor."""
+        if options and "course" in options:
+            self._waypoints.course = check_course(options["course"], start_up_m=self.start_alt_m)
+        return super().reset(seed=seed, options=options)
 
 
 class RecoverEnv(FlightEnv):

@@ -121,5 +121,9 @@ def test_the_environment_takes_a_course_or_a_spread_and_refuses_a_bad_one(tmp_pa
     env = WaypointsEnv(sitl=sitl, course=[[4, 0, 2], [4, 4, 3]])
     try:
         assert env.task.course == COURSE  # type: ignore[attr-defined]
+        # A reset's course is checked as the constructor's, before anything boots.
+        with pytest.raises(EnvironmentConfigError, match="course point 2 is 10.0 m"):
+            env.reset(options={"course": [(4.0, 0.0, 2.0), (-6.0, 0.0, 2.0)]})
+        assert env.task.course == COURSE  # type: ignore[attr-defined]
     finally:
         env.close()

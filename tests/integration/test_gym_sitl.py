@@ -22,6 +22,7 @@ gymnasium = pytest.importorskip("gymnasium")
 import bfsitl.gym  # noqa: E402, F401  (registers the environments)
 from bfsitl.backend.options import World  # noqa: E402
 from bfsitl.gym.env import HoverEnv  # noqa: E402
+from bfsitl.gym.observation import OBSERVATION_SIZE  # noqa: E402
 from bfsitl.mission.session import SitlLaunch  # noqa: E402
 from bfsitl.physics.wind import Wind  # noqa: E402
 
@@ -272,7 +273,7 @@ def test_a_vector_of_environments_runs_side_by_side_and_leaves_nothing(
     envs = AsyncVectorEnv([make(0), make(1)])
     try:
         observations, _infos = envs.reset(seed=[1, 2])
-        assert observations.shape == (2, 20)
+        assert observations.shape == (2, OBSERVATION_SIZE)
         assert not np.array_equal(observations[0], observations[1])  # two targets
         assert len(sitl_processes_under(tmp_path)) == 2  # each in its own namespace
         for _ in range(50):

@@ -33,13 +33,16 @@ import argparse
 import json
 import os
 import statistics
-import subprocess
 import sys
 from pathlib import Path
 
-from loop_cost import _commit
-
-HERE = Path(__file__).resolve().parent
+from loop_cost import (
+    _commit,
+    add_comparison_options,
+    compared_trees,
+    run_fresh,
+    time_compiled_loop,
+)
 
 
 def worker(firmware: str, steps: int, seed: int, profiled: bool) -> dict[str, float]:
@@ -49,23 +52,12 @@ def worker(firmware: str, steps: int, seed: int, profiled: bool) -> dict[str, fl
 
     from lockstep import sitl_cpu_s
 
-    import bfsitl.sim.lockstep_stepper as stepper
     from bfsitl.backend.options import Timing
     from bfsitl.gym.baseline import hand_policy
     from bfsitl.gym.env import HoverEnv
     from bfsitl.mission.session import SitlLaunch
 
-    inside_s = [0.0]
-    run = stepper.KernelStepper.run
-
-    def timed_run(self: object, *args: object, **kwargs: object) -> object:
-        began = time.thread_time()
-        try:
-            return run(self, *args, **kwargs)  # type: ignore[arg-type]
-        finally:
-            inside_s[0] += time.thread_time() - began
-
-    stepper.KernelStepper.run = timed_run  # type: ignore[method-assign]
+    inside_s = time_compiled_loop()
     env = HoverEnv(
         sitl=SitlLaunch(firmware=firmware),
         control_hz=100.0,
@@ -193,15 +185,8 @@ def vector_split(firmware: str, seconds: float) -> dict[str, float]:
 
 def run_in(tree: Path, args: argparse.Namespace, profiled: bool) -> dict[str, float]:
     """One run in a fresh process that imports bfsitl from ``tree``."""
-    env = dict(os.environ, PYTHONPATH=os.pathsep.join([str(tree / "src"), str(HERE)]))
-    command = [sys.executable, str(Path(__file__).resolve()), "--worker", args.firmware]
-    command += ["--steps", str(args.steps), "--seed", str(args.seed)]
-    if profiled:
-        command.append("--profiled")
-    done = subprocess.run(command, env=env, capture_output=True, text=True, check=False)
-    if done.returncode != 0:
-        sys.exit(f"a run with {tree} failed:\n{done.stderr[-2000:]}")
-    return json.loads(done.stdout.strip().splitlines()[-1])
+    arguments = [args.firmware, "--steps", str(args.steps), "--seed", str(args.seed)]
+    return run_fresh(Path(__file__).resolve(), tree, [*arguments, *(["--profiled"] * profiled)])
 
 
 def main() -> None:
@@ -213,20 +198,13 @@ def main() -> None:
     parser.add_argument(
         "--seconds", type=float, default=15.0, help="wall seconds of the two-environment run"
     )
-    parser.add_argument(
-        "--against", type=Path, action="append", default=[], help="another checkout to compare"
-    )
-    parser.add_argument("--worker", help=argparse.SUPPRESS)
-    parser.add_argument("--profiled", action="store_true", help=argparse.SUPPRESS)
+    add_comparison_options(parser)
     args = parser.parse_args()
     if args.worker:
         print(json.dumps(worker(args.worker, args.steps, args.seed, args.profiled)))
         return
 
-    trees = [HERE.parent, *[path.resolve() for path in args.against]]
-    for tree in trees[1:]:
-        if not (tree / "src" / "bfsitl").is_dir():
-            sys.exit(f"--against {tree}: no src/bfsitl there (a checkout of bfsitl?)")
+    trees = compared_trees(args)
     runs: dict[Path, list[dict[str, float]]] = {tree: [] for tree in trees}
     for index in range(args.runs):
         for tree in trees:  # alternated, so that a slow minute falls on both

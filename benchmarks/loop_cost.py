@@ -35,18 +35,12 @@ HERE = Path(__file__).resolve().parent
 SOURCE = HERE.parent / "src"
 
 
-def worker(binary: str, hold_s: float, seed: int, profiled: bool) -> dict[str, float]:
-    """One flight in this process (the tree on ``sys.path``); its figures."""
-    import cProfile
+def time_compiled_loop() -> list[float]:
+    """From now on, add the thread CPU time spent inside the compiled lockstep loop to the
+    one-element list returned (this process's bfsitl only)."""
     import time
 
-    from lockstep import sitl_cpu_s
-
     import bfsitl.sim.lockstep_stepper as stepper
-    from bfsitl.backend.options import Timing, World
-    from bfsitl.control import make_controller
-    from bfsitl.mission import FlightSession, MissionPlan, SessionConfig, SitlLaunch, fly
-    from bfsitl.sitl.core_claim import claim_core
 
     inside_s = [0.0]
     run = stepper.KernelStepper.run
@@ -59,6 +53,51 @@ def worker(binary: str, hold_s: float, seed: int, profiled: bool) -> dict[str, f
             inside_s[0] += time.thread_time() - began
 
     stepper.KernelStepper.run = timed_run  # type: ignore[method-assign]
+    return inside_s
+
+
+def run_fresh(script: Path, tree: Path, arguments: list[str]) -> dict[str, float]:
+    """``script --worker ...`` in a fresh process that imports bfsitl from ``tree``; the
+    figures its last line prints as JSON."""
+    env = dict(os.environ, PYTHONPATH=os.pathsep.join([str(tree / "src"), str(HERE)]))
+    command = [sys.executable, str(script), "--worker", *arguments]
+    done = subprocess.run(command, env=env, capture_output=True, text=True, check=False)
+    if done.returncode != 0:
+        sys.exit(f"a run with {tree} failed:\n{done.stderr[-2000:]}")
+    return json.loads(done.stdout.strip().splitlines()[-1])  # type: ignore[no-any-return]
+
+
+def add_comparison_options(parser: argparse.ArgumentParser) -> None:
+    """``--against DIR`` (repeatable), and the hidden options of a run in a fresh process."""
+    parser.add_argument(
+        "--against", type=Path, action="append", default=[], help="another checkout to compare"
+    )
+    parser.add_argument("--worker", help=argparse.SUPPRESS)
+    parser.add_argument("--profiled", action="store_true", help=argparse.SUPPRESS)
+
+
+def compared_trees(args: argparse.Namespace) -> list[Path]:
+    """This checkout, then each ``--against`` one (refused unless it holds bfsitl)."""
+    trees = [HERE.parent, *[path.resolve() for path in args.against]]
+    for tree in trees[1:]:
+        if not (tree / "src" / "bfsitl").is_dir():
+            sys.exit(f"--against {tree}: no src/bfsitl there (a checkout of bfsitl?)")
+    return trees
+
+
+def worker(binary: str, hold_s: float, seed: int, profiled: bool) -> dict[str, float]:
+    """One flight in this process (the tree on ``sys.path``); its figures."""
+    import cProfile
+    import time
+
+    from lockstep import sitl_cpu_s
+
+    from bfsitl.backend.options import Timing, World
+    from bfsitl.control import make_controller
+    from bfsitl.mission import FlightSession, MissionPlan, SessionConfig, SitlLaunch, fly
+    from bfsitl.sitl.core_claim import claim_core
+
+    inside_s = time_compiled_loop()
     claim = claim_core()  # the SITL started below shares this core: nobody spins
     try:
         config = SessionConfig(
@@ -102,15 +141,8 @@ def worker(binary: str, hold_s: float, seed: int, profiled: bool) -> dict[str, f
 
 def fly_in(tree: Path, binary: str, args: argparse.Namespace, profiled: bool) -> dict[str, float]:
     """One flight in a fresh process that imports bfsitl from ``tree``."""
-    env = dict(os.environ, PYTHONPATH=os.pathsep.join([str(tree / "src"), str(HERE)]))
-    command = [sys.executable, str(Path(__file__).resolve()), "--worker", binary]
-    command += ["--hold", str(args.hold), "--seed", str(args.seed)]
-    if profiled:
-        command.append("--profiled")
-    done = subprocess.run(command, env=env, capture_output=True, text=True, check=False)
-    if done.returncode != 0:
-        sys.exit(f"a flight with {tree} failed:\n{done.stderr[-2000:]}")
-    return json.loads(done.stdout.strip().splitlines()[-1])
+    arguments = [binary, "--hold", str(args.hold), "--seed", str(args.seed)]
+    return run_fresh(Path(__file__).resolve(), tree, [*arguments, *(["--profiled"] * profiled)])
 
 
 def _commit(tree: Path) -> str:
@@ -131,20 +163,13 @@ def main() -> None:
     parser.add_argument("--seed", type=int, default=1)
     parser.add_argument("--generations", default="4.6.0,master")
     parser.add_argument("--build", action="store_true", help="build missing firmware")
-    parser.add_argument(
-        "--against", type=Path, action="append", default=[], help="another checkout to compare"
-    )
-    parser.add_argument("--worker", help=argparse.SUPPRESS)
-    parser.add_argument("--profiled", action="store_true", help=argparse.SUPPRESS)
+    add_comparison_options(parser)
     args = parser.parse_args()
     if args.worker:
         print(json.dumps(worker(args.worker, args.hold, args.seed, args.profiled)))
         return
 
-    trees = [HERE.parent, *[path.resolve() for path in args.against]]
-    for tree in trees[1:]:
-        if not (tree / "src" / "bfsitl").is_dir():
-            sys.exit(f"--against {tree}: no src/bfsitl there (a checkout of bfsitl?)")
+    trees = compared_trees(args)
     rows: list[tuple[str, str, list[dict[str, float]], dict[str, float]]] = []
     for generation in args.generations.split(","):
         binary = firmware_path(f"{generation}-lockstep", args.build)

@@ -75,7 +75,7 @@ def launch_sitl(
         firmware: A SITL binary's path or a cached build's name (``master-lockstep``); None
             searches as :func:`~bfsitl.sitl.firmware.find_firmware` does.
         physics: ``"embedded"`` (bfsitl's simulator) or ``"gazebo"`` (``gz sim`` with the
-            BetaflightPlugin; no truth is then known).
+            BetaflightPlugin; the truth is then Gazebo's own state).
         vehicle: The embedded physics' quad: ``"iris"`` (Gazebo's, the default), a shipped
             profile's name (``"5inch-freestyle"``), a profile file, or its parameters.
         wind: Wind and gusts of the embedded physics; None is still air.

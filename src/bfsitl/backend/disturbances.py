@@ -10,7 +10,7 @@ backend             RC (faults on the link)   GPS loss, motors, sensors, wind, a
 ==================  ========================  ==================================================
 real time           yes                       yes (bfsitl's physics)
 lockstep            yes                       yes (bfsitl's physics)
-Gazebo              yes                       no (Gazebo's physics)
+Gazebo              yes                       a constant wind (Gazebo's WindEffects); no other
 a real board        no                        no
 ==================  ========================  ==================================================
 
@@ -22,7 +22,7 @@ from __future__ import annotations
 
 from collections.abc import Callable
 from dataclasses import replace
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING, Any, Protocol
 
 from bfsitl.errors import DisturbanceUnavailableError
 
@@ -31,6 +31,15 @@ if TYPE_CHECKING:
     from bfsitl.physics import Simulator
     from bfsitl.physics.sensors import SensorConfig
     from bfsitl.physics.wind import Wind
+
+
+class WindSurface(Protocol):
+    """The wind of a physics that is not bfsitl's (Gazebo's)."""
+
+    @property
+    def wind(self) -> Wind | None: ...
+
+    def set_wind(self, wind: Wind | None) -> None: ...
 
 
 class Disturbances:
@@ -43,9 +52,11 @@ class Disturbances:
         rc: Callable[[], RcSender | None] | None = None,
         simulator: Simulator | None = None,
         gps_lost: Callable[[bool], None] | None = None,
+        wind: Callable[[], WindSurface | None] | None = None,
     ) -> None:
         self._backend = backend
         self._rc = rc
+        self._wind = wind
         self._simulator = simulator
         self._set_gps_lost = gps_lost
         self._gps_lost = False
@@ -127,13 +138,21 @@ class Disturbances:
         self.set_sensors(replace(before, **fields))
         return before
 
+    def _wind_surface(self) -> WindSurface | Simulator:
+        if self._wind is None:
+            return self._sim("the wind")
+        surface = self._wind()
+        if surface is None:
+            raise self._unavailable("the wind", "the physics has not started yet")
+        return surface
+
     @property
     def wind(self) -> Wind | None:
-        return self._sim("the wind").wind
+        return self._wind_surface().wind
 
     def set_wind(self, wind: Wind | None) -> None:
         """The wind from now on (None: still air)."""
-        self._sim("the wind").set_wind(wind)
+        self._wind_surface().set_wind(wind)
 
     # -- a hand on the vehicle -------------------------------------------------------------------
     def place(

@@ -117,7 +117,9 @@ def make_backend(
             raise BfsitlError(
                 "--speed applies to the embedded physics only; Gazebo sets its own pace"
             )
-        backend = GazeboBackend(world.gz_plugin_dir, progress=progress)
+        backend = GazeboBackend(
+            world.gz_plugin_dir, progress=progress, wind=world.wind, world_file=world.gz_world
+        )
         if firmware.lockstep:
             raise BfsitlError(
                 f"{firmware.path} is a lockstep build: its clock follows bfsitl's own "

@@ -62,10 +62,13 @@ class World:
 
     Attributes:
         physics: ``"embedded"`` (bfsitl's simulator and bridge) or ``"gazebo"`` (``gz sim``
-            with the BetaflightPlugin, started in the SITL's namespace; no simulated truth is
-            then known).
+            with the BetaflightPlugin, started in the SITL's namespace; the truth is Gazebo's,
+            read on the way to the SITL).
         gz_plugin_dir: Where libBetaflightPlugin.so is, for ``physics="gazebo"``; None
             uses Gazebo's search path.
+        gz_world: A Gazebo world file of your own with the BetaflightPlugin, for
+            ``physics="gazebo"`` (its model and names as in bfsitl's world: the plugin reads
+            the barometer on a topic made of them); None flies bfsitl's world.
         quad: The simulated quad: Gazebo's IRIS unless told otherwise.
         wind: Wind and gusts; None is still air.
         sensors: The simulated sensors' errors; by default half a pascal of barometer noise
@@ -79,6 +82,7 @@ class World:
 
     physics: Physics = "embedded"
     gz_plugin_dir: str | Path | None = None
+    gz_world: str | Path | None = None
     quad: QuadParams = IRIS
     wind: Wind | None = None
     #: 4.6.0 SITL truncates the fdm pressure to whole pascals (~8.3 cm of altitude), so a

@@ -225,6 +225,8 @@ def cmd_fly(args: argparse.Namespace) -> int:
         for name, default in gain_names(args.controller).items():
             print(f"{name} = {default:g}")
         return EXIT_OK
+    if args.world is not None and args.physics != "gazebo":
+        raise BfsitlError("--world is a Gazebo world file: give --physics gazebo with it")
     if args.physics == "gazebo" and args.vehicle.name != "iris":
         raise BfsitlError(
             "--vehicle is the embedded physics' quad; Gazebo flies its world's own model"
@@ -264,6 +266,7 @@ def cmd_fly(args: argparse.Namespace) -> int:
         world=World(
             physics=args.physics,
             gz_plugin_dir=args.gz_plugin_dir,
+            gz_world=args.world,
             quad=args.vehicle,
             wind=wind,
             seed=args.seed,

@@ -299,6 +299,12 @@ def add_fly_parser(sub: argparse._SubParsersAction) -> None:  # type: ignore[typ
         help="folder holding libBetaflightPlugin.so (default: $GZ_SIM_SYSTEM_PLUGIN_PATH)",
     )
     sitl.add_argument(
+        "--world",
+        metavar="FILE.sdf",
+        help="with --physics gazebo: a world file of your own with the BetaflightPlugin "
+        "(its model and names as in bfsitl's world, docs/gazebo.md; default: bfsitl's)",
+    )
+    sitl.add_argument(
         "--profile",
         metavar="FILE",
         help="extra CLI lines to provision (one per line, '#' comments)",

@@ -13,6 +13,7 @@ firmware profile, so that the conventions stay in one place
 from __future__ import annotations
 
 import xml.etree.ElementTree as ET
+from dataclasses import dataclass
 from pathlib import Path
 
 from bfsitl.errors import BfsitlError
@@ -110,3 +111,89 @@ def world_for_profile(profile: FirmwareProfile, directory: Path) -> Path:
     derived = directory / f"{Path(DEFAULT_WORLD).stem}-{profile.generation.value}.sdf"
     tree.write(derived, encoding="unicode", xml_declaration=True)
     return derived
+
+
+#: Gazebo's WindEffects pushes each link that feels the wind with mass x this x (wind - link
+#: velocity), in every axis.  bfsitl's value gives the IRIS (1.75 kg) the embedded physics'
+#: linear drag, 0.55 N per m/s (``IRIS.drag_linear_n_s_per_m``); Gazebo's own IRIS has none.
+WIND_FORCE_PER_KG_PER_M_S = 0.55 / 1.75
+
+
+@dataclass(frozen=True, slots=True)
+class WorldChanges:
+    """What bfsitl changes in a world for one flight (:func:`write_session_world`)."""
+
+    #: The plugin's ``fdm_port_in`` and ``fcu_port_out``: where bfsitl's relay meets it.
+    servo_in_port: int
+    fdm_out_port: int
+    #: The wind at the start, ENU metres per second; None leaves the world without wind
+    #: (no WindEffects system, no link feels it: Gazebo's own IRIS).
+    wind_enu_m_s: tuple[float, float, float] | None = None
+
+
+def write_session_world(world: Path, directory: Path, changes: WorldChanges) -> Path:
+    """A copy of ``world`` in ``directory`` with ``changes``: the BetaflightPlugin's ports
+    moved (so that bfsitl's relay, :mod:`bfsitl.gazebo.packet_tap`, sits between it and the
+    SITL's fixed ports) and, with a wind, Gazebo's WindEffects system loaded, the world's
+    ``<wind>`` set and every link of the plugin's model feeling it."""
+    try:
+        tree = ET.parse(world, parser=ET.XMLParser(target=ET.TreeBuilder(insert_comments=True)))
+    except (OSError, ET.ParseError) as exc:
+        raise BfsitlError(f"cannot read the Gazebo world {world}: {exc}") from exc
+    root = tree.getroot()
+    world_element = root.find("world")
+    plugin = root.find(".//plugin[@filename='BetaflightPlugin']")
+    if plugin is None or world_element is None:
+        raise BfsitlError(
+            f'{world} has no <world> with a <plugin filename="BetaflightPlugin">: bfsitl '
+            f"flies Gazebo through that plugin (docs/gazebo.md)"
+        )
+    for tag, port in (
+        ("fdm_port_in", changes.servo_in_port),
+        ("fcu_port_out", changes.fdm_out_port),
+    ):
+        _set_child(plugin, tag, str(port))
+    if changes.wind_enu_m_s is not None:
+        _add_wind(world_element, plugin, changes.wind_enu_m_s)
+    directory.mkdir(parents=True, exist_ok=True)
+    written = directory / f"{world.stem}-session.sdf"
+    tree.write(written, encoding="unicode", xml_declaration=True)
+    return written
+
+
+def _set_child(parent: ET.Element, tag: str, text: str) -> ET.Element:
+    element = parent.find(tag)
+    if element is None:
+        element = ET.SubElement(parent, tag)
+    element.text = text
+    return element
+
+
+def _add_wind(
+    world: ET.Element, plugin: ET.Element, wind_enu_m_s: tuple[float, float, float]
+) -> None:
+    if world.find("plugin[@filename='gz-sim-wind-effects-system']") is None:
+        effects = ET.SubElement(
+            world,
+            "plugin",
+            {"filename": "gz-sim-wind-effects-system", "name": "gz::sim::systems::WindEffects"},
+        )
+        ET.SubElement(
+            effects, "force_approximation_scaling_factor"
+        ).text = f"{WIND_FORCE_PER_KG_PER_M_S:.6f}"
+    wind = _set_child(world, "wind", "")
+    wind.text = None
+    _set_child(wind, "linear_velocity", " ".join(f"{v:.6f}" for v in wind_enu_m_s))
+    # Every link of the model that carries the plugin (its nested models' too).
+    for model in world.iter("model"):
+        if plugin in list(model):
+            for link in model.iter("link"):
+                _set_child(link, "enable_wind", "true")
+
+
+def world_name(world: Path) -> str:
+    """The ``<world name>`` of a world file (its topics are under ``/world/<name>/``)."""
+    element = ET.parse(world).getroot().find("world")
+    if element is None or not element.get("name"):
+        raise BfsitlError(f"{world} has no <world name=...>")
+    return str(element.get("name"))

@@ -18,7 +18,7 @@ from bfsitl.mission.flight_row import COLUMNS, FlightRow
 
 def _cell(value: object) -> str:
     if isinstance(value, float):  # most cells: asked first (a bool is no float)
-        # Unknown values (no simulated truth with Gazebo) are empty cells, not "nan".
+        # Unknown values (no simulated truth on a real board) are empty cells, not "nan".
         return f"{value:.4f}" if math.isfinite(value) else ""
     if isinstance(value, bool):
         return "1" if value else "0"

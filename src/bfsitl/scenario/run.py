@@ -365,6 +365,7 @@ def _fly(
         timing=Timing(speed=options.speed, lockstep_spin=not options.shares_cores),
         fc=FcSetup(profile=scenario_profile(scenario, profile, faults)),
         world=World(
+            physics=scenario.physics,
             quad=scenario.quad,
             wind=scenario.wind,
             seed=scenario.seed,

@@ -45,8 +45,9 @@ from __future__ import annotations
 
 from dataclasses import dataclass, replace
 from pathlib import Path
-from typing import Any
+from typing import Any, cast
 
+from bfsitl.backend.options import Physics
 from bfsitl.build.binary_scan import FEATURE_MARKERS
 from bfsitl.errors import MissionError, ScenarioError, SimInputError, VehicleProfileError
 from bfsitl.mission.plan import MissionPlan, plan_from_dict
@@ -89,7 +90,11 @@ _TOP_KEYS = {
     "cli_for",
     "known_failure",
     "replay",
+    "physics",
 }
+#: ``physics``: bfsitl's embedded physics, or Gazebo's (a stock build, real time; only the
+#: RC link and a constant wind can be disturbed there).
+PHYSICS_CHOICES = ("embedded", "gazebo")
 _WIND_KEYS = {"north_m_s", "east_m_s", "down_m_s", "gust_std_m_s", "gust_time_constant_s"}
 
 
@@ -130,6 +135,8 @@ class Scenario:
         replay: ``[replay]``: a real flight's log flown again instead of ``plan``
             (:mod:`bfsitl.scenario.replay_spec`); None for a flown scenario.
         side_cli: A comparison side's lines, before ``cli``.
+        physics: ``"embedded"`` (bfsitl's) or ``"gazebo"`` (Gazebo Harmonic with the
+            BetaflightPlugin, docs/gazebo.md: a stock build, real time, its world's IRIS).
     """
 
     name: str
@@ -151,6 +158,8 @@ class Scenario:
     seed: int = 0
     #: Builds to run on when the command line names none.
     firmware: tuple[str, ...] = ()
+    #: ``"embedded"`` or ``"gazebo"`` (``physics``).
+    physics: Physics = "embedded"
     #: Only firmware with a GPS can fly it (a GPS Rescue); others skip it.
     requires_gps: bool = False
     #: Build features it needs (``flight_plan``, ``geofence``, ...: the names of
@@ -297,6 +306,9 @@ def scenario_from_dict(data: dict[str, Any], *, name: str, source: Path | None =
         )
     if waypoints and "flight_plan" not in requires:
         requires = (*requires, "flight_plan")
+    physics = data.get("physics", "embedded")
+    if physics not in PHYSICS_CHOICES:
+        raise ScenarioError(f"{where}: physics must be one of {', '.join(PHYSICS_CHOICES)}")
     requires_gps = data.get("requires_gps", plan.needs_position or bool(waypoints))
     if not isinstance(requires_gps, bool):
         raise ScenarioError(f"{where}: requires_gps must be true or false")
@@ -328,6 +340,7 @@ def scenario_from_dict(data: dict[str, Any], *, name: str, source: Path | None =
         firmware=_strings(where, "firmware", data.get("firmware", [])),
         requires_gps=requires_gps,
         requires=requires,
+        physics=cast("Physics", physics),
         fc_waypoints=waypoints,
         settle_s=number_in(where, "settle_s", data.get("settle_s", DEFAULT_SETTLE_S), 0.0, 60.0),
         source=source,

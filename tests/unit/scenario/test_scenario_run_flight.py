@@ -225,6 +225,12 @@ def test_the_failsafe_switch_is_provisioned_once_on_aux3_only_when_a_fault_uses_
     assert wind_only.mode_ranges == FLY_PROFILE.mode_ranges
 
 
+def test_a_gazebo_scenario_asks_for_gazebos_physics(fly) -> None:
+    spec = scenario(flight=FLIGHT, physics="gazebo", expect={"disarmed": True})
+    _result, session = fly(spec)
+    assert session.session_config.world.physics == "gazebo"
+
+
 def test_a_heavier_quad_gets_a_higher_hover_throttle_in_proportion() -> None:
     heavy = scenario(vehicle={"mass_kg": 2.5})
     value = int(hover_throttle_line(heavy.quad).rsplit(" ", 1)[1])

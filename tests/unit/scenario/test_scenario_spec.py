@@ -50,6 +50,9 @@ def test_a_minimal_file_gets_its_name_and_defaults(tmp_path: Path) -> None:
     assert scenario.name == "rc-loss" and scenario.duration_s == 20.0
     assert scenario.plan.target_alt_m == 3.0 and scenario.faults[0].kind == "rc_loss"
     assert scenario.wind is None and scenario.settle_s == 2.0 and not scenario.requires_gps
+    assert scenario.physics == "embedded"
+    on_gazebo = load_scenario(write(tmp_path, 'physics = "gazebo"\n' + MINIMAL, "gz.toml"))
+    assert on_gazebo.physics == "gazebo"
 
 
 @pytest.mark.parametrize(
@@ -69,6 +72,7 @@ def test_a_minimal_file_gets_its_name_and_defaults(tmp_path: Path) -> None:
         (("disarmed = true", 'worst_finding = "bad"'), "is not one of none, info, warning"),
         (("[expect]\ndisarmed = true", ""), r"\[expect\] is missing"),
         (("takeoff_alt_m = 3.0", "takeoff_alt_m = 300.0"), r"\[flight\]: target altitude"),
+        (("duration_s = 20", 'physics = "ode"\nduration_s = 20'), "physics must be one of"),
     ],
 )
 def test_mistakes_fail_before_flying_naming_file_and_key(

@@ -13,6 +13,7 @@ from pathlib import Path
 from docs_running import (
     CHROMIUM,
     CONFIGURATOR,
+    GAZEBO,
     GYMNASIUM,
     LOCKSTEP_46,
     LOCKSTEP_MASTER,
@@ -176,6 +177,13 @@ def copy_recover_curve(ctx: Context, work: Path) -> Path:
     return png(ctx.recover_run / "learning_curve.png")
 
 
+def make_gazebo_parity(ctx: Context, work: Path) -> Path:
+    plot = work / "gazebo-parity.png"
+    argv = benchmark("gazebo_parity.py", "--repeats", "1", "--out", str(work / "flights"))
+    run([*argv, "--plot", str(plot)], work, timeout_s=900)
+    return png(plot)
+
+
 def copy_waypoints_curve(ctx: Context, work: Path) -> Path:
     assert ctx.waypoints_run is not None
     return png(ctx.waypoints_run / "learning_curve.png")
@@ -288,6 +296,12 @@ FIGURES = (
         "examples/train_hover.py --minutes 5: evaluation.png",
         (hover_run_file("evaluation.png"),),
         copy_from_hover_run("evaluation.png"),
+    ),
+    Figure(
+        "gazebo-parity",
+        "python benchmarks/gazebo_parity.py --repeats 1 --plot gazebo-parity.png",
+        (STOCK, GAZEBO),
+        make_gazebo_parity,
     ),
     Figure(
         "configurator-flight",

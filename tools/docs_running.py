@@ -219,6 +219,17 @@ def _gymnasium_missing(ctx: Context) -> str | None:
     return None
 
 
+def _gazebo_missing(ctx: Context) -> str | None:
+    from bfsitl.errors import GazeboNotFoundError
+    from bfsitl.gazebo import check_gazebo
+
+    try:
+        check_gazebo(None)
+    except GazeboNotFoundError:
+        return "Gazebo Harmonic and libBetaflightPlugin.so are not installed (docs/gazebo.md)"
+    return None
+
+
 def hover_run_file(name: str) -> Need:
     return _run_file(name, "hover", 5)
 
@@ -262,6 +273,7 @@ def _configurator_missing(ctx: Context) -> str | None:
 
 CHROMIUM = Need("chromium", _chromium_missing)
 GYMNASIUM = Need("gymnasium", _gymnasium_missing)
+GAZEBO = Need("Gazebo Harmonic and the BetaflightPlugin", _gazebo_missing)
 CONFIGURATOR = Need("Configurator build, master source, chromium", _configurator_missing)
 
 

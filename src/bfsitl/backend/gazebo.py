@@ -136,6 +136,7 @@ class GazeboBackend(SitlBackend):
             gps_fields=gps,
         ).start()
         stack.callback(self.tap.stop)  # after Gazebo and the SITL stopped sending
+        stack.callback(self._say_pace)
         self.progress(f"starting Gazebo: {launch.command_line()}")
         gazebo = network.spawn(
             launch.argv, sitl.workdir, sitl.workdir / "gazebo.log", env=launch.env_dict()
@@ -151,6 +152,17 @@ class GazeboBackend(SitlBackend):
         )
         wait_for_plugin(network, gazebo, port=ports.plugin_servo)
         sitl.start()
+
+    def _say_pace(self) -> None:
+        if self.tap is None:
+            return
+        counts = self.tap.counts()
+        if counts.wall_time_s > 0:
+            self.progress(
+                f"Gazebo ran {counts.sim_time_s:.1f} s of sim time in {counts.wall_time_s:.1f} s "
+                f"({counts.real_time_factor:.2f}x real time; {counts.fdm} state and "
+                f"{counts.servo} motor packets relayed)"
+            )
 
     def truth(self) -> Truth | None:
         reading = self.tap.reading() if self.tap is not None else None

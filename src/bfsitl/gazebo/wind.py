@@ -68,8 +68,8 @@ class GazeboWind:
         if not self._felt:
             raise DisturbanceUnavailableError(
                 "the wind cannot be disturbed with Gazebo's physics in a flight started "
-                "without one: start it with a wind (World(wind=...), --wind; 0 m/s will do) so "
-                "that bfsitl's world loads WindEffects and the quad's links feel it"
+                "without one: start it with a wind (--wind, or World(wind=Wind()) for still "
+                "air) so that bfsitl's world loads WindEffects and the quad's links feel it"
             )
         if wind is not None and wind.gust_std_m_s > 0:
             raise DisturbanceUnavailableError(

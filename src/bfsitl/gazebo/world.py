@@ -115,8 +115,11 @@ def world_for_profile(profile: FirmwareProfile, directory: Path) -> Path:
 
 #: Gazebo's WindEffects pushes each link that feels the wind with mass x this x (wind - link
 #: velocity), in every axis.  bfsitl's value gives the IRIS (1.75 kg) the embedded physics'
-#: linear drag, 0.55 N per m/s (``IRIS.drag_linear_n_s_per_m``); Gazebo's own IRIS has none.
+#: linear drag, 0.55 N per m/s (``IRIS.drag_linear_n_s_per_m``, PX4's rotor drag).  Gazebo's
+#: own IRIS has none (``velocity_decay`` 0), so a flight without a wind keeps it that way.
 WIND_FORCE_PER_KG_PER_M_S = 0.55 / 1.75
+#: How fast Gazebo's WindEffects follows a new wind (its ``time_for_rise``), seconds.
+WIND_RISE_S = 0.1
 
 
 @dataclass(frozen=True, slots=True)
@@ -127,7 +130,7 @@ class WorldChanges:
     servo_in_port: int
     fdm_out_port: int
     #: The wind at the start, ENU metres per second; None leaves the world without wind
-    #: (no WindEffects system, no link feels it: Gazebo's own IRIS).
+    #: (no WindEffects system, no link feels it, no drag: Gazebo's own IRIS).
     wind_enu_m_s: tuple[float, float, float] | None = None
 
 
@@ -178,9 +181,14 @@ def _add_wind(
             "plugin",
             {"filename": "gz-sim-wind-effects-system", "name": "gz::sim::systems::WindEffects"},
         )
-        ET.SubElement(
-            effects, "force_approximation_scaling_factor"
-        ).text = f"{WIND_FORCE_PER_KG_PER_M_S:.6f}"
+        factor = ET.SubElement(effects, "force_approximation_scaling_factor")
+        factor.text = f"{WIND_FORCE_PER_KG_PER_M_S:.6f}"
+        # Gazebo eases every change of the wind in (1 s by default, the direction from east):
+        # a new wind is to blow from now on, as the embedded physics' does.
+        horizontal = ET.SubElement(effects, "horizontal")
+        for part in ("magnitude", "direction"):
+            ET.SubElement(ET.SubElement(horizontal, part), "time_for_rise").text = str(WIND_RISE_S)
+        ET.SubElement(ET.SubElement(effects, "vertical"), "time_for_rise").text = str(WIND_RISE_S)
     wind = _set_child(world, "wind", "")
     wind.text = None
     _set_child(wind, "linear_velocity", " ".join(f"{v:.6f}" for v in wind_enu_m_s))

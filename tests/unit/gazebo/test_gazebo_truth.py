@@ -9,7 +9,7 @@ import pytest
 import bfsitl.gazebo
 from bfsitl.backend.gazebo import ON_GROUND_MARGIN_M, GazeboBackend
 from bfsitl.errors import BfsitlError, GazeboError
-from bfsitl.gazebo.packet_tap import TapReading
+from bfsitl.gazebo.packet_tap import TapCounts, TapReading
 from bfsitl.gazebo.plugin_frame import GazeboState
 from bfsitl.gazebo.world import world_path
 from bfsitl.physics.frames import quat_from_euler_deg
@@ -22,6 +22,9 @@ class FakeTap:
 
     def reading(self) -> TapReading | None:
         return self.latest
+
+    def counts(self) -> TapCounts:
+        return TapCounts(fdm=9800, servo=9700, unreadable=0, sim_time_s=9.8, wall_time_s=10.0)
 
 
 def _reading(altitude_m: float, roll_deg: float = 0.0) -> TapReading:
@@ -93,3 +96,15 @@ def test_a_world_of_ones_own_is_checked_before_anything_starts(
     own.write_text(world_path().read_text())
     backend = GazeboBackend(None, progress=lambda line: None, world_file=own)
     assert backend.world_file == own.resolve()
+
+
+def test_gazebos_pace_is_said_when_the_flight_ends(monkeypatch: pytest.MonkeyPatch) -> None:
+    monkeypatch.setattr(bfsitl.gazebo, "check_gazebo", lambda plugin_dir: object())
+    lines: list[str] = []
+    backend = GazeboBackend(None, progress=lines.append)
+    backend.tap = FakeTap()  # type: ignore[assignment]
+    backend._say_pace()
+    assert lines == [
+        "Gazebo ran 9.8 s of sim time in 10.0 s (0.98x real time; 9800 state and 9700 motor "
+        "packets relayed)"
+    ]

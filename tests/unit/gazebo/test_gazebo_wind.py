@@ -39,6 +39,8 @@ def test_a_windy_world_loads_wind_effects_and_every_link_of_the_quad_feels_it(
     # The embedded IRIS's horizontal linear drag, per kilogram of the quad.
     assert factor * IRIS.mass_kg == pytest.approx(IRIS.drag_linear_n_s_per_m[0], rel=1e-4)
     assert factor == pytest.approx(WIND_FORCE_PER_KG_PER_M_S, rel=1e-4)
+    rises = [float(e.text or "nan") for e in effects.iter("time_for_rise")]
+    assert rises == [0.1, 0.1, 0.1]  # magnitude, direction, vertical: a new wind blows now
     # ENU: the air moves south, -y.
     velocity = [float(v) for v in (world.findtext("wind/linear_velocity") or "").split()]
     assert velocity == pytest.approx([0.0, -3.0, 0.0])

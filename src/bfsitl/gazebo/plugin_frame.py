@@ -25,11 +25,11 @@ from pathlib import Path
 from bfsitl.errors import GazeboError
 from bfsitl.physics.frames import (
     GeoPoint,
+    body_to_world,
     ned_to_geodetic,
     quat_conjugate,
     quat_from_euler_rad,
     quat_multiply,
-    rotation_matrix,
 )
 from bfsitl.physics.params import Quat, Vec3
 from bfsitl.protocol.sitl_packets import FdmPacket
@@ -42,15 +42,6 @@ DEFAULT_GAZEBO_TO_NED_RPY: Vec3 = (math.pi, 0.0, 0.0)
 _ENU_TO_NED: Quat = quat_from_euler_rad(math.pi, 0.0, math.pi / 2)
 #: A Gazebo model is x forward, y left, z up; FRD is that rolled by pi.
 _FLU_TO_FRD: Quat = quat_from_euler_rad(math.pi, 0.0, 0.0)
-
-
-def _rotate(q: Quat, v: Vec3) -> Vec3:
-    r = rotation_matrix(q)
-    return (
-        r[0] * v[0] + r[1] * v[1] + r[2] * v[2],
-        r[3] * v[0] + r[4] * v[1] + r[5] * v[2],
-        r[6] * v[0] + r[7] * v[1] + r[8] * v[2],
-    )
 
 
 @dataclass(frozen=True, slots=True)
@@ -119,8 +110,9 @@ class PluginFrame:
         )
         return GazeboState(
             sim_time_s=packet.timestamp_s,
-            position_ned_m=_rotate(to_ned, packet.position),
-            velocity_ned_m_s=_rotate(to_ned, packet.velocity_m_s),
+            # body_to_world is the rotation by a quaternion: here, by the packet frame -> NED.
+            position_ned_m=body_to_world(to_ned, packet.position),
+            velocity_ned_m_s=body_to_world(to_ned, packet.velocity_m_s),
             quaternion_wxyz=attitude,
             gyro_rad_s=packet.gyro_rad_s,
             specific_force_m_s2=packet.accel_m_s2,

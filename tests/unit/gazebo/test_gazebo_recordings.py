@@ -35,7 +35,12 @@ import pytest
 
 from bfsitl.gazebo.plugin_frame import GazeboState, PluginFrame
 from bfsitl.gazebo.world import world_path
-from bfsitl.physics.frames import betaflight_attitude_deg, quat_multiply, rotation_matrix
+from bfsitl.physics.frames import (
+    betaflight_attitude_deg,
+    body_to_world,
+    quat_multiply,
+    rotation_matrix,
+)
 from bfsitl.physics.params import Quat, Vec3
 from bfsitl.protocol.firmware_profile import DEFAULT_PROFILE
 from bfsitl.protocol.sitl_packets import FdmPacket, ServoPacket
@@ -64,15 +69,6 @@ def fc_rows() -> list[dict[str, Any]]:
     return [dict(zip(columns, row, strict=True)) for row in recording()["fc"]["rows"]]
 
 
-def _rotate(q: Quat, v: Vec3) -> Vec3:
-    r = rotation_matrix(q)
-    return (
-        r[0] * v[0] + r[1] * v[1] + r[2] * v[2],
-        r[3] * v[0] + r[4] * v[1] + r[5] * v[2],
-        r[6] * v[0] + r[7] * v[1] + r[8] * v[2],
-    )
-
-
 @cache
 def gazebo_poses() -> dict[int, tuple[Vec3, Quat]]:
     """imu_link's world pose (ENU position, FLU -> ENU quaternion) by sim time in ms: each
@@ -83,7 +79,7 @@ def gazebo_poses() -> dict[int, tuple[Vec3, Quat]]:
         q: Quat = (1.0, 0.0, 0.0, 0.0)
         for name in CHAIN:
             entity = message["entities"][name]
-            offset = _rotate(q, tuple(entity["position"]))  # type: ignore[arg-type]
+            offset = body_to_world(q, tuple(entity["position"]))  # type: ignore[arg-type]
             position = (position[0] + offset[0], position[1] + offset[1], position[2] + offset[2])
             q = quat_multiply(q, tuple(entity["orientation_wxyz"]))  # type: ignore[arg-type]
         poses[round(message["sim_time_s"] * 1000.0)] = (position, q)

@@ -6,6 +6,7 @@ import xml.etree.ElementTree as ET
 from pathlib import Path
 
 import pytest
+from support.fake_processes import FakeGazebo
 
 import bfsitl.gazebo
 from bfsitl.backend.gazebo import GazeboBackend
@@ -57,27 +58,12 @@ def test_a_still_world_is_left_without_wind(tmp_path: Path) -> None:
     assert world_name(written) == "empty_betaflight_world"
 
 
-class FakeProcess:
-    def __init__(self, code: int | None) -> None:
-        self.code = code
-        self.signals: list[int] = []
-
-    def poll(self) -> int | None:
-        return self.code
-
-    def wait(self, timeout_s: float) -> int | None:
-        return self.code
-
-    def signal_group(self, signum: int) -> None:
-        self.signals.append(signum)
-
-
 def _wind(started_with: Wind | None, code: int | None = 0) -> tuple[GazeboWind, list[list[str]]]:
     calls: list[list[str]] = []
 
-    def spawn(argv: list[str], log: Path) -> FakeProcess:
+    def spawn(argv: list[str], log: Path) -> FakeGazebo:
         calls.append(argv)
-        return FakeProcess(code)
+        return FakeGazebo(code, exit_after=None)
 
     return GazeboWind(spawn, Path("/opt/gz"), "w", Path("/tmp"), started_with), calls  # type: ignore[arg-type]
 

@@ -26,10 +26,10 @@ from bfsitl.gazebo.world import (
 )
 from bfsitl.physics.frames import (
     betaflight_attitude_deg,
+    body_to_world,
     quat_conjugate,
     quat_from_euler_rad,
     quat_multiply,
-    rotation_matrix,
 )
 from bfsitl.physics.params import Quat, Vec3
 from bfsitl.protocol.firmware_profile import DEFAULT_PROFILE, Generation, profile_for
@@ -39,15 +39,6 @@ from bfsitl.protocol.sitl_packets import FdmPacket
 def _rpy(text: str) -> Vec3:
     numbers = [float(x) for x in text.split()]
     return (numbers[3], numbers[4], numbers[5])
-
-
-def _rotate(q: Quat, v: Vec3) -> Vec3:
-    r = rotation_matrix(q)
-    return (
-        r[0] * v[0] + r[1] * v[1] + r[2] * v[2],
-        r[3] * v[0] + r[4] * v[1] + r[5] * v[2],
-        r[6] * v[0] + r[7] * v[1] + r[8] * v[2],
-    )
 
 
 def plugin_packet(
@@ -60,8 +51,8 @@ def plugin_packet(
     return FdmPacket(
         timestamp_s=12.5,
         quaternion_wxyz=quat_multiply(quat_multiply(undo, q_enu_flu), q_off),
-        velocity_m_s=_rotate(undo, velocity_enu),
-        position=_rotate(undo, position_enu),
+        velocity_m_s=body_to_world(undo, velocity_enu),
+        position=body_to_world(undo, position_enu),
     )
 
 

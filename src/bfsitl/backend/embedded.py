@@ -13,7 +13,6 @@ every disturbance; they differ in who owns time:
 
 from __future__ import annotations
 
-import math
 import time
 from collections.abc import Mapping
 from contextlib import ExitStack
@@ -27,7 +26,7 @@ from bfsitl.fc.rc_link import RcSender
 from bfsitl.link.base import Link
 from bfsitl.link.shm_exchange import ShmExchange
 from bfsitl.physics import Simulator
-from bfsitl.physics.frames import betaflight_attitude_deg
+from bfsitl.physics.frames import betaflight_attitude_deg, tilt_deg
 from bfsitl.sim.bridge import BridgeStats, SitlBridge, bridged_sitl, wait_for_replies
 from bfsitl.sim.health import HealthMonitor, lock_clock
 from bfsitl.sim.lockstep import (
@@ -78,15 +77,12 @@ class _EmbeddedPhysics(SitlBackend):
 
         def read() -> Truth:
             state = simulator.state
-            w, x, y, z = state.quaternion_wxyz
-            # Body z in world NED has z component 1 - 2(x^2 + y^2): cos(tilt).
-            cos_tilt = max(-1.0, min(1.0, 1.0 - 2.0 * (x * x + y * y)))
             north, east, _down = state.position_ned_m
             return Truth(
                 state.time_s,
                 simulator.altitude_m,
                 -state.velocity_ned_m_s[2],
-                math.degrees(math.acos(cos_tilt)),
+                tilt_deg(state.quaternion_wxyz),
                 betaflight_attitude_deg(state.quaternion_wxyz),
                 simulator.on_ground,
                 tuple(bridge.motors),  # type: ignore[arg-type]

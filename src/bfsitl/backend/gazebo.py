@@ -10,7 +10,6 @@ RC (over UDP) and, in a flight started with a wind, Gazebo's wind (:mod:`bfsitl.
 from __future__ import annotations
 
 import functools
-import math
 from contextlib import ExitStack
 from pathlib import Path
 from typing import TYPE_CHECKING, ClassVar
@@ -20,7 +19,7 @@ from bfsitl.backend.disturbances import Disturbances
 from bfsitl.errors import BfsitlError
 from bfsitl.fc.firmware_detect import profile_of_binary
 from bfsitl.gazebo.wind import GazeboWind, wind_enu_m_s
-from bfsitl.physics.frames import GeoPoint, betaflight_attitude_deg
+from bfsitl.physics.frames import GeoPoint, betaflight_attitude_deg, tilt_deg
 
 if TYPE_CHECKING:
     from collections.abc import Callable
@@ -169,9 +168,6 @@ class GazeboBackend(SitlBackend):
         if reading is None:
             return None
         state = reading.state
-        w, x, y, z = state.quaternion_wxyz
-        # Body z in world NED has z component 1 - 2(x^2 + y^2): cos(tilt).
-        cos_tilt = max(-1.0, min(1.0, 1.0 - 2.0 * (x * x + y * y)))
         altitude_m = state.altitude_m
         if self._rest_altitude_m is None or altitude_m < self._rest_altitude_m:
             self._rest_altitude_m = altitude_m
@@ -180,7 +176,7 @@ class GazeboBackend(SitlBackend):
             reading.state_at_s,
             altitude_m,
             -state.velocity_ned_m_s[2],
-            math.degrees(math.acos(cos_tilt)),
+            tilt_deg(state.quaternion_wxyz),
             betaflight_attitude_deg(state.quaternion_wxyz),
             altitude_m <= self._rest_altitude_m + ON_GROUND_MARGIN_M,
             reading.motors,

@@ -186,6 +186,13 @@ def rotation_matrix(q: Quat) -> Matrix3:
     )
 
 
+def tilt_deg(q: Quat) -> float:
+    """Degrees between the body's down axis and the world's (0 level, 180 upside down)."""
+    _w, x, y, _z = q
+    # Body z in world NED has z component 1 - 2(x^2 + y^2): cos(tilt).
+    return math.degrees(math.acos(max(-1.0, min(1.0, 1.0 - 2.0 * (x * x + y * y)))))
+
+
 def body_to_world(q: Quat, v_frd: Vec3) -> Vec3:
     """An FRD body vector expressed in NED."""
     r = rotation_matrix(q)

@@ -46,11 +46,14 @@ class PositionGains:
     lead_s: float = 0.1
 
     @classmethod
-    def for_loop_rate(cls, rate_hz: float) -> PositionGains:
-        """The gains for a control loop at ``rate_hz``: the stiff defaults need 100 Hz; a
-        slower loop (a board at its default serial rate runs about 25 Hz) gets the gentler
-        first set, which the stiff one made oscillate by 30 deg at 25 Hz."""
-        if rate_hz >= STIFF_GAINS_MIN_RATE_HZ:
+    def for_loop_rate(cls, rate_hz: float, *, lockstep: bool = True) -> PositionGains:
+        """The gains for a control loop at ``rate_hz``: the stiff defaults need 100 Hz and a
+        physics in lockstep with the FC.  A slower loop (a board at its default serial rate
+        runs about 25 Hz) gets the gentler first set, which the stiff one made oscillate by
+        30 deg at 25 Hz; so does a loop beside a physics on the wall clock (``lockstep``
+        False: a stock SITL at real time, Gazebo, a board), where the stiff set rocked the
+        quad +-20-40 deg on the square and tipped it over (the gentler: under 9 deg)."""
+        if rate_hz >= STIFF_GAINS_MIN_RATE_HZ and lockstep:
             return cls()
         return cls(kp_pos_per_s=0.9, kp_vel_per_s=1.6, ki_vel_per_s2=0.5)
 

@@ -34,9 +34,12 @@ class PositionSteering:
     """Steers a vehicle to position targets through ANGLE mode, holding a heading."""
 
     def __init__(self, vehicle: Vehicle, rate_hz: float) -> None:
-        """``rate_hz``: the loop's control rate (the position gains are tuned for it)."""
+        """``rate_hz``: the loop's control rate (the position gains are tuned for it and for
+        whether the vehicle's physics is in lockstep with the FC)."""
         self.vehicle = vehicle
-        self.position = PositionController(PositionGains.for_loop_rate(rate_hz))
+        self.position = PositionController(
+            PositionGains.for_loop_rate(rate_hz, lockstep=vehicle.lockstep)
+        )
         #: Fuses the FC's accelerometer with its GPS for the position loop (None: the GPS
         #: alone, extrapolated by the gains' lead).
         self.horizontal: HorizontalEstimator | None = None

@@ -130,3 +130,5 @@ def test_slow_loops_get_the_gentler_gains():
     assert gentle.kp_vel_per_s < PositionGains().kp_vel_per_s
     assert gentle.ki_vel_per_s2 < PositionGains().ki_vel_per_s2
     assert PositionGains.for_loop_rate(STIFF_GAINS_MIN_RATE_HZ) == PositionGains()
+    # Beside a physics on the wall clock the stiff gains rocked the quad: the gentler ones.
+    assert PositionGains.for_loop_rate(100.0, lockstep=False) == gentle

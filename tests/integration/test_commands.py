@@ -115,16 +115,20 @@ def test_ctrl_c_stops_the_sitl_and_exits_130(firmware):
         assert not pid_alive(pid)
 
 
-def test_sitl_does_not_outlive_a_killed_host_process(firmware):
+def test_sitl_does_not_outlive_a_killed_host_process(firmware, tmp_path):
+    # The run directory is pytest's: a killed process cannot remove its own.
     script = textwrap.dedent("""
         import os, signal, sys
         from bfsitl.sitl.process import SitlProcess
-        sitl = SitlProcess(isolate=True).start()
+        sitl = SitlProcess(isolate=True, workdir=sys.argv[1]).start()
         print(sitl.pid, flush=True)
         os.kill(os.getpid(), signal.SIGKILL)   # no cleanup code runs
     """)
     result = subprocess.run(
-        [sys.executable, "-c", script], capture_output=True, text=True, timeout=60
+        [sys.executable, "-c", script, str(tmp_path / "run")],
+        capture_output=True,
+        text=True,
+        timeout=60,
     )
     sitl_pid = int(result.stdout.split()[0])
     deadline = time.monotonic() + 10

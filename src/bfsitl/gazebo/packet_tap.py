@@ -229,9 +229,6 @@ class PluginTap:
         if self.recorder is not None:
             self.recorder("servo", now_s, data)
         try:
-            speeds = ServoPacket.unpack(data).motor_speed
+            self._motors = ServoPacket.unpack(data).betaflight_motors(self.motor_slots)
         except PacketError:
             self._unreadable += 1
-            return
-        slots = self.motor_slots
-        self._motors = (speeds[slots[0]], speeds[slots[1]], speeds[slots[2]], speeds[slots[3]])

@@ -17,6 +17,7 @@ whichever transforms a world has, so the truth bfsitl logs is NED and FRD for an
 
 from __future__ import annotations
 
+import functools
 import math
 import xml.etree.ElementTree as ET
 from dataclasses import dataclass
@@ -26,6 +27,7 @@ from bfsitl.errors import GazeboError
 from bfsitl.physics.frames import (
     GeoPoint,
     body_to_world,
+    ned_to_enu,
     ned_to_geodetic,
     quat_conjugate,
     quat_from_euler_rad,
@@ -90,23 +92,12 @@ class PluginFrame:
             _pose_rpy(plugin, "gazeboXYZToNED", DEFAULT_GAZEBO_TO_NED_RPY),
         )
 
-    def _ned_from_packet(self) -> Quat:
-        # p_ned = R(conj(q_enu_to_ned) * q_to_ned) p_packet: undo the world's turn, do ENU -> NED.
-        return quat_multiply(
-            quat_conjugate(_ENU_TO_NED), quat_from_euler_rad(*self.gazebo_to_ned_rpy)
-        )
-
-    def _frd_from_airplane(self) -> Quat:
-        # body FRD = airplane * conj(q_model_to_airplane) * q_flu_to_frd.
-        return quat_multiply(
-            quat_conjugate(quat_from_euler_rad(*self.model_to_airplane_rpy)), _FLU_TO_FRD
-        )
-
     def state(self, packet: FdmPacket) -> GazeboState:
         """Gazebo's state as one packet reports it, in NED and FRD."""
-        to_ned = self._ned_from_packet()
+        to_ned = _ned_from_packet(self.gazebo_to_ned_rpy)
         attitude = quat_multiply(
-            quat_multiply(to_ned, packet.quaternion_wxyz), self._frd_from_airplane()
+            quat_multiply(to_ned, packet.quaternion_wxyz),
+            _frd_from_airplane(self.model_to_airplane_rpy),
         )
         return GazeboState(
             sim_time_s=packet.timestamp_s,
@@ -118,6 +109,19 @@ class PluginFrame:
             specific_force_m_s2=packet.accel_m_s2,
             pressure_pa=packet.pressure_pa,
         )
+
+
+# One world's two turns, made once: the relay reads a thousand packets a second.
+@functools.cache
+def _ned_from_packet(gazebo_to_ned_rpy: Vec3) -> Quat:
+    # p_ned = R(conj(q_enu_to_ned) * q_to_ned) p_packet: undo the world's turn, do ENU -> NED.
+    return quat_multiply(quat_conjugate(_ENU_TO_NED), quat_from_euler_rad(*gazebo_to_ned_rpy))
+
+
+@functools.cache
+def _frd_from_airplane(model_to_airplane_rpy: Vec3) -> Quat:
+    # body FRD = airplane * conj(q_model_to_airplane) * q_flu_to_frd.
+    return quat_multiply(quat_conjugate(quat_from_euler_rad(*model_to_airplane_rpy)), _FLU_TO_FRD)
 
 
 def _pose_rpy(plugin: ET.Element, tag: str, default: Vec3) -> Vec3:
@@ -140,5 +144,4 @@ def gps_fields(state: GazeboState, home: GeoPoint) -> tuple[Vec3, Vec3]:
     origin at ``home``.  The plugin sends NED metres there, which such a build would take as
     a position near 0 N 0 E jumping a degree per metre."""
     point = ned_to_geodetic(state.position_ned_m, home)
-    north, east, down = state.velocity_ned_m_s
-    return (point.lon_deg, point.lat_deg, point.alt_m), (east, north, -down)
+    return (point.lon_deg, point.lat_deg, point.alt_m), ned_to_enu(state.velocity_ned_m_s)

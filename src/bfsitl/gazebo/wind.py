@@ -14,6 +14,7 @@ from collections.abc import Callable, Mapping
 from pathlib import Path
 
 from bfsitl.errors import DisturbanceUnavailableError, GazeboError
+from bfsitl.physics.frames import ned_to_enu
 from bfsitl.physics.wind import Wind
 from bfsitl.sitl.network import Network, ProcessHandle
 
@@ -23,8 +24,8 @@ PUBLISH_TIMEOUT_S = 10.0
 
 def wind_message(wind: Wind | None) -> str:
     """The ``gz.msgs.Wind`` text for ``wind`` (ENU, the world's frame; None is still air)."""
-    north, east, down = wind.velocity_ned_m_s if wind is not None else (0.0, 0.0, 0.0)
-    return f"linear_velocity: {{x: {east:.6f}, y: {north:.6f}, z: {-down:.6f}}}, enable_wind: true"
+    east, north, up = ned_to_enu(wind.velocity_ned_m_s if wind is not None else (0.0, 0.0, 0.0))
+    return f"linear_velocity: {{x: {east:.6f}, y: {north:.6f}, z: {up:.6f}}}, enable_wind: true"
 
 
 class GazeboWind:
@@ -101,10 +102,9 @@ class GazeboWind:
 
 def wind_enu_m_s(wind: Wind) -> tuple[float, float, float]:
     """The world file's ``<wind><linear_velocity>`` for a flight started in ``wind``."""
-    north, east, down = wind.velocity_ned_m_s
     if wind.gust_std_m_s > 0:
         raise DisturbanceUnavailableError(
             "gusts cannot be disturbed with Gazebo's physics: its WindEffects is given one "
             "constant wind here (give gust_std_m_s = 0, or use the embedded physics)"
         )
-    return (east, north, -down)
+    return ned_to_enu(wind.velocity_ned_m_s)

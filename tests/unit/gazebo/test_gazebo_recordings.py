@@ -282,8 +282,7 @@ def servo_motors() -> list[tuple[float, tuple[float, ...]]]:
     slots = DEFAULT_PROFILE.motor_slot_of_betaflight_motor
     out = []
     for wall_s, h in recording()["servo"]:
-        speeds = ServoPacket.unpack(bytes.fromhex(h)).motor_speed
-        out.append((wall_s, tuple(speeds[slot] for slot in slots)))
+        out.append((wall_s, ServoPacket.unpack(bytes.fromhex(h)).betaflight_motors(slots)))
     return out
 
 

@@ -10,8 +10,12 @@ the flight.
 from __future__ import annotations
 
 import math
-from collections.abc import Iterator
+import threading
+import time
+from collections.abc import Callable, Iterator
+from contextlib import contextmanager
 
+import numpy as np
 import pytest
 
 from bfsitl import (
@@ -100,9 +104,11 @@ def test_a_board_without_an_msp_receiver_is_refused_with_the_fix(board, tmp_path
 def test_a_trained_policy_flies_the_board_from_its_msp_readings_alone(board, tmp_path):
     """The shipped hover policy through ``connect``: its observation from the board's MSP
     replies only (the vehicle has no truth), at its own 50 Hz on the wall clock, RC by MSP;
-    the simulated truth judges where it went.  On the wall clock no two flights are alike
-    (docs/gym.md measures the hold: 5-24 cm); asserted here is that it flies where it is
-    asked, keeps its rate and sees itself where the truth is."""
+    the simulated truth, sampled beside the flight, judges where it went.  On the wall clock
+    no two flights are alike (docs/gym.md: 5-89 cm), and the policy's height may swing: the
+    FC's altitude lags the truth by 150-190 ms here, at the edge of what it was trained for.
+    Asserted is that it flies where it is asked, keeps its rate and sees itself where the
+    truth is, allowing for that lag."""
     pytest.importorskip("onnxruntime")
     from bfsitl.gym.policy_pilot import PolicyPilot
     from bfsitl.library import find_policy
@@ -113,26 +119,67 @@ def test_a_trained_policy_flies_the_board_from_its_msp_readings_alone(board, tmp
     policy = find_policy("hover-iris")
     assert policy is not None
     ground_down_m = simulator.state.position_ned_m[2]
+    truth = TruthSampler(lambda: simulator.state.position_ned_m)
     with connect(f"serial://{tmp_path / 'ttyBF'}?baud=115200") as vehicle:
         pilot = PolicyPilot(vehicle, policy, (1.5, 0.0, 1.5))
         autopilot = Autopilot(vehicle, rate_hz=pilot.rate_hz)
-        autopilot.takeoff(1.5)
-        autopilot.fly_sticks(pilot, 8.0)
-        state = simulator.state
-        fc_alt_m = autopilot.rows[-1].fc_alt_m
+        started_s = time.monotonic()  # the rows' wall_s count from here (within a few us)
+        with truth.running():
+            autopilot.takeoff(1.5)
+            autopilot.fly_sticks(pilot, 8.0)
         autopilot.land()
         report = pilot.report(autopilot.rows)
-    north, east, down = state.position_ned_m
+    judged = [r for r in autopilot.rows if r.phase == "policy"][-int(5 * 50) :]
+    times_s = np.array([started_s + r.wall_s for r in judged])
+    north, east, down = (truth.at(times_s, axis) for axis in range(3))
     height_m = ground_down_m - down
-    # Towards the target 1.5 m north (not south, not sideways), in the air near its height.
-    assert 0.8 < north < 2.2 and abs(east) < 0.5
-    assert 0.8 < height_m < 2.8
-    assert fc_alt_m == pytest.approx(height_m, abs=0.3)  # the FC's view, the policy's only one
+    # Towards the target 1.5 m north (not south, not sideways), in the air near its height,
+    # on the average of its last 5 s.
+    assert 0.8 < north.mean() < 2.2 and abs(east.mean()) < 0.5
+    assert 0.8 < height_m.mean() < 2.8
+    # The FC's view, the policy's only one: its altitude is the truth's a little late.
+    fc_alt_m = np.array([r.fc_alt_m for r in judged])
+    rms_m, lag_s = min(
+        (
+            float(np.sqrt(np.mean((fc_alt_m - (ground_down_m - truth.at(times_s - lag, 2))) ** 2))),
+            lag,
+        )
+        for lag in np.arange(0.0, 0.41, 0.01)
+    )
+    assert rms_m < 0.1 and lag_s < 0.35, (rms_m, lag_s)
     # The board kept the policy's rate on the wall clock.
     assert report.rate_hz_asked == 50.0 and report.rate_hz_kept > 45.0
     assert report.steps >= 8 * 45
     assert math.isnan(report.true_distance_rms_m)  # no truth on a board
     # Closer over its last 5 s, by its own view, than the 1.5 m it started from. How close is
-    # the wall clock's to say: 0.05-0.24 m alone (docs/gym.md), 0.79 m in one CI run.
+    # the wall clock's to say: 0.05-0.89 m (docs/gym.md).
     assert report.fc_distance_rms_m < 1.5
     assert autopilot.rows[-1].phase == "landed"
+
+
+class TruthSampler:
+    """The simulated position (NED, metres) read every 10 ms on the wall clock in a thread,
+    to be compared with rows stamped on that clock."""
+
+    def __init__(self, read: Callable[[], tuple[float, float, float]]) -> None:
+        self._read = read
+        self.samples: list[tuple[float, float, float, float]] = []
+        self._stop = threading.Event()
+
+    @contextmanager
+    def running(self) -> Iterator[None]:
+        thread = threading.Thread(target=self._sample, daemon=True)
+        thread.start()
+        try:
+            yield
+        finally:
+            self._stop.set()
+            thread.join()
+
+    def _sample(self) -> None:
+        while not self._stop.wait(0.01):
+            self.samples.append((time.monotonic(), *self._read()))
+
+    def at(self, times_s: np.ndarray, axis: int) -> np.ndarray:
+        table = np.array(self.samples)
+        return np.interp(times_s, table[:, 0], table[:, 1 + axis])

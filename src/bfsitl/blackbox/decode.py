@@ -28,7 +28,7 @@ from collections.abc import Iterator, Sequence
 from contextlib import contextmanager
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
+from typing import Any, cast
 
 from orangebox.errors import InvalidHeaderException
 from orangebox.reader import Reader
@@ -257,6 +257,16 @@ def _ints(data: Sequence[object], indexes: tuple[int, ...]) -> tuple[int, ...]:
     """The values at ``indexes`` (a group: ``motor[0]``, ``motor[1]``, ...) up to the first
     that is missing or not a number, with a negative value orangebox wrapped to 32 bits
     unwrapped."""
+    try:
+        found = tuple([data[index] for index in indexes])
+    except IndexError:
+        found = ()
+    for value in found:
+        if type(value) is not int or value > _INT32_MAX:
+            break
+    else:
+        if found or not indexes:
+            return cast("tuple[int, ...]", found)  # the usual case: all there, ints, unwrapped
     values = []
     for index in indexes:
         value = data[index] if index < len(data) else None

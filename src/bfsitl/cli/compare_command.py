@@ -80,9 +80,10 @@ def add_compare_parser(actions: argparse._SubParsersAction) -> None:  # type: ig
     compare.add_argument(
         "--jobs",
         type=whole_number_at_least(1),
-        default=1,
+        default=None,
         metavar="N",
-        help="runs side by side (default 1; about one per core)",
+        help="runs side by side (default: one per core, at most one per run; 1 runs "
+        "them here with every event shown)",
     )
     compare.add_argument(
         "--ray",
@@ -139,7 +140,7 @@ def cmd_scenario_compare(args: argparse.Namespace) -> int:
     )
     from bfsitl.scenario.load import find_scenarios
     from bfsitl.scenario.spec import on_vehicle
-    from bfsitl.scenario.suite import run_suite
+    from bfsitl.scenario.suite import default_jobs, run_suite
 
     if len(args.firmware) > 2:
         raise ScenarioError(
@@ -188,12 +189,13 @@ def cmd_scenario_compare(args: argparse.Namespace) -> int:
             flush=True,
         )
 
+    jobs = args.jobs if args.jobs is not None else default_jobs(len(planned))
     suite = run_suite(
         [entry.run for entry in planned],
-        jobs=args.jobs,
+        jobs=jobs,
         speed=args.speed,
         plot=False,
-        progress=progress if args.jobs == 1 else None,
+        progress=progress if jobs == 1 else None,
         on_result=finished,
         ray_address=args.ray_address,
     )

@@ -80,10 +80,11 @@ def add_scenario_parser(sub: argparse._SubParsersAction) -> None:  # type: ignor
     run.add_argument(
         "--jobs",
         type=whole_number_at_least(1),
-        default=1,
+        default=None,
         metavar="N",
-        help="runs side by side, each in its own process (default 1; about one "
-        "per core: a SITL wants most of one)",
+        help="runs side by side, each in its own process (default: one per core, "
+        "at most one per run: a SITL wants most of one); 1 runs them here, one "
+        "after the other, with every event shown",
     )
     run.add_argument(
         "--ray",
@@ -185,14 +186,19 @@ def add_scenario_parser(sub: argparse._SubParsersAction) -> None:  # type: ignor
 def cmd_scenario_run(args: argparse.Namespace) -> int:
     from bfsitl.scenario.load import find_scenarios
     from bfsitl.scenario.spec import on_vehicle
-    from bfsitl.scenario.suite import plan_runs, run_suite
+    from bfsitl.scenario.suite import default_jobs, plan_runs, run_suite
 
     scenarios = on_vehicle(find_scenarios(paths_or_library(args.paths)), args.vehicle)
     runs = plan_runs(scenarios, args.firmware, args.out)
     if not args.firmware:
         runs = _runs_on_made_builds(runs)
     check_builds(runs, given=bool(args.firmware))
-    progress(f"{len(runs)} runs of {len(scenarios)} scenarios; files in {args.out}/")
+    jobs = args.jobs if args.jobs is not None else default_jobs(len(runs))
+    progress(
+        f"{len(runs)} runs of {len(scenarios)} scenarios"
+        + (f", {jobs} at a time" if jobs > 1 and not args.ray_address else "")
+        + f"; files in {args.out}/"
+    )
     started = time.monotonic()
 
     def finished(result) -> None:  # type: ignore[no-untyped-def]
@@ -205,10 +211,10 @@ def cmd_scenario_run(args: argparse.Namespace) -> int:
 
     suite = run_suite(
         runs,
-        jobs=args.jobs,
+        jobs=jobs,
         speed=args.speed,
         plot=_plot_when(args),
-        progress=progress if args.jobs == 1 or args.ray_address else None,
+        progress=progress if jobs == 1 or args.ray_address else None,
         on_result=finished,
         ray_address=args.ray_address,
         mcap=args.mcap,

@@ -66,3 +66,12 @@ def test_scenario_run_with_no_build_made_says_how_to_make_one(tmp_path: Path) ->
     assert "not running on master-lockstep: not built (`bfsitl firmware build --git" in ran.stderr
     last = ran.stderr.strip().splitlines()[-1]
     assert last.startswith("bfsitl: error: none of the builds") and "--gps --lockstep" in last
+
+
+def test_without_jobs_given_a_suite_runs_one_per_core_and_never_more_than_its_runs(monkeypatch):
+    from bfsitl.scenario.suite import default_jobs
+
+    monkeypatch.setattr("os.sched_getaffinity", lambda _pid: {0, 1, 2, 3})
+    assert [default_jobs(runs) for runs in (0, 1, 2, 4, 76)] == [1, 1, 2, 4, 4]
+    monkeypatch.setattr("os.sched_getaffinity", lambda _pid: {3})
+    assert default_jobs(76) == 1  # one core: in this process, every event shown

@@ -22,9 +22,11 @@ What a decoded log can be trusted for, measured on real SITL logs (tests/data/bl
 
 from __future__ import annotations
 
+import itertools
 import logging
 import math
-from collections.abc import Iterator, Sequence
+import operator
+from collections.abc import Iterable, Iterator, Sequence
 from contextlib import contextmanager
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -190,8 +192,7 @@ def _decode_one(path: Path, index: int, segment: bytes) -> BlackboxLog:
     try:
         parser = EventKeepingParser(Reader(str(path), log_index=index))
         layout = _FrameLayout.of(parser.field_names)
-        for frame in parser.frames():
-            frames.append(layout.frame(frame.data))
+        frames.extend(layout.frames(frame.data for frame in parser.frames()))
     except (
         TypeError,
         IndexError,
@@ -306,6 +307,18 @@ class _FrameLayout:
     acc: tuple[int, ...]
     quaternion_xyz: tuple[int, ...]
 
+    @property
+    def _groups(self) -> tuple[tuple[int, ...], ...]:
+        return (
+            self.motors,
+            self.rc_command,
+            self.setpoint,
+            self.gyro_adc,
+            self.debug,
+            self.acc,
+            self.quaternion_xyz,
+        )
+
     @classmethod
     def of(cls, names: Sequence[str]) -> _FrameLayout:
         where = {name: index for index, name in enumerate(names)}  # the last of a name wins
@@ -336,7 +349,43 @@ class _FrameLayout:
             quaternion_xyz=group("imuQuaternion", 3),
         )
 
+    def frames(self, rows: Iterable[Sequence[object]]) -> Iterator[BlackboxFrame]:
+        """:meth:`frame` for each row, the groups' values taken in one call per row: a
+        row's values are ints but where a log is odd (a field missing, an encoding
+        orangebox leaves a TODO, a wrapped negative), and those rows go the long way."""
+        groups = self._groups
+        flat = tuple(index for group in groups for index in group)
+        if len(flat) < 2:
+            yield from (self.frame(row) for row in rows)
+            return
+        take = operator.itemgetter(*flat)
+        cuts = list(itertools.accumulate(len(group) for group in groups))
+        bounds = list(zip([0, *cuts[:-1]], cuts, strict=True))
+        for row in rows:
+            try:
+                values = take(row)
+                plain = max(values) <= _INT32_MAX  # TypeError for a value not a number
+            except (IndexError, TypeError):
+                plain = False
+            if not plain:
+                yield self.frame(row)
+                continue
+            yield self._frame(row, *(values[start:end] for start, end in bounds))
+
     def frame(self, data: Sequence[object]) -> BlackboxFrame:
+        return self._frame(data, *(_ints(data, group) for group in self._groups))
+
+    def _frame(
+        self,
+        data: Sequence[object],
+        motors: tuple[int, ...],
+        rc_command: tuple[int, ...],
+        setpoint: tuple[int, ...],
+        gyro_adc: tuple[int, ...],
+        debug: tuple[int, ...],
+        acc: tuple[int, ...],
+        quaternion_xyz: tuple[int, ...],
+    ) -> BlackboxFrame:
         rx_signal = _one(data, self.rx_signal_received)
         rx_valid = _one(data, self.rx_flight_channels_valid)
         return BlackboxFrame(
@@ -346,13 +395,13 @@ class _FrameLayout:
             rx_flight_channels_valid=None if rx_valid is None else bool(rx_valid),
             mode_switch_mask=_one(data, self.mode_switch_mask) or 0,
             state_flags=_one(data, self.state_flags) or 0,
-            motors=_ints(data, self.motors),
-            rc_command=_ints(data, self.rc_command),
-            setpoint=_ints(data, self.setpoint),
-            gyro_adc=_ints(data, self.gyro_adc),
-            debug=_ints(data, self.debug),
-            acc=_ints(data, self.acc),
-            quaternion_xyz=_ints(data, self.quaternion_xyz),
+            motors=motors,
+            rc_command=rc_command,
+            setpoint=setpoint,
+            gyro_adc=gyro_adc,
+            debug=debug,
+            acc=acc,
+            quaternion_xyz=quaternion_xyz,
             baro_alt_cm=_one(data, self.baro_alt),
         )
 

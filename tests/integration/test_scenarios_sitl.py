@@ -8,6 +8,7 @@ each run's blackbox.  Speed is ``benchmarks/scenarios.py``'s business.
 
 from __future__ import annotations
 
+import csv
 import json
 import os
 import signal
@@ -175,6 +176,54 @@ def test_the_shipped_library_passes_on_every_firmware(
         properties = {p.name: p.value for p in suite.properties()}
         assert properties["rc-loss-hover-drop.finding.crash"].startswith("failure at t=")
     assert 'class="finding failure"' in index
+
+
+@pytest.mark.timeout(300)
+def test_a_run_flies_the_same_flight_whether_it_made_the_fc_s_prepared_state_or_found_it(
+    lockstep_gps_46_firmware: Path, tmp_path: Path
+) -> None:
+    """The first run on an empty cache prepares the FC's configuration in a SITL of
+    its own; the next finds it; a third, into the first one's directory, does not start
+    from the configuration that run left there.  All three fly the same flight and the FC
+    logs the same bytes; none reboots the FC to configure it."""
+
+    def fly(out: Path) -> subprocess.CompletedProcess[str]:
+        env = {**os.environ, "BFSITL_CACHE_DIR": str(tmp_path / "cache")}
+        env.pop("BFSITL_FIRMWARE", None)
+        return subprocess.run(
+            [sys.executable, "-m", "bfsitl.cli.main", "scenario", "run", "motor-weak"]
+            + ["--firmware", str(lockstep_gps_46_firmware), "--out", str(out), "--timings"],
+            capture_output=True,
+            text=True,
+            timeout=240,
+            cwd=tmp_path,
+            env=env,
+        )
+
+    def flown(out: Path) -> tuple[list[dict[str, str]], bytes]:
+        run_dir = next(out.glob("*/motor-weak"))
+        with (run_dir / "flight.csv").open() as rows:
+            table = [
+                {k: v for k, v in row.items() if k != "wall_s"} for row in csv.DictReader(rows)
+            ]
+        return table, next((run_dir / "blackbox").glob("LOG*")).read_bytes()
+
+    first = fly(tmp_path / "a")
+    made = flown(tmp_path / "a")
+    second, again = fly(tmp_path / "b"), fly(tmp_path / "a")
+    for run in (first, second, again):
+        assert run.returncode == 0, run.stdout + run.stderr[-3000:]
+        assert "rebooted" not in run.stderr.split("[sitl] provisioned:")[1].splitlines()[0]
+    assert "preparing the FC's configuration" in first.stderr
+    assert "preparing" not in second.stderr + again.stderr
+    assert len(list((tmp_path / "cache" / "prepared-fc").glob("*.bin"))) == 1
+    # The timings say what the first paid for it.
+    head = next(line for line in first.stdout.splitlines() if line.startswith("run "))
+    assert head.split()[1] == "prepare", first.stdout
+
+    for found in (flown(tmp_path / "b"), flown(tmp_path / "a")):
+        assert made[0] == found[0] and len(made[0]) > 1000
+        assert made[1] == found[1]
 
 
 @pytest.mark.timeout(300)

@@ -66,6 +66,7 @@ from bfsitl.records.outputs import FlightOutputs, OutputOptions
 from bfsitl.scenario.expectations import settle_verdict
 from bfsitl.scenario.faults import Fault, Undo, make_faults
 from bfsitl.scenario.metrics import run_metrics
+from bfsitl.scenario.prepared_fc import fresh_run_dir
 from bfsitl.scenario.replay_run import fly_replay_scenario
 from bfsitl.scenario.result import PlotWhen, ScenarioResult, TimedEvent, Verdict, wants_plot
 from bfsitl.scenario.setup_lines import mode_range_lines, provisioned_settings, scenario_profile
@@ -103,6 +104,9 @@ class RunOptions:
             too); a fake in unit tests.  Picklable as it is, for Ray.
         controller: The autopilot's altitude controller, by name (see ``bfsitl fly
             --list-gains``).
+        prepared_fc: Start the FC configured, from a state prepared once per build and
+            configuration (:mod:`bfsitl.scenario.prepared_fc`); False: configure it in the
+            run and reboot (a fake session keeps no state).
     """
 
     #: This run's directory: its CSV, plot, summary, blackbox and the SITL's run directory.
@@ -121,6 +125,11 @@ class RunOptions:
     session_factory: Callable[..., FlightSession] = FlightSession
     #: The autopilot's altitude controller, by name (see ``bfsitl fly --list-gains``).
     controller: str = DEFAULT_CONTROLLER
+    #: Start the FC configured: from the saved state of a SITL of the same build given the
+    #: same configuration, prepared once and cached (bfsitl.scenario.prepared_fc); False:
+    #: from the firmware's defaults, configured and rebooted in the run (a fake session in
+    #: unit tests keeps no state).
+    prepared_fc: bool = True
 
 
 class _Injector:
@@ -385,6 +394,9 @@ def _fly(
     result.artifacts["log"] = out / "flight.csv"
     if options.mcap:
         result.artifacts["mcap"] = out / "flight.mcap"
+    watch = Stopwatch()
+    with watch.span("prepare") if options.prepared_fc else contextlib.nullcontext():
+        fresh_run_dir(config, options.prepared_fc, options.session_factory, say)
     session = options.session_factory(config, progress=lambda line: say(f"[sitl] {line}"))
     injector = _Injector(session, faults, trace, result.events, say, outputs.on_event)
     planned = [(w.north_m, w.east_m) for w in scenario.fc_waypoints] + [
@@ -396,7 +408,6 @@ def _fly(
         outputs.on_row(row, sample)  # recorded first: the injector may end the flight
         injector.on_row(row, sample)
 
-    watch = Stopwatch()
     # The session is entered apart from its block, so its start-up and its stop (the SITL
     # stopped, its blackbox file complete) are timed on their own.
     stack = contextlib.ExitStack()

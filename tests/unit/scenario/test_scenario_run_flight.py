@@ -168,7 +168,9 @@ def fly(monkeypatch: pytest.MonkeyPatch, tmp_path: Path):  # type: ignore[no-unt
     ) -> tuple[ScenarioResult, FailsafeSession]:
         sessions = Sessions(**session_options)
         options = dataclasses.replace(
-            options or RunOptions(tmp_path / "out", plot=False), session_factory=sessions
+            options or RunOptions(tmp_path / "out", plot=False),
+            session_factory=sessions,
+            prepared_fc=False,  # the fake FC keeps no configuration to prepare
         )
         result = run.run_scenario(spec, str(binary), options)
         assert asked[-1] == DEFAULT_CONTROLLER

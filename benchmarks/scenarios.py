@@ -2,7 +2,9 @@
 two side by side, and through a local Ray cluster.
 
 Every configuration flies the same runs (the shipped library on the given builds, lockstep
-where the build is one) and reports its total simulated seconds, its wall seconds and their
+where the build is one); the first starts with no FC configuration prepared (each run that
+meets a new build and configuration prepares it, bfsitl.scenario.prepared_fc), the others
+find them.  Each reports its total simulated seconds, its wall seconds and their
 ratio.  The baseline is what the firmware's own harness does (``src/test/sitl/sitl_harness.py``
 in the firmware tree): each scenario in real time, one after another, so its wall time equals
 the simulated time (1.0x), before any boot or set-up is counted.  The speed-up column is
@@ -14,8 +16,9 @@ driver's submit to the run's files home, against the run's own time: scheduling,
 fetch on a node's first run, packing and unpacking the files), so that a suite's time on N
 machines can be planned on paper.
 
-Then where a run's wall time goes (start-up, arming, flight, stop, blackbox, analysers,
-plots, files), summed over the one-at-a-time runs, and the five slowest.
+Then where a run's wall time goes (preparing the FC's configuration, start-up, arming,
+flight, stop, blackbox, analysers, plots, files), summed over the one-at-a-time runs (with and
+without the configurations prepared), and the five slowest.
 
 Run: ``python benchmarks/scenarios.py [--firmware master-lockstep --firmware
 4.6.0-gps-lockstep] [--no-ray | --only-ray] [PATHS...]`` (default: the library in
@@ -26,6 +29,7 @@ from __future__ import annotations
 
 import argparse
 import os
+import shutil
 import statistics
 import subprocess
 import sys
@@ -33,8 +37,10 @@ import tempfile
 import time
 from pathlib import Path
 
+from bfsitl.cache_location import cache_root
 from bfsitl.library import scenarios_dir
 from bfsitl.scenario.load import find_scenarios
+from bfsitl.scenario.prepared_fc import PREPARED_DIR
 from bfsitl.scenario.ray_runs import RayTiming, run_on_ray
 from bfsitl.scenario.result import Verdict
 from bfsitl.scenario.suite import plan_runs, run_suite
@@ -42,6 +48,8 @@ from bfsitl.scenario.timings import timings_table
 from bfsitl.sitl.core_claim import PIN_ENV
 
 DEFAULT_BUILDS = ["master-lockstep", "4.6.0-gps-lockstep"]
+#: The first row's label: every FC configuration prepared by the run that first needs it.
+COLD = "--jobs 1, no FC configuration prepared yet"
 
 
 def measure(
@@ -140,6 +148,10 @@ def main() -> None:
     with tempfile.TemporaryDirectory(prefix="bfsitl-bench-scenarios-") as tmp:
         root = Path(tmp)
         if not args.only_ray:
+            # First with none of the FCs' configurations prepared (as on a new machine, or
+            # after a rebuild): each configuration is prepared by the first run that needs it.
+            shutil.rmtree(cache_root() / PREPARED_DIR, ignore_errors=True)
+            rows.append(measure(COLD, root / "j1c", args.paths, firmwares))
             rows.append(measure("--jobs 1", root / "j1", args.paths, firmwares))
             rows.append(measure("--jobs 2", root / "j2", args.paths, firmwares, jobs=2))
             # The same without core claims (each run sleeping for its packets, as before).
@@ -187,16 +199,16 @@ def main() -> None:
             f"{v['error']} / {v['skipped']} |"
         )
     for row in rows:
-        if row["label"] == "--jobs 1" and row["phases"]:
-            print_phases(row["phases"])  # type: ignore[arg-type]
+        if row["label"] in ("--jobs 1", COLD) and row["phases"]:
+            print_phases(str(row["label"]), row["phases"])  # type: ignore[arg-type]
     if timings:
         print_overhead(timings)
 
 
-def print_phases(phases: list[tuple[str, dict[str, float], float]]) -> None:
+def print_phases(label: str, phases: list[tuple[str, dict[str, float], float]]) -> None:
     """Where the runs' wall time went, one at a time (``bfsitl scenario run --timings``'s
     table): the sum and each phase's share, then the five slowest runs."""
-    print("\nWhere a run's wall time goes, --jobs 1 (seconds, summed over the runs):\n")
+    print(f"\nWhere a run's wall time goes, {label} (seconds, summed over the runs):\n")
     table = timings_table(phases)
     print("\n".join(table[:1] + table[-2:]))
     slowest = sorted(phases, key=lambda run: -sum(run[1].values()))[:5]

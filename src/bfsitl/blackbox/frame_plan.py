@@ -1,9 +1,9 @@
 """A frame's fields decoded straight from the log's bytes by a plan made once per frame type.
 
 orangebox 0.4.0 decodes every field through two calls (its decoder reads the bytes one
-``next()`` at a time, its predictor looks the past value up through the context): about a
-microsecond a field, 30 fields a frame, a few hundred frames a second of flight, so decoding
-was the largest cost of a scenario run after the flight.  :class:`FramePlan` reads the same
+``next()`` at a time, its predictor looks the past value up through the context), for some
+30 fields a frame and hundreds of frames a second of flight: decoding was the largest cost
+of a scenario run after the flight.  :class:`FramePlan` reads the same
 encodings from the byte string by index and applies the common predictors inline, giving
 the same numbers (``tests/unit/blackbox/test_frame_plan.py`` decodes every log at hand both
 ways and compares them frame by frame).  What it does not know it leaves to orangebox: a

@@ -5,18 +5,17 @@ Every scenario run configures the FC before it flies: bfsitl's flight profile, t
 the simulated quad's hover throttle, the scenario's own lines, the GPS of a GPS build.  Some
 of it is read at boot only (the blackbox's device and rate, the GPS port; and a filter or
 any setting the firmware reads once at start-up without flagging a reboot), so that
-configuration ended with a reboot: the SITL stopped and started again, a quarter of a second
-of each run on this machine (most of its start-up).  Now a SITL of its own is given the
-configuration and stops, its ``eeprom.bin`` is kept in the cache, and each run with the same
-build and configuration starts its SITL from a copy: configured at boot, nothing to write,
-no reboot.  A run that finds none pays for making it (about 0.1 s more than the reboot).
+configuration ended with a reboot, most of a run's start-up.  Now a SITL of its own is given
+the configuration and stops, its ``eeprom.bin`` is kept in the cache, and each run with the
+same build and configuration starts its SITL from a copy: configured at boot, nothing to
+write, no reboot.  The run that finds none pays for making it, a little more than the reboot
+(docs/scenarios.md#scale).
 
 Every run takes that same way, whether the prepared state was in the cache or made for it,
 so a run flies the same flight either way (tests/integration/test_scenarios_sitl.py compares
 them byte for byte).  A leftover ``eeprom.bin`` from an earlier run into the same directory
-is replaced: before, a second run into the same ``--out`` started from the first one's
-configuration, skipped the reboot and flew another flight (rescue-far: 127.0 s simulated,
-116.8 s fresh).
+is replaced: a run that started from the last one's configuration skipped the reboot and so
+flew another flight than a run into a new directory.
 """
 
 from __future__ import annotations

@@ -125,9 +125,8 @@ _worker_stop = WorkerStop()
 
 def default_jobs(runs: int) -> int:
     """``--jobs`` when none is given: a run per core this process may use (a lockstep run
-    keeps one core busy, its firmware and bfsitl taking turns), never more than the runs.
-    Measured on the library (docs/scenarios.md#scale): two at a time on two cores took
-    0.58-0.62 of the time of one at a time."""
+    keeps one core busy, its firmware and bfsitl taking turns), never more than the runs
+    (docs/scenarios.md#scale measures both)."""
     return max(1, min(len(os.sched_getaffinity(0)), runs))
 
 

@@ -390,10 +390,6 @@ def _fly(
             watch=False,
         )
     )
-    outputs.start()
-    result.artifacts["log"] = out / "flight.csv"
-    if options.mcap:
-        result.artifacts["mcap"] = out / "flight.mcap"
     watch = Stopwatch()
     with watch.span("prepare") if options.prepared_fc else contextlib.nullcontext():
         fresh_run_dir(config, options.prepared_fc, options.session_factory, say)
@@ -408,6 +404,12 @@ def _fly(
         outputs.on_row(row, sample)  # recorded first: the injector may end the flight
         injector.on_row(row, sample)
 
+    # Opened only now, next to the block that closes them: preparing the FC or making the
+    # session may raise.
+    outputs.start()
+    result.artifacts["log"] = out / "flight.csv"
+    if options.mcap:
+        result.artifacts["mcap"] = out / "flight.mcap"
     # The session is entered apart from its block, so its start-up and its stop (the SITL
     # stopped, its blackbox file complete) are timed on their own.
     stack = contextlib.ExitStack()

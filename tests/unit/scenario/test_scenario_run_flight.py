@@ -18,6 +18,7 @@ from __future__ import annotations
 import contextlib
 import dataclasses
 import json
+import os
 from dataclasses import replace
 from pathlib import Path
 from types import SimpleNamespace
@@ -550,3 +551,29 @@ def test_ctrl_c_as_the_start_up_ends_still_closes_the_session(
     with pytest.raises(KeyboardInterrupt):
         fly(scenario(flight=FLIGHT, fault=[RC_LOST_AT_8], expect={"disarmed": True}))
     assert closed == [True]
+
+
+def test_a_session_that_cannot_be_made_leaves_no_flight_log_open(tmp_path: Path) -> None:
+    """Preparing the FC or making the session may raise: the flight's files are opened only
+    after, next to the block that closes them (they were left open before)."""
+    from bfsitl.errors import SitlError
+
+    open_then: list[str] = []
+
+    def no_session(*_args: Any, **_kwargs: Any) -> FailsafeSession:
+        open_then.extend(name for name in _open_files() if name.endswith("flight.csv"))
+        raise SitlError("no SITL here")
+
+    options = RunOptions(tmp_path / "out", plot=False, session_factory=no_session)
+    options = dataclasses.replace(options, prepared_fc=False)
+    result = run.run_scenario(scenario(flight=FLIGHT), str(fake_binary(tmp_path)), options)
+    assert result.verdict is Verdict.ERROR and "no SITL here" in result.reason
+    assert open_then == []  # nothing was open when it raised, so nothing waits to be closed
+
+
+def _open_files() -> list[str]:
+    names = []
+    for fd in os.listdir("/proc/self/fd"):
+        with contextlib.suppress(OSError):  # the listing's own descriptor is gone by now
+            names.append(os.readlink(f"/proc/self/fd/{fd}"))
+    return names

@@ -144,33 +144,9 @@ class FramePlan:
         ctx.current_frame = values
         last = ctx.past_frames[0].data
         before = ctx.past_frames[1].data
-        n_last = len(last)
-        n_before = len(before)
-        if n_last >= len(raw) and n_before >= len(raw):
-            self._predict_runs(raw, last, before, values, ctx)
-            return values, position
-        for index, (how, what) in enumerate(self.predictors):
-            value = raw[index]
-            if how == _NONE:
-                values.append(value)
-            elif how == _AVERAGE_2:
-                previous = last[index] if index < n_last else 0
-                earlier = before[index] if index < n_before else previous
-                values.append(value + int((previous + earlier) / 2))
-            elif how == _PREVIOUS:
-                values.append(value + (last[index] if index < n_last else 0))
-            elif how == _STRAIGHT_LINE:
-                previous = last[index] if index < n_last else 0
-                earlier = before[index] if index < n_before else previous
-                values.append(value + 2 * previous - earlier)
-            elif how == _CONSTANT:
-                values.append(value + what)
-            elif how == _INCREMENT:
-                values.append(1 + (last[index] if index < n_last else 0) + self._skip(ctx))
-            else:
-                ctx.field_index = index
-                values.append(what(value, ctx))
-        ctx.field_index = len(values)
+        if len(last) < len(raw) or len(before) < len(raw):
+            last, before = _with_defaults(last, before, len(raw))
+        self._predict_runs(raw, last, before, values, ctx)
         return values, position
 
     def _predict_runs(
@@ -181,7 +157,7 @@ class FramePlan:
         values: list[Any],
         ctx: Any,
     ) -> None:
-        """:meth:`decode`'s predictions, a run of fields at a time (both past frames whole)."""
+        """:meth:`decode`'s predictions, a run of fields at a time."""
         for how, first, end, what in self.runs:
             if how == _AVERAGE_2:
                 values.extend(
@@ -224,6 +200,16 @@ class FramePlan:
         if skipped is None:
             skipped = self._skipped[place] = ctx.count_skipped_frames()
         return skipped
+
+
+def _with_defaults(
+    last: Sequence[Any], before: Sequence[Any], count: int
+) -> tuple[list[Any], list[Any]]:
+    """The two past frames as orangebox reads a field they do not have (the first frames of
+    a log): the last one's value 0, the one before's the last one's."""
+    last = [last[index] if index < len(last) else 0 for index in range(count)]
+    before = [before[index] if index < len(before) else last[index] for index in range(count)]
+    return last, before
 
 
 def _runs(predictors: tuple[tuple[int, Any], ...]) -> tuple[tuple[int, int, int, Any], ...]:

@@ -267,7 +267,11 @@ def main() -> None:
     parser.add_argument("--build", action="store_true", help="build missing firmware")
     parser.add_argument("--starts", type=int, default=0, help="lockstep starts to count")
     parser.add_argument("--busy", type=int, default=2, help="busy loops during --starts")
-    parser.add_argument("--generations", default="4.6.0,master")
+    parser.add_argument(
+        "--generations",
+        default="4.6.0,master",
+        help="comma-separated: 4.6.0 (the installed package's), master (BFSITL_MASTER_SOURCE)",
+    )
     parser.add_argument(
         "--idle",
         type=float,
@@ -278,6 +282,10 @@ def main() -> None:
         "--no-flights", action="store_true", help="only the stepping alone (and --starts)"
     )
     args = parser.parse_args()
+    known = ("4.6.0", "master")
+    for generation in args.generations.split(","):
+        if generation not in known:
+            parser.error(f"--generations: {generation!r} is not one of {', '.join(known)}")
 
     rows: list[Flight] = []
     for generation in [] if args.no_flights else args.generations.split(","):

@@ -207,7 +207,7 @@ def _impact_in_log(track: Track, limits: Limits) -> Finding | None:
     for beyond_g, index, point in candidates:
         if beyond_g < limits.impact_over_thrust_g:
             continue
-        descent = descent_before(track, point.time_s)
+        descent = descent_before(track, index)
         if finite(descent):
             # With a barometer the descent before the peak decides (a simulator's rigid
             # ground gives 4-5 g at 0.8 m/s, no landing speed).

@@ -232,10 +232,13 @@ def _phase_name(phase: int) -> str:
 def failsafe(track: Track, limits: Limits) -> Finding | None:
     changes: list[tuple[float, str]] = []
     if track.has("failsafe_phase"):
+        last_phase = None
         for point in track.points:
-            if point.failsafe_phase is None:
-                continue
-            name = _phase_name(point.failsafe_phase)
+            phase = point.failsafe_phase
+            if phase is None or phase == last_phase:
+                continue  # a log repeats its phase in every frame: named only when it changes
+            last_phase = phase
+            name = _phase_name(phase)
             if not changes or changes[-1][1] != name:
                 changes.append((point.time_s, name))
         lost = next((p.time_s for p in track.points if p.rx_ok is False), None)

@@ -80,14 +80,20 @@ def evidence_of(point: TrackPoint) -> dict[str, float | str | bool]:
     return keep
 
 
-def descent_before(track: Track, time_s: float) -> float:
-    """The downward speed in the half second before ``time_s`` (a line fitted to the
-    heights); NaN without heights."""
-    window = [
-        (p.time_s, p.alt_m)
-        for p in track.points
-        if time_s - 0.5 <= p.time_s < time_s and finite(p.alt_m)
-    ]
+def descent_before(track: Track, index: int) -> float:
+    """The downward speed in the half second before the point at ``index`` (a line fitted
+    to the heights); NaN without heights.  The points are in time order: the window is
+    found walking back from the point, not by a look at every point of the track."""
+    points = track.points
+    time_s = points[index].time_s
+    window = []
+    for before in range(index - 1, -1, -1):
+        p = points[before]
+        if p.time_s < time_s - 0.5:
+            break
+        if p.time_s < time_s and finite(p.alt_m):
+            window.append((p.time_s, p.alt_m))
+    window.reverse()
     if len(window) < 3:
         return math.nan
     mean_t = sum(t for t, _ in window) / len(window)

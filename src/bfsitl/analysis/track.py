@@ -15,11 +15,18 @@ it needs and is skipped on a track without it.
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field
+import operator
+from collections.abc import Sequence
+from dataclasses import dataclass, field, fields
 from typing import TYPE_CHECKING
 
+import numpy as np
+import numpy.typing as npt
+
+from bfsitl.collector_paused import collector_paused
+
 if TYPE_CHECKING:
-    from bfsitl.blackbox import BlackboxLog
+    from bfsitl.blackbox import BlackboxFrame, BlackboxLog
     from bfsitl.mission.flight_row import FlightRow
     from bfsitl.mission.vehicle import FlightSample
 
@@ -28,9 +35,11 @@ _NAN = math.nan
 GROUND_ALT_M = 0.05
 
 
-@dataclass(frozen=True, slots=True)
+@dataclass(slots=True)
 class TrackPoint:
-    """One look at a flight, on the track's clock."""
+    """One look at a flight, on the track's clock.  Not frozen, though nothing changes a
+    point once made: a log's track has tens of thousands, and a frozen dataclass's
+    ``__init__`` (one ``object.__setattr__`` per field) took four times as long."""
 
     time_s: float
     armed: bool
@@ -112,18 +121,18 @@ class Track:
 
 def _any_present(points: list[TrackPoint], name: str) -> bool:
     """Whether some point's ``name`` is a finite number, a non-empty tuple, or any other
-    value but None and "" (one loop, no call per point: a log has thousands)."""
-    for point in points:
-        value = getattr(point, name)
-        if isinstance(value, float):
-            if math.isfinite(value):
-                return True
-        elif isinstance(value, tuple):
-            if value:
-                return True
-        elif value is not None and value != "":
-            return True
-    return False
+    value but None and "" (loops in C where the field's type allows: a log has tens of
+    thousands of points, and a field its source never fills is looked at in every one)."""
+    values = map(operator.attrgetter(name), points)
+    if name in _FLOAT_FIELDS:
+        return any(map(math.isfinite, values))
+    if name in _TUPLE_FIELDS:
+        return any(values)
+    return any(value is not None and value != "" for value in values)
+
+
+_FLOAT_FIELDS = frozenset(f.name for f in fields(TrackPoint) if f.type == "float")
+_TUPLE_FIELDS = frozenset(f.name for f in fields(TrackPoint) if str(f.type).startswith("tuple"))
 
 
 def stick_share(throttle_us: float) -> float:
@@ -213,17 +222,50 @@ def track_from_blackbox(log: BlackboxLog) -> Track:
     """One blackbox log as a track, times from its first frame.  Rates are scaled back from
     ``blackbox_high_resolution``, motors from ``motorOutput``, the accelerometer from
     ``acc_1G``."""
+    frames = log.frames
     scale = log.value_scale
     low, high = _motor_range(log)
     try:
         one_g = float(log.headers.get("acc_1G", "")) or 1.0
     except ValueError:
         one_g = _NAN
-    start = log.frames[0].time_s if log.frames else 0.0
+    start = frames[0].time_s if frames else 0.0
+    with collector_paused():  # tens of thousands of points (bfsitl.collector_paused)
+        points = _points(frames, start, low, high, scale, one_g)
+    return Track(
+        "blackbox",
+        points,
+        disarm_reason=log.disarm_reason_name,
+        label=f"{log.path.name} log {log.index}",
+    )
+
+
+def _points(
+    frames: Sequence[BlackboxFrame],
+    start: float,
+    low: float,
+    high: float,
+    scale: float,
+    one_g: float,
+) -> list[TrackPoint]:
+    # The arithmetic is done a column at a time (the same IEEE operations as one frame at a
+    # time, so the same floats); the attitude stays math's, whose acos/atan2 numpy's need
+    # not match to the last bit.
+    motors = _rows(np.clip((_column(frames, "motors") - low) / (high - low), 0.0, 1.0))
+    gyro = _rows(_column(frames, "gyro_adc") / scale)
+    setpoint = _rows(_column(frames, "setpoint")[:, :3] / scale)
+    acc = _column(frames, "acc")
+    accel = (
+        (np.sqrt((acc * acc).sum(axis=1).astype(np.float64)) / one_g).tolist()
+        if acc.shape[1] == 3
+        else [_NAN] * len(frames)
+    )
+    attitudes = map(_tilt_roll_pitch, (frame.quaternion_xyz for frame in frames))
     points = []
-    for frame in log.frames:
-        tilt, roll, pitch = _tilt_roll_pitch(frame.quaternion_xyz)
-        accel = math.sqrt(sum(a * a for a in frame.acc)) / one_g if len(frame.acc) == 3 else _NAN
+    for frame, (tilt, roll, pitch), *rates_and_motors in zip(
+        frames, attitudes, motors, gyro, setpoint, accel, strict=True
+    ):
+        frame_motors, frame_gyro, frame_setpoint, frame_accel = rates_and_motors
         points.append(
             TrackPoint(
                 time_s=round(frame.time_s - start, 6),
@@ -232,10 +274,10 @@ def track_from_blackbox(log: BlackboxLog) -> Track:
                 tilt_deg=tilt,
                 roll_deg=roll,
                 pitch_deg=pitch,
-                motors=tuple(min(1.0, max(0.0, (m - low) / (high - low))) for m in frame.motors),
-                gyro_deg_s=tuple(g / scale for g in frame.gyro_adc),
-                setpoint_deg_s=tuple(s / scale for s in frame.setpoint[:3]),
-                accel_g=accel,
+                motors=frame_motors,
+                gyro_deg_s=frame_gyro,
+                setpoint_deg_s=frame_setpoint,
+                accel_g=frame_accel,
                 throttle=stick_share(frame.rc_command[3]) if len(frame.rc_command) > 3 else _NAN,
                 failsafe_phase=frame.failsafe_phase,
                 self_levelling=bool(frame.mode_switch_mask & LEVELLING_BOXES)
@@ -245,9 +287,16 @@ def track_from_blackbox(log: BlackboxLog) -> Track:
                 else bool(frame.rx_signal_received and frame.rx_flight_channels_valid),
             )
         )
-    return Track(
-        "blackbox",
-        points,
-        disarm_reason=log.disarm_reason_name,
-        label=f"{log.path.name} log {log.index}",
-    )
+    return points
+
+
+def _column(frames: Sequence[BlackboxFrame], name: str) -> npt.NDArray[np.int64]:
+    """One tuple field of every frame as rows of a 2-D array (a log's frames all have the
+    same fields; a field it does not log is zero columns wide)."""
+    values = [getattr(frame, name) for frame in frames]
+    width = len(values[0]) if values else 0
+    return np.array(values, dtype=np.int64).reshape(len(values), width)
+
+
+def _rows(array: npt.NDArray[np.float64]) -> list[tuple[float, ...]]:
+    return list(map(tuple, array.tolist()))

@@ -30,12 +30,13 @@ from collections.abc import Iterable, Iterator, Sequence
 from contextlib import contextmanager
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any, cast
+from typing import Any
 
 from orangebox.errors import InvalidHeaderException
 from orangebox.reader import Reader
 
 from bfsitl.blackbox.events import DISARM_REASONS, EventKeepingParser, disarm_reason_name
+from bfsitl.collector_paused import collector_paused
 from bfsitl.errors import BlackboxError
 from bfsitl.protocol.failsafe_phase import FailsafePhase
 
@@ -159,7 +160,7 @@ def decode_blackbox(path: str | Path) -> list[BlackboxLog]:
             f"{path} is not a blackbox log (it {what}); pass a LOG*.BFL or "
             f"LOG*.BF file the FC wrote (blackbox_device = VIRTUAL)"
         )
-    with _orangebox_quiet():
+    with _orangebox_quiet(), collector_paused():
         try:
             starts = Reader(str(path)).log_pointers
         except (OSError, ValueError, RuntimeError, InvalidHeaderException) as exc:
@@ -257,17 +258,7 @@ _INT32_MAX = (1 << 31) - 1
 def _ints(data: Sequence[object], indexes: tuple[int, ...]) -> tuple[int, ...]:
     """The values at ``indexes`` (a group: ``motor[0]``, ``motor[1]``, ...) up to the first
     that is missing or not a number, with a negative value orangebox wrapped to 32 bits
-    unwrapped."""
-    try:
-        found = tuple([data[index] for index in indexes])
-    except IndexError:
-        found = ()
-    for value in found:
-        if type(value) is not int or value > _INT32_MAX:
-            break
-    else:
-        if found or not indexes:
-            return cast("tuple[int, ...]", found)  # the usual case: all there, ints, unwrapped
+    unwrapped (the rows :meth:`_FrameLayout.frames` does not take the short way)."""
     values = []
     for index in indexes:
         value = data[index] if index < len(data) else None

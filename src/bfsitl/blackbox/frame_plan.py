@@ -72,17 +72,16 @@ class FramePlan:
     def __init__(
         self,
         steps: tuple[tuple[int, int], ...],
-        predictors: tuple[tuple[int, Any], ...],
+        runs: tuple[tuple[int, int, int, Any], ...],
     ) -> None:
         #: (what to read, how many fields), in the order of the frame; neighbouring signed
         #: varints are one step.
         self.steps = steps
-        #: (how, with what) per field: the constant, or orangebox's predictor to call.
-        self.predictors = predictors
-        #: The same as runs of neighbouring fields predicted alike: (how, first, end, with
-        #: what), each run done at once where both past frames are whole (one call or
+        #: How the fields are predicted, as runs of neighbouring fields predicted alike:
+        #: (how, first, end, with what: the constant, or orangebox's predictor to call),
+        #: each run done at once where both past frames are whole (one call or
         #: orangebox-dependent predictor per run).
-        self.runs = _runs(predictors)
+        self.runs = runs
         #: The iterations not logged after one, by its place in the I-frame interval:
         #: orangebox walks them one by one for every frame (16 calls at 1/16).
         self._skipped: dict[int, int] = {}
@@ -134,7 +133,7 @@ class FramePlan:
                 predictors.append((_CONSTANT, constant))
             else:
                 predictors.append((_CALL, fdef.predictorfun))
-        return cls(tuple(steps), tuple(predictors))
+        return cls(tuple(steps), _runs(tuple(predictors)))
 
     def decode(self, data: bytes, position: int, ctx: Any) -> tuple[list[Any], int]:
         """The frame's values from ``data`` at ``position``, and where the frame ends.  Raises

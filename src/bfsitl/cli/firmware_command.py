@@ -8,6 +8,7 @@ firmware is asked for (``--firmware 4.6.0-gps``, ``BFSITL_FIRMWARE=4.6.0-gps``).
 from __future__ import annotations
 
 import argparse
+import contextlib
 import json
 import sys
 from typing import Any
@@ -394,6 +395,8 @@ def _info_text(
 
 
 def cmd_clean(args: argparse.Namespace) -> int:
+    from bfsitl.scenario.prepared_fc import forget_prepared  # only here: the scenario layer
+
     cache = FirmwareCache()
     if args.all:
         cache.clear()
@@ -410,6 +413,8 @@ def cmd_clean(args: argparse.Namespace) -> int:
             raise FirmwareBuildError(f"no cached build named {name!r} (cached: {labels})")
         entries.append(entry)
     for entry in entries:
+        with contextlib.suppress(OSError):  # a build without its binary has no states
+            forget_prepared(entry.binary_path, cache=cache.root)
         names = cache.remove(entry.key)
         progress(f"removed {', '.join(names) or entry.key[:12]} ({entry.binary_path.parent})")
     return EXIT_OK

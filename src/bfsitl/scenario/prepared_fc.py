@@ -38,7 +38,8 @@ from bfsitl.version import __version__
 
 #: The SITL's own name for its saved configuration, in its run directory.
 EEPROM_NAME = "eeprom.bin"
-#: Under the cache: one prepared ``eeprom.bin`` per build, set-up and bfsitl version.
+#: Under the cache: one prepared ``eeprom.bin`` per build, set-up and bfsitl version, named
+#: ``<build>-<set-up>.bin``.
 PREPARED_DIR = "prepared-fc"
 
 
@@ -79,15 +80,31 @@ def start_from(run_dir: Path, eeprom: Path | None) -> None:
         shutil.copyfile(eeprom, target)
 
 
+def forget_prepared(binary: Path, *, cache: Path | None = None) -> int:
+    """Delete every state prepared for ``binary`` (``bfsitl firmware clean NAME``, before
+    the build goes); returns how many there were."""
+    states = ((cache or cache_root()) / PREPARED_DIR).glob(f"{_binary_key(binary)}-*.bin")
+    count = 0
+    for state in states:
+        with contextlib.suppress(FileNotFoundError):
+            state.unlink()
+            count += 1
+    return count
+
+
 def _key(binary: Path, firmware: FirmwareProfile, profile: Profile) -> str:
-    """The build (its bytes), what is provisioned (the profile, and what the session adds
-    for the build: its GPS and compass lines), and the bfsitl that provisions it."""
+    """The build (its bytes: the first half, so a build's states can be found), and what is
+    provisioned (the profile, and what the session adds for the build: its GPS and compass
+    lines) with the bfsitl that provisions it."""
     digest = hashlib.sha256()
-    digest.update(binary.read_bytes())
     digest.update(repr(firmware).encode())
     digest.update(repr(profile).encode())
     digest.update(__version__.encode())
-    return digest.hexdigest()[:24]
+    return f"{_binary_key(binary)}-{digest.hexdigest()[:16]}"
+
+
+def _binary_key(binary: Path) -> str:
+    return hashlib.sha256(binary.read_bytes()).hexdigest()[:16]
 
 
 def fresh_run_dir(

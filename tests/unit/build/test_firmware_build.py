@@ -606,8 +606,23 @@ def test_cli_list_info_clean(
         "takes_ip_flag": False,
         "features": ["gps", "gps_rescue", "altitude_hold"],
     }
+    # A configuration prepared for the build (a scenario run's) goes with it.
+    from bfsitl.fc.provisioning import Profile
+    from bfsitl.protocol.firmware_profile import DEFAULT_PROFILE
+    from bfsitl.scenario.prepared_fc import EEPROM_NAME, prepared_eeprom
+
+    cache = cache_of(env)
+    state = prepared_eeprom(
+        cache.entries()[0].binary_path,
+        DEFAULT_PROFILE,
+        Profile(),
+        lambda run_dir: (run_dir / EEPROM_NAME).write_bytes(b"configured"),
+        cache=cache.root,
+    )
+    assert state is not None and state.is_file()
     assert main(["firmware", "clean", "4.6.0-gps"]) == 0
-    assert cache_of(env).entries() == []
+    assert cache.entries() == []
+    assert not state.exists()
 
 
 def test_a_second_name_is_said_when_given_and_listed_beside_the_first(

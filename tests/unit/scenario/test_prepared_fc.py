@@ -9,7 +9,12 @@ from pathlib import Path
 
 from bfsitl.fc.provisioning import Profile
 from bfsitl.protocol.firmware_profile import DEFAULT_PROFILE
-from bfsitl.scenario.prepared_fc import EEPROM_NAME, prepared_eeprom, start_from
+from bfsitl.scenario.prepared_fc import (
+    EEPROM_NAME,
+    forget_prepared,
+    prepared_eeprom,
+    start_from,
+)
 
 
 class Preparer:
@@ -25,6 +30,7 @@ class Preparer:
 
 
 def _binary(tmp_path: Path, content: bytes = b"\x7fELF a build") -> Path:
+    tmp_path.mkdir(parents=True, exist_ok=True)
     binary = tmp_path / "betaflight_SITL"
     binary.write_bytes(content)
     return binary
@@ -54,6 +60,23 @@ def test_another_build_or_set_up_is_prepared_apart(tmp_path):
         ),
     }
     assert len(kept) == 3 and len(prepare.calls) == 3
+
+
+def test_forgetting_a_build_deletes_its_states_and_no_other_build_s(tmp_path):
+    """``bfsitl firmware clean NAME`` left that build's states behind."""
+    prepare = Preparer()
+    cache = tmp_path / "c"
+    going, staying = _binary(tmp_path / "a", b"going"), _binary(tmp_path / "b", b"staying")
+    first = Profile(cli_lines=("set blackbox_sample_rate = 1/16",))
+    second = Profile(cli_lines=("set blackbox_sample_rate = 1/8",))
+    gone = [
+        prepared_eeprom(going, DEFAULT_PROFILE, p, prepare, cache=cache) for p in (first, second)
+    ]
+    kept = prepared_eeprom(staying, DEFAULT_PROFILE, first, prepare, cache=cache)
+    assert forget_prepared(going, cache=cache) == 2
+    assert all(state is not None and not state.exists() for state in gone)
+    assert kept is not None and kept.is_file()
+    assert forget_prepared(going, cache=cache) == 0
 
 
 def test_a_preparation_that_saves_nothing_keeps_nothing(tmp_path):

@@ -18,7 +18,7 @@ import math
 import operator
 from collections.abc import Sequence
 from dataclasses import dataclass, field, fields
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 import numpy.typing as npt
@@ -251,10 +251,13 @@ def _points(
     # The arithmetic is done a column at a time (the same IEEE operations as one frame at a
     # time, so the same floats); the attitude stays math's, whose acos/atan2 numpy's need
     # not match to the last bit.
-    motors = _rows(np.clip((_column(frames, "motors") - low) / (high - low), 0.0, 1.0))
-    gyro = _rows(_column(frames, "gyro_adc") / scale)
-    setpoint = _rows(_column(frames, "setpoint")[:, :3] / scale)
-    acc = _column(frames, "acc")
+    motors, lengths = _column(frames, "motors")
+    motor_rows = _rows(np.clip((motors - low) / (high - low), 0.0, 1.0), lengths)
+    gyro, lengths = _column(frames, "gyro_adc")
+    gyro_rows = _rows(gyro / scale, lengths)
+    setpoint, lengths = _column(frames, "setpoint")
+    setpoint_rows = _rows(setpoint[:, :3] / scale, lengths and [min(n, 3) for n in lengths])
+    acc, _ = _column(frames, "acc")  # a row cut short is NaN, as it was one frame at a time
     accel = (
         (np.sqrt((acc * acc).sum(axis=1).astype(np.float64)) / one_g).tolist()
         if acc.shape[1] == 3
@@ -263,7 +266,7 @@ def _points(
     attitudes = map(_tilt_roll_pitch, (frame.quaternion_xyz for frame in frames))
     points = []
     for frame, (tilt, roll, pitch), *rates_and_motors in zip(
-        frames, attitudes, motors, gyro, setpoint, accel, strict=True
+        frames, attitudes, motor_rows, gyro_rows, setpoint_rows, accel, strict=True
     ):
         frame_motors, frame_gyro, frame_setpoint, frame_accel = rates_and_motors
         points.append(
@@ -290,13 +293,27 @@ def _points(
     return points
 
 
-def _column(frames: Sequence[BlackboxFrame], name: str) -> npt.NDArray[np.int64]:
-    """One tuple field of every frame as rows of a 2-D array (a log's frames all have the
-    same fields; a field it does not log is zero columns wide)."""
+def _column(
+    frames: Sequence[BlackboxFrame], name: str
+) -> tuple[npt.NDArray[Any], list[int] | None]:
+    """One tuple field of every frame as rows of a 2-D array (a field the log does not have
+    is zero columns wide), and each row's length where they differ (else None).  Ints stay
+    ints: numpy picks the type from the values, so nothing is rounded on the way in."""
     values = [getattr(frame, name) for frame in frames]
-    width = len(values[0]) if values else 0
-    return np.array(values, dtype=np.int64).reshape(len(values), width)
+    lengths = list(map(len, values))
+    width = max(lengths, default=0)
+    if all(length == width for length in lengths):
+        return np.array(values).reshape(len(values), width), None
+    # A damaged frame's group stops at its first missing value: padded with NaN, which the
+    # arithmetic carries along, and cut back to its length by _rows.
+    padded = np.full((len(values), width), np.nan)
+    for row, value in zip(padded, values, strict=True):
+        row[: len(value)] = value
+    return padded, lengths
 
 
-def _rows(array: npt.NDArray[np.float64]) -> list[tuple[float, ...]]:
-    return list(map(tuple, array.tolist()))
+def _rows(array: npt.NDArray[Any], lengths: list[int] | None) -> list[tuple[float, ...]]:
+    rows = array.tolist()
+    if lengths is None:
+        return list(map(tuple, rows))
+    return [tuple(row[:length]) for row, length in zip(rows, lengths, strict=True)]

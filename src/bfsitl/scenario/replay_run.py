@@ -127,8 +127,7 @@ def _judge(scenario: Scenario, replay: Replay, result: ScenarioResult, generatio
     """The analysers on the replaying FC's log, the figures, the expectations."""
     comparison = replay.comparison
     analysis = analyse(track_from_blackbox(replay.replayed))
-    result.findings, result.watched = analysis.findings, analysis.watched
-    result.unwatched = analysis.skipped
+    result.take_analysis(analysis)
     figures = replay_metrics(comparison, result.findings)
     result.metrics, result.behaviour = figures.values, figures.behaviour
     trace = Trace(

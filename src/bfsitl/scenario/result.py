@@ -12,7 +12,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Literal
 
-from bfsitl.analysis import Finding
+from bfsitl.analysis import Analysis, Finding
 
 
 class Verdict(enum.Enum):
@@ -146,6 +146,17 @@ class ScenarioResult:
     #: ``bfsitl scenario compare`` compares.
     metrics: dict[str, float | None] = field(default_factory=dict)
     behaviour: dict[str, list[str]] = field(default_factory=dict)
+
+    def take_analysis(self, analysis: Analysis) -> None:
+        """Keep what the analysers found, which watched and which could not.
+
+        Args:
+            analysis: The analysers' results on the run (a flown run's tracks combined, or
+                a replayed log's).
+        """
+        self.findings = analysis.findings
+        self.watched = analysis.watched
+        self.unwatched = analysis.skipped
 
     @property
     def passed(self) -> bool:

@@ -548,9 +548,7 @@ def _analyse(watch: FlightWatch, trace: Trace, result: ScenarioResult) -> None:
     )
     trace.findings = analysis.findings
     trace.unwatched = analysis.skipped
-    result.findings = analysis.findings
-    result.watched = analysis.watched
-    result.unwatched = analysis.skipped
+    result.take_analysis(analysis)
 
 
 def _collect_blackbox(out: Path, trace: Trace, result: ScenarioResult) -> None:

@@ -32,7 +32,8 @@ regenerate-docs: $(STAMP)
 bench: $(STAMP)
 	$(BIN)/python benchmarks/telemetry.py
 	$(BIN)/python benchmarks/physics.py
-	$(BIN)/python benchmarks/altitude.py --plot docs/altitude-step.png
+	@mkdir -p bench-out
+	$(BIN)/python benchmarks/altitude.py --plot bench-out/altitude-step.png
 
 clean:
-	rm -rf $(VENV) build src/*.egg-info .pytest_cache .hypothesis
+	rm -rf $(VENV) build src/*.egg-info .pytest_cache .hypothesis bench-out

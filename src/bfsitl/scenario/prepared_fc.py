@@ -93,9 +93,9 @@ def forget_prepared(binary: Path, *, cache: Path | None = None) -> int:
 
 
 def _key(binary: Path, firmware: FirmwareProfile, profile: Profile) -> str:
-    """The build (its bytes: the first half, so a build's states can be found), and what is
-    provisioned (the profile, and what the session adds for the build: its GPS and compass
-    lines) with the bfsitl that provisions it."""
+    """The build (a digest of its bytes, first, so that a build's states are found by
+    name), then what is provisioned (the profile, and what the session adds for the build:
+    its GPS and compass lines) with the bfsitl that provisions it."""
     digest = hashlib.sha256()
     digest.update(repr(firmware).encode())
     digest.update(repr(profile).encode())

@@ -86,9 +86,10 @@ def pid_rate_hz(profile: FirmwareProfile) -> float:
 
 def blackbox_lines(pid_loop_hz: float) -> tuple[str, ...]:
     """The replaying FC's own log, at the power-of-two share of ``pid_loop_hz`` nearest
-    :data:`LOG_RATE_HZ` (``blackbox_sample_rate`` takes 1/1 to 1/128)."""
+    :data:`LOG_RATE_HZ` (``blackbox_sample_rate`` takes 1/1 to 1/16 on 4.6.0 and master,
+    ``[4.6] src/main/cli/settings.c:292``; a faster loop logs faster)."""
     denominator = 1
-    while denominator < 128 and pid_loop_hz / (denominator * 2) >= LOG_RATE_HZ * 0.99:
+    while denominator < 16 and pid_loop_hz / (denominator * 2) >= LOG_RATE_HZ * 0.99:
         denominator *= 2
     return (
         "set blackbox_device = VIRTUAL",

@@ -186,7 +186,8 @@ def test_a_replay_that_left_no_log_says_so(tmp_path: Path) -> None:
 
 
 @pytest.mark.parametrize(
-    ("loop_hz", "rate"), [(8000.0, "1/8"), (4000.0, "1/4"), (1000.0, "1/1"), (500.0, "1/1")]
+    ("loop_hz", "rate"),
+    [(8000.0, "1/8"), (4000.0, "1/4"), (1000.0, "1/1"), (500.0, "1/1"), (64000.0, "1/16")],
 )
 def test_the_replays_log_is_kept_near_1_khz(loop_hz: float, rate: str) -> None:
     assert f"set blackbox_sample_rate = {rate}" in blackbox_lines(loop_hz)

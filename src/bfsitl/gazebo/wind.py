@@ -32,8 +32,13 @@ MATCH_M_S = 1e-3
 
 def wind_message(wind: Wind | None) -> str:
     """The ``gz.msgs.Wind`` text for ``wind`` (ENU, the world's frame; None is still air)."""
-    east, north, up = ned_to_enu(wind.velocity_ned_m_s if wind is not None else (0.0, 0.0, 0.0))
+    east, north, up = _velocity_enu_m_s(wind)
     return f"linear_velocity: {{x: {east:.6f}, y: {north:.6f}, z: {up:.6f}}}, enable_wind: true"
+
+
+def _velocity_enu_m_s(wind: Wind | None) -> tuple[float, float, float]:
+    """The air's velocity in the world's frame (ENU), m/s; None is still air."""
+    return ned_to_enu(wind.velocity_ned_m_s if wind is not None else (0.0, 0.0, 0.0))
 
 
 class GazeboWind:
@@ -87,7 +92,7 @@ class GazeboWind:
                 "gusts cannot be disturbed with Gazebo's physics: its wind topic sets a constant "
                 "wind (give gust_std_m_s = 0, or use the embedded physics)"
             )
-        asked = ned_to_enu(wind.velocity_ned_m_s if wind is not None else (0.0, 0.0, 0.0))
+        asked = _velocity_enu_m_s(wind)
         reported: tuple[float, float, float] | None = None
         for _ in range(PUBLISH_TRIES):
             self._run(

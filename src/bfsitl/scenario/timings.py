@@ -16,8 +16,8 @@ from dataclasses import dataclass, field
 
 #: The phases in the order a run goes through them (a replay: its log read, then its flight).
 PHASES = (
-    "prepare",  # the FC's shared configuration made (once per build and vehicle; cached)
-    "start-up",  # the SITL booted, provisioned, rebooted when a setting needs it
+    "prepare",  # the FC's configuration made (once per build and configuration; cached)
+    "start-up",  # the SITL booted (configured already, or provisioned and rebooted)
     "arming",
     "flight",  # the autopilot and the watch: what simulated time costs
     "stop",  # the SITL stopped, the flight's own files closed

@@ -1,5 +1,7 @@
 """Decode a blackbox file into typed frames and events with ``orangebox`` (the registry's
-decoder) plus bfsitl's reading of the events (:mod:`bfsitl.blackbox.events`).
+decoder) plus bfsitl's reading of the events (:mod:`bfsitl.blackbox.events`); a clean log's
+frames are read by the compiled kernel instead (:mod:`bfsitl.blackbox.compiled_frames`: the
+same numbers, four times as fast).
 
 Why orangebox 0.4.0 (see docs/scenarios.md): pure Python with no dependencies, GPL-3.0 like
 bfsitl, driven by the log's own header (so 4.6.0's and master's logs both decode), and it
@@ -32,9 +34,11 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
+import numpy as np
 from orangebox.errors import InvalidHeaderException
 from orangebox.reader import Reader
 
+from bfsitl.blackbox.compiled_frames import CompiledLog, compiled_log
 from bfsitl.blackbox.events import DISARM_REASONS, EventKeepingParser, disarm_reason_name
 from bfsitl.collector_paused import collector_paused
 from bfsitl.errors import BlackboxError
@@ -189,11 +193,16 @@ def _decode_one(path: Path, index: int, segment: bytes) -> BlackboxLog:
     headers = _raw_headers(segment)
     frames: list[BlackboxFrame] = []
     parser: EventKeepingParser | None = None
+    compiled: CompiledLog | None = None
     cut = False
     try:
         parser = EventKeepingParser(Reader(str(path), log_index=index))
         layout = _FrameLayout.of(parser.field_names)
-        frames.extend(layout.frames(frame.data for frame in parser.frames()))
+        compiled = compiled_log(parser)
+        if compiled is not None:
+            frames.extend(layout.compiled_frames(compiled))
+        else:
+            frames.extend(layout.frames(frame.data for frame in parser.frames()))
     except (
         TypeError,
         IndexError,
@@ -207,7 +216,12 @@ def _decode_one(path: Path, index: int, segment: bytes) -> BlackboxLog:
         # (IndexError); a header cut short fails while building its field definitions.
         # Whatever came before the damage is kept.
         cut = True
-    kept = parser.kept if parser is not None else []
+    if compiled is not None:  # the kernel decodes only a log that ends with LOG_END
+        kept, ended = compiled.kept, True
+    elif parser is not None:
+        kept, ended = parser.kept, parser.saw_log_end
+    else:
+        kept, ended = [], False
     events = tuple(
         BlackboxEvent(frames[before - 1].time_s if before else None, kind, data)
         for before, kind, data in kept
@@ -222,7 +236,7 @@ def _decode_one(path: Path, index: int, segment: bytes) -> BlackboxLog:
         events=events,
         disarm_reason=reason,
         disarm_reason_name=None if reason is None else disarm_reason_name(reason),
-        truncated=cut or parser is None or not parser.saw_log_end,
+        truncated=cut or not ended,
     )
 
 
@@ -362,6 +376,46 @@ class _FrameLayout:
                 yield self.frame(row)
                 continue
             yield self._frame(row, *(values[start:end] for start, end in bounds))
+
+    def compiled_frames(self, log: CompiledLog) -> list[BlackboxFrame]:
+        """:meth:`frames` of ``log.rows()``, made a field at a time: every value the kernel
+        gives is an int, so each row would take the short way but for the wrap of a negative
+        value (undone here a group at a time, as :func:`_ints` does a value at a time)."""
+        count = len(log.main)
+        main_count = log.main.shape[1]
+        if any(index >= main_count for group in self._groups for index in group):
+            return list(self.frames(log.rows()))  # a group in a slow or GPS frame: not seen
+
+        def group(indexes: tuple[int, ...]) -> list[tuple[int, ...]]:
+            if not indexes:
+                return [()] * count
+            values = log.main[:, list(indexes)]
+            values = np.where(values > _INT32_MAX, values - _UINT32_WRAP, values)
+            return list(map(tuple, values.tolist()))
+
+        def single(index: int | None) -> list[int | None]:
+            return [None] * count if index is None else log.column(index)
+
+        def flag(index: int | None) -> list[bool | None]:
+            return [None if value is None else bool(value) for value in single(index)]
+
+        def zero_for_none(index: int | None) -> list[int]:
+            return [value or 0 for value in single(index)]
+
+        times = np.array(zero_for_none(self.time), dtype=np.int64) / 1e6
+        return list(
+            map(
+                BlackboxFrame,
+                times.tolist(),
+                single(self.failsafe_phase),
+                flag(self.rx_signal_received),
+                flag(self.rx_flight_channels_valid),
+                zero_for_none(self.mode_switch_mask),
+                zero_for_none(self.state_flags),
+                *(group(indexes) for indexes in self._groups),
+                single(self.baro_alt),
+            )
+        )
 
     def frame(self, data: Sequence[object]) -> BlackboxFrame:
         return self._frame(data, *(_ints(data, group) for group in self._groups))

@@ -11,6 +11,9 @@ field whose encoding it does not read makes no plan (the caller keeps orangebox'
 and a predictor it does not apply (the increment, motor[0], GPS home, the GPS time) is
 orangebox's own function, called with the context as orangebox sets it.
 
+The compiled kernel follows the same plans (:mod:`bfsitl.blackbox.compiled_frames`), for a
+whole log at once; this module is its reference and the road for any log it leaves.
+
 orangebox's behaviour is kept where it differs from the firmware's: its ``tag8_8svb`` group
 ends one field early at the end of a frame (and a lone such field there reads nothing); a
 frame type where that would happen makes no plan.

@@ -1,4 +1,5 @@
-"""Build the compiled code (the physics and the lockstep loop) once per machine and load it.
+"""Build the compiled code (the physics, the lockstep loop, the blackbox frame decoder) once per
+machine and load it.
 
 Every ``*.c`` file of this package goes into one shared library, compiled with the system's C
 compiler (the one ``bfsitl firmware build`` needs anyway) the first time a process asks for

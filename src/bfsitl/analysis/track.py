@@ -16,13 +16,15 @@ from __future__ import annotations
 
 import math
 import operator
-from collections.abc import Sequence
+from collections.abc import Iterable, Sequence
 from dataclasses import dataclass, field, fields
+from itertools import repeat
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
 import numpy.typing as npt
 
+from bfsitl.analysis.logged_attitude import compiled_attitudes_deg
 from bfsitl.collector_paused import collector_paused
 
 if TYPE_CHECKING:
@@ -263,34 +265,52 @@ def _points(
         if acc.shape[1] == 3
         else [_NAN] * len(frames)
     )
-    attitudes = map(_tilt_roll_pitch, (frame.quaternion_xyz for frame in frames))
-    points = []
-    for frame, (tilt, roll, pitch), *rates_and_motors in zip(
-        frames, attitudes, motor_rows, gyro_rows, setpoint_rows, accel, strict=True
-    ):
-        frame_motors, frame_gyro, frame_setpoint, frame_accel = rates_and_motors
-        points.append(
-            TrackPoint(
-                time_s=round(frame.time_s - start, 6),
-                armed=True,
-                alt_m=frame.baro_alt_cm / 100.0 if frame.baro_alt_cm is not None else _NAN,
-                tilt_deg=tilt,
-                roll_deg=roll,
-                pitch_deg=pitch,
-                motors=frame_motors,
-                gyro_deg_s=frame_gyro,
-                setpoint_deg_s=frame_setpoint,
-                accel_g=frame_accel,
-                throttle=stick_share(frame.rc_command[3]) if len(frame.rc_command) > 3 else _NAN,
-                failsafe_phase=frame.failsafe_phase,
-                self_levelling=bool(frame.mode_switch_mask & LEVELLING_BOXES)
-                or bool(frame.failsafe_phase),
-                rx_ok=None
-                if frame.rx_signal_received is None
-                else bool(frame.rx_signal_received and frame.rx_flight_channels_valid),
-            )
+    tilts, rolls, pitches = zip(*_attitudes(frames), strict=True) if frames else ((), (), ())
+    # The points are made positionally, a field's values at a time (TrackPoint's order).
+    return list(
+        map(
+            TrackPoint,
+            [round(frame.time_s - start, 6) for frame in frames],
+            repeat(True),  # armed: a log is written while armed
+            repeat(None),  # airborne: a log cannot tell
+            [_NAN if f.baro_alt_cm is None else f.baro_alt_cm / 100.0 for f in frames],
+            repeat(_NAN),  # climb, north, east: the truth's
+            repeat(_NAN),
+            repeat(_NAN),
+            tilts,
+            rolls,
+            pitches,
+            repeat(""),  # phase, targets: the autopilot's
+            repeat(_NAN),
+            repeat(_NAN),
+            repeat(_NAN),
+            motor_rows,
+            gyro_rows,
+            setpoint_rows,
+            accel,
+            [stick_share(f.rc_command[3]) if len(f.rc_command) > 3 else _NAN for f in frames],
+            [frame.failsafe_phase for frame in frames],
+            [
+                None
+                if f.rx_signal_received is None
+                else bool(f.rx_signal_received and f.rx_flight_channels_valid)
+                for f in frames
+            ],
+            repeat(()),  # modes: MSP's names, which a log does not have
+            [bool(f.mode_switch_mask & LEVELLING_BOXES) or bool(f.failsafe_phase) for f in frames],
         )
-    return points
+    )
+
+
+def _attitudes(frames: Sequence[BlackboxFrame]) -> Iterable[tuple[float, float, float]]:
+    """Each frame's (tilt, roll, pitch): by the kernel where every frame has its three
+    quaternion fields as ints (:mod:`bfsitl.analysis.logged_attitude`), else one at a time."""
+    xyz, lengths = _column(frames, "quaternion_xyz")
+    if lengths is None and xyz.shape[1:] == (3,) and xyz.dtype.kind == "i":
+        compiled = compiled_attitudes_deg(xyz)
+        if compiled is not None:
+            return compiled
+    return map(_tilt_roll_pitch, (frame.quaternion_xyz for frame in frames))
 
 
 def _column(

@@ -108,3 +108,46 @@ def test_the_columns_give_the_very_floats_one_frame_at_a_time_gave() -> None:
             assert point.setpoint_deg_s == tuple(s / scale for s in frame.setpoint[:3])
             accel = math.sqrt(sum(a * a for a in frame.acc)) / one_g
             assert point.accel_g == accel or (math.isnan(point.accel_g) and math.isnan(accel))
+            assert (point.tilt_deg, point.roll_deg, point.pitch_deg) == _tilt_roll_pitch(
+                frame.quaternion_xyz
+            )
+
+
+def _tilt_roll_pitch(xyz: tuple[int, ...]) -> tuple[float, float, float]:
+    from bfsitl.analysis.track import _tilt_roll_pitch as one_frame
+
+    return one_frame(xyz)
+
+
+def test_the_kernel_s_attitudes_are_math_s_to_the_last_bit() -> None:
+    """The compiled attitude against ``math`` one frame at a time, on the corners (level,
+    upside down, where atan2 meets y = 0 on either side, the scale's ends) and on random
+    quaternions, unit or not (a log's are rounded to 15 bits)."""
+    import random
+
+    import numpy as np
+    import pytest
+
+    from bfsitl.analysis.logged_attitude import compiled_attitudes_deg
+
+    corners = [
+        (0, 0, 0),
+        (32767, 0, 0),
+        (-32767, 0, 0),
+        (0, 32767, 0),
+        (0, 0, 32767),
+        (0, 0, -32767),
+        (23170, 0, 23170),
+        (0, -23170, 23170),
+        (-32767, -32767, -32767),
+        (1, -1, 1),
+    ]
+    rng = random.Random(7)
+    spread = [tuple(rng.randint(-32767, 32767) for _ in range(3)) for _ in range(3000)]
+    small = [tuple(rng.randint(-40, 40) for _ in range(3)) for _ in range(1000)]
+    rows = corners + spread + small
+    compiled = compiled_attitudes_deg(np.array(rows, dtype=np.int64))
+    if compiled is None:
+        pytest.skip("no C compiler for the kernel")
+    for row, got in zip(rows, compiled, strict=True):
+        assert repr(got) == repr(_tilt_roll_pitch(row)), row  # -0.0 and 0.0 told apart

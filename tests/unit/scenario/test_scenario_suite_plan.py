@@ -75,3 +75,40 @@ def test_without_jobs_given_a_suite_runs_one_per_core_and_never_more_than_its_ru
     assert [default_jobs(runs) for runs in (0, 1, 2, 4, 76)] == [1, 1, 2, 4, 4]
     monkeypatch.setattr("os.sched_getaffinity", lambda _pid: {3})
     assert default_jobs(76) == 1  # one core: in this process, every event shown
+
+
+def test_side_by_side_the_longest_flights_go_first_and_results_keep_plan_order(
+    tmp_path: Path, monkeypatch
+) -> None:
+    """A long flight taken last would fly alone while the other cores wait."""
+    from concurrent.futures import Future
+
+    from bfsitl.scenario import suite
+    from bfsitl.scenario.result import ScenarioResult, Verdict
+
+    runs = plan_runs(find_scenarios([scenarios_dir()]), [], tmp_path)[::5]
+    durations = [run.scenario.duration_s for run in runs]
+    # The test means something only where plan order is not already longest first.
+    assert durations != sorted(durations, reverse=True)
+    submitted: list[str] = []
+
+    class OneAtATimePool:
+        def __init__(self, **_kwargs: object) -> None:
+            pass
+
+        def submit(self, _function, run, *_args) -> Future[ScenarioResult]:
+            submitted.append(run.test_id)
+            future: Future[ScenarioResult] = Future()
+            future.set_result(ScenarioResult(run.scenario.name, run.firmware, Verdict.PASSED, ""))
+            return future
+
+        def shutdown(self, **_kwargs: object) -> None:
+            pass
+
+    monkeypatch.setattr(suite, "ProcessPoolExecutor", OneAtATimePool)
+    result = suite.run_suite(runs, jobs=2)
+    by_id = {run.test_id: run.scenario.duration_s for run in runs}
+    assert [by_id[test_id] for test_id in submitted] == sorted(durations, reverse=True)
+    assert [(r.name, r.firmware) for r in result.results] == [
+        (run.scenario.name, run.firmware) for run in runs
+    ]

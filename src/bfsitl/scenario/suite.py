@@ -133,9 +133,8 @@ def default_jobs(runs: int) -> int:
 
 def longest_first(runs: Sequence[PlannedRun]) -> list[int]:
     """The order the workers take the runs in: the longest flights first (each scenario's
-    ``duration_s``; plan order among equals).  In plan order, a long flight that came last
-    flew alone on one core while the others waited (the library's 38 runs on 4.6.0, two at a
-    time, took 24 s where their 37 s of work would fill two cores in 19)."""
+    ``duration_s``; plan order among equals).  In plan order a long flight that came last
+    could fly alone on one core while the others stood idle."""
     return sorted(range(len(runs)), key=lambda index: -runs[index].scenario.duration_s)
 
 

@@ -123,6 +123,8 @@ class PolicyPilot:
         self.inference_s: list[float] = []
         #: The distance from the target by the FC's readings, one per step.
         self.fc_distance_m: list[float] = []
+        #: The sample's time of each step (the loop's rows carry the same clock).
+        self.step_times_s: list[float] = []
         watch_fc(vehicle)
 
     def sticks(self, sample: FlightSample, command: RcCommand) -> RcCommand:
@@ -132,6 +134,7 @@ class PolicyPilot:
         action = np.asarray(self.policy(observation), dtype=np.float64).reshape(-1)
         self.inference_s.append(time.perf_counter() - started)
         self.fc_distance_m.append(float(np.linalg.norm(observation[:3])))
+        self.step_times_s.append(sample.time_s)
         if action.shape != (4,) or not np.all(np.isfinite(action)):
             raise MissionError(
                 f"{self.name} gave {action.tolist()}; a policy gives 4 finite sticks (roll, "
@@ -159,20 +162,27 @@ class PolicyPilot:
             )
 
     def report(self, rows: Sequence[FlightRow]) -> PolicyReport:
-        """How the policy flew, from the loop's rows of its phase and what it timed."""
-        flown = [row for row in rows if row.phase == Phase.POLICY]
-        if len(flown) < 2 or not self.inference_s:
+        """How the policy flew, from the loop's rows of its phase and what it timed.  Rows
+        and steps are paired by time: the rows may hold another pilot's flight too."""
+        if not self.step_times_s:
+            raise MissionError("the policy has not flown (no rows of its phase)")
+        first_s, last_s = self.step_times_s[0], self.step_times_s[-1]
+        flown = [
+            row for row in rows if row.phase == Phase.POLICY and first_s <= row.time_s <= last_s
+        ]
+        if len(flown) < 2:
             raise MissionError("the policy has not flown (no rows of its phase)")
         span_s = flown[-1].time_s - flown[0].time_s
         judged_from_s = flown[-1].time_s - JUDGED_S
-        recent = [i for i, row in enumerate(flown) if row.time_s >= judged_from_s]
-        fc_recent = [self.fc_distance_m[i] for i in recent if i < len(self.fc_distance_m)]
+        fc_recent = [
+            distance
+            for time_s, distance in zip(self.step_times_s, self.fc_distance_m, strict=True)
+            if time_s >= judged_from_s
+        ]
         true_recent = [
-            math.dist(
-                (row.sim_north_m, row.sim_east_m, row.sim_alt_m),
-                self.target,
-            )
-            for row in (flown[i] for i in recent)
+            math.dist((row.sim_north_m, row.sim_east_m, row.sim_alt_m), self.target)
+            for row in flown
+            if row.time_s >= judged_from_s
         ]
         inference_us = sorted(s * 1e6 for s in self.inference_s)
         return PolicyReport(

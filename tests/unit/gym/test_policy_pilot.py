@@ -218,3 +218,22 @@ def test_without_a_gps_the_horizontal_slots_are_zero_as_in_training() -> None:
     vehicle.north_m = 3.0
     view = fc_view(vehicle, vehicle.sample())
     assert (view.north_m, view.east_m, view.has_gps) == (0.0, 0.0, False)
+
+
+def test_a_second_policy_s_report_is_its_own_flight_not_the_first_s(tmp_path: Path) -> None:
+    """Two pilots in one loop: the rows hold both flights, and each report pairs its own
+    steps with its own rows (by time, not by index)."""
+    vehicle = PolicyVehicle()
+    loop, first = flown(tmp_path, vehicle, seconds=8.0)
+    second_target = (0.0, 0.0, 1.5)
+    second = PolicyPilot(vehicle, policy_file(tmp_path), second_target)
+    loop.fly_sticks(8.0, second)
+    policy_rows = [r for r in loop.rows if r.phase == Phase.POLICY]
+    report = second.report(loop.rows)
+    assert report.steps == len(second.step_times_s) == pytest.approx(8.0 * 50, abs=2)
+    assert report.steps < len(policy_rows)
+    # Its FC distances are its own last steps', towards its own target (not NaN, not the
+    # first flight's).
+    assert math.isfinite(report.fc_distance_rms_m)
+    assert report.fc_distance_rms_m == pytest.approx(report.true_distance_rms_m, abs=0.3)
+    assert first.report(loop.rows).steps == len(first.step_times_s)

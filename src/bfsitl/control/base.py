@@ -9,7 +9,8 @@ It never sees the simulated truth: that is kept to judge it.
 
 Besides ``reset`` and ``update`` a controller may have ``observe_ground(sample)``: the mission
 then hands it the samples of its ground phase (armed at idle before the take-off) instead of
-resetting it when the take-off begins.
+resetting it when the take-off begins; and ``observe_flight(sample, throttle_us)``: the
+mission hands it the samples of a flight another pilot has the sticks of.
 
 Everything here is plain data and a :class:`typing.Protocol`, so controllers can be tested
 offline (``tests/support/altitude_plant.py``) exactly as the mission runner calls them.
@@ -81,6 +82,16 @@ class ObservesGround(Protocol):
     of the ground phase instead of asking it for throttle."""
 
     def observe_ground(self, sample: AltitudeInput) -> None: ...
+
+
+@runtime_checkable
+class ObservesFlight(Protocol):
+    """A controller that keeps its state current while another pilot flies (the mission's
+    ``fly_sticks``): each of those steps it sees the sample and the throttle the pilot sent,
+    so that when the sticks come back it starts from where the vehicle is, not from where it
+    was handed over (the fused controller's estimate and reference)."""
+
+    def observe_flight(self, sample: AltitudeInput, throttle_us: float) -> None: ...
 
 
 @runtime_checkable

@@ -144,6 +144,23 @@ class FusedAltitudeController:
         self._prev_time_s = sample.time_s
         self.estimator.update(dt_s, accel, sample.altitude_m, on_ground=True)
 
+    def observe_flight(self, sample: AltitudeInput, throttle_us: float) -> None:
+        """Another pilot has the sticks (``throttle_us`` is what it sent): the estimate
+        follows the sensors, the motors' throttle the pilot's, and the reference stays on the
+        estimate, so the sticks come back without a jump (left alone, the reference stayed
+        where the pilot took over, and the hold that followed sagged towards it: docs/gym.md)."""
+        accel = self._require_accel(sample)
+        dt_s = sample.time_s - self._prev_time_s
+        if dt_s <= 0 or not self.airborne:
+            return
+        self._prev_time_s = sample.time_s
+        estimate = self.estimator.update(dt_s, accel, sample.altitude_m, on_ground=False)
+        g = self.gains
+        share = 1.0 if g.motor_lag_s <= 0 else min(1.0, min(dt_s, MAX_STEP_S) / g.motor_lag_s)
+        self._motors_us += share * (throttle_us - self._motors_us)
+        self._output_us = throttle_us
+        self._profile.reset(estimate.alt_m, estimate.climb_m_s)
+
     @staticmethod
     def _require_accel(sample: AltitudeInput) -> float:
         if sample.accel_up_m_s2 is None:

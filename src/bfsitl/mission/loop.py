@@ -23,6 +23,7 @@ from bfsitl.control.base import (
     DetectsTouchdown,
     EstimatesAltitude,
     KnowsHover,
+    ObservesFlight,
     ObservesGround,
     TakesHoverEstimate,
 )
@@ -331,6 +332,17 @@ class FlightLoop(PositionManoeuvres):
                 climb_m_s = self._climb.update(sample.time_s, sample.fc_alt_m)
                 check_flying(sample, self.phase)
                 self.vehicle.set_rc(pilot.sticks(sample, self.vehicle.rc_command))
+                if isinstance(self.controller, ObservesFlight):
+                    self.controller.observe_flight(
+                        AltitudeInput(
+                            sample.time_s,
+                            sample.fc_alt_m,
+                            climb_m_s,
+                            target_alt_m,
+                            accel_up_m_s2=sample.fc_accel_up_m_s2,
+                        ),
+                        self.vehicle.rc_command.throttle_us,
+                    )
                 self._record(phase, target_alt_m, sample, climb_m_s)
                 if self._stop_asked(sample) or sample.time_s >= end_s:
                     break

@@ -237,3 +237,28 @@ def test_a_second_policy_s_report_is_its_own_flight_not_the_first_s(tmp_path: Pa
     assert math.isfinite(report.fc_distance_rms_m)
     assert report.fc_distance_rms_m == pytest.approx(report.true_distance_rms_m, abs=0.3)
     assert first.report(loop.rows).steps == len(first.step_times_s)
+
+
+def test_the_altitude_controller_watches_the_policy_fly_when_it_can(tmp_path: Path) -> None:
+    """A controller with observe_flight sees every step the policy flies, with the throttle
+    the policy sent: so it takes the sticks back from where the vehicle is."""
+    from support.fake_vehicles import PController
+
+    class Watching(PController):
+        def __init__(self) -> None:
+            super().__init__()
+            self.seen: list[tuple[float, float]] = []
+
+        def observe_flight(self, sample, throttle_us: float) -> None:  # type: ignore[no-untyped-def]
+            self.seen.append((sample.time_s, throttle_us))
+
+    vehicle = PolicyVehicle()
+    loop = planar_loop(vehicle)
+    loop.controller = watching = Watching()
+    pilot = PolicyPilot(vehicle, policy_file(tmp_path), TARGET)
+    loop.arm()
+    loop.takeoff(1.5)
+    loop.fly_sticks(2.0, pilot)
+    rows = [r for r in loop.rows if r.phase == Phase.POLICY]
+    assert [t for t, _ in watching.seen] == [r.time_s for r in rows] == pilot.step_times_s
+    assert [u for _, u in watching.seen] == [r.rc_throttle_us for r in rows]

@@ -5,11 +5,15 @@ from __future__ import annotations
 import json
 from types import SimpleNamespace
 
+import numpy as np
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
 from support.flight_rows import make_row, read_mcap
 
 from bfsitl.errors import BfsitlError
-from bfsitl.records.csv_log import read_flight_log
+from bfsitl.mission.flight_row import COLUMNS, FlightRow
+from bfsitl.records.csv_log import _cell, _cells, read_flight_log
 from bfsitl.records.outputs import FlightOutputs, OutputOptions
 
 
@@ -185,3 +189,24 @@ def test_the_autopilot_log_carries_its_events_and_refuses_a_format_written_only_
         with pytest.raises(MissionError, match="written as it flies; name a .csv or .mcap"):
             Autopilot(FakeVehicle(), PController(), log=tmp_path / name)  # type: ignore[arg-type]
         assert not (tmp_path / name).exists()
+
+
+@settings(max_examples=200, deadline=None)
+@given(
+    st.lists(
+        st.one_of(
+            st.floats(allow_nan=True, allow_infinity=True),
+            st.integers(-5000, 5000),
+            st.booleans(),
+            st.text(max_size=8),
+            st.floats(-1e6, 1e6).map(np.float64),  # a float's subclass takes the long way
+        ),
+        min_size=len(COLUMNS),
+        max_size=len(COLUMNS),
+    )
+)
+def test_a_row_s_cells_are_each_cell_as_written_one_at_a_time(values) -> None:
+    """The row's cells made in one pass are the one-cell-at-a-time ones, whatever the type
+    each value has (a float column may hold an int, a numpy float, NaN)."""
+    row = FlightRow(**dict(zip(COLUMNS, values, strict=True)))
+    assert _cells(row) == [_cell(value) for value in values]

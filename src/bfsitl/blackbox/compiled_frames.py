@@ -51,11 +51,8 @@ _CALLED = {
 }
 #: FramePlan's own predictor numbers are the kernel's up to the increment (5).
 _CALL = 6
-_OK, _FULL = 0, 1
+_OK = 0
 _INT64_LIMIT = 1 << 63
-#: A main frame is a marker and one or more bytes a field group: a log's bytes over this is
-#: room for every frame of a SITL or a real log; past it the call is made again, larger.
-_BYTES_PER_FRAME = 8
 #: An event's payload is at most 11 bytes (LOG_END's text).
 _EVENT_BYTES = 16
 
@@ -137,22 +134,22 @@ def compiled_log(parser: EventKeepingParser) -> CompiledLog | None:
         dtype=np.int64,
     )
     counts = _field_counts(reader.field_defs)
-    capacity = len(data) // _BYTES_PER_FRAME + 64
-    while True:
-        out = _Outputs(counts, capacity)
-        status = decode(
-            data,
-            len(data),
-            reader._frame_data_ptr,
-            _pointer(table),
-            _pointer(settings),
-            *out.pointers(),
-        )
-        if status != _FULL:
-            break
-        capacity *= 4
+    found = np.zeros(5, dtype=np.int64)
+    # First only counted (the outputs NULL), then decoded into arrays of just that size: a
+    # guess from the log's size would be hundreds of MB for a long real log.
+    status = decode(
+        data, len(data), reader._frame_data_ptr, _pointer(table), _pointer(settings),
+        None, None, None, 0, None, 0, None, 0, None, 0, _pointer(found),
+    )  # fmt: skip
     if status != _OK:
         return None
+    out = _Outputs(counts, found)
+    status = decode(
+        data, len(data), reader._frame_data_ptr, _pointer(table), _pointer(settings),
+        *out.pointers(),
+    )  # fmt: skip
+    if status != _OK or not np.array_equal(out.counts, found):
+        raise AssertionError("the kernel found another log the second time")  # a bug
     return _assembled(out, data, counts)
 
 
@@ -161,30 +158,30 @@ def _field_counts(field_defs: dict[Any, Any]) -> dict[Any, int]:
 
 
 class _Outputs:
-    """The arrays the kernel fills."""
+    """The arrays the kernel fills, as large as the counting pass found."""
 
-    def __init__(self, counts: dict[Any, int], capacity: int) -> None:
-        self.main = np.empty((capacity, counts[FrameType.INTRA]), dtype=np.int64)
-        self.main_slow = np.empty(capacity, dtype=np.int64)
-        self.main_gps = np.empty(capacity, dtype=np.int64)
-        self.slow = np.empty((capacity, max(counts[FrameType.SLOW], 1)), dtype=np.int64)
-        self.gps = np.empty((capacity, max(counts[FrameType.GPS], 1)), dtype=np.int64)
-        self.events = np.empty((capacity, 3), dtype=np.int64)
+    def __init__(self, counts: dict[Any, int], found: npt.NDArray[np.int64]) -> None:
+        n_main, n_slow, n_gps, n_events, _ = (max(int(n), 1) for n in found)
+        self.main = np.empty((n_main, counts[FrameType.INTRA]), dtype=np.int64)
+        self.main_slow = np.empty(n_main, dtype=np.int64)
+        self.main_gps = np.empty(n_main, dtype=np.int64)
+        self.slow = np.empty((n_slow, max(counts[FrameType.SLOW], 1)), dtype=np.int64)
+        self.gps = np.empty((n_gps, max(counts[FrameType.GPS], 1)), dtype=np.int64)
+        self.events = np.empty((n_events, 3), dtype=np.int64)
         self.counts = np.zeros(5, dtype=np.int64)
-        self.capacity = capacity
 
     def pointers(self) -> tuple[Any, ...]:
         return (
             _pointer(self.main),
             _pointer(self.main_slow),
             _pointer(self.main_gps),
-            self.capacity,
+            len(self.main),
             _pointer(self.slow),
-            self.capacity,
+            len(self.slow),
             _pointer(self.gps),
-            self.capacity,
+            len(self.gps),
             _pointer(self.events),
-            self.capacity,
+            len(self.events),
             _pointer(self.counts),
         )
 
@@ -198,12 +195,11 @@ def _assembled(out: _Outputs, data: bytes, counts: dict[Any, int]) -> CompiledLo
             raise AssertionError(f"the kernel passed an event read_event refuses ({code})")
         kept.append((before, *event))
     return CompiledLog(
-        # Copies: the arrays were made with room for the most frames the bytes could hold.
-        main=out.main[:n_main].copy(),
-        slow_of=out.main_slow[:n_main].copy(),
-        gps_of=out.main_gps[:n_main].copy(),
-        slow=out.slow[:n_slow, : counts[FrameType.SLOW]].copy(),
-        gps=out.gps[:n_gps, : counts[FrameType.GPS]].copy(),
+        main=out.main[:n_main],
+        slow_of=out.main_slow[:n_main],
+        gps_of=out.main_gps[:n_main],
+        slow=out.slow[:n_slow, : counts[FrameType.SLOW]],
+        gps=out.gps[:n_gps, : counts[FrameType.GPS]],
         kept=kept,
     )
 

@@ -453,8 +453,10 @@ static int load_plans(const int64_t *table, plan_t *plans)
 /* Decode data[start..length).  Main frames' values go to main (main_capacity rows of the
  * intra frame's field count), with the slow and GPS row in force for each (-1: none yet);
  * slow and GPS frames to their own rows; events as (position after the code, code, main
- * frames before).  counts gets how many of each and where decoding stopped.  Returns BB_OK at
- * LOG_END, BB_FULL when a capacity ran out, BB_BAIL otherwise. */
+ * frames before).  An output given as NULL is only counted: a first pass with all of them
+ * NULL says how much room the second needs.  counts gets how many of each and where
+ * decoding stopped.  Returns BB_OK at LOG_END, BB_FULL when a capacity ran out, BB_BAIL
+ * otherwise. */
 int bb_decode_frames(const uint8_t *data, int64_t length, int64_t start,
                      const int64_t *plan_table, const int64_t *settings,
                      int64_t *main, int64_t *main_slow, int64_t *main_gps, int64_t main_capacity,
@@ -499,13 +501,15 @@ int bb_decode_frames(const uint8_t *data, int64_t length, int64_t start,
             int ended = 0;
             if (!skip_event(&c, code, &ended) || !varints_end(data, payload, c.at))
                 break;
-            if (n_events >= event_capacity) {
-                status = BB_FULL;
-                break;
+            if (events != NULL) {
+                if (n_events >= event_capacity) {
+                    status = BB_FULL;
+                    break;
+                }
+                events[3 * n_events] = payload;
+                events[3 * n_events + 1] = code;
+                events[3 * n_events + 2] = n_main;
             }
-            events[3 * n_events] = payload;
-            events[3 * n_events + 1] = code;
-            events[3 * n_events + 2] = n_main;
             n_events++;
             if (ended) {
                 status = BB_OK;
@@ -523,11 +527,13 @@ int bb_decode_frames(const uint8_t *data, int64_t length, int64_t start,
         if (t == T_SLOW || t == T_GPS) {
             int64_t *rows = t == T_SLOW ? slow : gps;
             int64_t *count = t == T_SLOW ? &n_slow : &n_gps;
-            if (*count >= (t == T_SLOW ? slow_capacity : gps_capacity)) {
-                status = BB_FULL;
-                break;
+            if (rows != NULL) {
+                if (*count >= (t == T_SLOW ? slow_capacity : gps_capacity)) {
+                    status = BB_FULL;
+                    break;
+                }
+                memcpy(rows + *count * plan->fields, values, plan->fields * sizeof *values);
             }
-            memcpy(rows + *count * plan->fields, values, plan->fields * sizeof *values);
             if (t == T_SLOW)
                 current_slow = (*count)++;
             else
@@ -547,13 +553,15 @@ int bb_decode_frames(const uint8_t *data, int64_t length, int64_t start,
         local_last_iter = iteration;
         if (c.at >= length || !is_frame_byte(data[c.at]))
             break;
-        if (n_main >= main_capacity) {
-            status = BB_FULL;
-            break;
+        if (main != NULL) {
+            if (n_main >= main_capacity) {
+                status = BB_FULL;
+                break;
+            }
+            memcpy(main + n_main * st.main_fields, values, st.main_fields * sizeof *values);
+            main_slow[n_main] = current_slow;
+            main_gps[n_main] = current_gps;
         }
-        memcpy(main + n_main * st.main_fields, values, st.main_fields * sizeof *values);
-        main_slow[n_main] = current_slow;
-        main_gps[n_main] = current_gps;
         n_main++;
         if (t == T_INTRA) {
             memcpy(st.past0, values, st.main_fields * sizeof *values);

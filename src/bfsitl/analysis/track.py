@@ -251,8 +251,8 @@ def _points(
     one_g: float,
 ) -> list[TrackPoint]:
     # The arithmetic is done a column at a time (the same IEEE operations as one frame at a
-    # time, so the same floats); the attitude stays math's, whose acos/atan2 numpy's need
-    # not match to the last bit.
+    # time, so the same floats); the attitude is libm's as math calls it (numpy's acos and
+    # atan2 need not match to the last bit).
     motors, lengths = _column(frames, "motors")
     motor_rows = _rows(np.clip((motors - low) / (high - low), 0.0, 1.0), lengths)
     gyro, lengths = _column(frames, "gyro_adc")
@@ -266,7 +266,8 @@ def _points(
         else [_NAN] * len(frames)
     )
     tilts, rolls, pitches = zip(*_attitudes(frames), strict=True) if frames else ((), (), ())
-    # The points are made positionally, a field's values at a time (TrackPoint's order).
+    # The points are made positionally, a field's values at a time, in TrackPoint's order
+    # (tests/unit/analysis/test_track.py holds the order).
     return list(
         map(
             TrackPoint,

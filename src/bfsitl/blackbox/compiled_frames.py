@@ -1,10 +1,9 @@
 """A whole log's frames decoded by the compiled kernel (``bfsitl/kernel/blackbox_frames.c``),
 by the same plans :class:`~bfsitl.blackbox.frame_plan.FramePlan` follows in Python.
 
-Why: decoding was a scenario run's largest cost after the flight (a 62,000-frame log took
-1.6 s in Python, 26 us a frame), and no compiled Betaflight log decoder is on PyPI.  The C
-loop reads the bytes and applies the predictors; Python still builds the frames, so what a
-caller gets is made by the same code as before.
+Why: decoding was a scenario run's largest cost after the flight, and no compiled Betaflight
+log decoder is on PyPI (docs/scenarios.md, why these libraries).  The C loop reads the bytes
+and applies the predictors; Python builds the frames from its arrays.
 
 It is only a faster road to the same numbers.  :func:`compiled_log` returns None, and the
 log is decoded in Python, wherever the compiled loop could differ from orangebox: no C
@@ -123,16 +122,16 @@ def compiled_log(parser: EventKeepingParser) -> CompiledLog | None:
     data: bytes = reader._frame_data
     intra_names = [fdef.name for fdef in reader.field_defs[FrameType.INTRA]]
     where = {name: index for index, name in enumerate(intra_names)}  # the last of a name wins
-    settings = np.array(
-        [
-            ctx.i_interval,
-            ctx.p_interval_num,
-            ctx.p_interval_denom,
-            where.get("loopIteration", -1),
-            where.get("motor[0]", -1),
-        ],
-        dtype=np.int64,
-    )
+    numbers = [
+        ctx.i_interval,
+        ctx.p_interval_num,
+        ctx.p_interval_denom,
+        where.get("loopIteration", -1),
+        where.get("motor[0]", -1),
+    ]
+    if not all(type(number) is int and abs(number) < _INT64_LIMIT for number in numbers):
+        return None  # a header orangebox read as something else: its own loop decides
+    settings = np.array(numbers, dtype=np.int64)
     counts = _field_counts(reader.field_defs)
     found = np.zeros(5, dtype=np.int64)
     # First only counted (the outputs NULL), then decoded into arrays of just that size: a

@@ -1,7 +1,7 @@
 """Decode a blackbox file into typed frames and events with ``orangebox`` (the registry's
 decoder) plus bfsitl's reading of the events (:mod:`bfsitl.blackbox.events`); a clean log's
 frames are read by the compiled kernel instead (:mod:`bfsitl.blackbox.compiled_frames`: the
-same numbers, four times as fast).
+same numbers in a fraction of the time).
 
 Why orangebox 0.4.0 (see docs/scenarios.md): pure Python with no dependencies, GPL-3.0 like
 bfsitl, driven by the log's own header (so 4.6.0's and master's logs both decode), and it

@@ -334,13 +334,7 @@ class FlightLoop(PositionManoeuvres):
                 self.vehicle.set_rc(pilot.sticks(sample, self.vehicle.rc_command))
                 if isinstance(self.controller, ObservesFlight):
                     self.controller.observe_flight(
-                        AltitudeInput(
-                            sample.time_s,
-                            sample.fc_alt_m,
-                            climb_m_s,
-                            target_alt_m,
-                            accel_up_m_s2=sample.fc_accel_up_m_s2,
-                        ),
+                        _altitude_input(sample, climb_m_s, target_alt_m),
                         self.vehicle.rc_command.throttle_us,
                     )
                 self._record(phase, target_alt_m, sample, climb_m_s)
@@ -495,15 +489,7 @@ class FlightLoop(PositionManoeuvres):
                 moved_alt_m = steer(sample)  # sticks, and a moving altitude target on legs
                 if moved_alt_m is not None:
                     target_alt_m = self.target_alt_m = moved_alt_m
-            throttle_us = controller.update(
-                AltitudeInput(
-                    sample.time_s,
-                    sample.fc_alt_m,
-                    climb_m_s,
-                    target_alt_m,
-                    accel_up_m_s2=sample.fc_accel_up_m_s2,
-                )
-            )
+            throttle_us = controller.update(_altitude_input(sample, climb_m_s, target_alt_m))
             if not math.isfinite(throttle_us):
                 raise MissionError(
                     f"controller {getattr(controller, 'name', controller)} "
@@ -619,3 +605,14 @@ def next_step(clock: SessionClock, next_s: float, period_s: float) -> float:
         clock.sleep_s(delay_s)
         return next_s
     return clock.now_s()
+
+
+def _altitude_input(sample: FlightSample, climb_m_s: float, target_alt_m: float) -> AltitudeInput:
+    """What an altitude controller is given of a step: the FC's view, never the truth."""
+    return AltitudeInput(
+        sample.time_s,
+        sample.fc_alt_m,
+        climb_m_s,
+        target_alt_m,
+        accel_up_m_s2=sample.fc_accel_up_m_s2,
+    )

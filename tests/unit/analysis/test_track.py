@@ -151,3 +151,35 @@ def test_the_kernel_s_attitudes_are_math_s_to_the_last_bit() -> None:
         pytest.skip("no C compiler for the kernel")
     for row, got in zip(rows, compiled, strict=True):
         assert repr(got) == repr(_tilt_roll_pitch(row)), row  # -0.0 and 0.0 told apart
+
+
+def test_a_log_s_points_are_made_in_the_order_trackpoint_declares_its_fields() -> None:
+    """track_from_blackbox hands TrackPoint its values by position: a field added in between
+    would shift every value after it."""
+    from dataclasses import fields
+
+    assert [f.name for f in fields(TrackPoint)][:23] == [
+        "time_s",
+        "armed",
+        "airborne",
+        "alt_m",
+        "climb_m_s",
+        "north_m",
+        "east_m",
+        "tilt_deg",
+        "roll_deg",
+        "pitch_deg",
+        "phase",
+        "target_alt_m",
+        "target_north_m",
+        "target_east_m",
+        "motors",
+        "gyro_deg_s",
+        "setpoint_deg_s",
+        "accel_g",
+        "throttle",
+        "failsafe_phase",
+        "rx_ok",
+        "modes",
+        "self_levelling",
+    ]

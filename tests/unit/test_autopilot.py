@@ -183,6 +183,17 @@ def test_goto_flies_north_and_east_the_right_way_round_and_numbers_its_legs() ->
     assert vehicle.altitude_m == pytest.approx(2.5, abs=0.06)
 
 
+def test_a_leg_too_short_for_the_speed_asked_says_what_it_peaks_at() -> None:
+    events: list[str] = []
+    pilot = pilot_for(PlanarVehicle(), on_event=events.append)
+    pilot.takeoff(1.5)
+    pilot.goto(3.0, 0.0, speed_m_s=5.0)  # 3 m at 1 m/s^2: sqrt(3) at the most
+    pilot.goto(3.0, 40.0, speed_m_s=5.0)  # long enough
+    legs = [e for e in events if "fly to" in e]
+    assert legs[0].endswith("(3.0 m at 5 m/s: too short for it, peaks at 1.7 m/s)")
+    assert legs[1].endswith("(40.0 m at 5 m/s)")
+
+
 def test_goto_without_a_gps_says_which_firmware_to_fly() -> None:
     vehicle = NoGps()
     pilot = pilot_for(vehicle)

@@ -62,6 +62,12 @@ class LegReference:
         self._ramp_s, self._ramp_m, self._cruise_s = ramp_s, ramp_m, max(0.0, cruise_s)
         self.duration_s = 2 * ramp_s + self._cruise_s
 
+    @property
+    def peak_speed_m_s(self) -> float:
+        """The fastest the reference goes: the speed asked, or less on a leg too short to
+        reach it before braking (the square root of length times acceleration)."""
+        return self._peak_m_s
+
     def at(self, elapsed_s: float) -> LegPoint:
         t = max(0.0, elapsed_s)
         a, peak, ramp_s = self._accel, self._peak_m_s, self._ramp_s

@@ -109,9 +109,15 @@ class PositionManoeuvres:
         if timeout_s is None:
             timeout_s = 20.0 + 3.0 * reference.duration_s
         label = f"waypoint {waypoint}: " if waypoint else ""
+        # A leg too short to reach the speed asked says so (it peaks at what it can).
+        short = (
+            f": too short for it, peaks at {reference.peak_speed_m_s:.1f} m/s"
+            if reference.peak_speed_m_s < speed - 0.05
+            else ""
+        )
         self._on_event(
             f"{label}fly to {north_m:+.1f} m N {east_m:+.1f} m E, {end[2]:.2f} m "
-            f"up ({reference.length_m:.1f} m at {speed:g} m/s)"
+            f"up ({reference.length_m:.1f} m at {speed:g} m/s{short})"
         )
         started_s = self.vehicle.time_s
         first_row = len(self.rows)

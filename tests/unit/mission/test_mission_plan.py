@@ -129,6 +129,8 @@ def test_a_short_leg_peaks_below_the_cruise_speed_and_a_null_leg_is_done_at_once
     peak = max(short.at(t / 100).v_east_m_s for t in range(0, 400))
     assert peak == pytest.approx(math.sqrt(2.0), rel=0.01)
     assert short.duration_s == pytest.approx(2 * math.sqrt(2.0))
+    assert short.peak_speed_m_s == pytest.approx(math.sqrt(2.0))
+    assert LegReference((0, 0, 1), (0, 40, 1), speed_m_s=5.0).peak_speed_m_s == 5.0
     null = LegReference((1, 1, 1), (1, 1, 2), speed_m_s=2.0)
     assert null.duration_s == 0.0 and null.at(0.0).finished and null.at(0.0).alt_m == 2.0
     with pytest.raises(MissionError):

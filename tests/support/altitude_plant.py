@@ -31,6 +31,7 @@ import random
 from collections import deque
 from collections.abc import Callable
 from dataclasses import dataclass, field
+from typing import Any
 
 from bfsitl.control.base import AltitudeController, AltitudeInput
 from bfsitl.mission.climb_rate import ClimbRateEstimator
@@ -319,3 +320,45 @@ class AltitudePlant:
             next_s = max(next_s, self.sim.time_s + self.physics_step_s)
         if observe is None:
             controller.reset(self.sim.time_s)  # as the mission does: it saw nothing
+
+
+class HandPilot:
+    """A pilot with the throttle, as the mission's ``fly_sticks`` hands it over: up 40 us from
+    the hover, down 40, back; the controller ``watcher`` sees each step through its
+    ``observe_flight`` when given (as the mission does), else nothing of it."""
+
+    name = "hand"
+
+    def __init__(self, hover_us: float, watcher: Any = None) -> None:
+        self.hover_us, self.watcher, self.steps = hover_us, watcher, 0
+
+    def reset(self, time_s: float) -> None:
+        pass
+
+    def update(self, sample: AltitudeInput) -> float:
+        self.steps += 1
+        throttle = self.hover_us + (40.0 if self.steps < 100 else -40.0 if self.steps < 200 else 0)
+        if self.watcher is not None:
+            self.watcher.observe_flight(sample, throttle)
+        return throttle
+
+
+def hand_back_sag_m(make_controller: Callable[[], Any], *, watched: bool) -> float:
+    """Hold 2 m, let the hand pilot fly 8 s, take the sticks back to hold where it left the
+    quad: the largest distance from there over the next 6 s (truth), with the mission's
+    sensor noise and ground phase."""
+    from bfsitl.backend.options import DEFAULT_ACCEL_NOISE_M_S2, DEFAULT_BARO_NOISE_PA
+    from bfsitl.mission.plan import MissionPlan
+
+    controller = make_controller()
+    plant = AltitudePlant(
+        baro_noise_pa=DEFAULT_BARO_NOISE_PA, accel_noise_m_s2=DEFAULT_ACCEL_NOISE_M_S2
+    )
+    plant.fly(controller, target_alt_m=2.0, duration_s=10.0, ground_s=MissionPlan().ground_s)
+    pilot = HandPilot(round(controller.hover_throttle_us), controller if watched else None)
+    plant.fly(pilot, target_alt_m=2.0, duration_s=8.0, reset=False, phase="hand")
+    left_at_m = plant.true_alt_m
+    trace = plant.fly(
+        controller, target_alt_m=plant.fc_alt_m(), duration_s=6.0, reset=False, phase="back"
+    )
+    return max(abs(alt - left_at_m) for alt in trace.select("back").true_alt_m)

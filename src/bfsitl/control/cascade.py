@@ -272,6 +272,21 @@ class CascadedAltitudeController:
         self._output_us = self._whole_us(self._fly(sample, climb, dt_s))
         return self._output_us
 
+    def observe_flight(self, sample: AltitudeInput, throttle_us: float) -> None:
+        """Another pilot has the sticks (``throttle_us`` is what it sent): the climb rate
+        follows the readings and the reference and its lag models stay on what the FC reads,
+        so the sticks come back without a jump (left alone, the reference stayed where the
+        pilot took over: docs/gym.md)."""
+        dt_s = sample.time_s - self._prev_time_s
+        if dt_s <= 0 or not self.airborne:
+            return
+        self._prev_time_s = sample.time_s
+        climb_m_s = self._own_climb_rate(sample.altitude_m, min(dt_s, MAX_STEP_S))
+        self._output_us = throttle_us
+        self._profile.reset(sample.altitude_m, climb_m_s)
+        self._seen_alt.reset(sample.altitude_m)
+        self._seen_climb.reset(climb_m_s)
+
     def _still_on_ground(self, sample: AltitudeInput) -> bool:
         """The profile is well up but the FC still reads ground level: it never left."""
         g = self.gains

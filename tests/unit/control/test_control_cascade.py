@@ -11,7 +11,7 @@ from __future__ import annotations
 import math
 
 import pytest
-from support.altitude_plant import AltitudePlant
+from support.altitude_plant import AltitudePlant, hand_back_sag_m
 
 from bfsitl.backend.options import DEFAULT_BARO_NOISE_PA
 from bfsitl.control.base import AltitudeInput
@@ -219,3 +219,13 @@ def test_hover_throttle_is_identified_at_lift_off(hover_scale):
     # And the profile starts where the vehicle truly is, ahead of the lagging FC reading.
     assert abs(controller.reference_alt_m - plant.true_alt_m) < 0.08
     assert controller.reference_alt_m > plant.fc_alt_m()
+
+
+def test_after_another_pilot_the_sticks_come_back_without_a_sag():
+    """While the pilot flies, the reference and its lag models stay on what the FC reads
+    (observe_flight); unwatched, the reference was left where the pilot took over and the
+    hold that followed sagged towards it."""
+    watched = hand_back_sag_m(CascadedAltitudeController, watched=True)
+    assert watched < 0.08
+    # The rig tells the two apart.
+    assert hand_back_sag_m(CascadedAltitudeController, watched=False) > 2 * watched

@@ -10,7 +10,7 @@ from __future__ import annotations
 import math
 
 import pytest
-from support.altitude_plant import AltitudePlant, FcModel
+from support.altitude_plant import AltitudePlant, FcModel, hand_back_sag_m
 
 from bfsitl.backend.options import DEFAULT_ACCEL_NOISE_M_S2, DEFAULT_BARO_NOISE_PA
 from bfsitl.control.altitude_estimator import AltitudeEstimator
@@ -224,44 +224,11 @@ def test_reference_copy_is_independent():
     assert twin.copy().alt_m == twin.alt_m
 
 
-class _HandPilot:
-    """A pilot with the throttle (``fly_sticks``): up 40 us from the hover, down 40, back;
-    the fused controller watches when it is given one (as the mission gives it)."""
-
-    name = "hand"
-
-    def __init__(self, hover_us: float, watcher: FusedAltitudeController | None) -> None:
-        self.hover_us, self.watcher, self.steps = hover_us, watcher, 0
-
-    def reset(self, time_s: float) -> None:
-        pass
-
-    def update(self, sample: AltitudeInput) -> float:
-        self.steps += 1
-        throttle = self.hover_us + (40.0 if self.steps < 100 else -40.0 if self.steps < 200 else 0)
-        if self.watcher is not None:
-            self.watcher.observe_flight(sample, throttle)
-        return throttle
-
-
-def _hand_back_sag_m(watched: bool) -> float:
-    """Hold 2 m, let the hand pilot fly 8 s, take the sticks back to hold where it left the
-    quad: the largest distance from there over the next 6 s (truth)."""
-    fused = FusedAltitudeController()
-    plant, _, _ = fly(fused, duration_s=10.0)
-    pilot = _HandPilot(round(fused.hover_throttle_us), fused if watched else None)
-    plant.fly(pilot, target_alt_m=TARGET_M, duration_s=8.0, reset=False, phase="hand")
-    left_at_m = plant.true_alt_m
-    trace = plant.fly(
-        fused, target_alt_m=plant.fc_alt_m(), duration_s=6.0, reset=False, phase="back"
-    )
-    return max(abs(alt - left_at_m) for alt in trace.select("back").true_alt_m)
-
-
 def test_after_another_pilot_the_sticks_come_back_without_a_sag():
     """While the pilot flies, the fused controller keeps its estimate, motors and reference
     on the vehicle (observe_flight); unwatched, its reference was left where the pilot took
     over and the hold that followed sagged towards it."""
-    watched = _hand_back_sag_m(watched=True)
+    watched = hand_back_sag_m(FusedAltitudeController, watched=True)
     assert watched < 0.05
-    assert _hand_back_sag_m(watched=False) > 2 * watched  # the rig tells the two apart
+    # The rig tells the two apart.
+    assert hand_back_sag_m(FusedAltitudeController, watched=False) > 2 * watched

@@ -89,7 +89,7 @@ class ObservesFlight(Protocol):
     """A controller that keeps its state current while another pilot flies (the mission's
     ``fly_sticks``): each of those steps it sees the sample and the throttle the pilot sent,
     so that when the sticks come back it starts from where the vehicle is, not from where it
-    was handed over (the fused controller's estimate and reference)."""
+    was handed over (the fused and cascaded controllers' references)."""
 
     def observe_flight(self, sample: AltitudeInput, throttle_us: float) -> None: ...
 

@@ -155,11 +155,15 @@ class FusedAltitudeController:
             return
         self._prev_time_s = sample.time_s
         estimate = self.estimator.update(dt_s, accel, sample.altitude_m, on_ground=False)
-        g = self.gains
-        share = 1.0 if g.motor_lag_s <= 0 else min(1.0, min(dt_s, MAX_STEP_S) / g.motor_lag_s)
-        self._motors_us += share * (throttle_us - self._motors_us)
-        self._output_us = throttle_us
+        self._motors_follow(min(dt_s, MAX_STEP_S))
+        self._output_us = throttle_us  # what the motors follow from now on
         self._profile.reset(estimate.alt_m, estimate.climb_m_s)
+
+    def _motors_follow(self, dt_s: float) -> None:
+        """The motors' throttle lags the throttle sent over the last ``dt_s``."""
+        lag_s = self.gains.motor_lag_s
+        share = 1.0 if lag_s <= 0 else min(1.0, dt_s / lag_s)
+        self._motors_us += share * (self._output_us - self._motors_us)
 
     @staticmethod
     def _require_accel(sample: AltitudeInput) -> float:
@@ -184,8 +188,7 @@ class FusedAltitudeController:
         )
         dt_s = min(dt_s, MAX_STEP_S)
         g = self.gains
-        share = 1.0 if g.motor_lag_s <= 0 else min(1.0, dt_s / g.motor_lag_s)
-        self._motors_us += share * (self._output_us - self._motors_us)
+        self._motors_follow(dt_s)
         if not self.airborne:
             if sample.target_alt_m < 0.05:
                 self._output_us = THROTTLE_MIN_US  # nowhere to go: stay down

@@ -69,7 +69,12 @@ from bfsitl.scenario.metrics import run_metrics
 from bfsitl.scenario.prepared_fc import fresh_run_dir
 from bfsitl.scenario.replay_run import fly_replay_scenario
 from bfsitl.scenario.result import PlotWhen, ScenarioResult, TimedEvent, Verdict, wants_plot
-from bfsitl.scenario.setup_lines import mode_range_lines, provisioned_settings, scenario_profile
+from bfsitl.scenario.setup_lines import (
+    failsafe_phase_unread,
+    mode_range_lines,
+    provisioned_settings,
+    scenario_profile,
+)
 from bfsitl.scenario.spec import Scenario
 from bfsitl.scenario.timings import Stopwatch
 from bfsitl.scenario.trace import Trace, TraceRow, phase_name, write_trace_csv
@@ -144,8 +149,11 @@ class _Injector:
         progress: Progress,
         record: Progress,
         watch: FlightWatch | None = None,
+        reads_phase: bool = True,
     ) -> None:
         self.vehicle = vehicle
+        #: The FC's debug[] holds its failsafe phase: read it with every row.
+        self.reads_phase = reads_phase
         #: The analysers' record of the run, on the trace's clock (seconds from arming).
         self.watch = watch or FlightWatch()
         #: Events go to the flight's outputs as well (the MCAP file's /events log).
@@ -194,15 +202,14 @@ class _Injector:
         return "a fault took the sticks" if self.sticks_taken else None
 
     def _row(self, t: float, sample: FlightSample, row: FlightRow) -> TraceRow:
-        try:
-            debug = self.vehicle.reading(msg.Debug, sample).values
-            phase: int | None = (
-                debug[FAILSAFE_PHASE_DEBUG_INDEX]
-                if len(debug) > FAILSAFE_PHASE_DEBUG_INDEX
-                else None
-            )
-        except BfsitlError:
-            phase = None
+        phase: int | None = None
+        if self.reads_phase:
+            try:
+                debug = self.vehicle.reading(msg.Debug, sample).values
+                if len(debug) > FAILSAFE_PHASE_DEBUG_INDEX:
+                    phase = debug[FAILSAFE_PHASE_DEBUG_INDEX]
+            except BfsitlError:
+                pass
         if self.trace.rows:  # what changed since the last row
             last = self.trace.rows[-1]
             if phase is not None and phase != last.failsafe_phase:
@@ -394,7 +401,12 @@ def _fly(
     with watch.span("prepare") if options.prepared_fc else contextlib.nullcontext():
         fresh_run_dir(config, options.prepared_fc, options.session_factory, say)
     session = options.session_factory(config, progress=lambda line: say(f"[sitl] {line}"))
-    injector = _Injector(session, faults, trace, result.events, say, outputs.on_event)
+    unread = failsafe_phase_unread(line for _source, line, _why in result.settings)
+    injector = _Injector(
+        session, faults, trace, result.events, say, outputs.on_event, reads_phase=unread is None
+    )
+    if unread is not None:
+        injector.note(0.0, unread)
     planned = [(w.north_m, w.east_m) for w in scenario.fc_waypoints] + [
         (w.north_m, w.east_m) for w in scenario.plan.waypoints
     ]
@@ -424,8 +436,9 @@ def _fly(
             )
             if session.sitl is not None:
                 result.artifacts["sitl_log"] = session.sitl.log_path
-            # The failsafe phase (debug_mode = FAILSAFE) in each row's round trip.
-            session.read_with_samples(msg.Debug)
+            if unread is None:
+                # The failsafe phase (debug_mode = FAILSAFE) in each row's round trip.
+                session.read_with_samples(msg.Debug)
             loop = FlightLoop(
                 session,
                 make_controller(options.controller, quad=scenario.quad),

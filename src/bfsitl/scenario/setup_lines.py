@@ -10,6 +10,7 @@ lines and the scenario its own.  :func:`scenario_profile` is what the runner pro
 from __future__ import annotations
 
 import dataclasses
+from collections.abc import Iterable
 from dataclasses import dataclass
 
 from bfsitl.fc.provisioning import Profile
@@ -68,7 +69,38 @@ def blackbox_cli(profile: FirmwareProfile) -> tuple[str, ...]:
         f"set blackbox_sample_rate = {rate}",
         "set blackbox_disable_pids = ON",
         "set blackbox_disable_gyrounfilt = ON",
-        "set debug_mode = FAILSAFE",
+        f"set debug_mode = {FAILSAFE_DEBUG_MODE}",
+    )
+
+
+#: The debug mode the runner reads the FC's failsafe phase from (debug[3], over MSP_DEBUG).
+FAILSAFE_DEBUG_MODE = "FAILSAFE"
+
+
+def setting_in_force(lines: Iterable[str], name: str) -> str | None:
+    """The value the last ``set NAME = VALUE`` of ``lines`` gives (the FC applies them in
+    order, so the last one wins), upper-cased; None when none sets it.  Names compare
+    without regard to case, as the CLI's do."""
+    value = None
+    for line in lines:
+        words = line.split("=", 1)
+        head = words[0].split()
+        if len(words) == 2 and len(head) == 2 and head[0].lower() == "set":
+            if head[1].lower() == name.lower():
+                value = words[1].strip().upper()
+    return value
+
+
+def failsafe_phase_unread(lines: Iterable[str]) -> str | None:
+    """Why the runner cannot read the FC's failsafe phase with the settings ``lines`` (a
+    scenario's own ``debug_mode``: debug[] then holds something else, which read as phases
+    would be nonsense), or None when it can."""
+    mode = setting_in_force(lines, "debug_mode")
+    if mode in (None, FAILSAFE_DEBUG_MODE):
+        return None
+    return (
+        f"debug_mode = {mode}: the FC's failsafe phase is not read (it needs "
+        f"{FAILSAFE_DEBUG_MODE}); what depends on it has no data in this run"
     )
 
 

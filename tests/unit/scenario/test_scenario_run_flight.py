@@ -577,3 +577,37 @@ def _open_files() -> list[str]:
         with contextlib.suppress(OSError):  # the listing's own descriptor is gone by now
             names.append(os.readlink(f"/proc/self/fd/{fd}"))
     return names
+
+
+def test_a_scenarios_own_debug_mode_is_not_read_as_failsafe_phases(fly) -> None:
+    # debug[3] holds the phase only with debug_mode = FAILSAFE: under another mode the
+    # runner would read whatever that mode puts there as phases (RC_SMOOTHING's sample state
+    # flips each frame: thousands of "phase" changes).  Here the fake FC still answers the
+    # phase in debug[3], so reading it anyway would show.
+    spec = scenario(
+        flight=FLIGHT,
+        cli=["set debug_mode = gyro_scaled"],
+        fault=[RC_LOST_AT_8],
+        expect={"disarmed": True, "failsafe_phase": ["RX_LOSS_DETECTED"]},
+    )
+    result, session = fly(spec)
+    events = texts(result)
+    assert events[0].startswith("debug_mode = GYRO_SCALED: the FC's failsafe phase is not read")
+    assert not [e for e in events if e.startswith("failsafe phase")]
+    assert "the FC disarmed" in events  # the flight itself as before
+    assert MspCommand.DEBUG not in session.fc_link.sent_commands  # nor asked for
+    check = next(c for c in result.checks if c.expectation.startswith("failsafe_phase"))
+    assert not check.passed and "never read" in check.message
+    assert result.verdict is Verdict.FAILED
+
+
+def test_the_last_debug_mode_line_decides_and_failsafe_is_read() -> None:
+    from bfsitl.scenario.setup_lines import failsafe_phase_unread, setting_in_force
+
+    lines = ["set debug_mode = FAILSAFE", "set  DEBUG_MODE=rc_smoothing", "save"]
+    assert setting_in_force(lines, "debug_mode") == "RC_SMOOTHING"
+    assert setting_in_force([*lines, "set debug_mode = failsafe"], "debug_mode") == "FAILSAFE"
+    assert setting_in_force(["set debug_mode_x = A", "get debug_mode"], "debug_mode") is None
+    assert failsafe_phase_unread([*lines, "set debug_mode = failsafe"]) is None
+    assert failsafe_phase_unread(["feature GPS"]) is None
+    assert "RC_SMOOTHING" in (failsafe_phase_unread(lines) or "")

@@ -23,6 +23,11 @@ physics, and the Python rest (mission loop, MSP parsing, log), plus the SITL's C
 step (it polls for the next packet for up to 0.3 ms before it sleeps, so this includes a
 little waiting).
 
+``--receiver-frames`` adds 4.6.0's shared-memory rows once more with a receiver frame per
+RC packet (``BFSITL_LOCKSTEP_RX_FRAMES=1``) instead of one at every scheduler pass: the
+firmware's own work per simulated millisecond then falls (docs/lockstep.md says why, and why
+it is not the default).
+
 ``--starts N`` also starts N lockstep SITLs (each locked at boot and probed over MSP, then
 stopped) while ``--busy`` processes spin on the CPU, and counts the failed starts.
 
@@ -46,6 +51,7 @@ from firmware_cache import MASTER_SOURCE, cached_firmware
 
 from bfsitl.backend.options import Timing, World
 from bfsitl.build import FirmwareBuildOptions
+from bfsitl.build.binary_scan import RX_FRAMES_ENV
 from bfsitl.control import make_controller
 from bfsitl.errors import BfsitlError
 from bfsitl.link.shm_exchange import shm_exchange_supported
@@ -111,9 +117,10 @@ def fly_firmware(
     seed: int,
     exchange: str = "udp",
     one_core: bool = False,
+    env: tuple[tuple[str, str], ...] = (),
 ) -> Flight:
     config = SessionConfig(
-        sitl=SitlLaunch(firmware=path),
+        sitl=SitlLaunch(firmware=path, env=env),
         world=World(seed=seed),
         timing=Timing(lockstep=lockstep, lockstep_exchange=exchange, lockstep_spin=not one_core),
     )
@@ -126,6 +133,7 @@ def fly_firmware(
             lockstep,
             hold_s,
             f"lockstep max, {exchange}, {'1 core' if one_core else 'spin'}"
+            + (", a receiver frame per packet" if env else "")
             if lockstep
             else "real time 1x",
         )
@@ -281,6 +289,12 @@ def main() -> None:
     parser.add_argument(
         "--no-flights", action="store_true", help="only the stepping alone (and --starts)"
     )
+    parser.add_argument(
+        "--receiver-frames",
+        action="store_true",
+        help="also fly 4.6.0's lockstep rows (shared memory) with a receiver frame per packet "
+        "(BFSITL_LOCKSTEP_RX_FRAMES=1) instead of one at every scheduler pass",
+    )
     args = parser.parse_args()
     known = ("4.6.0", "master")
     for generation in args.generations.split(","):
@@ -291,15 +305,20 @@ def main() -> None:
     for generation in [] if args.no_flights else args.generations.split(","):
         stock = firmware_path(generation, args.build)
         lockstep = firmware_path(f"{generation}-lockstep", args.build)
-        modes = [(stock, False, "udp", False)] + [
-            (lockstep, True, exchange, one_core)
+        modes = [(stock, False, "udp", False, ())] + [
+            (lockstep, True, exchange, one_core, ())
             for exchange, one_core in LOCKSTEP_MODES
             if exchange == "udp" or shm_exchange_supported()
         ]
-        for path, is_lockstep, exchange, one_core in modes:
+        if args.receiver_frames and generation == "4.6.0" and shm_exchange_supported():
+            # Master's receiver already counts a frame per RC packet: nothing to compare.
+            modes += [
+                (lockstep, True, "shm", one_core, (RX_FRAMES_ENV,)) for one_core in (False, True)
+            ]
+        for path, is_lockstep, exchange, one_core, env in modes:
             flights = [
                 fly_firmware(
-                    generation, path, is_lockstep, args.hold, args.seed, exchange, one_core
+                    generation, path, is_lockstep, args.hold, args.seed, exchange, one_core, env
                 )
                 for _ in range(args.repeats)
             ]

@@ -19,21 +19,24 @@ from bfsitl.link.shm_exchange import REGION_BYTES, ShmExchange, _Futex
 from bfsitl.protocol.sitl_packets import FdmPacket, RcPacket
 from bfsitl.sim.lockstep import REPLY_FORMAT, LockstepBridge
 
-# The FC's layout (lockstepShm_t): 8 words of header, the datagram at 32, the reply after it.
-DATAGRAM_AT = 32
-REPLY_AT = DATAGRAM_AT + FdmPacket.SIZE + RcPacket.SIZE
+# The FC's layout (lockstepShm_t): 9 words of header (8 in version 1, without tcpUntilSeq),
+# the datagram after them, the reply after it.
+HEADER_WORDS = {1: 8, 2: 9}
+TCP_UNTIL_WORD = 8
 
 
 class SharedFakeFc:
     """Maps the region, writes the header last, answers every new request (4.6's slot order)
-    after ``delay_s``; ``version`` other than 1 plays a firmware of another layout."""
+    after ``delay_s``; ``version`` 1 plays a build from before the TCP word, any other than 1
+    and 2 a firmware of another layout.  ``tcp_until`` keeps the TCP word as it was when each
+    request was taken (version 2)."""
 
     def __init__(
         self,
         path: Path,
         *,
         delay_s: float = 0.0,
-        version: int = 1,
+        version: int = 2,
         answer: bool = True,
         motors: Callable[[bytes], tuple[float, float, float, float]] | None = None,
     ) -> None:
@@ -52,8 +55,13 @@ class SharedFakeFc:
         self.futex = _Futex()
         self.base = ctypes.addressof(ctypes.c_char.from_buffer(self.map))
         self.seen = self.words[2]
+        self.version = version
+        self.datagram_at = 4 * HEADER_WORDS.get(version, 9)
+        self.reply_at = self.datagram_at + FdmPacket.SIZE + RcPacket.SIZE
+        self.tcp_until: list[int] = []
         self.words[1] = version
-        self.words[5], self.words[6], self.words[7] = DATAGRAM_AT, REPLY_AT, REPLY_AT + 24
+        self.words[5], self.words[6] = self.datagram_at, self.reply_at
+        self.words[7] = self.reply_at + 24
         self.words[0] = 0x6D736662
         self.stop = threading.Event()
         self.thread = threading.Thread(target=self.run, daemon=True)
@@ -66,10 +74,12 @@ class SharedFakeFc:
                 self.futex.wait(self.base + 8, seq, 0.05)
                 continue
             size = self.words[4]
-            data = bytes(self.map[DATAGRAM_AT : DATAGRAM_AT + size])
+            data = bytes(self.map[self.datagram_at : self.datagram_at + size])
             if self.words[2] != seq:
                 continue  # rewritten while copied: take the new one
             self.seen = seq
+            if self.version >= 2:
+                self.tcp_until.append(self.words[TCP_UNTIL_WORD])
             fdm = FdmPacket.unpack(data[: FdmPacket.SIZE])
             rc = RcPacket.unpack(data[FdmPacket.SIZE :])
             self.received.append((fdm.timestamp_s, rc.channels_us[:6]))
@@ -78,7 +88,7 @@ class SharedFakeFc:
                 continue
             time.sleep(self.delay_s)
             slots = (0.2, 0.3, 0.4, 0.1) if self.motors is None else self.motors(data)
-            self.map[REPLY_AT : REPLY_AT + 24] = REPLY_FORMAT.pack(
+            self.map[self.reply_at : self.reply_at + 24] = REPLY_FORMAT.pack(
                 *slots, fdm.timestamp_s + self.stamp_error_s
             )
             self.words[3] = seq

@@ -20,7 +20,6 @@ import ctypes
 import mmap
 import os
 import platform
-import struct
 import sys
 import tempfile
 import uuid
@@ -35,12 +34,14 @@ SHM_ENV = "BFSITL_LOCKSTEP_SHM"
 #: A region's file name: this prefix, the owner's pid, a random part.
 _PREFIX = "bfsitl-lockstep-"
 _MAGIC = 0x6D736662  # "bfsm", written last by the FC
-_VERSION = 1
+#: The layouts this side reads: version 1 (builds before the TCP word) services TCP after
+#: every packet whatever this side says.
+_VERSIONS = (1, 2)
 #: The header's words: magic, version, requestSeq, replySeq, datagramBytes, datagramOffset,
-#: replyOffset, regionBytes.
-_HEADER = struct.Struct("<8I")
+#: replyOffset, regionBytes; from version 2 tcpUntilSeq.
+_HEADER_WORDS = {1: 8, 2: 9}
 _MAGIC_WORD, _VERSION_WORD, _REQUEST_WORD, _REPLY_WORD, _BYTES_WORD = 0, 1, 2, 3, 4
-_DATAGRAM_OFFSET_WORD, _REPLY_OFFSET_WORD, _REGION_WORD = 5, 6, 7
+_DATAGRAM_OFFSET_WORD, _REPLY_OFFSET_WORD, _REGION_WORD, _TCP_UNTIL_WORD = 5, 6, 7, 8
 #: Room for the FC's region (240 bytes today) and anything a later layout adds.
 REGION_BYTES = 4096
 #: Reply size: the servo packet and the timestamp it answers (sim/lockstep.py REPLY_FORMAT).
@@ -120,6 +121,8 @@ class ShmExchange:
         self._reply_offset = 0
         self._seq = 0
         self._ready = False
+        #: The FC services TCP only after the packets this side marks (layout version 2).
+        self._tcp_marks = False
         self.closed = False
 
     @property
@@ -141,18 +144,20 @@ class ShmExchange:
             self._words[_REGION_WORD],
         )
         if (
-            version != _VERSION
+            version not in _VERSIONS
             or size > REGION_BYTES
             or reply_at + _REPLY_BYTES > size
-            or datagram_at < _HEADER.size
+            or datagram_at < 4 * _HEADER_WORDS[version]
             or reply_at < datagram_at + _DATAGRAM_BYTES
         ):
             raise SitlError(
                 f"the firmware's shared exchange has layout version {version} ({size} bytes), "
-                f"this bfsitl knows version {_VERSION}: rebuild the firmware with this bfsitl "
-                f"(`bfsitl firmware build --lockstep`), or use the UDP exchange"
+                f"this bfsitl knows versions {' and '.join(map(str, _VERSIONS))}: rebuild the "
+                f"firmware with this bfsitl (`bfsitl firmware build --lockstep`), or use the UDP "
+                f"exchange"
             )
         self._datagram_offset, self._reply_offset = datagram_at, reply_at
+        self._tcp_marks = version >= 2
         self._ready = True
         return True
 
@@ -175,6 +180,15 @@ class ShmExchange:
     @seq.setter
     def seq(self, value: int) -> None:
         self._seq = value & 0xFFFFFFFF
+
+    def serve_tcp_next(self, requests: int) -> None:
+        """Ask the FC to service its TCP ports after each of the next ``requests`` requests
+        (bytes were just written to one of them): otherwise it does after a packet during
+        which it wrote to a port, and every few milliseconds of its time
+        (``sitl_lockstep.c`` point 4).  Nothing to ask of a version 1 FC: it services them
+        after every packet."""
+        if self._tcp_marks:
+            self._words[_TCP_UNTIL_WORD] = (self._seq + requests) & 0xFFFFFFFF
 
     def send(self, datagram: bytes) -> int:
         """Write ``datagram`` and wake the FC; the sequence number its reply will carry.  The

@@ -73,6 +73,10 @@ LOCK_TIMEOUT_S = 10.0
 KERNEL_WAIT_S = 0.05
 #: At most this many compiled steps per call: Ctrl-C is seen between two calls.
 KERNEL_MAX_STEPS = 1000
+#: After bytes are written to the FC's TCP ports, it services them after this many packets
+#: (shared memory; over UDP after every one).  One reads a request as over UDP; the second
+#: also reads what a connection made just before it brings (the first accepts it).
+TCP_READ_REQUESTS = 2
 #: A lockstep reply: the servo packet, then the timestamp of the fdm packet it answers.
 REPLY_FORMAT = struct.Struct("<4fd")
 
@@ -330,6 +334,12 @@ class LockstepBridge:
             self._kernel_steps(kernel, math.inf, 0.0, 1)
         else:
             self._python_step(self._wall())
+
+    def wrote_to_fc(self) -> None:
+        """Bytes were just written to one of the FC's TCP ports: through shared memory the FC
+        reads them after the next packets (it does not look at every one)."""
+        if self.exchange is not None:
+            self.exchange.serve_tcp_next(TCP_READ_REQUESTS)
 
     def step_until_readable(self, fd: int, until_s: float) -> None:
         """Step at least once, and on while the time is below ``until_s`` and ``fd`` has

@@ -82,7 +82,8 @@ class SteppedLink(Link):
     taken until the timeout, counted in *simulation* seconds, has passed.
     """
 
-    #: The FC reads its TCP port at every step: waiting steps it, no wake bytes needed.
+    #: The FC reads its TCP port after the step that follows a write (the bridge marks it):
+    #: waiting steps it, no wake bytes needed.
     wants_wake_bytes = False
 
     def __init__(self, inner: Link, bridge: LockstepBridge) -> None:
@@ -95,6 +96,7 @@ class SteppedLink(Link):
 
     def _write_bytes(self, data: bytes) -> None:
         self.inner._write_bytes(data)
+        self.bridge.wrote_to_fc()
 
     def _read_bytes(self, max_bytes: int, timeout_s: float) -> bytes | None:
         # The FC writes only while it steps: a read that found nothing is not repeated before

@@ -14,7 +14,7 @@ from pathlib import Path
 import pytest
 from support.fake_simulator import FakeSimulator
 from support.shared_fake_fc import (
-    DATAGRAM_AT,
+    HEADER_WORDS,
     SharedFakeFc,
     assert_a_silent_fc_is_asked_about,
     bridge_on,
@@ -113,6 +113,36 @@ def test_a_region_of_another_layout_is_refused_with_the_fix(region: ShmExchange)
         fc.close()
 
 
+@pytest.mark.parametrize("version", [1, 2])
+def test_a_write_to_the_fcs_tcp_ports_marks_the_next_two_requests_where_the_fc_reads_marks(
+    region: ShmExchange, version: int
+) -> None:
+    # A version 2 FC services its TCP ports only after the packets the simulator marks (and
+    # when it wrote, and every few ms): a request written now is read after the next packet,
+    # the second one covers a connection made just before.  A version 1 FC services them
+    # after every packet and has no such word: its datagram starts there, and stays whole.
+    fc = SharedFakeFc(region.path, version=version)
+    try:
+        bridge = bridge_on(region, FakeSimulator())
+        bridge.lock()
+        LockstepClock(bridge).sleep_s(0.003)
+        marked_after = region.seq
+        word = bytes(fc.map[32:36])  # version 1: the start of the datagram last sent
+        bridge.wrote_to_fc()
+        assert (bytes(fc.map[32:36]) == word) is (version == 1)
+        LockstepClock(bridge).sleep_s(0.004)
+        bridge.close()
+    finally:
+        fc.close()
+    if version == 1:
+        assert fc.tcp_until == []
+        return
+    # Requests are numbered from 1 in a fresh region: the lock, three steps, then four.
+    assert marked_after == 4 and len(fc.tcp_until) == 8
+    asked = [((until - seq) & 0xFFFFFFFF) < 2**31 for seq, until in enumerate(fc.tcp_until, 1)]
+    assert asked == [False] * 4 + [True, True, False, False]
+
+
 def test_closing_removes_the_region_and_a_dead_owners_region_goes_too(tmp_path: Path) -> None:
     exchange = ShmExchange(tmp_path)
     assert exchange.path.stat().st_size == REGION_BYTES
@@ -149,4 +179,4 @@ def test_the_exchange_is_chosen_from_the_build_and_the_request(tmp_path: Path) -
         uses_shm_exchange(old, "shm")
     with pytest.raises(BfsitlError, match="one of auto, shm, udp"):
         uses_shm_exchange(new, "pigeon")
-    assert struct.calcsize("<8I") == DATAGRAM_AT
+    assert struct.calcsize("<9I") == 4 * HEADER_WORDS[2]

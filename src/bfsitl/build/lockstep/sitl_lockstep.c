@@ -45,11 +45,18 @@
  *    - RC rides in the fdm datagram (fdm_packet followed by rc_packet) and is applied with the
  *      sensors when the packet is taken, before the passes it covers.  The stock RC port stays
  *      open for other tools; bfsitl does not use it in lockstep.
- *    - TCP (MSP and the CLI, through dyad) is serviced by the main thread only, once per
- *      packet, just before its reply goes out (see lockstepReply).  There is no TCP
- *      thread, which also removes the stock races between it and the main thread (the listen
- *      socket set up while the thread starts dyad, and the serial TX buffer it flushes while
- *      the main thread writes it).
+ *    - TCP (MSP and the CLI, through dyad) is serviced by the main thread only, just before
+ *      a packet's reply goes out (see lockstepReply).  There is no TCP thread, which also
+ *      removes the stock races between it and the main thread (the listen socket set up
+ *      while the thread starts dyad, and the serial TX buffer it flushes while the main
+ *      thread writes it).  Over UDP it is serviced once per packet.  Through shared memory
+ *      (6.) only when something can be waiting, since a service is a select() over every
+ *      port's sockets and costs about as much as the rest of a packet's exchange: after a
+ *      packet during whose passes the FC wrote to a serial port (its output leaves in that
+ *      packet's reply, as over UDP), after a packet the simulator marks (it wrote to a port
+ *      just before: tcpUntilSeq), and at least every LOCKSTEP_TCP_IDLE_US of FC time (other
+ *      clients, connections, closes; the stock TCP thread serviced every 10 ms).  So the
+ *      simulator's own requests are read and answered in the same packets as over UDP.
  *    - The fdm thread is gone too: the main thread reads the fdm socket itself.
  *
  * 5. delay()/delayMicroseconds() advance the clock during boot (rounded up to whole
@@ -102,6 +109,9 @@
 #ifndef LOCKSTEP_FREE_RUN_IO_US
 #define LOCKSTEP_FREE_RUN_IO_US 1000ULL
 #endif
+#ifndef LOCKSTEP_TCP_IDLE_US
+#define LOCKSTEP_TCP_IDLE_US 5000ULL
+#endif
 
 typedef struct {
     fdm_packet fdm;
@@ -121,7 +131,7 @@ static bool lockstepRcFresh = false;
 
 // The shared region of 6. above; bfsitl reads the layout from the header the FC writes.
 #define LOCKSTEP_SHM_MAGIC 0x6d736662U  // "bfsm"
-#define LOCKSTEP_SHM_VERSION 1U
+#define LOCKSTEP_SHM_VERSION 2U
 typedef struct {
     uint32_t magic;             // written last by the FC once the region is set up
     uint32_t version;
@@ -131,6 +141,7 @@ typedef struct {
     uint32_t datagramOffset;    // the FC: where `datagram` and `reply` are
     uint32_t replyOffset;
     uint32_t regionBytes;
+    uint32_t tcpUntilSeq;       // the simulator: TCP is serviced after requests up to this one
     lockstepDatagram_t datagram;
     lockstepReply_t reply;
 } lockstepShm_t;
@@ -154,6 +165,8 @@ static double lockstepLastStampS;
 static uint32_t lockstepSpinUs = LOCKSTEP_SPIN_US;
 static lockstepShm_t *lockstepShm;      // NULL: the exchange is UDP
 static uint32_t lockstepShmSeen;        // the last requestSeq taken
+static uint64_t lockstepTcpServicedUs;  // FC time of the last TCP service (see 4. above)
+static uint32_t lockstepTxHeads[SERIAL_PORT_COUNT];  // each port's TX head at that service
 
 static void lockstepShmOpen(const char *path)
 {
@@ -333,14 +346,48 @@ static void lockstepApplyRc(const rc_packet *rc)
     rc_received = true;
 }
 
+// Whether the FC wrote to a serial port since the last call: a port's TX head moves with
+// every byte written (all of the SITL's UARTs are TCP ports); always walks every port, so the
+// heads stay current.
+static bool lockstepSerialWrote(void)
+{
+    bool wrote = false;
+    for (unsigned i = 0; i < SERIAL_PORT_COUNT; i++) {
+        const serialPortUsage_t *usage = findSerialPortUsageByIdentifier(serialPortIdentifiers[i]);
+        const uint32_t head = usage != NULL && usage->serialPort != NULL ? usage->serialPort->txBufferHead : 0;
+        if (head != lockstepTxHeads[i]) {
+            lockstepTxHeads[i] = head;
+            wrote = true;
+        }
+    }
+    return wrote;
+}
+
+// Whether TCP is serviced after the packet just taken (see 4. above).
+static bool lockstepTcpDue(void)
+{
+    const bool wrote = lockstepSerialWrote();
+    if (lockstepShm == NULL || wrote) {
+        return true;
+    }
+    const uint32_t until = __atomic_load_n(&lockstepShm->tcpUntilSeq, __ATOMIC_ACQUIRE);
+    if ((int32_t)(until - lockstepShmSeen) >= 0) {
+        return true;
+    }
+    return lockstepClockUs - lockstepTcpServicedUs >= LOCKSTEP_TCP_IDLE_US;
+}
+
 static void lockstepReply(double stampS)
 {
-    // TCP is serviced here and only here once locked, once per packet: MSP/CLI replies
+    // TCP is serviced here and only here once locked, before the reply: MSP/CLI replies
     // written during the passes leave before the servo packet, and bytes that came since the
-    // last reply are read, to be handled in the next packet's passes.  So a request sent
+    // last service are read, to be handled in the next packet's passes.  So a request sent
     // between two packets is answered two packets later, whatever the host's timing.  The
     // RealFlight port (9001) gets nothing: the lockstep reply is bfsitl's.
-    dyad_update();
+    if (lockstepTcpDue()) {
+        dyad_update();
+        lockstepTcpServicedUs = lockstepClockUs;
+    }
     const lockstepReply_t reply = { .servo = pwmPkt, .timestamp = stampS };
     lockstepSend(&reply);
 }

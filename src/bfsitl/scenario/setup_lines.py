@@ -52,6 +52,10 @@ def hover_throttle_line(quad: QuadParams) -> str:
     return f"set ap_hover_throttle = {round(hover_throttle_us(quad))}"
 
 
+#: The debug mode the runner reads the FC's failsafe phase from (debug[3], over MSP_DEBUG).
+FAILSAFE_DEBUG_MODE = "FAILSAFE"
+
+
 def blackbox_cli(profile: FirmwareProfile) -> tuple[str, ...]:
     """The FC's own log to a file in its run directory, one per armed flight.  4.6.0 runs its
     PID loop at 8 kHz and master at 1 kHz: 1/16 (4.6.0's lowest rate) and 1/4 give a few
@@ -71,10 +75,6 @@ def blackbox_cli(profile: FirmwareProfile) -> tuple[str, ...]:
         "set blackbox_disable_gyrounfilt = ON",
         f"set debug_mode = {FAILSAFE_DEBUG_MODE}",
     )
-
-
-#: The debug mode the runner reads the FC's failsafe phase from (debug[3], over MSP_DEBUG).
-FAILSAFE_DEBUG_MODE = "FAILSAFE"
 
 
 def setting_in_force(lines: Iterable[str], name: str) -> str | None:

@@ -348,7 +348,7 @@ static void lockstepApplyRc(const rc_packet *rc)
 
 // Whether the FC wrote to a serial port since the last call: a port's TX head moves with
 // every byte written (all of the SITL's UARTs are TCP ports); always walks every port, so the
-// heads stay current.
+// heads stay current.  Only through shared memory: over UDP every packet is serviced.
 static bool lockstepSerialWrote(void)
 {
     bool wrote = false;
@@ -366,8 +366,7 @@ static bool lockstepSerialWrote(void)
 // Whether TCP is serviced after the packet just taken (see 4. above).
 static bool lockstepTcpDue(void)
 {
-    const bool wrote = lockstepSerialWrote();
-    if (lockstepShm == NULL || wrote) {
+    if (lockstepShm == NULL || lockstepSerialWrote()) {
         return true;
     }
     const uint32_t until = __atomic_load_n(&lockstepShm->tcpUntilSeq, __ATOMIC_ACQUIRE);

@@ -229,6 +229,20 @@ def _phase_name(phase: int) -> str:
         return f"PHASE_{phase}"  # a phase a newer firmware added
 
 
+#: A failsafe finding's line names this many phase changes at most (the first ones and the
+#: last); a failsafe that comes and goes (a flight channel invalid, then valid again) can
+#: change phase thousands of times, all of them in the evidence.
+PHASES_NAMED = 6
+
+
+def _phase_sequence(changes: list[tuple[float, str]]) -> str:
+    named = [f"{name} at {t:.2f} s" for t, name in changes]
+    if len(named) <= PHASES_NAMED:
+        return " -> ".join(named)
+    left_out = len(named) - PHASES_NAMED
+    return " -> ".join([*named[: PHASES_NAMED - 1], f"({left_out} more changes)", named[-1]])
+
+
 def failsafe(track: Track, limits: Limits) -> Finding | None:
     changes: list[tuple[float, str]] = []
     if track.has("failsafe_phase"):
@@ -259,7 +273,7 @@ def failsafe(track: Track, limits: Limits) -> Finding | None:
     if not entered:
         return None
     first_s = entered[0][0]
-    sequence = " -> ".join(f"{name} at {t:.2f} s" for t, name in changes if t >= first_s)
+    sequence = _phase_sequence([(t, name) for t, name in changes if t >= first_s])
     evidence: dict[str, object] = {
         "phases": [[name, t] for t, name in changes],
         "entered_s": first_s,

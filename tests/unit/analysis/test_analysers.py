@@ -321,6 +321,20 @@ def test_the_failsafe_phases_are_timed_from_when_it_was_entered() -> None:
     assert found(hover(3.0, failsafe_phase=0), "failsafe") is None
 
 
+def test_a_failsafe_that_comes_and_goes_names_a_few_changes_and_keeps_them_all() -> None:
+    # LANDING and IDLE alternate when a flight channel is invalid then valid again: the line
+    # names the first changes, how many more, and the last; the evidence has every one.
+    points = hover(1.0, failsafe_phase=0)
+    for index in range(200):
+        points += hover(0.02, start_s=1.0 + 0.02 * index, failsafe_phase=2 * (index % 2 == 0))
+    finding = found(points, "failsafe")
+    assert finding is not None
+    assert len(finding.evidence["phases"]) == 201  # the first IDLE, then each change
+    assert finding.summary.startswith("failsafe: LANDING at 1.00 s -> IDLE at 1.02 s -> ")
+    assert "(194 more changes) -> IDLE at 4.98 s" in finding.summary  # 5 + 194 + 1
+    assert finding.summary.count(" at ") == 6 and len(finding.summary) < 200
+
+
 def test_a_gps_glitch_ridden_out_is_info_and_followed_is_a_warning() -> None:
     glitch = hover(2.0) + hover(3.0, start_s=2.0, fc_north_m=20.0) + hover(1.0, start_s=5.0)
     finding = found(glitch, "gps_glitch")

@@ -197,7 +197,7 @@ def provision(
     if profile.cli_lines:
         cli = CliSession(client.link)
         lines = _lines_to_run(cli, profile.cli_lines)
-        boot_setting_changed = any(_set_name(line) in BOOT_ONLY_SETTINGS for line in lines)
+        boot_setting_changed = any(set_name(line) in BOOT_ONLY_SETTINGS for line in lines)
         for batch in _batches(lines, _BATCH_LINES):
             cli.batch(batch)
             lines_run += len(batch)
@@ -217,7 +217,7 @@ def provision(
     return ProvisionResult(changed, written, lines_run, rebooted)
 
 
-def _set_name(line: str) -> str | None:
+def set_name(line: str) -> str | None:
     """The setting a ``set NAME = VALUE`` line sets (lower case), else None."""
     words = line.replace("=", " = ").split()
     if len(words) >= 4 and words[0].lower() == "set" and words[2] == "=":
@@ -225,7 +225,8 @@ def _set_name(line: str) -> str | None:
     return None
 
 
-def _set_value(line: str) -> str:
+def set_value(line: str) -> str:
+    """The value of a line :func:`set_name` names a setting of (as written)."""
     return line.split("=", 1)[1].strip()
 
 
@@ -250,14 +251,14 @@ def _lines_to_run(cli: CliSession, lines: tuple[str, ...]) -> list[str]:
     form) is simply set again.
     """
     last_set = {
-        name: index for index, line in enumerate(lines) if (name := _set_name(line)) is not None
+        name: index for index, line in enumerate(lines) if (name := set_name(line)) is not None
     }
     lines = tuple(
         line
         for index, line in enumerate(lines)
-        if (name := _set_name(line)) is None or last_set[name] == index
+        if (name := set_name(line)) is None or last_set[name] == index
     )
-    names = [name for name in (_set_name(line) for line in lines) if name is not None]
+    names = [name for name in (set_name(line) for line in lines) if name is not None]
     current: dict[str, str] = {}
     for batch in _batches(names, _BATCH_LINES):
         output = cli.batch([f"get {name}" for name in batch], check=False)
@@ -272,6 +273,6 @@ def _lines_to_run(cli: CliSession, lines: tuple[str, ...]) -> list[str]:
     return [
         line
         for line in lines
-        if ((setting := _set_name(line)) is None or current.get(setting) != _set_value(line))
+        if ((setting := set_name(line)) is None or current.get(setting) != set_value(line))
         and _serial_line(line) not in held_ports
     ]

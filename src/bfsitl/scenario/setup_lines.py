@@ -13,7 +13,7 @@ import dataclasses
 from collections.abc import Iterable
 from dataclasses import dataclass
 
-from bfsitl.fc.provisioning import Profile
+from bfsitl.fc.provisioning import Profile, set_name, set_value
 from bfsitl.mission.session import FAST_SERIAL_LINE, FLY_PROFILE, with_fast_serial
 from bfsitl.physics.params import QuadParams
 from bfsitl.protocol import messages as msg
@@ -83,11 +83,8 @@ def setting_in_force(lines: Iterable[str], name: str) -> str | None:
     without regard to case, as the CLI's do."""
     value = None
     for line in lines:
-        words = line.split("=", 1)
-        head = words[0].split()
-        if len(words) == 2 and len(head) == 2 and head[0].lower() == "set":
-            if head[1].lower() == name.lower():
-                value = words[1].strip().upper()
+        if set_name(line) == name.lower():
+            value = set_value(line).upper()
     return value
 
 

@@ -115,12 +115,12 @@ def test_a_setting_set_twice_ends_at_its_last_value_even_when_that_is_the_curren
 
 
 def test_set_name_reads_both_spellings_and_nothing_else():
-    from bfsitl.fc.provisioning import _set_name
+    from bfsitl.fc.provisioning import set_name
 
-    assert _set_name("set Serial_Update_Rate_Hz = 1000") == "serial_update_rate_hz"
-    assert _set_name("set small_angle=30") == "small_angle"
-    assert _set_name("feature GPS") is None
-    assert _set_name("set small_angle") is None  # no value: not a comparable set
+    assert set_name("set Serial_Update_Rate_Hz = 1000") == "serial_update_rate_hz"
+    assert set_name("set small_angle=30") == "small_angle"
+    assert set_name("feature GPS") is None
+    assert set_name("set small_angle") is None  # no value: not a comparable set
 
 
 class SerialListingCli:

@@ -23,10 +23,10 @@ physics, and the Python rest (mission loop, MSP parsing, log), plus the SITL's C
 step (it polls for the next packet for up to 0.3 ms before it sleeps, so this includes a
 little waiting).
 
-``--receiver-frames`` adds 4.6.0's shared-memory rows once more with a receiver frame per
-RC packet (``BFSITL_LOCKSTEP_RX_FRAMES=1``) instead of one at every scheduler pass: the
-firmware's own work per simulated millisecond then falls (docs/lockstep.md says why, and why
-it is not the default).
+The RC link sends a receiver's frames at its default rate (250 Hz, ``FcSetup.rc_rate_hz``).
+``--rc-every-packet`` adds the shared-memory rows once more with a frame in every fdm packet
+(``rc_rate_hz=None``: bfsitl's RC link before 2026-11-29, and 4.6.0's stock receiver, which
+counts a frame at every scheduler pass): the baseline of that change, in the same run.
 
 ``--starts N`` also starts N lockstep SITLs (each locked at boot and probed over MSP, then
 stopped) while ``--busy`` processes spin on the CPU, and counts the failed starts.
@@ -51,7 +51,6 @@ from firmware_cache import MASTER_SOURCE, cached_firmware
 
 from bfsitl.backend.options import Timing, World
 from bfsitl.build import FirmwareBuildOptions
-from bfsitl.build.binary_scan import RX_FRAMES_ENV
 from bfsitl.control import make_controller
 from bfsitl.errors import BfsitlError
 from bfsitl.link.shm_exchange import shm_exchange_supported
@@ -117,12 +116,13 @@ def fly_firmware(
     seed: int,
     exchange: str = "udp",
     one_core: bool = False,
-    env: tuple[tuple[str, str], ...] = (),
+    rc_every_packet: bool = False,
 ) -> Flight:
     config = SessionConfig(
-        sitl=SitlLaunch(firmware=path, env=env),
+        sitl=SitlLaunch(firmware=path),
         world=World(seed=seed),
         timing=Timing(lockstep=lockstep, lockstep_exchange=exchange, lockstep_spin=not one_core),
+        fc=FcSetup(rc_rate_hz=None) if rc_every_packet else FcSetup(),
     )
     claim = claim_core() if one_core else None  # the SITL started below inherits it
     started_s = time.perf_counter()
@@ -133,7 +133,7 @@ def fly_firmware(
             lockstep,
             hold_s,
             f"lockstep max, {exchange}, {'1 core' if one_core else 'spin'}"
-            + (", a receiver frame per packet" if env else "")
+            + (", RC in every packet" if rc_every_packet else "")
             if lockstep
             else "real time 1x",
         )
@@ -290,10 +290,10 @@ def main() -> None:
         "--no-flights", action="store_true", help="only the stepping alone (and --starts)"
     )
     parser.add_argument(
-        "--receiver-frames",
+        "--rc-every-packet",
         action="store_true",
-        help="also fly 4.6.0's lockstep rows (shared memory) with a receiver frame per packet "
-        "(BFSITL_LOCKSTEP_RX_FRAMES=1) instead of one at every scheduler pass",
+        help="also fly the lockstep rows (shared memory) with a frame in every fdm packet "
+        "(the RC link before it had a rate; 4.6.0's stock receiver)",
     )
     args = parser.parse_args()
     known = ("4.6.0", "master")
@@ -305,20 +305,24 @@ def main() -> None:
     for generation in [] if args.no_flights else args.generations.split(","):
         stock = firmware_path(generation, args.build)
         lockstep = firmware_path(f"{generation}-lockstep", args.build)
-        modes = [(stock, False, "udp", False, ())] + [
-            (lockstep, True, exchange, one_core, ())
+        modes = [(stock, False, "udp", False, False)] + [
+            (lockstep, True, exchange, one_core, False)
             for exchange, one_core in LOCKSTEP_MODES
             if exchange == "udp" or shm_exchange_supported()
         ]
-        if args.receiver_frames and generation == "4.6.0" and shm_exchange_supported():
-            # Master's receiver already counts a frame per RC packet: nothing to compare.
-            modes += [
-                (lockstep, True, "shm", one_core, (RX_FRAMES_ENV,)) for one_core in (False, True)
-            ]
-        for path, is_lockstep, exchange, one_core, env in modes:
+        if args.rc_every_packet and shm_exchange_supported():
+            modes += [(lockstep, True, "shm", one_core, True) for one_core in (False, True)]
+        for path, is_lockstep, exchange, one_core, every_packet in modes:
             flights = [
                 fly_firmware(
-                    generation, path, is_lockstep, args.hold, args.seed, exchange, one_core, env
+                    generation,
+                    path,
+                    is_lockstep,
+                    args.hold,
+                    args.seed,
+                    exchange,
+                    one_core,
+                    every_packet,
                 )
                 for _ in range(args.repeats)
             ]

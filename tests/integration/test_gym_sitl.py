@@ -135,13 +135,12 @@ def test_a_late_observation_is_the_one_of_that_many_steps_before(
     assert not np.array_equal(late[5:], prompt[5:])  # the flight moved: the test can tell
 
 
-@pytest.mark.parametrize(("per_step", "cutoff"), [(False, "0hz"), (True, "18hz")])
+@pytest.mark.parametrize(("per_step", "cutoff"), [(False, "93hz"), (True, "18hz")])
 def test_with_a_frame_per_step_the_fc_smooths_the_sticks_as_for_a_receiver_at_that_rate(
     lockstep_gps_46_firmware: Path, per_step: bool, cutoff: str
 ) -> None:
-    """In lockstep every fdm packet carries RC, and 4.6.0 finds no receiver rate in a frame
-    every loop: no RC smoothing.  One frame per 50 Hz step: the FC measures the rate and sets
-    its setpoint cutoff to 0.375 of it (rc.c), as for a receiver at 50 Hz."""
+    """The FC measures the receiver's rate and sets its setpoint cutoff to 0.375 of it
+    (rc.c): the RC link's 250 Hz frames by default, or one frame per 50 Hz step."""
     from bfsitl.fc.cli_session import CliSession
 
     env = HoverEnv(

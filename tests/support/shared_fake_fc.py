@@ -81,8 +81,9 @@ class SharedFakeFc:
             if self.version >= 2:
                 self.tcp_until.append(self.words[TCP_UNTIL_WORD])
             fdm = FdmPacket.unpack(data[: FdmPacket.SIZE])
-            rc = RcPacket.unpack(data[FdmPacket.SIZE :])
-            self.received.append((fdm.timestamp_s, rc.channels_us[:6]))
+            # A datagram without a trailer is a step between two of the RC link's frames.
+            rc = RcPacket.unpack(data[FdmPacket.SIZE :]) if len(data) > FdmPacket.SIZE else None
+            self.received.append((fdm.timestamp_s, None if rc is None else rc.channels_us[:6]))
             self.datagrams.append(data)
             if not self.answer:
                 continue

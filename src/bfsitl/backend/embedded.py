@@ -20,6 +20,7 @@ from typing import TYPE_CHECKING, ClassVar
 
 from bfsitl.backend.base import SitlBackend, Truth
 from bfsitl.backend.disturbances import Disturbances
+from bfsitl.build.binary_scan import RX_FRAMES_ENV
 from bfsitl.errors import SitlError, SitlExitedError
 from bfsitl.fc.firmware_detect import profile_of_binary
 from bfsitl.fc.rc_link import RcSender
@@ -35,6 +36,7 @@ from bfsitl.sim.lockstep import (
     LockstepBridge,
 )
 from bfsitl.sim.lockstep_io import LockstepClock, LockstepRc, SteppedLink
+from bfsitl.sim.rc_frames import check_rc_rate
 from bfsitl.sitl.process import SitlHooks
 
 if TYPE_CHECKING:
@@ -165,10 +167,17 @@ class LockstepBackend(_EmbeddedPhysics):
         progress: Callable[[str], None],
         alive: Callable[[], None] | None = None,
         shared_memory: bool = False,
+        rc_rate_hz: float | None = None,
+        receiver_frames: bool = False,
     ) -> None:
         super().__init__(simulator, progress)
+        check_rc_rate(rc_rate_hz)
         self.speed = speed
         self.spin = spin
+        #: The RC link's frame rate (None: a frame in every packet).
+        self.rc_rate_hz = rc_rate_hz
+        #: Ask a 4.6.0 build to count a receiver frame per RC trailer (master always does).
+        self.receiver_frames = receiver_frames
         #: Asked during a wait that runs long: raises if the SITL has ended.
         self.alive = alive
         self._lockstep: LockstepBridge | None = None
@@ -201,6 +210,8 @@ class LockstepBackend(_EmbeddedPhysics):
     @property
     def sitl_env(self) -> Mapping[str, str] | None:
         env = {} if self.spin else {SITL_SPIN_ENV: "0"}
+        if self.receiver_frames:
+            env.update([RX_FRAMES_ENV])
         if self.shared is not None:
             env.update(self.shared.env)
         return env or None
@@ -216,6 +227,7 @@ class LockstepBackend(_EmbeddedPhysics):
             spin_s=REPLY_SPIN_S if self.spin else 0.0,
             alive=self.alive,
             exchange=self.shared,
+            rc_rate_hz=self.rc_rate_hz,
         )
         self._lockstep = self.bridge = bridge
         bridge.bind()

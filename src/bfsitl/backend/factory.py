@@ -24,6 +24,7 @@ from typing import TYPE_CHECKING
 from bfsitl.backend.base import SitlBackend
 from bfsitl.backend.options import LOCKSTEP_EXCHANGES, PHYSICS, LockstepExchange, Timing, World
 from bfsitl.errors import BfsitlError
+from bfsitl.sim.rc_frames import DEFAULT_RC_RATE_HZ
 from bfsitl.sitl.firmware import FirmwareBinary
 
 if TYPE_CHECKING:
@@ -102,11 +103,14 @@ def make_backend(
     *,
     progress: Callable[[str], None],
     rc_link: bool = True,
+    rc_rate_hz: float | None = DEFAULT_RC_RATE_HZ,
     alive: Callable[[], None] | None = None,
 ) -> SitlBackend:
     """The backend for ``firmware`` in ``world`` on ``timing`` (see the module table).
-    ``rc_link`` False (RC from elsewhere) needs a real-time SITL.  ``alive`` is asked during a
-    lockstep wait that runs long (it raises if the SITL has ended)."""
+    ``rc_link`` False (RC from elsewhere) needs a real-time SITL.  ``rc_rate_hz`` is the
+    lockstep RC link's frame rate (None: a frame in every packet, and 4.6.0's stock receiver,
+    which calls every check a frame).  ``alive`` is asked during a lockstep wait that runs
+    long (it raises if the SITL has ended)."""
     from bfsitl.backend.embedded import LockstepBackend, RealTimeBackend
     from bfsitl.backend.gazebo import GazeboBackend
 
@@ -147,5 +151,7 @@ def make_backend(
             progress=progress,
             alive=alive,
             shared_memory=shared,
+            rc_rate_hz=rc_rate_hz,
+            receiver_frames=rc_rate_hz is not None and firmware.rx_frames,
         )
     return RealTimeBackend(make_simulator(world), speed=real_time_speed(speed), progress=progress)

@@ -159,14 +159,20 @@ def build_options_for_binary(path: str | os.PathLike[str]) -> ProfileBuildOption
     metadata = metadata_for_binary(path)
     if metadata is None:
         return None
+    from bfsitl.build.binary_scan import binary_traits
     from bfsitl.protocol.firmware_profile import BuildOptions as ProfileBuildOptions
 
     values = dict(_define_pair(d) for d in metadata.make_defines)
     gazebo = values.get("ENABLE_GAZEBO_BRIDGE")
+    try:
+        receiver_frames = binary_traits(path).rx_frames
+    except OSError:
+        receiver_frames = False
     return ProfileBuildOptions(
         gps=metadata.gps,
         gazebo_bridge=None if gazebo is None else gazebo != "0",
         attitude_direct=True if "SITL_ATTITUDE_DIRECT" in values else None,
+        receiver_frames=True if receiver_frames else None,
     )
 
 

@@ -42,6 +42,16 @@ def number_in(
     return parse
 
 
+def rc_rate(text: str) -> float | None:
+    """``--rc-rate``: a receiver's frame rate in Hz, or ``packet`` (None: a frame in every
+    fdm packet)."""
+    from bfsitl.sim.rc_frames import MAX_RC_RATE_HZ, MIN_RC_RATE_HZ
+
+    if text == "packet":
+        return None
+    return number_in(MIN_RC_RATE_HZ, MAX_RC_RATE_HZ, "Hz")(text)
+
+
 def _range(low: float | None, high: float | None, unit: str, above_low: bool) -> str:
     if low is not None and high is not None and not above_low:
         return f"{low:g}..{high:g} {unit}"

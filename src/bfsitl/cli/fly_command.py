@@ -262,6 +262,7 @@ def cmd_fly(args: argparse.Namespace) -> int:
             profile=profile,
             angle_mode=not args.no_angle,
             attachable=profile is not None and not args.no_attach,
+            rc_rate_hz=args.rc_rate,
         ),
         world=World(
             physics=args.physics,

@@ -11,9 +11,11 @@ from bfsitl.cli.arg_types import (
     number_in,
     parse_speed,
     port_number,
+    rc_rate,
 )
 from bfsitl.cli.fly_command import cmd_fly
 from bfsitl.physics.wind import MAX_GUST_STD_M_S, MAX_WIND_COMPONENT_M_S
+from bfsitl.sim.rc_frames import DEFAULT_RC_RATE_HZ
 
 #: The Configurator's built-in "Betaflight SITL" connection and Foxglove's default port.
 CONFIGURATOR_PORT = 6761
@@ -234,6 +236,16 @@ def add_fly_parser(sub: argparse._SubParsersAction) -> None:  # type: ignore[typ
         help="how lockstep packets pass: shared memory (shm, on builds made by "
         "this bfsitl, x86-64 Linux) or UDP; both fly the same flight "
         "(default auto: shm where it can)",
+    )
+    sitl.add_argument(
+        "--rc-rate",
+        type=rc_rate,
+        default=DEFAULT_RC_RATE_HZ,
+        metavar="HZ|packet",
+        help="lockstep: the RC link's frame rate, as a real receiver's (16..1000; "
+        "4.6.0 and master size RC smoothing and feedforward by it and lose the "
+        "link when frames stop). 'packet': a frame in every fdm packet, and "
+        "4.6.0's stock SITL receiver (default %(default)g, an ELRS link's)",
     )
     sitl.add_argument(
         "--baro-noise-pa",

@@ -91,8 +91,9 @@ class RcFault:
     """An injected RC fault: what a link sends instead of its command while it lasts.
 
     Attributes:
-        silent: Send nothing at all (master's UDP receiver raises RXLOSS 150 ms later; 4.6.0
-            holds the last channels forever, so this is no fault there).
+        silent: Send nothing at all (master's UDP receiver, and a lockstep 4.6.0 flown at an
+            RC link rate, raise RXLOSS 150 ms later; a stock 4.6.0 holds the last channels
+            forever, so this is no fault there).
         pulses_us: (channel index, pulse in microseconds) pairs sent as they are,
             unclamped: a pulse below ``rx_min_usec`` (885) or above ``rx_max_usec`` (2115)
             is what a receiver reports for a lost channel: a flight channel (AETR) invalid

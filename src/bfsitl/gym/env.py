@@ -139,9 +139,10 @@ class FlightEnv(gymnasium.Env[np.ndarray, np.ndarray]):
     environment's own: the policy's rate, mode and observation, the episode's start and
     length, the disturbances, the observation's ``latency`` (:mod:`~bfsitl.gym.latency`:
     late by some control steps, drawn per episode, for a policy that is to fly outside the
-    lockstep), ``rc_frame_per_step`` (one receiver frame per step: the FC's RC smoothing as
-    outside the lockstep), ``random_wind`` (:mod:`~bfsitl.gym.random_wind`: a wind drawn per
-    episode, instead of ``world.wind``), ``random_vehicle``
+    lockstep), ``rc_frame_per_step`` (one receiver frame per step instead of the RC
+    link's 250 Hz: the FC smooths at a rate of the policy's), ``random_wind``
+    (:mod:`~bfsitl.gym.random_wind`: a wind drawn per episode, instead of ``world.wind``),
+    ``random_vehicle``
     (:mod:`~bfsitl.gym.random_vehicle`: a quad drawn per episode, instead of ``world.quad``),
     the core pinning and the warm resets, and ``render_mode``:
     ``"rgb_array"`` makes :meth:`render` draw the truth (:mod:`~bfsitl.gym.render`).
@@ -501,7 +502,7 @@ class FlightEnv(gymnasium.Env[np.ndarray, np.ndarray]):
 
     def _frames_per_step(self, vehicle: FlightSession, on: bool) -> None:
         """One receiver frame per step from now on (``on``, with ``rc_frame_per_step``), or
-        one in every fdm packet (arming, the take-off, a warm reset's hold)."""
+        the RC link's frames at its rate (arming, the take-off, a warm reset's hold)."""
         bridge = vehicle.bridge
         if self.rc_frame_per_step and bridge is not None:
             # The environment flies lockstep builds only (checked when it is made), as log

@@ -1,8 +1,8 @@
 """Late observations, as a policy meets them outside the lockstep.
 
 In the lockstep environment the policy reads the FC the instant its step ends, and its sticks
-reach the FC within a millisecond (the RC rides in every fdm packet, and 4.6.0 then smooths
-nothing: see the environment's ``rc_frame_per_step``).  Outside it they do not: a board's
+reach the FC at the RC link's next frame (250 Hz unless the environment sends one per step,
+``rc_frame_per_step``).  Outside it they do not: a board's
 receiver sends its frames at its own rate, which the FC smooths accordingly, its serial link
 adds its delays, and the FC's altitude lags the truth longer (155-165 ms on the stock SITL
 reached as a board, against 115-130 ms in lockstep, docs/gym.md); a real GPS and barometer

@@ -76,6 +76,11 @@ typedef struct bk_lockstep {
     double step_s;
     double spin_s;              /* poll the reply word this long before sleeping */
     double wait_s;              /* give up (PENDING) after this long without a reply */
+    /* the RC link's frames (RcFrameClock of sim/rc_frames.py, the same arithmetic) */
+    double rc_period_s;         /* a frame every rc_period_s of simulated time; 0: every datagram */
+    double rc_next_s;           /* the next frame is due in the first datagram stamped at or after */
+    double rc_sent_s;           /* the stamp of the last datagram that carried one */
+    int64_t rc_frames;          /* frames sent so far (a resend not counted again) */
     /* what happened (totals over the object's life, and the last step's) */
     double exchange_s;
     double physics_s;
@@ -231,11 +236,32 @@ static int readable(int fd)
 }
 #endif
 
+/* Frame times are compared with this slack: the simulated time is a sum of steps. */
+#define RC_FRAME_SLACK_S 1e-9
+/* A stamp this fraction of a period below a grid point counts as at it. */
+#define RC_FRAME_GRID_EPS 1e-6
+
+/* Whether the datagram stamped `stamp` carries the RC trailer: every one without a period;
+   else the first at or after each frame time (and a repeat of that stamp), which moves the
+   next frame time to the grid point after it. */
+static int rc_frame_due(bk_lockstep *ls, double stamp)
+{
+    double period = ls->rc_period_s;
+    if (period <= 0.0 || stamp == ls->rc_sent_s)
+        return 1;
+    if (stamp < ls->rc_next_s - RC_FRAME_SLACK_S)
+        return 0;
+    ls->rc_sent_s = stamp;
+    ls->rc_frames += 1;
+    ls->rc_next_s = (floor(stamp / period + RC_FRAME_GRID_EPS) + 1.0) * period;
+    return 1;
+}
+
 /* Step while the simulated time plus slack_s is below until_s (the bridge's tests: half a
    step of slack for run_until, none for an MSP wait) and fewer than max_steps have been
    taken, and, when watch_fd >= 0, until that descriptor is readable after a step (the FC
-   wrote an MSP reply during its passes); the number taken.  rc (rc_len bytes) rides in every
-   datagram.  ls->status says why it stopped. */
+   wrote an MSP reply during its passes); the number taken.  rc (rc_len bytes) rides in the
+   datagrams rc_frame_due picks.  ls->status says why it stopped. */
 long bk_lockstep_run(bk_sim *sim, bk_lockstep *ls, const uint8_t *rc, uint32_t rc_len,
                      double until_s, double slack_s, long max_steps, int watch_fd)
 {
@@ -264,7 +290,7 @@ long bk_lockstep_run(bk_sim *sim, bk_lockstep *ls, const uint8_t *rc, uint32_t r
             ls->status = BK_LOCKSTEP_BAD_READING;
             return taken;
         }
-        send_datagram(ls, datagram, length);
+        send_datagram(ls, datagram, rc_len && rc_frame_due(ls, stamp) ? length : FDM_BYTES);
         ls->stamp_s = stamp;
         if (!wait_reply(ls)) {
             ls->status = BK_LOCKSTEP_PENDING;

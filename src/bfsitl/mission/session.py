@@ -47,6 +47,7 @@ from bfsitl.protocol import messages as msg
 from bfsitl.protocol.firmware_profile import FirmwareProfile
 from bfsitl.sim.bridge import SitlBridge
 from bfsitl.sim.lockstep import LockstepBridge
+from bfsitl.sim.rc_frames import DEFAULT_RC_RATE_HZ, check_rc_rate
 from bfsitl.sitl.firmware import find_firmware
 from bfsitl.sitl.process import SITL_HOST, SitlProcess
 
@@ -108,6 +109,11 @@ class FcSetup:
             through the serial bridge (real time only).
         attachable: Serve MSP on UART2 too and advertise the flight, so a second MSP client
             (``bfsitl top``) finds it and can watch it (``bfsitl fly`` does this).
+        rc_rate_hz: The RC link's frame rate on a lockstep build, frames per second of
+            simulation time, each with the latest sticks, as a real receiver's (16 to 1000;
+            4.6.0 and master size RC smoothing and feedforward by it, and lose the link when
+            frames stop).  None: a frame in every fdm packet, and 4.6.0's stock SITL
+            receiver, which calls every check a frame (bfsitl before 2026-11-29).
     """
 
     profile: Profile | None = FLY_PROFILE
@@ -119,6 +125,11 @@ class FcSetup:
     #: (:mod:`bfsitl.sitl.running_flights`), so ``bfsitl top`` can attach while it flies.
     #: Read at boot: a run directory without it costs one reboot.  Needs a profile.
     attachable: bool = False
+    #: An ELRS link's rate by default (:mod:`bfsitl.sim.rc_frames`).
+    rc_rate_hz: float | None = DEFAULT_RC_RATE_HZ
+
+    def __post_init__(self) -> None:
+        check_rc_rate(self.rc_rate_hz)  # refused when the configuration is made
 
 
 @dataclass(frozen=True, slots=True)
@@ -269,6 +280,7 @@ class FlightSession(Vehicle):
                 firmware,
                 progress=self._progress,
                 rc_link=config.fc.rc_link,
+                rc_rate_hz=config.fc.rc_rate_hz,
                 alive=self.check_alive,
             )
             self.backend = self.sitl_backend = backend

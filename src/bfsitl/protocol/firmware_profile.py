@@ -83,13 +83,19 @@ class FdmConvention:
     gps_loss_sentinel: bool
 
 
+#: rx/rx.c's RXLOSS_TRIGGER_INTERVAL (4.6.0 and master): no receiver frame for this long is
+#: a lost link.
+RXLOSS_AFTER_SILENCE_S = 0.15
+
+
 @dataclass(frozen=True, slots=True)
 class RcBehaviour:
     """How the firmware treats the UDP RC stream (UDP 9004)."""
 
-    #: RC silence raises RXLOSS after this long (master: ``FEATURE_RX_UDP``, rx/rx.c's 150 ms
-    #: signal timeout); None: the last sticks are held forever (4.6: the first UDP packet makes
-    #: the SITL the RC source and nothing times it out, docs/firmware-facts.md#udp-rc).
+    #: RC silence raises RXLOSS after this long (:data:`RXLOSS_AFTER_SILENCE_S`: master, and
+    #: a 4.6.0 lockstep build counting receiver frames); None: the last sticks are held
+    #: forever (4.6's stock SITL receiver calls every check a frame, so nothing times it
+    #: out, docs/firmware-facts.md#udp-rc).
     rxloss_after_silence_s: float | None
     #: MSP_RC answers with no channels until the first RC packet (master); 4.6 answers with
     #: the MSP receiver's defaults.
@@ -210,6 +216,10 @@ class BuildOptions:
     gazebo_bridge: bool | None = None
     #: ``-DSITL_ATTITUDE_DIRECT`` (master): the quaternion is copied, no estimator.
     attitude_direct: bool | None = None
+    #: A 4.6.0 lockstep build whose receiver counts a frame per RC trailer, as bfsitl flies
+    #: it at an RC link rate (``FcSetup.rc_rate_hz``): it then loses the link when frames
+    #: stop, as master does.
+    receiver_frames: bool | None = None
 
 
 def parse_api_version(text: str) -> tuple[int, int]:
@@ -263,7 +273,10 @@ def profile_for(
             takes_ip_flag=False,
             fdm=_FDM_4_6,
             motor_slot_of_betaflight_motor=(3, 0, 1, 2),
-            rc=RcBehaviour(rxloss_after_silence_s=None, msp_rc_empty_before_rc=False),
+            rc=RcBehaviour(
+                rxloss_after_silence_s=RXLOSS_AFTER_SILENCE_S if build.receiver_frames else None,
+                msp_rc_empty_before_rc=False,
+            ),
             cli=CliDifferences(serial_read_only=False, msp_cli_command=False),
             gyro_rate_hz=8000,
             has_gps=gps,
@@ -289,7 +302,7 @@ def profile_for(
         takes_ip_flag=True,
         fdm=fdm,
         motor_slot_of_betaflight_motor=(0, 1, 2, 3),
-        rc=RcBehaviour(rxloss_after_silence_s=0.15, msp_rc_empty_before_rc=True),
+        rc=RcBehaviour(rxloss_after_silence_s=RXLOSS_AFTER_SILENCE_S, msp_rc_empty_before_rc=True),
         cli=CliDifferences(serial_read_only=True, msp_cli_command=True),
         gyro_rate_hz=1000,
         has_gps=True if has_gps is None else has_gps,

@@ -33,6 +33,7 @@ from bfsitl.protocol import messages as msg
 from bfsitl.protocol.boxes import BoxId
 from bfsitl.protocol.firmware_profile import FirmwareProfile, Generation
 from bfsitl.replay.sticks import StickStream
+from bfsitl.sim.rc_frames import DEFAULT_RC_RATE_HZ
 from bfsitl.sitl.firmware import find_firmware
 
 Progress = Callable[[str], None]
@@ -210,7 +211,12 @@ def fly_replay(
             env=() if stream.loop_frames else (RX_FRAMES_ENV,),
         ),
         timing=timing or Timing(),
-        fc=FcSetup(profile=replay_profile(lines), angle_mode=bool(stream.angle[0])),
+        fc=FcSetup(
+            profile=replay_profile(lines),
+            angle_mode=bool(stream.angle[0]),
+            # A log whose FC counted a frame at every loop is replayed on the same receiver.
+            rc_rate_hz=None if stream.loop_frames else DEFAULT_RC_RATE_HZ,
+        ),
         world=World(quad=quad, wind=wind, seed=seed),
     )
     with session_factory(config, progress=progress) as session:

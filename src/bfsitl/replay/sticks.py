@@ -111,11 +111,17 @@ def firmware_version(revision: str) -> tuple[int, int, int] | None:
 
 
 def counts_frames_every_loop(log: BlackboxLog) -> bool:
-    """A 4.x SITL wrote ``log``: its UDP receiver calls every check a complete frame
+    """A 4.x SITL's own receiver wrote ``log``: it calls every check a complete frame
     (``rxRCFrameStatus``, ``[4.6] src/platform/SIMULATOR/sitl.c:259-263``), so its FC saw a
-    receiver at its loop rate whatever bfsitl sent.  Master's counts the frames that come."""
+    receiver at its loop rate whatever bfsitl sent, and measured no rate (the header's
+    ``rc_smoothing_rx_smoothed`` is 0).  Master's counts the frames that come, and so does
+    bfsitl's lockstep 4.6.0 flown at an RC link's rate: its header holds that rate."""
     version = firmware_version(log.firmware_revision)
-    return "SITL" in log.firmware_revision and version is not None and version[0] == 4
+    if "SITL" not in log.firmware_revision or version is None or version[0] != 4:
+        return False
+    rate_hz = header_number(log, "rc_smoothing_rx_smoothed", 0.0)
+    low, high = _FRAME_INTERVAL_RANGE_S
+    return not (rate_hz > 0 and low <= 1.0 / rate_hz <= high)
 
 
 def deflection_scales(log: BlackboxLog) -> tuple[float, float]:

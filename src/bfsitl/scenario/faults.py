@@ -7,13 +7,13 @@ drift, the GPS).  The firmware sees nothing of bfsitl; it sees a receiver, a mot
 ========================  ==========================================  =====================
 kind (parameters)          what the FC sees                             firmware
 ========================  ==========================================  =====================
-``rc_loss``               ``method``: ``silence`` (no RC at all),      silence: master
-(``method = "auto"``)     ``invalid_pulses`` (roll, pitch, throttle,   (4.6.0 holds the last
-                          yaw at 0 us: a receiver's lost-channel       sticks forever);
-                          output; the AUX switches stay), ``switch``   invalid_pulses and
-                          (the FAILSAFE mode on AUX3, as a pilot's     switch: every
-                          failsafe switch); ``auto`` = silence where   firmware
-                          the firmware detects it, else the switch
+``rc_loss``               ``method``: ``silence`` (no RC at all),      silence: master and
+(``method = "auto"``)     ``invalid_pulses`` (roll, pitch, throttle,   lockstep 4.6.0 (a
+                          yaw at 0 us: a receiver's lost-channel       stock 4.6.0 holds the
+                          output; the AUX switches stay), ``switch``   last sticks forever);
+                          (the FAILSAFE mode on AUX3, as a pilot's     invalid_pulses and
+                          failsafe switch); ``auto`` = silence where   switch: every
+                          the firmware detects it, else the switch     firmware
 ``rc_latency``            every RC command ``delay_s`` late, plus up   every firmware
 (``delay_s``,             to ``jitter_s`` more per packet (resolution:
 ``jitter_s = 0``)         the control period)
@@ -146,7 +146,8 @@ def _rc_loss(spec: FaultSpec, profile: FirmwareProfile, where: str) -> Fault:
     if method == "silence" and not silence_detected:
         raise FaultNotSupportedError(
             f"{where}: rc_loss by silence cannot happen on {_name(profile)}: it holds the last "
-            f"sticks forever when RC stops (its SITL receiver never times out). Use method = "
+            f"sticks forever when RC stops (its SITL receiver never times out; a lockstep "
+            f"build from `bfsitl firmware build --lockstep` does). Use method = "
             f'"switch" or "invalid_pulses" ("auto" picks the switch there)'
         )
     if method == "switch":

@@ -51,6 +51,7 @@ from bfsitl.sim.bridge import (
     bind_motor_port,
 )
 from bfsitl.sim.lockstep_stepper import KernelRun, KernelStepper
+from bfsitl.sim.rc_frames import RcFrameClock
 
 T = TypeVar("T")
 
@@ -110,7 +111,8 @@ class LockstepBridge:
 
     It offers what a :class:`~bfsitl.sim.bridge.SitlBridge` offers a session (motors, stats,
     ``between_steps``), plus :meth:`step`, :meth:`run_for` and the RC command that rides in
-    every packet.
+    the packets: a frame at the RC link's rate (``rc_rate_hz``, :mod:`bfsitl.sim.rc_frames`;
+    None puts one in every packet).
 
     >>> bridge = LockstepBridge(Simulator(), sitl.prepare_network())   # doctest: +SKIP
     >>> bridge.bind(); sitl.start(); bridge.start(); bridge.run_for(1.0)
@@ -131,6 +133,7 @@ class LockstepBridge:
         spin_s: float = REPLY_SPIN_S,
         exchange: ShmExchange | None = None,
         compiled_loop: bool = True,
+        rc_rate_hz: float | None = None,
     ) -> None:
         if not 0.0001 <= step_s <= 0.01:
             raise ValueError(f"step_s {step_s} outside 0.1..10 ms")
@@ -156,11 +159,16 @@ class LockstepBridge:
         self.encoder = FdmEncoder(profile, getattr(simulator, "home", GeoPoint(0.0, 0.0)))
         self.motors: Motors = (0.0, 0.0, 0.0, 0.0)
         self.rc_command: RcCommand = SAFE_COMMAND
+        #: Which datagrams carry the RC trailer: the first at or after each of the link's
+        #: frame times (``rc_rate_hz``), or every one (None).  Between frames 4.6.0 and
+        #: master hold the last channels.
+        self.rc_frames = RcFrameClock.at_rate(rc_rate_hz)
         #: Send the RC trailer only in the first datagram after ``rc_command`` is set (each
-        #: set is one receiver frame), not in every one: a log's replay gives the firmware
-        #: its frames at the real receiver's rate, which its feedforward and RC smoothing
-        #: measure.  Between frames 4.6.0 and master hold the last channels.
+        #: set is one receiver frame) instead: a log's replay gives the firmware its frames
+        #: at the real receiver's rate and times, which its feedforward and RC smoothing
+        #: measure.
         self.rc_frames_on_set = False
+        self._every_datagram = RcFrameClock()  # the loop's clock for a trailer decided here
         #: An injected RC fault (:class:`~bfsitl.fc.rc_link.RcFault`), on simulation time.
         self.rc_fault = RcFaultState()
         self.error: BaseException | None = None
@@ -303,11 +311,21 @@ class LockstepBridge:
         self.rc_command = command
 
     def _rc_bytes(self, now_s: float) -> bytes:
+        """The RC trailer of the datagram stamped ``now_s``: a frame when one is due."""
+        trailer = self._rc_trailer(now_s)
+        if self.rc_frames_on_set and self.rc_fault.fault is None:
+            # A resend of the datagram that carried the frame carries it again (the FC takes
+            # a datagram once per time stamp, so the frame still counts once).
+            return trailer if now_s == self._rc_packed_at_s else b""
+        return trailer if trailer and self.rc_frames.due(now_s) else b""
+
+    def _rc_trailer(self, now_s: float) -> bytes:
+        """What a frame sent now would carry: the command's channels, or an injected fault's
+        (none at all for silence)."""
         # The firmware ignores the RC packet's timestamp; the channels change at the control
         # rate, not every step, so their packing is kept.
         command = self.rc_command
         if self.rc_fault.fault is not None:
-            # An injected fault: no RC trailer at all (silence), or channels as it says.
             channels = self.rc_fault.channels(now_s, command)
             self._rc_packed_for = None
             return b"" if channels is None else RcPacket(now_s, channels).pack()
@@ -318,11 +336,6 @@ class LockstepBridge:
             self._rc_packed = RcPacket(now_s, channels).pack()
             self._rc_packed_for = command
             self._rc_packed_at_s = now_s
-            return self._rc_packed
-        if self.rc_frames_on_set and now_s != self._rc_packed_at_s:
-            return b""
-        # A resend of the datagram that carried the frame carries it again (the FC takes a
-        # datagram once per time stamp, so the frame still counts once).
         return self._rc_packed
 
     def step(self) -> None:
@@ -438,9 +451,14 @@ class LockstepBridge:
         max_steps: int,
         watch_fd: int = -1,
     ) -> None:
-        rc = self._rc_bytes(self.simulator.time_s)
-        if rc and self.rc_frames_on_set:
-            max_steps = 1  # the frame rides in one datagram; the steps after it carry none
+        frames = self.rc_frames
+        if self.rc_frames_on_set:
+            rc = self._rc_bytes(self.simulator.time_s)
+            if rc:
+                max_steps = 1  # the frame rides in one datagram; the steps after it carry none
+            frames = self._every_datagram
+        else:
+            rc = self._rc_trailer(self.simulator.time_s)  # the loop picks the datagrams
         run: KernelRun = kernel.run(
             self.encoder,
             rc,
@@ -448,6 +466,7 @@ class LockstepBridge:
             slack_s=slack_s,
             max_steps=max_steps,
             spin_s=self.spin_s,
+            frames=frames,
             watch_fd=watch_fd,
         )
         self._steps += run.steps

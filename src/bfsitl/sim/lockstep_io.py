@@ -1,9 +1,11 @@
 """What a lockstep session's parts see of the stepping (:mod:`bfsitl.sim.lockstep`): the
 mission's clock (:class:`LockstepClock`: waiting means stepping), the RC command that rides in
-every fdm packet (:class:`LockstepRc`) and the MSP link whose waits step the simulation
+the fdm packets (:class:`LockstepRc`) and the MSP link whose waits step the simulation
 (:class:`SteppedLink`: the lockstep FC answers only as its time moves)."""
 
 from __future__ import annotations
+
+import math
 
 from bfsitl.errors import SitlError, SitlExitedError
 from bfsitl.fc.rc_link import RcCommand, RcFault, RcLinkStats
@@ -26,7 +28,8 @@ class LockstepClock:
 
 
 class LockstepRc:
-    """The RC command of a lockstep session: it rides in every fdm packet.
+    """The RC command of a lockstep session: it rides in the fdm packets, a frame at the
+    link's rate (:attr:`LockstepBridge.rc_frames`) or in every one.
 
     Offers what a session uses of an RC link (``set``, ``command``, ``stats``, ``close``);
     closing centres the sticks, lowers the throttle and drops the switches, and steps a
@@ -59,9 +62,16 @@ class LockstepRc:
         self.bridge.rc_fault.inject(fault, self.bridge.rc_command)
 
     def stats(self) -> RcLinkStats:
-        steps = self.bridge.lockstep_stats().steps
-        period_ms = self.bridge.step_s * 1000
-        return RcLinkStats(steps, period_ms, period_ms, period_ms, 0)
+        """The frames sent so far and their period, on simulation time: a frame in the
+        first packet at or after each of the link's frame times, or one in every packet."""
+        bridge = self.bridge
+        period_s = bridge.rc_frames.period_s
+        if period_s <= 0.0:
+            period_ms = bridge.step_s * 1000
+            return RcLinkStats(bridge.lockstep_stats().steps, period_ms, period_ms, period_ms, 0)
+        # A period that is not a whole number of steps puts some frames a step later.
+        longest_ms = math.ceil(period_s / bridge.step_s - 1e-6) * bridge.step_s * 1000
+        return RcLinkStats(bridge.rc_frames.sent, period_s * 1000, longest_ms, longest_ms, 0)
 
     def close(self) -> None:
         if self.closed:

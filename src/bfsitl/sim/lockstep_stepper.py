@@ -24,6 +24,7 @@ from bfsitl.protocol.firmware_profile import AltitudeSource, QuaternionConventio
 if TYPE_CHECKING:
     from bfsitl.link.shm_exchange import ShmExchange
     from bfsitl.protocol.fdm_encoding import FdmEncoder
+    from bfsitl.sim.rc_frames import RcFrameClock
 
 #: Why a run of the loop stopped (lockstep_loop.c's BK_LOCKSTEP_* values).
 DONE = 0
@@ -66,6 +67,10 @@ class _Lockstep(ctypes.Structure):
         ("step_s", ctypes.c_double),
         ("spin_s", ctypes.c_double),
         ("wait_s", ctypes.c_double),
+        ("rc_period_s", ctypes.c_double),
+        ("rc_next_s", ctypes.c_double),
+        ("rc_sent_s", ctypes.c_double),
+        ("rc_frames", ctypes.c_int64),
         ("exchange_s", ctypes.c_double),
         ("physics_s", ctypes.c_double),
         ("steps", ctypes.c_int64),
@@ -161,19 +166,32 @@ class KernelStepper:
         slack_s: float,
         max_steps: int,
         spin_s: float,
+        frames: RcFrameClock,
         watch_fd: int = -1,
     ) -> KernelRun:
         """Step while the time plus ``slack_s`` is below ``until_s``, at most ``max_steps``,
-        and (``watch_fd`` >= 0) until that descriptor has something to read."""
+        and (``watch_fd`` >= 0) until that descriptor has something to read; ``rc`` rides in
+        the datagrams ``frames`` picks, and ``frames`` is moved on as they are sent."""
         if encoder is not self._encoder or encoder.gps_lost != self._gps_lost:
             self._configure(encoder)
         state, exchange = self._state, self.exchange
         state.spin_s = spin_s
         state.seq = exchange.seq
+        state.rc_period_s, state.rc_next_s, state.rc_sent_s, state.rc_frames = (
+            frames.period_s,
+            frames.next_s,
+            frames.sent_s,
+            frames.sent,
+        )
         taken = self._run(
             self._sim, self._pointer, rc, len(rc), until_s, slack_s, max_steps, watch_fd
         )
         exchange.seq = state.seq
+        frames.next_s, frames.sent_s, frames.sent = (
+            state.rc_next_s,
+            state.rc_sent_s,
+            state.rc_frames,
+        )
         m = state.motors
         return KernelRun(
             taken,

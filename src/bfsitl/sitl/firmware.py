@@ -123,6 +123,16 @@ class FirmwareBinary:
         except OSError:
             return False
 
+    @property
+    def rx_frames(self) -> bool:
+        """A 4.6.0 lockstep build that can count a receiver frame per RC trailer, as a real
+        receiver's, when asked (``BFSITL_LOCKSTEP_RX_FRAMES``); False when it cannot be read.
+        Master's receiver always does."""
+        try:
+            return binary_traits(self.path).rx_frames
+        except OSError:
+            return False
+
     def command(self, ip: str | None = None) -> list[str]:
         """The argv to start this SITL, sending its motor output to ``ip`` (default 127.0.0.1).
 

@@ -14,24 +14,26 @@ from bfsitl.backend.board import BoardBackend, imu_scale_at_rest
 from bfsitl.backend.embedded import LockstepBackend, RealTimeBackend
 from bfsitl.backend.factory import make_backend
 from bfsitl.backend.options import Timing, World
-from bfsitl.build.binary_scan import clear_cache
+from bfsitl.build.binary_scan import RX_FRAMES_ENV, RX_FRAMES_MARKER, clear_cache
 from bfsitl.build.lockstep import MARKER
 from bfsitl.errors import (
     BfsitlError,
     BoardSetupError,
     DisturbanceUnavailableError,
     GazeboNotFoundError,
+    SimInputError,
 )
 from bfsitl.fc.msp_client import DEFAULT_WAKE_INTERVAL_S, MspClient
 from bfsitl.fc.rc_link import RcCommand, RcFault, RcLinkStats
 from bfsitl.link.serial_link import SerialLink
 from bfsitl.link.tcp_link import TcpLink
-from bfsitl.mission.session import FlightSession, SessionConfig
+from bfsitl.mission.session import FcSetup, FlightSession, SessionConfig
 from bfsitl.mission.vehicle import Vehicle
 from bfsitl.physics import Simulator
 from bfsitl.physics.wind import Wind
 from bfsitl.sim.lockstep import SITL_SPIN_ENV
 from bfsitl.sim.lockstep_io import SteppedLink
+from bfsitl.sim.rc_frames import DEFAULT_RC_RATE_HZ
 from bfsitl.sitl.firmware import FirmwareBinary
 
 
@@ -52,10 +54,20 @@ def lockstep(tmp_path) -> FirmwareBinary:
 
 
 def make(
-    firmware: FirmwareBinary, *, world: World | None = None, rc_link: bool = True, **timing
+    firmware: FirmwareBinary,
+    *,
+    world: World | None = None,
+    rc_link: bool = True,
+    rc_rate_hz: float | None = DEFAULT_RC_RATE_HZ,
+    **timing,
 ) -> SitlBackend:
     return make_backend(
-        world or World(), Timing(**timing), firmware, rc_link=rc_link, progress=lambda _line: None
+        world or World(),
+        Timing(**timing),
+        firmware,
+        rc_link=rc_link,
+        rc_rate_hz=rc_rate_hz,
+        progress=lambda _line: None,
     )
 
 
@@ -92,6 +104,21 @@ def test_a_lockstep_backend_paces_as_asked(lockstep) -> None:
     assert make(lockstep, speed=30.0).speed == 30.0  # type: ignore[attr-defined]
     assert make(lockstep, lockstep_spin=False).sitl_env == {SITL_SPIN_ENV: "0"}
     assert make(lockstep).sitl_env is None
+
+
+def test_a_46_build_counting_frames_is_asked_to_when_the_link_has_a_rate(tmp_path) -> None:
+    path = tmp_path / "betaflight_4.6.0_SITL"
+    path.write_bytes(b"\x00" * 64 + MARKER.encode() + b": FC time follows\x00" + RX_FRAMES_MARKER)
+    clear_cache()
+    counting = FirmwareBinary(path, "test")
+    assert counting.rx_frames
+    assert make(counting).sitl_env == dict([RX_FRAMES_ENV])
+    assert make(counting, rc_rate_hz=150.0).rc_rate_hz == 150.0  # type: ignore[attr-defined]
+    assert make(counting, rc_rate_hz=None).sitl_env is None  # the stock receiver: per check
+    with pytest.raises(SimInputError, match="16 to 1000 Hz"):
+        make(counting, rc_rate_hz=5.0)
+    with pytest.raises(SimInputError, match="16 to 1000 Hz"):
+        FcSetup(rc_rate_hz=2000.0)  # refused when the configuration is made
 
 
 def test_a_lockstep_backend_hooks_every_link_into_the_steps(lockstep) -> None:

@@ -54,13 +54,20 @@ def hover_motors(data: bytes) -> tuple[float, float, float, float]:
 
 
 def fly(
-    simulator: Simulator, tmp_path: Path, profile: FirmwareProfile, name: str, compiled_loop: bool
+    simulator: Simulator,
+    tmp_path: Path,
+    profile: FirmwareProfile,
+    name: str,
+    compiled_loop: bool,
+    rc_rate_hz: float | None = None,
 ) -> tuple[list[bytes], LockstepBridge, object]:
     (tmp_path / name).mkdir()
     region = ShmExchange(tmp_path / name)
     fc = SharedFakeFc(region.path, motors=hover_motors)
     try:
-        bridge = bridge_on(region, simulator, profile=profile, compiled_loop=compiled_loop)
+        bridge = bridge_on(
+            region, simulator, profile=profile, compiled_loop=compiled_loop, rc_rate_hz=rc_rate_hz
+        )
         rc, clock = LockstepRc(bridge), LockstepClock(bridge)
         rc.set(RcCommand(throttle_us=1300, aux_us=(1800, 1000)))
         bridge.lock()
@@ -89,9 +96,12 @@ def fly(
     return fc.datagrams, bridge, state
 
 
-@pytest.mark.parametrize("generation", sorted(PROFILES))
+@pytest.mark.parametrize(
+    ("generation", "rc_rate_hz"),
+    [(generation, None) for generation in sorted(PROFILES)] + [("4.6.0", 250.0), ("master", 150.0)],
+)
 def test_the_compiled_loop_sends_and_flies_what_python_does(
-    tmp_path: Path, generation: str
+    tmp_path: Path, generation: str, rc_rate_hz: float | None
 ) -> None:
     def make() -> Simulator:
         return Simulator(
@@ -102,10 +112,13 @@ def test_the_compiled_loop_sends_and_flies_what_python_does(
         )
 
     profile = PROFILES[generation]
-    python_sent, python_bridge, python_end = fly(make(), tmp_path, profile, "p", False)
-    kernel_sent, kernel_bridge, kernel_end = fly(make(), tmp_path, profile, "k", True)
+    python_sent, python_bridge, python_end = fly(make(), tmp_path, profile, "p", False, rc_rate_hz)
+    kernel_sent, kernel_bridge, kernel_end = fly(make(), tmp_path, profile, "k", True, rc_rate_hz)
     assert not python_bridge.compiled and kernel_bridge.compiled
     assert len(kernel_sent) == len(python_sent) > 1500
+    with_rc = sum(len(datagram) > FdmPacket.SIZE for datagram in kernel_sent)
+    # At a link rate, a frame per period after the lock (whose packets all carry one).
+    assert with_rc == len(kernel_sent) if rc_rate_hz is None else with_rc < len(kernel_sent) / 3
     pairs = enumerate(zip(python_sent, kernel_sent, strict=True))
     first_difference = next((i for i, (a, b) in pairs if a != b), None)
     assert first_difference is None, f"datagram {first_difference} differs"

@@ -45,7 +45,7 @@ SESSION_FIELDS = {
     "allow_origins": "configurator.allow_origins",
 }
 #: Group fields that came after the groups, with no flat field before them.
-NEW_TO_THE_SESSION = {"sitl.env", "fc.attachable", "world.gz_world"}
+NEW_TO_THE_SESSION = {"sitl.env", "fc.attachable", "world.gz_world", "fc.rc_rate_hz"}
 #: The gym environment's flat options before the groups -> where each went (the wind's speed,
 #: direction and gusts are one Wind now, as the session's are).
 ENV_OPTIONS = {

@@ -276,4 +276,5 @@ def test_a_sitl_log_leaves_the_fc_counting_frames_as_it_did(tmp_path: Path) -> N
         session_factory=FakeSession,
     )  # fmt: skip
     assert FakeSession.made[0].config.sitl.env == ()
+    assert FakeSession.made[0].config.fc.rc_rate_hz is None  # the stock receiver, every step
     assert flight.receiver_frames is False

@@ -186,3 +186,16 @@ def test_a_4_x_sitl_log_is_replayed_with_a_frame_every_step() -> None:
     assert not master.loop_frames
     board = stick_stream(synthetic_log(time_s, command))
     assert not board.loop_frames
+    # bfsitl's lockstep 4.6.0 at an RC link's rate measured it: its frames are replayed.
+    linked = stick_stream(
+        synthetic_log(
+            time_s, command, firmware="Betaflight 4.6.0 () SITL",
+            headers={"rc_smoothing_rx_smoothed": "250"},
+        )
+    )  # fmt: skip
+    assert not linked.loop_frames and linked.frame_interval_s == pytest.approx(0.004)
+    stock = synthetic_log(
+        time_s, command, firmware="Betaflight 4.6.0 () SITL",
+        headers={"rc_smoothing_rx_smoothed": "0"},
+    )  # fmt: skip
+    assert stick_stream(stock).loop_frames

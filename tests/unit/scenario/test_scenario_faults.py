@@ -11,7 +11,7 @@ from bfsitl.errors import BfsitlError, FaultNotSupportedError, ScenarioError, Si
 from bfsitl.fc.firmware_detect import MASTER_API_VERSION
 from bfsitl.fc.rc_link import RcCommand, RcFault, RcFaultState
 from bfsitl.physics import IRIS, SensorConfig, Simulator, Wind
-from bfsitl.protocol.firmware_profile import profile_for
+from bfsitl.protocol.firmware_profile import BuildOptions, profile_for
 from bfsitl.scenario.faults import LOST_PULSE_US, FaultSpec, make_fault, read_fault_spec
 
 V46 = profile_for("1.47", "4.6.0")
@@ -165,11 +165,15 @@ def spec(kind: str, **params: object) -> FaultSpec:
     )
 
 
-def test_rc_loss_auto_is_silence_on_master_and_the_switch_on_46() -> None:
+def test_rc_loss_auto_is_silence_where_frames_stop_and_the_switch_on_a_stock_46() -> None:
     on_master = make_fault(spec("rc_loss"), MASTER)
     on_46 = make_fault(spec("rc_loss"), V46)
     assert on_master.title == "RC lost (silence)" and on_master.switches == ()
     assert on_46.switches == ((27, 2),) and on_46.takes_sticks
+    # A lockstep 4.6.0 counting receiver frames loses its link as master does.
+    counting = profile_for("1.47", "4.6.0", BuildOptions(receiver_frames=True))
+    assert counting.rc.rxloss_after_silence_s == pytest.approx(0.15)
+    assert make_fault(spec("rc_loss"), counting).title == "RC lost (silence)"
 
 
 def test_silence_on_46_is_refused_with_what_works_there() -> None:

@@ -15,7 +15,7 @@ from bfsitl.build.lockstep.patch import EDITS
 from bfsitl.build.options import FirmwareBuildOptions
 from bfsitl.build.source_tree import package_source_dir
 from bfsitl.errors import FirmwareBuildError, PacketError, SitlError, SitlExitedError
-from bfsitl.fc.rc_link import RcCommand
+from bfsitl.fc.rc_link import RcCommand, RcFault
 from bfsitl.link.base import Link
 from bfsitl.protocol.sitl_packets import FdmPacket, RcPacket
 from bfsitl.sim.bridge import FDM_PORT
@@ -344,3 +344,37 @@ def test_a_resent_datagram_carries_its_frame_again() -> None:
     first = bridge._rc_bytes(0.010)
     assert first and bridge._rc_bytes(0.010) == first  # the same stamp: a resend
     assert bridge._rc_bytes(0.011) == b""  # the next step holds the frame
+
+
+# -- the bridge at a rate, on UDP ----------------------------------------------------------------
+def test_the_bridge_sends_frames_at_the_links_rate_and_none_while_silent(
+    fake_fc_factory,
+) -> None:
+    fc = fake_fc_factory()
+    with LockstepBridge(FakeSimulator(), HostSockets(), rc_rate_hz=250.0) as bridge:
+        rc = LockstepRc(bridge)
+        rc.set(RcCommand(throttle_us=1300))
+        bridge.lock()
+        clock = LockstepClock(bridge)
+        clock.sleep_s(0.010)
+        rc.set(RcCommand(throttle_us=1600))  # at 11 ms: it goes out with the frame at 12
+        clock.sleep_s(0.004)
+        rc.fault = RcFault(silent=True)
+        clock.sleep_s(0.010)
+        rc.fault = None
+        clock.sleep_s(0.003)
+        stats = rc.stats()
+    carried = {round(stamp * 1000): channels[2] for stamp, channels in fc.received if channels}
+    # The lock's packets carry one each (it resends until the FC answers), then the grid;
+    # nothing from 15 ms while silent; the first datagram after it carries one at once.
+    assert carried == {0: 1300, 4: 1300, 8: 1300, 12: 1600, 25: 1600}
+    assert stats.packets == 5 and stats.period_mean_ms == pytest.approx(4.0)
+
+
+def test_a_link_without_a_rate_sends_a_frame_in_every_packet(fake_fc_factory) -> None:
+    fc = fake_fc_factory()
+    with LockstepBridge(FakeSimulator(), HostSockets(), rc_rate_hz=None) as bridge:
+        LockstepRc(bridge).set(RcCommand(throttle_us=1300))
+        bridge.lock()
+        LockstepClock(bridge).sleep_s(0.005)
+    assert all(channels for _stamp, channels in fc.received)

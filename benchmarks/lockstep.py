@@ -195,12 +195,20 @@ class Idle:
     sitl_cpu_us: float | None
 
 
-def idle(name: str, path: str, seconds: float, exchange: str, one_core: bool) -> Idle:
+def idle(
+    name: str,
+    path: str,
+    seconds: float,
+    exchange: str,
+    one_core: bool,
+    rc_every_packet: bool = False,
+) -> Idle:
     """Step ``seconds`` of simulated time with nothing else going on: what the exchange, the
     firmware's passes and the physics cost per step, in each mode."""
     config = SessionConfig(
         sitl=SitlLaunch(firmware=path),
         timing=Timing(lockstep=True, lockstep_exchange=exchange, lockstep_spin=not one_core),
+        fc=FcSetup(rc_rate_hz=None) if rc_every_packet else FcSetup(),
     )
     claim = claim_core() if one_core else None
     try:
@@ -223,7 +231,9 @@ def idle(name: str, path: str, seconds: float, exchange: str, one_core: bool) ->
     cpu = (
         None if cpu_before is None or cpu_after is None else (cpu_after - cpu_before) / steps * 1e6
     )
-    mode = f"{exchange}, {'1 core' if one_core else 'spin'}"
+    mode = f"{exchange}, {'1 core' if one_core else 'spin'}" + (
+        ", RC in every packet" if rc_every_packet else ""
+    )
     return Idle(
         name,
         mode,
@@ -365,10 +375,15 @@ def main() -> None:
         idles = []
         for generation in args.generations.split(","):
             lockstep = firmware_path(f"{generation}-lockstep", args.build)
-            for exchange, one_core in LOCKSTEP_MODES:
+            idle_modes = [(exchange, one_core, False) for exchange, one_core in LOCKSTEP_MODES]
+            if args.rc_every_packet:
+                idle_modes += [("shm", one_core, True) for one_core in (False, True)]
+            for exchange, one_core, every_packet in idle_modes:
                 if exchange == "shm" and not shm_exchange_supported():
                     continue
-                idles.append(idle(generation, lockstep, args.idle, exchange, one_core))
+                idles.append(
+                    idle(generation, lockstep, args.idle, exchange, one_core, every_packet)
+                )
                 print(f"stepped {generation} {idles[-1].mode}", file=sys.stderr)
         print()
         print(

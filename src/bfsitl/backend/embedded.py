@@ -36,7 +36,6 @@ from bfsitl.sim.lockstep import (
     LockstepBridge,
 )
 from bfsitl.sim.lockstep_io import LockstepClock, LockstepRc, SteppedLink
-from bfsitl.sim.rc_frames import check_rc_rate
 from bfsitl.sitl.process import SitlHooks
 
 if TYPE_CHECKING:
@@ -171,7 +170,6 @@ class LockstepBackend(_EmbeddedPhysics):
         receiver_frames: bool = False,
     ) -> None:
         super().__init__(simulator, progress)
-        check_rc_rate(rc_rate_hz)
         self.speed = speed
         self.spin = spin
         #: The RC link's frame rate (None: a frame in every packet).

@@ -48,7 +48,6 @@ from gymnasium import spaces
 
 from bfsitl.backend.disturbances import Disturbances
 from bfsitl.backend.options import Timing, World
-from bfsitl.build.binary_scan import RX_FRAMES_ENV
 from bfsitl.control import make_controller
 from bfsitl.errors import EnvironmentConfigError, LinkError, MspError, SitlError
 from bfsitl.fc.rc_link import RcCommand
@@ -459,9 +458,9 @@ class FlightEnv(gymnasium.Env[np.ndarray, np.ndarray]):
 
     # -- parts ---------------------------------------------------------------------------------
     def _new_session(self, seed: int) -> FlightSession:
+        # The RC link's rate (the default) has a 4.6.0 build count a frame per trailer, which
+        # rc_frame_per_step's frames on set need too.
         sitl = dataclasses.replace(self.sitl, firmware=self.binary.path, workdir=self.workdir)
-        if self.rc_frame_per_step:
-            sitl = dataclasses.replace(sitl, env=(*sitl.env, RX_FRAMES_ENV))
         config = SessionConfig.for_autopilot(
             control_rate_hz=self.control_hz,
             sitl=sitl,

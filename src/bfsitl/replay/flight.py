@@ -20,7 +20,7 @@ from pathlib import Path
 
 from bfsitl.backend.options import Timing, World
 from bfsitl.blackbox import collect_blackbox
-from bfsitl.build.binary_scan import RX_FRAMES_ENV, binary_traits
+from bfsitl.build.binary_scan import binary_traits
 from bfsitl.errors import ReplayError
 from bfsitl.fc.firmware_detect import profile_of_binary
 from bfsitl.fc.provisioning import ANGLE_ON_AUX2, ARM_ON_AUX1, Profile
@@ -205,16 +205,13 @@ def fly_replay(
     pid_hz = firmware.pid_loop_hz / pid_process_denom(cli_lines)
     lines = (*cli_lines, *blackbox_lines(pid_hz))
     config = SessionConfig(
-        sitl=SitlLaunch(
-            firmware=firmware.path,
-            workdir=out_dir / "sitl",
-            env=() if stream.loop_frames else (RX_FRAMES_ENV,),
-        ),
+        sitl=SitlLaunch(firmware=firmware.path, workdir=out_dir / "sitl"),
         timing=timing or Timing(),
         fc=FcSetup(
             profile=replay_profile(lines),
             angle_mode=bool(stream.angle[0]),
-            # A log whose FC counted a frame at every loop is replayed on the same receiver.
+            # A log whose FC counted a frame at every loop is replayed on the same receiver;
+            # with a rate, a 4.6.0 build counts a frame per trailer (the backend asks it).
             rc_rate_hz=None if stream.loop_frames else DEFAULT_RC_RATE_HZ,
         ),
         world=World(quad=quad, wind=wind, seed=seed),

@@ -27,6 +27,7 @@ from bfsitl.replay.flight import (
     replay_firmware,
 )
 from bfsitl.replay.sticks import stick_stream
+from bfsitl.sim.rc_frames import DEFAULT_RC_RATE_HZ
 from tests.support.synthetic_log import synthetic_log
 
 
@@ -228,7 +229,8 @@ def test_an_older_build_is_said_and_the_frames_are_asked_for(tmp_path: Path) -> 
     # What the FC was given: the lines asked for, then the blackbox's.
     assert flight.cli_lines[0] == "set p_roll = 40"
     assert "set blackbox_device = VIRTUAL" in flight.cli_lines
-    assert ("BFSITL_LOCKSTEP_RX_FRAMES", "1") in FakeSession.made[0].config.sitl.env
+    # Asked through the RC link's rate: the backend then asks a 4.6.0 build to count frames.
+    assert FakeSession.made[0].config.fc.rc_rate_hz == DEFAULT_RC_RATE_HZ
 
 
 def test_a_new_replay_starts_from_a_fresh_eeprom(tmp_path: Path) -> None:

@@ -27,7 +27,7 @@ from bfsitl.fc.rc_link import RcSender
 from bfsitl.link.base import Link
 from bfsitl.link.shm_exchange import ShmExchange
 from bfsitl.physics import Simulator
-from bfsitl.physics.frames import betaflight_attitude_deg, tilt_deg
+from bfsitl.physics.frames import betaflight_attitude_and_tilt_deg
 from bfsitl.sim.bridge import BridgeStats, SitlBridge, bridged_sitl, wait_for_replies
 from bfsitl.sim.health import HealthMonitor, lock_clock
 from bfsitl.sim.lockstep import (
@@ -77,14 +77,15 @@ class _EmbeddedPhysics(SitlBackend):
             return None
 
         def read() -> Truth:
-            state = simulator.state
-            north, east, _down = state.position_ned_m
+            time_s, position_ned_m, velocity_ned_m_s, quaternion = simulator.kinematics()
+            attitude_deg, tilt_deg = betaflight_attitude_and_tilt_deg(quaternion)
+            north, east, _down = position_ned_m
             return Truth(
-                state.time_s,
+                time_s,
                 simulator.altitude_m,
-                -state.velocity_ned_m_s[2],
-                tilt_deg(state.quaternion_wxyz),
-                betaflight_attitude_deg(state.quaternion_wxyz),
+                -velocity_ned_m_s[2],
+                tilt_deg,
+                attitude_deg,
                 simulator.on_ground,
                 tuple(bridge.motors),  # type: ignore[arg-type]
                 north,

@@ -489,7 +489,11 @@ class Vehicle:
         altitude = msg.Altitude.decode(payloads[1])
         status = msg.StatusEx.decode(payloads[2])
         raw_imu = msg.RawImu.decode(payloads[3])
-        truth = self._truth()
+        # The backend's truth, made local here (as _truth does) without a second Truth.
+        truth = self.backend.truth()
+        if truth is None:
+            truth = Truth.unknown(self.time_s)
+        north0_m, east0_m = self._start_ned
         imu = self.backend.imu
         return FlightSample(
             time_s=truth.time_s,
@@ -518,8 +522,8 @@ class Vehicle:
             flight_modes=mode_names(status, box_ids),
             motors=truth.motors,
             rc=self.rc_command,
-            sim_north_m=truth.north_m,
-            sim_east_m=truth.east_m,
+            sim_north_m=truth.north_m - north0_m,
+            sim_east_m=truth.east_m - east0_m,
             replies=dict(zip(extras, payloads[len(SAMPLE_COMMANDS) :], strict=True)),
         )
 

@@ -305,6 +305,19 @@ def betaflight_attitude_deg(q: Quat) -> Vec3:
     return (roll, pitch, yaw)
 
 
+def betaflight_attitude_and_tilt_deg(q: Quat) -> tuple[Vec3, float]:
+    """:func:`betaflight_attitude_deg` and :func:`tilt_deg` of one ``q`` (the same values to
+    the last bit) with the rotation worked out once: a truth sample needs both."""
+    w, x, y, z = q
+    xx, yy = x * x, y * y
+    r8 = 1.0 - 2.0 * (xx + yy)  # cos(tilt): the body's down axis on the world's
+    r6 = 2.0 * (x * z - w * y)
+    roll = math.degrees(math.atan2(2.0 * (y * z + w * x), r8))
+    pitch = math.degrees(math.asin(max(-1.0, min(1.0, r6))))
+    yaw = math.degrees(math.atan2(2.0 * (x * y + w * z), 1.0 - 2.0 * (yy + z * z))) % 360.0
+    return (roll, pitch, yaw), math.degrees(math.acos(max(-1.0, min(1.0, r8))))
+
+
 def _int16(value: float) -> int:
     """C's (int16_t) cast of a double as the SITL does it: truncate, here also saturate."""
     return max(-32768, min(32767, int(value)))

@@ -247,6 +247,12 @@ class Simulator:
         b, g = sim.wind_base, sim.gust
         return (b[0] + g[0], b[1] + g[1], b[2] + g[2])
 
+    def kinematics(self) -> tuple[float, Vec3, Vec3, Quat]:
+        """(time, position NED, velocity NED, attitude quaternion) of :attr:`state` in one
+        read, without the rest: what a truth sample at every control step needs."""
+        s = STATE.unpack_from(self._sim)
+        return s[0], (s[1], s[2], s[3]), (s[4], s[5], s[6]), (s[7], s[8], s[9], s[10])
+
     @property
     def state(self) -> VehicleState:
         s = STATE.unpack_from(self._sim)

@@ -12,6 +12,7 @@ from bfsitl.physics import IRIS, GeoPoint, Simulator, isa_pressure_pa
 from bfsitl.physics.frames import (
     EARTH_RADIUS_M,
     betaflight_acc_raw,
+    betaflight_attitude_and_tilt_deg,
     betaflight_attitude_deg,
     betaflight_gyro_raw,
     body_to_world,
@@ -29,6 +30,7 @@ from bfsitl.physics.frames import (
     quat_multiply,
     quat_normalize,
     rotation_matrix,
+    tilt_deg,
     world_to_body,
 )
 from bfsitl.protocol.fdm_encoding import FdmEncoder
@@ -253,3 +255,35 @@ def test_geopoint_validation():
         GeoPoint(0.0, 181.0)
     with pytest.raises(SimInputError):
         GeoPoint(float("nan"), 0.0)
+
+
+@pytest.mark.parametrize(
+    "euler_deg",
+    [
+        (0.0, 0.0, 0.0),
+        (12.5, -7.25, 33.0),
+        (-170.0, 80.0, 359.0),
+        (0.0, 90.0, 10.0),
+        (179.0, -89.9, 181.0),
+    ],
+)
+def test_the_attitude_and_the_tilt_of_one_rotation_are_the_two_functions_to_the_bit(euler_deg):
+    q = quat_from_euler_deg(*euler_deg)
+    attitude_deg, tilt = betaflight_attitude_and_tilt_deg(q)
+    assert attitude_deg == betaflight_attitude_deg(q)
+    assert tilt == tilt_deg(q)
+    assert tilt > 0.0 or euler_deg == (0.0, 0.0, 0.0)
+
+
+def test_kinematics_is_the_state_in_one_read():
+    sim = Simulator(seed=3)
+    for _ in range(50):  # moving and turning: no field is zero by chance
+        sim.step((0.7, 0.6, 0.7, 0.6), 0.01)
+    state = sim.state
+    assert sim.kinematics() == (
+        state.time_s,
+        state.position_ned_m,
+        state.velocity_ned_m_s,
+        state.quaternion_wxyz,
+    )
+    assert all(value != 0.0 for value in (*state.velocity_ned_m_s, *state.quaternion_wxyz[1:]))

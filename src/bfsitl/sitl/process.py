@@ -23,7 +23,7 @@ import signal
 import tempfile
 import time
 from collections.abc import Callable, Mapping
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 
 from bfsitl.errors import (
@@ -286,12 +286,21 @@ class SitlProcess:
         return self
 
     def build_options(self) -> BuildOptions | None:
-        """What the binary was built with, when bfsitl built it (its build record)."""
+        """What the binary was built with, when bfsitl built it (its build record), as this
+        process runs it: a 4.6.0 build that can count receiver frames counts them only when
+        its environment asks (a session flown with an RC link rate), else its stock receiver
+        never loses the link."""
         try:
             from bfsitl.build import build_options_for_binary
+            from bfsitl.build.binary_scan import RX_FRAMES_ENV
         except ImportError:
             return None
-        return build_options_for_binary(self.firmware.path)
+        options = build_options_for_binary(self.firmware.path)
+        name, value = RX_FRAMES_ENV
+        asked = {**os.environ, **(self.env or {})}.get(name) == value
+        if options is not None and options.receiver_frames and not asked:
+            options = replace(options, receiver_frames=None)
+        return options
 
     def _log_size(self) -> int:
         try:

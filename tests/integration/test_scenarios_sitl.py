@@ -27,6 +27,7 @@ from mcap.reader import make_reader
 from plugin_runs import pytest_with_the_plugin
 
 from bfsitl.autopilot import Autopilot
+from bfsitl.blackbox import decode_blackbox
 from bfsitl.build import FirmwareCache
 from bfsitl.cli.doctor import stale_sitl_processes
 from bfsitl.fc.rc_link import RcFault
@@ -41,6 +42,8 @@ from bfsitl.mission.session import (
 )
 from bfsitl.protocol import messages as msg
 from bfsitl.scenario.load import find_scenarios
+from bfsitl.scenario.result import Verdict
+from bfsitl.scenario.run import RunOptions, run_scenario
 
 pytestmark = pytest.mark.sitl
 
@@ -319,6 +322,7 @@ def test_faults_reach_the_fc_where_they_should(
         vehicle.clock.sleep_s(0.3)
         assert "RXLOSS" in {b.cli_name for b in vehicle.client.status().arming_blockers}
         vehicle.rc.fault = None
+        assert vehicle.sitl is not None and vehicle.sitl.profile.rc.rxloss_after_silence_s
 
 
 @pytest.mark.timeout(120)
@@ -334,6 +338,8 @@ def test_without_an_rc_link_rate_46_holds_the_last_sticks_when_rc_stops(
         fc=FcSetup(rc_rate_hz=None),
     )
     with FlightSession(config) as vehicle:
+        assert vehicle.sitl is not None  # its profile: no silence, so rc_loss's auto = switch
+        assert vehicle.sitl.profile.rc.rxloss_after_silence_s is None
         vehicle.arm()
         assert vehicle.rc is not None
         vehicle.rc.fault = RcFault(silent=True)
@@ -584,3 +590,22 @@ def test_ctrl_c_on_the_driver_cancels_the_clusters_runs_and_leaves_no_sitl(
     while sitl_pids() - before and time.monotonic() < deadline:
         time.sleep(0.2)
     assert not sitl_pids() - before, "a SITL outlived the cancelled run"
+
+
+@pytest.mark.timeout(180)
+def test_a_scenario_flies_its_rc_links_rate_and_loses_that_link_on_silence(
+    lockstep_gps_46_firmware: Path, tmp_path: Path
+) -> None:
+    """The shipped RC-loss drop with ``[rc] rate_hz = 50`` (a slow CRSF link): the FC measures
+    a 50 Hz receiver (its log's header) and still loses the link on silence and disarms."""
+    text = (LIBRARY / "rc-loss-hover-drop.toml").read_text() + "\n[rc]\nrate_hz = 50\n"
+    (tmp_path / "rc-loss-slow-link.toml").write_text(text)
+    (spec,) = find_scenarios([tmp_path / "rc-loss-slow-link.toml"])
+    assert spec.rc_rate_hz == 50.0
+    result = run_scenario(
+        spec, str(lockstep_gps_46_firmware), RunOptions(tmp_path / "out", plot=False)
+    )
+    assert result.verdict is Verdict.PASSED, (result.reason, result.checks)
+    assert any(e.text.startswith("RC lost (silence)") for e in result.events), result.events
+    (log, *_) = decode_blackbox(result.artifacts["blackbox"])
+    assert log.headers["rc_smoothing_rx_smoothed"] == "50"

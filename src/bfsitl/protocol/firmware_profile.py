@@ -314,3 +314,20 @@ def profile_for(
 
 #: The profile used before the firmware has said who it is (and by tests): 4.6.0 from PyPI.
 DEFAULT_PROFILE = profile_for("1.47", "4.6.0")
+
+
+def with_rc_link(profile: FirmwareProfile, rc_rate_hz: float | None) -> FirmwareProfile:
+    """The profile of a flight whose RC link sends ``rc_rate_hz`` frames a second (None: one
+    in every fdm packet).  A 4.6.0 lockstep build counts receiver frames, and so loses the link
+    when they stop, only when flown at a rate; without one its stock receiver never does.
+
+    Args:
+        profile: The binary's profile (:func:`profile_for`).
+        rc_rate_hz: The session's ``FcSetup.rc_rate_hz``.
+
+    Returns:
+        ``profile``, or a copy that detects no silence.
+    """
+    if rc_rate_hz is not None or profile.generation is not Generation.V4_6:
+        return profile
+    return replace(profile, rc=replace(profile.rc, rxloss_after_silence_s=None))

@@ -37,7 +37,6 @@ from bfsitl.analysis import FlightWatch, analyse, combine, track_from_blackbox
 from bfsitl.analysis.track import stick_share
 from bfsitl.atomic_file import write_atomically
 from bfsitl.backend.options import Timing, World
-from bfsitl.build.binary_scan import binary_traits
 from bfsitl.control import DEFAULT_CONTROLLER, make_controller
 from bfsitl.errors import (
     ArmingBlockedError,
@@ -61,8 +60,9 @@ from bfsitl.mission.session import (
 )
 from bfsitl.mission.vehicle import FlightSample
 from bfsitl.protocol import messages as msg
-from bfsitl.protocol.firmware_profile import FirmwareProfile
+from bfsitl.protocol.firmware_profile import FirmwareProfile, with_rc_link
 from bfsitl.records.outputs import FlightOutputs, OutputOptions
+from bfsitl.scenario.build_fit import missing_features_reason, unfit_reason
 from bfsitl.scenario.expectations import settle_verdict
 from bfsitl.scenario.faults import Fault, Undo, make_faults
 from bfsitl.scenario.metrics import run_metrics
@@ -278,32 +278,13 @@ def run_scenario(
     try:
         out.mkdir(parents=True, exist_ok=True)
         binary = find_firmware(firmware)
-        profile = profile_of_binary(binary.path)
+        profile = with_rc_link(profile_of_binary(binary.path), scenario.rc_rate_hz)
         result.firmware_version = profile.firmware_version
-        if scenario.requires_gps and not profile.has_gps:
-            result.verdict = Verdict.SKIPPED
-            result.reason = (
-                f"needs a firmware with GPS; {firmware} has none (`bfsitl firmware build --gps`)"
-            )
-            return result
-        if scenario.replay is not None and not _lockstep(binary.path):
-            result.verdict = Verdict.SKIPPED
-            result.reason = (
-                f"a replay needs a lockstep build, so that each frame reaches the FC when it "
-                f"is due; {firmware} is not one (`bfsitl firmware build --lockstep`)"
-            )
-            return result
-        faults = make_faults(scenario.faults, profile, where=scenario.where)
-        missing = missing_features(scenario, faults, binary.path)
-        if missing:
-            result.verdict, result.reason = (
-                Verdict.SKIPPED,
-                (
-                    f"needs {', '.join(missing)}, which {firmware} "
-                    f"({profile.firmware_version or profile.generation.value}) was built "
-                    f"without: {'; '.join(FEATURE_WHY.get(m, m) for m in missing)}"
-                ),
-            )
+        reason = unfit_reason(scenario, profile, binary.path, firmware)
+        faults = make_faults(scenario.faults, profile, where=scenario.where) if not reason else ()
+        reason = reason or missing_features_reason(scenario, faults, binary.path, firmware, profile)
+        if reason:
+            result.verdict, result.reason = Verdict.SKIPPED, reason
             return result
         if scenario.replay is not None:
             timing = Timing(speed=options.speed, lockstep_spin=not options.shares_cores)
@@ -329,41 +310,6 @@ def run_scenario(
     return result
 
 
-#: What each build feature a scenario can need is, for a skip's reason.
-FEATURE_WHY = {
-    "flight_plan": "master's flight plans (the FC's own waypoint missions, AUTOPILOT mode, "
-    "ap_rx_loss_policy); Betaflight 4.6.0 has none",
-    "geofence": "master's geofence (ap_max_distance_from_home, ap_geofence_action), part of "
-    "its flight plans",
-    "gps_rescue": "GPS Rescue",
-    "altitude_hold": "ALTHOLD",
-    "position_hold": "POSHOLD",
-    "gps": "a GPS (`bfsitl firmware build --gps`)",
-}
-
-
-def _lockstep(binary: Path) -> bool:
-    try:
-        return binary_traits(binary).lockstep
-    except OSError:
-        return False  # unreadable here: the skip's reason says what to build
-
-
-def missing_features(scenario: Scenario, faults: tuple[Fault, ...], binary: Path) -> list[str]:
-    """The build features the scenario and its faults need that ``binary`` lacks (its
-    CLI's setting names, scanned from its bytes)."""
-    needed = dict.fromkeys(
-        (*scenario.requires, *(f.needs_feature for f in faults if f.needs_feature))
-    )
-    if not needed:
-        return []
-    try:
-        have = set(binary_traits(binary).features)
-    except OSError:
-        return []  # unreadable here: the run says so when it starts the binary
-    return [feature for feature in needed if feature not in have]
-
-
 def _fly(
     scenario: Scenario,
     binary: Path,
@@ -379,7 +325,9 @@ def _fly(
         control_rate_hz=FlightSession.control_rate_hz,
         sitl=SitlLaunch(firmware=binary, workdir=out / "sitl"),
         timing=Timing(speed=options.speed, lockstep_spin=not options.shares_cores),
-        fc=FcSetup(profile=scenario_profile(scenario, profile, faults)),
+        fc=FcSetup(
+            profile=scenario_profile(scenario, profile, faults), rc_rate_hz=scenario.rc_rate_hz
+        ),
         world=World(
             physics=scenario.physics,
             quad=scenario.quad,

@@ -64,6 +64,7 @@ from bfsitl.scenario.fc_mission import FcWaypoint, read_fc_waypoints
 from bfsitl.scenario.known_failures import KnownFailure, read_known_failures
 from bfsitl.scenario.replay_spec import DEFAULT_REPLAY_VEHICLE, ReplaySpec, read_replay_spec
 from bfsitl.scenario.values import number_in
+from bfsitl.sim.rc_frames import DEFAULT_RC_RATE_HZ, MAX_RC_RATE_HZ, MIN_RC_RATE_HZ
 from bfsitl.vehicles.catalogue import DEFAULT_VEHICLE, load_vehicle
 
 #: A scenario's file name pattern inside a directory.
@@ -91,6 +92,7 @@ _TOP_KEYS = {
     "known_failure",
     "replay",
     "physics",
+    "rc",
 }
 #: ``physics``: bfsitl's embedded physics, or Gazebo's (a stock build, real time; only the
 #: RC link and a constant wind can be disturbed there).
@@ -135,6 +137,9 @@ class Scenario:
         replay: ``[replay]``: a real flight's log flown again instead of ``plan``
             (:mod:`bfsitl.scenario.replay_spec`); None for a flown scenario.
         side_cli: A comparison side's lines, before ``cli``.
+        rc_rate_hz: The RC link's frame rate on a lockstep build (``[rc] rate_hz``, 16 to
+            1000 Hz, 250 by default); None (``"packet"``): a frame in every fdm packet, and
+            4.6.0's stock receiver, which never loses the link.
         physics: ``"embedded"`` (bfsitl's) or ``"gazebo"`` (Gazebo Harmonic with the
             BetaflightPlugin, docs/gazebo.md: a stock build, real time, its world's IRIS).
     """
@@ -180,6 +185,9 @@ class Scenario:
     #: A comparison side's CLI lines (``scenario compare --a-cli/--b-cli``), applied before
     #: the scenario's own, so a scenario that sets the value itself keeps it.
     side_cli: tuple[str, ...] = ()
+    #: ``[rc] rate_hz``: the RC link's frames per second on a lockstep build (None:
+    #: ``"packet"``, one in every fdm packet); a replay flies its log's rate.
+    rc_rate_hz: float | None = DEFAULT_RC_RATE_HZ
 
     @property
     def where(self) -> str:
@@ -192,6 +200,34 @@ def _strings(where: str, key: str, value: Any) -> tuple[str, ...]:
     if not isinstance(value, list) or not all(isinstance(v, str) for v in value):
         raise ScenarioError(f"{where}: {key} must be a string or a list of strings, got {value!r}")
     return tuple(value)
+
+
+def _rc_rate_hz(where: str, data: dict[str, Any], replay: bool) -> float | None:
+    """``[rc] rate_hz``: 16 to 1000, or ``"packet"`` (None)."""
+    if "rc" not in data:
+        return DEFAULT_RC_RATE_HZ
+    raw = data["rc"]
+    if not isinstance(raw, dict):
+        raise ScenarioError(f"{where}: [rc] must be a table")
+    unknown = set(raw) - {"rate_hz"}
+    if unknown:
+        raise ScenarioError(
+            f"{where}: [rc] has unknown key(s) {', '.join(sorted(unknown))}; known: rate_hz"
+        )
+    if replay:
+        raise ScenarioError(
+            f"{where}: [rc] with [replay]: a replay sends its log's frames at the rate its "
+            f"receiver had"
+        )
+    rate = raw.get("rate_hz", DEFAULT_RC_RATE_HZ)
+    if rate == "packet":
+        return None
+    if isinstance(rate, str):
+        raise ScenarioError(
+            f"{where}: rc.rate_hz = {rate!r}: give frames a second "
+            f'({MIN_RC_RATE_HZ:g} to {MAX_RC_RATE_HZ:g}) or "packet"'
+        )
+    return number_in(where, "rc.rate_hz", rate, MIN_RC_RATE_HZ, MAX_RC_RATE_HZ)
 
 
 def _wind(where: str, raw: Any) -> Wind:
@@ -345,6 +381,7 @@ def scenario_from_dict(data: dict[str, Any], *, name: str, source: Path | None =
         settle_s=number_in(where, "settle_s", data.get("settle_s", DEFAULT_SETTLE_S), 0.0, 60.0),
         source=source,
         replay=replay,
+        rc_rate_hz=_rc_rate_hz(where, data, replay is not None),
     )
 
 

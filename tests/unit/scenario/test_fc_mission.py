@@ -13,9 +13,9 @@ from bfsitl.build.binary_scan import FEATURE_MARKERS
 from bfsitl.errors import FaultNotSupportedError, ScenarioError
 from bfsitl.physics.frames import GeoPoint, geodetic_to_ned
 from bfsitl.protocol.boxes import AUTOPILOT_BOX_ID, BoxId
+from bfsitl.scenario.build_fit import missing_features
 from bfsitl.scenario.faults import make_faults, read_fault_spec
 from bfsitl.scenario.fc_mission import FcWaypoint, fc_mission_cli, read_fc_waypoints
-from bfsitl.scenario.run import missing_features
 from bfsitl.scenario.setup_lines import scenario_profile
 from bfsitl.scenario.spec import scenario_from_dict
 

@@ -79,6 +79,7 @@ def test_a_replay_scenario_reads_its_log_beside_it_and_flies_a_real_size_quad(
         ),
         (REPLAY + "[expect]\nlanded_within_m = 3\n", "landed_within_m is about a flight"),
         ('replay = "x"\n[expect]\nno_finding = "crash"\n', "[replay] must be a table"),
+        (REPLAY + '[rc]\nrate_hz = 50\n[expect]\nno_finding = "crash"\n', "its log's frames"),
     ],
 )
 def test_a_bad_replay_scenario_fails_when_read_in_one_line(

@@ -11,7 +11,7 @@ from bfsitl.errors import BfsitlError, FaultNotSupportedError, ScenarioError, Si
 from bfsitl.fc.firmware_detect import MASTER_API_VERSION
 from bfsitl.fc.rc_link import RcCommand, RcFault, RcFaultState
 from bfsitl.physics import IRIS, SensorConfig, Simulator, Wind
-from bfsitl.protocol.firmware_profile import BuildOptions, profile_for
+from bfsitl.protocol.firmware_profile import BuildOptions, profile_for, with_rc_link
 from bfsitl.scenario.faults import LOST_PULSE_US, FaultSpec, make_fault, read_fault_spec
 
 V46 = profile_for("1.47", "4.6.0")
@@ -174,6 +174,14 @@ def test_rc_loss_auto_is_silence_where_frames_stop_and_the_switch_on_a_stock_46(
     counting = profile_for("1.47", "4.6.0", BuildOptions(receiver_frames=True))
     assert counting.rc.rxloss_after_silence_s == pytest.approx(0.15)
     assert make_fault(spec("rc_loss"), counting).title == "RC lost (silence)"
+    # ... when it is flown at a rate: with a frame in every packet it is a stock receiver.
+    assert with_rc_link(counting, 150.0) is counting
+    per_packet = with_rc_link(counting, None)
+    assert per_packet.rc.rxloss_after_silence_s is None
+    assert make_fault(spec("rc_loss"), per_packet).switches == ((27, 2),)
+    with pytest.raises(FaultNotSupportedError, match="holds the last sticks"):
+        make_fault(spec("rc_loss", method="silence"), per_packet)
+    assert with_rc_link(MASTER, None) is MASTER  # its UDP receiver times out either way
 
 
 def test_silence_on_46_is_refused_with_what_works_there() -> None:

@@ -18,6 +18,8 @@ from bfsitl.fc.rc_link import RcCommand
 from bfsitl.mission.vehicle import FlightSample
 from bfsitl.physics import IRIS, Simulator
 from bfsitl.protocol.boxes import BoxId
+from bfsitl.protocol.firmware_profile import BuildOptions, profile_for
+from bfsitl.scenario import run
 from bfsitl.scenario.faults import make_faults, read_fault_spec
 from bfsitl.scenario.result import Verdict
 from bfsitl.scenario.run import RunOptions, _Injector, run_scenario
@@ -162,6 +164,22 @@ def test_a_fault_the_firmware_cannot_express_skips_before_anything_starts(tmp_pa
     result = run_scenario(silence, str(binary), RunOptions(tmp_path / "out"))
     assert result.verdict is Verdict.SKIPPED and "holds the last sticks" in result.reason
     assert not (tmp_path / "out" / "sitl").exists()  # no SITL was started
+
+
+def test_without_an_rc_rate_a_build_counting_frames_takes_the_stock_receivers_faults(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    counting = profile_for("1.47", "4.6.0", BuildOptions(receiver_frames=True))
+    monkeypatch.setattr(run, "profile_of_binary", lambda _path: counting)
+    silence = [{"kind": "rc_loss", "method": "silence", "at_s": 5.0}]
+    binary = str(fake_binary(tmp_path))
+    per_packet = scenario(fault=silence, rc={"rate_hz": "packet"})
+    result = run_scenario(per_packet, binary, RunOptions(tmp_path / "packet"))
+    assert result.verdict is Verdict.SKIPPED and "holds the last sticks" in result.reason
+    # At the default rate the same build loses the link on silence: the fault is made and
+    # the run goes on to start the (fake, unstartable) firmware.
+    at_rate = run_scenario(scenario(fault=silence), binary, RunOptions(tmp_path / "rate"))
+    assert at_rate.verdict is Verdict.ERROR and "holds the last sticks" not in at_rate.reason
 
 
 def test_a_missing_firmware_is_an_error_with_its_summary(tmp_path) -> None:

@@ -234,6 +234,14 @@ def test_a_gazebo_scenario_asks_for_gazebos_physics(fly) -> None:
     assert session.session_config.world.physics == "gazebo"
 
 
+def test_a_scenario_flies_its_rc_links_rate(fly) -> None:
+    rates = []
+    for table in ({}, {"rc": {"rate_hz": 100}}, {"rc": {"rate_hz": "packet"}}):
+        _result, session = fly(scenario(flight=FLIGHT, expect={"disarmed": True}, **table))
+        rates.append(session.session_config.fc.rc_rate_hz)
+    assert rates == [250.0, 100.0, None]
+
+
 def test_a_heavier_quad_gets_a_higher_hover_throttle_in_proportion() -> None:
     heavy = scenario(vehicle={"mass_kg": 2.5})
     value = int(hover_throttle_line(heavy.quad).rsplit(" ", 1)[1])

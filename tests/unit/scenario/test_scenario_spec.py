@@ -53,6 +53,17 @@ def test_a_minimal_file_gets_its_name_and_defaults(tmp_path: Path) -> None:
     assert scenario.physics == "embedded"
     on_gazebo = load_scenario(write(tmp_path, 'physics = "gazebo"\n' + MINIMAL, "gz.toml"))
     assert on_gazebo.physics == "gazebo"
+    assert scenario.rc_rate_hz == 250.0  # the RC link's default: an ELRS rate
+
+
+@pytest.mark.parametrize(
+    ("table", "rate_hz"), [("rate_hz = 50", 50.0), ('rate_hz = "packet"', None)]
+)
+def test_the_rc_table_sets_the_links_rate(
+    tmp_path: Path, table: str, rate_hz: float | None
+) -> None:
+    scenario = load_scenario(write(tmp_path, MINIMAL + f"[rc]\n{table}\n"))
+    assert scenario.rc_rate_hz == rate_hz
 
 
 @pytest.mark.parametrize(
@@ -73,6 +84,13 @@ def test_a_minimal_file_gets_its_name_and_defaults(tmp_path: Path) -> None:
         (("[expect]\ndisarmed = true", ""), r"\[expect\] is missing"),
         (("takeoff_alt_m = 3.0", "takeoff_alt_m = 300.0"), r"\[flight\]: target altitude"),
         (("duration_s = 20", 'physics = "ode"\nduration_s = 20'), "physics must be one of"),
+        (("duration_s = 20", "rc = 50\nduration_s = 20"), r"\[rc\] must be a table"),
+        (("duration_s = 20", "rc = { rate = 50 }\nduration_s = 20"), r"\[rc\] has unknown key"),
+        (
+            ("duration_s = 20", "rc = { rate_hz = 5 }\nduration_s = 20"),
+            r"rc.rate_hz = 5 .*16..1000",
+        ),
+        (("duration_s = 20", 'rc = { rate_hz = "fast" }\nduration_s = 20'), 'or "packet"'),
     ],
 )
 def test_mistakes_fail_before_flying_naming_file_and_key(

@@ -65,6 +65,7 @@ from bfsitl.gym.option_checks import (
     check_group,
     check_groups,
     check_horizontal_m,
+    check_rc_link,
 )
 from bfsitl.gym.random_vehicle import RandomVehicle
 from bfsitl.gym.random_wind import RandomWind
@@ -83,6 +84,7 @@ from bfsitl.gym.throws import Throw
 from bfsitl.mission.loop import FlightLoop
 from bfsitl.mission.session import FcSetup, FlightSession, SessionConfig, SitlLaunch
 from bfsitl.physics.wind import Wind
+from bfsitl.sim.rc_frames import DEFAULT_RC_RATE_HZ
 from bfsitl.sitl.core_claim import CoreClaim, claim_core
 from bfsitl.sitl.firmware import find_firmware
 
@@ -138,8 +140,9 @@ class FlightEnv(gymnasium.Env[np.ndarray, np.ndarray]):
     environment's own: the policy's rate, mode and observation, the episode's start and
     length, the disturbances, the observation's ``latency`` (:mod:`~bfsitl.gym.latency`:
     late by some control steps, drawn per episode, for a policy that is to fly outside the
-    lockstep), ``rc_frame_per_step`` (one receiver frame per step instead of the RC
-    link's 250 Hz: the FC smooths at a rate of the policy's), ``random_wind``
+    lockstep), ``rc_rate_hz`` (the RC link's frames a second, 250 by default, 16 to 1000;
+    None: one in every fdm packet), ``rc_frame_per_step`` (one receiver frame per step
+    instead: the FC smooths at a rate of the policy's), ``random_wind``
     (:mod:`~bfsitl.gym.random_wind`: a wind drawn per episode, instead of ``world.wind``),
     ``random_vehicle``
     (:mod:`~bfsitl.gym.random_vehicle`: a quad drawn per episode, instead of ``world.quad``),
@@ -170,6 +173,7 @@ class FlightEnv(gymnasium.Env[np.ndarray, np.ndarray]):
         start_alt_m: float = DEFAULT_START_ALT_M,
         latency: Latency = NO_LATENCY,
         rc_frame_per_step: bool = False,
+        rc_rate_hz: float | None = DEFAULT_RC_RATE_HZ,
         random_wind: RandomWind | None = None,
         random_vehicle: RandomVehicle | None = None,
         pin_core: bool | None = None,
@@ -192,6 +196,7 @@ class FlightEnv(gymnasium.Env[np.ndarray, np.ndarray]):
             )
         if not 0.5 <= start_alt_m <= 15.0:
             raise EnvironmentConfigError(f"start_alt_m {start_alt_m} is outside 0.5..15 m")
+        check_rc_link(rc_rate_hz, rc_frame_per_step)
         in_worker = multiprocessing.parent_process() is not None
         #: Pin this process and its SITL to one core of their own (bfsitl.sitl.core_claim):
         #: the lockstep hand-over stays on that core, and environments side by side do not
@@ -252,6 +257,7 @@ class FlightEnv(gymnasium.Env[np.ndarray, np.ndarray]):
         #: meets outside the lockstep.  Needs a build that counts receiver frames
         #: (`bfsitl firmware build --lockstep` of this bfsitl).
         self.rc_frame_per_step = rc_frame_per_step
+        self.rc_rate_hz = rc_rate_hz
         self._core: CoreClaim | None = None
         #: A reset without a seed keeps the firmware running when it can (see the module
         #: docstring); False boots a fresh one every time.
@@ -465,7 +471,7 @@ class FlightEnv(gymnasium.Env[np.ndarray, np.ndarray]):
             control_rate_hz=self.control_hz,
             sitl=sitl,
             timing=self.timing,
-            fc=FcSetup(angle_mode=self.mode == "angle"),
+            fc=FcSetup(angle_mode=self.mode == "angle", rc_rate_hz=self.rc_rate_hz),
             world=dataclasses.replace(self.world, seed=seed, quad=self._episode_quad),
         )
         return FlightSession(config)

@@ -8,13 +8,14 @@ import math
 from collections.abc import Sequence
 
 from bfsitl.backend.options import LOCKSTEP_EXCHANGES, Timing, World
-from bfsitl.errors import EnvironmentConfigError
+from bfsitl.errors import EnvironmentConfigError, SimInputError
 from bfsitl.gym.latency import Latency
 from bfsitl.gym.random_vehicle import RandomVehicle
 from bfsitl.gym.random_wind import RandomWind
 from bfsitl.gym.snapshot import Vec3
 from bfsitl.gym.tasks import MAX_ALT_M, MAX_DISTANCE_M
 from bfsitl.mission.session import SitlLaunch
+from bfsitl.sim.rc_frames import check_rc_rate
 
 #: Random waypoints at most this far north and east of the start: two in a row are then
 #: always inside the bounds (MAX_DISTANCE_M) of each other.
@@ -118,3 +119,17 @@ def check_course(course: Sequence[Vec3], *, start_up_m: float) -> tuple[Vec3, ..
     if not points:
         raise EnvironmentConfigError("course has no points: give one or more (north, east, up)")
     return tuple(points)
+
+
+def check_rc_link(rc_rate_hz: float | None, rc_frame_per_step: bool) -> None:
+    """The RC link's rate (16 to 1000 Hz, or None: one frame in every fdm packet); a frame
+    per step needs a rate, which is what has a 4.6.0 build count the frames."""
+    try:
+        check_rc_rate(rc_rate_hz)
+    except SimInputError as exc:
+        raise EnvironmentConfigError(f"rc_rate_hz: {exc}") from None
+    if rc_rate_hz is None and rc_frame_per_step:
+        raise EnvironmentConfigError(
+            "rc_frame_per_step=True with rc_rate_hz=None: a frame in every fdm packet leaves "
+            "4.6.0 its stock receiver, which counts no frames; keep a rate (the default)"
+        )

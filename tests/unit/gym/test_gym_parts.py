@@ -253,6 +253,11 @@ def test_waypoints_advance_when_reached_pay_a_bonus_and_finish_at_the_last() -> 
             r"lockstep_exchange\), all optional\), not dict",
         ),
         ({"world": 3.0}, r"world must be a World \(bfsitl.World\(physics, .*\), not float"),
+        ({"rc_rate_hz": 5.0}, r"rc_rate_hz: an RC link rate of 5.0 Hz: give 16 to 1000 Hz"),
+        (
+            {"rc_rate_hz": None, "rc_frame_per_step": True},
+            "rc_frame_per_step=True with rc_rate_hz=None",
+        ),
         (
             {"sitl": "4.6.0-gps-lockstep"},
             r"sitl must be a SitlLaunch \(bfsitl.SitlLaunch\("
@@ -267,6 +272,16 @@ def test_an_option_the_environment_cannot_take_is_refused_with_what_it_takes(
         HoverEnv(**options)
     with pytest.raises(EnvironmentConfigError, match="count 0 is outside"):
         WaypointsEnv(count=0)
+
+
+def test_the_rc_link_flies_the_environments_rate(tmp_path: Path) -> None:
+    sitl = SitlLaunch(firmware=fake_lockstep_build(tmp_path))
+    rates = []
+    for options in ({}, {"rc_rate_hz": 50.0}, {"rc_rate_hz": None}):
+        env = HoverEnv(sitl=sitl, **options)
+        rates.append(env._new_session(1).config.fc.rc_rate_hz)
+        env.close()
+    assert rates == [250.0, 50.0, None]
 
 
 def test_pinning_and_spin_default_by_where_the_environment_runs(tmp_path: Path) -> None:

@@ -73,7 +73,7 @@ ENV_OPTIONS = {
     },
 }
 #: The environment's own options that came after the groups (none of a group's meaning).
-ADDED_TO_THE_ENV = {"latency", "rc_frame_per_step", "random_wind", "random_vehicle"}
+ADDED_TO_THE_ENV = {"latency", "rc_frame_per_step", "rc_rate_hz", "random_wind", "random_vehicle"}
 #: Group fields the environment had no option for before: the session's meaning, new to it.
 NEW_TO_THE_ENV = {
     "sitl.isolate",

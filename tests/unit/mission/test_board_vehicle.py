@@ -33,6 +33,7 @@ from bfsitl.fc.rc_link import MspRcLink, RcCommand, RcFault
 from bfsitl.mission import board
 from bfsitl.mission.board import BOARD_MSP_TIMEOUT_S, BoardVehicle
 from bfsitl.mission.session import FLY_PROFILE
+from bfsitl.mission.vehicle import ALIVE_CHECK_S
 from bfsitl.physics.wind import Wind
 from bfsitl.protocol import messages as msg
 from bfsitl.protocol.boxes import SITL_DEFAULT_BOX_IDS
@@ -246,6 +247,24 @@ def test_telemetry_reads_the_fcs_view(plug_in, started) -> None:
     assert (sample.roll_deg, sample.pitch_deg, sample.yaw_deg) == pytest.approx((12.3, -4.5, 270.5))
     assert not sample.armed and sample.rc.aux_us == (1000, 1000)
     assert math.isfinite(sample.time_s) and sample.time_s >= 0.0
+
+
+def test_a_sample_asks_whether_the_fc_side_runs_at_most_every_alive_check_s(
+    plug_in, started, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """A lockstep flight samples every fraction of a millisecond of wall time: the check
+    (a select on the SITL's pidfd) is made once per ALIVE_CHECK_S, a real-time step's every
+    time; a round trip that fails asks at once."""
+    plug_in()
+    vehicle = start(started)
+    checks: list[float] = []
+    now_s = [0.0]
+    vehicle._wall_clock = lambda: now_s[0]
+    monkeypatch.setattr(vehicle, "check_alive", lambda: checks.append(now_s[0]))
+    for step in range(6):
+        now_s[0] = step * (ALIVE_CHECK_S / 2)  # halves, doubled: exact in binary
+        vehicle.sample()
+    assert checks == [0.0, ALIVE_CHECK_S, 2 * ALIVE_CHECK_S]
 
 
 def test_reads_asked_for_with_each_sample_ride_in_its_round_trip(plug_in, started) -> None:

@@ -19,25 +19,30 @@ from bfsitl.link.shm_exchange import REGION_BYTES, ShmExchange, _Futex
 from bfsitl.protocol.sitl_packets import FdmPacket, RcPacket
 from bfsitl.sim.lockstep import REPLY_FORMAT, LockstepBridge
 
-# The FC's layout (lockstepShm_t): 9 words of header (8 in version 1, without tcpUntilSeq),
-# the datagram after them, the reply after it.
-HEADER_WORDS = {1: 8, 2: 9}
+# The FC's layout (lockstepShm_t): 11 words of header (8 in version 1, without tcpUntilSeq;
+# 9 in version 2, without fcSleeping and simPolling), the datagram after them, the reply
+# after it.
+HEADER_WORDS = {1: 8, 2: 9, 3: 11}
 TCP_UNTIL_WORD = 8
+FC_SLEEPING_WORD, SIM_POLLING_WORD = 9, 10
 
 
 class SharedFakeFc:
     """Maps the region, writes the header last, answers every new request (4.6's slot order)
-    after ``delay_s``; ``version`` 1 plays a build from before the TCP word, any other than 1
-    and 2 a firmware of another layout.  ``tcp_until`` keeps the TCP word as it was when each
-    request was taken (version 2)."""
+    after ``delay_s``; ``version`` 1 plays a build from before the TCP word, 2 one from before
+    the waiting words, any other than 1 to 3 a firmware of another layout.  ``tcp_until``
+    keeps the TCP word as it was when each request was taken (version 2 on).  From version 3
+    it says when it sleeps and wakes the simulator only when it does not poll (``wakes``
+    counts its wake-ups); ``poll`` never sleeps, as an FC spinning all the while."""
 
     def __init__(
         self,
         path: Path,
         *,
         delay_s: float = 0.0,
-        version: int = 2,
+        version: int = 3,
         answer: bool = True,
+        poll: bool = False,
         motors: Callable[[bytes], tuple[float, float, float, float]] | None = None,
     ) -> None:
         self.file = path.open("r+b")
@@ -56,7 +61,9 @@ class SharedFakeFc:
         self.base = ctypes.addressof(ctypes.c_char.from_buffer(self.map))
         self.seen = self.words[2]
         self.version = version
-        self.datagram_at = 4 * HEADER_WORDS.get(version, 9)
+        self.datagram_at = 4 * HEADER_WORDS.get(version, 11)
+        self.poll = poll
+        self.wakes = 0
         self.reply_at = self.datagram_at + FdmPacket.SIZE + RcPacket.SIZE
         self.tcp_until: list[int] = []
         self.words[1] = version
@@ -71,7 +78,19 @@ class SharedFakeFc:
         while not self.stop.is_set():
             seq = self.words[2]
             if seq in (self.seen, 0):  # answered, or being written
-                self.futex.wait(self.base + 8, seq, 0.05)
+                if self.poll:
+                    continue
+                if self.version < 3:
+                    self.futex.wait(self.base + 8, seq, 0.05)
+                    continue
+                # Said, then the word read again (sitl_lockstep.c does both sequentially
+                # consistent; Python cannot fence, so a rare lost wake-up here costs this
+                # wait's 50 ms, never a hang).
+                self.words[FC_SLEEPING_WORD] = 1
+                seq = self.words[2]
+                if seq in (self.seen, 0):
+                    self.futex.wait(self.base + 8, seq, 0.05)
+                self.words[FC_SLEEPING_WORD] = 0
                 continue
             size = self.words[4]
             data = bytes(self.map[self.datagram_at : self.datagram_at + size])
@@ -93,7 +112,9 @@ class SharedFakeFc:
                 *slots, fdm.timestamp_s + self.stamp_error_s
             )
             self.words[3] = seq
-            self.futex.wake(self.base + 12)
+            if self.version < 3 or not self.words[SIM_POLLING_WORD]:
+                self.futex.wake(self.base + 12)
+                self.wakes += 1
 
     def close(self) -> None:
         self.stop.set()

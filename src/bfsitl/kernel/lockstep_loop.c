@@ -6,8 +6,9 @@
  * bytes: read the sensors, encode the fdm packet for the firmware's generation (mirroring
  * bfsitl.protocol.fdm_encoding.FdmEncoder), append the RC packet the caller packed, hand the
  * datagram to the FC through the shared region (bfsitl.link.shm_exchange: the request word is
- * 0 while the datagram is written, then the new sequence number, then one FUTEX_WAKE), wait
- * for the reply (polling the reply word for spin_s, then FUTEX_WAIT), check that it answers
+ * 0 while the datagram is written, then the new sequence number, then one FUTEX_WAKE unless
+ * the FC says it is polling), wait for the reply (polling the reply word for spin_s, saying
+ * so, then FUTEX_WAIT), check that it answers
  * this packet's timestamp, put the motors in Betaflight's order and integrate the physics.
  *
  * Anything unusual goes back to Python with a status, where the bridge's code handles it
@@ -89,6 +90,11 @@ typedef struct bk_lockstep {
     double stamp_s;             /* the timestamp of the last datagram sent */
     double began_s;             /* the wall time the last step began */
     double answered_s;          /* the timestamp an out-of-step reply answered */
+    /* the region's words of each side's waiting (layout 3; 0: an older layout, where every
+       hand-over wakes the other side) */
+    int32_t fc_sleeping_word;   /* 1 while the FC sleeps on the request word */
+    int32_t sim_polling_word;   /* 1 while this loop polls the reply word */
+    int64_t wakes;              /* FUTEX_WAKE calls made (a total, as steps) */
 } bk_lockstep;
 
 size_t bk_lockstep_size(void) { return sizeof(bk_lockstep); }
@@ -200,12 +206,20 @@ static void send_datagram(bk_lockstep *ls, const uint8_t *datagram, uint32_t len
     ls->seq += 1u;
     if (ls->seq == 0u)
         ls->seq = 1u; /* 0 means "being written": never a request */
-    __atomic_store_n(&words[REQUEST_WORD], ls->seq, __ATOMIC_RELEASE);
-    futex_wake(&words[REQUEST_WORD]);
+    /* Sequentially consistent, against the FC's store of its sleeping word and its load of
+       this one: either it sees the new request and does not sleep, or this sees it asleep. */
+    __atomic_store_n(&words[REQUEST_WORD], ls->seq, __ATOMIC_SEQ_CST);
+    if (ls->fc_sleeping_word == 0 ||
+        __atomic_load_n(&words[ls->fc_sleeping_word], __ATOMIC_SEQ_CST) != 0) {
+        futex_wake(&words[REQUEST_WORD]);
+        ls->wakes += 1;
+    }
 }
 
-/* 1 when the reply to request ls->seq is in the region within wait_s. */
-static int wait_reply(bk_lockstep *ls)
+/* 1 when the reply to request ls->seq is in the region within wait_s.  polling (NULL: the
+   layout has no such word) is the word that says this loop polls: 1 for the whole run, so
+   the FC makes no wake-up a poller would not need, and 0 only while it sleeps. */
+static int wait_reply(bk_lockstep *ls, volatile uint32_t *polling)
 {
     volatile uint32_t *words = (volatile uint32_t *)ls->region;
     uint32_t want = ls->seq;
@@ -217,15 +231,25 @@ static int wait_reply(bk_lockstep *ls)
         if (wall_s() >= spin_until)
             break;
     }
+    /* About to sleep: sequentially consistent against the FC's store of its reply and its
+       load of this word, so that one of the two sees the other (no lost wake-up). */
+    if (polling != NULL)
+        __atomic_store_n(polling, 0u, __ATOMIC_SEQ_CST);
+    int answered = 0;
     for (;;) {
-        uint32_t now = __atomic_load_n(&words[REPLY_WORD], __ATOMIC_ACQUIRE);
-        if (now == want)
-            return 1;
+        uint32_t now = __atomic_load_n(&words[REPLY_WORD], __ATOMIC_SEQ_CST);
+        if (now == want) {
+            answered = 1;
+            break;
+        }
         double left = start + ls->wait_s - wall_s();
         if (left <= 0.0)
-            return 0;
+            break;
         futex_wait(&words[REPLY_WORD], now, left);
     }
+    if (polling != NULL && answered)
+        __atomic_store_n(polling, 1u, __ATOMIC_RELAXED);
+    return answered;
 }
 
 /* 1 when fd has something to read (or was closed): an MSP reply has come. */
@@ -262,17 +286,12 @@ static int rc_frame_due(bk_lockstep *ls, double stamp)
    taken, and, when watch_fd >= 0, until that descriptor is readable after a step (the FC
    wrote an MSP reply during its passes); the number taken.  rc (rc_len bytes) rides in the
    datagrams rc_frame_due picks.  ls->status says why it stopped. */
-long bk_lockstep_run(bk_sim *sim, bk_lockstep *ls, const uint8_t *rc, uint32_t rc_len,
-                     double until_s, double slack_s, long max_steps, int watch_fd)
+#ifdef __linux__
+static long run_steps(bk_sim *sim, bk_lockstep *ls, const uint8_t *rc, uint32_t rc_len,
+                      double until_s, double slack_s, long max_steps, int watch_fd,
+                      volatile uint32_t *polling)
 {
     long taken = 0;
-    ls->status = BK_LOCKSTEP_DONE;
-#ifndef __linux__
-    (void)sim; (void)rc; (void)rc_len; (void)until_s; (void)slack_s; (void)max_steps;
-    (void)watch_fd;
-    ls->status = BK_LOCKSTEP_NO_FUTEX;
-    return 0;
-#else
     uint8_t datagram[MAX_DATAGRAM];
     uint32_t length = FDM_BYTES + rc_len;
     if (length > MAX_DATAGRAM || ls->datagram_offset + length > ls->reply_offset) {
@@ -292,7 +311,7 @@ long bk_lockstep_run(bk_sim *sim, bk_lockstep *ls, const uint8_t *rc, uint32_t r
         }
         send_datagram(ls, datagram, rc_len && rc_frame_due(ls, stamp) ? length : FDM_BYTES);
         ls->stamp_s = stamp;
-        if (!wait_reply(ls)) {
+        if (!wait_reply(ls, polling)) {
             ls->status = BK_LOCKSTEP_PENDING;
             return taken;
         }
@@ -321,6 +340,30 @@ long bk_lockstep_run(bk_sim *sim, bk_lockstep *ls, const uint8_t *rc, uint32_t r
         if (watch_fd >= 0 && readable(watch_fd))
             break;
     }
+    return taken;
+}
+#endif
+
+/* run_steps, saying in the region (layout 3) that this loop polls while it runs and spins. */
+long bk_lockstep_run(bk_sim *sim, bk_lockstep *ls, const uint8_t *rc, uint32_t rc_len,
+                     double until_s, double slack_s, long max_steps, int watch_fd)
+{
+    ls->status = BK_LOCKSTEP_DONE;
+#ifndef __linux__
+    (void)sim; (void)rc; (void)rc_len; (void)until_s; (void)slack_s; (void)max_steps;
+    (void)watch_fd;
+    ls->status = BK_LOCKSTEP_NO_FUTEX;
+    return 0;
+#else
+    volatile uint32_t *polling = NULL;
+    if (ls->sim_polling_word != 0 && ls->spin_s > 0.0) {
+        polling = (volatile uint32_t *)ls->region + ls->sim_polling_word;
+        __atomic_store_n(polling, 1u, __ATOMIC_RELAXED);
+    }
+    long taken = run_steps(sim, ls, rc, rc_len, until_s, slack_s, max_steps, watch_fd, polling);
+    /* Python's own waits come next: the FC wakes them. */
+    if (polling != NULL)
+        __atomic_store_n(polling, 0u, __ATOMIC_SEQ_CST);
     return taken;
 #endif
 }

@@ -5,8 +5,10 @@ A lockstep step is a strict hand-over (bfsitl writes, the FC answers, bfsitl goe
 transport's cost is paid twice per simulated millisecond.  Over UDP that is a ``sendto``, a
 ``select`` and a ``recv`` on each side; here each side writes into the region, bumps a
 sequence word and wakes the other with one ``FUTEX_WAKE``, and a waiter polls the word for the
-spin time and then sleeps in ``FUTEX_WAIT`` on it.  The layout is the FC's (its header says
-where the datagram and the reply are; ``sitl_lockstep.c`` point 6); this side only checks it.
+spin time and then sleeps in ``FUTEX_WAIT`` on it.  From layout version 3 a waiter also says
+whether it sleeps, and the wake (a system call) is made only then: two sides that both poll
+hand over without one.  The layout is the FC's (its header says where the datagram and the
+reply are; ``sitl_lockstep.c`` point 6); this side only checks it.
 
 Used for lockstep builds that carry it (:func:`bfsitl.build.binary_scan.binary_traits`), on
 x86-64 Linux: there stores become visible in program order, so the datagram is complete
@@ -35,13 +37,16 @@ SHM_ENV = "BFSITL_LOCKSTEP_SHM"
 _PREFIX = "bfsitl-lockstep-"
 _MAGIC = 0x6D736662  # "bfsm", written last by the FC
 #: The layouts this side reads: version 1 (builds before the TCP word) services TCP after
-#: every packet whatever this side says.
-_VERSIONS = (1, 2)
+#: every packet whatever this side says; before version 3 every hand-over wakes the other
+#: side, whether it sleeps or polls.
+_VERSIONS = (1, 2, 3)
 #: The header's words: magic, version, requestSeq, replySeq, datagramBytes, datagramOffset,
-#: replyOffset, regionBytes; from version 2 tcpUntilSeq.
-_HEADER_WORDS = {1: 8, 2: 9}
+#: replyOffset, regionBytes; from version 2 tcpUntilSeq; from version 3 fcSleeping (1 while
+#: the FC sleeps on requestSeq) and simPolling (1 while the compiled loop polls replySeq).
+_HEADER_WORDS = {1: 8, 2: 9, 3: 11}
 _MAGIC_WORD, _VERSION_WORD, _REQUEST_WORD, _REPLY_WORD, _BYTES_WORD = 0, 1, 2, 3, 4
 _DATAGRAM_OFFSET_WORD, _REPLY_OFFSET_WORD, _REGION_WORD, _TCP_UNTIL_WORD = 5, 6, 7, 8
+_FC_SLEEPING_WORD, _SIM_POLLING_WORD = 9, 10
 #: Room for the FC's region (240 bytes today) and anything a later layout adds.
 REGION_BYTES = 4096
 #: Reply size: the servo packet and the timestamp it answers (sim/lockstep.py REPLY_FORMAT).
@@ -123,6 +128,7 @@ class ShmExchange:
         self._ready = False
         #: The FC services TCP only after the packets this side marks (layout version 2).
         self._tcp_marks = False
+        self._waiting_words = (0, 0)
         self.closed = False
 
     @property
@@ -158,6 +164,7 @@ class ShmExchange:
             )
         self._datagram_offset, self._reply_offset = datagram_at, reply_at
         self._tcp_marks = version >= 2
+        self._waiting_words = (_FC_SLEEPING_WORD, _SIM_POLLING_WORD) if version >= 3 else (0, 0)
         self._ready = True
         return True
 
@@ -170,6 +177,13 @@ class ShmExchange:
     def offsets(self) -> tuple[int, int]:
         """(datagram, reply) offsets in the region, as the FC wrote them (once ready)."""
         return self._datagram_offset, self._reply_offset
+
+    @property
+    def waiting_words(self) -> tuple[int, int]:
+        """The words where the FC says it sleeps and the compiled loop that it polls, so
+        that a hand-over wakes only a side that sleeps (layout version 3; (0, 0) before:
+        every hand-over wakes).  This side's own waits leave its word 0: the FC wakes them."""
+        return self._waiting_words
 
     @property
     def seq(self) -> int:

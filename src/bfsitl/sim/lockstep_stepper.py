@@ -77,6 +77,9 @@ class _Lockstep(ctypes.Structure):
         ("stamp_s", ctypes.c_double),
         ("began_s", ctypes.c_double),
         ("answered_s", ctypes.c_double),
+        ("fc_sleeping_word", ctypes.c_int32),
+        ("sim_polling_word", ctypes.c_int32),
+        ("wakes", ctypes.c_int64),
     ]
 
 
@@ -125,6 +128,7 @@ class KernelStepper:
         state = self._state
         state.region = exchange.base_address
         state.datagram_offset, state.reply_offset = exchange.offsets
+        state.fc_sleeping_word, state.sim_polling_word = exchange.waiting_words
         state.step_s = step_s
         state.wait_s = wait_s
         state.sea_level_pa = SEA_LEVEL_PRESSURE_PA
@@ -156,6 +160,11 @@ class KernelStepper:
     @property
     def physics_s(self) -> float:
         return self._state.physics_s
+
+    @property
+    def wakes(self) -> int:
+        """FUTEX_WAKE calls the loop has made (none for an FC that was polling)."""
+        return int(self._state.wakes)
 
     def run(
         self,

@@ -127,14 +127,14 @@ def test_the_compiled_loop_sends_and_flies_what_python_does(
 
 @contextmanager
 def compiled_bridge(
-    tmp_path: Path, **fc_options: Any
+    tmp_path: Path, spin_s: float = 0.0, **fc_options: Any
 ) -> Iterator[tuple[LockstepBridge, SharedFakeFc, ShmExchange]]:
     """A bridge on a region a stand-in FC answers, locked and stepped
     once (so the compiled loop has taken over); the FC and the region are closed after."""
     region = ShmExchange(tmp_path)
     fc = SharedFakeFc(region.path, **fc_options)
     try:
-        bridge = bridge_on(region, Simulator(seed=1), spin_s=0.0)
+        bridge = bridge_on(region, Simulator(seed=1), spin_s=spin_s)
         bridge.lock()
         bridge.step()
         assert bridge.compiled
@@ -173,3 +173,33 @@ def test_a_closed_region_is_an_error_not_a_crash(tmp_path: Path) -> None:
     with pytest.raises(SitlError, match="shared region is closed"):
         LockstepClock(bridge).sleep_s(0.01)
     bridge.close()
+
+
+@pytest.mark.parametrize(
+    ("version", "fc_polls", "loop_wakes", "fc_wakes"),
+    [
+        (3, True, False, False),  # both poll: no system call at all
+        (3, False, True, False),  # the FC sleeps between packets: only it is woken
+        (2, True, True, True),  # an older layout: every hand-over wakes, polling or not
+    ],
+)
+def test_a_hand_over_wakes_only_a_side_that_sleeps(
+    tmp_path: Path, version: int, fc_polls: bool, loop_wakes: bool, fc_wakes: bool
+) -> None:
+    # The loop polls 50 ms, longer than the stand-in FC takes to answer.
+    with compiled_bridge(tmp_path, spin_s=0.05, version=version, poll=fc_polls) as (
+        bridge,
+        fc,
+        _region,
+    ):
+        kernel = bridge._kernel
+        assert kernel is not None
+        before = bridge.lockstep_stats().steps, kernel.wakes, fc.wakes
+        LockstepClock(bridge).sleep_s(0.05)
+        steps = bridge.lockstep_stats().steps - before[0]
+        assert steps == 50
+        assert (kernel.wakes - before[1] > 0) is loop_wakes
+        assert (fc.wakes - before[2] > 0) is fc_wakes
+        if version < 3:
+            assert kernel.wakes - before[1] == fc.wakes - before[2] == steps
+        bridge.close()

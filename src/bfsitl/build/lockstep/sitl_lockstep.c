@@ -68,11 +68,13 @@
  *    region of shared memory (lockstepShm_t): the simulator writes the datagram and bumps
  *    requestSeq, the FC writes its reply and sets replySeq to the request it answers, and
  *    each side wakes the other with a futex on that word (the waiter polls it first, for the
- *    spin time, then sleeps in FUTEX_WAIT).  A hand-over costs two futex calls instead of a
- *    sendto, a select and a recv on each side.  The bytes and their meaning are those of the
- *    datagram and the reply, so nothing the firmware does depends on the exchange used.  A
- *    file that cannot be mapped ends the process with the reason: bfsitl only names one for
- *    a build that has this code, and would otherwise wait on the region forever.
+ *    spin time, then sleeps in FUTEX_WAIT).  A hand-over costs at most two futex calls instead
+ *    of a sendto, a select and a recv on each side; none when both sides poll: each says in
+ *    the region whether it sleeps (fcSleeping, simPolling), and only a sleeper is woken.
+ *    The bytes and their meaning are those of the datagram and the reply, so nothing the
+ *    firmware does depends on the exchange used.  A file that cannot be mapped ends the
+ *    process with the reason: bfsitl only names one for a build that has this code, and
+ *    would otherwise wait on the region forever.
  *
  * Sensor timing: packet k's sensors are seen by every pass after packet k-1's time up to
  * packet k's time, and the motor command sent back is the one computed at packet k's time.
@@ -131,7 +133,7 @@ static bool lockstepRcFresh = false;
 
 // The shared region of 6. above; bfsitl reads the layout from the header the FC writes.
 #define LOCKSTEP_SHM_MAGIC 0x6d736662U  // "bfsm"
-#define LOCKSTEP_SHM_VERSION 2U
+#define LOCKSTEP_SHM_VERSION 3U
 typedef struct {
     uint32_t magic;             // written last by the FC once the region is set up
     uint32_t version;
@@ -142,6 +144,8 @@ typedef struct {
     uint32_t replyOffset;
     uint32_t regionBytes;
     uint32_t tcpUntilSeq;       // the simulator: TCP is serviced after requests up to this one
+    uint32_t fcSleeping;        // the FC: 1 while it sleeps on requestSeq (wake it)
+    uint32_t simPolling;        // the simulator: 1 while it polls replySeq (no need to wake it)
     lockstepDatagram_t datagram;
     lockstepReply_t reply;
 } lockstepShm_t;
@@ -223,8 +227,16 @@ static ssize_t lockstepShmTake(lockstepDatagram_t *datagram, uint32_t timeoutUs,
     if (lockstepShmIdle(seq) && timeoutUs > 0) {
         const struct timespec timeout = { .tv_sec = timeoutUs / 1000000,
                                           .tv_nsec = (long)(timeoutUs % 1000000) * 1000 };
-        // Returns at once if the word has moved on since it was read (no lost wake-up).
-        syscall(SYS_futex, word, FUTEX_WAIT, seq, &timeout, NULL, 0);
+        // Said before the word is read again, both sequentially consistent (as the
+        // simulator's store of the word and its read of this): either the new request is
+        // seen here, or this is seen there and the simulator wakes the sleeper.
+        __atomic_store_n(&lockstepShm->fcSleeping, 1U, __ATOMIC_SEQ_CST);
+        seq = __atomic_load_n(word, __ATOMIC_SEQ_CST);
+        if (lockstepShmIdle(seq)) {
+            // Returns at once if the word has moved on since it was read (no lost wake-up).
+            syscall(SYS_futex, word, FUTEX_WAIT, seq, &timeout, NULL, 0);
+        }
+        __atomic_store_n(&lockstepShm->fcSleeping, 0U, __ATOMIC_RELAXED);
         seq = __atomic_load_n(word, __ATOMIC_ACQUIRE);
     }
     if (lockstepShmIdle(seq)) {
@@ -247,8 +259,12 @@ static void lockstepSend(const lockstepReply_t *reply)
         return;
     }
     lockstepShm->reply = *reply;
-    __atomic_store_n(&lockstepShm->replySeq, lockstepShmSeen, __ATOMIC_RELEASE);
-    lockstepFutexWake(&lockstepShm->replySeq);
+    // Sequentially consistent against the simulator's "no longer polling" and its read of
+    // replySeq: a simulator still polling sees the reply, one about to sleep is woken.
+    __atomic_store_n(&lockstepShm->replySeq, lockstepShmSeen, __ATOMIC_SEQ_CST);
+    if (__atomic_load_n(&lockstepShm->simPolling, __ATOMIC_SEQ_CST) == 0U) {
+        lockstepFutexWake(&lockstepShm->replySeq);
+    }
 }
 
 static void lockstepInit(void)

@@ -83,15 +83,16 @@ class SharedFakeFc:
                 if self.version < 3:
                     self.futex.wait(self.base + 8, seq, 0.05)
                     continue
-                # Said, then the word read again (sitl_lockstep.c does both sequentially
-                # consistent; Python cannot fence, so a rare lost wake-up here costs this
-                # wait's 50 ms, never a hang).
+                # Said (already with the last reply), then the word read again
+                # (sitl_lockstep.c does both sequentially consistent; Python cannot fence, so
+                # a lost wake-up here would cost this wait's 50 ms, never a hang).
                 self.words[FC_SLEEPING_WORD] = 1
                 seq = self.words[2]
                 if seq in (self.seen, 0):
                     self.futex.wait(self.base + 8, seq, 0.05)
-                self.words[FC_SLEEPING_WORD] = 0
                 continue
+            if self.version >= 3:
+                self.words[FC_SLEEPING_WORD] = 0
             size = self.words[4]
             data = bytes(self.map[self.datagram_at : self.datagram_at + size])
             if self.words[2] != seq:
@@ -111,10 +112,20 @@ class SharedFakeFc:
             self.map[self.reply_at : self.reply_at + 24] = REPLY_FORMAT.pack(
                 *slots, fdm.timestamp_s + self.stamp_error_s
             )
-            self.words[3] = seq
-            if self.version < 3 or not self.words[SIM_POLLING_WORD]:
+            if self.version >= 3 and not self.poll:
+                # It will sleep until the next request: said before the reply, so that the
+                # simulator, which sends that request only once it has the reply, wakes it
+                # every time (a stand-in FC slower than the real one to go back to sleep).
+                self.words[FC_SLEEPING_WORD] = 1
+            if self.version < 3:
+                self.wakes += 1  # counted before the reply: the simulator may read it then
+                self.words[3] = seq
                 self.futex.wake(self.base + 12)
+                continue
+            self.words[3] = seq
+            if not self.words[SIM_POLLING_WORD]:
                 self.wakes += 1
+                self.futex.wake(self.base + 12)
 
     def close(self) -> None:
         self.stop.set()

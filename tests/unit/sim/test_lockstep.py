@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import re
 import socket
 import struct
 import threading
@@ -39,10 +40,42 @@ def package_sitl_c() -> str:
 # -- the patch ---------------------------------------------------------------------------------
 def test_the_patch_hooks_every_anchor_of_46_and_includes_the_code() -> None:
     patched = patch_sitl_source(package_sitl_c())
-    assert patched.count("#if defined(SITL_LOCKSTEP)") == len(EDITS) - 2
+    # Two edits replace a line outright, two compile a lock out with #if !defined.
+    assert patched.count("#if defined(SITL_LOCKSTEP)") == len(EDITS) - 4
     assert patched.rstrip().endswith('#include "sitl_lockstep.c"')
     assert "#define LOCKSTEP_RC_VIA_RX_UDP 0" in patched  # 4.6 sets the rx callbacks itself
     assert "if (!SITL_LOCKSTEP && realtime_now > last_realtime + 500*1e3)" in patched
+
+
+def test_the_motor_writes_of_46_take_no_lock_and_a_tree_without_it_is_left_alone() -> None:
+    source = package_sitl_c()
+    patched = patch_sitl_source(source)
+    write = patched[patched.index("static void pwmWriteMotor(uint8_t") :]
+    write = write[: write.index("\n}\n")]
+    assert write.count("#if !defined(SITL_LOCKSTEP)") == 2  # the trylock and the unlock
+    assert "pthread_mutex_trylock(&updateLock)" in write  # kept, but compiled out
+    # master's pwmWriteMotor takes no lock: the two edits find nothing and change nothing.
+    unlocked = re.sub(
+        r"(static void pwmWriteMotor\(uint8_t index, float value\)\n\{\n)"
+        r"    if \(pthread_mutex_trylock\(&updateLock\) != 0\) return;\n",
+        r"\1",
+        source,
+    )
+    unlocked = unlocked.replace(
+        "    pthread_mutex_unlock(&updateLock); // can send PWM output now\n}\n\n"
+        "static void pwmWriteMotorInt",
+        "}\n\nstatic void pwmWriteMotorInt",
+    )
+    assert unlocked != source
+    plain = patch_sitl_source(unlocked)
+    assert "#if !defined(SITL_LOCKSTEP)" not in plain
+    assert plain.count("#if defined(SITL_LOCKSTEP)") == patched.count("#if defined(SITL_LOCKSTEP)")
+
+
+def test_an_optional_edit_found_twice_is_still_refused() -> None:
+    edit = next(edit for edit in EDITS if edit.optional)
+    with pytest.raises(FirmwareBuildError, match="found 2 times"):
+        edit.apply(package_sitl_c() * 2)
 
 
 def test_a_tree_missing_an_anchor_is_refused_by_name() -> None:

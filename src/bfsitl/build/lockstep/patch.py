@@ -27,15 +27,21 @@ MARKER = "[LOCKSTEP] bfsitl lockstep build"
 
 @dataclass(frozen=True)
 class Edit:
-    """Insert ``text`` after (or instead of) the one match of ``anchor`` in sitl.c."""
+    """Insert ``text`` after (or instead of) the one match of ``anchor`` in sitl.c.
+
+    An ``optional`` edit changes what only some releases have: where its anchor is missing
+    there is nothing to change and the source is left as it is (twice is still refused)."""
 
     name: str
     anchor: str  # a regular expression (re.MULTILINE)
     text: str
     replace: bool = False
+    optional: bool = False
 
     def apply(self, source: str) -> str:
         matches = list(re.finditer(self.anchor, source, re.MULTILINE))
+        if not matches and self.optional:
+            return source
         if len(matches) != 1:
             found = "not found" if not matches else f"found {len(matches)} times"
             raise FirmwareBuildError(
@@ -127,6 +133,29 @@ EDITS: tuple[Edit, ...] = (
         "#if defined(SITL_LOCKSTEP)\n    return;  // the main loop sends one reply per packet\n"
         "#endif\n",
     ),
+    # 4.6's pwmWriteMotor tries the update lock for every motor of every pass (master's takes
+    # none).  With the fdm and TCP threads gone nothing else holds it, so the try always
+    # succeeds: the write is the same without it, and the try and release were a sixth of
+    # the SITL's time when stepping.
+    Edit(
+        "motor write lock (pwmWriteMotor's trylock)",
+        _body_start(r"static void pwmWriteMotor\(uint8_t index, float value\)")
+        + r"    if \(pthread_mutex_trylock\(&updateLock\) != 0\) return;\n",
+        "static void pwmWriteMotor(uint8_t index, float value)\n{\n"
+        "#if !defined(SITL_LOCKSTEP)  // a single thread: the lock is always free\n"
+        "    if (pthread_mutex_trylock(&updateLock) != 0) return;\n#endif\n",
+        replace=True,
+        optional=True,
+    ),
+    Edit(
+        "motor write unlock (pwmWriteMotor's unlock)",
+        r"^    pthread_mutex_unlock\(&updateLock\); // can send PWM output now\n\}\n"
+        r"(?=\nstatic void pwmWriteMotorInt\()",
+        "#if !defined(SITL_LOCKSTEP)\n"
+        "    pthread_mutex_unlock(&updateLock); // can send PWM output now\n#endif\n}\n",
+        replace=True,
+        optional=True,
+    ),
     Edit(
         "fdm wall-clock timeout (updateState)",
         r"^    if \(realtime_now > last_realtime \+ 500\*1e3\) \{",
@@ -165,7 +194,9 @@ class LockstepPatch:
     def key_material(self) -> str:
         digest = hashlib.sha256(lockstep_source().encode())
         for edit in EDITS:
-            digest.update(f"{edit.name}\0{edit.anchor}\0{edit.text}\0{edit.replace}".encode())
+            digest.update(
+                f"{edit.name}\0{edit.anchor}\0{edit.text}\0{edit.replace}\0{edit.optional}".encode()
+            )
         return "lockstep:" + digest.hexdigest()[:16]
 
     def __call__(self, tree: Path) -> None:

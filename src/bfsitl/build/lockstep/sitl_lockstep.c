@@ -58,6 +58,8 @@
  *      clients, connections, closes; the stock TCP thread serviced every 10 ms).  So the
  *      simulator's own requests are read and answered in the same packets as over UDP.
  *    - The fdm thread is gone too: the main thread reads the fdm socket itself.
+ *      With no other thread left, 4.6.0's motor writes skip the update lock they tried for
+ *      every motor of every pass (always free here; patch.py compiles it out).
  *
  * 5. delay()/delayMicroseconds() advance the clock during boot (rounded up to whole
  *    milliseconds, which keeps the pass grid aligned with the scheduler's first gyro target)

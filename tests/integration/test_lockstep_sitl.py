@@ -7,7 +7,9 @@ flight in lockstep still has the FC's attitude follow the truth, with the right 
 request is answered with the second packet after it over either exchange; MSP and
 the CLI work while the simulation steps, and a ``save`` that ends the process is followed by a
 new process locked again; a lockstep SITL without a simulator free-runs and answers like a
-stock one.  Speed is the benchmark's business (``benchmarks/lockstep.py``), not these tests'.
+stock one; what a flight killed outright leaves (its run directory, its shared memory) is
+removed by the next.  Speed is the benchmark's business (``benchmarks/lockstep.py``), not
+these tests'.
 """
 
 from __future__ import annotations
@@ -17,6 +19,7 @@ import json
 import os
 import subprocess
 import sys
+import time
 from pathlib import Path
 
 import pytest
@@ -302,3 +305,66 @@ def test_the_real_time_bridge_paces_a_lockstep_build_on_sim_time(
     last = json.loads(done.stdout.strip().splitlines()[-1])
     assert last["fc_clock_ratio"] == pytest.approx(1.0, abs=0.02)
     assert last["answered_ratio"] > 0.9
+
+
+KILLED_FLIGHT = """
+import os, signal, sys
+from bfsitl.backend.options import Timing
+from bfsitl.mission.session import FcSetup, FlightSession, SessionConfig, SitlLaunch
+config = SessionConfig(
+    sitl=SitlLaunch(firmware=sys.argv[1]),
+    timing=Timing(lockstep=True, lockstep_exchange="shm"),
+    fc=FcSetup(),
+)
+session = FlightSession(config).__enter__()
+session.clock.sleep_s(0.5)
+print(session.sitl.workdir, session.sitl.pid, flush=True)
+os.kill(os.getpid(), signal.SIGTERM)  # a library script has no handler: no cleanup runs
+"""
+
+
+def test_what_a_killed_flight_leaves_is_removed_by_the_next(
+    lockstep_46_firmware: Path, tmp_path: Path
+) -> None:
+    # Its own temporary folder, so that no other test's runs are looked at.
+    env = {**os.environ, "TMPDIR": str(tmp_path)}
+    killed = subprocess.run(
+        [sys.executable, "-c", KILLED_FLIGHT, str(lockstep_46_firmware)],
+        capture_output=True,
+        text=True,
+        timeout=120,
+        env=env,
+    )
+    assert killed.returncode == -15, killed.stderr
+    workdir_text, sitl_pid = killed.stdout.split()
+    workdir = Path(workdir_text)
+    assert workdir.parent == tmp_path and (workdir / "eeprom.bin").is_file()
+    owner_pid = workdir.name.split("-")[2]  # bfsitl-run-<pid>-<random>
+    # The region is in /dev/shm, or the temporary folder on a machine without it.
+    left = [
+        region
+        for folder in (Path("/dev/shm"), tmp_path)
+        for region in folder.glob(f"bfsitl-lockstep-{owner_pid}-*")
+    ]
+    assert left, "the killed run's shared-memory region"
+    deadline = time.monotonic() + 10  # the SITL dies with its parent (PR_SET_PDEATHSIG)
+    while os.path.exists(f"/proc/{sitl_pid}") and time.monotonic() < deadline:
+        time.sleep(0.1)
+    assert not os.path.exists(f"/proc/{sitl_pid}")
+    next_run = subprocess.run(
+        [
+            sys.executable,
+            "-c",
+            "import sys; from bfsitl.link.shm_exchange import ShmExchange; "
+            "from bfsitl.sitl.process import SitlProcess; "
+            "ShmExchange().close(); SitlProcess(sys.argv[1]).stop()",
+            str(lockstep_46_firmware),
+        ],
+        capture_output=True,
+        text=True,
+        timeout=60,
+        env=env,
+    )
+    assert next_run.returncode == 0, next_run.stderr
+    assert not workdir.exists()
+    assert not any(region.exists() for region in left)

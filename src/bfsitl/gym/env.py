@@ -37,7 +37,6 @@ from __future__ import annotations
 import dataclasses
 import multiprocessing
 import shutil
-import tempfile
 from collections.abc import Callable, Sequence
 from pathlib import Path
 from typing import Any, Literal, get_args
@@ -83,6 +82,7 @@ from bfsitl.gym.tasks import (
 from bfsitl.gym.throws import Throw
 from bfsitl.mission.loop import FlightLoop
 from bfsitl.mission.session import FcSetup, FlightSession, SessionConfig, SitlLaunch
+from bfsitl.owned_temp import owned_temp_dir
 from bfsitl.physics.wind import Wind
 from bfsitl.sim.rc_frames import DEFAULT_RC_RATE_HZ
 from bfsitl.sitl.core_claim import CoreClaim, claim_core
@@ -266,9 +266,7 @@ class FlightEnv(gymnasium.Env[np.ndarray, np.ndarray]):
         self.observation_space = observation_space()
         self._own_workdir = sitl.workdir is None
         #: The SITL's run directory (its EEPROM, provisioned once, boots every episode).
-        self.workdir = Path(
-            tempfile.mkdtemp(prefix="bfsitl-gym-") if sitl.workdir is None else sitl.workdir
-        )
+        self.workdir = Path(owned_temp_dir("bfsitl-gym-") if sitl.workdir is None else sitl.workdir)
         self._vehicle: FlightSession | None = None
         self._prepared = False
         self._arm_ned: Vec3 = (0.0, 0.0, 0.0)

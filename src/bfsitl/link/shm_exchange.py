@@ -30,6 +30,7 @@ from collections.abc import Callable
 from pathlib import Path
 
 from bfsitl.errors import SitlError
+from bfsitl.owned_temp import process_running
 
 #: The variable that names the region to the FC.
 SHM_ENV = "BFSITL_LOCKSTEP_SHM"
@@ -278,19 +279,9 @@ def remove_stale_regions(folder: Path) -> None:
         return
     for entry in entries:
         pid_text = entry.name[len(_PREFIX) :].split("-", 1)[0]
-        if not pid_text.isdigit() or _running(int(pid_text)):
+        if not pid_text.isdigit() or process_running(int(pid_text)):
             continue
         try:
             entry.unlink()
         except OSError:
             pass  # another user's, or gone already
-
-
-def _running(pid: int) -> bool:
-    try:
-        os.kill(pid, 0)
-    except ProcessLookupError:
-        return False
-    except PermissionError:
-        return True
-    return True

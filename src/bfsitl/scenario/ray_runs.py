@@ -24,7 +24,6 @@ from __future__ import annotations
 import io
 import shutil
 import tarfile
-import tempfile
 import time
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
@@ -33,6 +32,7 @@ from typing import Any
 
 from bfsitl.atomic_file import write_atomically
 from bfsitl.errors import ScenarioError
+from bfsitl.owned_temp import owned_temp_dir
 from bfsitl.scenario.planned_run import PlannedRun, fly_one
 from bfsitl.scenario.result import PlotWhen, ScenarioResult, Verdict
 from bfsitl.scenario.run import write_summary
@@ -121,7 +121,7 @@ def fly_remote(
 
     began_s = time.monotonic()
     binary = unpack_firmware(parcel, ray.get)
-    work = Path(tempfile.mkdtemp(prefix="bfsitl-ray-run-"))
+    work = owned_temp_dir("bfsitl-ray-run-")
     try:
         result = fly_one(run.scenario, str(binary), work, speed, plot, mcap)
         result.firmware = run.firmware  # as the driver named it, not this node's path

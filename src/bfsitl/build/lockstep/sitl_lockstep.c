@@ -3,8 +3,9 @@
  *
  * Written for bfsitl and applied by `bfsitl firmware build --lockstep`, which includes this
  * file at the end of src/platform/SIMULATOR/sitl.c (so it sees that file's statics) and adds a
- * few hooks there (see bfsitl/build/lockstep/patch.py).  Nothing outside the platform changes:
- * the scheduler, the PID loop and every flight feature run as they are.
+ * few hooks there (see bfsitl/build/lockstep/patch.py).  Outside the platform only the sensor
+ * drivers' locks go (accgyro.h: one thread has nothing to lock): the scheduler, the PID loop
+ * and every flight feature run as they are.
  *
  * WHY, and how:
  *
@@ -59,7 +60,8 @@
  *      simulator's own requests are read and answered in the same packets as over UDP.
  *    - The fdm thread is gone too: the main thread reads the fdm socket itself.
  *      With no other thread left, 4.6.0's motor writes skip the update lock they tried for
- *      every motor of every pass (always free here; patch.py compiles it out).
+ *      every motor of every pass (always free here), and the gyro and accelerometer take no
+ *      lock either (patch.py takes both out).
  *
  * 5. delay()/delayMicroseconds() advance the clock during boot (rounded up to whole
  *    milliseconds, which keeps the pass grid aligned with the scheduler's first gyro target)

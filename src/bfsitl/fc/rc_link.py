@@ -63,9 +63,23 @@ class RcCommand:
 
     def channels_aetr(self) -> tuple[int, ...]:
         """Roll, pitch, throttle, yaw, AUX1... (the default receiver map), clamped."""
+        self.check()
+        return self.checked_channels_aetr()
+
+    def check(self) -> None:
+        """Raise :class:`BfsitlError` naming the first channel that is not a finite number."""
+        _check_numbers((self.roll_us, self.pitch_us, self.throttle_us, self.yaw_us, *self.aux_us))
+
+    def checked_channels_aetr(self) -> tuple[int, ...]:
+        """:meth:`channels_aetr` of a command that has passed :meth:`check` (a control step
+        packs one every step: rounded, then clamped, without a call per bound)."""
         values = (self.roll_us, self.pitch_us, self.throttle_us, self.yaw_us, *self.aux_us)
-        _check_numbers(values)
-        return tuple([int(min(RC_MAX_US, max(RC_MIN_US, round(v)))) for v in values])
+        return tuple(
+            [
+                RC_MIN_US if us < RC_MIN_US else RC_MAX_US if us > RC_MAX_US else us
+                for us in map(round, values)
+            ]
+        )
 
     def with_throttle(self, throttle_us: float) -> RcCommand:
         """The same sticks and switches with another throttle (what a control step changes;

@@ -177,7 +177,7 @@ class LockstepBridge:
         self._locked = False
         self._rc_packed = b""
         self._rc_packed_for: RcCommand | None = None
-        self._rc_channels: tuple[RcCommand | None, tuple[int, ...]] = (None, ())
+        self._rc_checked: RcCommand | None = None
         self._rc_packed_at_s = math.nan
         self._steps = self._resends = 0
         self._exchange_s = self._physics_s = 0.0
@@ -305,9 +305,10 @@ class LockstepBridge:
 
     def set_rc_command(self, command: RcCommand) -> None:
         """Send ``command`` from the next datagram on; a channel that is not a number raises
-        here.  Its channels are kept for the packing (a step may set it more than once: the
-        sticks, then the throttle; only the last is packed)."""
-        self._rc_channels = (command, command.channels_aetr())
+        here.  Its channels are worked out when it is packed (a step may set it more than
+        once: the sticks, then the throttle; only the last is packed)."""
+        command.check()
+        self._rc_checked = command
         self.rc_command = command
 
     def _rc_bytes(self, now_s: float) -> bytes:
@@ -330,8 +331,9 @@ class LockstepBridge:
             self._rc_packed_for = None
             return b"" if channels is None else RcPacket(now_s, channels).pack()
         if command is not self._rc_packed_for:
-            kept_for, channels = self._rc_channels
-            if kept_for is not command:  # set directly, not through set_rc_command
+            if command is self._rc_checked:
+                channels = command.checked_channels_aetr()
+            else:  # set directly, not through set_rc_command
                 channels = command.channels_aetr()
             self._rc_packed = RcPacket(now_s, channels).pack()
             self._rc_packed_for = command

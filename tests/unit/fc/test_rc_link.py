@@ -7,14 +7,16 @@ through this link in tests/integration/test_sim_bridge.py.
 from __future__ import annotations
 
 import math
+import random
 import socket
 import time
 from collections.abc import Iterator
 
+import numpy as np
 import pytest
 
 from bfsitl.errors import BfsitlError
-from bfsitl.fc.rc_link import RC_PORT, SAFE_COMMAND, RcCommand, UdpRcLink
+from bfsitl.fc.rc_link import RC_MAX_US, RC_MIN_US, RC_PORT, SAFE_COMMAND, RcCommand, UdpRcLink
 from bfsitl.protocol.sitl_packets import RcPacket
 from bfsitl.sitl.network import IsolatedNetwork, unshare_available
 
@@ -55,6 +57,21 @@ def test_channels_are_aetr_then_aux_and_clamped():
     assert command.with_throttle(1600) == RcCommand(900, 2500, 1600, 1500, (1800, 1000))
 
 
+def test_the_checked_channels_are_the_rounded_then_clamped_ones() -> None:
+    rng = random.Random(7)
+    for _ in range(2000):
+        values = [rng.uniform(400.0, 2600.0) for _ in range(6)]
+        values[rng.randrange(6)] = rng.choice([999.5, 1000.5, 1999.5, 2000.5, 1500, -1e9, 1e9])
+        command = RcCommand(*values[:4], aux_us=tuple(values[4:]))
+        slow = tuple(int(min(RC_MAX_US, max(RC_MIN_US, round(v)))) for v in values)
+        assert command.checked_channels_aetr() == slow == command.channels_aetr()
+        assert all(type(us) is int for us in command.channels_aetr())
+    # numpy numbers (a policy's actions) give plain ints too
+    command = RcCommand(np.float32(1234.4), np.float64(2500.0), np.int64(900), 1500)
+    assert command.channels_aetr() == (1234, 2000, 1000, 1500, 1000)
+    assert all(type(us) is int for us in command.channels_aetr())
+
+
 @pytest.mark.parametrize("bad", [math.nan, math.inf, -math.inf])
 @pytest.mark.parametrize("channel", range(6))
 def test_a_channel_that_is_not_a_number_is_named_whichever_it_is(bad: float, channel: int):
@@ -63,6 +80,8 @@ def test_a_channel_that_is_not_a_number_is_named_whichever_it_is(bad: float, cha
     command = RcCommand(*values[:4], aux_us=tuple(values[4:]))
     with pytest.raises(BfsitlError, match=f"RC channel value {bad!r} is not a number"):
         command.channels_aetr()
+    with pytest.raises(BfsitlError, match=f"RC channel value {bad!r} is not a number"):
+        command.check()
     # finite values whose sum overflows are still channels: clamped, not refused
     assert RcCommand(1e308, 1e308, 1e308, 1e308).channels_aetr() == (2000, 2000, 2000, 2000, 1000)
 

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import math
 import re
 import socket
 import struct
@@ -15,7 +16,13 @@ from bfsitl.build.lockstep import LockstepPatch, patch_sitl_source
 from bfsitl.build.lockstep.patch import ACCGYRO_H, EDITS, patch_sensor_header
 from bfsitl.build.options import FirmwareBuildOptions
 from bfsitl.build.source_tree import package_source_dir
-from bfsitl.errors import FirmwareBuildError, PacketError, SitlError, SitlExitedError
+from bfsitl.errors import (
+    BfsitlError,
+    FirmwareBuildError,
+    PacketError,
+    SitlError,
+    SitlExitedError,
+)
 from bfsitl.fc.rc_link import RcCommand, RcFault
 from bfsitl.link.base import Link
 from bfsitl.protocol.sitl_packets import FdmPacket, RcPacket
@@ -242,6 +249,24 @@ def test_steps_carry_rc_and_apply_the_answer_of_their_own_packet(fake_fc_factory
     stamps = [stamp for stamp, _ in fc.received]
     assert stamps == pytest.approx([0.0, 0.001, 0.002, 0.003, 0.004, 0.005])
     assert fc.received[-1][1] == (1500, 1500, 1300, 1500, 1800, 1000)
+
+
+def test_a_step_packs_the_last_command_set_and_a_bad_one_is_refused_when_set(
+    fake_fc_factory,
+) -> None:
+    fc = fake_fc_factory()
+    with LockstepBridge(FakeSimulator(), HostSockets()) as bridge:
+        rc = LockstepRc(bridge)
+        bridge.lock()
+        rc.set(RcCommand(roll_us=1600, throttle_us=1300))  # the sticks, then the throttle
+        rc.set(RcCommand(roll_us=1600, throttle_us=2345.6))
+        with pytest.raises(BfsitlError, match="RC channel value nan is not a number"):
+            rc.set(RcCommand(throttle_us=math.nan))
+        LockstepClock(bridge).sleep_s(0.002)
+        bridge.rc_command = RcCommand(yaw_us=1400.4)  # set directly: checked when packed
+        LockstepClock(bridge).sleep_s(0.002)
+    assert fc.received[1][1][:5] == (1600, 1500, 2000, 1500, 1000)
+    assert fc.received[-1][1][:5] == (1500, 1500, 1000, 1400, 1000)
 
 
 def test_frames_on_set_carry_each_command_in_one_datagram(fake_fc_factory) -> None:

@@ -15,7 +15,7 @@ map follows whatever the FC is configured with; only Actual rates are supported.
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 from bfsitl.errors import UnsupportedFirmwareError
 from bfsitl.fc.rc_link import RC_MAX_US, RC_MID_US
@@ -34,6 +34,12 @@ class ActualRates:
     rc_rate: int  # centre sensitivity / 10 deg/s
     rate: int  # max rate / 10 deg/s
     expo: int  # percent
+    #: setpoint(1.0), the full-stick rate (deg/s): kept, as a position step asks for it
+    #: several times.
+    full_deg_s: float = field(init=False, repr=False, compare=False)
+
+    def __post_init__(self) -> None:
+        object.__setattr__(self, "full_deg_s", self.setpoint(1.0))
 
     def setpoint(self, deflection: float) -> float:
         """The rate setpoint (deg/s) for a stick deflection -1..1 (``applyActualRates``)."""
@@ -45,12 +51,12 @@ class ActualRates:
 
     def share(self, deflection: float) -> float:
         """setpoint(deflection) / setpoint(full stick): what ANGLE mode scales its limit by."""
-        full = self.setpoint(1.0)
+        full = self.full_deg_s
         return self.setpoint(deflection) / full if full > 0 else 0.0
 
     def deflection_for(self, rate_deg_s: float) -> float:
         """The stick deflection -1..1 that asks for ``rate_deg_s`` (clamped to the curve)."""
-        full = self.setpoint(1.0)
+        full = self.full_deg_s
         if full <= 0:
             return 0.0
         wanted = max(-1.0, min(1.0, rate_deg_s / full))
@@ -135,7 +141,7 @@ class AngleStickMap:
         wanted = max(-1.0, min(1.0, angle_deg / self.angle_limit_deg))
         # share(x) = setpoint(x) / setpoint(1): the deflection for a share is the one for
         # that fraction of the full-stick rate.
-        deflection = rates.deflection_for(wanted * rates.setpoint(1.0))
+        deflection = rates.deflection_for(wanted * rates.full_deg_s)
         return RC_MID_US + deflection * RC_HALF_RANGE_US
 
     def yaw_stick_us(self, rate_deg_s: float) -> float:

@@ -51,9 +51,9 @@ class Edit:
         if len(matches) != 1:
             found = "not found" if not matches else f"found {len(matches)} times"
             raise FirmwareBuildError(
-                f"--lockstep does not fit this tree: {self.file_name}'s {self.name} ({found}). The "
-                f"patch "
-                f"knows Betaflight 4.6 and master (2026.12); build this tree without --lockstep"
+                f"--lockstep does not fit this tree: {self.file_name}'s {self.name} ({found}). "
+                f"The patch knows Betaflight 4.6 and master (2026.12); build this tree without "
+                f"--lockstep"
             )
         match = matches[0]
         if self.replace:
@@ -142,8 +142,8 @@ EDITS: tuple[Edit, ...] = (
     ),
     # 4.6's pwmWriteMotor tries the update lock for every motor of every pass (master's takes
     # none).  With the fdm and TCP threads gone nothing else holds it, so the try always
-    # succeeds: the write is the same without it, and the try and release were a sixth of
-    # the SITL's time when stepping.
+    # succeeds: the write is the same without it, and the try and release were 11 % of the
+    # SITL's time when stepping.
     Edit(
         "motor write lock (pwmWriteMotor's trylock)",
         _body_start(r"static void pwmWriteMotor\(uint8_t index, float value\)")
@@ -175,8 +175,8 @@ EDITS: tuple[Edit, ...] = (
 def _sensor_lock_edit(call: str, device: str) -> Edit:
     """The line ``call`` of accgyro.h's lock helpers, made a no-op: the gyro and the
     accelerometer are written (updateState) and read (their tasks) by the main thread alone
-    here, and the gyro's lock and release at every gyro pass were a tenth of the FC's work
-    in flight.  Optional: a release without these locks has nothing to drop."""
+    here; the gyro's lock and release at every gyro pass cost 1-2 % of the SITL's time.
+    Optional: a release without these locks has nothing to drop."""
     return Edit(
         f"sensor lock ({call})",
         rf"^    {re.escape(call)}\n",

@@ -21,7 +21,9 @@ settling, hold RMS/max) so that the two modes can be compared.  For lockstep, th
 time budget: the exchange with the FC (packing, UDP both ways and the firmware's passes), the
 physics, and the Python rest (mission loop, MSP parsing, log), plus the SITL's CPU time per
 step (it polls for the next packet for up to 0.3 ms before it sleeps, so this includes a
-little waiting).
+little waiting).  With ``--idle``, the stepping alone in each mode (a parked vehicle, no
+mission, no MSP: the floor), and the mission alone as a share of that floor, same mode, same
+run.
 
 The RC link sends a receiver's frames at its default rate (250 Hz, ``FcSetup.rc_rate_hz``).
 ``--rc-every-packet`` adds the shared-memory rows once more with a frame in every fdm packet
@@ -277,6 +279,30 @@ def fmt(value: float | None, spec: str) -> str:
     return "-" if value is None else format(value, spec)
 
 
+def print_against_floor(rows: list[Flight], idles: list[Idle]) -> None:
+    """The mission alone as a share of the stepping alone in the same mode and run: the
+    part of the floor the mission loop keeps (the rest is its Python and MSP)."""
+    pairs = [
+        (flight.firmware, floor.mode, flight.mission_x, 1000.0 / floor.wall_us)
+        for floor in idles
+        for flight in rows
+        if flight.firmware == floor.firmware
+        and flight.mode == f"lockstep max, {floor.mode}"
+        and flight.mission_x is not None
+    ]
+    if not pairs:
+        return
+    print()
+    print("The mission alone against the stepping alone, same mode, same run:")
+    print("| firmware | mode | mission alone | stepping alone | share of the floor |")
+    print("|---|---|---|---|---|")
+    for firmware, mode, mission_x, floor_x in pairs:
+        print(
+            f"| {firmware} | {mode} | {mission_x:.1f}x | {floor_x:.0f}x | "
+            f"{mission_x / floor_x * 100:.0f} % |"
+        )
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--hold", type=float, default=10.0, help="hold seconds (default 10)")
@@ -398,6 +424,7 @@ def main() -> None:
                 f"{i.physics_us:.1f} | {fmt(i.sitl_cpu_us, '.1f')} | "
                 f"{1000.0 / i.wall_us:.0f}x |"
             )
+        print_against_floor(rows, idles)
     if args.starts:
         path = firmware_path(f"{args.generations.split(',')[0]}-lockstep", args.build)
         count, failures, took_s = starts(path, args.starts, args.busy)

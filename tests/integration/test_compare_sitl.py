@@ -13,6 +13,7 @@ import pytest
 from junitparser import Failure, JUnitXml
 from test_scenarios_sitl import ALWAYS, LIBRARY, env_for
 
+from bfsitl.blackbox import decode_blackbox
 from bfsitl.build.cache import FirmwareCache
 
 pytestmark = pytest.mark.sitl
@@ -129,3 +130,26 @@ def test_a_changed_default_changes_the_scenarios_it_reaches_and_only_those(
     )
     assert accepted.returncode == 0, accepted.stdout + accepted.stderr[-2000:]
     assert "(accepted)" in accepted.stdout
+
+
+@pytest.mark.timeout(600)
+def test_each_side_flies_its_own_rc_link_rate(
+    lockstep_gps_46_firmware, firmware_build_cache: FirmwareCache, tmp_path: Path
+) -> None:
+    """Side B's link at 50 Hz (a slow CRSF) against the scenario's own 250 Hz: the FC of each
+    side measures its own receiver (its log's header), and both still lose it on silence."""
+    run, data = compare(
+        tmp_path, firmware_build_cache, ["rc-loss-hover-drop"], "--b-rc-rate", "50", "--seeds", "1"
+    )
+    assert run.returncode in (0, 1), run.stdout + run.stderr[-3000:]
+    assert "B: 4.6.0-gps-lockstep, RC link 50 Hz" in run.stderr
+    assert "rc_rate_hz" not in data["sides"][0] and data["sides"][1]["rc_rate_hz"] == 50.0
+    smoothed = {}
+    for side in ("A", "B"):
+        (summary,) = (tmp_path / "cmp" / side).glob("rc-loss-hover-drop/seed-*/result.json")
+        result = json.loads(summary.read_text())
+        assert result["verdict"] == "passed", result["reason"]
+        assert any(e["text"].startswith("RC lost (silence)") for e in result["events"])
+        (log, *_) = decode_blackbox(Path(result["artifacts"]["blackbox"]))
+        smoothed[side] = log.headers["rc_smoothing_rx_smoothed"]
+    assert smoothed == {"A": "250", "B": "50"}

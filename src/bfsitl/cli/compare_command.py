@@ -6,9 +6,13 @@ from __future__ import annotations
 import argparse
 import time
 from pathlib import Path
+from typing import TYPE_CHECKING
 
-from bfsitl.cli.arg_types import add_vehicle_argument, parse_speed, whole_number_at_least
+from bfsitl.cli.arg_types import add_vehicle_argument, parse_speed, rc_rate, whole_number_at_least
 from bfsitl.cli.target import progress
+
+if TYPE_CHECKING:
+    from bfsitl.scenario.compare import RcRate
 
 EXIT_OK = 0
 EXIT_DIFFERENT = 1
@@ -30,7 +34,9 @@ def add_compare_parser(actions: argparse._SubParsersAction) -> None:  # type: ig
         epilog="Examples:\n"
         "  bfsitl scenario compare --firmware master-lockstep --firmware my-branch\n"
         "  bfsitl scenario compare --firmware 4.6.0-gps-lockstep "
-        "--b-cli 'set ap_hover_throttle = 1275' --seeds 2 --report cmp/",
+        "--b-cli 'set ap_hover_throttle = 1275' --seeds 2 --report cmp/\n"
+        "  bfsitl scenario compare --firmware 4.6.0-gps-lockstep --b-rc-rate 50 "
+        "rc-loss-hover-drop",
         formatter_class=argparse.RawDescriptionHelpFormatter,
     )
     compare.add_argument(
@@ -47,7 +53,7 @@ def add_compare_parser(actions: argparse._SubParsersAction) -> None:  # type: ig
         metavar="NAME",
         required=True,
         help="side A's build; give it twice for side B's (once: both sides "
-        "fly it, and --a-cli / --b-cli make the difference)",
+        "fly it, and --a-cli / --b-cli or --a-rc-rate / --b-rc-rate make the difference)",
     )
     compare.add_argument(
         "--a-cli",
@@ -59,6 +65,19 @@ def add_compare_parser(actions: argparse._SubParsersAction) -> None:  # type: ig
     )
     compare.add_argument(
         "--b-cli", action="append", default=[], metavar="LINE", help="the same for side B"
+    )
+    compare.add_argument(
+        "--a-rc-rate",
+        type=side_rc_rate,
+        metavar="HZ|packet",
+        help="side A's RC link rate for every scenario instead of its own [rc] rate_hz "
+        "(16..1000, or 'packet': a frame in every fdm packet); replays keep their log's",
+    )
+    compare.add_argument(
+        "--b-rc-rate",
+        type=side_rc_rate,
+        metavar="HZ|packet",
+        help="the same for side B",
     )
     compare.add_argument(
         "--seeds",
@@ -121,6 +140,14 @@ def add_compare_parser(actions: argparse._SubParsersAction) -> None:  # type: ig
     compare.set_defaults(func=cmd_scenario_compare)
 
 
+def side_rc_rate(text: str) -> RcRate:
+    """``--a-rc-rate`` / ``--b-rc-rate``: a rate in Hz or ``packet`` (not given: each
+    scenario's own)."""
+    from bfsitl.scenario.compare import RcRate
+
+    return RcRate(rc_rate(text))
+
+
 def cmd_scenario_compare(args: argparse.Namespace) -> int:
     from bfsitl.cli.scenario_inputs import check_builds, paths_or_library
     from bfsitl.errors import ScenarioError
@@ -149,8 +176,8 @@ def cmd_scenario_compare(args: argparse.Namespace) -> int:
         )
     firmware_b = args.firmware[1] if len(args.firmware) == 2 else args.firmware[0]
     sides = (
-        Side("A", args.firmware[0], tuple(args.a_cli)),
-        Side("B", firmware_b, tuple(args.b_cli)),
+        Side("A", args.firmware[0], tuple(args.a_cli), args.a_rc_rate),
+        Side("B", firmware_b, tuple(args.b_cli), args.b_rc_rate),
     )
     scenarios = on_vehicle(find_scenarios(paths_or_library(args.paths)), args.vehicle)
     unknown = sorted(set(args.accept) - {s.name for s in scenarios})
@@ -161,8 +188,11 @@ def cmd_scenario_compare(args: argparse.Namespace) -> int:
         )
     planned = plan_comparison(scenarios, sides, args.seeds, args.out)
     check_builds([entry.run for entry in planned], given=True)
-    if (sides[0].firmware, sides[0].cli) == (sides[1].firmware, sides[1].cli):
-        progress("A and B are the same build and lines: every scenario should come out same")
+    a, b = ((side.firmware, side.cli, side.rc_rate) for side in sides)
+    if a == b:
+        progress(
+            "A and B are the same build, lines and RC link: every scenario should come out same"
+        )
     replays = sum(seeds_for(s, args.seeds) < args.seeds for s in scenarios)
     progress(
         f"{len(planned)} runs: {len(scenarios)} scenario(s) on 2 sides, {args.seeds} seed(s) "

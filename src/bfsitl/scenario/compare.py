@@ -70,17 +70,38 @@ class Change(enum.Enum):
 
 
 @dataclass(frozen=True, slots=True)
+class RcRate:
+    """An RC link rate a side flies every scenario at instead of its own ``[rc] rate_hz``."""
+
+    hz: float | None  # None: a frame in every fdm packet
+
+    @property
+    def text(self) -> str:
+        return "packet" if self.hz is None else f"{self.hz:g} Hz"
+
+
+@dataclass(frozen=True, slots=True)
 class Side:
-    """One side of a comparison: a firmware and CLI lines applied before each scenario's."""
+    """One side of a comparison: a firmware and CLI lines applied before each scenario's,
+    and the RC link's rate when it is not each scenario's own (``rc_rate``)."""
 
     label: str  # "A" or "B"
     firmware: str
     cli: tuple[str, ...] = ()
+    rc_rate: RcRate | None = None
 
     @property
     def title(self) -> str:
         extra = f" + {'; '.join(self.cli)}" if self.cli else ""
-        return f"{self.label}: {self.firmware}{extra}"
+        link = f", RC link {self.rc_rate.text}" if self.rc_rate is not None else ""
+        return f"{self.label}: {self.firmware}{extra}{link}"
+
+    def flies(self, scenario: Scenario) -> Scenario:
+        """``scenario`` as this side flies it: its lines first, at its RC link rate (a
+        replay keeps its log's, the rate its receiver had)."""
+        if self.rc_rate is None or scenario.replay is not None:
+            return replace(scenario, side_cli=self.cli)
+        return replace(scenario, side_cli=self.cli, rc_rate_hz=self.rc_rate.hz)
 
 
 @dataclass(frozen=True, slots=True)
@@ -104,7 +125,7 @@ def plan_comparison(
     for scenario in scenarios:
         for seed in range(scenario.seed, scenario.seed + seeds_for(scenario, seeds)):
             for side in sides:
-                variant = replace(scenario, seed=seed, side_cli=side.cli)
+                variant = replace(side.flies(scenario), seed=seed)
                 out = out_dir / side.label / dir_name(scenario.name) / f"seed-{seed}"
                 planned.append(
                     ComparedRun(side.label, seed, PlannedRun(variant, side.firmware, out))

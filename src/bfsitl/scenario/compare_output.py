@@ -63,7 +63,16 @@ def write_comparison_json(
     comparisons: Sequence[ScenarioComparison], sides: tuple[Side, Side], path: Path
 ) -> Path:
     data = {
-        "sides": [{"label": s.label, "firmware": s.firmware, "cli": list(s.cli)} for s in sides],
+        "sides": [
+            {
+                "label": s.label,
+                "firmware": s.firmware,
+                "cli": list(s.cli),
+                # Absent: each scenario's own [rc] rate_hz; null: a frame in every packet.
+                **({"rc_rate_hz": s.rc_rate.hz} if s.rc_rate is not None else {}),
+            }
+            for s in sides
+        ],
         "scenarios": [
             {
                 "name": c.name,

@@ -14,6 +14,7 @@ from bfsitl.errors import ScenarioError
 from bfsitl.scenario.compare import (
     Change,
     ComparedRun,
+    RcRate,
     Side,
     compare_results,
     plan_comparison,
@@ -29,6 +30,7 @@ from bfsitl.scenario.report import overridden
 from bfsitl.scenario.result import CheckResult, ScenarioResult, Verdict
 from bfsitl.scenario.setup_lines import hover_throttle_line, provisioned_settings, scenario_profile
 from bfsitl.scenario.spec import scenario_from_dict
+from bfsitl.sim.rc_frames import DEFAULT_RC_RATE_HZ
 from tests.support.scenario_files import V46
 
 SIDES = (
@@ -200,6 +202,48 @@ def test_errors_skips_and_accepting() -> None:
     a = [result(touchdown=1.0)]
     accepted = judge(a, [result(touchdown=5.0)], accepted=("drop",))
     assert accepted.change is Change.WORSE and accepted.accepted and not accepted.fails
+
+
+def test_a_side_may_fly_every_scenario_at_another_rc_link_rate(tmp_path: Path) -> None:
+    own = scenario_from_dict(
+        {
+            "duration_s": 10,
+            "flight": {"takeoff_alt_m": 2.0},
+            "rc": {"rate_hz": 150},
+            "expect": {"disarmed": False},
+        },
+        name="own",
+    )
+    sides = (Side("A", "fw"), Side("B", "fw", rc_rate=RcRate(50.0)))
+    planned = plan_comparison([own, scenario()], sides, 1, tmp_path)
+    rates = [(p.side, p.run.scenario.name, p.run.scenario.rc_rate_hz) for p in planned]
+    assert rates == [
+        ("A", "own", 150.0),
+        ("B", "own", 50.0),
+        ("A", "drop", DEFAULT_RC_RATE_HZ),
+        ("B", "drop", 50.0),
+    ]
+    every_packet = Side("B", "fw", rc_rate=RcRate(None))
+    (_, b) = plan_comparison([own], (sides[0], every_packet), 1, tmp_path)
+    assert b.run.scenario.rc_rate_hz is None
+    assert sides[1].title == "B: fw, RC link 50 Hz"
+    assert every_packet.title == "B: fw, RC link packet"
+    data = json.loads(write_comparison_json([], sides, tmp_path / "c.json").read_text())
+    assert "rc_rate_hz" not in data["sides"][0] and data["sides"][1]["rc_rate_hz"] == 50.0
+
+
+def test_the_rc_rate_options_parse_and_refuse_what_no_receiver_sends() -> None:
+    from bfsitl.cli.main import build_parser
+
+    parser = build_parser()
+    args = parser.parse_args(
+        ["scenario", "compare", "--firmware", "fw", "--a-rc-rate", "packet", "--b-rc-rate", "500"]
+    )
+    assert (args.a_rc_rate, args.b_rc_rate) == (RcRate(None), RcRate(500.0))
+    plain = parser.parse_args(["scenario", "compare", "--firmware", "fw"])
+    assert plain.a_rc_rate is None and plain.b_rc_rate is None  # each scenario's own
+    with pytest.raises(SystemExit):
+        parser.parse_args(["scenario", "compare", "--firmware", "fw", "--b-rc-rate", "5"])
 
 
 def test_what_a_comparison_writes(tmp_path: Path) -> None:

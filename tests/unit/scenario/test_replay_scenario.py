@@ -22,7 +22,14 @@ from bfsitl.replay.header_settings import header_settings
 from bfsitl.replay.replay_log import Replay
 from bfsitl.replay.sticks import stick_stream
 from bfsitl.scenario import expect_replay
-from bfsitl.scenario.compare import Change, Side, compare_results, plan_comparison, seeds_for
+from bfsitl.scenario.compare import (
+    Change,
+    RcRate,
+    Side,
+    compare_results,
+    plan_comparison,
+    seeds_for,
+)
 from bfsitl.scenario.expectations import check_expectations, judge
 from bfsitl.scenario.load import load_scenario
 from bfsitl.scenario.metrics import replay_metrics
@@ -146,6 +153,10 @@ def test_a_slower_replay_on_b_is_worse_and_the_same_replay_is_the_same(tmp_path:
     sides = (Side("A", "fw"), Side("B", "fw", ("set p_roll = 20",)))
     planned = plan_comparison([scenario], sides, 3, tmp_path / "cmp")
     assert len(planned) == 2  # one seed each: a replay repeats bit for bit
+    # A side's RC link rate is not a replay's: it sends its log's frames at their own rate.
+    at_50 = (sides[0], Side("B", "fw", rc_rate=RcRate(50.0)))
+    (a, b) = plan_comparison([scenario], at_50, 3, tmp_path / "cmp")
+    assert b.run.scenario.rc_rate_hz == a.run.scenario.rc_rate_hz == scenario.rc_rate_hz
     (same,) = compare_results(planned, [_result(0.02, "a"), _result(0.02, "b")], sides)
     assert same.change is Change.SAME, same.reason
     (slower,) = compare_results(planned, [_result(0.02, "a"), _result(0.04, "b")], sides)

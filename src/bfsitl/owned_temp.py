@@ -45,22 +45,37 @@ def remove_stale_dirs(prefix: str, folder: Path) -> list[Path]:
     Returns:
         The directories removed.
     """
-    try:
-        entries = list(folder.glob(f"{prefix}*"))
-    except OSError:
-        return []
     removed = []
-    for entry in entries:
-        pid_text = entry.name[len(prefix) :].split("-", 1)[0]
-        # Names without a pid are older bfsitl's (or another tool's): not ours to judge.
-        if not pid_text.isdigit() or process_running(int(pid_text)):
-            continue
+    for entry in left_by_gone_processes(prefix, folder):
         if entry.is_symlink() or not entry.is_dir():
             continue
         shutil.rmtree(entry, ignore_errors=True)
         if not entry.exists():
             removed.append(entry)
     return removed
+
+
+def left_by_gone_processes(prefix: str, folder: Path) -> list[Path]:
+    """The entries ``<prefix><pid>-...`` of ``folder`` whose process no longer runs.
+
+    Args:
+        prefix: What names the kind of entry.
+        folder: Where to look (a folder that cannot be read has none).
+
+    Returns:
+        Their paths; names without a pid (older bfsitl's, or another tool's) are not
+        among them.
+    """
+    try:
+        entries = list(folder.glob(f"{prefix}*"))
+    except OSError:
+        return []
+    gone = []
+    for entry in entries:
+        pid_text = entry.name[len(prefix) :].split("-", 1)[0]
+        if pid_text.isdigit() and not process_running(int(pid_text)):
+            gone.append(entry)
+    return gone
 
 
 def process_running(pid: int) -> bool:

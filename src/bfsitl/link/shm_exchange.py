@@ -30,7 +30,7 @@ from collections.abc import Callable
 from pathlib import Path
 
 from bfsitl.errors import SitlError
-from bfsitl.owned_temp import process_running
+from bfsitl.owned_temp import left_by_gone_processes
 
 #: The variable that names the region to the FC.
 SHM_ENV = "BFSITL_LOCKSTEP_SHM"
@@ -273,14 +273,7 @@ def _unlink(path: Path) -> None:
 def remove_stale_regions(folder: Path) -> None:
     """Remove regions left by processes that no longer run (a SIGKILLed bfsitl cannot
     clean up after itself); the owner's pid is in the name."""
-    try:
-        entries = list(folder.glob(f"{_PREFIX}*"))
-    except OSError:
-        return
-    for entry in entries:
-        pid_text = entry.name[len(_PREFIX) :].split("-", 1)[0]
-        if not pid_text.isdigit() or process_running(int(pid_text)):
-            continue
+    for entry in left_by_gone_processes(_PREFIX, folder):
         try:
             entry.unlink()
         except OSError:
